@@ -1,0 +1,1 @@
+"""Campaign protocol files, planner, acquisition runner and the ``campaign`` CLI."""

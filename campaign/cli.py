@@ -1,0 +1,65 @@
+"""The ``campaign`` command line (typer).
+
+Every sub-command lives in its own module of :mod:`campaign.commands` and
+registers itself with ``register(app)``. Bad input raises
+:class:`analysis.errors.InputError`; :func:`main` prints it as one line on
+stderr and exits with status 2, never with a traceback.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+
+import typer
+
+import campaign.commands
+from analysis.errors import InputError
+
+
+def build_app() -> typer.Typer:
+    """Create the typer app with every command module of :mod:`campaign.commands`."""
+    app = typer.Typer(
+        name="campaign",
+        help="Plan, run and analyse joint-stiffness identification campaigns of serial robots.",
+        no_args_is_help=True,
+        add_completion=False,
+        pretty_exceptions_enable=False,
+    )
+    for info in sorted(pkgutil.iter_modules(campaign.commands.__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"campaign.commands.{info.name}")
+        register = getattr(module, "register", None)
+        if register is not None:
+            register(app)
+    return app
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the console script; returns the exit status."""
+    app = build_app()
+    try:
+        app(args=argv, standalone_mode=False)
+    except InputError as err:
+        typer.echo(f"error: {err}", err=True)
+        return 2
+    except typer.Abort:
+        typer.echo("aborted", err=True)
+        return 1
+    except typer.Exit as ex:
+        return int(ex.exit_code or 0)
+    except KeyboardInterrupt:
+        typer.echo("interrupted", err=True)
+        return 130
+    except Exception as err:  # click usage errors carry their own exit code
+        import click
+
+        if isinstance(err, click.ClickException):
+            err.show()
+            return err.exit_code
+        raise
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Instrument drivers (robots, force/torque sensors, trackers, loads) and simulated fakes."""
