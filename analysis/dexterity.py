@@ -1,0 +1,76 @@
+"""Dexterity: normalized Jacobian, Frobenius condition number (Dumas et al. 2011, eqs. 3-4)
+and the characteristic length."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import minimize
+
+from analysis.kinematics import jacobian
+from analysis.robot_model import RobotModel
+
+
+def normalized_jacobian(J: np.ndarray, length: float) -> np.ndarray:
+    """J_N = diag(I/L, I) J (eq. 4): translational rows divided by L (m); dimensionless."""
+    scale = np.array([1.0 / length] * 3 + [1.0] * 3)
+    return J * scale[:, None]
+
+
+def frobenius_condition(M: np.ndarray) -> np.ndarray:
+    """kappa_F(M) = (1/m) sqrt(tr(M^T M) tr((M^T M)^-1)) (eq. 3), batched over (..., m, m).
+
+    Returns ``inf`` where M is singular (rank-deficient to working precision),
+    never NaN.
+    """
+    M = np.asarray(M, dtype=float)
+    m = M.shape[-1]
+    # Through singular values: tr(M^T M) = sum s^2, tr((M^T M)^-1) = sum 1/s^2.
+    s = np.linalg.svd(M, compute_uv=False)
+    smax = s[..., :1]
+    singular = s[..., -1] <= smax[..., 0] * 1e-12
+    with np.errstate(divide="ignore", over="ignore"):
+        inv = np.where(singular[..., None], np.inf, 1.0 / np.where(s > 0, s, 1.0) ** 2)
+    kappa = np.sqrt(np.sum(s**2, axis=-1) * np.sum(inv, axis=-1)) / m
+    return np.where(singular, np.inf, kappa)
+
+
+def inverse_condition(M: np.ndarray) -> np.ndarray:
+    """1/kappa_F in [0, 1]; exactly 0 at a singular pose."""
+    kappa = frobenius_condition(M)
+    return np.where(np.isinf(kappa), 0.0, 1.0 / kappa)
+
+
+def characteristic_length(
+    robot: RobotModel, starts: int = 12, seed: int = 0
+) -> tuple[float, np.ndarray, float]:
+    """Characteristic length L (m) minimising the condition number of J_N.
+
+    Method (Khan and Angeles 2006, the paper's ref. [22]): L and the posture
+    are chosen together to minimise kappa_F(J_N(q, L)); q_1 does not affect
+    kappa_F and is held at 0. A Nelder-Mead search from ``starts`` seeded random
+    postures within the limits, over (q_2..q_n, log L).
+
+    Returns
+    -------
+    (L, q_opt, kappa_min) : L in m, the optimal posture (rad), the minimum kappa_F.
+    """
+    rng = np.random.default_rng(seed)
+    reach = np.linalg.norm(robot.chain.placements[:, :3, 3], axis=1).sum() + np.linalg.norm(
+        robot.chain.tip[:3, 3]
+    )
+
+    def cost(z: np.ndarray) -> float:
+        q = np.concatenate([[0.0], z[:-1]])
+        k = frobenius_condition(normalized_jacobian(jacobian(robot, q), np.exp(z[-1])))
+        return float(k) if np.isfinite(k) else 1e12
+
+    best = None
+    for _ in range(starts):
+        z0 = np.concatenate([rng.uniform(robot.lower[1:], robot.upper[1:]), [np.log(reach / 3)]])
+        res = minimize(cost, z0, method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-8,
+                                                                "fatol": 1e-12})
+        if best is None or res.fun < best.fun:
+            best = res
+    assert best is not None
+    q_opt = np.concatenate([[0.0], best.x[:-1]])
+    return float(np.exp(best.x[-1])), q_opt, float(best.fun)

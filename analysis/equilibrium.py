@@ -1,0 +1,67 @@
+"""The nonlinear elastostatic equilibrium and the finite displacement it produces.
+
+``K_theta dq = J(q + dq)^T w`` is solved by Newton's method, batched over poses;
+its Jacobian is ``K_theta - K_C(q + dq)``. This is the model the simulated lab
+uses and the exact identification fits; the linear model of eq. 14 is its
+first-order approximation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.kinematics import chain_state, jacobian_from_state, pose_difference
+from analysis.robot_model import RobotModel
+from analysis.stiffness import complementary_stiffness_from_state
+
+
+class EquilibriumError(RuntimeError):
+    """Newton's method did not converge (load close to buckling the model)."""
+
+
+def solve_deflection(
+    robot: RobotModel,
+    q: np.ndarray,
+    k: np.ndarray,
+    w: np.ndarray,
+    tol: float = 1e-14,
+    max_iter: int = 50,
+) -> np.ndarray:
+    """Joint deflection dq (..., n) (rad) solving K_theta dq = J(q + dq)^T w.
+
+    Parameters
+    ----------
+    q : (..., n) joint angles (rad); k : (n,) or (..., n) joint stiffness (N m/rad);
+    w : (..., 6) wrench [f (N); m (N m)] at P, base frame.
+    tol : convergence on max |step| (rad).
+    """
+    q = np.asarray(q, dtype=float)
+    k = np.asarray(k, dtype=float)
+    w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
+    n = q.shape[-1]
+    Kt = k[..., :, None] * np.eye(n)
+    dq = np.zeros_like(q)
+    for _ in range(max_iter):
+        state = chain_state(robot, q + dq)
+        J = jacobian_from_state(state)
+        resid = k * dq - np.einsum("...ji,...j->...i", J, w)
+        jac = Kt - complementary_stiffness_from_state(state, w)
+        step = np.linalg.solve(jac, resid[..., None])[..., 0]
+        dq = dq - step
+        if np.max(np.abs(step), initial=0.0) <= tol:
+            return dq
+    raise EquilibriumError(
+        f"equilibrium did not converge in {max_iter} Newton steps (last step "
+        f"{np.max(np.abs(step)):.3g} rad): the wrench is too large for this stiffness"
+    )
+
+
+def displacement_screw(
+    robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray
+) -> np.ndarray:
+    """Finite displacement of P under w: [p(q+dq) - p(q) (m); rotvec(R(q+dq) R(q)^T) (rad)]."""
+    q = np.asarray(q, dtype=float)
+    dq = solve_deflection(robot, q, k, w)
+    t0 = chain_state(robot, q).tip
+    t1 = chain_state(robot, q + dq).tip
+    return pose_difference(t0, t1)

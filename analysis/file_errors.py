@@ -1,0 +1,110 @@
+"""Turn pydantic validation errors into messages that name the file, key and line.
+
+TOML parsers do not keep positions, so the line of a key is found by scanning
+the text (array-of-tables headers are counted to reach the right element).
+YAML nodes carry their own marks.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+
+from pydantic import ValidationError
+
+from analysis.errors import InputError
+
+
+def _dotted(loc: Sequence) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def toml_line(text: str, loc: Sequence) -> int | None:
+    """1-based line of the key ``loc`` (e.g. ``("joints", 2, "alpha")``) in TOML text."""
+    lines = text.splitlines()
+    start = 0
+    end = len(lines)
+    prefix: list[str] = []
+    i = 0
+    found: int | None = None
+    while i < len(loc):
+        part = loc[i]
+        if isinstance(part, int):
+            i += 1
+            continue
+        name = str(part)
+        index = loc[i + 1] if i + 1 < len(loc) and isinstance(loc[i + 1], int) else None
+        table = ".".join([*prefix, name])
+        header = re.compile(r"^\s*\[\[?\s*" + re.escape(table) + r"\s*\]\]?\s*(#.*)?$")
+        headers = [k for k in range(start, end) if header.match(lines[k])]
+        if headers:
+            k = headers[index] if index is not None and index < len(headers) else headers[0]
+            found = k + 1
+            start = k + 1
+            nxt = [m for m in range(start, end) if re.match(r"^\s*\[", lines[m])]
+            end = nxt[0] if nxt else end
+            prefix.append(name)
+            i += 2 if index is not None else 1
+            continue
+        key = re.compile(r"^\s*" + re.escape(name) + r"\s*=")
+        for k in range(start, end):
+            if key.match(lines[k]):
+                return k + 1
+        return found
+    return found
+
+
+def yaml_line(text: str, loc: Sequence) -> int | None:
+    """1-based line of the key ``loc`` in YAML text (from the composed node marks)."""
+    import yaml
+
+    try:
+        node = yaml.compose(text)
+    except yaml.YAMLError:
+        return None
+    line = None
+    for part in loc:
+        if node is None:
+            break
+        if isinstance(node, yaml.MappingNode):
+            match = [(k, v) for k, v in node.value if k.value == part]
+            if not match:
+                break
+            line = match[0][0].start_mark.line + 1
+            node = match[0][1]
+        elif isinstance(node, yaml.SequenceNode) and isinstance(part, int):
+            if part >= len(node.value):
+                break
+            node = node.value[part]
+            line = node.start_mark.line + 1
+        else:
+            break
+    return line
+
+
+def input_error_from_validation(err: ValidationError, path: str, text: str) -> InputError:
+    """One :class:`InputError` listing every problem as ``file:line: key: message``."""
+    finder = yaml_line if path.endswith((".yaml", ".yml")) else toml_line
+    problems = []
+    for item in err.errors():
+        loc = tuple(p for p in item["loc"] if p not in ("function-after",))
+        line = finder(text, loc) if loc else None
+        key = _dotted(loc) or "(top level)"
+        msg = item["msg"]
+        if item["type"] == "extra_forbidden":
+            msg = "unknown key"
+        if item["type"] == "missing":
+            msg = "required key is missing"
+        got = item.get("input")
+        detail = f" (got {got!r})" if item["type"] not in ("missing", "extra_forbidden") and (
+            isinstance(got, str | int | float | bool)
+        ) else ""
+        where = f"{path}:{line}" if line else path
+        problems.append(f"{where}: {key}: {msg}{detail}")
+    return InputError("\n".join(problems))

@@ -1,0 +1,123 @@
+"""Forward kinematics and the kinematic Jacobian of the tool point P.
+
+Two implementations of the same quantities:
+
+* batched numpy functions over the chain extracted from the Pinocchio model
+  (:class:`analysis.robot_model.Chain`): a whole grid of poses at once;
+* per-pose Pinocchio calls (``pin_*``), the reference the batched code is
+  tested against.
+
+Conventions: J is 6 x n, rows ``[linear; angular]``, maps joint rates (rad/s)
+to the twist ``[dp/dt (m/s); omega (rad/s)]`` of P, base-frame axes
+(Pinocchio's ``LOCAL_WORLD_ALIGNED`` at P).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from analysis.robot_model import RobotModel
+
+
+def _rotations(axes: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Rodrigues: rotation matrices (..., 3, 3) about unit ``axes`` (3,) by ``q`` (...)."""
+    k = np.array(
+        [[0.0, -axes[2], axes[1]], [axes[2], 0.0, -axes[0]], [-axes[1], axes[0], 0.0]]
+    )
+    s, c = np.sin(q)[..., None, None], np.cos(q)[..., None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+@dataclass(frozen=True)
+class ChainState:
+    """Kinematic state of a batch of poses (base frame, SI units).
+
+    ``origins`` (..., n, 3) joint origins (m); ``axes`` (..., n, 3) joint axes;
+    ``tip`` (..., 4, 4) pose of P.
+    """
+
+    origins: np.ndarray
+    axes: np.ndarray
+    tip: np.ndarray
+
+
+def chain_state(robot: RobotModel, q: np.ndarray) -> ChainState:
+    """Joint origins and axes and the tool pose, batched over the leading axes of q."""
+    chain = robot.chain
+    q = np.asarray(q, dtype=float)
+    batch = q.shape[:-1]
+    rot = np.broadcast_to(np.eye(3), (*batch, 3, 3))
+    pos = np.zeros((*batch, 3))
+    origins = np.empty((*batch, chain.n, 3))
+    axes = np.empty((*batch, chain.n, 3))
+    for i in range(chain.n):
+        place = chain.placements[i]
+        pos = pos + rot @ place[:3, 3]
+        rot = rot @ place[:3, :3]
+        origins[..., i, :] = pos
+        axes[..., i, :] = rot @ chain.axes[i]
+        rot = rot @ _rotations(chain.axes[i], q[..., i])
+    tip = np.zeros((*batch, 4, 4))
+    tip[..., :3, :3] = rot @ chain.tip[:3, :3]
+    tip[..., :3, 3] = pos + rot @ chain.tip[:3, 3]
+    tip[..., 3, 3] = 1.0
+    return ChainState(origins, axes, tip)
+
+
+def tool_pose(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """Homogeneous transform (..., 4, 4) of P in the base frame (m), batched."""
+    return chain_state(robot, q).tip
+
+
+def jacobian_from_state(state: ChainState) -> np.ndarray:
+    """J (..., 6, n) from a :class:`ChainState`: column i = [w_i x (p - o_i); w_i]."""
+    p = state.tip[..., None, :3, 3]
+    lin = np.cross(state.axes, p - state.origins)
+    return np.concatenate([np.swapaxes(lin, -1, -2), np.swapaxes(state.axes, -1, -2)], axis=-2)
+
+
+def jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """Kinematic Jacobian J (..., 6, n) of P, rows [linear; angular], base axes."""
+    return jacobian_from_state(chain_state(robot, q))
+
+
+def pin_tool_pose(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """Pose of P (4, 4) at one configuration, computed by Pinocchio."""
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+    return data.oMf[robot.tip_frame].homogeneous.copy()
+
+
+def pin_jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """J (6, n) at one configuration, computed by Pinocchio (LOCAL_WORLD_ALIGNED at P)."""
+    data = robot.model.createData()
+    q = np.asarray(q, dtype=float)
+    pin.computeJointJacobians(robot.model, data, q)
+    pin.updateFramePlacements(robot.model, data)
+    return pin.getFrameJacobian(
+        robot.model, data, robot.tip_frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    ).copy()
+
+
+def rotation_vector(rot: np.ndarray) -> np.ndarray:
+    """Rotation vector (..., 3) (rad) of rotation matrices (..., 3, 3)."""
+    from scipy.spatial.transform import Rotation
+
+    rot = np.asarray(rot, dtype=float)
+    flat = rot.reshape(-1, 3, 3)
+    vec = Rotation.from_matrix(flat).as_rotvec()
+    return vec.reshape(*rot.shape[:-2], 3)
+
+
+def pose_difference(t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
+    """Displacement screw (..., 6) from pose ``t_from`` to ``t_to`` (4x4, base frame).
+
+    ``[p_to - p_from (m); rotvec(R_to R_from^T) (rad)]``: the small rotation
+    vector is expressed in the base frame, as the paper's delta_X.
+    """
+    dp = t_to[..., :3, 3] - t_from[..., :3, 3]
+    dr = rotation_vector(t_to[..., :3, :3] @ np.swapaxes(t_from[..., :3, :3], -1, -2))
+    return np.concatenate([dp, dr], axis=-1)

@@ -1,0 +1,260 @@
+"""Robot description files (TOML or YAML) and URDF loading.
+
+File format (every number in the units the file declares)::
+
+    name = "My robot"
+    aliases = ["myrobot"]             # names accepted by --robot
+    convention = "modified_dh"        # or "standard_dh"
+    length_unit = "mm"                # "m" or "mm"
+    angle_unit = "deg"                # "deg" or "rad"
+    stiffness_unit = "N m/rad"        # or "kN m/rad"
+    limits_convention = "controller"  # joint limits as the pendant shows them, or "model"
+    characteristic_length = 682       # optional, length_unit
+
+    [[joints]]                        # six of them, base to tip
+    alpha = 0                         # standard_dh: a, alpha, d, theta0
+    d = 0                             # modified_dh: alpha, d, r, theta0
+    r = 0
+    theta0 = 0                        # constant offset: theta = q + theta0
+    lower = -185                      # joint limits, angle_unit
+    upper = 185
+    stiffness = 1409800               # optional nominal stiffness, stiffness_unit
+    controller_sign = 1               # q_ctrl = sign * q_model + offset
+    controller_offset = 0             # angle_unit
+
+    [tool]                            # tool point P in the flange frame
+    xyz = [0, 0, 100]                 # length_unit
+    rpy = [0, 0, 0]                   # angle_unit, fixed-axis roll-pitch-yaw
+
+    [[zones]]                         # optional joint-space boxes, model convention
+    name = "zone 1"
+    ranges = { q2 = [0, 110], q3 = [-245, -170] }
+
+    [[reference_poses]]               # optional published FK checks (tests use them)
+    q = [0, 0, 0, 0, 0, 0]            # model convention, angle_unit
+    position = [1, 2, 3]              # of P, length_unit
+    source = "..."
+
+    [sources]                         # where every number comes from
+    geometry = "..."
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pinocchio as pin
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from analysis.dh import DHRow, build_dh_model
+from analysis.errors import InputError
+from analysis.file_errors import input_error_from_validation
+from analysis.robot_model import RobotModel, Zone, chain_from_pinocchio
+
+_LENGTH = {"m": 1.0, "mm": 1e-3}
+_ANGLE = {"rad": 1.0, "deg": np.pi / 180.0}
+_STIFF = {"N m/rad": 1.0, "kN m/rad": 1e3}
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class JointSpec(_Strict):
+    alpha: float = 0.0
+    a: float = 0.0
+    d: float = 0.0
+    r: float = 0.0
+    theta0: float = 0.0
+    lower: float
+    upper: float
+    stiffness: float | None = Field(default=None, gt=0)
+    controller_sign: Literal[1, -1] = 1
+    controller_offset: float = 0.0
+
+    @model_validator(mode="after")
+    def _limits_ordered(self) -> JointSpec:
+        if self.lower >= self.upper:
+            raise ValueError(f"lower limit {self.lower} must be below upper limit {self.upper}")
+        return self
+
+
+class ToolSpec(_Strict):
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+class ZoneSpec(_Strict):
+    name: str
+    ranges: dict[str, tuple[float, float]]
+
+    @field_validator("ranges")
+    @classmethod
+    def _keys(cls, value: dict) -> dict:
+        for key, (lo, hi) in value.items():
+            if not (key.startswith("q") and key[1:].isdigit()):
+                raise ValueError(f"zone range key {key!r}: expected q1..q6")
+            if lo >= hi:
+                raise ValueError(f"zone range {key} = [{lo}, {hi}]: expected low < high")
+        return value
+
+
+class ReferencePose(_Strict):
+    q: list[float]
+    position: tuple[float, float, float]
+    source: str
+
+
+class RobotFile(_Strict):
+    name: str
+    aliases: list[str] = []
+    convention: Literal["standard_dh", "modified_dh"]
+    length_unit: Literal["m", "mm"]
+    angle_unit: Literal["deg", "rad"]
+    stiffness_unit: Literal["N m/rad", "kN m/rad"] = "N m/rad"
+    limits_convention: Literal["model", "controller"] = "model"
+    characteristic_length: float | None = Field(default=None, gt=0)
+    joints: list[JointSpec] = Field(min_length=6, max_length=6)
+    tool: ToolSpec = ToolSpec()
+    zones: list[ZoneSpec] = []
+    reference_poses: list[ReferencePose] = []
+    sources: dict[str, str]
+    notes: str = ""
+
+    @model_validator(mode="after")
+    def _convention_fields(self) -> RobotFile:
+        unused = "r" if self.convention == "standard_dh" else "a"
+        for i, joint in enumerate(self.joints):
+            if getattr(joint, unused) != 0.0:
+                used = "a, alpha, d, theta0" if unused == "r" else "alpha, d, r, theta0"
+                raise ValueError(
+                    f"joints[{i}].{unused} is not a {self.convention} parameter "
+                    f"(expected {used})"
+                )
+        return self
+
+
+def _read_mapping(path: Path) -> tuple[dict, str]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise InputError(f"cannot read robot file: {err.strerror}", where=str(path)) from err
+    try:
+        if path.suffix in (".yaml", ".yml"):
+            data = yaml.safe_load(text)
+        else:
+            data = tomllib.loads(text)
+    except (tomllib.TOMLDecodeError, yaml.YAMLError) as err:
+        raise InputError(f"not valid {path.suffix[1:].upper()}: {err}", where=str(path)) from err
+    if not isinstance(data, dict):
+        raise InputError("expected a table of keys at the top level", where=str(path))
+    return data, text
+
+
+def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
+    return pin.rpy.rpyToMatrix(float(rpy[0]), float(rpy[1]), float(rpy[2]))
+
+
+def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = "") -> RobotModel:
+    """Build a :class:`RobotModel` from a validated robot file."""
+    ls, ang = _LENGTH[spec.length_unit], _ANGLE[spec.angle_unit]
+    rows = [
+        DHRow(alpha=j.alpha * ang, a=j.a * ls, d=j.d * ls, r=j.r * ls, theta0=j.theta0 * ang)
+        for j in spec.joints
+    ]
+    sign = np.array([j.controller_sign for j in spec.joints], dtype=float)
+    offset = np.array([j.controller_offset for j in spec.joints]) * ang
+    lower = np.array([j.lower for j in spec.joints]) * ang
+    upper = np.array([j.upper for j in spec.joints]) * ang
+    if spec.limits_convention == "controller":
+        a, b = sign * (lower - offset), sign * (upper - offset)
+        lower, upper = np.minimum(a, b), np.maximum(a, b)
+    tool = pin.SE3(_rpy_matrix(np.array(spec.tool.rpy) * ang), np.array(spec.tool.xyz) * ls)
+    model, tip = build_dh_model(rows, spec.convention, tool, lower, upper, name=spec.name)
+    stiff = [j.stiffness for j in spec.joints]
+    nominal = None
+    if all(s is not None for s in stiff):
+        nominal = np.array(stiff, dtype=float) * _STIFF[spec.stiffness_unit]
+    zones = []
+    for z in spec.zones:
+        ranges = {}
+        for k, (lo, hi) in z.ranges.items():
+            j = int(k[1:]) - 1
+            if not 0 <= j < 6:
+                raise InputError(f"zone {z.name!r}: joint {k} does not exist", where=source_file)
+            ranges[j] = (lo * ang, hi * ang)
+        zones.append(Zone(z.name, ranges))
+    refs = [
+        {"q": np.array(r.q) * ang, "position": np.array(r.position) * ls, "source": r.source}
+        for r in spec.reference_poses
+    ]
+    return RobotModel(
+        name=spec.name,
+        model=model,
+        tip_frame=tip,
+        lower=lower,
+        upper=upper,
+        chain=chain_from_pinocchio(model, tip),
+        nominal_stiffness=nominal,
+        characteristic_length=(
+            None if spec.characteristic_length is None else spec.characteristic_length * ls
+        ),
+        controller_sign=sign,
+        controller_offset=offset,
+        zones=zones,
+        sources=dict(spec.sources),
+        reference_poses=refs,
+        source_file=source_file,
+        key=key,
+    )
+
+
+def load_robot_file(path: str | Path, key: str = "") -> RobotModel:
+    """Load a TOML or YAML robot description file (see module docstring)."""
+    path = Path(path)
+    data, text = _read_mapping(path)
+    try:
+        spec = RobotFile.model_validate(data)
+    except ValidationError as err:
+        raise input_error_from_validation(err, str(path), text) from None
+    return robot_from_spec(spec, source_file=str(path), key=key or path.stem)
+
+
+def load_urdf(path: str | Path, tip: str, name: str | None = None) -> RobotModel:
+    """Load a URDF and keep the serial chain of revolute joints from the base to ``tip``.
+
+    Joints not on the chain (grippers, fingers) are locked at zero. Limits come
+    from the URDF. No nominal stiffness: give it on the command line.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("URDF file not found", where=str(path))
+    try:
+        full = pin.buildModelFromUrdf(str(path))
+    except (RuntimeError, ValueError) as err:
+        raise InputError(f"cannot parse URDF: {err}", where=str(path)) from err
+    if not full.existFrame(tip):
+        names = sorted({f.name for f in full.frames if f.name != "universe"})
+        raise InputError(
+            f"no frame named {tip!r} in the URDF (frames: {', '.join(names)})", where="--tip"
+        )
+    fid = full.getFrameId(tip)
+    support = set(full.supports[full.frames[fid].parentJoint])
+    lock = [j for j in range(1, full.njoints) if j not in support]
+    model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
+    tip_id = model.getFrameId(tip)
+    return RobotModel(
+        name=name or model.name or path.stem,
+        model=model,
+        tip_frame=tip_id,
+        lower=np.array(model.lowerPositionLimit, dtype=float),
+        upper=np.array(model.upperPositionLimit, dtype=float),
+        chain=chain_from_pinocchio(model, tip_id),
+        sources={"geometry": f"URDF {path.name}"},
+        source_file=str(path),
+        key=path.stem,
+    )

@@ -1,0 +1,71 @@
+"""Built-in robot models and the one function that resolves ``--robot``.
+
+Built-in models are robot files shipped in ``analysis/data/robots`` (the same
+format users write, see :mod:`analysis.robot_files`), each number with its source.
+"""
+
+from __future__ import annotations
+
+import functools
+from importlib import resources
+from pathlib import Path
+
+from analysis.errors import InputError
+from analysis.robot_files import load_robot_file, load_urdf
+from analysis.robot_model import RobotModel
+
+
+def _data_dir() -> Path:
+    return Path(str(resources.files("analysis") / "data" / "robots"))
+
+
+@functools.cache
+def builtin_files() -> dict[str, Path]:
+    """Map of every accepted built-in name (key and aliases, lower case) to its file."""
+    import tomllib
+
+    names: dict[str, Path] = {}
+    for path in sorted(_data_dir().glob("*.toml")):
+        names[path.stem] = path
+        with path.open("rb") as fh:
+            for alias in tomllib.load(fh).get("aliases", []):
+                names[alias.lower()] = path
+    return names
+
+
+def builtin_names() -> list[str]:
+    """Canonical keys of the built-in models."""
+    return sorted(p.stem for p in _data_dir().glob("*.toml"))
+
+
+@functools.cache
+def _load_builtin(key: str) -> RobotModel:
+    path = builtin_files()[key]
+    return load_robot_file(path, key=path.stem)
+
+
+def load_robot(spec: str, tip: str | None = None) -> RobotModel:
+    """Resolve a robot: a built-in name, a robot file (.toml/.yaml/.yml) or a URDF.
+
+    Parameters
+    ----------
+    spec : built-in name (see ``campaign robots``) or a file path.
+    tip : frame name of the tool point, required for a URDF.
+    """
+    key = spec.strip().lower()
+    if key in builtin_files():
+        return _load_builtin(key)
+    path = Path(spec)
+    if path.suffix.lower() == ".urdf":
+        if not tip:
+            raise InputError("a URDF needs the tool frame: add --tip FRAME", where="--robot")
+        return load_urdf(path, tip)
+    if path.suffix.lower() in (".toml", ".yaml", ".yml"):
+        if not path.is_file():
+            raise InputError("robot file not found", where=str(path))
+        return load_robot_file(path)
+    raise InputError(
+        f"unknown robot {spec!r}: expected one of {', '.join(builtin_names())}, "
+        "or a .toml/.yaml robot file, or a .urdf with --tip",
+        where="--robot",
+    )

@@ -1,0 +1,122 @@
+"""Cartesian stiffness model (Dumas et al. 2011, eqs. 5-12), pure batched functions.
+
+Sign convention: ``w = [f (N); m (N m)]`` is the external wrench applied on the
+end-effector at P, base-frame components. The joints are in equilibrium
+``K_theta dtheta = J(theta + dtheta)^T w``; differentiating gives
+``(K_theta - K_C) d(dtheta) = J^T dw`` with ``K_C = [dJ^T/dtheta_i w]`` (eq. 8),
+hence ``K_X = J^-T (K_theta - K_C) J^-1`` (eq. 6) and the deflection screw
+``dX = J (K_theta - K_C)^-1 J^T w``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.errors import SingularPoseError
+from analysis.kinematics import ChainState, chain_state, jacobian_from_state
+from analysis.robot_model import RobotModel
+
+
+def complementary_stiffness_from_state(state: ChainState, w: np.ndarray) -> np.ndarray:
+    """K_C (..., n, n) (N m/rad), eq. 8: ``K_C[i, k] = d(J^T w)_i / dtheta_k``.
+
+    Closed form for revolute joints, with J_i = [v_i; omega_i] at P in base axes:
+    dJ_i/dtheta_k = [omega_k x v_i; omega_k x omega_i] for k <= i, and
+    [omega_i x v_k; 0] for k > i.
+    """
+    J = jacobian_from_state(state)
+    v = np.swapaxes(J[..., :3, :], -1, -2)  # (..., n, 3)
+    om = np.swapaxes(J[..., 3:, :], -1, -2)
+    w = np.asarray(w, dtype=float)
+    f, m = w[..., None, None, :3], w[..., None, None, 3:]
+    n = v.shape[-2]
+    # lower[..., k, i] = (omega_k x v_i) . f + (omega_k x omega_i) . m   (used for k <= i)
+    lower = np.sum(np.cross(om[..., :, None, :], v[..., None, :, :]) * f, axis=-1) + np.sum(
+        np.cross(om[..., :, None, :], om[..., None, :, :]) * m, axis=-1
+    )
+    # upper[..., k, i] = (omega_i x v_k) . f   (used for k > i)
+    upper = np.sum(np.cross(om[..., None, :, :], v[..., :, None, :]) * f, axis=-1)
+    k_idx, i_idx = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    d = np.where(k_idx <= i_idx, lower, upper)  # d[..., k, i] = (dJ_i/dtheta_k) . w
+    return np.swapaxes(d, -1, -2)
+
+
+def complementary_stiffness(robot: RobotModel, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """K_C (..., n, n) at joint angles q (rad) under wrench w (N, N m); see eq. 8."""
+    return complementary_stiffness_from_state(chain_state(robot, q), w)
+
+
+def _kdiag(k: np.ndarray, n: int) -> np.ndarray:
+    k = np.asarray(k, dtype=float)
+    if k.shape[-1] != n:
+        raise ValueError(f"expected {n} joint stiffness values, got {k.shape[-1]}")
+    return k[..., :, None] * np.eye(n)
+
+
+def _check_invertible(J: np.ndarray, what: str) -> None:
+    s = np.linalg.svd(J, compute_uv=False)
+    bad = s[..., -1] <= s[..., 0] * 1e-12
+    if np.any(bad):
+        raise SingularPoseError(
+            f"{what} needs J^-1 but J is singular at {int(np.sum(bad))} pose(s)", where="q"
+        )
+
+
+def cartesian_stiffness(
+    J: np.ndarray, k: np.ndarray, K_C: np.ndarray | None = None
+) -> np.ndarray:
+    """K_X (..., 6, 6) = J^-T (K_theta - K_C) J^-1 (eq. 6), or eq. 12 when K_C is None.
+
+    Units: translational block N/m, rotational block N m/rad, mixed blocks N/rad, N.
+    Raises :class:`SingularPoseError` where J is singular.
+    """
+    _check_invertible(J, "K_X")
+    Kt = _kdiag(k, J.shape[-1])
+    if K_C is not None:
+        Kt = Kt - K_C
+    Jinv = np.linalg.inv(J)
+    return np.swapaxes(Jinv, -1, -2) @ Kt @ Jinv
+
+
+def cartesian_compliance(
+    J: np.ndarray, k: np.ndarray, K_C: np.ndarray | None = None
+) -> np.ndarray:
+    """C = J (K_theta - K_C)^-1 J^T (..., 6, 6); needs no J^-1, defined at singular poses."""
+    Kt = _kdiag(k, J.shape[-1])
+    if K_C is not None:
+        Kt = Kt - K_C
+    return J @ np.linalg.solve(Kt, np.swapaxes(J, -1, -2))
+
+
+def deflection(
+    J: np.ndarray, k: np.ndarray, w: np.ndarray, K_C: np.ndarray | None = None
+) -> np.ndarray:
+    """Deflection screw dX (..., 6) = J (K_theta - K_C)^-1 J^T w: [dp (m); dr (rad)]."""
+    Kt = _kdiag(k, J.shape[-1])
+    if K_C is not None:
+        Kt = Kt - K_C
+    tau = np.einsum("...ji,...j->...i", J, np.asarray(w, dtype=float))
+    dq = np.linalg.solve(Kt, tau[..., None])[..., 0]
+    return np.einsum("...ij,...j->...i", J, dq)
+
+
+def kc_influence(
+    robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices v_p (eq. 10, dimensionless) and v_r (eq. 11, rad) of the influence of K_C.
+
+    v_p = |dp_KC - dp_noKC| / max(dp_KC, dp_noKC) with dp the norm of the
+    translational deflection; v_r = max_i |dr_KC,i - dr_noKC,i|. Batched over q.
+    """
+    state = chain_state(robot, q)
+    J = jacobian_from_state(state)
+    K_C = complementary_stiffness_from_state(state, w)
+    d_kc = deflection(J, k, w, K_C)
+    d_no = deflection(J, k, w)
+    n_kc = np.linalg.norm(d_kc[..., :3], axis=-1)
+    n_no = np.linalg.norm(d_no[..., :3], axis=-1)
+    denom = np.maximum(n_kc, n_no)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v_p = np.where(denom > 0, np.abs(n_kc - n_no) / np.where(denom > 0, denom, 1.0), 0.0)
+    v_r = np.max(np.abs(d_kc[..., 3:] - d_no[..., 3:]), axis=-1)
+    return v_p, v_r
