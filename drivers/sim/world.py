@@ -1,0 +1,211 @@
+"""The one seeded simulated world shared by every fake instrument.
+
+State: the robot's commanded joint angles, the applied load, and the time of
+the last change. The tool's true pose follows the nonlinear elastostatic
+equilibrium ``K_theta dq = J(q + dq)^T w`` with the lab's true joint stiffness
+(:func:`analysis.equilibrium.solve_deflection`), reached by an exponential
+settling with time constant ``settle_time / time_scale`` (wall-clock seconds).
+Joint encoders sit on the motor side, so the reported joint angles do not
+include the elastic deflection, as on a real robot.
+
+All quantities SI: m, rad, N, N m. Thread-safe (one re-entrant lock).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from analysis.equilibrium import solve_deflection
+from analysis.kinematics import tool_pose
+from analysis.robots import load_robot
+from drivers.frames import matrix_to_rotvec, rotvec_to_matrix
+from drivers.sim.faults import Faults
+from drivers.sim.settings import LabSettings
+
+
+class World:
+    """Robot, load, noise and time of the simulated lab."""
+
+    def __init__(self, settings: LabSettings) -> None:
+        self.settings = settings
+        self.robot = load_robot(settings.robot)
+        n = self.robot.n
+        self.k = np.asarray(settings.true_joint_stiffness, dtype=float)
+        if self.k.shape != (n,):
+            raise ValueError(f"{self.robot.name} has {n} joints, stiffness has {self.k.size}")
+        self.rng = np.random.default_rng(settings.seed)
+        self.faults = Faults()
+        self._lock = threading.RLock()
+        if settings.home is not None:
+            q0 = np.asarray(settings.home, dtype=float)
+        else:
+            q0 = self.robot.to_controller(self._default_home())
+        self._q_cmd = q0.copy()
+        self._load = np.zeros(6)
+        self.load_name = ""
+        self._dq_from = np.zeros(n)
+        self._dq_to = np.zeros(n)
+        self._t_change = time.monotonic()
+        self._motion_end = self._t_change
+        self.aimed = next(iter(settings.reflectors))
+        self.reflectors = {k: np.asarray(v, float) for k, v in settings.reflectors.items()}
+        self.sensor_mount = np.eye(4)
+        self.sensor_mount[:3, 3] = settings.sensor_offset
+        self.base_in_tracker = np.eye(4)
+        self.base_in_tracker[:3, :3] = rotvec_to_matrix([0.0, 0.0, settings.tracker_yaw])
+        self.base_in_tracker[:3, 3] = settings.tracker_position
+
+    def _default_home(self) -> np.ndarray:
+        """A pose well inside the limits, away from the wrist singularity (model rad)."""
+        lo, hi = self.robot.lower, self.robot.upper
+        q = (lo + hi) / 2
+        if self.robot.n >= 5:
+            q = q.copy()
+            q[4] = np.clip(q[4] + 0.6, lo[4] + 0.1, hi[4] - 0.1)
+        return q
+
+    # --- time -----------------------------------------------------------
+    @property
+    def tau(self) -> float:
+        """Settling time constant in wall-clock seconds."""
+        return self.settings.settle_time / self.settings.time_scale
+
+    def _deflection(self, now: float) -> np.ndarray:
+        if self.tau <= 0:
+            return self._dq_to.copy()
+        a = 1.0 - np.exp(-(now - self._t_change) / self.tau)
+        return self._dq_from + (self._dq_to - self._dq_from) * a
+
+    def _retarget(self) -> None:
+        now = time.monotonic()
+        self._dq_from = self._deflection(now)
+        q_model = self.robot.from_controller(self._q_cmd)
+        if np.any(self._load):
+            self._dq_to = solve_deflection(self.robot, q_model, self.k, self._load)
+        else:
+            self._dq_to = np.zeros(self.robot.n)
+        self._t_change = now
+
+    # --- commands -------------------------------------------------------
+    def move(self, q_ctrl: np.ndarray, speed: float = 1.0) -> float:
+        """Command joint angles (rad, controller); returns the motion time (wall s)."""
+        q = np.asarray(q_ctrl, dtype=float)
+        q_model = self.robot.from_controller(self.robot.check_q(q, "joint target"))
+        if not np.all(self.robot.within_limits(q_model)):
+            raise ValueError("joint target outside the robot's limits")
+        if speed <= 0:
+            raise ValueError("speed must be positive")
+        with self._lock:
+            duration = float(np.max(np.abs(q - self._q_cmd))) / speed / self.settings.time_scale
+            self._q_cmd = q.copy()
+            self._retarget()
+            self._motion_end = time.monotonic() + duration
+        return duration
+
+    def apply_load(self, wrench: np.ndarray, name: str = "") -> None:
+        """Apply a wrench [f (N), m (N m)] at the tool point, base frame."""
+        w = np.asarray(wrench, dtype=float)
+        if w.shape != (6,) or not np.all(np.isfinite(w)):
+            raise ValueError("load wrench must be 6 finite numbers")
+        with self._lock:
+            self._load = w.copy()
+            self.load_name = name
+            self._retarget()
+
+    def remove_load(self) -> None:
+        """Remove the load."""
+        self.apply_load(np.zeros(6), "")
+
+    def aim(self, target: str) -> None:
+        """Point the tracker beam at reflector ``target``."""
+        if target not in self.reflectors:
+            raise ValueError(f"no reflector {target!r}; known: {', '.join(self.reflectors)}")
+        with self._lock:
+            self.aimed = target
+
+    # --- readings -------------------------------------------------------
+    def moving(self) -> bool:
+        """True while a commanded motion is still under way."""
+        return time.monotonic() < self._motion_end
+
+    def joint_angles(self) -> np.ndarray:
+        """Reported joint angles (rad, controller convention): motor side, no deflection."""
+        with self._lock:
+            q = self._q_cmd.copy()
+            if self.settings.encoder_noise:
+                q += self.rng.normal(0, self.settings.encoder_noise, q.shape)
+        return q
+
+    def nominal_tool_pose(self) -> np.ndarray:
+        """Tool pose the controller computes from its encoders (rigid model), base frame."""
+        with self._lock:
+            return tool_pose(self.robot, self.robot.from_controller(self._q_cmd))
+
+    def true_tool_pose(self) -> np.ndarray:
+        """Tool pose including the elastic deflection at this instant, base frame."""
+        with self._lock:
+            q = self.robot.from_controller(self._q_cmd) + self._deflection(time.monotonic())
+            return tool_pose(self.robot, q)
+
+    def true_deflection(self) -> np.ndarray:
+        """Joint deflection dq (rad, model convention) at this instant."""
+        with self._lock:
+            return self._deflection(time.monotonic())
+
+    def load(self) -> np.ndarray:
+        """Applied wrench (base frame at the tool point)."""
+        with self._lock:
+            return self._load.copy()
+
+    def sensor_wrench(self) -> np.ndarray:
+        """Noisy wrench seen by the F/T sensor: sensor frame, sensor origin (N, N m)."""
+        with self._lock:
+            T = self.true_tool_pose() @ self.sensor_mount
+            R, o = T[:3, :3], T[:3, 3]
+            p = self.true_tool_pose()[:3, 3]
+            f_b, m_p = self._load[:3], self._load[3:]
+            m_o = m_p + np.cross(p - o, f_b)
+            w = np.concatenate([R.T @ f_b, R.T @ m_o])
+            s = self.settings
+            w += np.concatenate([self.rng.normal(0, s.force_noise, 3),
+                                 self.rng.normal(0, s.torque_noise, 3)])
+        return w
+
+    def tracker_point(self, target: str | None = None) -> np.ndarray:
+        """Noisy position (m, tracker frame) of the aimed (or named) reflector."""
+        with self._lock:
+            name = target or self.aimed
+            r = np.append(self.reflectors[name], 1.0)
+            p = (self.base_in_tracker @ self.true_tool_pose() @ r)[:3]
+            return p + self.rng.normal(0, self.settings.tracker_noise, 3)
+
+    def tracker_pose(self) -> np.ndarray:
+        """Noisy 6-DoF probe pose of the tool frame in the tracker frame."""
+        with self._lock:
+            T = self.base_in_tracker @ self.true_tool_pose()
+            s = self.settings
+            dR = rotvec_to_matrix(self.rng.normal(0, s.tracker_angle_noise, 3))
+            T = T.copy()
+            T[:3, :3] = dR @ T[:3, :3]
+            T[:3, 3] += self.rng.normal(0, s.tracker_noise, 3)
+            return T
+
+    def noise(self, sigma: float, size: int) -> np.ndarray:
+        """Draw from the world's seeded generator (thread-safe)."""
+        with self._lock:
+            return self.rng.normal(0, sigma, size)
+
+    def state(self) -> dict:
+        """JSON-able snapshot for the control channel."""
+        T = self.nominal_tool_pose()
+        return {
+            "q": self.joint_angles().tolist(),
+            "tcp_pose": [*T[:3, 3].tolist(), *matrix_to_rotvec(T[:3, :3]).tolist()],
+            "load": self.load().tolist(),
+            "load_name": self.load_name,
+            "moving": self.moving(),
+            "aimed": self.aimed,
+        }
