@@ -24,14 +24,21 @@ def frobenius_condition(M: np.ndarray) -> np.ndarray:
     """
     M = np.asarray(M, dtype=float)
     m = M.shape[-1]
-    # Through singular values: tr(M^T M) = sum s^2, tr((M^T M)^-1) = sum 1/s^2.
-    s = np.linalg.svd(M, compute_uv=False)
-    smax = s[..., :1]
-    singular = s[..., -1] <= smax[..., 0] * 1e-12
-    with np.errstate(divide="ignore", over="ignore"):
-        inv = np.where(singular[..., None], np.inf, 1.0 / np.where(s > 0, s, 1.0) ** 2)
-    kappa = np.sqrt(np.sum(s**2, axis=-1) * np.sum(inv, axis=-1)) / m
-    return np.where(singular, np.inf, kappa)
+    try:
+        # Fast path: tr((M^T M)^-1) is the squared Frobenius norm of M^-1.
+        inv_norm2 = np.sum(np.linalg.inv(M) ** 2, axis=(-2, -1))
+    except np.linalg.LinAlgError:
+        inv_norm2 = None
+    if inv_norm2 is None or not np.all(np.isfinite(inv_norm2)):
+        # Some pose is exactly singular: use singular values, which never fail.
+        s = np.linalg.svd(M, compute_uv=False)
+        singular = s[..., -1] <= s[..., 0] * 1e-15
+        safe = np.where(singular[..., None], 1.0, s)
+        inv_norm2 = np.where(singular, np.inf, np.sum(1.0 / safe**2, axis=-1))
+    with np.errstate(over="ignore", invalid="ignore"):
+        kappa = np.sqrt(np.sum(M**2, axis=(-2, -1)) * inv_norm2) / m
+    # Beyond 1e15 the matrix is singular to working precision.
+    return np.where(kappa > 1e15, np.inf, kappa)
 
 
 def inverse_condition(M: np.ndarray) -> np.ndarray:

@@ -42,13 +42,14 @@ def toml_line(text: str, loc: Sequence) -> int | None:
         index = loc[i + 1] if i + 1 < len(loc) and isinstance(loc[i + 1], int) else None
         table = ".".join([*prefix, name])
         header = re.compile(r"^\s*\[\[?\s*" + re.escape(table) + r"\s*\]\]?\s*(#.*)?$")
-        headers = [k for k in range(start, end) if header.match(lines[k])]
+        # sub-table headers ([a.b]) lie after the parent's body: search to the end
+        headers = [k for k in range(start, len(lines)) if header.match(lines[k])]
         if headers:
             k = headers[index] if index is not None and index < len(headers) else headers[0]
             found = k + 1
             start = k + 1
-            nxt = [m for m in range(start, end) if re.match(r"^\s*\[", lines[m])]
-            end = nxt[0] if nxt else end
+            nxt = [m for m in range(start, len(lines)) if re.match(r"^\s*\[", lines[m])]
+            end = nxt[0] if nxt else len(lines)
             prefix.append(name)
             i += 2 if index is not None else 1
             continue
@@ -56,6 +57,14 @@ def toml_line(text: str, loc: Sequence) -> int | None:
         for k in range(start, end):
             if key.match(lines[k]):
                 return k + 1
+        dotted = re.compile(r"^\s*\[\[?\s*" + re.escape(table) + r"\.")
+        if i + 1 < len(loc) and isinstance(loc[i + 1], str) and any(
+            dotted.match(line) for line in lines[start:]
+        ):
+            # only dotted headers such as [instruments.pose]: merge with the next part
+            prefix.append(name)
+            i += 1
+            continue
         return found
     return found
 

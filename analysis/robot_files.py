@@ -172,7 +172,7 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
     upper = np.array([j.upper for j in spec.joints]) * ang
     if spec.limits_convention == "controller":
         a, b = sign * (lower - offset), sign * (upper - offset)
-        lower, upper = np.minimum(a, b), np.maximum(a, b)
+        lower, upper = np.minimum(a, b) + 0.0, np.maximum(a, b) + 0.0  # no -0.0
     tool = pin.SE3(_rpy_matrix(np.array(spec.tool.rpy) * ang), np.array(spec.tool.xyz) * ls)
     model, tip = build_dh_model(rows, spec.convention, tool, lower, upper, name=spec.name)
     stiff = [j.stiffness for j in spec.joints]
@@ -210,6 +210,7 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         reference_poses=refs,
         source_file=source_file,
         key=key,
+        convention=spec.convention,
     )
 
 
@@ -257,4 +258,5 @@ def load_urdf(path: str | Path, tip: str, name: str | None = None) -> RobotModel
         sources={"geometry": f"URDF {path.name}"},
         source_file=str(path),
         key=path.stem,
+        convention="urdf",
     )

@@ -70,6 +70,7 @@ class RobotModel:
     reference_poses: list[dict] = field(default_factory=list)
     source_file: str | None = None
     key: str = ""
+    convention: str = ""
 
     def __post_init__(self) -> None:
         n = self.n

@@ -28,16 +28,17 @@ def complementary_stiffness_from_state(state: ChainState, w: np.ndarray) -> np.n
     v = np.swapaxes(J[..., :3, :], -1, -2)  # (..., n, 3)
     om = np.swapaxes(J[..., 3:, :], -1, -2)
     w = np.asarray(w, dtype=float)
-    f, m = w[..., None, None, :3], w[..., None, None, 3:]
+    f = np.broadcast_to(w[..., None, :3], v.shape)
+    m = np.broadcast_to(w[..., None, 3:], v.shape)
     n = v.shape[-2]
-    # lower[..., k, i] = (omega_k x v_i) . f + (omega_k x omega_i) . m   (used for k <= i)
-    lower = np.sum(np.cross(om[..., :, None, :], v[..., None, :, :]) * f, axis=-1) + np.sum(
-        np.cross(om[..., :, None, :], om[..., None, :, :]) * m, axis=-1
-    )
-    # upper[..., k, i] = (omega_i x v_k) . f   (used for k > i)
-    upper = np.sum(np.cross(om[..., None, :, :], v[..., :, None, :]) * f, axis=-1)
-    k_idx, i_idx = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    d = np.where(k_idx <= i_idx, lower, upper)  # d[..., k, i] = (dJ_i/dtheta_k) . w
+    # Triple products rewritten as matrix products:
+    # (omega_k x v_i) . f + (omega_k x omega_i) . m = omega_k . (v_i x f + omega_i x m)
+    # (omega_i x v_k) . f = omega_i . (v_k x f)
+    vf = np.cross(v, f)
+    lower = om @ np.swapaxes(vf + np.cross(om, m), -1, -2)  # [k, i], used for k <= i
+    upper = vf @ np.swapaxes(om, -1, -2)  # [k, i] = (v_k x f) . omega_i, used for k > i
+    tri = np.triu(np.ones((n, n), dtype=bool))  # k <= i
+    d = np.where(tri, lower, upper)  # d[..., k, i] = (dJ_i/dtheta_k) . w
     return np.swapaxes(d, -1, -2)
 
 
@@ -92,11 +93,11 @@ def deflection(
     J: np.ndarray, k: np.ndarray, w: np.ndarray, K_C: np.ndarray | None = None
 ) -> np.ndarray:
     """Deflection screw dX (..., 6) = J (K_theta - K_C)^-1 J^T w: [dp (m); dr (rad)]."""
-    Kt = _kdiag(k, J.shape[-1])
-    if K_C is not None:
-        Kt = Kt - K_C
     tau = np.einsum("...ji,...j->...i", J, np.asarray(w, dtype=float))
-    dq = np.linalg.solve(Kt, tau[..., None])[..., 0]
+    if K_C is None:
+        dq = tau / np.asarray(k, dtype=float)  # K_theta is diagonal
+    else:
+        dq = np.linalg.solve(_kdiag(k, J.shape[-1]) - K_C, tau[..., None])[..., 0]
     return np.einsum("...ij,...j->...i", J, dq)
 
 

@@ -27,6 +27,11 @@ def build_app() -> typer.Typer:
         add_completion=False,
         pretty_exceptions_enable=False,
     )
+
+    @app.callback()
+    def _root() -> None:
+        """Plan, run and analyse joint-stiffness identification campaigns of serial robots."""
+
     for info in sorted(pkgutil.iter_modules(campaign.commands.__path__), key=lambda m: m.name):
         module = importlib.import_module(f"campaign.commands.{info.name}")
         register = getattr(module, "register", None)
@@ -51,10 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
         return 130
-    except Exception as err:  # click usage errors carry their own exit code
-        import click
-
-        if isinstance(err, click.ClickException):
+    except Exception as err:
+        # Usage errors of the click layer under typer carry their own message and code.
+        if hasattr(err, "show") and isinstance(getattr(err, "exit_code", None), int):
             err.show()
             return err.exit_code
         raise

@@ -1,0 +1,112 @@
+"""Maps of dexterity and of the influence of K_C (Dumas et al. 2011, Figs. 3 and 5).
+
+A map is a tidy table with one row per grid pose: the (theta_2, theta_3) grid
+with the other joints fixed (paper defaults: theta_1 = 0, theta_4..6 = 45 deg),
+the Cartesian position of P for the same poses (the workspace view), and
+1/kappa_F, v_p and v_r. Everything is computed in one batched pass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from analysis.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinematics import chain_state, jacobian_from_state
+from analysis.robot_model import RobotModel
+from analysis.stiffness import complementary_stiffness_from_state, deflection
+
+#: Worst-case wrench of the paper's section 3 (N, N m): 2200 N along and 400 N m about each axis.
+WORST_CASE_WRENCH = np.array([2200.0, 2200.0, 2200.0, 400.0, 400.0, 400.0])
+#: Wrench of the robustness study, eq. 22 (N, N m).
+W_EFF = np.array([0.0, 2200.0, 2200.0, 200.0, 200.0, 0.0])
+#: Rank-deficiency threshold on 1/kappa_F below which a pose is reported singular.
+SINGULAR_INV_KAPPA = 1e-9
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """A (theta_2, theta_3) grid in the model convention (rad)."""
+
+    theta2: np.ndarray
+    theta3: np.ndarray
+    fixed: np.ndarray  # (n,) values of the other joints (rad); entries 1 and 2 are ignored
+
+    @classmethod
+    def from_limits(
+        cls, robot: RobotModel, step: float, fixed: np.ndarray | None = None
+    ) -> GridSpec:
+        """Grid over the joint limits of joints 2 and 3 with ``step`` (rad)."""
+        if fixed is None:
+            fixed = np.zeros(robot.n)
+            fixed[3:] = np.radians(45.0)
+        t2 = np.arange(robot.lower[1], robot.upper[1] + step / 2, step)
+        t3 = np.arange(robot.lower[2], robot.upper[2] + step / 2, step)
+        return cls(t2, t3, np.asarray(fixed, dtype=float))
+
+    def poses(self) -> np.ndarray:
+        """Joint angles (n2, n3, n) of every grid node (rad)."""
+        T2, T3 = np.meshgrid(self.theta2, self.theta3, indexing="ij")
+        q = np.broadcast_to(self.fixed, (*T2.shape, self.fixed.size)).copy()
+        q[..., 1], q[..., 2] = T2, T3
+        return q
+
+
+def pose_metrics(
+    robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray, length: float
+) -> dict[str, np.ndarray]:
+    """1/kappa_F, v_p, v_r (rad), the deflections and P's position for poses q (..., n).
+
+    ``singular`` is True where J is rank deficient: 1/kappa_F is then 0; v_p and
+    v_r stay defined (they need no J^-1) but a caller must show the flag.
+    """
+    state = chain_state(robot, q)
+    J = jacobian_from_state(state)
+    inv_k = inverse_condition(normalized_jacobian(J, length))
+    K_C = complementary_stiffness_from_state(state, w)
+    d_kc = deflection(J, k, w, K_C)
+    d_no = deflection(J, k, w)
+    n_kc = np.linalg.norm(d_kc[..., :3], axis=-1)
+    n_no = np.linalg.norm(d_no[..., :3], axis=-1)
+    denom = np.maximum(n_kc, n_no)
+    safe = np.where(denom > 0, denom, 1.0)
+    v_p = np.where(denom > 0, np.abs(n_kc - n_no) / safe, 0.0)
+    v_r = np.max(np.abs(d_kc[..., 3:] - d_no[..., 3:]), axis=-1)
+    return {
+        "inv_kappa_F": inv_k,
+        "v_p": v_p,
+        "v_r": v_r,
+        "singular": inv_k < SINGULAR_INV_KAPPA,
+        "position": state.tip[..., :3, 3],
+        "deflection": d_kc,
+    }
+
+
+def joint_space_map(
+    robot: RobotModel, grid: GridSpec, k: np.ndarray, w: np.ndarray, length: float
+) -> pd.DataFrame:
+    """Tidy table of the map: one row per (theta_2, theta_3) node.
+
+    Columns: ``theta2_deg, theta3_deg`` (model convention), ``x_m, y_m, z_m``
+    (position of P), ``inv_kappa_F``, ``v_p``, ``v_r_deg``, ``deflection_mm``
+    (norm of the translational deflection under w, with K_C), ``singular``.
+    """
+    q = grid.poses()
+    m = pose_metrics(robot, q, k, w, length)
+    pos = m["position"].reshape(-1, 3)
+    return pd.DataFrame(
+        {
+            "theta2_deg": np.degrees(q[..., 1]).ravel(),
+            "theta3_deg": np.degrees(q[..., 2]).ravel(),
+            "x_m": pos[:, 0],
+            "y_m": pos[:, 1],
+            "z_m": pos[:, 2],
+            "inv_kappa_F": m["inv_kappa_F"].ravel(),
+            "v_p": m["v_p"].ravel(),
+            "v_r_deg": np.degrees(m["v_r"]).ravel(),
+            "deflection_mm": 1e3 * np.linalg.norm(m["deflection"][..., :3], axis=-1).ravel(),
+            "singular": m["singular"].ravel(),
+        }
+    )

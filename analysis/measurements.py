@@ -1,0 +1,233 @@
+"""The table of stiffness tests: CSV import format, tidy SI table, validation.
+
+Public CSV format (one row per test, extra columns ignored, header required)::
+
+    pose, q1_deg..q6_deg,                 joint angles, robot model convention (deg)
+    fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm  wrench on the end-effector at the tool point,
+                                           base-frame components (N, N m)
+    dx_mm, dy_mm, dz_mm                    translation of the tool point, base frame (mm)
+    rx_mrad, ry_mrad, rz_mrad              small rotation vector, base frame (mrad);
+                                           empty for translational-only measurements
+
+Inside the program the same tests are a tidy table in SI units with the
+columns of :data:`SI_COLUMNS` (rad, N, N m, m, rad). Every error names the CSV
+line (header = line 1) and the column at fault.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import InputError
+
+N_JOINTS = 6
+Q_COLS = [f"q{i}_deg" for i in range(1, N_JOINTS + 1)]
+W_COLS = ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
+D_COLS = ["dx_mm", "dy_mm", "dz_mm"]
+R_COLS = ["rx_mrad", "ry_mrad", "rz_mrad"]
+CSV_COLUMNS = ["pose", *Q_COLS, *W_COLS, *D_COLS, *R_COLS]
+
+SI_Q = [f"q{i}_rad" for i in range(1, N_JOINTS + 1)]
+SI_W = W_COLS
+SI_D = ["dx_m", "dy_m", "dz_m", "rx_rad", "ry_rad", "rz_rad"]
+SI_COLUMNS = ["pose", *SI_Q, *SI_W, *SI_D]
+#: CSV column -> (SI column, factor from CSV unit to SI)
+_TO_SI = {
+    **{c: (s, np.pi / 180.0) for c, s in zip(Q_COLS, SI_Q, strict=True)},
+    **{c: (c, 1.0) for c in W_COLS},
+    **{c: (s, 1e-3) for c, s in zip(D_COLS + R_COLS, SI_D, strict=True)},
+}
+COMPONENTS = ["dx", "dy", "dz", "rx", "ry", "rz"]
+
+
+@dataclass(frozen=True)
+class TestArrays:
+    """Tests as arrays (SI). m tests.
+
+    Attributes
+    ----------
+    pose : (m,) pose labels (str).
+    q : (m, 6) joint angles (rad).
+    w : (m, 6) wrench [f (N); m (N m)], base frame, at the tool point.
+    d : (m, 6) measured displacement screw [dp (m); dr (rad)]; NaN where not measured.
+    measured : (m, 6) bool, True where ``d`` holds a measurement.
+    line : (m,) CSV line numbers (header = 1) or table row numbers, for messages.
+    """
+
+    pose: np.ndarray
+    q: np.ndarray
+    w: np.ndarray
+    d: np.ndarray
+    measured: np.ndarray
+    line: np.ndarray
+
+    @property
+    def m(self) -> int:
+        return self.q.shape[0]
+
+    def subset(self, rows: np.ndarray) -> TestArrays:
+        """The tests at integer or boolean index ``rows``."""
+        return TestArrays(
+            self.pose[rows], self.q[rows], self.w[rows], self.d[rows],
+            self.measured[rows], self.line[rows],
+        )
+
+    @property
+    def has_rotations(self) -> bool:
+        return bool(np.any(self.measured[:, 3:]))
+
+
+def _numeric(frame: pd.DataFrame, col: str, where: str, line0: int) -> np.ndarray:
+    raw = frame[col]
+    values = pd.to_numeric(raw, errors="coerce")
+    bad = values.isna() & raw.notna() & (raw.astype(str).str.strip() != "")
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        raise InputError(
+            f"line {i + line0}, column {col}: {raw.iloc[i]!r} is not a number", where=where
+        )
+    return values.to_numpy(dtype=float)
+
+
+def read_csv(path: str | Path) -> pd.DataFrame:
+    """Read a tests CSV file (public format) into the tidy SI table.
+
+    Raises
+    ------
+    InputError
+        File missing or unreadable, a column missing, a non-numeric or empty
+        required cell, a non-finite number, a partial rotation triple; the
+        message names the file, the line and the column.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("measurements file not found", where=str(path))
+    try:
+        frame = pd.read_csv(path, dtype=str, skipinitialspace=True, keep_default_na=False)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
+        raise InputError(f"cannot read as CSV: {err}", where=str(path)) from err
+    return from_csv_frame(frame, where=str(path))
+
+
+def from_csv_frame(frame: pd.DataFrame, where: str = "measurements") -> pd.DataFrame:
+    """Convert a frame with the public CSV columns (deg, mm, mrad) to the tidy SI table.
+
+    Row i of ``frame`` is reported as CSV line i + 2 (the header is line 1).
+    """
+    frame = frame.rename(columns=lambda c: str(c).strip())
+    missing = [c for c in CSV_COLUMNS if c not in frame.columns]
+    if missing:
+        raise InputError(
+            f"missing column(s) {', '.join(missing)}; expected the columns "
+            f"{', '.join(CSV_COLUMNS)} (rotation columns may be left empty)",
+            where=where,
+        )
+    if len(frame) == 0:
+        raise InputError("no tests: the file has a header but no rows", where=where)
+    line0 = 2
+    out = pd.DataFrame({"pose": frame["pose"].astype(str).str.strip().to_numpy()})
+    empty_pose = out["pose"].isin(["", "nan", "None"])
+    if empty_pose.any():
+        i = int(np.flatnonzero(empty_pose.to_numpy())[0])
+        raise InputError(f"line {i + line0}, column pose: empty pose label", where=where)
+    for col in CSV_COLUMNS[1:]:
+        si, factor = _TO_SI[col]
+        out[si] = _numeric(frame, col, where, line0) * factor
+    out["line"] = np.arange(len(frame)) + line0
+    validate_table(out, where=where)
+    return out
+
+
+def validate_table(table: pd.DataFrame, where: str = "measurements") -> None:
+    """Check a tidy SI table: columns present, required cells finite, rotations all-or-none.
+
+    Row numbers in messages are the table's ``line`` column when present
+    (CSV lines), else 0-based row indices labelled ``row``.
+    """
+    missing = [c for c in SI_COLUMNS if c not in table.columns]
+    if missing:
+        raise InputError(f"missing column(s) {', '.join(missing)}", where=where)
+    lines = table["line"].to_numpy() if "line" in table.columns else None
+
+    def label(i: int) -> str:
+        return f"line {int(lines[i])}" if lines is not None else f"row {i}"
+
+    def csv_name(si: str) -> str:
+        for c, (s, _) in _TO_SI.items():
+            if s == si:
+                return c
+        return si
+
+    for col in [*SI_Q, *SI_W, *SI_D]:
+        try:
+            values = table[col].to_numpy(dtype=float)
+        except (TypeError, ValueError) as err:
+            raise InputError(f"column {csv_name(col)} is not numeric", where=where) from err
+        if col in SI_D[3:]:
+            bad = np.isinf(values)
+        else:
+            bad = ~np.isfinite(values)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            what = "is empty or NaN" if np.isnan(values[i]) else "is not finite"
+            raise InputError(
+                f"{label(i)}, column {csv_name(col)}: {what} (a number is required)",
+                where=where,
+            )
+    rot = table[SI_D[3:]].to_numpy(dtype=float)
+    partial = np.isnan(rot).any(axis=1) & ~np.isnan(rot).all(axis=1)
+    if np.any(partial):
+        i = int(np.flatnonzero(partial)[0])
+        cols = [R_COLS[j] for j in range(3) if np.isnan(rot[i, j])]
+        raise InputError(
+            f"{label(i)}, column {', '.join(cols)}: a rotation is either measured in full "
+            "(rx, ry, rz) or left empty", where=where,
+        )
+    w = table[SI_W].to_numpy(dtype=float)
+    zero = np.all(w == 0.0, axis=1)
+    if np.any(zero):
+        i = int(np.flatnonzero(zero)[0])
+        raise InputError(
+            f"{label(i)}, columns {', '.join(W_COLS)}: zero wrench; a test needs a load",
+            where=where,
+        )
+
+
+def to_arrays(table: pd.DataFrame) -> TestArrays:
+    """The tidy SI table as :class:`TestArrays` (validated first)."""
+    validate_table(table)
+    d = table[SI_D].to_numpy(dtype=float)
+    line = table["line"].to_numpy(dtype=int) if "line" in table.columns else np.arange(len(table))
+    return TestArrays(
+        pose=table["pose"].astype(str).to_numpy(),
+        q=table[SI_Q].to_numpy(dtype=float),
+        w=table[SI_W].to_numpy(dtype=float),
+        d=d,
+        measured=np.isfinite(d),
+        line=line,
+    )
+
+
+def to_csv_frame(table: pd.DataFrame) -> pd.DataFrame:
+    """The tidy SI table back in the public CSV units (deg, N, N m, mm, mrad)."""
+    out = pd.DataFrame({"pose": table["pose"].to_numpy()})
+    for col, (si, factor) in _TO_SI.items():
+        out[col] = table[si].to_numpy(dtype=float) / factor
+    return out
+
+
+def table_from_arrays(pose, q, w, d) -> pd.DataFrame:
+    """Tidy SI table from arrays: q (m, 6) rad, w (m, 6) N/N m, d (m, 6) m/rad (NaN = not measured)."""
+    q, w, d = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, w, d))
+    data = {"pose": np.asarray(pose).astype(str)}
+    for j, c in enumerate(SI_Q):
+        data[c] = q[:, j]
+    for j, c in enumerate(SI_W):
+        data[c] = w[:, j]
+    for j, c in enumerate(SI_D):
+        data[c] = d[:, j]
+    return pd.DataFrame(data)

@@ -1,0 +1,96 @@
+"""``campaign maps``: 1/kappa_F, v_p and v_r over the (theta_2, theta_3) grid and workspace."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.console import Console
+
+from analysis.dexterity import characteristic_length
+from analysis.errors import InputError
+from analysis.map_plots import plot_cartesian_map, plot_joint_map
+from analysis.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
+from campaign.options import parse_floats, robot_option, stiffness_option, wrench_option
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("maps")
+    def maps(
+        robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
+        out: Path = typer.Option(..., help="Output directory."),
+        tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        step: float = typer.Option(1.0, help="Grid step (deg)."),
+        fixed: str = typer.Option(
+            None, help="Other joints q1..q6 in degrees (model convention); entries 2 and 3 "
+            "are ignored. Default: theta1 = 0, theta4..6 = 45 deg as in the paper."
+        ),
+        joint_stiffness: str = typer.Option(None, help="k1,...,k6 (N m/rad)."),
+        wrench: str = typer.Option(
+            None, help="fx,fy,fz (N), mx,my,mz (N m); default the paper's worst case."
+        ),
+        length: float = typer.Option(
+            None, help="Characteristic length L (m); default the model's, else computed."
+        ),
+        fmt: str = typer.Option("parquet", "--format", help="parquet or csv."),
+    ) -> None:
+        """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
+        console = Console()
+        r = robot_option(robot, tip)
+        if step <= 0 or not np.isfinite(step):
+            raise InputError("expected a positive step in degrees", where="--step")
+        if fmt not in ("parquet", "csv"):
+            raise InputError("expected parquet or csv", where="--format")
+        k = stiffness_option(r, joint_stiffness)
+        w = wrench_option(wrench, WORST_CASE_WRENCH)
+        fixed_q = None if fixed is None else np.radians(parse_floats(fixed, "--fixed", r.n))
+        if length is not None and not length > 0:
+            raise InputError("expected a positive length in m", where="--length")
+        how = "given on the command line"
+        if length is None and r.characteristic_length is not None:
+            length, how = r.characteristic_length, "from the robot model"
+        elif length is None:
+            length, _, _ = characteristic_length(r)
+            how = "computed (minimum condition number of J_N over posture and L)"
+        console.print(f"characteristic length L = {length:.4f} m ({how})")
+        grid = GridSpec.from_limits(r, np.radians(step), fixed_q)
+        table = joint_space_map(r, grid, k, w, length)
+        out.mkdir(parents=True, exist_ok=True)
+        data = out / f"map_joint_space.{fmt}"
+        if fmt == "parquet":
+            table.to_parquet(data, index=False)
+        else:
+            table.to_csv(data, index=False)
+        zones = [
+            (z.name, tuple(np.degrees(z.ranges[1])), tuple(np.degrees(z.ranges[2])))
+            for z in r.zones
+            if 1 in z.ranges and 2 in z.ranges
+        ]
+        for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"), ("v_r_deg", "v_r")):
+            plot_joint_map(table, col, out / f"{name}_joint.png", f"{r.name}: {col}",
+                           zones=zones)
+            plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
+                               f"{r.name}: {col} over the workspace")
+        ok = ~table["singular"]
+        summary = {
+            "robot": r.name,
+            "characteristic_length_m": length,
+            "characteristic_length_method": how,
+            "grid_step_deg": step,
+            "nodes": int(len(table)),
+            "singular_nodes": int((~ok).sum()),
+            "max_v_p": float(table.loc[ok, "v_p"].max()),
+            "max_v_r_deg": float(table.loc[ok, "v_r_deg"].max()),
+            "max_inv_kappa_F": float(table["inv_kappa_F"].max()),
+            "wrench_N_Nm": w.tolist(),
+            "joint_stiffness_Nm_per_rad": k.tolist(),
+        }
+        (out / "map_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        console.print(
+            f"{len(table)} poses, {summary['singular_nodes']} singular; "
+            f"max v_p = {summary['max_v_p']:.4f}, max v_r = {summary['max_v_r_deg']:.4f} deg, "
+            f"max 1/kappa_F = {summary['max_inv_kappa_F']:.3f}"
+        )
+        console.print(f"wrote {data} and PNG plots to {out}/")

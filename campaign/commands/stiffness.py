@@ -1,0 +1,92 @@
+"""``campaign stiffness``: J, K_C, K_X and the deflection at one pose."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import typer
+from rich.console import Console
+
+from analysis.equilibrium import displacement_screw
+from analysis.kinematics import chain_state, jacobian_from_state
+from analysis.maps import WORST_CASE_WRENCH
+from analysis.stiffness import (
+    cartesian_stiffness,
+    complementary_stiffness_from_state,
+    deflection,
+)
+from campaign.options import joint_angles_option, robot_option, stiffness_option, wrench_option
+
+
+def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
+    console.print(f"[bold]{title}[/bold] ({unit})")
+    for row in M:
+        console.print("  " + " ".join(f"{v: .4e}" for v in row))
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("stiffness")
+    def stiffness(
+        robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
+        q: str = typer.Option(..., help="Joint angles in degrees, comma-separated."),
+        tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        controller: bool = typer.Option(
+            False, "--controller-angles", help="--q is in the teach-pendant convention."
+        ),
+        joint_stiffness: str = typer.Option(
+            None, help="k1,...,k6 in N m/rad (default: the model's nominal values)."
+        ),
+        wrench: str = typer.Option(
+            None, help="fx,fy,fz (N), mx,my,mz (N m) at P, base frame "
+            "(default: the paper's worst case 2200 N, 400 N m on each axis)."
+        ),
+        as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
+    ) -> None:
+        """Kinematic Jacobian, K_C (eq. 8), K_X with and without K_C (eqs. 6, 12), deflection."""
+        r = robot_option(robot, tip)
+        qr = r.check_q(joint_angles_option(r, q, controller), where="--q")
+        k = stiffness_option(r, joint_stiffness)
+        w = wrench_option(wrench, WORST_CASE_WRENCH)
+        state = chain_state(r, qr)
+        J = jacobian_from_state(state)
+        K_C = complementary_stiffness_from_state(state, w)
+        K_X = cartesian_stiffness(J, k, K_C)
+        K_X0 = cartesian_stiffness(J, k)
+        lin = deflection(J, k, w, K_C)
+        exact = displacement_screw(r, qr, k, w)
+        result = {
+            "robot": r.name,
+            "q_rad": qr.tolist(),
+            "joint_stiffness_Nm_per_rad": k.tolist(),
+            "wrench_N_Nm": w.tolist(),
+            "J": J.tolist(),
+            "K_C": K_C.tolist(),
+            "K_X": K_X.tolist(),
+            "K_X_without_K_C": K_X0.tolist(),
+            "deflection": lin.tolist(),
+            "deflection_without_K_C": deflection(J, k, w).tolist(),
+            "deflection_nonlinear": exact.tolist(),
+            "units": {
+                "J": "rows 1-3 m/rad, rows 4-6 rad/rad; base axes at P",
+                "K_C": "N m/rad",
+                "K_X": "N/m | N/rad ; N | N m/rad blocks, base frame at P",
+                "deflection": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation vector)",
+            },
+        }
+        if as_json:
+            typer.echo(json.dumps(result, indent=2))
+            return
+        console = Console()
+        console.print(f"[bold]{r.name}[/bold]  q = {np.degrees(qr).round(3).tolist()} deg "
+                      "(model convention)")
+        console.print(f"k = {k.tolist()} N m/rad;  w = {w.tolist()} N, N m")
+        _matrix(console, "J", J, "rows 1-3 m/rad, rows 4-6 rad/rad")
+        _matrix(console, "K_C", K_C, "N m/rad")
+        _matrix(console, "K_X with K_C", K_X, "N/m, N/rad, N, N m/rad blocks")
+        _matrix(console, "K_X without K_C", K_X0, "same units")
+        console.print("[bold]deflection of P[/bold] (mm, mrad)")
+        for label, d in (("with K_C", lin), ("without K_C", deflection(J, k, w)),
+                         ("nonlinear equilibrium", exact)):
+            console.print(f"  {label:22s} dp = {np.round(1e3 * d[:3], 4).tolist()} mm, "
+                          f"dr = {np.round(1e3 * d[3:], 4).tolist()} mrad")

@@ -1,0 +1,374 @@
+"""Campaign protocol files (TOML or YAML): schema, loading and validation.
+
+A protocol says which robot and tool are used, how to reach the instruments,
+which loads are applied and how, how many tests to plan, where to sample the
+poses (zones), which poses to reject (thresholds, safety) and how the fake lab
+behaves. ``protocols/README.md`` documents every key with its unit.
+
+Units at the edge are in the key names (``xyz_mm``, ``rpy_deg``,
+``max_v_r_deg``...); the accessors of :class:`Protocol` return SI values (m,
+rad, N, N m). Every problem found in a file is reported as
+``file:line: key: message`` (see :mod:`analysis.file_errors`).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import yaml
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+from analysis.errors import InputError
+from analysis.file_errors import input_error_from_validation, toml_line, yaml_line
+
+DEG = math.pi / 180.0
+Vec3 = tuple[float, float, float]
+LoadMethod = Literal["hanging-mass", "cable-pulley", "push"]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def _joint_keys(value: dict, what: str) -> dict:
+    for key in value:
+        if not (key.startswith("q") and key[1:].isdigit() and 1 <= int(key[1:]) <= 6):
+            raise ValueError(f"{what} key {key!r}: expected q1..q6")
+    return value
+
+
+def _ordered_ranges(value: dict) -> dict:
+    for key, (lo, hi) in value.items():
+        if lo >= hi:
+            raise ValueError(f"range {key} = [{lo}, {hi}]: expected low < high")
+    return value
+
+
+class CampaignSpec(_Strict):
+    """``[campaign]``: what is identified and how many tests."""
+
+    name: str
+    robot: str
+    tests: int = Field(ge=1, le=200)
+    repeats: int = Field(default=1, ge=1, le=100)
+    prior_stiffness: tuple[float, float, float, float, float, float] | None = None
+    characteristic_length_mm: float | None = Field(default=None, gt=0)
+
+    @field_validator("prior_stiffness")
+    @classmethod
+    def _positive(cls, value):
+        if value is not None and min(value) <= 0:
+            raise ValueError("prior stiffness values must be positive (N m/rad)")
+        return value
+
+
+class ToolSpec(_Strict):
+    """``[tool]``: the tool point P in the flange frame, and the tool mass."""
+
+    xyz_mm: Vec3 = (0.0, 0.0, 0.0)
+    rpy_deg: Vec3 = (0.0, 0.0, 0.0)
+    mass_kg: float = Field(default=0.0, ge=0)
+
+
+class NoiseSpec(_Strict):
+    """Standard deviations of an instrument's readings (one sigma, per component)."""
+
+    translation_um: float | None = Field(default=None, ge=0)
+    rotation_urad: float | None = Field(default=None, ge=0)
+    force_N: float | None = Field(default=None, ge=0)
+    torque_N_m: float | None = Field(default=None, ge=0)
+    joint_urad: float | None = Field(default=None, ge=0)
+
+
+class InstrumentSpec(_Strict):
+    """``[instruments.<role>]``: a driver name and its address string."""
+
+    driver: str = Field(min_length=1)
+    address: str = Field(min_length=1)
+    options: dict[str, str | int | float | bool] = {}
+    mount_xyz_mm: Vec3 | None = None
+    mount_rpy_deg: Vec3 | None = None
+    noise: NoiseSpec = NoiseSpec()
+
+
+class LoadCaseSpec(_Strict):
+    """``[[load_cases]]``: a wrench at P (base-frame components) and how it is applied."""
+
+    name: str = Field(min_length=1)
+    method: LoadMethod
+    force_N: Vec3 | None = None
+    moment_N_m: Vec3 | None = None
+    direction: Vec3 | None = None
+    magnitude_N: float | None = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _one_form(self) -> LoadCaseSpec:
+        vector = self.force_N is not None or self.moment_N_m is not None
+        directed = self.direction is not None or self.magnitude_N is not None
+        if vector == directed:
+            raise ValueError("give either force_N/moment_N_m, or direction and magnitude_N")
+        if directed and (self.direction is None or self.magnitude_N is None):
+            raise ValueError("direction and magnitude_N go together")
+        if directed and math.hypot(*self.direction) == 0.0:
+            raise ValueError("direction must not be the zero vector")
+        w = self.wrench()
+        if not np.any(w):
+            raise ValueError("the wrench is zero")
+        if self.method == "hanging-mass":
+            f = w[:3]
+            if np.any(w[3:]) or abs(f[0]) + abs(f[1]) > 1e-9 * abs(f[2]) or f[2] >= 0:
+                raise ValueError(
+                    "a hanging mass pulls straight down: expected a pure force along -z0"
+                )
+        return self
+
+    def wrench(self) -> np.ndarray:
+        """Wrench [f (N); m (N m)] (6,), components in the robot base frame F0."""
+        if self.direction is not None and self.magnitude_N is not None:
+            d = np.asarray(self.direction, dtype=float)
+            return np.concatenate([d / np.linalg.norm(d) * self.magnitude_N, np.zeros(3)])
+        f = np.zeros(3) if self.force_N is None else np.asarray(self.force_N, dtype=float)
+        m = np.zeros(3) if self.moment_N_m is None else np.asarray(self.moment_N_m, dtype=float)
+        return np.concatenate([f, m])
+
+
+class LoadsSpec(_Strict):
+    """``[loads]``: how load cases are combined with poses."""
+
+    selection: Literal["per-pose", "all"] = "all"
+
+
+class ZoneSpec(_Strict):
+    """``[[zones]]``: a box in joint space, model convention, degrees."""
+
+    name: str = Field(min_length=1)
+    ranges_deg: dict[str, tuple[float, float]]
+
+    @field_validator("ranges_deg")
+    @classmethod
+    def _keys(cls, value: dict) -> dict:
+        return _ordered_ranges(_joint_keys(value, "zone range"))
+
+
+class SamplingSpec(_Strict):
+    """``[sampling]``: values of the joints that zones leave free (model convention, deg)."""
+
+    use_robot_zones: bool = True
+    fixed_deg: dict[str, float] = {}
+    ranges_deg: dict[str, tuple[float, float]] = {}
+
+    @field_validator("fixed_deg")
+    @classmethod
+    def _fixed_keys(cls, value: dict) -> dict:
+        return _joint_keys(value, "fixed_deg")
+
+    @field_validator("ranges_deg")
+    @classmethod
+    def _range_keys(cls, value: dict) -> dict:
+        return _ordered_ranges(_joint_keys(value, "ranges_deg"))
+
+
+class ThresholdSpec(_Strict):
+    """``[thresholds]``: rejection of candidate poses."""
+
+    min_inv_kappa_F: float = Field(default=0.0, ge=0, le=1)
+    max_v_p: float = Field(default=1.0, gt=0)
+    max_v_r_deg: float = Field(default=180.0, gt=0)
+
+
+class SafetySpec(_Strict):
+    """``[safety]``: limits the planner and the runner respect."""
+
+    joint_margin_deg: float = Field(default=2.0, ge=0)
+    max_joint_speed_deg_s: float = Field(default=10.0, gt=0)
+    max_joint_acceleration_deg_s2: float = Field(default=20.0, gt=0)
+    approach_offset_mm: float = Field(default=50.0, ge=0)
+    max_force_N: float = Field(default=1000.0, gt=0)
+    max_moment_N_m: float = Field(default=200.0, gt=0)
+
+
+class FakeLabSpec(_Strict):
+    """``[fake_lab]``: the simulated lab (truth and noise it simulates)."""
+
+    true_joint_stiffness: tuple[float, float, float, float, float, float]
+    noise: NoiseSpec = NoiseSpec()
+    seed: int = Field(default=0, ge=0)
+    time_scale: float = Field(default=1.0, gt=0)
+
+    @field_validator("true_joint_stiffness")
+    @classmethod
+    def _positive(cls, value):
+        if min(value) <= 0:
+            raise ValueError("true joint stiffness values must be positive (N m/rad)")
+        return value
+
+
+class Protocol(_Strict):
+    """A validated campaign protocol. Load it with :func:`load_protocol`."""
+
+    campaign: CampaignSpec
+    tool: ToolSpec = ToolSpec()
+    instruments: dict[str, InstrumentSpec]
+    loads: LoadsSpec = LoadsSpec()
+    load_cases: list[LoadCaseSpec] = Field(min_length=1)
+    sampling: SamplingSpec = SamplingSpec()
+    zones: list[ZoneSpec] = []
+    thresholds: ThresholdSpec = ThresholdSpec()
+    safety: SafetySpec = SafetySpec()
+    fake_lab: FakeLabSpec | None = None
+
+    _path: str = PrivateAttr(default="<protocol>")
+    _text: str = PrivateAttr(default="")
+
+    @model_validator(mode="after")
+    def _cross_checks(self) -> Protocol:
+        names = [c.name for c in self.load_cases]
+        if len(set(names)) != len(names):
+            raise ValueError(f"load case names must be unique, got {names}")
+        if "pose" not in self.instruments:
+            raise ValueError("instruments: a 'pose' instrument (tracker) is required")
+        return self
+
+    # -- provenance ---------------------------------------------------------------
+    @property
+    def path(self) -> str:
+        """File the protocol was read from."""
+        return self._path
+
+    @property
+    def text(self) -> str:
+        """Exact text of the protocol file."""
+        return self._text
+
+    def where(self, *loc: str | int) -> str:
+        """``file:line: key`` for a key path such as ``("thresholds", "max_v_p")``."""
+        finder = yaml_line if self._path.endswith((".yaml", ".yml")) else toml_line
+        line = finder(self._text, loc) if self._text else None
+        key = ""
+        for part in loc:
+            key += f"[{part}]" if isinstance(part, int) else ("." if key else "") + str(part)
+        return f"{self._path}:{line}: {key}" if line else f"{self._path}: {key}"
+
+    # -- SI accessors -------------------------------------------------------------
+    def wrenches(self) -> np.ndarray:
+        """(m, 6) wrenches of the load cases, [N, N, N, N m, N m, N m], base frame."""
+        return np.array([c.wrench() for c in self.load_cases])
+
+    def measurement_sigma(self) -> np.ndarray:
+        """(6,) standard deviation of one measured displacement component [m x3, rad x3].
+
+        From the ``pose`` instrument's noise, divided by sqrt(repeats) (the
+        runner averages the repeats of a test).
+        """
+        noise = self.instruments["pose"].noise
+        if noise.translation_um is None or noise.rotation_urad is None:
+            raise InputError(
+                "the planner needs translation_um and rotation_urad of the pose instrument",
+                where=self.where("instruments", "pose", "noise"),
+            )
+        sigma = np.array([noise.translation_um * 1e-6] * 3 + [noise.rotation_urad * 1e-6] * 3)
+        if np.any(sigma <= 0):
+            raise InputError("instrument noise must be positive for the planner",
+                             where=self.where("instruments", "pose", "noise"))
+        return sigma / math.sqrt(self.campaign.repeats)
+
+    @property
+    def lab(self) -> dict[str, object] | None:
+        """Fake-lab settings in SI with the simulated lab's field names (None if absent)."""
+        if self.fake_lab is None:
+            return None
+        lab = self.fake_lab
+        out: dict[str, object] = {
+            "robot": self.campaign.robot,
+            "true_joint_stiffness": tuple(lab.true_joint_stiffness),
+            "seed": lab.seed,
+            "time_scale": lab.time_scale,
+        }
+        n = lab.noise
+        for name, value, scale in (
+            ("force_noise", n.force_N, 1.0),
+            ("torque_noise", n.torque_N_m, 1.0),
+            ("tracker_noise", n.translation_um, 1e-6),
+            ("tracker_angle_noise", n.rotation_urad, 1e-6),
+            ("encoder_noise", n.joint_urad, 1e-6),
+        ):
+            if value is not None:
+                out[name] = value * scale
+        return out
+
+
+def _parse(path: Path) -> tuple[dict, str]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise InputError(f"cannot read protocol file: {err.strerror}", where=str(path)) from err
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".yaml", ".yml"):
+            data = yaml.safe_load(text)
+        elif suffix == ".toml":
+            data = tomllib.loads(text)
+        else:
+            raise InputError("expected a .toml, .yaml or .yml protocol file", where=str(path))
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(f"not valid TOML: {err}", where=str(path)) from err
+    except yaml.YAMLError as err:
+        raise InputError(f"not valid YAML: {err}", where=str(path)) from err
+    if not isinstance(data, dict):
+        raise InputError("expected a table of keys at the top level", where=str(path))
+    return data, text
+
+
+def load_protocol(path: str | Path) -> Protocol:
+    """Read and validate a protocol file (schema, units, loads against safety limits).
+
+    Checks that need the robot (zones inside joint limits, thresholds that
+    leave candidates) are made by :func:`campaign.planner.make_plan`, which
+    reports them with the same ``file:line: key`` form.
+
+    Raises
+    ------
+    InputError
+        Naming the file, line and key of every problem.
+    """
+    path = Path(path)
+    data, text = _parse(path)
+    try:
+        protocol = Protocol.model_validate(data)
+    except ValidationError as err:
+        raise input_error_from_validation(err, str(path), text) from None
+    protocol._path = str(path)
+    protocol._text = text
+    _check_safety(protocol)
+    return protocol
+
+
+def _check_safety(protocol: Protocol) -> None:
+    safety = protocol.safety
+    for i, case in enumerate(protocol.load_cases):
+        w = case.wrench()
+        f, m = float(np.linalg.norm(w[:3])), float(np.linalg.norm(w[3:]))
+        if f > safety.max_force_N * (1 + 1e-12):
+            raise InputError(
+                f"load case {case.name!r}: force {f:.1f} N exceeds safety.max_force_N = "
+                f"{safety.max_force_N:g} N",
+                where=protocol.where("load_cases", i, "name"),
+            )
+        if m > safety.max_moment_N_m * (1 + 1e-12):
+            raise InputError(
+                f"load case {case.name!r}: moment {m:.1f} N m exceeds safety.max_moment_N_m = "
+                f"{safety.max_moment_N_m:g} N m",
+                where=protocol.where("load_cases", i, "name"),
+            )
