@@ -14,11 +14,11 @@ rad, N, N m). Every problem found in a file is reported as
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
+import tomllib
 import yaml
 from pydantic import (
     BaseModel,

@@ -1,0 +1,39 @@
+"""``campaign plan``: choose the tests of a campaign from its protocol file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from campaign.plan_output import summary_text
+from campaign.planner import STRATEGIES, make_plan, write_plan
+from campaign.protocol import load_protocol
+
+
+def plan(
+    protocol: Path = typer.Option(..., "--protocol", "-p", help="Protocol file (.toml/.yaml)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output directory of the plan."),
+    strategy: str = typer.Option(
+        "d-optimal", "--strategy", help=f"One of {', '.join(STRATEGIES)}."
+    ),
+    seed: int = typer.Option(0, "--seed", help="Seed of the candidate draw and random design."),
+    candidates: int = typer.Option(10000, "--candidates", help="Candidate poses drawn."),
+    no_figure: bool = typer.Option(False, "--no-figure", help="Skip plan_map.png."),
+) -> None:
+    """Plan the tests: candidate poses in the zones, thresholds, optimal design.
+
+    Writes OUT/plan.csv (angles in degrees, wrench in N and N m), the protocol
+    copy, OUT/plan_map.png and OUT/summary.txt/json, and prints the predicted
+    standard error of every joint stiffness beside that of a random zone design.
+    """
+    proto = load_protocol(protocol)
+    result = make_plan(proto, strategy=strategy, seed=seed, candidates=candidates)
+    path = write_plan(result, out, figure=not no_figure)
+    typer.echo(summary_text(result), nl=False)
+    typer.echo(f"plan written to {path}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``plan`` to the ``campaign`` command line."""
+    app.command("plan")(plan)

@@ -1,0 +1,165 @@
+"""Optimal experimental design for the linear model of Dumas et al. (2011), pure numpy.
+
+For a test (pose, wrench) the deflection is ``delta_d = A x`` (eqs. 16-18),
+``x = 1/k`` (rad/(N m)). Each row of A is divided by the standard deviation of
+the measured component (m for translations, rad for rotations) and each column
+multiplied by the prior compliance ``x0 = 1/k0``, so that the information
+matrix ``M = sum B_i^T B_i`` is that of the *relative* compliances
+``x / x0``. Its inverse is the covariance of the relative compliances, equal
+to that of the relative stiffnesses to first order (delta method: the standard
+error of k is ``se_k = k^2 se_x``, so ``se_k / k = se_x / x``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.linear_model import design_block
+
+
+def scaled_blocks(
+    J: np.ndarray, wrenches: np.ndarray, sigma: np.ndarray, k_prior: np.ndarray
+) -> np.ndarray:
+    """Weighted, column-scaled design blocks B (..., 6, n) (dimensionless).
+
+    Parameters
+    ----------
+    J : (..., 6, n) Jacobians (m/rad, rad/rad).
+    wrenches : (..., 6) wrenches [N; N m], base frame.
+    sigma : (6,) standard deviation of each measured component [m x3; rad x3].
+    k_prior : (n,) prior joint stiffness (N m/rad).
+    """
+    A = design_block(J, wrenches)
+    return A / sigma[:, None] / k_prior
+
+
+def information(B: np.ndarray) -> np.ndarray:
+    """Information matrices F = B^T B (..., n, n) of blocks B (..., rows, n)."""
+    return np.einsum("...ri,...rj->...ij", B, B)
+
+
+def predicted_se(M: np.ndarray, k_prior: np.ndarray) -> np.ndarray:
+    """Standard error of each identified k (N m/rad) for information M (n, n) of relative x.
+
+    ``cov(x/x0) = M^-1``, ``se_k = k^2 se_x = k * sqrt(diag(M^-1))``. Returns inf
+    where M is singular (some k not identifiable).
+    """
+    try:
+        cov = np.linalg.inv(M)
+    except np.linalg.LinAlgError:
+        return np.full(len(k_prior), np.inf)
+    d = np.diag(cov)
+    if np.any(~np.isfinite(d)) or np.any(d <= 0) or np.linalg.cond(M) > 1e14:
+        return np.full(len(k_prior), np.inf)
+    return k_prior * np.sqrt(d)
+
+
+def criterion(M: np.ndarray, kind: str) -> np.ndarray:
+    """Design criterion of information matrices M (..., n, n), larger is better.
+
+    ``d``: log det M (-inf if singular); ``e``: smallest eigenvalue of M.
+    """
+    if kind == "d":
+        sign, logdet = np.linalg.slogdet(M)
+        return np.where(sign > 0, logdet, -np.inf)
+    if kind == "e":
+        return np.linalg.eigvalsh(M)[..., 0]
+    raise ValueError(f"unknown criterion {kind!r}")
+
+
+def _ridge(F: np.ndarray) -> np.ndarray:
+    """A tiny multiple of the identity that makes the greedy start well posed."""
+    scale = float(np.mean(np.trace(F, axis1=-2, axis2=-1))) / F.shape[-1]
+    return 1e-9 * max(scale, 1e-300) * np.eye(F.shape[-1])
+
+
+def greedy_exchange(
+    F: np.ndarray,
+    group: np.ndarray,
+    n: int,
+    kind: str = "d",
+    max_passes: int = 20,
+) -> np.ndarray:
+    """Choose n candidates maximising the criterion of the summed information.
+
+    Greedy forward selection, then Fedorov-type exchange passes (swap a chosen
+    candidate for the best unchosen one while the criterion improves).
+
+    Parameters
+    ----------
+    F : (N, p, p) information matrix of each candidate test.
+    group : (N,) integer group of each candidate (a pose); at most one
+        candidate per group is chosen (a pose is tested once).
+    n : number of candidates to choose.
+    kind : ``"d"`` (D-optimal, log det) or ``"e"`` (E-optimal, smallest eigenvalue).
+
+    Returns
+    -------
+    (n,) indices of the chosen candidates, sorted ascending. Deterministic:
+    ties are broken by the lowest index.
+    """
+    N = F.shape[0]
+    if n > len(np.unique(group)):
+        raise ValueError(f"cannot choose {n} tests from {len(np.unique(group))} poses")
+    ridge = _ridge(F)
+    chosen: list[int] = []
+    M = ridge.copy()
+    free = np.ones(N, dtype=bool)
+    for _ in range(n):
+        score = criterion(M + F, kind)
+        score = np.where(free, score, -np.inf)
+        best = int(np.argmax(score))
+        chosen.append(best)
+        M = M + F[best]
+        free &= group != group[best]
+    current = float(criterion(M, kind))
+    for _ in range(max_passes):
+        improved = False
+        for slot in range(n):
+            out = chosen[slot]
+            base = M - F[out]
+            allowed = np.ones(N, dtype=bool)
+            others = np.array([c for j, c in enumerate(chosen) if j != slot], dtype=int)
+            if others.size:
+                allowed &= ~np.isin(group, group[others])
+            score = np.where(allowed, criterion(base + F, kind), -np.inf)
+            best = int(np.argmax(score))
+            if score[best] > current + 1e-10 * max(1.0, abs(current)):
+                chosen[slot] = best
+                M = base + F[best]
+                current = float(score[best])
+                improved = True
+        if not improved:
+            break
+    return np.sort(np.array(chosen, dtype=int))
+
+
+def random_design(group: np.ndarray, zone: np.ndarray, n: int, seed: int) -> np.ndarray:
+    """The paper's practice: n distinct poses drawn at random, cycling through the zones.
+
+    Parameters
+    ----------
+    group : (N,) pose of each candidate; zone : (N,) zone index of each candidate.
+    Returns (n,) sorted candidate indices (one candidate per pose, chosen at random).
+    """
+    rng = np.random.default_rng(seed)
+    zones = np.unique(zone)
+    picked: list[int] = []
+    used: set[int] = set()
+    order = rng.permutation(zones)
+    i = 0
+    stalled = 0
+    while len(picked) < n and stalled < len(zones):
+        z = order[i % len(order)]
+        i += 1
+        idx = np.flatnonzero((zone == z) & ~np.isin(group, list(used)))
+        if idx.size == 0:
+            stalled += 1
+            continue
+        stalled = 0
+        pick = int(rng.choice(idx))
+        picked.append(pick)
+        used.add(int(group[pick]))
+    if len(picked) < n:
+        raise ValueError(f"cannot choose {n} distinct poses from the candidates")
+    return np.sort(np.array(picked, dtype=int))

@@ -1,0 +1,75 @@
+"""The 1/kappa_F map over (theta_2, theta_3) with the planned poses (cf. Fig. 3b of the paper)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from analysis.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinematics import jacobian
+from analysis.robot_model import RobotModel
+from campaign.protocol import DEG
+
+
+def kappa_map(
+    robot: RobotModel, q_ref: np.ndarray, length: float, size: int = 181
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """1/kappa_F of J_N on a grid of (theta_2, theta_3) over the joint limits, batched.
+
+    Parameters
+    ----------
+    q_ref : (n,) values of the other joints (rad). length : L (m). size : grid points per axis.
+
+    Returns
+    -------
+    (t2, t3, inv_kappa) : grid axes (rad) and the map (size, size), indexed [i3, i2].
+    """
+    t2 = np.linspace(robot.lower[1], robot.upper[1], size)
+    t3 = np.linspace(robot.lower[2], robot.upper[2], size)
+    q = np.broadcast_to(np.asarray(q_ref, dtype=float), (size, size, robot.n)).copy()
+    q[..., 1] = t2[None, :]
+    q[..., 2] = t3[:, None]
+    return t2, t3, inverse_condition(normalized_jacobian(jacobian(robot, q), length))
+
+
+def draw_plan_map(plan, path: Path) -> None:
+    """Save the map with zones (boxes), candidates (dots), chosen poses (numbered) to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    robot = plan.robot
+    box0 = plan.boxes[0]
+    q_ref = (box0.lo + box0.hi) / 2
+    t2, t3, inv_k = kappa_map(robot, q_ref, plan.length)
+    fig, ax = plt.subplots(figsize=(7.0, 5.6), dpi=110)
+    mesh = ax.contourf(t2 / DEG, t3 / DEG, inv_k, levels=20, cmap="gray")
+    fig.colorbar(mesh, ax=ax, label=r"$1/\kappa_F(J_N)$")
+    for box in plan.boxes:
+        ax.add_patch(Rectangle((box.lo[1] / DEG, box.lo[2] / DEG), (box.hi[1] - box.lo[1]) / DEG,
+                               (box.hi[2] - box.lo[2]) / DEG, fill=False, ec="tab:blue", lw=1.2))
+        ax.text(box.lo[1] / DEG, box.hi[2] / DEG, box.name, color="tab:blue", fontsize=8,
+                va="bottom")
+    cand = plan.candidates
+    ok = np.any(cand.valid, axis=1)
+    ax.plot(cand.q[ok, 1] / DEG, cand.q[ok, 2] / DEG, ",", color="tab:cyan", alpha=0.5)
+    rnd = np.unique(plan.random.pose)
+    ax.plot(cand.q[rnd, 1] / DEG, cand.q[rnd, 2] / DEG, "s", mfc="none", mec="tab:orange",
+            ms=8, label="random zone design")
+    chosen = np.unique(plan.chosen.pose)
+    ax.plot(cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG, "o", color="tab:red", ms=6,
+            label=f"{plan.strategy} design")
+    for i, p in enumerate(chosen):
+        ax.annotate(str(i + 1), (cand.q[p, 1] / DEG, cand.q[p, 2] / DEG), color="tab:red",
+                    xytext=(4, 4), textcoords="offset points", fontsize=8)
+    others = ", ".join(f"q{j + 1} = {q_ref[j] / DEG:.0f}" for j in (0, 3, 4, 5))
+    ax.set_title(f"{robot.name}: 1/kappa_F over (theta2, theta3), {others} deg", fontsize=9)
+    ax.set_xlabel(r"$\theta_2$ (deg, model convention)")
+    ax.set_ylabel(r"$\theta_3$ (deg, model convention)")
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, metadata={"Software": None})
+    plt.close(fig)

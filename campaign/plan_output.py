@@ -1,0 +1,166 @@
+"""Plan directories: ``plan.csv``, the protocol copy, ``plan_map.png``, ``summary.txt/json``.
+
+``plan.csv`` is byte-reproducible: fixed float formats, fixed column order,
+no time stamps (the summary holds none either).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import InputError
+from campaign.protocol import Protocol, load_protocol
+
+if TYPE_CHECKING:
+    from campaign.planner import Plan
+
+PLAN_FILE = "plan.csv"
+
+#: columns of plan.csv, in order (angles in degrees, wrench in N and N m, base frame)
+COLUMNS = (
+    ["test", "pose", "zone", "load_case", "method", "repeats"]
+    + [f"q{j}_model_deg" for j in range(1, 7)]
+    + [f"q{j}_ctrl_deg" for j in range(1, 7)]
+    + ["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m"]
+    + ["inv_kappa_F", "v_p", "v_r_deg"]
+)
+
+
+def format_frame(df: pd.DataFrame) -> str:
+    """CSV text of a plan table with fixed float formats (byte-reproducible)."""
+    out = df.copy()
+    fixed3 = [c for c in out.columns if c.endswith(("_deg", "_N", "_N_m")) and c != "v_r_deg"]
+    for col in fixed3:
+        out[col] = [f"{v:.3f}" for v in out[col]]
+    out["inv_kappa_F"] = [f"{v:.6f}" for v in out["inv_kappa_F"]]
+    for col in ("v_p", "v_r_deg"):
+        out[col] = [f"{v:.6e}" for v in out[col]]
+    return out.to_csv(index=False, lineterminator="\n")
+
+
+def _se_rows(plan: Plan) -> list[dict]:
+    rows = []
+    for j in range(plan.robot.n):
+        k = float(plan.k_prior[j])
+        a, b = float(plan.chosen.se[j]), float(plan.random.se[j])
+        rows.append({
+            "joint": j + 1,
+            "k_prior_N_m_per_rad": k,
+            "se_design_N_m_per_rad": a,
+            "se_design_percent": 100 * a / k,
+            "se_random_N_m_per_rad": b,
+            "se_random_percent": 100 * b / k,
+            "random_over_design": b / a if a > 0 else float("inf"),
+        })
+    return rows
+
+
+def summary_dict(plan: Plan) -> dict:
+    """Everything the summary files hold (plain types, no time stamps)."""
+    cand = plan.candidates
+    protocol = plan.protocol
+    return {
+        "protocol": {"name": protocol.campaign.name, "file": Path(protocol.path).name,
+                     "sha256": hashlib.sha256(protocol.text.encode()).hexdigest()},
+        "robot": plan.robot.name,
+        "strategy": plan.strategy,
+        "seed": plan.seed,
+        "tests": int(len(plan.chosen.pose)),
+        "poses": int(len(np.unique(plan.chosen.pose))),
+        "candidates": {
+            "drawn": int(cand.q.shape[0]),
+            "poses_passing": int(np.sum(np.any(cand.valid, axis=1))),
+            "rejected": dict(cand.rejected),
+        },
+        "characteristic_length_m": plan.length,
+        "measurement_sigma_per_test": {
+            "translation_m": float(plan.sigma[0]), "rotation_rad": float(plan.sigma[3])},
+        "design": {"log_det": plan.chosen.log_det, "min_eig": plan.chosen.min_eig},
+        "random_zone_design": {"log_det": plan.random.log_det, "min_eig": plan.random.min_eig},
+        "predicted_standard_errors": _se_rows(plan),
+    }
+
+
+def summary_text(plan: Plan) -> str:
+    """Human-readable summary: candidates, rejections, predicted standard errors of k."""
+    s = summary_dict(plan)
+    c = s["candidates"]
+    lines = [
+        f"{s['protocol']['name']} ({s['robot']})",
+        f"strategy {s['strategy']}, seed {s['seed']}: {s['tests']} tests on {s['poses']} poses",
+        f"candidates: {c['drawn']} drawn, {c['poses_passing']} pass the thresholds; rejected: "
+        + ", ".join(f"{k} {v}" for k, v in c["rejected"].items()),
+        f"L = {s['characteristic_length_m']:.4f} m; sigma per averaged test: "
+        f"{s['measurement_sigma_per_test']['translation_m'] * 1e6:.2f} um, "
+        f"{s['measurement_sigma_per_test']['rotation_rad'] * 1e6:.2f} urad",
+        f"log det M: design {s['design']['log_det']:.3f}, random zone design "
+        f"{s['random_zone_design']['log_det']:.3f}",
+        "",
+        "predicted standard error of k (first order, N m/rad and % of the prior)",
+        f"{'joint':>5} {'k prior':>12} {'design':>12} {'%':>7} {'random':>12} {'%':>7} "
+        f"{'ratio':>6}",
+    ]
+    for r in s["predicted_standard_errors"]:
+        lines.append(
+            f"{r['joint']:>5} {r['k_prior_N_m_per_rad']:>12.0f} "
+            f"{r['se_design_N_m_per_rad']:>12.1f} {r['se_design_percent']:>7.3f} "
+            f"{r['se_random_N_m_per_rad']:>12.1f} {r['se_random_percent']:>7.3f} "
+            f"{r['random_over_design']:>6.2f}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def write_plan(plan: Plan, out: str | Path, figure: bool = True) -> Path:
+    """Write the plan directory ``out`` (created if needed); returns the plan.csv path."""
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"cannot create the output directory: {err.strerror}",
+                         where=str(out)) from err
+    suffix = Path(plan.protocol.path).suffix.lower() or ".toml"
+    for old in out.glob("protocol.*"):
+        if old.suffix in (".toml", ".yaml", ".yml") and old.suffix != suffix:
+            old.unlink()
+    (out / f"protocol{suffix}").write_text(plan.protocol.text, encoding="utf-8")
+    csv_path = out / PLAN_FILE
+    csv_path.write_text(format_frame(plan.to_frame()), encoding="utf-8")
+    (out / "summary.txt").write_text(summary_text(plan), encoding="utf-8")
+    (out / "summary.json").write_text(
+        json.dumps(summary_dict(plan), indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    if figure:
+        from campaign.plan_map import draw_plan_map
+
+        draw_plan_map(plan, out / "plan_map.png")
+    return csv_path
+
+
+def read_plan(directory: str | Path) -> tuple[Protocol, pd.DataFrame]:
+    """Read a plan directory written by :func:`write_plan`: (protocol, plan table).
+
+    The table has the columns :data:`COLUMNS`: angles in degrees
+    (``q*_model_deg`` model convention, ``q*_ctrl_deg`` controller convention),
+    wrench components in N and N m in the robot base frame, ``v_r_deg`` in deg.
+    """
+    directory = Path(directory)
+    copies = sorted(p for p in directory.glob("protocol.*")
+                    if p.suffix in (".toml", ".yaml", ".yml"))
+    if not copies:
+        raise InputError("no protocol.toml/.yaml in the plan directory", where=str(directory))
+    protocol = load_protocol(copies[0])
+    path = directory / PLAN_FILE
+    try:
+        df = pd.read_csv(path, dtype={"zone": str, "load_case": str, "method": str})
+    except (OSError, pd.errors.ParserError) as err:
+        raise InputError(f"cannot read the plan: {err}", where=str(path)) from err
+    missing = [c for c in COLUMNS if c not in df.columns]
+    if missing:
+        raise InputError(f"plan table lacks columns {missing}", where=str(path))
+    return protocol, df
+

@@ -1,0 +1,214 @@
+"""The campaign planner: candidate poses in the zones -> an optimal set of tests.
+
+:func:`make_plan` returns a :class:`Plan`; :func:`write_plan` saves it as a
+directory (``plan.csv``, the protocol copy, ``plan_map.png``, ``summary.txt``,
+``summary.json``); :func:`read_plan` reads that directory back for the
+acquisition runner.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import InputError
+from analysis.robot_model import RobotModel
+from campaign.candidates import Candidates, check_enough, evaluate, sample
+from campaign.design import (
+    criterion,
+    greedy_exchange,
+    information,
+    predicted_se,
+    random_design,
+    scaled_blocks,
+)
+from campaign.plan_output import COLUMNS, read_plan, write_plan
+from campaign.protocol import DEG, Protocol
+from campaign.protocol_robot import (
+    SamplingBox,
+    characteristic_length,
+    prior_stiffness,
+    protocol_robot,
+    sampling_boxes,
+)
+
+__all__ = ["COLUMNS", "STRATEGIES", "Design", "Plan", "make_plan", "read_plan", "write_plan"]
+
+STRATEGIES = ("d-optimal", "e-optimal", "zones-random")
+
+
+@dataclass
+class Design:
+    """A chosen set of tests. Arrays have one entry per test (pose, load case)."""
+
+    pose: np.ndarray  # (t,) candidate pose index
+    case: np.ndarray  # (t,) load case index
+    se: np.ndarray  # (n,) predicted standard error of k (N m/rad)
+    log_det: float  # log det of the information matrix of relative compliances
+    min_eig: float  # its smallest eigenvalue
+
+
+@dataclass
+class Plan:
+    """A planned campaign: the chosen design, the random zone design, the evidence.
+
+    Attributes
+    ----------
+    protocol, robot : the inputs (robot with the protocol's tool).
+    strategy, seed : how it was planned.
+    candidates : the evaluated candidate poses.
+    boxes : sampling box of each zone (rad).
+    chosen, random : the chosen design and the random zone design (same seed).
+    k_prior : (n,) prior joint stiffness (N m/rad). sigma : (6,) measurement sigma
+        of one averaged test [m x3; rad x3]. length : characteristic length L (m).
+    """
+
+    protocol: Protocol
+    robot: RobotModel
+    strategy: str
+    seed: int
+    candidates: Candidates
+    boxes: list[SamplingBox]
+    chosen: Design
+    random: Design
+    k_prior: np.ndarray
+    sigma: np.ndarray
+    length: float
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per test, columns :data:`COLUMNS` (degrees, N, N m; v_r in deg)."""
+        return design_frame(self, self.chosen)
+
+
+def design_frame(plan: Plan, design: Design) -> pd.DataFrame:
+    """Table of a design (see :data:`COLUMNS`)."""
+    cand, protocol, robot = plan.candidates, plan.protocol, plan.robot
+    q = cand.q[design.pose]
+    ctrl = robot.to_controller(q)
+    w = plan.protocol.wrenches()[design.case]
+    _, pose_id = np.unique(design.pose, return_inverse=True)
+    data: dict[str, object] = {
+        "test": np.arange(1, len(design.pose) + 1),
+        "pose": pose_id + 1,
+        "zone": [plan.boxes[z].name for z in cand.zone[design.pose]],
+        "load_case": [protocol.load_cases[c].name for c in design.case],
+        "method": [protocol.load_cases[c].method for c in design.case],
+        "repeats": protocol.campaign.repeats,
+    }
+    for j in range(robot.n):
+        data[f"q{j + 1}_model_deg"] = q[:, j] / DEG
+    for j in range(robot.n):
+        data[f"q{j + 1}_ctrl_deg"] = ctrl[:, j] / DEG
+    for i, name in enumerate(["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m"]):
+        data[name] = w[:, i]
+    data["inv_kappa_F"] = cand.inv_kappa[design.pose]
+    data["v_p"] = cand.v_p[design.pose, design.case]
+    data["v_r_deg"] = cand.v_r[design.pose, design.case] / DEG
+    return pd.DataFrame(data, columns=COLUMNS)
+
+
+def _tests(cand: Candidates, selection: str):
+    """Candidate tests: (pose index, case index or -1 for all cases) and the pose group."""
+    if selection == "all":
+        poses = np.flatnonzero(np.all(cand.valid, axis=1))
+        return poses, np.full(poses.size, -1), poses
+    poses, cases = np.nonzero(cand.valid)
+    return poses, cases, poses
+
+
+def _expand(pose: np.ndarray, case: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of a design: a case of -1 stands for every load case in turn."""
+    rows_p, rows_c = [], []
+    for p, c in zip(pose, case, strict=True):
+        for cc in range(m) if c < 0 else [c]:
+            rows_p.append(p)
+            rows_c.append(cc)
+    return np.array(rows_p, dtype=int), np.array(rows_c, dtype=int)
+
+
+def _design(plan_in: dict, picks: np.ndarray) -> Design:
+    pose, case = _expand(plan_in["pose"][picks], plan_in["case"][picks], plan_in["m"])
+    M = plan_in["F"][picks].sum(axis=0)
+    return Design(
+        pose=pose,
+        case=case,
+        se=predicted_se(M, plan_in["k"]),
+        log_det=float(criterion(M, "d")),
+        min_eig=float(criterion(M, "e")),
+    )
+
+
+def make_plan(
+    protocol: Protocol,
+    strategy: str = "d-optimal",
+    seed: int = 0,
+    candidates: int = 10000,
+    tests: int | None = None,
+) -> Plan:
+    """Plan the campaign of ``protocol``.
+
+    Parameters
+    ----------
+    protocol : a loaded protocol (:func:`campaign.protocol.load_protocol`).
+    strategy : ``d-optimal`` (max log det of the information matrix of the
+        weighted A), ``e-optimal`` (max smallest eigenvalue) or ``zones-random``
+        (the paper's practice: random poses cycling through the zones).
+    seed : seed of the candidate draw and of the random design.
+    candidates : number of candidate poses drawn over the zones.
+    tests : number of test poses; default the protocol's ``campaign.tests``.
+
+    Raises
+    ------
+    InputError
+        Zones or fixed joints outside the limits, thresholds leaving too few
+        candidates, unknown strategy; each names the key and line.
+    """
+    if strategy not in STRATEGIES:
+        raise InputError(f"unknown strategy {strategy!r}: expected one of "
+                         f"{', '.join(STRATEGIES)}", where="--strategy")
+    if candidates < 1:
+        raise InputError("need at least one candidate", where="--candidates")
+    if tests is not None:
+        protocol = protocol.model_copy(
+            update={"campaign": protocol.campaign.model_copy(update={"tests": tests})}
+        )
+    robot = protocol_robot(protocol)
+    k_prior = prior_stiffness(protocol, robot)
+    sigma = protocol.measurement_sigma()
+    length = characteristic_length(protocol, robot)
+    boxes = sampling_boxes(protocol, robot)
+    q, zone = sample(boxes, candidates, seed)
+    cand = evaluate(protocol, robot, q, zone, k_prior, length)
+    check_enough(protocol, cand)
+
+    wrenches = protocol.wrenches()
+    pose, case, group = _tests(cand, protocol.loads.selection)
+    if case.size and case[0] < 0:
+        F = sum(
+            information(scaled_blocks(cand.J[pose], wrenches[c], sigma, k_prior))
+            for c in range(len(wrenches))
+        )
+    else:
+        F = information(scaled_blocks(cand.J[pose], wrenches[case], sigma, k_prior))
+    inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches)}
+    n = protocol.campaign.tests
+    rand = random_design(group, cand.zone[pose], n, seed)
+    if strategy == "zones-random":
+        picks = rand
+    else:
+        picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e")
+    return Plan(
+        protocol=protocol,
+        robot=robot,
+        strategy=strategy,
+        seed=seed,
+        candidates=cand,
+        boxes=boxes,
+        chosen=_design(inputs, picks),
+        random=_design(inputs, rand),
+        k_prior=k_prior,
+        sigma=sigma,
+        length=length,
+    )
