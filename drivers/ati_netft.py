@@ -61,7 +61,7 @@ class RdtRecord:
 
 @dataclass(frozen=True)
 class NetFTCalibration:
-    """Scaling read from ``netftapi2.xml``: counts per unit and the units (as named by the sensor)."""
+    """Scaling read from ``netftapi2.xml``: counts per unit and the sensor's unit names."""
 
     counts_per_force: float
     counts_per_torque: float

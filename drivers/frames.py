@@ -49,7 +49,8 @@ def wrench_to_base(
     w = np.asarray(wrench_sensor, dtype=float)
     if w.shape[-1] != 6:
         raise ValueError("wrench must have 6 components [fx fy fz mx my mz]")
-    T = _check_transform(flange_pose, "flange_pose") @ _check_transform(sensor_mount, "sensor_mount")
+    T = _check_transform(flange_pose, "flange_pose") @ _check_transform(
+        sensor_mount, "sensor_mount")
     R, o = T[:3, :3], T[:3, 3]
     p = np.asarray(tool_point, dtype=float).reshape(3)
     f = w[..., :3] @ R.T

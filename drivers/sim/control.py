@@ -1,27 +1,22 @@
 """Control channel of the simulated lab: JSON lines over loopback TCP.
 
 Each request is one JSON object on one line; each reply is one JSON object
-``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``. Commands:
+``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``. Commands (``cmd``):
 
-=================  ==============================================  =====================
-``cmd``            fields                                          reply fields
-=================  ==============================================  =====================
-``ping``                                                           
-``addresses``                                                      ``addresses``
-``state``                                                          ``q`` (rad, controller),
-                                                                   ``tcp_pose``, ``load``...
-``move``           ``q`` (rad, controller), ``speed`` (rad/s)      ``duration`` (s)
-``apply_load``     ``wrench`` [6] (N, N m, base frame at P),       
-                   ``name``
-``remove_load``                                                    
-``aim``            ``target`` (reflector name)                     
-``fault``          ``device``, ``fault``, ``count`` (-1: always)   
-``clear_faults``   ``device`` (optional)                           
-``truth``                                                          ``stiffness``,
-                                                                   ``tool_pose``,
-                                                                   ``deflection``
-``shutdown``                                                       
-=================  ==============================================  =====================
+- ``ping``
+- ``addresses`` -> ``addresses`` (driver name -> address)
+- ``state`` -> ``q`` (rad, controller convention), ``tcp_pose`` [x y z (m), rotation
+  vector (rad)] from the encoders, ``load`` [6], ``load_name``, ``moving``, ``aimed``
+- ``move`` with ``q`` (rad, controller) and ``speed`` (rad/s) -> ``duration`` (s)
+- ``apply_load`` with ``wrench`` [f (N), m (N m)] in the base frame at the tool
+  point, and ``name``; ``remove_load``
+- ``aim`` with ``target`` (reflector name): where the tracker beam points
+- ``fault`` with ``device`` (driver name), ``fault`` (see :mod:`drivers.sim.faults`)
+  and ``count`` (-1: until cleared); ``clear_faults`` with optional ``device``;
+  ``take_fault`` with ``device`` and ``fault`` -> ``armed`` (used by the UR fake)
+- ``truth`` -> ``stiffness``, ``tool_pose``, ``nominal_tool_pose``, ``deflection``,
+  ``base_in_tracker``, ``sensor_mount`` (what the simulation knows; for tests)
+- ``shutdown``: stop the lab
 """
 
 from __future__ import annotations
@@ -65,6 +60,8 @@ def handle_command(world: World, req: dict[str, Any], addresses: dict[str, str],
         if cmd == "fault":
             world.faults.inject(str(req["device"]), str(req["fault"]), int(req.get("count", 1)))
             return {"ok": True}
+        if cmd == "take_fault":
+            return {"ok": True, "armed": world.faults.take(str(req["device"]), str(req["fault"]))}
         if cmd == "clear_faults":
             world.faults.clear(req.get("device"))
             return {"ok": True}
