@@ -221,7 +221,10 @@ def to_csv_frame(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def table_from_arrays(pose, q, w, d) -> pd.DataFrame:
-    """Tidy SI table from arrays: q (m, 6) rad, w (m, 6) N/N m, d (m, 6) m/rad (NaN = not measured)."""
+    """Tidy SI table from arrays.
+
+    q (m, 6) rad; w (m, 6) N, N m; d (m, 6) m, rad (NaN = not measured).
+    """
     q, w, d = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, w, d))
     data = {"pose": np.asarray(pose).astype(str)}
     for j, c in enumerate(SI_Q):

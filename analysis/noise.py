@@ -150,7 +150,7 @@ class NoiseModel:
         }
 
 
-def test_covariance(
+def residual_covariance(
     noise: NoiseModel, compliance: np.ndarray | None = None
 ) -> np.ndarray:
     """Covariance (..., 6, 6) of the residual ``d_measured - A x`` of one test.
@@ -166,6 +166,4 @@ def test_covariance(
     if compliance is None:
         return sig
     C = np.asarray(compliance, dtype=float)
-    return sig + C @ (noise.wrench_sigma**2[..., None] * np.swapaxes(C, -1, -2)) if False else (
-        sig + np.einsum("...ij,j,...kj->...ik", C, noise.wrench_sigma**2, C)
-    )
+    return sig + np.einsum("...ij,j,...kj->...ik", C, noise.wrench_sigma**2, C)

@@ -1,0 +1,205 @@
+"""The result of an identification, and its files (results.json, residuals.csv)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import InputError
+from analysis.measurements import TestArrays
+from analysis.noise import NoiseModel
+
+CI_METHOD = (
+    "interval of the compliance x = 1/k, x +- c se(x), mapped through 1/x "
+    "(upper bound infinite when the x interval reaches 0); se(k) = se(x)/x^2 (delta method)"
+)
+
+
+@dataclass
+class Fit:
+    """One estimator's output on per-test blocks (internal).
+
+    x (p,) compliances (rad/(N m)); G (p, 6m) linear(ised) estimator x = G d;
+    A (m, 6, p) model (or its Jacobian) per test; cov (m, 6, 6) residual
+    covariance per test; predicted (m, 6) model displacement (m, rad).
+    """
+
+    x: np.ndarray
+    G: np.ndarray
+    A: np.ndarray
+    cov: np.ndarray
+    predicted: np.ndarray
+    iterations: int
+
+
+@dataclass
+class IdentificationResult:
+    """Identified joint stiffness with its uncertainty and diagnostics (SI units).
+
+    Attributes
+    ----------
+    robot, method : robot name; "ols", "wls" or "exact".
+    joints : 0-based joints identified; the others are taken as rigid.
+    k : (6,) joint stiffness (N m/rad), NaN for joints not identified.
+    x : (6,) joint compliance (rad/(N m)), 0 for rigid joints.
+    cov_x : (p, p) covariance of the identified compliances ((rad/(N m))^2).
+    se_k : (6,) standard error of k by the delta method (N m/rad), NaN if not identified.
+    ci : (6, 2) confidence interval of k (N m/rad); hi may be inf; NaN if not identified.
+    confidence, covariance : interval level; "model" (known sigmas) or "residual".
+    condition_number : of the column-scaled A of the linear model (eqs. 16-18).
+    condition_number_weighted : of the column-scaled whitened system actually solved.
+    n_tests, n_poses, n_equations, dof : sizes (equations = measured components).
+    chi2_reduced, p_value : goodness of fit against the noise model.
+    residuals : table, one row per test and measured component: test, line,
+        pose, component, unit (m or rad), measured, predicted, residual, sigma,
+        studentized, outlier.
+    linear : {"ols": x (p,), "wls": x (p,)} linear-model estimates for comparison.
+    change_vs_linear : {name: (6,) relative change of k, chosen vs that linear fit}.
+    validation : leave-one-pose-out table (one row per held-out pose) or None.
+    iterations : Gauss-Newton iterations (exact), 0 otherwise.
+    noise : the noise model used. warnings : messages for the user.
+    """
+
+    robot: str
+    method: str
+    joints: tuple[int, ...]
+    k: np.ndarray
+    x: np.ndarray
+    cov_x: np.ndarray
+    se_k: np.ndarray
+    ci: np.ndarray
+    confidence: float
+    covariance: str
+    condition_number: float
+    condition_number_weighted: float
+    n_tests: int
+    n_poses: int
+    n_equations: int
+    dof: int
+    chi2_reduced: float
+    p_value: float
+    residuals: pd.DataFrame
+    linear: dict[str, np.ndarray]
+    change_vs_linear: dict[str, np.ndarray]
+    iterations: int
+    noise: NoiseModel
+    warnings: list[str] = field(default_factory=list)
+    validation: pd.DataFrame | None = None
+
+    @classmethod
+    def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
+              condition_number, condition_number_weighted, tests: TestArrays, n_equations,
+              dof, chi2_reduced, p_value, residuals, linear, iterations, noise, warnings):
+        cols = list(joints)
+        x_full = np.zeros(6)
+        x_full[cols] = x
+        k = np.full(6, np.nan)
+        with np.errstate(divide="ignore"):
+            k[cols] = np.where(x > 0, 1.0 / np.where(x > 0, x, 1.0), np.nan)
+        se_x = np.sqrt(np.diag(cov_x))
+        se_k = np.full(6, np.nan)
+        se_k[cols] = np.where(x > 0, se_x / np.where(x > 0, x, 1.0) ** 2, np.nan)
+        ci_full = np.full((6, 2), np.nan)
+        ci_full[cols] = ci
+        change = {}
+        for name, xl in linear.items():
+            c = np.full(6, np.nan)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                c[cols] = xl / x - 1.0  # k_chosen / k_linear - 1
+            change[name] = c
+        return cls(
+            robot=robot, method=method, joints=tuple(joints), k=k, x=x_full, cov_x=cov_x,
+            se_k=se_k, ci=ci_full, confidence=confidence, covariance=covariance,
+            condition_number=condition_number,
+            condition_number_weighted=condition_number_weighted, n_tests=tests.m,
+            n_poses=len(np.unique(np.round(tests.q, 9), axis=0)), n_equations=n_equations,
+            dof=dof, chi2_reduced=chi2_reduced, p_value=p_value, residuals=residuals,
+            linear=linear, change_vs_linear=change, iterations=iterations, noise=noise,
+            warnings=list(warnings),
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (null for joints not identified; inf bounds as null)."""
+
+        def num(v):
+            v = float(v)
+            return v if math.isfinite(v) else None
+
+        ci = [None if np.isnan(self.ci[j, 0]) else [num(self.ci[j, 0]), num(self.ci[j, 1])]
+              for j in range(6)]
+        out = {
+            "robot": self.robot,
+            "method": self.method,
+            "joints_identified": [j + 1 for j in self.joints],
+            "joint_stiffness_Nm_per_rad": [num(v) for v in self.k],
+            "ci95_Nm_per_rad" if abs(self.confidence - 0.95) < 1e-12 else
+            f"ci{self.confidence * 100:g}_Nm_per_rad": ci,
+            "standard_error_Nm_per_rad": [num(v) for v in self.se_k],
+            "joint_compliance_rad_per_Nm": [num(v) for v in self.x],
+            "covariance_of_compliance": self.cov_x.tolist(),
+            "confidence": self.confidence,
+            "ci_method": CI_METHOD,
+            "covariance_source": self.covariance,
+            "n_tests": self.n_tests,
+            "n_poses": self.n_poses,
+            "n_equations": self.n_equations,
+            "dof": self.dof,
+            "condition_number": num(self.condition_number),
+            "condition_number_weighted": num(self.condition_number_weighted),
+            "chi2_reduced": num(self.chi2_reduced),
+            "chi2_p_value": num(self.p_value),
+            "iterations": self.iterations,
+            "linear_fits_Nm_per_rad": {
+                name: [num(1.0 / v) if v > 0 else None for v in xl]
+                for name, xl in self.linear.items()
+            },
+            "relative_change_vs_linear": {
+                name: [num(v) for v in c] for name, c in self.change_vs_linear.items()
+            },
+            "noise": self.noise.describe(),
+            "warnings": self.warnings,
+            "residuals": _records(self.residuals),
+            "validation": None if self.validation is None else _records(self.validation),
+        }
+        return out
+
+
+def _records(frame: pd.DataFrame) -> list[dict]:
+    out = []
+    for rec in frame.to_dict(orient="records"):
+        clean = {}
+        for key, v in rec.items():
+            if isinstance(v, (float, np.floating)):
+                clean[key] = float(v) if math.isfinite(v) else None
+            elif isinstance(v, (np.integer,)):
+                clean[key] = int(v)
+            elif isinstance(v, (np.bool_,)):
+                clean[key] = bool(v)
+            else:
+                clean[key] = v
+        out.append(clean)
+    return out
+
+
+def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str, Path]:
+    """Write ``results.json``, ``residuals.csv`` (and ``validation.csv``) into ``out_dir``.
+
+    Returns the paths written, by name.
+    """
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"cannot create the output directory: {err}", where=str(out)) from err
+    paths = {"results": out / "results.json", "residuals": out / "residuals.csv"}
+    paths["results"].write_text(json.dumps(result.to_dict(), indent=2) + "\n")
+    result.residuals.to_csv(paths["residuals"], index=False)
+    if result.validation is not None:
+        paths["validation"] = out / "validation.csv"
+        result.validation.to_csv(paths["validation"], index=False)
+    return paths
