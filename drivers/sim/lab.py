@@ -1,0 +1,148 @@
+"""Start and stop the simulated lab: world, control channel and fake instruments.
+
+Programmatic use::
+
+    from drivers.sim.lab import Lab
+    from drivers.sim.settings import LabSettings
+
+    with Lab(LabSettings(seed=1, time_scale=50)) as lab:
+        lab.addresses        # {"ati-netft": "udp://127.0.0.1:...", ..., "control": "tcp://..."}
+        sensor = open_driver("ati-netft", lab.addresses["ati-netft"])
+
+Keys of :attr:`Lab.addresses` are registry driver names (so
+``open_driver(name, url)`` works for each), plus ``control`` for the control
+channel (:mod:`drivers.sim.control`).
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+from drivers.sim.base import FakeServer
+from drivers.sim.control import ControlServer
+from drivers.sim.settings import LabSettings
+from drivers.sim.world import World
+
+
+def robot_fake_name(robot: str) -> str:
+    """Which robot fake serves ``robot``: ``ur`` for UR models, else ``kuka-kvp``."""
+    return "ur" if robot.strip().lower().startswith("ur") else "kuka-kvp"
+
+
+class Lab:
+    """The simulated lab (threads in this process; the UR fake in a child process)."""
+
+    def __init__(self, settings: LabSettings | None = None) -> None:
+        self.settings = settings or LabSettings()
+        self.world = World(self.settings)
+        self.fakes: list[FakeServer] = []
+        self.addresses: dict[str, str] = {}
+        self.notes: list[str] = []
+        self._ur: subprocess.Popen | None = None
+        self._done = threading.Event()
+        self.control = ControlServer(self.world, self.addresses, on_shutdown=self._done.set)
+
+    @property
+    def control_url(self) -> str:
+        return self.control.url
+
+    def _make(self, name: str) -> FakeServer | None:
+        if name == "ati-netft":
+            from drivers.sim.fake_netft import FakeNetFT
+
+            return FakeNetFT(self.world)
+        if name == "robotiq-ft300":
+            from drivers.sim.fake_ft300 import FakeFT300
+
+            return FakeFT300(self.world)
+        if name == "ati-netcan":
+            from drivers.sim.fake_netcan import FakeNetCAN
+
+            try:
+                return FakeNetCAN(self.world, interface=self.settings.can_interface)
+            except Exception as err:  # python-can backends raise assorted errors
+                self.notes.append(f"ati-netcan fake not started ({self.settings.can_interface}: "
+                                  f"{err}); use can_interface='virtual' in-process")
+                return None
+        if name == "emscon":
+            from drivers.sim.fake_emscon import FakeEmscon
+
+            return FakeEmscon(self.world)
+        if name == "geocom":
+            from drivers.sim.fake_geocom import FakeGeoCom
+
+            return FakeGeoCom(self.world)
+        if name == "kuka-kvp":
+            from drivers.sim.fake_kvp import FakeKukaVarProxy
+
+            return FakeKukaVarProxy(self.world)
+        raise ValueError(f"no fake for {name!r}")
+
+    def start(self) -> dict[str, str]:
+        """Start everything; returns :attr:`addresses`."""
+        self.control.start()
+        self.addresses["control"] = self.control.url
+        self.addresses["lab-load"] = self.control.url.replace("tcp://", "lab://")
+        self.addresses["manual"] = "manual://"
+        self.addresses["manual-load"] = "manual://"
+        for name in self.settings.instruments:
+            if name == "robot":
+                name = robot_fake_name(self.settings.robot)
+                if name == "ur":
+                    self._start_ur()
+                    continue
+            fake = self._make(name)
+            if fake is None:
+                continue
+            fake.start()
+            self.fakes.append(fake)
+            self.addresses[fake.driver] = fake.url
+        return self.addresses
+
+    def _start_ur(self) -> None:
+        root = str(Path(__file__).resolve().parents[2])
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+        self._ur = subprocess.Popen(
+            [sys.executable, "-m", "drivers.sim.fake_rtde", "--control", self.control.url],
+            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env, text=True)
+        ready, _, _ = select.select([self._ur.stdout], [], [], 20.0)
+        line = self._ur.stdout.readline().strip() if ready else ""
+        if not line.startswith("ur="):
+            self._ur.kill()
+            self._ur = None
+            self.notes.append("ur fake did not start")
+            return
+        self.addresses["ur"] = line.split("=", 1)[1]
+
+    def wait(self) -> None:
+        """Block until a ``shutdown`` control command (or :meth:`stop`)."""
+        while not self._done.wait(0.5):
+            pass
+
+    def stop(self) -> None:
+        """Stop every fake, the UR process and the control channel."""
+        self._done.set()
+        for fake in self.fakes:
+            fake.stop()
+        self.fakes.clear()
+        if self._ur is not None:
+            self._ur.terminate()
+            try:
+                self._ur.wait(5)
+            except subprocess.TimeoutExpired:
+                self._ur.kill()
+            self._ur = None
+        self.control.stop()
+
+    def __enter__(self) -> Lab:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
