@@ -15,7 +15,7 @@ from campaign.protocol import DEG
 def kappa_map(
     robot: RobotModel, q_ref: np.ndarray, length: float, size: int = 181
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """1/kappa_F of J_N on a grid of (theta_2, theta_3) over the joint limits, batched.
+    """1/kappa_F of J_N on a (theta_2, theta_3) grid over the joint limits (within +-180 deg).
 
     Parameters
     ----------
@@ -25,8 +25,9 @@ def kappa_map(
     -------
     (t2, t3, inv_kappa) : grid axes (rad) and the map (size, size), indexed [i3, i2].
     """
-    t2 = np.linspace(robot.lower[1], robot.upper[1], size)
-    t3 = np.linspace(robot.lower[2], robot.upper[2], size)
+    half_turn = np.pi
+    t2 = np.linspace(max(robot.lower[1], -half_turn), min(robot.upper[1], half_turn), size)
+    t3 = np.linspace(max(robot.lower[2], -half_turn), min(robot.upper[2], half_turn), size)
     q = np.broadcast_to(np.asarray(q_ref, dtype=float), (size, size, robot.n)).copy()
     q[..., 1] = t2[None, :]
     q[..., 2] = t3[:, None]
