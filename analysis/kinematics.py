@@ -44,25 +44,55 @@ class ChainState:
     tip: np.ndarray
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis (faster than np.cross on large batches)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _rotate_frame(rot: np.ndarray, axis: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """rot @ R(axis, q) for batches: column operations when the axis is x, y or z."""
+    for k in range(3):
+        if axis[k] == 1.0 and np.count_nonzero(axis) == 1:
+            i, j = (k + 1) % 3, (k + 2) % 3
+            c, s = np.cos(q)[..., None], np.sin(q)[..., None]
+            out = rot.copy()
+            out[..., :, i] = c * rot[..., :, i] + s * rot[..., :, j]
+            out[..., :, j] = -s * rot[..., :, i] + c * rot[..., :, j]
+            return out
+    return rot @ _rotations(axis, q)
+
+
+def _compose(rot: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """rot (..., 3, 3) @ fixed (3, 3) as one matrix product over the whole batch."""
+    return (rot.reshape(-1, 3) @ fixed).reshape(rot.shape)
+
+
+def _apply(rot: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    """rot (..., 3, 3) @ vec (3,) as one matrix-vector product over the whole batch."""
+    return (rot.reshape(-1, 3) @ vec).reshape(rot.shape[:-1])
+
+
 def chain_state(robot: RobotModel, q: np.ndarray) -> ChainState:
     """Joint origins and axes and the tool pose, batched over the leading axes of q."""
     chain = robot.chain
     q = np.asarray(q, dtype=float)
     batch = q.shape[:-1]
-    rot = np.broadcast_to(np.eye(3), (*batch, 3, 3))
+    rot = np.broadcast_to(np.eye(3), (*batch, 3, 3)).copy()
     pos = np.zeros((*batch, 3))
     origins = np.empty((*batch, chain.n, 3))
     axes = np.empty((*batch, chain.n, 3))
     for i in range(chain.n):
         place = chain.placements[i]
-        pos = pos + rot @ place[:3, 3]
-        rot = rot @ place[:3, :3]
+        pos = pos + _apply(rot, place[:3, 3])
+        rot = _compose(rot, place[:3, :3])
         origins[..., i, :] = pos
-        axes[..., i, :] = rot @ chain.axes[i]
-        rot = rot @ _rotations(chain.axes[i], q[..., i])
+        axes[..., i, :] = _apply(rot, chain.axes[i])
+        rot = _rotate_frame(rot, chain.axes[i], q[..., i])
     tip = np.zeros((*batch, 4, 4))
-    tip[..., :3, :3] = rot @ chain.tip[:3, :3]
-    tip[..., :3, 3] = pos + rot @ chain.tip[:3, 3]
+    tip[..., :3, :3] = _compose(rot, chain.tip[:3, :3])
+    tip[..., :3, 3] = pos + _apply(rot, chain.tip[:3, 3])
     tip[..., 3, 3] = 1.0
     return ChainState(origins, axes, tip)
 
@@ -75,7 +105,7 @@ def tool_pose(robot: RobotModel, q: np.ndarray) -> np.ndarray:
 def jacobian_from_state(state: ChainState) -> np.ndarray:
     """J (..., 6, n) from a :class:`ChainState`: column i = [w_i x (p - o_i); w_i]."""
     p = state.tip[..., None, :3, 3]
-    lin = np.cross(state.axes, p - state.origins)
+    lin = cross(state.axes, p - state.origins)
     return np.concatenate([np.swapaxes(lin, -1, -2), np.swapaxes(state.axes, -1, -2)], axis=-2)
 
 

@@ -16,7 +16,7 @@ import pandas as pd
 from analysis.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinematics import chain_state, jacobian_from_state
 from analysis.robot_model import RobotModel
-from analysis.stiffness import complementary_stiffness_from_state, deflection
+from analysis.stiffness import complementary_stiffness_from_jacobian, deflection
 
 #: Worst-case wrench of the paper's section 3 (N, N m): 2200 N along and 400 N m about each axis.
 WORST_CASE_WRENCH = np.array([2200.0, 2200.0, 2200.0, 400.0, 400.0, 400.0])
@@ -54,18 +54,43 @@ class GridSpec:
         return q
 
 
+#: Poses per block when a large batch is split across threads.
+BLOCK = 8192
+
+
 def pose_metrics(
-    robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray, length: float
+    robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray, length: float,
+    threads: int | None = None,
 ) -> dict[str, np.ndarray]:
     """1/kappa_F, v_p, v_r (rad), the deflections and P's position for poses q (..., n).
 
     ``singular`` is True where J is rank deficient: 1/kappa_F is then 0; v_p and
     v_r stay defined (they need no J^-1) but a caller must show the flag.
+    Large batches are cut into blocks computed on ``threads`` threads (default:
+    the CPU count); NumPy releases the GIL inside its kernels.
     """
+    q = np.asarray(q, dtype=float)
+    shape = q.shape[:-1]
+    flat = q.reshape(-1, q.shape[-1])
+    if flat.shape[0] <= BLOCK:
+        return _pose_metrics(robot, q, k, w, length)
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    blocks = [flat[i:i + BLOCK] for i in range(0, flat.shape[0], BLOCK)]
+    with ThreadPoolExecutor(max_workers=threads or os.cpu_count() or 1) as pool:
+        parts = list(pool.map(lambda b: _pose_metrics(robot, b, k, w, length), blocks))
+    return {
+        key: np.concatenate([p[key] for p in parts]).reshape(*shape, *parts[0][key].shape[1:])
+        for key in parts[0]
+    }
+
+
+def _pose_metrics(robot, q, k, w, length):
     state = chain_state(robot, q)
     J = jacobian_from_state(state)
     inv_k = inverse_condition(normalized_jacobian(J, length))
-    K_C = complementary_stiffness_from_state(state, w)
+    K_C = complementary_stiffness_from_jacobian(J, w)
     d_kc = deflection(J, k, w, K_C)
     d_no = deflection(J, k, w)
     n_kc = np.linalg.norm(d_kc[..., :3], axis=-1)

@@ -13,18 +13,22 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import SingularPoseError
-from analysis.kinematics import ChainState, chain_state, jacobian_from_state
+from analysis.kinematics import ChainState, chain_state, cross, jacobian_from_state
 from analysis.robot_model import RobotModel
 
 
 def complementary_stiffness_from_state(state: ChainState, w: np.ndarray) -> np.ndarray:
+    """K_C (..., n, n) (N m/rad) from a kinematic state (see the Jacobian form below)."""
+    return complementary_stiffness_from_jacobian(jacobian_from_state(state), w)
+
+
+def complementary_stiffness_from_jacobian(J: np.ndarray, w: np.ndarray) -> np.ndarray:
     """K_C (..., n, n) (N m/rad), eq. 8: ``K_C[i, k] = d(J^T w)_i / dtheta_k``.
 
     Closed form for revolute joints, with J_i = [v_i; omega_i] at P in base axes:
     dJ_i/dtheta_k = [omega_k x v_i; omega_k x omega_i] for k <= i, and
-    [omega_i x v_k; 0] for k > i.
+    [omega_i x v_k; 0] for k > i. Only J (at P, base axes) is needed.
     """
-    J = jacobian_from_state(state)
     v = np.swapaxes(J[..., :3, :], -1, -2)  # (..., n, 3)
     om = np.swapaxes(J[..., 3:, :], -1, -2)
     w = np.asarray(w, dtype=float)
@@ -34,8 +38,8 @@ def complementary_stiffness_from_state(state: ChainState, w: np.ndarray) -> np.n
     # Triple products rewritten as matrix products:
     # (omega_k x v_i) . f + (omega_k x omega_i) . m = omega_k . (v_i x f + omega_i x m)
     # (omega_i x v_k) . f = omega_i . (v_k x f)
-    vf = np.cross(v, f)
-    lower = om @ np.swapaxes(vf + np.cross(om, m), -1, -2)  # [k, i], used for k <= i
+    vf = cross(v, f)
+    lower = om @ np.swapaxes(vf + cross(om, m), -1, -2)  # [k, i], used for k <= i
     upper = vf @ np.swapaxes(om, -1, -2)  # [k, i] = (v_k x f) . omega_i, used for k > i
     tri = np.triu(np.ones((n, n), dtype=bool))  # k <= i
     d = np.where(tri, lower, upper)  # d[..., k, i] = (dJ_i/dtheta_k) . w
