@@ -34,7 +34,7 @@ RPC_GET_COORDINATE = 2082
 RC_NAMES = {1283: "TMC_NO_FULL_CORRECTION", 1284: "TMC_ACCURACY_GUARANTEE",
             1285: "TMC_ANGLE_OK (no distance: beam lost?)", 1292: "TMC_BUSY",
             8710: "AUT_NO_TARGET"}
-_REPLY = re.compile(r"^%R1P,(\d+),(\d+):(-?\d+)((?:,[^,]*)*)$")
+_REPLY = re.compile(r"^%R1P,(\d+),(\d+):(-?\d+)?((?:,[^,]*)*)$")
 
 
 def encode_request(rpc: int, *params: object) -> bytes:
@@ -75,6 +75,8 @@ def decode_reply(line: bytes) -> tuple[int, list[str]]:
         raise ProtocolError(f"malformed GeoCOM reply {text[:60]!r}")
     if m.group(1) != "0":
         raise ProtocolError(f"GeoCOM communication error code {m.group(1)}")
+    if m.group(3) is None:
+        raise ProtocolError(f"GeoCOM reply without a return code: {text[:60]!r}")
     values = m.group(4)[1:].split(",") if m.group(4) else []
     return int(m.group(3)), values
 
