@@ -164,6 +164,10 @@ class NetCANSensor(ForceTorqueSensor):
                 return got
         raise DeviceTimeout(f"{self.address}: no complete answer to opcode 0x{opcode:x}")
 
+    def _discard_buffered(self) -> None:
+        while self._bus is not None and self._bus.recv(0) is not None:
+            pass
+
     def _read_sample(self) -> np.ndarray:
         frames = self._request(OP_SG0, b"", (OP_SG0, OP_SG1))
         status, sg = decode_sg_frames(frames[OP_SG0], frames[OP_SG1])

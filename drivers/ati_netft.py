@@ -247,6 +247,18 @@ class NetFTSensor(ForceTorqueSensor):
                 raise DeviceFault(f"Net F/T status word 0x{rec.status:08x} reports a fault")
             return np.asarray(rec.counts, dtype=float) * self._scale
 
+    def _discard_buffered(self) -> None:
+        if self._sock is None:
+            return
+        self._sock.setblocking(False)
+        try:
+            while True:
+                self._sock.recv(2048)
+        except (BlockingIOError, OSError):
+            pass
+        finally:
+            self._sock.settimeout(self.timeout)
+
     def set_hardware_bias(self) -> None:
         """Ask the sensor to zero itself (RDT command 0x0042)."""
         if self._sock is None:

@@ -128,6 +128,11 @@ class FT300Sensor(ForceTorqueSensor):
             self._ser.close()
             self._ser = None
 
+    def _discard_buffered(self) -> None:
+        if self._ser is not None:
+            self._ser.reset_input_buffer()
+            self._buf.clear()
+
     def _read_sample(self) -> np.ndarray:
         import serial
 

@@ -157,6 +157,7 @@ class ForceTorqueSensor(Driver):
     def _collect(self, samples: int) -> np.ndarray:
         if samples < 1:
             raise ValueError("need at least one sample")
+        self._discard_buffered()
         deadline = time.monotonic() + self.timeout + samples / self.rate_hz * 2
         rows = []
         for _ in range(samples):
@@ -187,6 +188,9 @@ class ForceTorqueSensor(Driver):
 
     @abstractmethod
     def _read_sample(self) -> np.ndarray: ...
+
+    def _discard_buffered(self) -> None:
+        """Drop samples queued before now (OS buffers), so a window holds fresh data only."""
 
     def describe(self) -> dict[str, Any]:
         d = super().describe()

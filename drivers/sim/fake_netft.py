@@ -133,7 +133,8 @@ class FakeNetFT(FakeServer):
                 if self.fault("drop"):
                     continue
                 if self.fault("garbage"):
-                    pkt = os.urandom(int(self.world.rng.integers(1, 80)))
+                    size = int(self.world.rng.integers(1, 80))
+                    pkt = os.urandom(size + (size % 36 == 0))  # never record-sized
                 elif self.fault("late") and self._old is not None:
                     self.sock.sendto(pkt, self._peer)
                     pkt = self._old
