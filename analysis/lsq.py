@@ -87,3 +87,4 @@ def block_diag_apply(G: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """G Sigma for G (..., p, 6m) and block-diagonal Sigma given as blocks (..., m, 6, 6)."""
     Gb = G.reshape(*G.shape[:-1], cov.shape[-3], 6)
     return np.einsum("...pmi,...mij->...pmj", Gb, cov).reshape(G.shape)
+

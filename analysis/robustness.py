@@ -1,0 +1,330 @@
+"""Robustness of the identification to measurement noise (the paper's section 5, Fig. 7).
+
+Monte-Carlo: each trial identifies the joint stiffness from ``n`` tests at
+poses drawn from the good zones, with normal noise on the measured
+displacement (translation and rotation), the measured wrench and the
+measured joint angles, and the spread of the identified k is reported
+against ``n``.
+
+How a trial is simulated
+------------------------
+* A pool of ``pool_size`` poses is drawn once: zone chosen uniformly among
+  the robot's zones (uniform in each zone's ranges, other joints uniform
+  within their limits), or the whole joint range for robots without zones;
+  poses with 1/kappa_F(J_N) below ``min_inverse_condition`` are redrawn
+  (this also keeps the random wrist away from its singularity).
+* The true displacement of every pool pose under the true wrench comes from
+  the nonlinear equilibrium (:func:`analysis.equilibrium.displacement_screw`),
+  not from the linear model being fitted.
+* A trial picks ``n`` pool poses at random (with replacement) and adds
+  noise: d + N(0, sigma_d), w + N(0, sigma_w), q + N(0, sigma_q). The
+  measured Jacobian J(q + dq_noise) is evaluated to first order from the
+  pool's dJ/dq (error O(sigma_q^2), below 1e-10 relative).
+* Identification is batched over trials (:mod:`analysis.batch_lsq`, batch
+  on the last axis): per-test whitening by Cholesky factors and QR by
+  modified Gram-Schmidt, ``ols`` (the paper's) or ``wls``. The exact fit is
+  not used here: the study measures the estimator the paper studies.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from analysis.batch_lsq import cholesky, forward_substitute, mgs_lstsq
+from analysis.dexterity import characteristic_length, inverse_condition, normalized_jacobian
+from analysis.equilibrium import displacement_screw
+from analysis.errors import InputError
+from analysis.kinematics import jacobian
+from analysis.noise import NoiseModel
+from analysis.robot_model import RobotModel
+
+#: The paper's eq. 22 wrench [fx fy fz (N); mx my mz (N m)].
+W_EFF = np.array([0.0, 2200.0, 2200.0, 200.0, 200.0, 0.0])
+MIN_INVERSE_CONDITION = 0.2
+SE_TRIALS = 2000  # trials on which the predicted standard errors are computed
+TRIAL_CHUNK_TESTS = 40_000  # trials x tests per chunk (memory: ~10 kB per test)
+
+
+@dataclass(frozen=True)
+class PosePool:
+    """Poses with their Jacobians and exact displacements (SI), batch on the last axis.
+
+    q (P, 6) rad; Jc (6, 6, P) Jacobian by column: Jc[j, r] = J[r, j];
+    dJc (6, 6, 6, P) with dJc[k] = dJc/dq_k; d (6, P) displacement [m; rad]
+    under ``w`` (6,) (N, N m) for joint stiffness ``k`` (6,) (N m/rad).
+    """
+
+    q: np.ndarray
+    Jc: np.ndarray
+    dJc: np.ndarray
+    d: np.ndarray
+    w: np.ndarray
+    k: np.ndarray
+
+
+def sample_poses(
+    robot: RobotModel,
+    count: int,
+    rng: np.random.Generator,
+    min_inverse_condition: float = MIN_INVERSE_CONDITION,
+    length: float | None = None,
+    max_rounds: int = 200,
+) -> np.ndarray:
+    """``count`` poses (rad) in the robot's zones (or joint range) with 1/kappa_F >= threshold."""
+    if length is None:
+        length = robot.characteristic_length or characteristic_length(robot, starts=3)[0]
+    out: list[np.ndarray] = []
+    have = 0
+    for _ in range(max_rounds):
+        batch = max(64, 2 * (count - have))
+        q = rng.uniform(robot.lower, robot.upper, (batch, robot.n))
+        if robot.zones:
+            z = rng.integers(0, len(robot.zones), batch)
+            for i, zone in enumerate(robot.zones):
+                sel = z == i
+                for j, (lo, hi) in zone.ranges.items():
+                    lo, hi = max(lo, robot.lower[j]), min(hi, robot.upper[j])
+                    q[sel, j] = rng.uniform(lo, hi, int(sel.sum()))
+        ic = inverse_condition(normalized_jacobian(jacobian(robot, q), length))
+        good = q[ic >= min_inverse_condition]
+        out.append(good)
+        have += len(good)
+        if have >= count:
+            return np.concatenate(out)[:count]
+    raise InputError(
+        f"fewer than {count} poses with 1/kappa_F >= {min_inverse_condition:g} found in "
+        f"{max_rounds} rounds of sampling; lower the threshold", where="--min-dexterity",
+    )
+
+
+def jacobian_derivative(robot: RobotModel, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """dJ/dq (..., 6, n, n) by central differences (last axis: joint differentiated)."""
+    n = q.shape[-1]
+    cols = [(jacobian(robot, q + h * e) - jacobian(robot, q - h * e)) / (2 * h)
+            for e in np.eye(n)]
+    return np.stack(cols, axis=-1)
+
+
+def build_pool(
+    robot: RobotModel,
+    k: np.ndarray,
+    w: np.ndarray,
+    size: int,
+    rng: np.random.Generator,
+    min_inverse_condition: float = MIN_INVERSE_CONDITION,
+) -> PosePool:
+    """Draw ``size`` poses and simulate their exact displacement under ``w``."""
+    q = sample_poses(robot, size, rng, min_inverse_condition)
+    w = np.asarray(w, dtype=float)
+    d = displacement_screw(robot, q, k, np.broadcast_to(w, (size, 6)))
+    J = jacobian(robot, q)  # (P, r, j)
+    dJ = jacobian_derivative(robot, q)  # (P, r, j, k)
+    return PosePool(
+        q=q,
+        Jc=np.ascontiguousarray(np.transpose(J, (2, 1, 0))),
+        dJc=np.ascontiguousarray(np.transpose(dJ, (3, 2, 1, 0))),
+        d=np.ascontiguousarray(d.T),
+        w=w,
+        k=np.asarray(k, float),
+    )
+
+
+def _test_covariance(Jc, x_full, noise: NoiseModel) -> np.ndarray:
+    """Per-test residual covariance (6, 6, n, T) for compliances x_full (6, T)."""
+    C = np.einsum("jant,jt,jbnt->abnt", Jc, x_full, Jc)
+    cov = np.einsum("ajnt,j,bjnt->abnt", C, noise.wrench_sigma**2, C)
+    cov[np.arange(6), np.arange(6)] += (noise.displacement_sigma**2)[:, None, None]
+    return cov
+
+
+def identify_batch(
+    Jc: np.ndarray,
+    w: np.ndarray,
+    d: np.ndarray,
+    noise: NoiseModel,
+    method: str = "wls",
+    joints: Sequence[int] = tuple(range(6)),
+    with_se: bool = True,
+    reweight: int = 1,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Identify joint compliances for many trials at once (linear model, eqs. 16-18).
+
+    Parameters
+    ----------
+    Jc : (6, 6, n, T) measured Jacobians by column (Jc[j, r] = J[r, j]) for n
+        tests of T trials; w : (6, n, T) measured wrenches (N, N m);
+    d : (6, n, T) measured displacements (m, rad); method : "ols" or "wls".
+    reweight : WLS passes, each re-evaluating the wrench-noise term of the
+        weights at the previous estimate (the first from OLS).
+
+    Returns
+    -------
+    x : (p, T) compliances (rad/(N m)); se : (p, T) standard errors predicted
+        by the noise model (WLS: (A^T Sigma^-1 A)^-1; OLS: the sandwich
+        A^+ Sigma A^+T), or None when ``with_se`` is False.
+    """
+    if method not in ("ols", "wls"):
+        raise InputError(f"the batched study supports ols and wls, not {method!r}",
+                         where="--method")
+    cols = list(joints)
+    p, (_, n, T) = len(cols), w.shape
+    tau = np.einsum("jrnt,rnt->jnt", Jc[cols], w)
+    A = Jc[cols] * tau[:, None]  # (p, r, n, T)
+    x, Rinv, scale = mgs_lstsq(A.reshape(p, 6 * n, T), d.reshape(6 * n, T),
+                               with_rinv=with_se or method == "ols")
+    if method == "ols":
+        if not with_se:
+            return x, None
+        cov_unit = np.einsum("ijt,kjt->ikt", Rinv, Rinv) / (scale[:, None] * scale[None])
+        G = np.einsum("pqt,qrnt->prnt", cov_unit, A)
+        cov_x = np.einsum("pant,abnt,qbnt->pqt", G, _test_covariance(Jc, _full(x, cols), noise),
+                          G)
+        return x, np.sqrt(np.einsum("ppt->pt", cov_x))
+    A_rows = np.moveaxis(A, 1, 0)  # (r, p, n, T)
+    for _ in range(reweight):
+        L = cholesky(_test_covariance(Jc, _full(x, cols), noise))
+        Aw = np.moveaxis(forward_substitute(L, A_rows), 0, 1).reshape(p, 6 * n, T)
+        dw = forward_substitute(L, d).reshape(6 * n, T)
+        x, Rinv, scale = mgs_lstsq(Aw, dw, with_rinv=with_se)
+    if not with_se:
+        return x, None
+    var = np.einsum("ijt,ijt->it", Rinv, Rinv) / scale**2
+    return x, np.sqrt(var)
+
+
+def _full(x: np.ndarray, cols: list[int]) -> np.ndarray:
+    out = np.zeros((6, x.shape[-1]))
+    out[cols] = x
+    return out
+
+
+def simulate_measurements(
+    pool: PosePool, n_tests: int, trials: int, noise: NoiseModel, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Noisy (Jc (6, 6, n, T), w (6, n, T), d (6, n, T)) for tests drawn from the pool."""
+    idx = rng.integers(0, pool.q.shape[0], (n_tests, trials))
+    dq = rng.normal(size=(6, n_tests, trials)) * noise.joint_sigma
+    Jc = pool.Jc[:, :, idx]
+    for k in range(6):
+        Jc += pool.dJc[k][:, :, idx] * dq[k]
+    w = pool.w[:, None, None] + rng.normal(size=(6, n_tests, trials)) \
+        * noise.wrench_sigma[:, None, None]
+    d = pool.d[:, idx] + rng.normal(size=(6, n_tests, trials)) \
+        * noise.displacement_sigma[:, None, None]
+    return Jc, w, d
+
+
+def _summary_rows(n: int, x: np.ndarray, se: np.ndarray, k_true, joints) -> list[dict]:
+    x, se = x.T, se.T  # (T, p)
+    rows = []
+    ok = np.all(np.isfinite(x), axis=1) & np.all(x > 0, axis=1)
+    for c, j in enumerate(joints):
+        kk = 1.0 / x[ok, c]
+        xs, ok_s = x[: se.shape[0], c], ok[: se.shape[0]]
+        pred = np.median(se[ok_s, c] / xs[ok_s] ** 2) if ok_s.any() else np.nan
+        q25, q50, q75 = np.percentile(kk, [25, 50, 75]) if ok.any() else (np.nan,) * 3
+        rows.append({
+            "n_tests": n, "joint": j + 1, "k_true_Nm_per_rad": float(k_true[j]),
+            "mean_Nm_per_rad": float(np.mean(kk)) if ok.any() else np.nan,
+            "std_Nm_per_rad": float(np.std(kk, ddof=1)) if ok.sum() > 1 else np.nan,
+            "relative_std": float(np.std(kk, ddof=1) / k_true[j]) if ok.sum() > 1 else np.nan,
+            "median_Nm_per_rad": float(q50),
+            "iqr_Nm_per_rad": float(q75 - q25),
+            "predicted_std_Nm_per_rad": float(pred),
+            "std_compliance_rad_per_Nm": float(np.std(x[:, c], ddof=1)),
+            "trials": int(x.shape[0]),
+            "trials_rejected": int((~ok).sum()),
+        })
+    return rows
+
+
+def robustness_study(
+    robot: RobotModel,
+    k_true: np.ndarray,
+    wrench: np.ndarray = W_EFF,
+    tests: Sequence[int] = range(1, 21),
+    trials: int = 1000,
+    noise: NoiseModel | None = None,
+    method: str = "ols",
+    seed: int = 0,
+    pool_size: int = 2000,
+    min_inverse_condition: float = MIN_INVERSE_CONDITION,
+    progress: Callable[[int], None] | None = None,
+) -> pd.DataFrame:
+    """Mean and spread of the identified k against the number of tests.
+
+    Returns one row per (n_tests, joint): k_true, mean, std (ddof 1), relative
+    std (std / k_true), median, IQR, the median noise-model prediction of the
+    std (delta method), the std of the compliance, trials, and trials rejected
+    (some x <= 0 or not finite: excluded from the statistics of k).
+    ``progress(trials_done)`` is called after each chunk.
+    """
+    noise = noise or NoiseModel()
+    k_true = np.asarray(k_true, dtype=float)
+    if k_true.shape != (robot.n,) or np.any(~np.isfinite(k_true)) or np.any(k_true <= 0):
+        raise InputError(f"expected {robot.n} positive joint stiffness values (N m/rad)",
+                         where="--joint-stiffness")
+    wrench = np.asarray(wrench, dtype=float)
+    if wrench.shape != (6,) or not np.all(np.isfinite(wrench)) or not np.any(wrench):
+        raise InputError("expected 6 finite numbers, not all zero (N, N m)", where="--wrench")
+    if trials < 2:
+        raise InputError("need at least 2 trials", where="--trials")
+    tests = list(tests)
+    if not tests or min(tests) < 1:
+        raise InputError("numbers of tests must be >= 1", where="--tests")
+    rng = np.random.default_rng(seed)
+    pool = build_pool(robot, k_true, wrench, pool_size, rng, min_inverse_condition)
+    joints = tuple(range(robot.n))
+    rows = []
+    for n in tests:
+        chunk = max(1, TRIAL_CHUNK_TESTS // n)
+        xs, ses = [], []
+        done = 0
+        while done < trials:
+            t = min(chunk, trials - done)
+            J, w, d = simulate_measurements(pool, n, t, noise, rng)
+            x, _ = identify_batch(J, w, d, noise, method, joints, with_se=False)
+            if not ses:  # the noise-model prediction of the spread, from a subset
+                sub = slice(0, min(t, SE_TRIALS))
+                ses.append(identify_batch(J[..., sub], w[..., sub], d[..., sub], noise, method,
+                                          joints)[1])
+            xs.append(x)
+            done += t
+            if progress is not None:
+                progress(t)
+        rows += _summary_rows(n, np.concatenate(xs, axis=1), np.concatenate(ses, axis=1), k_true,
+                              joints)
+    return pd.DataFrame(rows)
+
+
+def plot_study(summary: pd.DataFrame, path, title: str = "") -> None:
+    """PNG like the paper's Fig. 7: mean +- std of each k (kN m/rad) vs number of tests."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    joints = sorted(summary["joint"].unique())
+    fig, axes = plt.subplots(2, 3, figsize=(11, 6.5), sharex=True)
+    for ax, j in zip(axes.flat, joints, strict=False):
+        s = summary[summary["joint"] == j]
+        n = s["n_tests"].to_numpy()
+        mean = s["mean_Nm_per_rad"].to_numpy() / 1e3
+        std = s["std_Nm_per_rad"].to_numpy() / 1e3
+        ax.errorbar(n, mean, yerr=std, fmt="o-", ms=3, capsize=2, label="mean +- std")
+        ax.axhline(s["k_true_Nm_per_rad"].iloc[0] / 1e3, color="k", ls="--", lw=1,
+                   label="true")
+        ax.set_title(f"k{j}")
+        ax.set_ylabel("kN m/rad")
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("number of tests")
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(title or "Identified joint stiffness vs number of tests")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
