@@ -55,7 +55,7 @@ class RTDEServer:
             except DriverError:
                 self.stop.set()
                 return
-            time.sleep(0.02)
+            time.sleep(0.005)
 
     def values(self, names: list[str], types: list[str]) -> list:
         out = []

@@ -1,0 +1,129 @@
+"""Tracker drivers against their fakes over TCP: points, 6-DoF probe, reflector fit, faults."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drivers.emscon import EmsconTracker
+from drivers.errors import ConnectionFailed, DeviceFault, DeviceTimeout, ProtocolError
+from drivers.frames import matrix_to_rotvec
+from drivers.geocom import GeoComTracker
+from drivers.sim.fake_emscon import FakeEmscon
+from drivers.sim.fake_geocom import FakeGeoCom
+
+pytestmark = pytest.mark.timeout(60)
+
+KINDS = {"emscon-int32": (lambda w: FakeEmscon(w, header="int32"), EmsconTracker),
+         "emscon-int64": (lambda w: FakeEmscon(w, header="int64"), EmsconTracker),
+         "geocom": (FakeGeoCom, GeoComTracker)}
+
+
+@pytest.fixture(params=sorted(KINDS))
+def tracker(request, world):
+    make_fake, driver = KINDS[request.param]
+    fake = make_fake(world)
+    fake.start()
+    reflectors = {k: v for k, v in world.settings.reflectors.items() if k != "P"}
+    drv = driver(fake.url, reflectors=reflectors, aim=world.aim, timeout=1.0)
+    drv.connect()
+    yield fake, drv
+    drv.close()
+    fake.stop()
+
+
+def test_point_is_the_reflector_in_the_tracker_frame(tracker, world):
+    _fake, drv = tracker
+    p = drv.measure_point("P")
+    truth = (world.base_in_tracker @ world.true_tool_pose())[:3, 3]
+    assert np.linalg.norm(p.value - truth) < 6 * world.settings.tracker_noise
+    assert p.unit == "m" and p.frame == "tracker" and p.target == "P"
+
+
+def test_reflector_fit_gives_the_tool_pose_and_a_small_residual(tracker, world):
+    _fake, drv = tracker
+    pose = drv.measure_pose()
+    truth = world.base_in_tracker @ world.true_tool_pose()
+    noise = world.settings.tracker_noise
+    assert np.linalg.norm(pose.value[:3, 3] - truth[:3, 3]) < 8 * noise
+    angle = np.linalg.norm(matrix_to_rotvec(pose.value[:3, :3] @ truth[:3, :3].T))
+    assert angle < 8 * noise / 0.1  # reflectors about 0.1 m apart
+    assert 0 < pose.residual < 4 * noise
+
+
+def test_deflection_under_load_is_seen_by_the_tracker(tracker, world, settle):
+    _fake, drv = tracker
+    before = drv.measure_point("P").value
+    world.apply_load(np.array([0.0, 0.0, -2000.0, 0, 0, 0]))
+    settle(world)
+    after = drv.measure_point("P").value
+    expected = world.base_in_tracker[:3, :3] @ (world.true_tool_pose()[:3, 3]
+                                                - world.nominal_tool_pose()[:3, 3])
+    assert np.linalg.norm(expected) > 1e-3  # millimetres under 2 kN on a KR240
+    assert np.linalg.norm((after - before) - expected) < 8 * world.settings.tracker_noise
+
+
+def test_beam_lost_is_a_fault_then_measuring_resumes(tracker, world):
+    fake, drv = tracker
+    world.faults.inject(fake.device, "beam_lost", 1)
+    with pytest.raises(DeviceFault, match="beam lost"):
+        drv.measure_point("P")
+    assert np.all(np.isfinite(drv.measure_point("P").value))
+
+
+def test_no_answer_times_out_and_the_next_answer_is_not_stale(tracker, world):
+    fake, drv = tracker
+    world.faults.inject(fake.device, "drop", 1)
+    with pytest.raises(DeviceTimeout):
+        drv.measure_point("P")
+    world.aim("R1")
+    p = drv.measure_point("R1").value
+    truth = (world.base_in_tracker @ world.true_tool_pose() @ np.append(
+        world.reflectors["R1"], 1))[:3]
+    assert np.linalg.norm(p - truth) < 6 * world.settings.tracker_noise
+
+
+def test_garbage_is_a_protocol_error_or_timeout(tracker, world):
+    fake, drv = tracker
+    world.faults.inject(fake.device, "garbage", 1)
+    with pytest.raises((ProtocolError, DeviceTimeout)):
+        drv.measure_point("P")
+    assert np.all(np.isfinite(drv.measure_point("P").value))
+
+
+def test_disconnect_is_a_connection_error(tracker, world):
+    fake, drv = tracker
+    world.faults.inject(fake.device, "disconnect", 1)
+    with pytest.raises(ConnectionFailed):
+        drv.measure_point("P")
+
+
+def test_six_dof_probe(world):
+    fake = FakeEmscon(world, mode="6dof")
+    fake.start()
+    try:
+        with EmsconTracker(fake.url) as drv:
+            pose = drv.measure_pose()
+        truth = world.base_in_tracker @ world.true_tool_pose()
+        assert np.linalg.norm(pose.value[:3, 3] - truth[:3, 3]) < 8 * world.settings.tracker_noise
+        assert np.linalg.norm(matrix_to_rotvec(pose.value[:3, :3] @ truth[:3, :3].T)) < \
+            8 * world.settings.tracker_angle_noise
+    finally:
+        fake.stop()
+
+
+def test_wrong_header_layout_is_detected(world):
+    fake = FakeEmscon(world, header="int64")
+    fake.start()
+    try:
+        url = fake.url.replace("header=int64", "header=int32")
+        with EmsconTracker(url, timeout=1.0) as drv, \
+                pytest.raises((ProtocolError, DeviceTimeout, ConnectionFailed)):
+            drv.measure_point("P")
+    finally:
+        fake.stop()
+
+
+def test_fewer_than_three_reflectors_is_refused():
+    with pytest.raises(ValueError, match="three"):
+        GeoComTracker("socket://127.0.0.1:1", reflectors={"a": [0, 0, 0], "b": [1, 0, 0]})
