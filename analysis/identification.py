@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.exact_fit import model_displacement
+from analysis.gauss_newton import covariances_per_test, gauss_newton
 from analysis.kinematics import jacobian
 from analysis.linear_model import design_block
 from analysis.lsq import (
@@ -57,7 +57,7 @@ from analysis.lsq import (
     whitening,
 )
 from analysis.measurements import COMPONENTS, Q_COLS, TestArrays, to_arrays
-from analysis.noise import NoiseModel, residual_covariance
+from analysis.noise import NoiseModel
 from analysis.result import Fit, IdentificationResult
 from analysis.robot_model import RobotModel
 from analysis.uncertainty import (
@@ -155,9 +155,7 @@ def check_identifiable(
 
 
 def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured) -> np.ndarray:
-    C = np.einsum("...ij,j,...kj->...ik", J, x_full, J)
-    cov = residual_covariance(noise, C)
-    return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
+    return covariances_per_test(noise, J, x_full, measured)
 
 
 def _linear_estimator(A, d, measured, cov, weighted: bool):
@@ -195,41 +193,11 @@ def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
     return Fit(x=x, G=G, A=A, cov=cov, predicted=pred, iterations=0)
 
 
-def fit_exact(robot, tests, joints, noise, start: np.ndarray, max_iter: int = 30,
-              tol: float = 1e-10) -> Fit:
+def fit_exact(robot, tests, joints, noise, start: np.ndarray) -> Fit:
     """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,)."""
-    J = jacobian(robot, tests.q)
-    cols = list(joints)
-    x = np.asarray(start, dtype=float).copy()
-    dz = np.where(tests.measured, tests.d, 0.0)
-
-    def evaluate(xp, with_jacobian=True):
-        f, F = model_displacement(robot, tests.q, _full(xp, joints), tests.w, with_jacobian)
-        return f, (F[..., cols] * tests.measured[..., None] if F is not None else None)
-
-    f, F = evaluate(x)
-    iterations = 0
-    for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
-        cov = _covariances(noise, J, _full(x, joints), tests.measured)
-        Linv = whitening(cov, tests.measured)
-        r = np.einsum("mij,mj->mi", Linv, np.where(tests.measured, dz - f, 0.0))
-        step, _, _ = qr_solve(stack_matrix(Linv @ F), stack_vector(r))
-        cost0 = float(np.sum(r**2))
-        t = 1.0
-        while True:
-            x_new = x + t * step
-            f_new, _ = evaluate(x_new, with_jacobian=False)
-            r_new = np.einsum("mij,mj->mi", Linv, np.where(tests.measured, dz - f_new, 0.0))
-            if float(np.sum(r_new**2)) <= cost0 * (1 + 1e-12) or t < 1e-6:
-                break
-            t *= 0.5
-        x = x_new
-        f, F = evaluate(x)
-        if np.max(np.abs(t * step)) <= tol * np.max(np.abs(x)):
-            break
-    cov = _covariances(noise, J, _full(x, joints), tests.measured)
-    _, G = _linear_estimator(F, tests.d, tests.measured, cov, weighted=True)
-    return Fit(x=x, G=G, A=F, cov=cov, predicted=f, iterations=iterations)
+    gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start)
+    _, G = _linear_estimator(gn.F, tests.d, tests.measured, gn.cov, weighted=True)
+    return Fit(x=gn.x, G=G, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations)
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:

@@ -1,0 +1,121 @@
+"""Weighted Gauss-Newton fit of the exact equilibrium model, batched over campaigns.
+
+Minimises sum_tests r^T Sigma^-1 r, r = d_measured - f(x), over the joint
+compliances x, where f is the finite displacement of
+:func:`analysis.exact_fit.model_displacement`. The weights Sigma (per test,
+:func:`analysis.noise.residual_covariance`) are re-evaluated at each
+iterate. Each step solves the whitened linearised problem by QR; a step
+that raises the cost is halved (per campaign) until it does not.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from analysis.exact_fit import model_displacement
+from analysis.kinematics import jacobian
+from analysis.lsq import qr_solve, stack_matrix, stack_vector, whitening
+from analysis.noise import NoiseModel, residual_covariance
+from analysis.robot_model import RobotModel
+
+
+@dataclass(frozen=True)
+class GaussNewtonFit:
+    """x (..., p) compliances (rad/(N m)); F (..., m, 6, p) model Jacobian at x;
+    f (..., m, 6) model displacement (m, rad); cov (..., m, 6, 6) residual
+    covariance per test; cov_x (..., p, p) covariance of x from the noise
+    model, (F^T Sigma^-1 F)^-1; iterations; converged (...) bool."""
+
+    x: np.ndarray
+    F: np.ndarray
+    f: np.ndarray
+    cov: np.ndarray
+    cov_x: np.ndarray
+    iterations: int
+    converged: np.ndarray
+
+
+def covariances_per_test(noise, J, x_full, measured) -> np.ndarray:
+    """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6)."""
+    C = np.einsum("...ij,...j,...kj->...ik", J, x_full[..., None, :], J)
+    cov = residual_covariance(noise, C)
+    return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
+
+
+def gauss_newton(
+    robot: RobotModel,
+    q: np.ndarray,
+    w: np.ndarray,
+    d: np.ndarray,
+    measured: np.ndarray,
+    joints: tuple[int, ...],
+    noise: NoiseModel,
+    x0: np.ndarray,
+    max_iter: int = 30,
+    tol: float = 1e-10,
+) -> GaussNewtonFit:
+    """Fit compliances of ``joints`` (others rigid) to finite displacements.
+
+    Parameters
+    ----------
+    q, w, d : (..., m, 6) joint angles (rad), wrenches (N, N m), displacements
+        (m, rad; anything where not ``measured``); measured (..., m, 6) bool.
+    x0 : (..., p) start (typically the OLS estimate).
+    tol : stop when every step is below tol * max |x|.
+    """
+    cols = list(joints)
+    dz = np.where(measured, d, 0.0)
+    J = jacobian(robot, q)
+    batch = q.shape[:-2]
+
+    def full(xp):
+        out = np.zeros((*batch, 6))
+        out[..., cols] = xp
+        return out
+
+    def evaluate(xp, with_jacobian=True):
+        f, F = model_displacement(robot, q, full(xp)[..., None, :], w, with_jacobian)
+        if F is not None:
+            F = F[..., cols] * measured[..., None]
+        return f, F
+
+    def whitened(Linv, f):
+        return np.einsum("...ij,...j->...i", Linv, np.where(measured, dz - f, 0.0))
+
+    x = np.array(x0, dtype=float)
+    f, F = evaluate(x)
+    converged = np.zeros(batch, dtype=bool)
+    iterations = 0
+    for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
+        Linv = whitening(covariances_per_test(noise, J, full(x), measured), measured)
+        r = whitened(Linv, f)
+        step, _, _ = qr_solve(stack_matrix(Linv @ F), stack_vector(r))
+        cost0 = np.sum(r**2, axis=(-2, -1))
+        t = np.ones(batch)
+        accepted = np.zeros(batch, dtype=bool)
+        x_new, f_new = x.copy(), f.copy()
+        for _ in range(30):
+            x_try = x + t[..., None] * step
+            f_try, _ = evaluate(x_try, with_jacobian=False)
+            ok = ~accepted & (np.sum(whitened(Linv, f_try) ** 2, axis=(-2, -1))
+                              <= cost0 * (1 + 1e-12))
+            x_new = np.where(ok[..., None], x_try, x_new)
+            f_new = np.where(ok[..., None, None], f_try, f_new)
+            accepted |= ok
+            if np.all(accepted):
+                break
+            t = np.where(accepted, t, 0.5 * t)
+        moved = np.max(np.abs(np.where(accepted[..., None], t[..., None] * step, 0.0)), axis=-1)
+        x = x_new
+        f, F = evaluate(x)
+        # a step no halving can make descend means the cost is at its floor
+        converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
+        if np.all(converged):
+            break
+    cov = covariances_per_test(noise, J, full(x), measured)
+    Linv = whitening(cov, measured)
+    _, cov_x, _ = qr_solve(stack_matrix(Linv @ F), stack_vector(whitened(Linv, f)))
+    return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,
+                          converged=converged)
