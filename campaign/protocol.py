@@ -199,6 +199,18 @@ class SafetySpec(_Strict):
     max_moment_N_m: float = Field(default=200.0, gt=0)
 
 
+class ReportSpec(_Strict):
+    """``[report]``: what ``campaign analyze`` shows besides the identification.
+
+    ``poses_deg``: name -> six joint angles (model convention, deg) where the
+    report gives K_X; ``wrench``: [fx, fy, fz (N), mx, my, mz (N m)] at P, base
+    frame, for the predicted deflection (default: the first load case).
+    """
+
+    poses_deg: dict[str, tuple[float, float, float, float, float, float]] = {}
+    wrench: tuple[float, float, float, float, float, float] | None = None
+
+
 class FakeLabSpec(_Strict):
     """``[fake_lab]``: the simulated lab (truth and noise it simulates)."""
 
@@ -228,6 +240,7 @@ class Protocol(_Strict):
     thresholds: ThresholdSpec = ThresholdSpec()
     safety: SafetySpec = SafetySpec()
     fake_lab: FakeLabSpec | None = None
+    report: ReportSpec = ReportSpec()
 
     _path: str = PrivateAttr(default="<protocol>")
     _text: str = PrivateAttr(default="")

@@ -1,0 +1,268 @@
+"""Assemble the report (:class:`analysis.report.model.Report`) from an identification.
+
+SI inside; the tables show kN m/rad, um, urad, mm and degrees, each header
+naming its unit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from analysis.identification import OUTLIER_THRESHOLD
+from analysis.measurements import COMPONENTS, TestArrays
+from analysis.noise import NoiseModel
+from analysis.report import figures
+from analysis.report.design_robustness import design_robustness, design_tests
+from analysis.report.formatting import (
+    MICRO,
+    fixed,
+    interval_kNm,
+    k_kNm,
+    matrix_entry,
+    percent,
+    sig,
+)
+from analysis.report.model import Paragraph, Report, Section, Table
+from analysis.report.quantities import (
+    deflection_map,
+    pose_stiffness,
+    stiffness_for_prediction,
+)
+from analysis.report.summary import CampaignInfo, partial_text, quality_blocks, summary_table
+from analysis.result import IdentificationResult
+from analysis.robot_model import RobotModel
+
+SECTION_TITLES = (
+    "Summary",
+    "Identified joint stiffness",
+    "Residuals and validation",
+    "Deflection under the user wrench",
+    "Cartesian stiffness K_X",
+    "Robustness of this design",
+)
+AXES = ["x", "y", "z", "rx", "ry", "rz"]
+
+
+@dataclass
+class ReportInputs:
+    """Everything the report needs besides the identification result (SI units).
+
+    Attributes
+    ----------
+    robot : the robot model (with its tool). tests : the tests identified from.
+    info : campaign summary. noise : the noise model used for the identification.
+    wrench : (6,) user wrench [N, N m] at P, base frame; wrench_source says where it comes from.
+    poses : (label, q (6,) rad) where K_X is reported.
+    nominal : (6,) reference stiffness (N m/rad) or None; nominal_label names it.
+    true_k : (6,) true stiffness of a simulated lab, or None.
+    map_fixed : (6,) joint values of the maps (rad; entries 2 and 3 ignored).
+    trials : Monte-Carlo trials per number of tests for the robustness curve.
+    """
+
+    robot: RobotModel
+    tests: TestArrays
+    info: CampaignInfo
+    noise: NoiseModel
+    wrench: np.ndarray
+    wrench_source: str
+    poses: list[tuple[str, np.ndarray]]
+    nominal: np.ndarray | None = None
+    nominal_label: str = "nominal"
+    true_k: np.ndarray | None = None
+    map_fixed: np.ndarray = field(default_factory=lambda: np.radians([0, 0, 0, 45, 45, 45]))
+    trials: int = 300
+
+
+def wrench_text(w: np.ndarray) -> str:
+    """``f = (..) N, m = (..) N m`` with 4 significant digits."""
+    f = ", ".join(sig(v, 4) for v in w[:3])
+    m = ", ".join(sig(v, 4) for v in w[3:])
+    return f"f = ({f}) N, m = ({m}) N m"
+
+
+def fixed_text(q: np.ndarray) -> str:
+    deg = np.degrees(q)
+    return ", ".join(f"\u03b8{i + 1} = {deg[i]:.0f}" for i in (0, 3, 4, 5)) + " deg"
+
+
+def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
+    """k, interval, standard error, comparison with the nominal (and true) values."""
+    conf = f"{result.confidence:.0%}"
+    cols = ["joint", "k (kN m/rad)", f"{conf} interval (kN m/rad)", "se (kN m/rad)",
+            "se/k (%)", f"{inp.nominal_label} (kN m/rad)", "k/nominal - 1 (%)"]
+    if inp.true_k is not None:
+        cols += ["true (kN m/rad)", "k/true - 1 (%)"]
+    rows, marked = [], []
+    for j in range(6):
+        k = result.k[j]
+        nom = inp.nominal[j] if inp.nominal is not None else np.nan
+        ident = np.isfinite(k)
+        row = [f"k{j + 1}", k_kNm(k) if ident else "not identified",
+               interval_kNm(*result.ci[j]) if ident else "-", k_kNm(result.se_k[j]),
+               fixed(100 * result.se_k[j] / k, 2) if ident else "-", k_kNm(nom),
+               percent(k / nom - 1) if ident and np.isfinite(nom) else "-"]
+        if inp.true_k is not None:
+            row += [k_kNm(inp.true_k[j]),
+                    percent(k / inp.true_k[j] - 1) if ident else "-"]
+        rows.append(row)
+        outside = ident and np.isfinite(nom) and not (result.ci[j, 0] <= nom <= result.ci[j, 1])
+        marked.append(bool(outside))
+    return Table("Identified joint stiffness", cols, rows, marked,
+                 caption=f"Highlighted: the {inp.nominal_label} value lies outside the "
+                 f"{conf} interval. Interval: {conf} interval of the compliance 1/k mapped "
+                 "to k ('inf': the data do not bound k from above).",
+                 widths=[0.6, 1.1, 1.7, 1.0, 0.8, 1.2, 1.1] + ([1.0, 1.0] if inp.true_k
+                                                               is not None else []))
+
+
+def fit_paragraph(result: IdentificationResult) -> Paragraph:
+    return Paragraph(
+        f"Method {result.method} ({result.covariance} covariance), {result.n_tests} tests at "
+        f"{result.n_poses} poses, {result.n_equations} equations, {result.dof} residual "
+        f"degrees of freedom. Reduced chi-square {sig(result.chi2_reduced, 3)} "
+        f"(p = {sig(result.p_value, 2)}); condition number of the column-scaled A "
+        f"{sig(result.condition_number, 3)} (weighted {sig(result.condition_number_weighted, 3)})."
+    )
+
+
+def residual_table(result: IdentificationResult) -> Table:
+    """One row per test: residual of each measured component (um, urad); '*' marks outliers."""
+    res = result.residuals
+    rows, marked = [], []
+    for test, group in res.groupby("test", sort=True):
+        cells = {c: "-" for c in COMPONENTS}
+        flag = False
+        for _, r in group.iterrows():
+            value = 1e6 * r["residual"]
+            star = " *" if r["outlier"] else ""
+            flag |= bool(r["outlier"])
+            cells[r["component"]] = f"{value:.1f}{star}"
+        first = group.iloc[0]
+        rows.append([str(test + 1), str(first["pose"]), str(first["line"]),
+                     *[cells[c] for c in COMPONENTS]])
+        marked.append(flag)
+    u, ur = f"{MICRO}m", f"{MICRO}rad"
+    cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
+            f"ry ({ur})", f"rz ({ur})"]
+    return Table("Residuals (measured - model) per test and component", cols, rows, marked,
+                 caption=f"* outlier: |studentized residual| > {OUTLIER_THRESHOLD:g}; "
+                 "highlighted rows hold an outlier. 'line': row of the input table.",
+                 widths=[0.6, 0.8, 0.6, 1, 1, 1, 1, 1, 1])
+
+
+def validation_blocks(result: IdentificationResult) -> list:
+    if result.validation is None:
+        return [Paragraph("Held-out validation needs 3 distinct poses or more: not done.",
+                          "note")]
+    rows = []
+    for _, r in result.validation.iterrows():
+        rows.append([str(r["held_out_pose"]), str(r["n_tests"]),
+                     fixed(1e6 * r["rms_translation_m"], 1), fixed(1e6 * r["rms_rotation_rad"], 1),
+                     fixed(r["rms_normalized"], 2), str(r["note"]) or "-"])
+    return [Table(
+        "Held-out validation (leave one pose out)",
+        ["held-out pose", "tests", f"RMS error translation ({MICRO}m)",
+         f"RMS error rotation ({MICRO}rad)", "RMS error / sigma (1)", "note"],
+        rows, caption="Each pose is predicted from a fit without it; an RMS error / sigma "
+        "near 1 means the model predicts unseen poses to within the measurement noise.",
+        widths=[1, 0.6, 1.5, 1.5, 1.3, 2]),
+    ]
+
+
+def kx_blocks(inp: ReportInputs, k_pred: np.ndarray) -> list:
+    blocks: list = [Paragraph(
+        f"K_X = J^-T (K_\u03b8 - K_C) J^-1 (eq. 6) and without K_C (eq. 12), at P in the base "
+        f"frame, under the user wrench {wrench_text(inp.wrench)}. Units: rows/columns x, y, z "
+        "and rx, ry, rz; blocks N/m (translation), N m/rad (rotation), N/rad and N (mixed).")]
+    for label, q in inp.poses:
+        ps = pose_stiffness(inp.robot, label, q, k_pred, inp.wrench)
+        deg = ", ".join(f"{v:.2f}" for v in np.degrees(ps.q))
+        dp, dp0 = 1e3 * ps.deflection[:3], 1e3 * ps.deflection_no_KC[:3]
+        blocks.append(Paragraph(
+            f"Pose {label}: q = ({deg}) deg (model convention). Deflection of P: "
+            f"({', '.join(f'{v:.4f}' for v in dp)}) mm with K_C, "
+            f"({', '.join(f'{v:.4f}' for v in dp0)}) mm without; |\u03b4p| = "
+            f"{np.linalg.norm(dp):.4f} mm."))
+        for title, M in (("with K_C", ps.K_X), ("without K_C", ps.K_X_no_KC)):
+            rows = [[AXES[i], *[matrix_entry(v) for v in M[i]]] for i in range(6)]
+            blocks.append(Table(f"K_X at {label}, {title} (SI)", ["", *AXES], rows,
+                                widths=[0.5] + [1] * 6, mono=True))
+    return blocks
+
+
+def robustness_blocks(result: IdentificationResult, inp: ReportInputs,
+                      k_ref: np.ndarray) -> list:
+    q, w = design_tests(inp.tests.q, inp.tests.w)
+    table = design_robustness(inp.robot, q, w, k_ref, inp.noise, result.joints,
+                              trials=inp.trials)
+    se_rel = {j + 1: result.se_k[j] / result.k[j] for j in result.joints}
+    fig = figures.robustness_curve(table, result.n_tests, se_rel)
+    ns = sorted(table["n_tests"].unique())
+    rows = []
+    for j in sorted(table["joint"].unique()):
+        s = table[table["joint"] == j].set_index("n_tests")["relative_std"]
+        rows.append([f"k{j}", *[fixed(100 * s[n], 2) for n in ns]])
+    return [
+        Paragraph(f"{len(q)} distinct pose/wrench pairs of this campaign, drawn with "
+                  f"replacement; {inp.trials} trials per point; truth = the identified k; "
+                  "noise = the identification's noise model; batched WLS on the linear model."),
+        fig,
+        Table("Relative standard deviation of k (%) against the number of tests",
+              ["joint", *[f"n = {n}" for n in ns]], rows),
+    ]
+
+
+def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
+    """Assemble the report's sections (runs the maps and the Monte-Carlo study)."""
+    k_pred, pred_notes = stiffness_for_prediction(result.k, inp.nominal)
+    length = inp.robot.characteristic_length or 1.0
+    table = deflection_map(inp.robot, k_pred, inp.wrench, inp.map_fixed, length)
+    wt = wrench_text(inp.wrench)
+    ft = fixed_text(inp.map_fixed)
+    labels = list(dict.fromkeys(inp.tests.pose.tolist()))
+    first = [int(np.flatnonzero(inp.tests.pose == lab)[0]) for lab in labels]
+    q_poses = inp.tests.q[first]
+    banner = [t for t in [partial_text(inp.info)] if t]
+    if inp.info.n_failed:
+        banner.append(f"{inp.info.n_failed} failed test row(s): see Data quality.")
+    d = table["deflection_mm"].to_numpy()
+    d = d[np.isfinite(d)]
+    ident = [j for j in result.joints if np.isfinite(result.k[j])]
+    half = [(result.ci[j, 1] - result.ci[j, 0]) / 2 / result.k[j] for j in ident]
+    answer = Paragraph(
+        f"Joints {', '.join(str(j + 1) for j in ident)} identified from {result.n_tests} "
+        f"tests; 95 % intervals span {pm_text(min(half, default=np.nan))} to "
+        f"{pm_text(max(half, default=np.nan))} of k. Under {wt} the predicted deflection of "
+        f"P over the (\u03b8\u2082, \u03b8\u2083) map ranges from {fixed(d.min(), 3)} to "
+        f"{fixed(d.max(), 3)} mm (median {fixed(np.median(d), 3)} mm)." if d.size else "")
+    summary = Section(SECTION_TITLES[0], [
+        *[Paragraph(t, "warning") for t in banner], answer, summary_table(inp.info),
+        Paragraph("Data quality", "heading"), *quality_blocks(inp.info)])
+    ident_sec = Section(SECTION_TITLES[1], [
+        stiffness_table(result, inp), fit_paragraph(result),
+        *[Paragraph(w, "warning") for w in result.warnings],
+        figures.stiffness_bars(result.k, result.ci, inp.nominal, inp.nominal_label,
+                               result.confidence)])
+    resid_sec = Section(SECTION_TITLES[2], [
+        residual_table(result), figures.residual_plot(result.residuals, OUTLIER_THRESHOLD),
+        *validation_blocks(result)])
+    defl_sec = Section(SECTION_TITLES[3], [
+        Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "
+                  "with the identified k and K_C (linear, eq. 6)."),
+        *[Paragraph(n, "note") for n in pred_notes],
+        figures.poses_on_kappa_map(table, q_poses, labels, ft),
+        figures.deflection_joint_map(table, q_poses, wt, ft),
+        figures.deflection_cartesian_map(table, wt)])
+    kx_sec = Section(SECTION_TITLES[4], kx_blocks(inp, k_pred))
+    rob_sec = Section(SECTION_TITLES[5], robustness_blocks(result, inp, k_pred))
+    title = f"Joint stiffness of {inp.robot.name}"
+    subtitle = f"{inp.info.source}: {inp.info.location}"
+    return Report(title, subtitle, [summary, ident_sec, resid_sec, defl_sec, kx_sec, rob_sec],
+                  banner)
+
+
+def pm_text(value: float) -> str:
+    """A relative half-width as '\u00b1x.xx %'."""
+    return "-" if not np.isfinite(value) else f"\u00b1{100 * value:.2f} %"

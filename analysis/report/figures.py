@@ -1,0 +1,182 @@
+"""The report's plots, as PNG bytes of a fixed size (:data:`WIDTH` x :data:`HEIGHT` px).
+
+Each function takes data in SI (angles in rad where arrays of poses are
+given) and labels its axes in the report's units (deg, kN m/rad, mm).
+"""
+
+from __future__ import annotations
+
+import io
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from analysis.report.model import Figure  # noqa: E402
+
+SIZE_IN = (6.4, 4.0)
+DPI = 150
+WIDTH, HEIGHT = int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI)
+COMPONENT_MARKERS = {"dx": "o", "dy": "s", "dz": "^", "rx": "v", "ry": "D", "rz": "P"}
+
+
+def _png(fig, name: str, caption: str) -> Figure:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
+    plt.close(fig)
+    return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption)
+
+
+def _new(**kw):
+    fig, ax = plt.subplots(figsize=SIZE_IN, dpi=DPI, layout="constrained", **kw)
+    return fig, ax
+
+
+def _grid(table: pd.DataFrame, column: str):
+    t2 = np.unique(table["theta2_deg"].to_numpy())
+    t3 = np.unique(table["theta3_deg"].to_numpy())
+    z = table.pivot_table(index="theta3_deg", columns="theta2_deg", values=column,
+                          dropna=False).to_numpy()
+    return t2, t3, z
+
+
+def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[str],
+                       fixed_text: str) -> Figure:
+    """1/kappa_F over (theta_2, theta_3) with the tested poses; q_tests (m, 6) rad."""
+    fig, ax = _new()
+    t2, t3, z = _grid(table, "inv_kappa_F")
+    cs = ax.contourf(t2, t3, z, levels=20, cmap="gray")
+    fig.colorbar(cs, ax=ax, label="1/\u03ba_F of J_N")
+    deg = np.degrees(q_tests)
+    ax.plot(deg[:, 1], deg[:, 2], "o", color="tab:red", mec="white", ms=7, label="tested poses")
+    for (a, b), text in zip(deg[:, 1:3], labels, strict=True):
+        ax.annotate(text, (a, b), xytext=(5, 4), textcoords="offset points", color="tab:red",
+                    fontsize=8, fontweight="bold")
+    ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
+    ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
+    ax.set_title(f"Dexterity map, {fixed_text}", fontsize=9)
+    ax.legend(loc="lower right", fontsize=8)
+    return _png(fig, "poses_kappa_map", "Tested poses on the 1/\u03ba_F map (map at "
+                f"{fixed_text}; the poses' own \u03b8\u2081, \u03b8\u2084..\u03b8\u2086 may "
+                "differ).")
+
+
+def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
+                   nominal_label: str, confidence: float) -> Figure:
+    """Identified k (N m/rad) with the interval as error bars, nominal values as crosses."""
+    fig, ax = _new()
+    joints = np.arange(1, 7)
+    ok = np.isfinite(k)
+    kk = k / 1e3
+    lo = np.where(np.isfinite(ci[:, 0]), ci[:, 0], k) / 1e3
+    hi_raw = np.where(np.isfinite(ci[:, 1]), ci[:, 1], np.nan) / 1e3
+    top = np.nanmax(np.concatenate([kk[ok], hi_raw[ok & np.isfinite(hi_raw)], [0]])) * 1.3
+    hi = np.where(np.isfinite(hi_raw), hi_raw, top)
+    yerr = np.vstack([kk - lo, hi - kk])[:, ok]
+    ax.errorbar(joints[ok], kk[ok], yerr=yerr, fmt="o", capsize=5, color="tab:blue",
+                label=f"identified, {confidence:.0%} interval")
+    unbounded = ok & ~np.isfinite(hi_raw)
+    if unbounded.any():
+        ax.plot(joints[unbounded], hi[unbounded], "^", color="tab:blue",
+                label="interval unbounded above")
+    if nominal is not None:
+        ax.plot(joints, nominal / 1e3, "x", color="k", ms=9, mew=2, label=nominal_label)
+    values = np.concatenate([kk[ok], lo[ok], [] if nominal is None else nominal / 1e3])
+    values = values[np.isfinite(values) & (values > 0)]
+    if values.size and values.max() / values.min() > 20:
+        ax.set_yscale("log")
+    ax.set_xticks(joints, [f"k{j}" for j in joints])
+    ax.set_ylabel("joint stiffness (kN m/rad)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("Identified joint stiffness", fontsize=9)
+    return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals; crosses: "
+                f"{nominal_label}.")
+
+
+def residual_plot(residuals: pd.DataFrame, threshold: float) -> Figure:
+    """Studentized residual per test and component; outliers (|t| > threshold) in red."""
+    fig, ax = _new()
+    tests = residuals["test"].to_numpy()
+    for comp, marker in COMPONENT_MARKERS.items():
+        sel = residuals["component"] == comp
+        if sel.any():
+            ax.plot(tests[sel] + 1, residuals.loc[sel, "studentized"], marker, ms=5,
+                    mfc="none", label=comp, linestyle="none")
+    out = residuals["outlier"].to_numpy(dtype=bool)
+    if out.any():
+        ax.plot(tests[out] + 1, residuals.loc[out, "studentized"], "o", ms=11, mfc="none",
+                mec="red", mew=1.5, label="outlier")
+    for s in (-threshold, threshold):
+        ax.axhline(s, color="red", ls="--", lw=1)
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xlabel("test (row of the identification, 1-based)")
+    ax.set_ylabel("studentized residual (1)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))
+    ax.set_title("Residuals per test and component", fontsize=9)
+    return _png(fig, "residuals", f"Studentized residuals; dashed lines at \u00b1{threshold:g}; "
+                "circled in red: outliers.")
+
+
+def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: str,
+                         fixed_text: str) -> Figure:
+    """Norm of the predicted translational deflection (mm) over (theta_2, theta_3)."""
+    fig, ax = _new()
+    t2, t3, z = _grid(table, "deflection_mm")
+    finite = z[np.isfinite(z)]
+    vmax = np.percentile(finite, 99) if finite.size else 1.0
+    cs = ax.contourf(t2, t3, np.clip(z, None, vmax), levels=20, cmap="viridis")
+    fig.colorbar(cs, ax=ax, label="|\u03b4p| (mm)")
+    deg = np.degrees(q_tests)
+    ax.plot(deg[:, 1], deg[:, 2], "o", mfc="none", mec="white", ms=7, label="tested poses")
+    ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
+    ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
+    ax.set_title(f"Predicted deflection under {wrench_text}", fontsize=8)
+    ax.legend(loc="lower right", fontsize=8)
+    return _png(fig, "deflection_joint_map", "Norm of the predicted translational deflection "
+                f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}; colour "
+                "scale clipped at the 99th percentile.")
+
+
+def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:
+    """The same deflection over the positions of P in the arm's plane (radial distance, z)."""
+    fig, ax = _new()
+    x, y = table["x_m"].to_numpy(), table["y_m"].to_numpy()
+    radial = np.hypot(x, y) * np.where(x < 0, -1.0, 1.0)
+    z = table["deflection_mm"].to_numpy()
+    ok = np.isfinite(z)
+    vmax = np.percentile(z[ok], 99) if ok.any() else 1.0
+    sc = ax.scatter(radial[ok], table["z_m"].to_numpy()[ok], c=np.clip(z[ok], None, vmax),
+                    s=5, cmap="viridis")
+    fig.colorbar(sc, ax=ax, label="|\u03b4p| (mm)")
+    ax.set_xlabel("horizontal distance of P from axis 1 (m)")
+    ax.set_ylabel("height of P (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.set_title(f"Predicted deflection over the workspace, under {wrench_text}", fontsize=8)
+    return _png(fig, "deflection_cartesian_map", "The deflection map drawn at the positions of "
+                "P in the arm's plane (same poses as the joint-space map).")
+
+
+def robustness_curve(table: pd.DataFrame, n_campaign: int, se_rel: dict[int, float]) -> Figure:
+    """Relative std of each k (%) vs number of tests; the campaign's size and its own se."""
+    fig, ax = _new()
+    for j in sorted(table["joint"].unique()):
+        s = table[table["joint"] == j]
+        line, = ax.plot(s["n_tests"], 100 * s["relative_std"], "o-", ms=3, label=f"k{j}")
+        if j in se_rel and np.isfinite(se_rel[j]):
+            ax.plot([n_campaign], [100 * se_rel[j]], "*", ms=10, color=line.get_color())
+    ax.axvline(n_campaign, color="k", ls=":", lw=1)
+    ax.set_yscale("log")
+    ax.set_xlabel("number of tests drawn from this campaign's design")
+    ax.set_ylabel("relative std of k (%)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, ncol=2)
+    ax.set_title("Robustness of the identification to measurement noise", fontsize=9)
+    return _png(fig, "robustness", "Monte-Carlo spread of the identified k against the "
+                "number of tests; dotted line: this campaign's number of tests; stars: the "
+                "standard errors reported for this campaign.")

@@ -1,0 +1,86 @@
+"""The report as one self-contained HTML file: inline CSS, plots as base64 PNG, no scripts."""
+
+from __future__ import annotations
+
+import base64
+from html import escape
+
+from analysis.report.model import Figure, Paragraph, Report, Section, Table
+
+CSS = """
+body { font-family: "DejaVu Sans", Helvetica, Arial, sans-serif; margin: 2em auto;
+       max-width: 62em; color: #222; line-height: 1.4; padding: 0 1em; }
+h1 { font-size: 1.6em; margin-bottom: 0.1em; } h2 { border-bottom: 2px solid #36c;
+     padding-bottom: 0.2em; margin-top: 2em; } h3 { font-size: 1.05em; margin: 1.2em 0 0.4em; }
+.subtitle { color: #666; margin-top: 0; }
+.warning { background: #fff3cd; border-left: 4px solid #d90; padding: 0.5em 0.8em; }
+.note { background: #eef3fb; border-left: 4px solid #36c; padding: 0.5em 0.8em; }
+table { border-collapse: collapse; margin: 0.4em 0 0.3em; font-size: 0.88em; }
+th, td { border: 1px solid #bbb; padding: 0.25em 0.55em; text-align: right; }
+th { background: #e8ecf4; } td:first-child, th:first-child { text-align: left; }
+tr.marked td { background: #fde2e1; font-weight: bold; }
+table.mono td { font-family: "DejaVu Sans Mono", monospace; }
+table.kv td { text-align: left; }
+.caption { color: #555; font-size: 0.85em; margin: 0 0 1em; }
+figure { margin: 1em 0; } figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
+figcaption { color: #555; font-size: 0.85em; }
+nav ol { columns: 2; }
+"""
+
+
+def _anchor(title: str) -> str:
+    return "".join(c if c.isalnum() else "-" for c in title.lower()).strip("-")
+
+
+def _paragraph(p: Paragraph) -> str:
+    if p.kind == "heading":
+        return f"<h3>{escape(p.text)}</h3>"
+    cls = f' class="{p.kind}"' if p.kind in ("note", "warning") else ""
+    return f"<p{cls}>{escape(p.text)}</p>"
+
+
+def _table(t: Table) -> str:
+    classes = " ".join(c for c in ("mono" if t.mono else "",
+                                   "kv" if len(t.columns) == 2 else "") if c)
+    head = "".join(f"<th>{escape(c)}</th>" for c in t.columns)
+    body = []
+    for row, mark in zip(t.rows, t.marked, strict=True):
+        cells = "".join(f"<td>{escape(c)}</td>" for c in row)
+        body.append(f'<tr class="marked">{cells}</tr>' if mark else f"<tr>{cells}</tr>")
+    cls = f' class="{classes}"' if classes else ""
+    caption = f'<p class="caption">{escape(t.caption)}</p>' if t.caption else ""
+    return (f"<h3>{escape(t.title)}</h3><table{cls}><thead><tr>{head}</tr></thead>"
+            f"<tbody>{''.join(body)}</tbody></table>{caption}")
+
+
+def _figure(f: Figure) -> str:
+    data = base64.b64encode(f.png).decode("ascii")
+    return (f'<figure id="fig-{escape(f.name)}"><img src="data:image/png;base64,{data}" '
+            f'width="{f.width}" height="{f.height}" alt="{escape(f.caption)}">'
+            f"<figcaption>{escape(f.caption)}</figcaption></figure>")
+
+
+def _section(s: Section) -> str:
+    parts = [f'<section id="{_anchor(s.title)}"><h2>{escape(s.title)}</h2>']
+    for block in s.blocks:
+        if isinstance(block, Paragraph):
+            parts.append(_paragraph(block))
+        elif isinstance(block, Table):
+            parts.append(_table(block))
+        else:
+            parts.append(_figure(block))
+    parts.append("</section>")
+    return "\n".join(parts)
+
+
+def render_html(report: Report) -> str:
+    """The report as an HTML document (UTF-8 text)."""
+    nav = "".join(f'<li><a href="#{_anchor(s.title)}">{escape(s.title)}</a></li>'
+                  for s in report.sections)
+    body = "\n".join(_section(s) for s in report.sections)
+    return (
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+        f"<title>{escape(report.title)}</title><style>{CSS}</style></head><body>"
+        f"<h1>{escape(report.title)}</h1><p class=\"subtitle\">{escape(report.subtitle)}</p>"
+        f"<nav><ol>{nav}</ol></nav>\n{body}\n</body></html>\n"
+    )

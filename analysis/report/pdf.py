@@ -1,0 +1,145 @@
+"""The report as a PDF made with fpdf2 (A4 portrait, each section on a new page).
+
+Fonts: the DejaVu TrueType fonts shipped with matplotlib (Unicode: deg, +-,
+Greek letters), embedded in the file.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import matplotlib
+from fpdf import FPDF
+from fpdf.fonts import FontFace
+
+from analysis.report.model import Figure, Paragraph, Report, Table
+
+MARGIN = 15.0  # mm
+FIGURE_WIDTH = 165.0  # mm
+FILL = {"warning": (255, 243, 205), "note": (238, 243, 251)}
+MARK = (253, 226, 225)
+HEAD = (232, 236, 244)
+
+
+def _font_dir() -> Path:
+    return Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+
+
+class _Doc(FPDF):
+    def __init__(self, title: str) -> None:
+        super().__init__(orientation="P", unit="mm", format="A4")
+        self.report_title = title
+        fonts = _font_dir()
+        self.add_font("DejaVu", "", str(fonts / "DejaVuSans.ttf"))
+        self.add_font("DejaVu", "B", str(fonts / "DejaVuSans-Bold.ttf"))
+        self.add_font("DejaVuMono", "", str(fonts / "DejaVuSansMono.ttf"))
+        self.set_margins(MARGIN, MARGIN, MARGIN)
+        self.set_auto_page_break(True, margin=MARGIN + 5)
+        self.set_title(title)
+        self.set_creator("stiffness-campaign")
+
+    def footer(self) -> None:
+        self.set_y(-MARGIN)
+        self.set_font("DejaVu", "", 8)
+        self.set_text_color(110)
+        self.cell(0, 5, f"{self.report_title}  \u2014  page {self.page_no()} of {{nb}}",
+                  align="C")
+        self.set_text_color(0)
+
+
+def _space_left(doc: FPDF) -> float:
+    return doc.page_break_trigger - doc.get_y()
+
+
+def _paragraph(doc: _Doc, p: Paragraph) -> None:
+    if p.kind == "heading":
+        if _space_left(doc) < 30:
+            doc.add_page()
+        doc.set_font("DejaVu", "B", 11)
+        doc.multi_cell(0, 6, p.text, new_x="LMARGIN", new_y="NEXT")
+        doc.ln(1)
+        return
+    doc.set_font("DejaVu", "", 9)
+    fill = p.kind in FILL
+    if fill:
+        doc.set_fill_color(*FILL[p.kind])
+    doc.multi_cell(0, 4.6, p.text, fill=fill, new_x="LMARGIN", new_y="NEXT", padding=1.2)
+    doc.ln(2)
+
+
+def _widths(t: Table) -> list[float]:
+    if t.widths:
+        return list(t.widths)
+    return [max(len(c), *(len(r[i]) for r in t.rows), 3) for i, c in enumerate(t.columns)]
+
+
+def _table(doc: _Doc, t: Table) -> None:
+    if _space_left(doc) < 25 + 5 * min(len(t.rows), 4):
+        doc.add_page()
+    doc.set_font("DejaVu", "B", 10)
+    doc.multi_cell(0, 5.5, t.title, new_x="LMARGIN", new_y="NEXT")
+    size = 7.5 if len(t.columns) > 7 else 8.5
+    doc.set_font("DejaVuMono" if t.mono else "DejaVu", "", size)
+    head = FontFace(family="DejaVu", emphasis="BOLD", fill_color=HEAD, size_pt=size)
+    marked = FontFace(fill_color=MARK)
+    align = ["LEFT"] + ["RIGHT"] * (len(t.columns) - 1)
+    if len(t.columns) == 2:
+        align = ["LEFT", "LEFT"]
+    with doc.table(col_widths=_widths(t), headings_style=head, line_height=4.4,
+                   text_align=align, first_row_as_headings=True, padding=0.8,
+                   width=doc.epw) as table:
+        row = table.row()
+        for c in t.columns:
+            row.cell(c)
+        for cells, mark in zip(t.rows, t.marked, strict=True):
+            row = table.row()
+            for c in cells:
+                row.cell(c, style=marked if mark else None)
+    if t.caption:
+        doc.set_font("DejaVu", "", 7.5)
+        doc.set_text_color(80)
+        doc.multi_cell(0, 3.8, t.caption, new_x="LMARGIN", new_y="NEXT")
+        doc.set_text_color(0)
+    doc.ln(3)
+
+
+def _figure(doc: _Doc, f: Figure) -> None:
+    h = FIGURE_WIDTH * f.height / f.width
+    if _space_left(doc) < h + 10:
+        doc.add_page()
+    x = (doc.w - FIGURE_WIDTH) / 2
+    doc.image(io.BytesIO(f.png), x=x, y=doc.get_y(), w=FIGURE_WIDTH, h=h)
+    doc.set_y(doc.get_y() + h + 1)
+    doc.set_font("DejaVu", "", 7.5)
+    doc.set_text_color(80)
+    doc.multi_cell(0, 3.8, f.caption, new_x="LMARGIN", new_y="NEXT")
+    doc.set_text_color(0)
+    doc.ln(3)
+
+
+def render_pdf(report: Report) -> bytes:
+    """The report as PDF bytes."""
+    doc = _Doc(report.title)
+    for i, section in enumerate(report.sections):
+        doc.add_page()
+        if i == 0:
+            doc.set_font("DejaVu", "B", 17)
+            doc.multi_cell(0, 8, report.title, new_x="LMARGIN", new_y="NEXT")
+            doc.set_font("DejaVu", "", 9)
+            doc.set_text_color(100)
+            doc.multi_cell(0, 5, report.subtitle, new_x="LMARGIN", new_y="NEXT")
+            doc.set_text_color(0)
+            doc.ln(3)
+        doc.set_font("DejaVu", "B", 14)
+        doc.set_draw_color(51, 102, 204)
+        doc.cell(0, 8, f"{i + 1}. {section.title}", border="B", new_x="LMARGIN", new_y="NEXT")
+        doc.ln(3)
+        for block in section.blocks:
+            if isinstance(block, Paragraph):
+                _paragraph(doc, block)
+            elif isinstance(block, Table):
+                _table(doc, block)
+            else:
+                _figure(doc, block)
+    return bytes(doc.output())

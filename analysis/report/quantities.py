@@ -1,0 +1,76 @@
+"""What the identified stiffness means at the tool: K_X at named poses, deflection maps.
+
+Joints that were not identified are given the model's nominal stiffness
+when known, else taken as rigid (:data:`RIGID`); :func:`stiffness_for_prediction`
+says which.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import InputError, SingularPoseError
+from analysis.kinematics import jacobian
+from analysis.maps import GridSpec, joint_space_map
+from analysis.robot_model import RobotModel
+from analysis.stiffness import cartesian_stiffness, complementary_stiffness, deflection
+
+RIGID = 1e12  # N m/rad: a joint taken as rigid
+MAP_POINTS = 61  # grid points along the longer of the theta_2, theta_3 ranges
+
+
+def stiffness_for_prediction(
+    k: np.ndarray, nominal: np.ndarray | None
+) -> tuple[np.ndarray, list[str]]:
+    """Identified k (6,) (N m/rad) completed for prediction, and a note per completed joint."""
+    out = np.asarray(k, dtype=float).copy()
+    notes = []
+    for j in np.flatnonzero(~np.isfinite(out)):
+        if nominal is not None and np.isfinite(nominal[j]):
+            out[j] = nominal[j]
+            notes.append(f"k{j + 1} not identified: the model's nominal value is used")
+        else:
+            out[j] = RIGID
+            notes.append(f"k{j + 1} not identified: joint {j + 1} taken as rigid")
+    return out, notes
+
+
+@dataclass
+class PoseStiffness:
+    """K_X at one pose (SI blocks N/m, N/rad; N, N m/rad) and the deflection under w."""
+
+    label: str
+    q: np.ndarray
+    K_X: np.ndarray
+    K_X_no_KC: np.ndarray
+    deflection: np.ndarray
+    deflection_no_KC: np.ndarray
+
+
+def pose_stiffness(robot: RobotModel, label: str, q: np.ndarray, k: np.ndarray,
+                   w: np.ndarray) -> PoseStiffness:
+    """K_X with K_C (eq. 6) and without (eq. 12) at q (rad) under w (N, N m)."""
+    q = robot.check_q(np.asarray(q, dtype=float), where=f"pose {label}")
+    J = jacobian(robot, q)
+    K_C = complementary_stiffness(robot, q, w)
+    try:
+        K_X = cartesian_stiffness(J, k, K_C)
+        K_0 = cartesian_stiffness(J, k)
+    except SingularPoseError as err:
+        raise InputError(f"J is singular at this pose: {err}", where=f"pose {label}") from err
+    return PoseStiffness(label, q, K_X, K_0, deflection(J, k, w, K_C), deflection(J, k, w))
+
+
+def map_grid(robot: RobotModel, fixed: np.ndarray, points: int = MAP_POINTS) -> GridSpec:
+    """(theta_2, theta_3) grid over the joint limits, ``points`` along the longer range."""
+    span = max(robot.upper[1] - robot.lower[1], robot.upper[2] - robot.lower[2])
+    return GridSpec.from_limits(robot, span / (points - 1), np.asarray(fixed, dtype=float))
+
+
+def deflection_map(robot: RobotModel, k: np.ndarray, w: np.ndarray, fixed: np.ndarray,
+                   length: float, points: int = MAP_POINTS) -> pd.DataFrame:
+    """Map table (:func:`analysis.maps.joint_space_map`): 1/kappa_F, deflection_mm, x/y/z_m."""
+    return joint_space_map(robot, map_grid(robot, fixed, points), k, w, length)

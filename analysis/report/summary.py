@@ -1,0 +1,139 @@
+"""The campaign summary and data-quality part of the report.
+
+:class:`CampaignInfo` is filled by the caller (from a run directory or from
+an imported CSV file) and turned into tables here.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+from dataclasses import dataclass, field
+
+from analysis.report.formatting import fixed
+from analysis.report.model import Paragraph, Table
+
+VERSIONED = ("stiffness-campaign", "numpy", "scipy", "pandas", "pin", "matplotlib", "fpdf2")
+
+
+@dataclass
+class CampaignInfo:
+    """What the summary says about the campaign.
+
+    Attributes
+    ----------
+    source : ``"run"`` or ``"csv"``; ``location`` the run directory or CSV file.
+    robot, tool : robot name (and model file); tool description (text).
+    instruments : role -> description (driver, address, serial...).
+    started_utc, ended_utc, operator, status, reason : from the run metadata.
+    protocol_file, protocol_sha256 : the protocol and its SHA-256 (hex).
+    software : package -> version recorded at acquisition.
+    n_planned, n_rows, n_ok, n_failed : test rows planned, present, ok, failed.
+    flagged : rows of the data-quality table (dicts: test_id, repeat, pose, status,
+        flags, repeatability_mm, drift_mm, wrench_error_N, tracker_sigma_mm, line).
+    flag_counts : flag -> number of rows.
+    notes : remarks from reading the input (hash mismatch, dropped line, ...).
+    """
+
+    source: str
+    location: str
+    robot: str
+    tool: str = "-"
+    instruments: dict[str, str] = field(default_factory=dict)
+    started_utc: str = "-"
+    ended_utc: str = "-"
+    operator: str = "-"
+    status: str = "-"
+    reason: str = ""
+    protocol_file: str = "-"
+    protocol_sha256: str = "-"
+    software: dict[str, str] = field(default_factory=dict)
+    n_planned: int | None = None
+    n_rows: int = 0
+    n_ok: int = 0
+    n_failed: int = 0
+    flagged: list[dict] = field(default_factory=list)
+    flag_counts: dict[str, int] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def partial(self) -> bool:
+        """A run that did not finish (aborted, failed or still running)."""
+        return self.source == "run" and self.status != "complete"
+
+
+def analysis_versions() -> dict[str, str]:
+    """Versions of the packages doing this analysis."""
+    out = {}
+    for name in VERSIONED:
+        try:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def partial_text(info: CampaignInfo) -> str:
+    """One sentence on an unfinished run ('' for a complete run or CSV import)."""
+    if not info.partial:
+        return ""
+    planned = f" of {info.n_planned} planned" if info.n_planned else ""
+    why = f": {info.reason}" if info.reason else ""
+    return (f"PARTIAL RUN (status {info.status}{why}). Analysed from the {info.n_ok} test "
+            f"row(s) that finished ok{planned}; the results carry less information than "
+            "the plan intended.")
+
+
+def summary_table(info: CampaignInfo) -> Table:
+    """Key facts of the campaign, one per row."""
+    rows = [
+        ["source", f"{info.source}: {info.location}"],
+        ["robot", info.robot],
+        ["tool", info.tool],
+        ["status", info.status + (f" ({info.reason})" if info.reason else "")],
+        ["started / ended (UTC)", f"{info.started_utc} / {info.ended_utc}"],
+        ["operator", info.operator],
+        ["protocol", info.protocol_file],
+        ["protocol SHA-256", info.protocol_sha256],
+        ["test rows", f"{info.n_rows} recorded ({info.n_ok} ok, {info.n_failed} failed)"
+                      + (f", {info.n_planned} planned" if info.n_planned else "")],
+    ]
+    for role, text in info.instruments.items():
+        rows.append([f"instrument: {role}", text])
+    if info.software:
+        rows.append(["software (acquisition)",
+                     ", ".join(f"{k} {v}" for k, v in info.software.items())])
+    rows.append(["software (analysis)",
+                 ", ".join(f"{k} {v}" for k, v in analysis_versions().items())])
+    return Table("Campaign", ["item", "value"], rows, widths=[1, 3.2])
+
+
+def quality_blocks(info: CampaignInfo) -> list:
+    """Flag counts, the table of flagged or failed rows, and notes."""
+    blocks: list = []
+    if info.source != "run":
+        blocks.append(Paragraph("Imported measurements: no data-quality flags are recorded "
+                                "with a CSV file.", "note"))
+    elif not info.flagged:
+        blocks.append(Paragraph("No test row carries a data-quality flag and none failed."))
+    else:
+        counts = ", ".join(f"{flag}: {n}" for flag, n in info.flag_counts.items())
+        failed = f"{info.n_failed} failed test row(s) (not used for identification)"
+        blocks.append(Paragraph(f"Data-quality flags: {counts or 'none'}; {failed}.",
+                                "warning"))
+        rows, marked = [], []
+        for r in info.flagged:
+            rows.append([str(r["test_id"]), str(r["repeat"]), str(r["pose"]), r["status"],
+                         ", ".join(r["flags"]) or "-", fixed(r["repeatability_mm"], 3),
+                         fixed(r["drift_mm"], 3), fixed(r["wrench_error_N"], 2),
+                         fixed(r["tracker_sigma_mm"], 3), str(r["line"])])
+            marked.append(r["status"] == "failed")
+        blocks.append(Table(
+            "Flagged and failed test rows",
+            ["test", "repeat", "pose", "status", "flags", "repeatability (mm)",
+             "drift (mm)", "wrench error (N)", "tracker sigma (mm)", "tests.csv line"],
+            rows, marked, caption="Highlighted rows failed and were left out of the fit.",
+            widths=[0.6, 0.7, 0.6, 0.8, 1.9, 1.2, 0.8, 1.1, 1.1, 0.9],
+        ))
+    for note in info.notes:
+        blocks.append(Paragraph(note, "note"))
+    return blocks

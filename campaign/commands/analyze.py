@@ -1,0 +1,235 @@
+"""``campaign analyze``: identify the joint stiffness of a run (or a CSV file) and report it.
+
+``campaign analyze RUN_DIR`` reads a run directory (``docs/run_format.md``),
+``campaign analyze --measurements FILE.csv --robot R --out DIR`` imported
+tests. Both write ``results.json``, ``residuals.csv`` (and ``validation.csv``)
+and, unless ``--no-report``, ``report.html`` and ``report.pdf``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table as RichTable
+
+from analysis.errors import InputError
+from analysis.identification import DEFAULT_METHOD, METHODS, analyze_table, parse_joints
+from analysis.measurements import read_csv, to_arrays
+from analysis.noise import NoiseModel
+from analysis.report.build import ReportInputs, build_report
+from analysis.report.formatting import interval_kNm, k_kNm
+from analysis.report.summary import CampaignInfo
+from analysis.report.write import write_report
+from analysis.result import write_results
+from campaign.options import parse_floats, robot_option
+
+DEFAULT_TRIALS = 200
+
+
+def _noise_from_protocol(protocol) -> NoiseModel:
+    """Noise model from the protocol's instrument sigmas (per test row), defaults elsewhere."""
+    values: dict = {}
+    pose = protocol.instruments["pose"].noise
+    if pose.translation_um is not None:
+        values["translation_sigma_override"] = pose.translation_um * 1e-6
+    if pose.rotation_urad is not None:
+        values["rotation_sigma_override"] = pose.rotation_urad * 1e-6
+    ft = protocol.instruments.get("force_torque")
+    if ft is not None:
+        values["force_sigma"] = ft.noise.force_N
+        values["moment_sigma"] = ft.noise.torque_N_m
+    return NoiseModel().with_overrides(**values)
+
+
+def _instrument_text(spec) -> str:
+    if not isinstance(spec, dict):
+        return str(spec)
+    keys = ("driver", "address", "serial", "firmware", "units", "frame")
+    return ", ".join(f"{k} {spec[k]}" if k != "driver" else str(spec[k])
+                     for k in keys if spec.get(k) not in (None, ""))
+
+
+def _run_info(run, robot_name: str, protocol) -> CampaignInfo:
+    meta = run.metadata
+    tool = meta.get("tool")
+    if protocol is not None:
+        t = protocol.tool
+        tool = f"P at xyz {list(t.xyz_mm)} mm, rpy {list(t.rpy_deg)} deg (flange), " \
+               f"{t.mass_kg:g} kg"
+    flagged = []
+    for _, r in run.flagged().iterrows():
+        flagged.append({"test_id": r["test_id"], "repeat": r["repeat"], "pose": r["pose"],
+                        "status": r["status"], "flags": r["flag_list"],
+                        **{c: r[c] for c in ("repeatability_mm", "drift_mm", "wrench_error_N",
+                                             "tracker_sigma_mm")},
+                        "line": int(r["line"])})
+    return CampaignInfo(
+        source="run", location=str(run.path), robot=robot_name,
+        tool=str(tool) if tool else "-",
+        instruments={k: _instrument_text(v) for k, v in (meta.get("instruments") or {}).items()},
+        started_utc=str(meta.get("started_utc") or "-"), ended_utc=str(meta.get("ended_utc")
+                                                                       or "-"),
+        operator=str(meta.get("operator") or "-"), status=run.status, reason=run.reason,
+        protocol_file=str(meta.get("protocol_file") or run.protocol_path or "-"),
+        protocol_sha256=run.protocol_sha256 or str(meta.get("protocol_sha256") or "-"),
+        software={str(k): str(v) for k, v in (meta.get("software") or {}).items()},
+        n_planned=run.n_planned, n_rows=len(run.tests), n_ok=len(run.ok),
+        n_failed=run.n_failed, flagged=flagged, flag_counts=run.flag_counts(),
+        notes=list(run.notes),
+    )
+
+
+def _from_run(run_dir: Path):
+    """(table, robot, noise, info, extras) of a run directory."""
+    from analysis.robots import load_robot
+    from campaign.protocol import load_protocol
+    from campaign.protocol_robot import protocol_robot
+    from campaign.run_reader import read_run
+
+    run = read_run(run_dir)
+    protocol = load_protocol(run.protocol_path) if run.protocol_path else None
+    if protocol is not None:
+        robot = protocol_robot(protocol)
+        noise = _noise_from_protocol(protocol)
+    else:
+        key = (run.metadata.get("robot") or {}).get("key")
+        if not key:
+            raise InputError("no protocol copy and no robot.key in the metadata: cannot tell "
+                             "the robot", where=str(run.path / "metadata.json"))
+        robot, noise = load_robot(str(key)), NoiseModel()
+        run.notes.append("no protocol copy in the run: robot from the metadata, no tool "
+                         "offset, default noise model")
+    info = _run_info(run, robot.name, protocol)
+    true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
+    extras = {"protocol": protocol, "true_k": None if true_k is None else np.asarray(true_k,
+                                                                                      float)}
+    return run.ok, robot, noise, info, extras
+
+
+def _from_csv(path: Path, robot_spec: str | None, tip: str | None):
+    import hashlib
+
+    if not robot_spec:
+        raise InputError("--measurements needs --robot (built-in name, robot file or URDF)",
+                         where="--robot")
+    table = read_csv(path)
+    robot = robot_option(robot_spec, tip)
+    info = CampaignInfo(source="csv", location=str(path), robot=robot.name,
+                        protocol_file="- (imported CSV)",
+                        protocol_sha256="CSV SHA-256 " + hashlib.sha256(
+                            path.read_bytes()).hexdigest(),
+                        n_rows=len(table), n_ok=len(table))
+    return table, robot, NoiseModel(), info, {"protocol": None, "true_k": None}
+
+
+def _poses(robot, protocol, pose_args: list[str], q_tests: np.ndarray, labels) -> list:
+    poses = []
+    if protocol is not None:
+        for name, deg in protocol.report.poses_deg.items():
+            poses.append((name, np.radians(np.asarray(deg, float))))
+    for i, text in enumerate(pose_args, start=1):
+        poses.append((f"pose {i} (command line)",
+                      np.radians(parse_floats(text, f"--pose #{i}", robot.n))))
+    if not poses:
+        poses.append((f"{labels[0]} (first tested pose)", q_tests[0]))
+    for label, q in poses:
+        if np.any(q < robot.lower - 1e-9) or np.any(q > robot.upper + 1e-9):
+            raise InputError(f"{np.round(np.degrees(q), 3).tolist()} deg is outside the joint "
+                             f"limits of {robot.name}", where=f"pose {label}")
+    return poses
+
+
+def _wrench(protocol, text: str | None, w_tests: np.ndarray) -> tuple[np.ndarray, str]:
+    if text:
+        return parse_floats(text, "--wrench", 6), "--wrench"
+    if protocol is not None and protocol.report.wrench is not None:
+        return np.asarray(protocol.report.wrench, float), "protocol [report] wrench"
+    if protocol is not None:
+        return protocol.wrenches()[0], f"first load case '{protocol.load_cases[0].name}'"
+    return w_tests[0].copy(), "wrench of the first test"
+
+
+def _map_fixed(protocol) -> np.ndarray:
+    fixed = np.radians([0.0, 0.0, 0.0, 45.0, 45.0, 45.0])
+    if protocol is not None:
+        for key, value in protocol.sampling.fixed_deg.items():
+            fixed[int(key[1:]) - 1] = np.radians(value)
+    return fixed
+
+
+def _print(console: Console, result, paths: dict) -> None:
+    table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
+    for col in ("joint", "k (kN m/rad)", f"{result.confidence:.0%} interval (kN m/rad)"):
+        table.add_column(col, justify="right")
+    for j in range(6):
+        table.add_row(f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
+                      if np.isfinite(result.k[j]) else "-")
+    console.print(table)
+    for w in result.warnings:
+        console.print(f"[yellow]warning:[/yellow] {w}")
+    for name, p in paths.items():
+        console.print(f"{name}: {p}")
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("analyze")
+    def analyze(
+        run_dir: Path = typer.Argument(None, help="Run directory written by campaign acquire."),
+        measurements: Path = typer.Option(None, help="Tests CSV file (public import format)."),
+        robot: str = typer.Option(None, help="Robot of --measurements: built-in, file or URDF."),
+        tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        out: Path = typer.Option(None, help="Output directory (default RUN_DIR/analysis)."),
+        method: str = typer.Option(DEFAULT_METHOD, help=f"One of {', '.join(METHODS)}."),
+        joints: str = typer.Option(None, help="Joints to identify, e.g. 1,2,3 (others rigid)."),
+        covariance: str = typer.Option("model", help="model (known sigmas) or residual."),
+        pose: list[str] = typer.Option(  # noqa: B008 (typer's way of a repeatable option)
+            [], help="Joint angles (deg, model convention) where K_X is reported; repeatable."),
+        wrench: str = typer.Option(
+            None, help="fx,fy,fz (N), mx,my,mz (N m) at P, base frame, for the predicted "
+            "deflection (default: protocol [report] wrench or first load case)."),
+        trials: int = typer.Option(DEFAULT_TRIALS, help="Monte-Carlo trials per point of "
+                                   "the robustness curve."),
+        report: bool = typer.Option(True, "--report/--no-report", help="Write the report."),
+    ) -> None:
+        """Identify joint stiffness from a run or a CSV file; write results.json and the report."""
+        if (run_dir is None) == (measurements is None):
+            raise InputError("give either RUN_DIR or --measurements FILE.csv --robot R",
+                             where="campaign analyze")
+        if run_dir is not None:
+            if robot:
+                raise InputError("a run names its robot in its protocol; drop --robot",
+                                 where="--robot")
+            table, model, noise, info, extras = _from_run(run_dir)
+            out = out or run_dir / "analysis"
+        else:
+            if out is None:
+                raise InputError("--measurements needs --out DIR", where="--out")
+            table, model, noise, info, extras = _from_csv(measurements, robot, tip)
+        protocol = extras["protocol"]
+        result = analyze_table(table, model, method=method, joints=parse_joints(joints),
+                               noise=noise, covariance=covariance)
+        paths = write_results(result, out)
+        if report:
+            if trials < 10:
+                raise InputError("need at least 10 trials", where="--trials")
+            tests = to_arrays(table)
+            labels = list(dict.fromkeys(tests.pose.tolist()))
+            w, w_source = _wrench(protocol, wrench, tests.w)
+            nominal, label = model.nominal_stiffness, "nominal (robot model)"
+            if nominal is None and protocol is not None and protocol.campaign.prior_stiffness:
+                nominal, label = np.asarray(protocol.campaign.prior_stiffness), "prior (protocol)"
+            inputs = ReportInputs(
+                robot=model, tests=tests, info=info, noise=noise, wrench=w,
+                wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
+                nominal=None if nominal is None else np.asarray(nominal, float),
+                nominal_label=label, true_k=extras["true_k"], map_fixed=_map_fixed(protocol),
+                trials=trials)
+            paths.update(write_report(build_report(result, inputs), out))
+        summary = {"run": str(run_dir) if run_dir else None, "partial": info.partial,
+                   "status": info.status, "failed_rows": info.n_failed}
+        (Path(out) / "analysis.json").write_text(json.dumps(summary, indent=2) + "\n")
+        _print(Console(), result, paths)
