@@ -48,14 +48,20 @@ def inverse_condition(M: np.ndarray) -> np.ndarray:
 
 
 def characteristic_length(
-    robot: RobotModel, starts: int = 12, seed: int = 0
+    robot: RobotModel, starts: int = 6, seed: int = 0, samples: int = 20000
 ) -> tuple[float, np.ndarray, float]:
     """Characteristic length L (m) minimising the condition number of J_N.
 
     Method (Khan and Angeles 2006, the paper's ref. [22]): L and the posture
     are chosen together to minimise kappa_F(J_N(q, L)); q_1 does not affect
-    kappa_F and is held at 0. A Nelder-Mead search from ``starts`` seeded random
-    postures within the limits, over (q_2..q_n, log L).
+    kappa_F and is held at 0. The problem is not convex: a batched search over
+    ``samples`` seeded random postures (within the limits, wrist angles within
+    +-pi) and a logarithmic grid of L picks the ``starts`` best pairs, each then
+    refined by a bounded Nelder-Mead search over (q_2..q_n, log L). For the
+    KR240-2 this returns L = 0.726 m (kappa_F = 1.32); a narrow basin elsewhere
+    (theta = 0, 32, -225, 0, -100 deg) reaches kappa_F = 1.28 at L = 0.70 m; the
+    paper gives 0.682 m. The search is a good local answer, not a proof of the
+    global one.
 
     Returns
     -------
@@ -65,17 +71,37 @@ def characteristic_length(
     reach = np.linalg.norm(robot.chain.placements[:, :3, 3], axis=1).sum() + np.linalg.norm(
         robot.chain.tip[:3, 3]
     )
+    lo = np.maximum(robot.lower[1:], -np.pi)
+    hi = np.minimum(robot.upper[1:], np.pi)
+    log_bounds = (np.log(reach / 100), np.log(reach * 10))
+
+    # Coarse batched search.
+    q = np.zeros((samples, robot.n))
+    q[:, 1:] = rng.uniform(lo, hi, size=(samples, robot.n - 1))
+    J = jacobian(robot, q)
+    lengths = np.geomspace(reach / 20, reach, 16)
+    kappa = np.stack([frobenius_condition(normalized_jacobian(J, L)) for L in lengths], axis=1)
+    flat = np.argsort(kappa, axis=None)
+    picks, used = [], set()
+    for idx in flat:
+        i, j = divmod(int(idx), lengths.size)
+        if i not in used:
+            picks.append((i, j))
+            used.add(i)
+        if len(picks) == starts:
+            break
 
     def cost(z: np.ndarray) -> float:
-        q = np.concatenate([[0.0], z[:-1]])
-        k = frobenius_condition(normalized_jacobian(jacobian(robot, q), np.exp(z[-1])))
+        qz = np.concatenate([[0.0], z[:-1]])
+        k = frobenius_condition(normalized_jacobian(jacobian(robot, qz), np.exp(z[-1])))
         return float(k) if np.isfinite(k) else 1e12
 
+    bounds = [*zip(lo, hi, strict=True), log_bounds]
     best = None
-    for _ in range(starts):
-        z0 = np.concatenate([rng.uniform(robot.lower[1:], robot.upper[1:]), [np.log(reach / 3)]])
-        res = minimize(cost, z0, method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-8,
-                                                                "fatol": 1e-12})
+    for i, j in picks:
+        z0 = np.concatenate([q[i, 1:], [np.log(lengths[j])]])
+        res = minimize(cost, z0, method="Nelder-Mead", bounds=bounds,
+                       options={"maxiter": 3000, "xatol": 1e-7, "fatol": 1e-10})
         if best is None or res.fun < best.fun:
             best = res
     assert best is not None
