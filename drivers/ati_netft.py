@@ -245,6 +245,8 @@ class NetFTSensor(ForceTorqueSensor):
             self._last_seq = rec.rdt_sequence
             if rec.status != 0:
                 raise DeviceFault(f"Net F/T status word 0x{rec.status:08x} reports a fault")
+            if any(c in (-(2**31), 2**31 - 1) for c in rec.counts):
+                raise DeviceFault("Net F/T counts at the int32 limit: reading saturated")
             return np.asarray(rec.counts, dtype=float) * self._scale
 
     def _discard_buffered(self) -> None:

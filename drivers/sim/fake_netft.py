@@ -40,8 +40,8 @@ class FakeNetFT(FakeServer):
     driver = "ati-netft"
     device = "ati-netft"
 
-    def __init__(self, world: World, rate_hz: float = 500.0, cpf: int = 1_000_000,
-                 cpt: int = 1_000_000) -> None:
+    def __init__(self, world: World, rate_hz: float = 500.0, cpf: int = 100_000,
+                 cpt: int = 100_000) -> None:
         super().__init__(world)
         self.rate_hz, self.cpf, self.cpt = rate_hz, cpf, cpt
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

@@ -21,7 +21,7 @@ pytestmark = pytest.mark.timeout(60)
 
 # (fake, driver, resolution of one reading: N, N m)
 KINDS = {
-    "netft": (FakeNetFT, NetFTSensor, (1e-6, 1e-6)),
+    "netft": (FakeNetFT, NetFTSensor, (1e-5, 1e-5)),
     "ft300": (FakeFT300, FT300Sensor, (0.01, 0.001)),
     "netcan": (lambda w: FakeNetCAN(w, interface="virtual"), NetCANSensor, (0.2, 0.01)),
 }

@@ -1,0 +1,154 @@
+"""The simulated lab end to end: drivers built from its addresses, physics checked by analysis."""
+
+from __future__ import annotations
+
+import os
+import select
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.equilibrium import displacement_screw
+from drivers.errors import DeviceFault
+from drivers.frames import matrix_to_rotvec, wrench_to_base
+from drivers.registry import open_driver
+from drivers.roles import LoadCase
+from drivers.sim.control import LabClient
+from drivers.sim.settings import KR240_STIFFNESS, LabSettings, settings_from_protocol
+
+pytestmark = pytest.mark.timeout(90)
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_loaded_displacement_follows_the_nonlinear_equilibrium(lab, settle):
+    world = lab.world
+    reflectors = {k: v for k, v in world.settings.reflectors.items() if k != "P"}
+    robot = open_driver("kuka-kvp", lab.addresses["kuka-kvp"])
+    tracker = open_driver("emscon", lab.addresses["emscon"], reflectors=reflectors,
+                          aim=world.aim)
+    sensor = open_driver("ati-netft", lab.addresses["ati-netft"])
+    loads = open_driver("lab-load", lab.addresses["lab-load"])
+    with robot, tracker, sensor, loads, LabClient(lab.control_url) as client:
+        q = robot.read_joints().value + np.deg2rad([20, 10, -15, 30, 20, -40])
+        robot.move_joints(q, speed=1.0, acceleration=2.0)
+        sensor.tare(50)
+        unloaded = tracker.measure_pose()
+        w = np.array([1500.0, -800.0, -2500.0, 0.0, 0.0, 0.0])
+        loads.apply(LoadCase("diagonal", w))
+        settle(world)
+        loaded = tracker.measure_pose()
+        wrench = sensor.read_wrench(200)
+        truth = client.call("truth")
+        loads.remove()
+
+    base_in_tracker = np.array(truth["base_in_tracker"])
+    R_bt = base_in_tracker[:3, :3].T  # tracker -> base rotation
+    measured_dp = R_bt @ (loaded.value[:3, 3] - unloaded.value[:3, 3])
+    measured_rot = R_bt @ matrix_to_rotvec(loaded.value[:3, :3] @ unloaded.value[:3, :3].T)
+    q_model = world.robot.from_controller(q)
+    expected = displacement_screw(world.robot, q_model, np.array(KR240_STIFFNESS), w)
+    assert np.linalg.norm(expected[:3]) > 2e-3  # a few millimetres: a meaningful check
+    # reflector fit noise: ~tracker_noise / sqrt(3) per pose, twice
+    assert np.linalg.norm(measured_dp - expected[:3]) < 6 * world.settings.tracker_noise
+    assert np.linalg.norm(measured_rot - expected[3:]) < 6 * world.settings.tracker_noise / 0.1
+
+    T = np.array(truth["tool_pose"])
+    in_base = wrench_to_base(wrench.value, T, np.array(truth["sensor_mount"]), T[:3, 3])
+    assert np.all(np.abs(in_base[:3] - w[:3]) < 0.5)
+    assert np.all(np.abs(in_base[3:]) < 0.05)
+
+
+def test_control_channel_commands_and_errors(lab):
+    with LabClient(lab.control_url) as client:
+        assert client.call("ping")["ok"]
+        assert client.call("addresses")["addresses"]["emscon"] == lab.addresses["emscon"]
+        state = client.call("state")
+        assert len(state["q"]) == 6 and len(state["tcp_pose"]) == 6
+        client.call("apply_load", wrench=[0, 0, -100, 0, 0, 0], name="w")
+        assert client.call("state")["load"] == [0, 0, -100, 0, 0, 0]
+        client.call("remove_load")
+        client.call("aim", target="R2")
+        assert client.call("state")["aimed"] == "R2"
+        client.call("fault", device="geocom", fault="drop", count=2)
+        assert client.call("take_fault", device="geocom", fault="drop")["armed"]
+        client.call("clear_faults")
+        assert not client.call("take_fault", device="geocom", fault="drop")["armed"]
+        for cmd, fields, msg in [("fly", {}, "unknown command"),
+                                 ("move", {"q": [0, 0]}, "joint"),
+                                 ("move", {"q": [9.0] * 6}, "limits"),
+                                 ("aim", {"target": "R9"}, "no reflector"),
+                                 ("fault", {"device": "x", "fault": "melt"}, "unknown fault"),
+                                 ("apply_load", {"wrench": [1, 2]}, "6 finite")]:
+            with pytest.raises(DeviceFault, match=msg):
+                client.call(cmd, **fields)
+        assert client.call("ping")["ok"]  # still serving after bad requests
+
+
+def test_settings_from_a_parsed_protocol():
+    s = settings_from_protocol({"robot": "kr240-2", "seed": 3,
+                                "lab": {"force_noise": 0.2, "true_joint_stiffness": [1e6] * 6},
+                                "unrelated": 1}, time_scale=5.0, seed=None)
+    assert (s.seed, s.time_scale, s.force_noise) == (3, 5.0, 0.2)
+    assert s.true_joint_stiffness == (1e6,) * 6
+    from analysis.errors import InputError
+
+    with pytest.raises(InputError, match="stiffness"):
+        LabSettings(true_joint_stiffness=(1.0, -1.0))
+    with pytest.raises(InputError, match="unknown instruments"):
+        LabSettings(instruments=("laser-cannon",))
+
+
+def test_cli_refuses_without_fake_and_bad_inputs(tmp_path, capsys):
+    from campaign.cli import main
+
+    assert main(["lab"]) == 2
+    err = capsys.readouterr().err
+    assert "add --fake" in err and "Traceback" not in err
+    assert main(["lab", "--fake", "--time-scale", "0"]) == 2
+    assert "time scale" in capsys.readouterr().err
+    bad = tmp_path / "p.toml"
+    bad.write_text("robot = [unclosed")
+    assert main(["lab", "--fake", "--protocol", str(bad)]) == 2
+    assert "cannot parse" in capsys.readouterr().err
+    assert main(["lab", "--fake", "--protocol", str(tmp_path / "missing.toml")]) == 2
+    assert "not found" in capsys.readouterr().err
+    assert main(["lab", "--fake", "--instruments", "laser-cannon"]) == 2
+    assert "unknown instruments" in capsys.readouterr().err
+
+
+def test_cli_prints_addresses_serves_and_shuts_down(tmp_path):
+    proto = tmp_path / "lab.toml"
+    proto.write_text('robot = "kr240-2"\n[lab]\ntracker_noise = 2e-6\n')
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "campaign", "lab", "--fake", "--protocol", str(proto),
+         "--seed", "4", "--time-scale", "100", "--instruments", "geocom,robot"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+        env=dict(os.environ))
+    try:
+        addresses = {}
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([proc.stdout], [], [], 1.0)
+            if not ready:
+                continue
+            line = proc.stdout.readline().strip()
+            if line == "ready" or not line:
+                break
+            name, _, url = line.partition("=")
+            addresses[name] = url
+        assert {"control", "geocom", "kuka-kvp", "lab-load"} <= set(addresses)
+        with open_driver("geocom", addresses["geocom"]) as tracker, \
+                open_driver("kuka-kvp", addresses["kuka-kvp"]) as robot:
+            assert np.all(np.isfinite(tracker.measure_point().value))
+            assert robot.read_joints().value.shape == (6,)
+        with LabClient(addresses["control"]) as client:
+            client.call("shutdown")
+        assert proc.wait(timeout=15) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
