@@ -37,7 +37,7 @@ def naive_plan(plan, n: int, subset: int) -> float:
         J = jacobian(robot, qi)
         if inverse_condition(normalized_jacobian(J, plan.length)) < th.min_inv_kappa_F:
             continue
-        for c, w in enumerate(wrenches):
+        for w in wrenches:
             v_p, v_r = kc_influence(robot, qi, plan.k_prior, w)
             if v_p <= th.max_v_p and v_r <= np.radians(th.max_v_r_deg):
                 B = design_block(J, w) / plan.sigma[:, None] / plan.k_prior

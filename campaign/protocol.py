@@ -14,11 +14,11 @@ rad, N, N m). Every problem found in a file is reported as
 from __future__ import annotations
 
 import math
+import tomllib
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import tomllib
 import yaml
 from pydantic import (
     BaseModel,
@@ -365,7 +365,31 @@ def load_protocol(path: str | Path) -> Protocol:
     protocol._path = str(path)
     protocol._text = text
     _check_safety(protocol)
+    _check_instruments(protocol)
     return protocol
+
+
+def _check_instruments(protocol: Protocol) -> None:
+    """Driver names known to the registry and addresses that parse (see :mod:`drivers`)."""
+    try:
+        from drivers.address import parse_address
+        from drivers.errors import AddressError
+        from drivers.registry import available_drivers
+    except ImportError:  # the drivers package is optional for planning
+        return
+    known = available_drivers()
+    for role, spec in protocol.instruments.items():
+        if spec.driver not in known:
+            raise InputError(
+                f"unknown driver {spec.driver!r} for {role}: expected one of "
+                f"{', '.join(sorted(known))}",
+                where=protocol.where("instruments", role, "driver"),
+            )
+        try:
+            parse_address(spec.address)
+        except AddressError as err:
+            raise InputError(f"bad address {spec.address!r}: {err}",
+                             where=protocol.where("instruments", role, "address")) from None
 
 
 def _check_safety(protocol: Protocol) -> None:

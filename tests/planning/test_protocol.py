@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import math
+import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
-import tomllib
 import yaml
 
 from analysis.errors import InputError
@@ -164,3 +164,41 @@ def test_cli_reports_without_traceback(tmp_path, capsys):
     assert status == 2
     assert "Traceback" not in err
     assert f"{path}:{_line_of(text, 'repeats = 0')}: campaign.repeats" in err
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "words"),
+    [
+        ('driver = "emscon"', 'driver = "emscom"', "instruments.pose.driver", "unknown driver"),
+        ('address = "udp://192.168.1.1:49152"', 'address = "udp://192.168.1.1:port"',
+         "instruments.force_torque.address", "bad address"),
+    ],
+)
+def test_instrument_errors_name_key_and_line(tmp_path, old, new, key, words):
+    path, text = _variant(tmp_path, old, new)
+    with pytest.raises(InputError, match=words) as err:
+        load_protocol(path)
+    assert f"{path}:{_line_of(text, new)}: {key}" in str(err.value)
+
+
+def test_cli_plan_writes_directory(tmp_path, capsys):
+    out = tmp_path / "plan"
+    status = main(["plan", "--protocol", str(KR_FILE), "--out", str(out), "--candidates",
+                   "1000", "--strategy", "e-optimal", "--no-figure"])
+    printed = capsys.readouterr().out
+    assert status == 0
+    assert "predicted standard error of k" in printed and "random" in printed
+    assert len((out / "plan.csv").read_text().splitlines()) == 1 + 5
+    assert (out / "protocol.toml").read_text() == KR_FILE.read_text()
+
+
+def test_yaml_semantic_error_names_line(tmp_path):
+    data = tomllib.loads(KR_FILE.read_text())
+    data["thresholds"]["min_inv_kappa_F"] = 0.95
+    path = tmp_path / "kr.yaml"
+    text = yaml.safe_dump(data, sort_keys=False)
+    path.write_text(text)
+    with pytest.raises(InputError, match="best found 0.5") as err:
+        make_plan(load_protocol(path), candidates=300)
+    line = _line_of(text, "min_inv_kappa_F:")
+    assert f"{path}:{line}: thresholds.min_inv_kappa_F" in str(err.value)
