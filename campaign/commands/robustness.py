@@ -1,0 +1,154 @@
+"""``campaign robustness``: Monte-Carlo spread of the identified k vs number of tests (Fig. 7)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from analysis.errors import InputError
+from campaign.options import robot_option, stiffness_option, wrench_option
+
+
+def parse_tests(text: str) -> list[int]:
+    """``"1..20"``, ``"1,2,5,10"`` or a mix (``"1..5,10,20"``) -> sorted test counts."""
+    out: set[int] = set()
+    for part in text.split(","):
+        part = part.strip()
+        try:
+            if ".." in part:
+                lo, hi = (int(v) for v in part.split(".."))
+                if hi < lo:
+                    raise ValueError
+                out.update(range(lo, hi + 1))
+            else:
+                out.add(int(part))
+        except ValueError as err:
+            raise InputError(f"{part!r} is not a count or a range a..b", where="--tests") from err
+    if not out or min(out) < 1:
+        raise InputError("numbers of tests must be >= 1", where="--tests")
+    if max(out) > 200:
+        raise InputError("at most 200 tests per campaign", where="--tests")
+    return sorted(out)
+
+
+def noise_from_options(
+    sigma_translation_um, sigma_rotation_urad, rotation_source, reflector_radius_mm,
+    tracker_distance_m, force_sigma_N, moment_sigma_Nm, encoder_resolution_deg,
+):
+    """NoiseModel with the command-line overrides (units as labelled)."""
+    from analysis.noise import NoiseModel
+
+    def scaled(v, f):
+        return None if v is None else v * f
+
+    return NoiseModel().with_overrides(
+        translation_sigma_override=scaled(sigma_translation_um, 1e-6),
+        rotation_sigma_override=scaled(sigma_rotation_urad, 1e-6),
+        rotation_source=rotation_source,
+        reflector_radius=scaled(reflector_radius_mm, 1e-3),
+        tracker_distance=tracker_distance_m,
+        force_sigma=force_sigma_N,
+        moment_sigma=moment_sigma_Nm,
+        encoder_resolution=scaled(encoder_resolution_deg, np.pi / 180.0),
+    )
+
+
+def _print(console: Console, summary, title: str) -> None:
+    table = Table(title=title)
+    table.add_column("tests", justify="right")
+    for j in sorted(summary["joint"].unique()):
+        table.add_column(f"k{j} std/k (%)", justify="right")
+    for n, s in summary.groupby("n_tests"):
+        table.add_row(str(n), *[f"{100 * v:.2f}" for v in s.sort_values("joint")["relative_std"]])
+    console.print(table)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("robustness")
+    def robustness(
+        robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
+        tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        joint_stiffness: str = typer.Option(
+            None, help="True k1,...,k6 (N m/rad); default the model's nominal values."),
+        wrench: str = typer.Option(
+            None, help="fx,fy,fz (N), mx,my,mz (N m) at P, base frame; default the paper's "
+            "w_eff = 0,2200,2200,200,200,0."),
+        tests: str = typer.Option("1..20", help="Numbers of tests, e.g. 1..20 or 1,2,5,10."),
+        trials: int = typer.Option(1000, help="Monte-Carlo trials per number of tests."),
+        method: str = typer.Option("ols", help="ols (the paper's estimator) or wls."),
+        seed: int = typer.Option(0, help="Random seed."),
+        pool_size: int = typer.Option(2000, help="Poses drawn from the zones and simulated."),
+        min_dexterity: float = typer.Option(
+            0.2, help="Minimum 1/kappa_F of the normalized Jacobian of a drawn pose."),
+        sigma_translation_um: float = typer.Option(
+            None, help="Override: sigma of one displacement component (um)."),
+        sigma_rotation_urad: float = typer.Option(
+            None, help="Override: sigma of one rotation component (urad)."),
+        rotation_source: str = typer.Option(
+            None, help="reflectors (3 reflectors on the tool, default) or probe (6-DoF)."),
+        reflector_radius_mm: float = typer.Option(
+            None, help="Circumradius of the reflector triangle (mm), default 100."),
+        tracker_distance_m: float = typer.Option(
+            None, help="Tracker-to-tool distance (m), default 3."),
+        force_sigma_n: float = typer.Option(
+            None, "--force-sigma-N", help="Sigma of a force component (N), default 15.6."),
+        moment_sigma_nm: float = typer.Option(
+            None, "--moment-sigma-Nm", help="Sigma of a moment component (N m), default 2.5."),
+        encoder_resolution_deg: float = typer.Option(
+            None, help="Joint encoder resolution (deg), default 0.001."),
+        out: Path = typer.Option(None, help="Directory for robustness.csv/.png/.json."),
+    ) -> None:
+        """Spread of the identified joint stiffness against the number of tests.
+
+        Poses are drawn from the robot's good zones (whole joint range for
+        robots without zones) with 1/kappa_F >= --min-dexterity; displacements
+        come from the nonlinear equilibrium; normal noise on displacement,
+        wrench and joint angles; identification as in the paper (eqs. 16-21).
+        """
+        from analysis.robustness import W_EFF, plot_study, robustness_study
+
+        r = robot_option(robot, tip)
+        k = stiffness_option(r, joint_stiffness)
+        w = wrench_option(wrench, W_EFF)
+        counts = parse_tests(tests)
+        if trials < 2:
+            raise InputError("need at least 2 trials", where="--trials")
+        if method not in ("ols", "wls"):
+            raise InputError(f"expected ols or wls, got {method!r}", where="--method")
+        if pool_size < 10:
+            raise InputError("need at least 10 poses", where="--pool-size")
+        noise = noise_from_options(sigma_translation_um, sigma_rotation_urad, rotation_source,
+                                   reflector_radius_mm, tracker_distance_m, force_sigma_n,
+                                   moment_sigma_nm, encoder_resolution_deg)
+        console = Console()
+        with Progress(TextColumn("{task.description}"), BarColumn(),
+                      TextColumn("{task.completed}/{task.total} identifications"),
+                      TimeRemainingColumn(), console=console, transient=True) as progress:
+            task = progress.add_task("Monte-Carlo", total=trials * len(counts))
+            summary = robustness_study(
+                r, k, w, counts, trials, noise, method=method, seed=seed, pool_size=pool_size,
+                min_inverse_condition=min_dexterity,
+                progress=lambda t: progress.advance(task, t))
+        _print(console, summary, f"{r.name}: relative spread of k ({method}, {trials} trials)")
+        if out is not None:
+            try:
+                out.mkdir(parents=True, exist_ok=True)
+            except OSError as err:
+                raise InputError(f"cannot create directory: {err}", where=str(out)) from err
+            summary.to_csv(out / "robustness.csv", index=False)
+            plot_study(summary, out / "robustness.png",
+                       f"{r.name}: mean +- std of identified k ({method}, {trials} trials)")
+            settings = {
+                "robot": r.name, "joint_stiffness_Nm_per_rad": k.tolist(),
+                "wrench_N_Nm": w.tolist(), "tests": counts, "trials": trials,
+                "method": method, "seed": seed, "pool_size": pool_size,
+                "min_inverse_condition": min_dexterity, "noise": noise.describe(),
+            }
+            (out / "robustness.json").write_text(json.dumps(settings, indent=2) + "\n")
+            console.print(f"written: {out / 'robustness.csv'}, {out / 'robustness.png'}")
