@@ -182,6 +182,7 @@ class NetFTSensor(ForceTorqueSensor):
         self._last_seq: int | None = None
         self.dropped = 0  # sequence gaps seen (datagrams lost)
         self.discarded = 0  # late, duplicated or malformed datagrams ignored
+        self.restarts = 0  # start requests re-sent after silence
 
     def _connect(self) -> None:
         if all(self._override):
@@ -212,14 +213,24 @@ class NetFTSensor(ForceTorqueSensor):
         if self._sock is None:
             raise ConnectionFailed("not connected")
         deadline = time.monotonic() + self.timeout
-        bad = 0
+        restart_at: float | None = time.monotonic() + self.timeout / 2
+        bad = old = 0
         while True:
+            if restart_at is not None and time.monotonic() > restart_at:
+                restart_at = None  # once per read: the sensor may have rebooted or lost us
+                self.restarts += 1
+                try:
+                    self._sock.send(encode_request(CMD_START_REALTIME, 0))
+                except OSError as err:
+                    raise ConnectionFailed(f"{self.address}: {err}") from err
             left = deadline - time.monotonic()
             if left <= 0:
                 if bad:
                     raise ProtocolError(f"{bad} malformed datagrams and no good record in "
                                         f"{self.timeout} s")
                 raise DeviceTimeout(f"{self.address}: no RDT record within {self.timeout} s")
+            if restart_at is not None:
+                left = max(1e-3, min(left, restart_at - time.monotonic()))
             self._sock.settimeout(left)
             try:
                 data = self._sock.recv(2048)
@@ -240,7 +251,10 @@ class NetFTSensor(ForceTorqueSensor):
                 step = (rec.rdt_sequence - self._last_seq) & 0xFFFFFFFF
                 if step == 0 or step > 0x7FFFFFFF:  # duplicate or older: late datagram
                     self.discarded += 1
-                    continue
+                    old += 1
+                    if old < self.max_bad_datagrams:
+                        continue
+                    step = 1  # a long run of "older" records: the sensor restarted its count
                 self.dropped += step - 1
             self._last_seq = rec.rdt_sequence
             if rec.status != 0:

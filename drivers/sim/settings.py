@@ -47,7 +47,9 @@ class LabSettings:
     reflectors : dict of str to tuple
         Reflector positions in the tool frame (m).
     sensor_offset : tuple of float
-        Sensor origin in the tool frame (m); axes parallel to the tool frame.
+        Sensor origin in the tool frame (m).
+    sensor_rotation : tuple of float
+        Rotation vector (rad) of the sensor axes relative to the tool frame.
     tracker_position : tuple of float
         Robot-base origin as seen in the tracker frame (m).
     tracker_yaw : float
@@ -76,6 +78,7 @@ class LabSettings:
         "R3": (-0.08, -0.08, -0.02),
     })
     sensor_offset: tuple[float, float, float] = (0.0, 0.0, -0.08)
+    sensor_rotation: tuple[float, float, float] = (0.0, 0.0, 0.0)
     tracker_position: tuple[float, float, float] = (-3.0, 1.0, -0.5)
     tracker_yaw: float = 0.5
     can_interface: str = "udp_multicast"
@@ -119,7 +122,7 @@ def settings_from_protocol(protocol: Mapping[str, Any] | Any, **overrides: Any) 
     values.update({k: v for k, v in protocol.items() if k in names})
     values.update({k: v for k, v in overrides.items() if v is not None})
     for key in ("true_joint_stiffness", "instruments", "home", "sensor_offset",
-                "tracker_position"):
+                "sensor_rotation", "tracker_position"):
         if values.get(key) is not None:
             values[key] = tuple(values[key])
     try:

@@ -30,6 +30,9 @@ class TcpFake(FakeServer):
             except OSError:
                 break
             conn.settimeout(0.2)
+            # answers go out in several small writes (acknowledgement, then result): without
+            # TCP_NODELAY, Nagle's algorithm and the client's delayed ACK add 40 ms to each
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._clients.append(conn)
             self._spawn(lambda c=conn: self._serve_safely(c), "client")
         self.listener.close()

@@ -53,6 +53,7 @@ class World:
         self.aimed = next(iter(settings.reflectors))
         self.reflectors = {k: np.asarray(v, float) for k, v in settings.reflectors.items()}
         self.sensor_mount = np.eye(4)
+        self.sensor_mount[:3, :3] = rotvec_to_matrix(settings.sensor_rotation)
         self.sensor_mount[:3, 3] = settings.sensor_offset
         self.base_in_tracker = np.eye(4)
         self.base_in_tracker[:3, :3] = rotvec_to_matrix([0.0, 0.0, settings.tracker_yaw])

@@ -149,3 +149,73 @@ def test_netft_calibration_page_unreachable_is_a_connection_error(world):
     with pytest.raises(ConnectionError):
         NetFTSensor(url, timeout=0.5).connect()
     fake.sock.close()
+
+
+class ScriptedNetFT:
+    """A bare UDP peer playing a Net F/T from a script (no simulated world)."""
+
+    def __init__(self, records, ignore_first_start=False):
+        import socket
+        import threading
+
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.002)
+        self.records, self.ignore = list(records), ignore_first_start
+        self.starts = 0
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+        self.url = f"udp://127.0.0.1:{self.sock.getsockname()[1]}?cpf=1000&cpt=1000"
+
+    def run(self):
+        from drivers import ati_netft
+
+        peer = None
+        while not self.stop.is_set():
+            try:
+                data, addr = self.sock.recvfrom(64)
+                if ati_netft.decode_request(data)[0] == ati_netft.CMD_START_REALTIME:
+                    self.starts += 1
+                    if not (self.ignore and self.starts == 1):
+                        peer = addr
+            except TimeoutError:
+                pass
+            if peer is not None and self.records:
+                self.sock.sendto(ati_netft.encode_record(self.records.pop(0)), peer)
+
+    def close(self):
+        self.stop.set()
+        self.thread.join()
+        self.sock.close()
+
+
+def _rec(seq, status=0, counts=(1000, 0, 0, 0, 0, 0)):
+    from drivers.ati_netft import RdtRecord
+
+    return RdtRecord(seq, seq, status, counts)
+
+
+def test_netft_status_word_is_a_fault_and_counts_scale_with_the_override():
+    peer = ScriptedNetFT([_rec(1), _rec(2, status=0x80000000)])
+    try:
+        with NetFTSensor(peer.url, timeout=1.0) as drv:
+            np.testing.assert_allclose(drv.read_sample(), [1.0, 0, 0, 0, 0, 0])
+            with pytest.raises(DeviceFault, match="0x80000000"):
+                drv.read_sample()
+    finally:
+        peer.close()
+
+
+def test_netft_resends_start_after_silence_and_accepts_a_restarted_count():
+    records = [_rec(100 + i) for i in range(3)] + [_rec(1 + i) for i in range(30)]
+    peer = ScriptedNetFT(records, ignore_first_start=True)
+    try:
+        with NetFTSensor(peer.url, timeout=1.0) as drv:
+            drv.read_sample()  # arrives only after the driver re-sent its start request
+            assert drv.restarts == 1 and peer.starts >= 2
+            for _ in range(12):  # 102 -> 1: a sensor reboot restarts the sequence numbers
+                drv.read_sample()
+            assert drv.discarded == NetFTSensor.max_bad_datagrams - 1
+    finally:
+        peer.close()
