@@ -1,0 +1,313 @@
+"""The acquisition state machine: one planned test after another, nothing lost.
+
+For each (test, repeat) not yet in ``tests.csv``: approach pose -> test pose
+-> settle -> tare -> unloaded pose -> apply load -> settle -> wrench and
+loaded pose -> remove load -> settle -> unloaded pose again -> checks -> one
+row appended to ``tests.csv``. Every reading is appended to ``samples.jsonl``
+(fsynced) as soon as it is taken, so before the next motion.
+
+Failures: a failed check or a device fault retries the test once (after
+removing the load and reconnecting); a check failing twice gives a
+``failed`` row with its flags, a fault twice stops the run (status
+``failed``). A force above the protocol's limit (:class:`SafetyRefusal`)
+stops at once (``aborted``), and so does Ctrl-C: motion stopped, load removed
+when automated, status written.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+
+from analysis.kinematics import rotation_vector, tool_pose
+from analysis.robot_model import RobotModel
+from campaign.acquire.checks import Limits, evaluate
+from campaign.acquire.geometry import (
+    base_in_tracker_rotation,
+    displacement,
+    loaded_tool_pose,
+    mean_pose,
+    sensor_wrench_to_base,
+)
+from campaign.acquire.instruments import Instruments
+from campaign.acquire.preflight import Motion, PlannedTest
+from campaign.acquire.progress import Reporter
+from campaign.acquire.rundir import RunDir, read_samples
+from campaign.acquire.settle import SettleRule, wait_settled
+from drivers.errors import DriverError, SafetyRefusal
+from drivers.readings import Pose
+from drivers.roles import LoadCase
+from drivers.safety import check_force
+
+
+def utc(wall: float | None = None) -> str:
+    """ISO 8601 UTC time stamp with microseconds."""
+    t = time.time() if wall is None else wall
+    return datetime.fromtimestamp(t, UTC).isoformat(timespec="microseconds")
+
+
+class CheckFailed(Exception):
+    """A measured test failed a check; carries the row that would have been written."""
+
+    def __init__(self, row: dict[str, Any], flags: tuple[str, ...]) -> None:
+        super().__init__(", ".join(flags))
+        self.row, self.flags = row, flags
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """How readings are taken: sample counts and the settling rule."""
+
+    settle: SettleRule
+    tare_samples: int = 50
+    wrench_samples: int = 100
+
+
+class Runner:
+    """Runs the remaining tests of a run directory with connected instruments."""
+
+    def __init__(self, run: RunDir, robot: RobotModel, tests: list[PlannedTest],
+                 inst: Instruments, reporter: Reporter, limits: Limits, motion: Motion,
+                 settings: RunSettings, max_force: float, max_moment: float,
+                 on_event: Callable[[dict[str, Any]], None] | None = None) -> None:
+        self.run_dir, self.robot, self.tests, self.inst = run, robot, tests, inst
+        self.reporter, self.limits, self.motion, self.settings = reporter, limits, motion, settings
+        self.max_force, self.max_moment = max_force, max_moment
+        self.on_event = on_event
+        self.load_applied = False
+        self.ctx: dict[str, Any] = {}
+        self.counts = {"ok": 0, "failed": 0}
+        self.first_unloaded: dict[int, np.ndarray] = {}
+
+    # -- records ---------------------------------------------------------------------------
+    def _sample(self, phase: str, instrument: str, quantity: str, unit: str, frame: str,
+                value: Any, sigma: Any = None, wall: float | None = None, **extra: Any) -> None:
+        self.run_dir.sample({
+            "t_utc": utc(wall), "test_id": self.ctx.get("test_id"),
+            "repeat": self.ctx.get("repeat"), "attempt": self.ctx.get("attempt"),
+            "phase": phase, "instrument": instrument, "quantity": quantity, "unit": unit,
+            "frame": frame, "value": np.asarray(value, dtype=float).ravel().tolist(),
+            "sigma": None if sigma is None else np.asarray(sigma, float).ravel().tolist(),
+            **extra})
+
+    def _event(self, event: str, **fields: Any) -> None:
+        record = {"t_utc": utc(), "event": event, **{k: self.ctx.get(k) for k in
+                                                     ("test_id", "repeat", "attempt")}, **fields}
+        self.run_dir.event(record)
+        self.reporter.event(record)
+        if self.on_event is not None:
+            self.on_event(record)
+
+    def _phase(self, phase: str, **live: Any) -> None:
+        self.ctx["phase"] = phase
+        self.reporter.phase(phase=phase, **{k: self.ctx.get(k) for k in
+                                            ("test_id", "repeat", "attempt", "pose")}, **live)
+
+    # -- resume state ----------------------------------------------------------------------
+    def _recover_first_unloaded(self, done: set[tuple[int, int]]) -> None:
+        """Unloaded tool point of the first finished repeat of each test, from samples."""
+        samples = read_samples(self.run_dir.path)
+        if samples.empty:
+            return
+        last: dict[tuple[int, int], np.ndarray] = {}
+        sel = samples[(samples["quantity"] == "tool_pose")
+                      & (samples["phase"] == "unloaded_before")]
+        for rec in sel.itertuples(index=False):
+            last[(int(rec.test_id), int(rec.repeat))] = np.asarray(rec.value[:3], dtype=float)
+        for (tid, rep) in sorted(done):
+            if tid not in self.first_unloaded and (tid, rep) in last:
+                self.first_unloaded[tid] = last[(tid, rep)]
+
+    # -- the run ----------------------------------------------------------------------------
+    def run(self) -> tuple[str, str]:
+        """Run every unfinished (test, repeat); returns (status, reason) as written."""
+        done = self.run_dir.finished()
+        self._recover_first_unloaded(done)
+        todo = [(t, r) for t in self.tests for r in range(1, t.repeats + 1)
+                if (t.test_id, r) not in done]
+        total = sum(t.repeats for t in self.tests)
+        self.reporter.phase(done=len(done), total=total, done_this_session=0)
+        self._event("session_start", remaining=len(todo), finished=len(done))
+        status, reason = "complete", ""
+        try:
+            for i, (test, repeat) in enumerate(todo):
+                self._run_test(test, repeat)
+                self.reporter.phase(done=len(done) + i + 1, done_this_session=i + 1)
+        except SafetyRefusal as err:
+            status, reason = "aborted", f"safety stop: {err}"
+            self._event("abort", reason=reason)
+        except DriverError as err:
+            status, reason = "failed", f"device fault after a retry: {err}"
+            self._event("abort", reason=reason)
+        except KeyboardInterrupt:
+            status, reason = "aborted", "interrupted by the operator (Ctrl-C)"
+            self._event("interrupt", reason=reason)
+        finally:
+            self._make_safe(status)
+        self.run_dir.set_status(status, reason, ended_utc=utc())
+        return status, reason
+
+    def _make_safe(self, status: str) -> None:
+        """Stop motion and remove the load (if any) before the status is written."""
+        main = threading.current_thread() is threading.main_thread()
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        try:
+            if status != "complete":
+                try:
+                    self.inst.robot.stop()
+                except (DriverError, OSError) as err:
+                    self._event("fault", reason=f"stop: {err}")
+            if self.load_applied:
+                if self.inst.automated_load:
+                    try:
+                        self.inst.load.remove()
+                        self.load_applied = False
+                        self._event("load_removed")
+                    except (DriverError, OSError) as err:
+                        self._event("fault", reason=f"could not remove the load: {err}")
+                else:
+                    self.reporter.message("REMOVE THE LOAD FROM THE TOOL by hand")
+                    self._event("load_left", reason="manual load: remove it by hand")
+        finally:
+            if main:
+                signal.signal(signal.SIGINT, old)
+
+    def _run_test(self, test: PlannedTest, repeat: int) -> None:
+        for attempt in (1, 2):
+            self.ctx = {"test_id": test.test_id, "repeat": repeat, "attempt": attempt,
+                        "pose": test.pose}
+            try:
+                row = self._measure(test, repeat)
+                if attempt == 2:
+                    row["flags"] = "retried"
+            except CheckFailed as err:
+                if attempt == 1:
+                    self._event("retry", reason=f"check failed: {', '.join(err.flags)}")
+                    continue
+                row = dict(err.row, status="failed", flags=";".join([*err.flags, "retried"]))
+            except SafetyRefusal:
+                raise
+            except DriverError as err:
+                self._event("fault", reason=f"{type(err).__name__}: {err}",
+                            phase=self.ctx.get("phase"))
+                if attempt == 2:
+                    raise
+                self._recover()
+                self._event("retry", reason=f"device fault: {err}")
+                continue
+            self.run_dir.test_row(row)
+            self.counts["ok" if row["status"] == "ok" else "failed"] += 1
+            if row["status"] == "ok" and test.test_id not in self.first_unloaded:
+                self.first_unloaded[test.test_id] = self.ctx["p_before"]
+            self._event("test_done", status=row["status"], flags=row["flags"],
+                        dx_mm=[row["dx_mm"], row["dy_mm"], row["dz_mm"]])
+            return
+
+    def _recover(self) -> None:
+        """After a fault: remove the load, reconnect every instrument."""
+        if self.load_applied:
+            self.inst.load.remove()
+            self.load_applied = False
+        self.inst.reconnect()
+
+    # -- one measurement ---------------------------------------------------------------------
+    def _move(self, q_model: np.ndarray, phase: str) -> np.ndarray:
+        self._phase(phase, q_deg=np.rad2deg(q_model))
+        reached = self.inst.robot.move_joints(self.robot.to_controller(q_model),
+                                              self.motion.speed, self.motion.acceleration)
+        self._sample(phase, "robot", "joint_angles", "rad", "controller", reached.value,
+                     wall=reached.wall_time)
+        return self.robot.from_controller(reached.value)
+
+    def _settle(self, phase: str, ref: np.ndarray | None = None,
+                r_base: np.ndarray | None = None) -> None:
+        self._phase(phase)
+
+        def read() -> np.ndarray:
+            p = self.inst.read_point()
+            self._sample(phase, "pose", "point", "m", "tracker", p)
+            if ref is not None and r_base is not None:
+                self.reporter.phase(deflection_mm=r_base.T @ (p - ref) * 1e3)
+            return p
+
+        wait_settled(read, self.settings.settle)
+
+    def _pose(self, phase: str) -> Pose:
+        self._phase(phase)
+        pose = self.inst.tracker.measure_pose()
+        T = np.asarray(pose.value, dtype=float)
+        self._sample(phase, "pose", "tool_pose", "m, rad", "tracker",
+                     np.concatenate([T[:3, 3], rotation_vector(T[:3, :3])]),
+                     wall=pose.wall_time, residual_m=pose.residual)
+        return pose
+
+    def _measure(self, test: PlannedTest, repeat: int) -> dict[str, Any]:
+        inst = self.inst
+        self._move(test.q_approach, "approach")
+        q = self._move(test.q, "move")
+        T_fk = tool_pose(self.robot, q)
+        self._settle("settle_unloaded_before")
+        self._phase("tare")
+        bias = inst.ft.tare(self.settings.tare_samples)
+        self._sample("tare", "force_torque", "bias", "N, N m", "sensor", bias)
+        P0 = self._pose("unloaded_before")
+        R = base_in_tracker_rotation(P0.value, T_fk)
+        ref_point = self._reflector_point(P0.value)
+
+        self._phase("apply_load", load_case=test.load_case, wrench=test.wrench)
+        self.load_applied = True  # set first: a half-applied load must be removed too
+        inst.load.apply(LoadCase(test.load_case, test.wrench))
+        self._event("load_applied", load_case=test.load_case)
+        self._settle("settle_loaded", ref_point, R)
+        self._phase("loaded")
+        W = inst.ft.read_wrench(self.settings.wrench_samples)
+        self._sample("loaded", "force_torque", "wrench", "N, N m", "sensor", W.value,
+                     sigma=W.spread, wall=W.wall_time, samples=W.samples)
+        w_approx = sensor_wrench_to_base(W.value, T_fk, inst.sensor_mount)
+        self.reporter.phase(wrench=w_approx)
+        check_force(w_approx, self.max_force, self.max_moment)
+        P1 = self._pose("loaded")
+
+        self._phase("remove_load")
+        inst.load.remove()
+        self.load_applied = False
+        self._event("load_removed")
+        self._settle("settle_unloaded_after")
+        P2 = self._pose("unloaded_after")
+
+        ref = mean_pose(P0.value, P2.value)
+        screw = displacement(ref, P1.value, R)
+        w_base = sensor_wrench_to_base(W.value, loaded_tool_pose(T_fk, screw), inst.sensor_mount)
+        p0, p2 = P0.value[:3, 3], P2.value[:3, 3]
+        self.ctx["p_before"] = p0
+        res = evaluate(self.limits, p0, p2, self.first_unloaded.get(test.test_id), w_base,
+                       test.wrench, W.value, [P0.residual, P1.residual, P2.residual])
+        row: dict[str, Any] = {"pose": test.pose}
+        for j in range(6):
+            row[f"q{j + 1}_deg"] = float(np.rad2deg(q[j]))
+        for name, v in zip(["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"], w_base,
+                           strict=True):
+            row[name] = float(v)
+        for name, v in zip(["dx_mm", "dy_mm", "dz_mm", "rx_mrad", "ry_mrad", "rz_mrad"],
+                           screw * 1e3, strict=True):
+            row[name] = float(v)
+        row.update(test_id=test.test_id, repeat=repeat, status="ok", flags="",
+                   repeatability_mm=res.repeatability * 1e3, drift_mm=res.drift * 1e3,
+                   wrench_error_N=res.wrench_error, tracker_sigma_mm=res.tracker_sigma * 1e3,
+                   t_utc=utc())
+        self.reporter.phase(deflection_mm=screw[:3] * 1e3, wrench=w_base)
+        if res.flags:
+            raise CheckFailed(row, res.flags)
+        return row
+
+    def _reflector_point(self, T: np.ndarray) -> np.ndarray:
+        refl = self.inst.tracker.reflectors
+        r = np.asarray(next(iter(refl.values())), float) if refl else np.zeros(3)
+        return (np.asarray(T) @ np.append(r, 1.0))[:3]

@@ -1,0 +1,193 @@
+"""One ``campaign acquire`` session: plan -> safety -> run directory -> instruments -> runner.
+
+Order matters for safety and for the record: the plan is checked against the
+limits and printed (dry run) before anything is connected; the operator
+confirms; then the run directory's ``metadata.json`` is written, the
+instruments are connected and described in it, and only then does anything move.
+"""
+
+from __future__ import annotations
+
+import getpass
+import hashlib
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+from analysis.errors import InputError
+from campaign.acquire.checks import limits_for
+from campaign.acquire.instruments import open_instruments
+from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
+from campaign.acquire.progress import Reporter
+from campaign.acquire.rundir import PLAN, RunDir, export_parquet
+from campaign.acquire.runner import Runner, RunSettings, utc
+from campaign.acquire.settle import rule_for
+from campaign.plan_output import read_plan
+from campaign.protocol import Protocol
+from campaign.protocol_robot import protocol_robot
+from drivers.errors import SafetyRefusal
+from drivers.safety import require_confirmation
+
+PACKAGES = ("robot-stiffness-campaign", "numpy", "pandas", "pyarrow", "pin", "typer", "rich",
+            "pyserial", "python-can", "ur-rtde", "pydantic")
+
+
+@dataclass
+class AcquireOptions:
+    """Options of one session (see ``campaign acquire --help``)."""
+
+    fake: bool = False
+    assume_yes: bool = False
+    dry_run: bool = False
+    time_scale: float | None = None
+    settle_scale: float = 0.5
+    operator: str | None = None
+
+
+@dataclass
+class Outcome:
+    """What a session did: status, reason, run directory, counts."""
+
+    status: str
+    reason: str
+    run_dir: Path | None
+    ok: int = 0
+    failed: int = 0
+
+
+def software_versions() -> dict[str, str]:
+    out = {"python": sys.version.split()[0]}
+    for name in PACKAGES:
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def _sha(text: str) -> str:
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _protocol_copy_name(protocol: Protocol) -> str:
+    suffix = Path(protocol.path).suffix.lower() or ".toml"
+    return f"protocol{suffix}"
+
+
+def base_metadata(protocol: Protocol, plan_text: str, plan_source: Path, robot: Any,
+                  n_tests: int, opts: AcquireOptions, time_scale: float) -> dict[str, Any]:
+    """Metadata written before anything is connected (see docs/run_format.md)."""
+    meta: dict[str, Any] = {
+        "started_utc": utc(), "ended_utc": None,
+        "operator": opts.operator or getpass.getuser(),
+        "campaign": protocol.campaign.name,
+        "protocol_file": _protocol_copy_name(protocol), "protocol_source": protocol.path,
+        "protocol_sha256": _sha(protocol.text),
+        "robot": {"name": robot.name, "key": protocol.campaign.robot},
+        "tool": protocol.tool.model_dump(),
+        "instruments": {role: {"driver": spec.driver, "address": spec.address}
+                        for role, spec in protocol.instruments.items()},
+        "software": software_versions(),
+        "plan_file": PLAN, "plan_source": str(plan_source), "plan_sha256": _sha(plan_text),
+        "n_planned_tests": n_tests, "repeats": protocol.campaign.repeats,
+        "fake": opts.fake, "fake_lab": None, "time_scale": time_scale,
+        "command": sys.argv, "sessions": [],
+    }
+    if opts.fake and protocol.lab is not None:
+        meta["fake_lab"] = dict(protocol.lab, time_scale=time_scale)
+    return meta
+
+
+def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
+            opts: AcquireOptions, reporter: Reporter,
+            say: Callable[[str], None] = print, ask: Callable[[str], str] = input,
+            on_event: Callable[[dict[str, Any]], None] | None = None) -> Outcome:
+    """Run (or resume) a campaign; see the module docstring for the order of steps.
+
+    Raises
+    ------
+    InputError
+        Bad plan or options, a plan outside the limits, a refused confirmation.
+    """
+    if (plan_dir is None) == (resume is None):
+        raise InputError("give either --plan PLAN_DIR (a new run) or --resume RUN_DIR",
+                         where="campaign acquire")
+    if opts.time_scale is not None and not opts.fake:
+        raise InputError("--time-scale only applies to the simulated lab (--fake)",
+                         where="--time-scale")
+    if opts.time_scale is not None and not opts.time_scale > 0:
+        raise InputError("time scale must be positive", where="--time-scale")
+    run: RunDir | None = None
+    if resume is not None:
+        run = RunDir.open(resume)
+        protocol, plan = read_plan(resume)
+        plan_text = (resume / PLAN).read_text(encoding="utf-8")
+        if bool(run.metadata.get("fake")) != opts.fake:
+            run.close()
+            how = "with" if run.metadata.get("fake") else "without"
+            raise InputError(f"this run was started {how} --fake; resume it the same way",
+                             where=str(resume))
+        where_plan = str(resume / PLAN)
+    else:
+        protocol, plan = read_plan(plan_dir)
+        plan_text = (plan_dir / PLAN).read_text(encoding="utf-8")
+        where_plan = str(plan_dir / PLAN)
+    try:
+        robot = protocol_robot(protocol)
+        tests = planned_tests(protocol, plan, robot, where=where_plan)
+        done = run.finished() if run is not None else set()
+        say(dry_run_text(tests, robot, protocol, done))
+        if opts.dry_run:
+            say("dry run: nothing connected, nothing moved")
+            return Outcome("dry-run", "", resume)
+        lab_scale = None
+        if opts.fake:
+            lab_scale = opts.time_scale or (protocol.lab or {}).get("time_scale") or 1.0
+        try:
+            require_confirmation("", assume_yes=opts.assume_yes, ask=ask,
+                                 say=lambda s: say(s) if s else None)
+        except SafetyRefusal as err:
+            raise InputError(str(err), where="confirmation") from None
+    except BaseException:
+        if run is not None:
+            run.close()
+        raise
+    inst = open_instruments(protocol, opts.fake, lab_scale)
+    try:
+        if run is None:
+            meta = base_metadata(protocol, plan_text, plan_dir, robot, len(tests), opts,
+                                 lab_scale or 1.0)
+            run = RunDir.create(out, meta, _protocol_copy_name(protocol), protocol.text,
+                                plan_text)
+        else:
+            run.set_status("running", "")
+        inst.connect()
+        session = {"started_utc": utc(), "instruments": inst.describe(),
+                   "lab": inst.lab_addresses or None}
+        run.metadata["instruments"] = session["instruments"]
+        run.metadata.setdefault("sessions", []).append(session)
+        run.write_metadata()
+        reporter.start({"run_dir": str(run.path), "lab": inst.lab_addresses or None})
+        noise = (protocol.instruments["pose"].noise.translation_um or 30.0) * 1e-6
+        settings = RunSettings(settle=rule_for(noise, lab_scale or 1.0, opts.settle_scale))
+        runner = Runner(run, robot, tests, inst, reporter, limits_for(protocol),
+                        motion_limits(protocol), settings, protocol.safety.max_force_N,
+                        protocol.safety.max_moment_N_m, on_event=on_event)
+        status, reason = runner.run()
+        export_parquet(run.path)
+        counts = runner.counts
+    except BaseException as err:
+        if run is not None and run.metadata.get("status") == "running":
+            run.set_status("failed", f"{type(err).__name__}: {err}", ended_utc=utc())
+        raise
+    finally:
+        inst.close()
+        if run is not None:
+            run.close()
+    outcome = Outcome(status, reason, run.path, counts["ok"], counts["failed"])
+    reporter.finish(status, reason, {"run_dir": str(run.path), "ok": outcome.ok,
+                                     "failed": outcome.failed})
+    return outcome
