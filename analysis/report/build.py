@@ -100,7 +100,7 @@ def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
         nom = inp.nominal[j] if inp.nominal is not None else np.nan
         ident = np.isfinite(k)
         row = [f"k{j + 1}", k_kNm(k) if ident else "not identified",
-               interval_kNm(*result.ci[j]) if ident else "-", k_kNm(result.se_k[j]),
+               interval_kNm(*result.ci[j]) if ident else "-", sig(result.se_k[j] / 1e3, 3),
                fixed(100 * result.se_k[j] / k, 2) if ident else "-", k_kNm(nom),
                percent(k / nom - 1) if ident and np.isfinite(nom) else "-"]
         if inp.true_k is not None:

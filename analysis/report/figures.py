@@ -66,35 +66,48 @@ def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[st
 
 def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
                    nominal_label: str, confidence: float) -> Figure:
-    """Identified k (N m/rad) with the interval as error bars, nominal values as crosses."""
+    """Identified k (N m/rad) with its interval as error bars.
+
+    With reference values, k / reference - 1 (%) is drawn (the intervals of
+    well-identified joints are too narrow to see on an absolute scale);
+    without, k in kN m/rad. An interval unbounded above is drawn to the top
+    of the axes with an arrow.
+    """
     fig, ax = _new()
     joints = np.arange(1, 7)
     ok = np.isfinite(k)
-    kk = k / 1e3
-    lo = np.where(np.isfinite(ci[:, 0]), ci[:, 0], k) / 1e3
-    hi_raw = np.where(np.isfinite(ci[:, 1]), ci[:, 1], np.nan) / 1e3
-    top = np.nanmax(np.concatenate([kk[ok], hi_raw[ok & np.isfinite(hi_raw)], [0]])) * 1.3
-    hi = np.where(np.isfinite(hi_raw), hi_raw, top)
-    yerr = np.vstack([kk - lo, hi - kk])[:, ok]
-    ax.errorbar(joints[ok], kk[ok], yerr=yerr, fmt="o", capsize=5, color="tab:blue",
+    ref = nominal if nominal is not None else np.full(6, 1e3)
+    relative = nominal is not None
+    with np.errstate(invalid="ignore", divide="ignore"):
+        y = (k / ref - 1) * 100 if relative else k / ref
+        lo = (ci[:, 0] / ref - 1) * 100 if relative else ci[:, 0] / ref
+        hi = (ci[:, 1] / ref - 1) * 100 if relative else ci[:, 1] / ref
+    finite_hi = np.isfinite(hi)
+    span = np.concatenate([y[ok], lo[ok], hi[ok & finite_hi], [0.0]])
+    top = np.nanmax(span) + 0.2 * (np.nanmax(span) - np.nanmin(span) + 1e-9)
+    hi_drawn = np.where(finite_hi, hi, top)
+    yerr = np.vstack([y - lo, hi_drawn - y])[:, ok]
+    ax.errorbar(joints[ok], y[ok], yerr=yerr, fmt="o", capsize=6, color="tab:blue",
                 label=f"identified, {confidence:.0%} interval")
-    unbounded = ok & ~np.isfinite(hi_raw)
+    unbounded = ok & ~finite_hi
     if unbounded.any():
-        ax.plot(joints[unbounded], hi[unbounded], "^", color="tab:blue",
+        ax.plot(joints[unbounded], hi_drawn[unbounded], "^", color="tab:blue",
                 label="interval unbounded above")
-    if nominal is not None:
-        ax.plot(joints, nominal / 1e3, "x", color="k", ms=9, mew=2, label=nominal_label)
-    values = np.concatenate([kk[ok], lo[ok], [] if nominal is None else nominal / 1e3])
-    values = values[np.isfinite(values) & (values > 0)]
-    if values.size and values.max() / values.min() > 20:
-        ax.set_yscale("log")
+    if relative:
+        ax.axhline(0.0, color="k", lw=1.2, label=nominal_label)
+        ax.set_ylabel(f"k / {nominal_label.split(' (')[0]} - 1 (%)")
+    else:
+        ax.set_ylabel("joint stiffness (kN m/rad)")
+    for j in joints[~ok]:
+        ax.annotate("not identified", (j, 0), ha="center", fontsize=7, color="0.4")
     ax.set_xticks(joints, [f"k{j}" for j in joints])
-    ax.set_ylabel("joint stiffness (kN m/rad)")
+    ax.set_xlim(0.5, 6.5)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title("Identified joint stiffness", fontsize=9)
-    return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals; crosses: "
-                f"{nominal_label}.")
+    ax.set_title("Identified joint stiffness" + (f", relative to the {nominal_label}"
+                                                  if relative else ""), fontsize=9)
+    what = f"relative to the {nominal_label} (0 %)" if relative else "in kN m/rad"
+    return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals, {what}.")
 
 
 def residual_plot(residuals: pd.DataFrame, threshold: float) -> Figure:

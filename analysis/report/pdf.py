@@ -80,6 +80,8 @@ def _table(doc: _Doc, t: Table) -> None:
     doc.set_font("DejaVu", "B", 10)
     doc.multi_cell(0, 5.5, t.title, new_x="LMARGIN", new_y="NEXT")
     size = 7.5 if len(t.columns) > 7 else 8.5
+    doc.set_fill_color(255)
+    doc.set_draw_color(150)
     doc.set_font("DejaVuMono" if t.mono else "DejaVu", "", size)
     head = FontFace(family="DejaVu", emphasis="BOLD", fill_color=HEAD, size_pt=size)
     marked = FontFace(fill_color=MARK)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from analysis.report.formatting import fixed
 from analysis.report.model import Paragraph, Table
 
-VERSIONED = ("stiffness-campaign", "numpy", "scipy", "pandas", "pin", "matplotlib", "fpdf2")
+VERSIONED = ("robot-stiffness-campaign", "numpy", "scipy", "pandas", "pin", "matplotlib", "fpdf2")
 
 
 @dataclass

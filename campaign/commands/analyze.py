@@ -17,16 +17,13 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from analysis.errors import InputError
-from analysis.identification import DEFAULT_METHOD, METHODS, analyze_table, parse_joints
-from analysis.measurements import read_csv, to_arrays
 from analysis.noise import NoiseModel
-from analysis.report.build import ReportInputs, build_report
-from analysis.report.formatting import interval_kNm, k_kNm
-from analysis.report.summary import CampaignInfo
-from analysis.report.write import write_report
-from analysis.result import write_results
 from campaign.options import parse_floats, robot_option
 
+# Kept in step with analysis.identification (not imported here: every CLI command
+# module is imported at start-up, and the identification pulls in scipy.stats).
+METHODS = ("ols", "wls", "exact")
+DEFAULT_METHOD = "exact"
 DEFAULT_TRIALS = 200
 
 
@@ -53,7 +50,9 @@ def _instrument_text(spec) -> str:
                      for k in keys if spec.get(k) not in (None, ""))
 
 
-def _run_info(run, robot_name: str, protocol) -> CampaignInfo:
+def _run_info(run, robot_name: str, protocol):
+    from analysis.report.summary import CampaignInfo
+
     meta = run.metadata
     tool = meta.get("tool")
     if protocol is not None:
@@ -113,6 +112,9 @@ def _from_run(run_dir: Path):
 def _from_csv(path: Path, robot_spec: str | None, tip: str | None):
     import hashlib
 
+    from analysis.measurements import read_csv
+    from analysis.report.summary import CampaignInfo
+
     if not robot_spec:
         raise InputError("--measurements needs --robot (built-in name, robot file or URDF)",
                          where="--robot")
@@ -162,6 +164,8 @@ def _map_fixed(protocol) -> np.ndarray:
 
 
 def _print(console: Console, result, paths: dict) -> None:
+    from analysis.report.formatting import interval_kNm, k_kNm
+
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
     for col in ("joint", "k (kN m/rad)", f"{result.confidence:.0%} interval (kN m/rad)"):
         table.add_column(col, justify="right")
@@ -196,6 +200,12 @@ def register(app: typer.Typer) -> None:
         report: bool = typer.Option(True, "--report/--no-report", help="Write the report."),
     ) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report."""
+        from analysis.identification import analyze_table, parse_joints
+        from analysis.measurements import to_arrays
+        from analysis.report.build import ReportInputs, build_report
+        from analysis.report.write import write_report
+        from analysis.result import write_results
+
         if (run_dir is None) == (measurements is None):
             raise InputError("give either RUN_DIR or --measurements FILE.csv --robot R",
                              where="campaign analyze")

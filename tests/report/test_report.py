@@ -1,0 +1,207 @@
+"""campaign analyze RUN_DIR: results.json, the HTML report and the PDF report.
+
+The HTML is parsed with html.parser and the PDF text extracted with pypdf;
+the numbers shown are compared with results.json and with the simulated
+truth of the run (Table 2 of the paper).
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import re
+import struct
+from html.parser import HTMLParser
+
+import numpy as np
+import pytest
+from pypdf import PdfReader
+from report_runs import TRUE_K
+
+from analysis.report.build import SECTION_TITLES
+from analysis.report.figures import HEIGHT, WIDTH
+from analysis.report.formatting import interval_kNm, k_kNm
+from campaign.cli import main
+
+
+class _Doc(HTMLParser):
+    """Tables (title = preceding h3), images and any external references of a page."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tables: dict[str, list[list[str]]] = {}
+        self.images: list[str] = []
+        self.external: list[str] = []
+        self.h2: list[str] = []
+        self.text: list[str] = []
+        self._tag: list[str] = []
+        self._title = ""
+        self._cell: list[str] | None = None
+        self._row: list[str] | None = None
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        self._tag.append(tag)
+        if tag == "script":
+            self.external.append("script")
+        if tag in ("link",) or (tag in ("img", "iframe") and not
+                                 str(attrs.get("src", "")).startswith("data:")):
+            self.external.append(f"{tag} {attrs}")
+        if tag == "img":
+            self.images.append(attrs["src"])
+        if tag == "table":
+            self.tables[self._title] = []
+        if tag == "tr":
+            self._row = []
+        if tag in ("td", "th"):
+            self._cell = []
+
+    def handle_endtag(self, tag):
+        if self._tag:
+            self._tag.pop()
+        if tag in ("td", "th") and self._row is not None:
+            self._row.append("".join(self._cell or []).strip())
+            self._cell = None
+        if tag == "tr" and self._row is not None:
+            self.tables[self._title].append(self._row)
+            self._row = None
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._cell is not None:
+            self._cell.append(data)
+        if self._tag and self._tag[-1] == "h3":
+            self._title = data.strip()
+        if self._tag and self._tag[-1] == "h2":
+            self.h2.append(data.strip())
+
+
+def _analyze(args):
+    return main(["analyze", *args])
+
+
+@pytest.fixture(scope="module")
+def complete(complete_run):
+    out = complete_run / "analysis"
+    assert _analyze([str(complete_run), "--pose", "0,30,-190,10,40,20"]) == 0
+    doc = _Doc()
+    doc.feed((out / "report.html").read_text(encoding="utf-8"))
+    pdf = PdfReader(out / "report.pdf")
+    pages = [p.extract_text() for p in pdf.pages]
+    results = json.loads((out / "results.json").read_text())
+    return {"out": out, "html": doc, "pages": pages, "results": results}
+
+
+def _flat(text: str) -> str:
+    return re.sub(r"\s+", " ", text)
+
+
+def test_results_json_matches_the_simulated_truth(complete):
+    res = complete["results"]
+    k = np.array(res["joint_stiffness_Nm_per_rad"])
+    ci = np.array(res["ci95_Nm_per_rad"])
+    assert res["n_tests"] == 14  # 15 rows, one failed
+    # each k within 3 % of the truth, and the truth inside at least 4 of 6 intervals
+    np.testing.assert_allclose(k, TRUE_K, rtol=0.03)
+    inside = (ci[:, 0] <= TRUE_K) & (TRUE_K <= ci[:, 1])
+    assert inside.sum() >= 4
+    assert np.all(ci[:, 0] < k) and np.all(k < ci[:, 1])
+
+
+def test_html_table_holds_the_identified_values_and_intervals(complete):
+    res, doc = complete["results"], complete["html"]
+    table = doc.tables["Identified joint stiffness"]
+    header, rows = table[0], table[1:]
+    assert header[:3] == ["joint", "k (kN m/rad)", "95% interval (kN m/rad)"]
+    assert len(rows) == 6
+    for j, row in enumerate(rows):
+        k = res["joint_stiffness_Nm_per_rad"][j]
+        lo, hi = res["ci95_Nm_per_rad"][j]
+        assert row[0] == f"k{j + 1}"
+        assert row[1] == k_kNm(k)
+        assert float(row[1]) == pytest.approx(k / 1e3, rel=1e-4)
+        assert row[2] == interval_kNm(lo, hi)
+        shown = [float(v) for v in row[2].strip("[]").split(",")]
+        assert shown == pytest.approx([lo / 1e3, hi / 1e3], rel=1e-4)
+        assert float(row[5]) == pytest.approx(TRUE_K[j] / 1e3)  # nominal = Table 2
+
+
+def test_html_is_self_contained_with_plots_of_the_expected_size(complete):
+    doc = complete["html"]
+    assert doc.external == []
+    assert doc.h2 == list(SECTION_TITLES)
+    assert len(doc.images) == 6
+    for src in doc.images:
+        assert src.startswith("data:image/png;base64,")
+        png = base64.b64decode(src.split(",", 1)[1])
+        assert png[:8] == b"\x89PNG\r\n\x1a\n"
+        assert struct.unpack(">II", png[16:24]) == (WIDTH, HEIGHT)
+        import matplotlib.image as mpimg
+
+        pixels = mpimg.imread(io.BytesIO(png))
+        assert pixels.std() > 0.05  # not a blank image
+
+
+def test_html_shows_flags_and_failed_row(complete):
+    doc = complete["html"]
+    flagged = doc.tables["Flagged and failed test rows"]
+    failed = [r for r in flagged[1:] if r[3] == "failed"]
+    assert len(failed) == 1 and failed[0][4] == "saturation, retried" and failed[0][-1] == "12"
+    drift = [r for r in flagged[1:] if r[4] == "drift"]
+    assert drift and drift[0][6] == "0.051"
+    text = _flat(" ".join(doc.text))
+    assert "Data-quality flags: drift: 1, saturation: 1, retried: 1" in text
+    assert "PARTIAL RUN" not in text
+
+
+def test_html_residuals_validation_and_kx(complete):
+    doc = complete["html"]
+    res = complete["results"]
+    resid = doc.tables["Residuals (measured - model) per test and component"]
+    assert len(resid) == 1 + 14
+    first = [r for r in res["residuals"] if r["test"] == 0 and r["component"] == "dz"][0]
+    assert resid[1][5].rstrip(" *") == f"{1e6 * first['residual']:.1f}"
+    val = doc.tables["Held-out validation (leave one pose out)"]
+    assert [r[0] for r in val[1:]] == ["P1", "P2", "P3", "P4", "P5"]
+    assert all(0.2 < float(r[4]) < 3 for r in val[1:])
+    kx = doc.tables["K_X at pose 1 (command line), with K_C (SI)"]
+    kx0 = doc.tables["K_X at pose 1 (command line), without K_C (SI)"]
+    m = np.array([[float(v) for v in r[1:]] for r in kx[1:]])
+    m0 = np.array([[float(v) for v in r[1:]] for r in kx0[1:]])
+    assert m.shape == (6, 6)
+    np.testing.assert_allclose(m0, m0.T, rtol=0.02, atol=1e-3 * np.abs(m0).max())
+    assert np.all(np.linalg.eigvalsh((m0 + m0.T) / 2) > 0)  # a stiffness: positive definite
+    assert not np.allclose(m, m0, rtol=1e-4)  # K_C changes K_X under the wrench
+
+
+def test_pdf_pages_and_numbers(complete):
+    pages, res = complete["pages"], complete["results"]
+    n = len(pages)
+    assert 6 <= n <= 12
+    for i, text in enumerate(pages, start=1):
+        assert f"page {i} of {n}" in text
+    # each section starts a page, in order
+    starts = [next(i for i, t in enumerate(pages) if f"{s + 1}. {title}" in t)
+              for s, title in enumerate(SECTION_TITLES)]
+    assert starts == sorted(starts) and starts[0] == 0
+    ident = _flat(pages[starts[1]])
+    for j in range(6):
+        k = res["joint_stiffness_Nm_per_rad"][j]
+        assert k_kNm(k) in ident
+        assert interval_kNm(*res["ci95_Nm_per_rad"][j]) in ident
+    assert "saturation, retried" in _flat(pages[0])
+
+
+def test_aborted_run_is_analysed_and_says_partial(aborted_run):
+    out = aborted_run / "analysis"
+    assert _analyze([str(aborted_run), "--no-report"]) == 0
+    assert json.loads((out / "results.json").read_text())["n_tests"] == 12
+    assert json.loads((out / "analysis.json").read_text())["partial"] is True
+    assert _analyze([str(aborted_run), "--trials", "20"]) == 0
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "PARTIAL RUN (status aborted: interrupted by the operator (Ctrl-C))" in html
+    assert "12 test row(s) that finished ok of 15 planned" in html
+    assert "being written when the run stopped: dropped" in html
+    text = _flat(PdfReader(out / "report.pdf").pages[0].extract_text())
+    assert "PARTIAL RUN" in text and "12 test row(s) that finished ok" in text
