@@ -157,7 +157,8 @@ def make_plan(
         (the paper's practice: random poses cycling through the zones).
     seed : seed of the candidate draw and of the random design.
     candidates : number of candidate poses drawn over the zones.
-    tests : number of test poses; default the protocol's ``campaign.tests``.
+    tests : number of test poses; default the protocol's ``campaign.tests`` (an
+        override is recorded in the summary, not in the protocol copy).
 
     Raises
     ------
@@ -171,6 +172,8 @@ def make_plan(
     if candidates < 1:
         raise InputError("need at least one candidate", where="--candidates")
     if tests is not None:
+        if tests < 1:
+            raise InputError("need at least one test", where="--tests")
         protocol = protocol.model_copy(
             update={"campaign": protocol.campaign.model_copy(update={"tests": tests})}
         )

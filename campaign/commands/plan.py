@@ -19,6 +19,7 @@ def plan(
     ),
     seed: int = typer.Option(0, "--seed", help="Seed of the candidate draw and random design."),
     candidates: int = typer.Option(10000, "--candidates", help="Candidate poses drawn."),
+    tests: int = typer.Option(None, "--tests", help="Test poses (default: the protocol's)."),
     no_figure: bool = typer.Option(False, "--no-figure", help="Skip plan_map.png."),
 ) -> None:
     """Plan the tests: candidate poses in the zones, thresholds, optimal design.
@@ -28,7 +29,7 @@ def plan(
     standard error of every joint stiffness beside that of a random zone design.
     """
     proto = load_protocol(protocol)
-    result = make_plan(proto, strategy=strategy, seed=seed, candidates=candidates)
+    result = make_plan(proto, strategy=strategy, seed=seed, candidates=candidates, tests=tests)
     path = write_plan(result, out, figure=not no_figure)
     typer.echo(summary_text(result), nl=False)
     typer.echo(f"plan written to {path}")
