@@ -250,9 +250,9 @@ class NetFTSensor(ForceTorqueSensor):
             if self._last_seq is not None:
                 step = (rec.rdt_sequence - self._last_seq) & 0xFFFFFFFF
                 if step == 0 or step > 0x7FFFFFFF:  # duplicate or older: late datagram
-                    self.discarded += 1
                     old += 1
                     if old < self.max_bad_datagrams:
+                        self.discarded += 1
                         continue
                     step = 1  # a long run of "older" records: the sensor restarted its count
                 self.dropped += step - 1
