@@ -303,8 +303,13 @@ class Protocol(_Strict):
         if self.fake_lab is None:
             return None
         lab = self.fake_lab
+        robot = self.campaign.robot
+        is_file = robot.lower().endswith((".toml", ".yaml", ".yml", ".urdf"))
+        if is_file and not Path(robot).is_absolute():
+            # robot files are named relative to the protocol file
+            robot = str(Path(self._path).parent / robot)
         out: dict[str, object] = {
-            "robot": self.campaign.robot,
+            "robot": robot,
             "true_joint_stiffness": tuple(lab.true_joint_stiffness),
             "seed": lab.seed,
             "time_scale": lab.time_scale,

@@ -111,3 +111,23 @@ def test_byte_identical_plan(tmp_path, kr_protocol):
     other = make_plan(kr_protocol, "d-optimal", seed=6, candidates=2000)
     write_plan(other, tmp_path / "c", figure=False)
     assert (tmp_path / "c" / "plan.csv").read_bytes() != out[0][0]
+
+
+def test_byte_identical_across_processes_and_thread_counts(tmp_path):
+    """Two fresh processes, one and two BLAS threads: the same plan.csv bytes."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    proto = Path(__file__).resolve().parents[2] / "protocols" / "kr240-2.toml"
+    out = []
+    for threads in ("1", "2"):
+        env = dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads,
+                   MKL_NUM_THREADS=threads)
+        d = tmp_path / f"t{threads}"
+        subprocess.run([sys.executable, "-m", "campaign", "plan", "--protocol", str(proto),
+                        "--out", str(d), "--candidates", "3000", "--no-figure"],
+                       check=True, env=env, capture_output=True)
+        out.append((d / "plan.csv").read_bytes())
+    assert out[0] == out[1]
