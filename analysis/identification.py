@@ -56,7 +56,7 @@ from analysis.lsq import (
     weakest_column,
     whitening,
 )
-from analysis.measurements import COMPONENTS, Q_COLS, TestArrays, to_arrays
+from analysis.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays, to_arrays
 from analysis.noise import NoiseModel
 from analysis.result import Fit, IdentificationResult
 from analysis.robot_model import RobotModel
@@ -97,6 +97,21 @@ def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]) -
     """Refuse data that cannot identify ``joints``; messages name the line, column or joint."""
     if robot.n != 6:
         raise InputError(f"{robot.name} has {robot.n} joints; the test format has 6")
+    for name, arr, cols in (("joint angles", tests.q, Q_COLS), ("wrench", tests.w, W_COLS)):
+        bad = ~np.isfinite(arr)
+        if np.any(bad):
+            i, j = np.argwhere(bad)[0]
+            raise InputError(f"line {tests.line[i]}, column {cols[j]}: {name} must be finite")
+    bad = np.isinf(tests.d) | (np.isnan(tests.d) & tests.measured)
+    if np.any(bad):
+        i, j = np.argwhere(bad)[0]
+        raise InputError(f"line {tests.line[i]}, component {COMPONENTS[j]}: displacement must "
+                         "be finite where measured")
+    zero = np.all(tests.w == 0.0, axis=1)
+    if np.any(zero):
+        i = int(np.flatnonzero(zero)[0])
+        raise InputError(f"line {tests.line[i]}, columns {', '.join(W_COLS)}: zero wrench; a "
+                         "test needs a load")
     tol = 1e-9
     out = (tests.q < robot.lower - tol) | (tests.q > robot.upper + tol)
     if np.any(out):

@@ -58,6 +58,8 @@ class TestArrays:
     line : (m,) CSV line numbers (header = 1) or table row numbers, for messages.
     """
 
+    __test__ = False  # not a pytest test class
+
     pose: np.ndarray
     q: np.ndarray
     w: np.ndarray
@@ -84,7 +86,8 @@ class TestArrays:
 def _numeric(frame: pd.DataFrame, col: str, where: str, line0: int) -> np.ndarray:
     raw = frame[col]
     values = pd.to_numeric(raw, errors="coerce")
-    bad = values.isna() & raw.notna() & (raw.astype(str).str.strip() != "")
+    text = raw.astype(str).str.strip()
+    bad = values.isna() & raw.notna() & (text != "") & (text.str.lower() != "nan")
     if bad.any():
         i = int(np.flatnonzero(bad.to_numpy())[0])
         raise InputError(

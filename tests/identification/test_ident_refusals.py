@@ -1,0 +1,82 @@
+"""Data that cannot identify the joints: clear refusals naming the line, column or joint."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.errors import InputError
+from analysis.identification import identify, parse_joints
+
+from ._sim import simulate
+
+
+def test_fewer_equations_than_unknowns(kr240, zone_poses, w_eff):
+    tests = simulate(kr240, zone_poses[:1], w_eff, kr240.nominal_stiffness, rotations=False)
+    with pytest.raises(InputError, match="3 measured displacement components for 6 unknown"):
+        identify(kr240, tests, joints=range(6))
+
+
+def test_all_tests_at_one_pose(kr240, zone_poses):
+    q = np.repeat(zone_poses[:1], 3, axis=0)
+    w = np.array([[0, 2200, 0, 0, 0, 0], [0, 0, 2200, 0, 0, 0], [0, 0, 0, 200, 200, 0.0]])
+    tests = simulate(kr240, q, w, kr240.nominal_stiffness)
+    with pytest.raises(InputError, match=r"all 3 tests \(lines 2..4, columns q1_deg..q6_deg\) "
+                                         r"are at one pose"):
+        identify(kr240, tests)
+
+
+def test_zero_wrench_row(kr240, zone_poses, w_eff):
+    tests = simulate(kr240, zone_poses[:3], w_eff, kr240.nominal_stiffness)
+    tests.w[1] = 0.0
+    with pytest.raises(InputError, match=r"line 3, columns fx_N, fy_N, fz_N, mx_Nm, my_Nm, "
+                                         r"mz_Nm: zero wrench"):
+        identify(kr240, tests)
+
+
+def test_nan_in_arrays_names_line_and_column(kr240, zone_poses, w_eff):
+    tests = simulate(kr240, zone_poses[:3], w_eff, kr240.nominal_stiffness)
+    tests.q[2, 3] = np.nan
+    with pytest.raises(InputError, match=r"line 4, column q4_deg: joint angles must be finite"):
+        identify(kr240, tests)
+
+
+def test_joint_angle_outside_limits(kr240, zone_poses, w_eff):
+    tests = simulate(kr240, zone_poses[:3], w_eff, kr240.nominal_stiffness)
+    tests.q[0, 1] = np.radians(-30.0)  # theta2 limits 0..146 deg
+    with pytest.raises(InputError, match=r"line 2, column q2_deg: -30.000 deg is outside"):
+        identify(kr240, tests)
+
+
+def test_joint_without_torque_is_named(kr240, zone_poses, w_eff):
+    """A pure z force gives no torque about the vertical axis 1: its column of A is zero."""
+    tests = simulate(kr240, zone_poses[:4], np.array([0, 0, 2000.0, 0, 0, 0]),
+                     kr240.nominal_stiffness)
+    with pytest.raises(InputError, match=r"--joints: joint 1 cannot be identified: no test "):
+        identify(kr240, tests)
+
+
+def test_rank_deficient_wrist_is_named(kr240, zone_poses, w_eff):
+    """theta5 = 0 at every pose: axes 4 and 6 coincide and their columns are parallel."""
+    q = zone_poses[:5].copy()
+    q[:, 4] = 0.0
+    tests = simulate(kr240, q, w_eff, kr240.nominal_stiffness)
+    with pytest.raises(InputError, match=r"joint [46] cannot be identified from these tests: the "
+                                         r"condition number of the column-scaled A"):
+        identify(kr240, tests)
+    # taking joint 6 as rigid makes the rest identifiable
+    res = identify(kr240, tests, "ols", joints=(0, 1, 2, 3, 4), validate=False)
+    assert np.all(np.isfinite(res.k[:5]))
+
+
+def test_bad_method_and_joint_lists(kr240, zone_poses, w_eff):
+    tests = simulate(kr240, zone_poses[:3], w_eff, kr240.nominal_stiffness)
+    with pytest.raises(InputError, match="--method: unknown method 'lsq'"):
+        identify(kr240, tests, "lsq")
+    with pytest.raises(InputError, match="--joints: joint 7 is out of range"):
+        parse_joints("1,7")
+    with pytest.raises(InputError, match="--joints: 'x' is not a joint number"):
+        parse_joints("1,x")
+    with pytest.raises(InputError, match="--joints: list each joint once"):
+        parse_joints("1,1")
+    assert parse_joints("3, 1,2") == (0, 1, 2)
