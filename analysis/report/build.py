@@ -100,7 +100,8 @@ def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
         nom = inp.nominal[j] if inp.nominal is not None else np.nan
         ident = np.isfinite(k)
         row = [f"k{j + 1}", k_kNm(k) if ident else "not identified",
-               interval_kNm(*result.ci[j]) if ident else "-", sig(result.se_k[j] / 1e3, 3),
+               interval_kNm(*result.ci[j]) if ident else "-",
+               sig(result.se_k[j] / 1e3, 3, zeros=True),
                fixed(100 * result.se_k[j] / k, 2) if ident else "-", k_kNm(nom),
                percent(k / nom - 1) if ident and np.isfinite(nom) else "-"]
         if inp.true_k is not None:
@@ -207,7 +208,9 @@ def robustness_blocks(result: IdentificationResult, inp: ReportInputs,
     return [
         Paragraph(f"{len(q)} distinct pose/wrench pairs of this campaign, drawn with "
                   f"replacement; {inp.trials} trials per point; truth = the identified k; "
-                  "noise = the identification's noise model; batched WLS on the linear model."),
+                  "noise = the identification's noise model; batched WLS on the linear model. "
+                  "Random draws cover the design less evenly than the campaign itself, so the "
+                  "campaign's own standard errors (stars) may lie below the curve."),
         fig,
         Table("Relative standard deviation of k (%) against the number of tests",
               ["joint", *[f"n = {n}" for n in ns]], rows),

@@ -12,13 +12,17 @@ MICRO = "\u00b5"
 PM = "\u00b1"
 
 
-def sig(value: float | None, digits: int = 5) -> str:
-    """``value`` with ``digits`` significant digits; '-' for None/NaN, 'inf' for infinity."""
+def sig(value: float | None, digits: int = 5, zeros: bool = False) -> str:
+    """``value`` with ``digits`` significant digits; '-' for None/NaN, 'inf' for infinity.
+
+    ``zeros`` keeps trailing zeros (``2.00`` rather than ``2``).
+    """
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "-"
     if math.isinf(value):
         return "inf" if value > 0 else "-inf"
-    text = f"{value:.{digits}g}"
+    text = f"{value:#.{digits}g}" if zeros else f"{value:.{digits}g}"
+    text = text.rstrip(".")
     return text.replace("e+0", "e").replace("e-0", "e-").replace("e+", "e")
 
 

@@ -16,11 +16,10 @@ h1 { font-size: 1.6em; margin-bottom: 0.1em; } h2 { border-bottom: 2px solid #36
 .warning { background: #fff3cd; border-left: 4px solid #d90; padding: 0.5em 0.8em; }
 .note { background: #eef3fb; border-left: 4px solid #36c; padding: 0.5em 0.8em; }
 table { border-collapse: collapse; margin: 0.4em 0 0.3em; font-size: 0.88em; }
-th, td { border: 1px solid #bbb; padding: 0.25em 0.55em; text-align: right; }
-th { background: #e8ecf4; } td:first-child, th:first-child { text-align: left; }
+th, td { border: 1px solid #bbb; padding: 0.25em 0.55em; }
+th { background: #e8ecf4; } .r { text-align: right; } .l { text-align: left; }
 tr.marked td { background: #fde2e1; font-weight: bold; }
 table.mono td { font-family: "DejaVu Sans Mono", monospace; }
-table.kv td { text-align: left; }
 .caption { color: #555; font-size: 0.85em; margin: 0 0 1em; }
 figure { margin: 1em 0; } figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
 figcaption { color: #555; font-size: 0.85em; }
@@ -40,14 +39,15 @@ def _paragraph(p: Paragraph) -> str:
 
 
 def _table(t: Table) -> str:
-    classes = " ".join(c for c in ("mono" if t.mono else "",
-                                   "kv" if len(t.columns) == 2 else "") if c)
-    head = "".join(f"<th>{escape(c)}</th>" for c in t.columns)
+    align = ["r" if a == "right" else "l" for a in t.alignment()]
+    head = "".join(f'<th class="{a}">{escape(c)}</th>' for c, a in zip(t.columns, align,
+                                                                         strict=True))
     body = []
     for row, mark in zip(t.rows, t.marked, strict=True):
-        cells = "".join(f"<td>{escape(c)}</td>" for c in row)
+        cells = "".join(f'<td class="{a}">{escape(c)}</td>' for c, a in zip(row, align,
+                                                                             strict=True))
         body.append(f'<tr class="marked">{cells}</tr>' if mark else f"<tr>{cells}</tr>")
-    cls = f' class="{classes}"' if classes else ""
+    cls = ' class="mono"' if t.mono else ""
     caption = f'<p class="caption">{escape(t.caption)}</p>' if t.caption else ""
     return (f"<h3>{escape(t.title)}</h3><table{cls}><thead><tr>{head}</tr></thead>"
             f"<tbody>{''.join(body)}</tbody></table>{caption}")

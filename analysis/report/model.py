@@ -33,6 +33,14 @@ class Table:
     widths: list[float] | None = None
     mono: bool = False
 
+    def alignment(self) -> list[str]:
+        """``"left"`` for a column holding text, ``"right"`` for numbers (and intervals)."""
+        out = []
+        for i in range(len(self.columns)):
+            cells = [r[i] for r in self.rows if r[i] not in ("-", "")]
+            out.append("right" if cells and all(_numeric(c) for c in cells) else "left")
+        return out
+
     def __post_init__(self) -> None:
         if not self.marked:
             self.marked = [False] * len(self.rows)
@@ -40,6 +48,17 @@ class Table:
             if len(row) != len(self.columns):
                 raise ValueError(f"table {self.title!r}: row of {len(row)} cells for "
                                  f"{len(self.columns)} columns")
+
+
+def _numeric(text: str) -> bool:
+    """A number, a number with a trailing mark (``12.3 *``) or an interval ``[a, b]``."""
+    parts = text.strip("[]").replace(" *", "").split(",")
+    try:
+        for p in parts:
+            float(p)
+    except ValueError:
+        return False
+    return True
 
 
 @dataclass

@@ -16,7 +16,7 @@ from fpdf.fonts import FontFace
 from analysis.report.model import Figure, Paragraph, Report, Table
 
 MARGIN = 15.0  # mm
-FIGURE_WIDTH = 165.0  # mm
+FIGURE_WIDTH = 150.0  # mm
 FILL = {"warning": (255, 243, 205), "note": (238, 243, 251)}
 MARK = (253, 226, 225)
 HEAD = (232, 236, 244)
@@ -74,8 +74,19 @@ def _widths(t: Table) -> list[float]:
     return [max(len(c), *(len(r[i]) for r in t.rows), 3) for i, c in enumerate(t.columns)]
 
 
+ROW_HEIGHT = 5.2  # mm, one line of a table row with its padding
+
+
+def _table_height(t: Table) -> float:
+    """Rough height (mm) of a table with its title, header and caption."""
+    caption_lines = -(-len(t.caption) // 140) if t.caption else 0
+    return 7 + 2.5 * ROW_HEIGHT + ROW_HEIGHT * len(t.rows) + 4 * caption_lines
+
+
 def _table(doc: _Doc, t: Table) -> None:
-    if _space_left(doc) < 25 + 5 * min(len(t.rows), 4):
+    need = _table_height(t)
+    usable = doc.page_break_trigger - doc.t_margin - 20
+    if _space_left(doc) < (need if need < usable else 25 + 4 * ROW_HEIGHT):
         doc.add_page()
     doc.set_font("DejaVu", "B", 10)
     doc.multi_cell(0, 5.5, t.title, new_x="LMARGIN", new_y="NEXT")
@@ -85,11 +96,9 @@ def _table(doc: _Doc, t: Table) -> None:
     doc.set_font("DejaVuMono" if t.mono else "DejaVu", "", size)
     head = FontFace(family="DejaVu", emphasis="BOLD", fill_color=HEAD, size_pt=size)
     marked = FontFace(fill_color=MARK)
-    align = ["LEFT"] + ["RIGHT"] * (len(t.columns) - 1)
-    if len(t.columns) == 2:
-        align = ["LEFT", "LEFT"]
-    with doc.table(col_widths=_widths(t), headings_style=head, line_height=4.4,
-                   text_align=align, first_row_as_headings=True, padding=0.8,
+    align = [a.upper() for a in t.alignment()]
+    with doc.table(col_widths=_widths(t), headings_style=head, line_height=4.2,
+                   text_align=align, first_row_as_headings=True, padding=0.5,
                    width=doc.epw) as table:
         row = table.row()
         for c in t.columns:
