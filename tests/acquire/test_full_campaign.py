@@ -1,0 +1,77 @@
+"""A full fake KR240-2 campaign over loopback, then the identification of its run directory."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import numpy as np
+import pandas as pd
+
+from analysis.identification import analyze_table
+from analysis.noise import NoiseModel
+from campaign.acquire.progress import QuietReporter
+from campaign.acquire.rundir import TEST_COLUMNS
+from campaign.acquire.session import AcquireOptions, acquire
+from campaign.protocol import load_protocol
+from campaign.protocol_robot import protocol_robot
+from campaign.run_reader import read_run
+
+TRUE_K = np.array([1409800, 400760, 935280, 360000, 370000, 380000], dtype=float)
+
+
+def test_full_fake_campaign_recovers_the_true_stiffness(kr240_plan, tmp_path, time_scale):
+    out = tmp_path / "run"
+    t0 = time.monotonic()
+    outcome = acquire(kr240_plan, out, None,
+                      AcquireOptions(fake=True, assume_yes=True, time_scale=time_scale),
+                      QuietReporter(), say=lambda s: None)
+    elapsed = time.monotonic() - t0
+    assert outcome.status == "complete", outcome.reason
+    assert elapsed < 60, f"5-pose campaign took {elapsed:.1f} s"
+
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["status"] == "complete" and meta["ended_utc"]
+    assert meta["fake_lab"]["true_joint_stiffness"] == TRUE_K.tolist()
+    assert meta["instruments"]["robot"]["registry_name"] == "kuka-kvp"
+    assert meta["instruments"]["force_torque"]["address"].startswith("udp://127.0.0.1")
+    for name in ("protocol.toml", "plan.csv", "samples.jsonl", "events.jsonl",
+                 "samples.parquet", "tests.parquet"):
+        assert (out / name).is_file(), name
+    tests = pd.read_csv(out / "tests.csv", dtype={"pose": str})
+    assert list(tests.columns) == TEST_COLUMNS
+    assert len(tests) == 15 and (tests["status"] == "ok").all()
+    assert sorted(zip(tests.test_id, tests.repeat, strict=True)) == \
+        [(t, r) for t in range(1, 6) for r in range(1, 4)]
+    # the measured wrench is the applied load case, expressed at P in the base frame
+    plan = pd.read_csv(kr240_plan / "plan.csv").set_index("test")
+    w_plan = plan.loc[tests.test_id, ["fx_N", "fy_N", "fz_N"]].to_numpy()
+    w_meas = tests[["fx_N", "fy_N", "fz_N"]].to_numpy()
+    assert np.max(np.abs(w_meas - w_plan)) < 5.0  # N, against 2200 N components
+    assert tests["repeatability_mm"].max() < 0.3
+    # every reading is in samples.jsonl: 3 poses and 1 wrench per measurement at least
+    samples = pd.read_parquet(out / "samples.parquet")
+    poses = samples[samples.quantity == "tool_pose"]
+    assert len(poses) == 45 and set(poses.phase) == {"unloaded_before", "loaded",
+                                                      "unloaded_after"}
+    assert (samples.quantity == "wrench").sum() == 15
+
+    # identification from the run directory, as campaign analyze reads it
+    run = read_run(out)
+    protocol = load_protocol(out / "protocol.toml")
+    noise_t = protocol.instruments["pose"].noise.translation_um * 1e-6
+    noise_r = protocol.instruments["pose"].noise.rotation_urad * 1e-6
+    # displacement = loaded pose - mean of two unloaded poses: variance 1.5 sigma^2
+    noise = NoiseModel().with_overrides(
+        translation_sigma_override=noise_t * math.sqrt(1.5),
+        rotation_sigma_override=noise_r * math.sqrt(1.5),
+        force_sigma=0.5, moment_sigma=0.05)
+    result = analyze_table(run.ok, protocol_robot(protocol), noise=noise, validate=False)
+    z = (result.k - TRUE_K) / result.se_k
+    rel = np.abs(result.k - TRUE_K) / TRUE_K
+    print("k identified:", np.round(result.k), "z:", np.round(z, 2), f"time {elapsed:.1f} s")
+    assert np.all(np.abs(z) < 3.5), (result.k, result.se_k)
+    assert np.all(rel < 0.03)
+    assert rel[:3].max() < 0.01  # k1..k3 to better than 1 %
+    assert 0.5 < result.chi2_reduced < 2.0

@@ -1,0 +1,109 @@
+"""kill -9 of the acquire process at seeded moments, then --resume: nothing lost, nothing twice."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from campaign.acquire.rundir import RunDir, finished_tests, repair_tail
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _lines(path: Path) -> int:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read().count(b"\n")
+    except FileNotFoundError:
+        return 0
+
+
+def _start(args: list[str]) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "campaign", "acquire", *args, "--fake",
+                             "--yes", "--quiet", "--time-scale", "100"], cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _kill_when(proc: subprocess.Popen, samples: Path, n: int, timeout: float = 90) -> bool:
+    """kill -9 ``proc`` once samples.jsonl has ``n`` lines; False if it ended first."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            return False
+        if _lines(samples) >= n:
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait()
+            return True
+        time.sleep(0.002)
+    proc.kill()
+    raise AssertionError("acquire did not progress")
+
+
+def test_kill9_at_seeded_moments_then_resume(kr240_plan, make_variant, tmp_path):
+    plan = make_variant(kr240_plan, tmp_path / "plan", repeats=2)  # 5 tests x 2 repeats
+    run = tmp_path / "run"
+    samples = run / "samples.jsonl"
+    rng = np.random.default_rng(20261122)
+    # a measurement writes about 60 samples; kill points spread over the whole run
+    kill_at = np.sort(rng.integers(1, 560, size=3))
+    proc = _start(["--plan", str(plan), "--out", str(run)])
+    kills = 0
+    for n in kill_at:
+        if _kill_when(proc, samples, int(n)):
+            kills += 1
+            meta = json.loads((run / "metadata.json").read_text())
+            assert meta["status"] == "running"  # readable after the kill
+            before = finished_tests(run)
+        proc = _start(["--resume", str(run)])
+    proc.wait(timeout=120)
+    assert proc.returncode == 0, proc.stderr.read()
+    assert kills >= 2, f"only {kills} kills landed at {kill_at}"
+    assert before  # at least one kill landed after a finished test
+
+    tests = pd.read_csv(run / "tests.csv")
+    keys = list(zip(tests.test_id, tests.repeat, strict=True))
+    assert len(keys) == len(set(keys)), "duplicated test rows"
+    assert sorted(keys) == [(t, r) for t in range(1, 6) for r in (1, 2)], "missing tests"
+    assert (tests.status == "ok").all()
+    meta = json.loads((run / "metadata.json").read_text())
+    assert meta["status"] == "complete"
+    assert len(meta["sessions"]) == kills + 1
+    events = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
+    assert sum(e["event"] == "session_start" for e in events) == kills + 1
+    # every line of the appended files is whole
+    for name in ("samples.jsonl", "events.jsonl"):
+        for line in (run / name).read_text().splitlines():
+            json.loads(line)
+
+
+def test_resume_cuts_a_partial_last_line(tmp_path):
+    f = tmp_path / "samples.jsonl"
+    f.write_bytes(b'{"a": 1}\n{"b": 2}\n{"c": ')
+    assert repair_tail(f) == len(b'{"c": ')
+    assert f.read_bytes() == b'{"a": 1}\n{"b": 2}\n'
+    assert repair_tail(f) == 0
+
+
+def test_resume_of_a_complete_run_measures_nothing(kr240_plan, make_variant, tmp_path, cli):
+    plan = make_variant(kr240_plan, tmp_path / "plan", tests=1, repeats=1)
+    run = tmp_path / "run"
+    first = cli("acquire", "--plan", str(plan), "--out", str(run), "--fake", "--yes", "--quiet",
+                "--time-scale", "100")
+    assert first.returncode == 0, first.stderr
+    size = (run / "samples.jsonl").stat().st_size
+    again = cli("acquire", "--resume", str(run), "--fake", "--yes", "--quiet")
+    assert again.returncode == 0, again.stderr
+    assert (run / "samples.jsonl").stat().st_size == size
+    assert len(pd.read_csv(run / "tests.csv")) == 1
+    # resuming without --fake a run made with --fake is refused
+    wrong = cli("acquire", "--resume", str(run), "--yes")
+    assert wrong.returncode == 2 and "--fake" in wrong.stderr
+    RunDir.open(run).close()
