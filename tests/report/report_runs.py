@@ -68,6 +68,13 @@ def simulated_rows(seed: int = 1) -> list[dict]:
     return rows
 
 
+def write_csv(path: Path, rows: list[dict]) -> Path:
+    """The rows in the public CSV import format (the first 19 columns)."""
+    lines = [",".join(HEADER[:19])] + [",".join(_cell(r[c]) for c in HEADER[:19]) for r in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
 def _cell(v) -> str:
     if isinstance(v, float):
         return repr(float(v))
@@ -75,10 +82,13 @@ def _cell(v) -> str:
 
 
 def write_run(path: Path, rows: list[dict], status: str = "complete", reason: str = "",
-              truncate_last: bool = False) -> Path:
-    """Write a run directory with ``rows`` as ``tests.csv``; returns ``path``."""
+              truncate_last: bool = False, protocol_extra: str = "") -> Path:
+    """Write a run directory with ``rows`` as ``tests.csv``; returns ``path``.
+
+    ``protocol_extra`` is appended to the protocol copy (e.g. a ``[report]`` table).
+    """
     path.mkdir(parents=True, exist_ok=True)
-    text = PROTOCOL.read_text()
+    text = PROTOCOL.read_text() + protocol_extra
     (path / "protocol.toml").write_text(text)
     meta = {
         "format_version": 1, "status": status, "reason": reason,
