@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import os
-import select
+import queue
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -128,15 +129,17 @@ def test_cli_prints_addresses_serves_and_shuts_down(tmp_path):
          "--seed", "4", "--time-scale", "100", "--instruments", "geocom,robot"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
         env=dict(os.environ))
+    lines: queue.Queue[str] = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True).start()
     try:
         addresses = {}
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 40
         while time.monotonic() < deadline:
-            ready, _, _ = select.select([proc.stdout], [], [], 1.0)
-            if not ready:
+            try:
+                line = lines.get(timeout=1.0).strip()
+            except queue.Empty:
                 continue
-            line = proc.stdout.readline().strip()
-            if line == "ready" or not line:
+            if line == "ready":
                 break
             name, _, url = line.partition("=")
             addresses[name] = url
