@@ -1,0 +1,68 @@
+"""``campaign robustness`` and ``campaign analyze --measurements``: files and exit codes."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+
+from analysis.measurements import CSV_COLUMNS, table_from_arrays, to_csv_frame
+from analysis.noise import NoiseModel
+from campaign.cli import main
+
+from ._sim import simulate
+
+
+def test_robustness_writes_table_plot_and_settings(tmp_path, capsys):
+    out = tmp_path / "rob"
+    rc = main(["robustness", "--robot", "kr240-2", "--tests", "2,5", "--trials", "60",
+               "--pool-size", "60", "--out", str(out)])
+    assert rc == 0
+    table = pd.read_csv(out / "robustness.csv")
+    assert sorted(table["n_tests"].unique()) == [2, 5]
+    assert set(table["joint"]) == set(range(1, 7)) and (table["trials"] == 60).all()
+    assert (out / "robustness.png").stat().st_size > 10_000
+    settings = json.loads((out / "robustness.json").read_text())
+    assert settings["wrench_N_Nm"] == [0.0, 2200.0, 2200.0, 200.0, 200.0, 0.0]
+    assert "k6 std/k" in capsys.readouterr().out
+
+
+def test_robustness_bad_options_exit_2(capsys):
+    assert main(["robustness", "--robot", "kr240-2", "--tests", "5..2"]) == 2
+    assert "--tests" in capsys.readouterr().err
+    assert main(["robustness", "--robot", "kr240-2", "--tests", "3", "--trials", "10",
+                 "--rotation-source", "camera"]) == 2
+    assert "rotation_source" in capsys.readouterr().err
+
+
+def test_analyze_csv_writes_results_json(tmp_path, kr240, zone_poses, w_eff):
+    noise = NoiseModel()
+    tests = simulate(kr240, zone_poses[:6], w_eff, kr240.nominal_stiffness, noise, seed=9)
+    frame = to_csv_frame(table_from_arrays(tests.pose, tests.q, tests.w, tests.d))
+    csv = tmp_path / "tests.csv"
+    frame[CSV_COLUMNS].to_csv(csv, index=False)
+    out = tmp_path / "out"
+    rc = main(["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--out", str(out),
+               "--no-report"])
+    assert rc == 0
+    res = json.loads((out / "results.json").read_text())
+    k = np.array(res["joint_stiffness_Nm_per_rad"])
+    assert res["method"] == "exact" and res["n_tests"] == 6
+    assert np.all(np.abs(k / kr240.nominal_stiffness - 1) < 0.3)
+    assert len(res["ci95_Nm_per_rad"]) == 6
+    assert all(lo < kk < hi for (lo, hi), kk in zip(res["ci95_Nm_per_rad"], k, strict=True))
+    assert res["condition_number"] > 1
+    assert len(res["residuals"]) == 36
+    resid = pd.read_csv(out / "residuals.csv")
+    assert list(resid.columns[:4]) == ["test", "line", "pose", "component"]
+
+
+def test_analyze_csv_bad_cell_exit_2(tmp_path, capsys):
+    csv = tmp_path / "bad.csv"
+    row = ["P1"] + ["0"] * 6 + ["0", "100", "0", "0", "0", "0"] + ["abc", "0", "0", "", "", ""]
+    csv.write_text(",".join(CSV_COLUMNS) + "\n" + ",".join(row) + "\n")
+    rc = main(["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--out",
+               str(tmp_path / "o"), "--no-report"])
+    assert rc == 2
+    assert "line 2, column dx_mm: 'abc' is not a number" in capsys.readouterr().err
