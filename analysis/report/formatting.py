@@ -30,7 +30,7 @@ def k_kNm(value: float | None) -> str:
     """Joint stiffness (N m/rad) shown in kN m/rad with 5 significant digits."""
     if value is None or not math.isfinite(value):
         return sig(value)
-    return sig(value / 1e3, 5)
+    return sig(value / 1e3, 5, zeros=True)
 
 
 def interval_kNm(lo: float, hi: float) -> str:

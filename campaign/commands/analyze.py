@@ -27,14 +27,27 @@ DEFAULT_METHOD = "exact"
 DEFAULT_TRIALS = 200
 
 
+#: sigma of a run's displacement / sigma of one pose reading: the runner takes
+#: d = loaded - mean(unloaded before, unloaded after) (campaign/acquire/runner.py),
+#: so var(d) = sigma^2 + sigma^2 / 2.
+DISPLACEMENT_FROM_READING = float(np.sqrt(1.5))
+
+
 def _noise_from_protocol(protocol) -> NoiseModel:
-    """Noise model from the protocol's instrument sigmas (per test row), defaults elsewhere."""
+    """Noise model of one test row from the protocol's instrument sigmas, defaults elsewhere.
+
+    The pose instrument's ``translation_um``/``rotation_urad`` are the sigma of
+    one reading; a row's displacement has :data:`DISPLACEMENT_FROM_READING`
+    times that.
+    """
     values: dict = {}
     pose = protocol.instruments["pose"].noise
     if pose.translation_um is not None:
-        values["translation_sigma_override"] = pose.translation_um * 1e-6
+        values["translation_sigma_override"] = (pose.translation_um * 1e-6
+                                                * DISPLACEMENT_FROM_READING)
     if pose.rotation_urad is not None:
-        values["rotation_sigma_override"] = pose.rotation_urad * 1e-6
+        values["rotation_sigma_override"] = (pose.rotation_urad * 1e-6
+                                             * DISPLACEMENT_FROM_READING)
     ft = protocol.instruments.get("force_torque")
     if ft is not None:
         values["force_sigma"] = ft.noise.force_N
@@ -45,7 +58,7 @@ def _noise_from_protocol(protocol) -> NoiseModel:
 def _instrument_text(spec) -> str:
     if not isinstance(spec, dict):
         return str(spec)
-    keys = ("driver", "address", "serial", "firmware", "units", "frame")
+    keys = ("driver", "address", "serial", "firmware", "unit", "units", "frame")
     return ", ".join(f"{k} {spec[k]}" if k != "driver" else str(spec[k])
                      for k in keys if spec.get(k) not in (None, ""))
 

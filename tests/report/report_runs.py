@@ -3,7 +3,9 @@
 The displacements are simulated with the nonlinear equilibrium
 (:func:`analysis.equilibrium.displacement_screw`) of the KR240-2 at the
 paper's Table 2 stiffness, plus normal noise of the protocol's instrument
-sigmas (30 um, 20 urad per displacement component), seeded.
+sigmas (30 um, 20 urad per reading) as ``campaign acquire`` produces it
+(displacement = loaded - mean of the two unloaded readings: sqrt(1.5) times
+the reading sigma), seeded.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from analysis.robots import load_robot
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOL = ROOT / "protocols" / "kr240-2.toml"
 TRUE_K = np.array([1409800.0, 400760.0, 935280.0, 360000.0, 370000.0, 380000.0])
-SIGMA = np.array([30e-6] * 3 + [20e-6] * 3)
+SIGMA = np.array([30e-6] * 3 + [20e-6] * 3) * np.sqrt(1.5)
 #: Five poses in the paper's zones (model convention, deg) and the load case of each.
 POSES_DEG = np.array([
     [0, 40, -200, 45, 45, 45],
