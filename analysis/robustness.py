@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.batch_lsq import cholesky, forward_substitute, mgs_lstsq
+from analysis.batch_lsq import CHUNK, cholesky, forward_substitute, mgs_lstsq
 from analysis.dexterity import characteristic_length, inverse_condition, normalized_jacobian
 from analysis.equilibrium import displacement_screw
 from analysis.errors import InputError
@@ -134,9 +134,24 @@ def build_pool(
 
 
 def _test_covariance(Jc, x_full, noise: NoiseModel) -> np.ndarray:
-    """Per-test residual covariance (6, 6, n, T) for compliances x_full (6, T)."""
-    C = np.einsum("jant,jt,jbnt->abnt", Jc, x_full, Jc)
-    cov = np.einsum("ajnt,j,bjnt->abnt", C, noise.wrench_sigma**2, C)
+    """Per-test residual covariance (6, 6, n, T) for compliances x_full (6, T).
+
+    diag(sigma_d^2) + C diag(sigma_w^2) C^T with C = J diag(x) J^T, by
+    symmetric pairs of two-operand contractions (faster than one einsum).
+    """
+    Jx = Jc * x_full[:, None, None, :]
+    shape = Jc.shape[1:2] * 2 + Jc.shape[2:]
+    C = np.empty(shape)
+    cov = np.empty(shape)
+    for a in range(6):
+        for b in range(a, 6):
+            C[a, b] = np.einsum("jnt,jnt->nt", Jx[:, a], Jc[:, b])
+            C[b, a] = C[a, b]
+    Cw = C * (noise.wrench_sigma**2)[None, :, None, None]
+    for a in range(6):
+        for b in range(a, 6):
+            cov[a, b] = np.einsum("jnt,jnt->nt", Cw[a], C[b])
+            cov[b, a] = cov[a, b]
     cov[np.arange(6), np.arange(6)] += (noise.displacement_sigma**2)[:, None, None]
     return cov
 
@@ -171,11 +186,28 @@ def identify_batch(
         raise InputError(f"the batched study supports ols and wls, not {method!r}",
                          where="--method")
     cols = list(joints)
+    T = w.shape[-1]
+    x = np.empty((len(cols), T))
+    se = np.empty((len(cols), T)) if with_se else None
+    # blocks of trials small enough to stay in cache: every step below is a
+    # vectorised operation over the trials of one block
+    for s in range(0, T, CHUNK):
+        sl = slice(s, min(T, s + CHUNK))
+        xs, ses = _identify_block(Jc[..., sl], w[..., sl], d[..., sl], noise, method, cols,
+                                  with_se, reweight)
+        x[:, sl] = xs
+        if with_se:
+            se[:, sl] = ses
+    return x, se
+
+
+def _identify_block(Jc, w, d, noise, method, cols, with_se, reweight):
     p, (_, n, T) = len(cols), w.shape
-    tau = np.einsum("jrnt,rnt->jnt", Jc[cols], w)
-    A = Jc[cols] * tau[:, None]  # (p, r, n, T)
+    Jp = Jc[cols]
+    tau = np.einsum("jrnt,rnt->jnt", Jp, w)
+    A = Jp * tau[:, None]  # (p, r, n, T)
     x, Rinv, scale = mgs_lstsq(A.reshape(p, 6 * n, T), d.reshape(6 * n, T),
-                               with_rinv=with_se or method == "ols")
+                               with_rinv=with_se and method == "ols", chunk=T)
     if method == "ols":
         if not with_se:
             return x, None
@@ -189,7 +221,7 @@ def identify_batch(
         L = cholesky(_test_covariance(Jc, _full(x, cols), noise))
         Aw = np.moveaxis(forward_substitute(L, A_rows), 0, 1).reshape(p, 6 * n, T)
         dw = forward_substitute(L, d).reshape(6 * n, T)
-        x, Rinv, scale = mgs_lstsq(Aw, dw, with_rinv=with_se)
+        x, Rinv, scale = mgs_lstsq(Aw, dw, with_rinv=with_se, chunk=T)
     if not with_se:
         return x, None
     var = np.einsum("ijt,ijt->it", Rinv, Rinv) / scale**2
