@@ -44,7 +44,10 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit status."""
     app = build_app()
     try:
-        app(args=argv, standalone_mode=False)
+        # with standalone_mode=False, click returns the code of a typer.Exit instead of raising
+        status = app(args=argv, standalone_mode=False)
+        if isinstance(status, int) and status:
+            return status
     except InputError as err:
         typer.echo(f"error: {err}", err=True)
         return 2

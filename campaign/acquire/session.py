@@ -181,7 +181,11 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         counts = runner.counts
     except BaseException as err:
         if run is not None and run.metadata.get("status") == "running":
-            run.set_status("failed", f"{type(err).__name__}: {err}", ended_utc=utc())
+            if isinstance(err, KeyboardInterrupt):
+                run.set_status("aborted", "interrupted by the operator (Ctrl-C)",
+                               ended_utc=utc())
+            else:
+                run.set_status("failed", f"{type(err).__name__}: {err}", ended_utc=utc())
         raise
     finally:
         inst.close()

@@ -107,3 +107,32 @@ def test_resume_of_a_complete_run_measures_nothing(kr240_plan, make_variant, tmp
     wrong = cli("acquire", "--resume", str(run), "--yes")
     assert wrong.returncode == 2 and "--fake" in wrong.stderr
     RunDir.open(run).close()
+
+
+def test_ctrl_c_stops_unloads_records_and_resumes(kr240_plan, make_variant, tmp_path):
+    plan = make_variant(kr240_plan, tmp_path / "plan", tests=3, repeats=1)
+    run = tmp_path / "run"
+    proc = _start(["--plan", str(plan), "--out", str(run)])
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:  # interrupt while the load hangs on the tool
+        events = (run / "events.jsonl").read_text() if (run / "events.jsonl").exists() else ""
+        if events.count('"load_applied"') > events.count('"load_removed"') and \
+                '"test_done"' in events:
+            break
+        time.sleep(0.002)
+    proc.send_signal(signal.SIGINT)
+    proc.wait(timeout=30)
+    assert proc.returncode == 1, proc.stderr.read()
+    meta = json.loads((run / "metadata.json").read_text())
+    assert meta["status"] == "aborted" and "Ctrl-C" in meta["reason"]
+    events = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
+    kinds = [e["event"] for e in events]
+    stop = kinds.index("interrupt")
+    assert "load_removed" in kinds[stop:]  # automated (simulated operator): load taken off
+    done = finished_tests(run)
+    proc = _start(["--resume", str(run)])
+    proc.wait(timeout=60)
+    assert proc.returncode == 0, proc.stderr.read()
+    tests = pd.read_csv(run / "tests.csv")
+    keys = list(zip(tests.test_id, tests.repeat, strict=True))
+    assert sorted(keys) == [(1, 1), (2, 1), (3, 1)] and done <= set(keys)
