@@ -3,8 +3,11 @@
 Protocol from Leica's *TPS1200 GeoCOM Reference Manual* (section 2 "ASCII
 protocol", and RPC descriptions in the TMC chapter):
 
-* request ``%R1Q,<RPC>:<p1>,<p2>...`` + CR/LF; reply
-  ``%R1P,0,<TrId>:<RC>,<v1>,<v2>...`` + CR/LF, where ``RC`` 0 means GRC_OK.
+* request ``%R1Q,<RPC>[,<TrId>]:<p1>,<p2>...`` + CR/LF; reply
+  ``%R1P,0,<TrId>:<RC>,<v1>,<v2>...`` + CR/LF, where ``RC`` 0 means GRC_OK and
+  the transaction id ``TrId`` echoes the request's. The driver numbers its
+  requests and ignores replies with another id, so a late reply to an earlier,
+  timed-out request is never taken for the current one.
 * RPC 2008 ``TMC_DoMeasure(Command, Mode)`` triggers a distance measurement
   (Command 1 = TMC_DEF_DIST, Mode 1 = TMC_AUTO_INC).
 * RPC 2082 ``TMC_GetCoordinate(WaitTime [ms], Mode)`` returns ``E, N, H`` (m),
@@ -37,19 +40,20 @@ RC_NAMES = {1283: "TMC_NO_FULL_CORRECTION", 1284: "TMC_ACCURACY_GUARANTEE",
 _REPLY = re.compile(r"^%R1P,(\d+),(\d+):(-?\d+)?((?:,[^,]*)*)$")
 
 
-def encode_request(rpc: int, *params: object) -> bytes:
-    """``%R1Q,<rpc>:<params>`` + CR/LF."""
-    return f"%R1Q,{rpc}:{','.join(str(p) for p in params)}\r\n".encode("ascii")
+def encode_request(rpc: int, *params: object, trid: int | None = None) -> bytes:
+    """``%R1Q,<rpc>[,<trid>]:<params>`` + CR/LF."""
+    head = f"%R1Q,{rpc}" if trid is None else f"%R1Q,{rpc},{trid}"
+    return f"{head}:{','.join(str(p) for p in params)}\r\n".encode("ascii")
 
 
-def decode_request(line: bytes) -> tuple[int, list[str]]:
-    """Parse a request line (used by the fake); returns ``(rpc, params)``."""
+def decode_request(line: bytes) -> tuple[int, list[str], int]:
+    """Parse a request line (used by the fake); returns ``(rpc, params, trid)``."""
     text = line.decode("ascii", "replace").strip()
-    m = re.match(r"^%R1Q,(\d+):(.*)$", text)
+    m = re.match(r"^%R1Q,(\d+)(?:,(\d+))?:(.*)$", text)
     if not m:
         raise ProtocolError(f"not a GeoCOM request: {text[:40]!r}")
-    params = m.group(2).split(",") if m.group(2) else []
-    return int(m.group(1)), params
+    params = m.group(3).split(",") if m.group(3) else []
+    return int(m.group(1)), params, int(m.group(2) or 0)
 
 
 def encode_reply(rc: int, *values: object, trid: int = 0) -> bytes:
@@ -59,7 +63,7 @@ def encode_reply(rc: int, *values: object, trid: int = 0) -> bytes:
 
 
 def decode_reply(line: bytes) -> tuple[int, list[str]]:
-    """Parse a reply line into ``(rc, values)``.
+    """Parse a reply line into ``(rc, values)`` (see :func:`reply_trid` for its id).
 
     Raises
     ------
@@ -81,6 +85,12 @@ def decode_reply(line: bytes) -> tuple[int, list[str]]:
     return int(m.group(3)), values
 
 
+def reply_trid(line: bytes) -> int | None:
+    """Transaction id of a reply line, or None if it has none readable."""
+    m = re.match(rb"^%R1P,\d+,(\d+):", line.strip())
+    return int(m.group(1)) if m else None
+
+
 class GeoComTracker(PoseTracker):
     """GeoCOM-style instrument measuring reflector coordinates (m).
 
@@ -100,6 +110,8 @@ class GeoComTracker(PoseTracker):
         else:
             raise ConnectionFailed(f"{address!r}: expected a serial port or socket://host:port")
         self._ser = None
+        self._trid = 0
+        self.stale_replies = 0
 
     def _connect(self) -> None:
         import serial
@@ -120,17 +132,24 @@ class GeoComTracker(PoseTracker):
 
         if self._ser is None:
             raise ConnectionFailed("not connected")
+        self._trid = self._trid % 7 + 1  # ids 1..7 in turn
         try:
             self._ser.reset_input_buffer()
-            self._ser.write(encode_request(rpc, *params))
+            self._ser.write(encode_request(rpc, *params, trid=self._trid))
             deadline = time.monotonic() + self.timeout
             line = b""
-            while not line.endswith(b"\n"):
+            while True:
                 if time.monotonic() > deadline:
                     raise DeviceTimeout(f"{self.address}: no reply to RPC {rpc}")
                 line += self._ser.read_until(b"\n", 512 - len(line))
                 if len(line) >= 512:
                     raise ProtocolError("GeoCOM reply longer than 512 bytes")
+                if line.endswith(b"\n"):
+                    trid = reply_trid(line)
+                    if trid is None or trid == self._trid:
+                        break
+                    self.stale_replies += 1  # late answer to an earlier request
+                    line = b""
         except serial.SerialException as err:
             raise ConnectionFailed(f"{self.address}: {err}") from err
         rc, values = decode_reply(line)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import socket
+import threading
 
 from drivers.errors import ProtocolError
 from drivers.geocom import RPC_DO_MEASURE, RPC_GET_COORDINATE, decode_request, encode_reply
@@ -24,13 +25,26 @@ class FakeGeoCom(TcpFake):
         super().__init__(world)
         self.url = f"socket://{self.host}:{self.port}"
 
+    def _late(self, conn: socket.socket, reply: bytes, delay: float = 1.5) -> None:
+        """Send ``reply`` after ``delay`` s, from another thread (a slow instrument)."""
+        timer = threading.Timer(delay, lambda: self._send_quietly(conn, reply))
+        timer.daemon = True
+        timer.start()
+
+    @staticmethod
+    def _send_quietly(conn: socket.socket, data: bytes) -> None:
+        try:
+            conn.sendall(data)
+        except OSError:
+            pass
+
     def serve(self, conn: socket.socket) -> None:
         while True:
             line = self.recv_line(conn)
             if line is None:
                 return
             try:
-                rpc, _params = decode_request(line)
+                rpc, _params, trid = decode_request(line)
             except ProtocolError:
                 conn.sendall(b"%R1P,1,0:\r\n")  # communication error reply
                 continue
@@ -42,13 +56,17 @@ class FakeGeoCom(TcpFake):
                 conn.sendall(os.urandom(int(self.world.rng.integers(1, 60))) + b"\r\n")
                 continue
             if rpc == RPC_DO_MEASURE:
-                conn.sendall(encode_reply(0))
+                conn.sendall(encode_reply(0, trid=trid))
             elif rpc == RPC_GET_COORDINATE:
                 if self.fault("beam_lost"):
-                    conn.sendall(encode_reply(RC_ANGLE_ONLY, 0, 0, 0, 0, 0, 0, 0, 0))
+                    conn.sendall(encode_reply(RC_ANGLE_ONLY, 0, 0, 0, 0, 0, 0, 0, 0, trid=trid))
                     continue
                 e, n, h = self.world.tracker_point()
-                conn.sendall(encode_reply(0, f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0,
-                                          f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0))
+                reply = encode_reply(0, f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0,
+                                     f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0, trid=trid)
+                if self.fault("late"):
+                    self._late(conn, reply)
+                    continue
+                conn.sendall(reply)
             else:
-                conn.sendall(encode_reply(RC_UNKNOWN_RPC))
+                conn.sendall(encode_reply(RC_UNKNOWN_RPC, trid=trid))

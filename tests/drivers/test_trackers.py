@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -127,3 +129,49 @@ def test_wrong_header_layout_is_detected(world):
 def test_fewer_than_three_reflectors_is_refused():
     with pytest.raises(ValueError, match="three"):
         GeoComTracker("socket://127.0.0.1:1", reflectors={"a": [0, 0, 0], "b": [1, 0, 0]})
+
+
+def test_geocom_ignores_a_late_reply_to_an_earlier_request(world):
+    fake = FakeGeoCom(world)
+    fake.start()
+    try:
+        with GeoComTracker(fake.url, timeout=1.0) as drv:
+            world.faults.inject(fake.device, "late", 1)
+            with pytest.raises(DeviceTimeout):
+                drv.measure_point("P")  # its answer comes 1.5 s later
+            world.aim("R2")
+            truth = (world.base_in_tracker @ world.true_tool_pose() @ np.append(
+                world.reflectors["R2"], 1))[:3]
+            t_end = time.monotonic() + 1.0
+            while time.monotonic() < t_end:  # the late line for "P" arrives meanwhile
+                p = drv.measure_point("R2").value
+                assert np.linalg.norm(p - truth) < 6 * world.settings.tracker_noise
+                time.sleep(0.01)
+    finally:
+        fake.stop()
+
+
+def test_geocom_skips_replies_with_another_transaction_id():
+    import socket
+    import threading
+
+    from drivers import geocom
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(1)
+
+    def serve():
+        conn, _ = srv.accept()
+        with conn, conn.makefile("rb") as f:
+            for line in f:
+                rpc, _, trid = geocom.decode_request(line)
+                stale = geocom.encode_reply(0, "9.0", "9.0", "9.0", trid=trid % 7 + 1)
+                good = geocom.encode_reply(0, "1.0", "2.0", "3.0", trid=trid)
+                conn.sendall(stale + good if rpc == geocom.RPC_GET_COORDINATE else good)
+
+    threading.Thread(target=serve, daemon=True).start()
+    with GeoComTracker(f"socket://127.0.0.1:{srv.getsockname()[1]}", timeout=1.0) as drv:
+        np.testing.assert_allclose(drv.measure_point().value, [1.0, 2.0, 3.0])
+        assert drv.stale_replies == 1
+    srv.close()

@@ -108,6 +108,9 @@ def test_kvp_read_and_write_requests():
 
 def test_geocom_lines():
     assert geocom.encode_request(2082, 5000, 1) == b"%R1Q,2082:5000,1\r\n"
+    assert geocom.encode_request(2008, 1, 1, trid=3) == b"%R1Q,2008,3:1,1\r\n"
+    assert geocom.decode_request(b"%R1Q,2008,3:1,1\r\n") == (2008, ["1", "1"], 3)
+    assert geocom.reply_trid(b"%R1P,0,3:0\r\n") == 3
     assert geocom.decode_reply(b"%R1P,0,0:0,1.5,-2.25,0.125,17\r\n") == \
         (0, ["1.5", "-2.25", "0.125", "17"])
     assert geocom.decode_reply(b"%R1P,0,0:1285\r\n") == (1285, [])
