@@ -119,7 +119,14 @@ class RichReporter(Reporter):
         from rich.live import Live
 
         self.console = Console(stderr=True)
-        self.live = Live(console=self.console, refresh_per_second=8, transient=True)
+        self.live: Live | None = None
+        self._live_class = Live
+
+    def start(self, info: dict[str, Any]) -> None:
+        super().start(info)
+        # started only now: the dry run and the confirmation prompt come before
+        self.live = self._live_class(console=self.console, refresh_per_second=8,
+                                     transient=True)
         self.live.start()
 
     def _render(self):
