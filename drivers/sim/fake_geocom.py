@@ -1,22 +1,62 @@
-"""Fake GeoCOM-style instrument on loopback TCP: TMC_DoMeasure and TMC_GetCoordinate."""
+"""Fake GeoCOM-style instrument: TMC_DoMeasure and TMC_GetCoordinate, over TCP or a serial pty."""
 
 from __future__ import annotations
 
 import os
+import select
 import socket
 import threading
+import tty
+from collections.abc import Callable
 
 from drivers.errors import ProtocolError
 from drivers.geocom import RPC_DO_MEASURE, RPC_GET_COORDINATE, decode_request, encode_reply
+from drivers.sim.base import FakeServer
 from drivers.sim.tcp import TcpFake
 from drivers.sim.world import World
 
 RC_ANGLE_ONLY = 1285  # TMC_ANGLE_OK: no distance, as when the beam is lost
 RC_UNKNOWN_RPC = 1  # GRC_IVRESULT is close enough for an RPC the fake does not know
+LATE_DELAY = 1.5  # s, how late a "late" reply comes
+
+
+def respond(fake: FakeServer, line: bytes, send: Callable[[bytes], None]) -> bool:
+    """Answer one request line through ``send``; False means "hang up" (disconnect fault)."""
+    world = fake.world
+    try:
+        rpc, _params, trid = decode_request(line)
+    except ProtocolError:
+        send(b"%R1P,1,0:\r\n")  # communication error reply
+        return True
+    if fake.fault("disconnect"):
+        return False
+    if fake.fault("drop"):
+        return True
+    if fake.fault("garbage"):
+        send(os.urandom(int(world.rng.integers(1, 60))) + b"\r\n")
+        return True
+    if rpc == RPC_DO_MEASURE:
+        send(encode_reply(0, trid=trid))
+    elif rpc == RPC_GET_COORDINATE:
+        if fake.fault("beam_lost"):
+            send(encode_reply(RC_ANGLE_ONLY, 0, 0, 0, 0, 0, 0, 0, 0, trid=trid))
+            return True
+        e, n, h = world.tracker_point()
+        reply = encode_reply(0, f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0,
+                             f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0, trid=trid)
+        if fake.fault("late"):
+            timer = threading.Timer(LATE_DELAY, send, args=(reply,))
+            timer.daemon = True
+            timer.start()
+        else:
+            send(reply)
+    else:
+        send(encode_reply(RC_UNKNOWN_RPC, trid=trid))
+    return True
 
 
 class FakeGeoCom(TcpFake):
-    """Serves the aimed reflector's coordinates (m) of the world."""
+    """GeoCOM over loopback TCP, serving the aimed reflector's coordinates (m)."""
 
     driver = "geocom"
     device = "geocom"
@@ -25,48 +65,54 @@ class FakeGeoCom(TcpFake):
         super().__init__(world)
         self.url = f"socket://{self.host}:{self.port}"
 
-    def _late(self, conn: socket.socket, reply: bytes, delay: float = 1.5) -> None:
-        """Send ``reply`` after ``delay`` s, from another thread (a slow instrument)."""
-        timer = threading.Timer(delay, lambda: self._send_quietly(conn, reply))
-        timer.daemon = True
-        timer.start()
+    def serve(self, conn: socket.socket) -> None:
+        def send(data: bytes) -> None:
+            try:
+                conn.sendall(data)
+            except OSError:
+                pass
 
-    @staticmethod
-    def _send_quietly(conn: socket.socket, data: bytes) -> None:
+        while True:
+            line = self.recv_line(conn)
+            if line is None or not respond(self, line, send):
+                return
+
+
+class FakeGeoComSerial(FakeServer):
+    """GeoCOM on the master side of a pseudo-terminal; the driver opens the slave path."""
+
+    driver = "geocom"
+    device = "geocom"
+
+    def __init__(self, world: World) -> None:
+        super().__init__(world)
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.master)
+        tty.setraw(self.slave)
+        self.url = f"{os.ttyname(self.slave)}?baud=19200"
+
+    def _send(self, data: bytes) -> None:
         try:
-            conn.sendall(data)
+            os.write(self.master, data)
         except OSError:
             pass
 
-    def serve(self, conn: socket.socket) -> None:
-        while True:
-            line = self.recv_line(conn)
-            if line is None:
-                return
+    def _run(self) -> None:
+        buf = bytearray()
+        dead = False
+        while not self.stopping.is_set():
+            ready, _, _ = select.select([self.master], [], [], 0.05)
+            if not ready:
+                continue
             try:
-                rpc, _params, trid = decode_request(line)
-            except ProtocolError:
-                conn.sendall(b"%R1P,1,0:\r\n")  # communication error reply
+                buf += os.read(self.master, 1024)
+            except OSError:
                 continue
-            if self.fault("disconnect"):
-                return
-            if self.fault("drop"):
-                continue
-            if self.fault("garbage"):
-                conn.sendall(os.urandom(int(self.world.rng.integers(1, 60))) + b"\r\n")
-                continue
-            if rpc == RPC_DO_MEASURE:
-                conn.sendall(encode_reply(0, trid=trid))
-            elif rpc == RPC_GET_COORDINATE:
-                if self.fault("beam_lost"):
-                    conn.sendall(encode_reply(RC_ANGLE_ONLY, 0, 0, 0, 0, 0, 0, 0, 0, trid=trid))
-                    continue
-                e, n, h = self.world.tracker_point()
-                reply = encode_reply(0, f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0,
-                                     f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0, trid=trid)
-                if self.fault("late"):
-                    self._late(conn, reply)
-                    continue
-                conn.sendall(reply)
-            else:
-                conn.sendall(encode_reply(RC_UNKNOWN_RPC, trid=trid))
+            while b"\n" in buf and not dead:
+                line, _, rest = bytes(buf).partition(b"\n")
+                buf = bytearray(rest)
+                dead = not respond(self, line + b"\n", self._send)
+            if dead:
+                buf.clear()
+        os.close(self.master)
+        os.close(self.slave)

@@ -12,13 +12,14 @@ from drivers.errors import ConnectionFailed, DeviceFault, DeviceTimeout, Protoco
 from drivers.frames import matrix_to_rotvec
 from drivers.geocom import GeoComTracker
 from drivers.sim.fake_emscon import FakeEmscon
-from drivers.sim.fake_geocom import FakeGeoCom
+from drivers.sim.fake_geocom import FakeGeoCom, FakeGeoComSerial
 
 pytestmark = pytest.mark.timeout(60)
 
 KINDS = {"emscon-int32": (lambda w: FakeEmscon(w, header="int32"), EmsconTracker),
          "emscon-int64": (lambda w: FakeEmscon(w, header="int64"), EmsconTracker),
-         "geocom": (FakeGeoCom, GeoComTracker)}
+         "geocom": (FakeGeoCom, GeoComTracker),
+         "geocom-serial": (FakeGeoComSerial, GeoComTracker)}
 
 
 @pytest.fixture(params=sorted(KINDS))
@@ -96,7 +97,9 @@ def test_garbage_is_a_protocol_error_or_timeout(tracker, world):
 def test_disconnect_is_a_connection_error(tracker, world):
     fake, drv = tracker
     world.faults.inject(fake.device, "disconnect", 1)
-    with pytest.raises(ConnectionFailed):
+    # a serial line cannot hang up: the instrument just falls silent
+    expected = DeviceTimeout if isinstance(fake, FakeGeoComSerial) else ConnectionFailed
+    with pytest.raises(expected):
         drv.measure_point("P")
 
 
