@@ -196,21 +196,24 @@ def kx_blocks(inp: ReportInputs, k_pred: np.ndarray) -> list:
 def robustness_blocks(result: IdentificationResult, inp: ReportInputs,
                       k_ref: np.ndarray) -> list:
     q, w = design_tests(inp.tests.q, inp.tests.w)
-    table = design_robustness(inp.robot, q, w, k_ref, inp.noise, result.joints,
+    m, n_run = len(q), result.n_tests
+    ns = sorted({n for n in (3, 4, 5, 6, 8, 10, 15, 20, m, 2 * m, 3 * m, n_run)
+                 if 3 <= n <= max(20, 3 * m, n_run)})
+    table = design_robustness(inp.robot, q, w, k_ref, inp.noise, result.joints, tests=ns,
                               trials=inp.trials)
     se_rel = {j + 1: result.se_k[j] / result.k[j] for j in result.joints}
     fig = figures.robustness_curve(table, result.n_tests, se_rel)
-    ns = sorted(table["n_tests"].unique())
     rows = []
     for j in sorted(table["joint"].unique()):
         s = table[table["joint"] == j].set_index("n_tests")["relative_std"]
         rows.append([f"k{j}", *[fixed(100 * s[n], 2) for n in ns]])
     return [
-        Paragraph(f"{len(q)} distinct pose/wrench pairs of this campaign, drawn with "
-                  f"replacement; {inp.trials} trials per point; truth = the identified k; "
-                  "noise = the identification's noise model; batched WLS on the linear model. "
-                  "Random draws cover the design less evenly than the campaign itself, so the "
-                  "campaign's own standard errors (stars) may lie below the curve."),
+        Paragraph(f"The campaign's {m} distinct pose/load pairs, each repeated n // {m} "
+                  f"times plus n mod {m} of them at random (n < {m}: n of them at random); "
+                  f"{inp.trials} trials per point; truth = the identified k; noise = the "
+                  "identification's noise model; batched least squares on the linear model "
+                  "weighted by the displacement sigmas. At n = this campaign's size the "
+                  "curve should meet its reported standard errors (stars)."),
         fig,
         Table("Relative standard deviation of k (%) against the number of tests",
               ["joint", *[f"n = {n}" for n in ns]], rows),

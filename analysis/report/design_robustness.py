@@ -1,13 +1,15 @@
 """Robustness curve of the campaign's own design (cf. the paper's Fig. 7).
 
 The paper draws poses at random in the good zones; here the question is
-"how much would the spread shrink with more tests like these?". Each
-Monte-Carlo trial draws ``n`` tests with replacement from the campaign's
-design (its distinct pose + wrench pairs), simulates their exact
-displacement (nonlinear equilibrium) at the reference stiffness, adds the
-noise model's normal noise to the displacement, wrench and joint angles, and
-identifies all trials at once with the paper's linear model (eqs. 16-18),
-weighted by the displacement sigmas (batched QR of the whitened, column-scaled
+"how much would the spread shrink with more tests like these?". A trial of
+``n`` tests repeats each of the campaign's ``m`` distinct tests (pose +
+wrench) ``n // m`` times and adds ``n % m`` of them chosen at random (for
+``n < m``: ``n`` distinct tests at random), so at ``n`` equal to the
+campaign's size the trial is the campaign's own design. Each trial simulates
+the exact displacement (nonlinear equilibrium) at the reference stiffness,
+adds the noise model's normal noise to the displacement, wrench and joint
+angles, and identifies with the paper's linear model (eqs. 16-18), weighted
+by the displacement sigmas (batched QR of the whitened, column-scaled
 stacked A). The Jacobian is evaluated at the noisy joint angles, as a real
 identification would.
 """
@@ -29,12 +31,28 @@ from analysis.robot_model import RobotModel
 DEFAULT_TESTS = (3, 4, 5, 6, 8, 10, 15, 20)
 
 
+Q_TOL = 1e-3  # rad: joint angles closer than this are one pose
+W_TOL = 50.0  # N, N m: measured wrenches closer than this are one load case
+
+
 def design_tests(q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct (pose, wrench) pairs of a campaign: q (m, 6) rad, w (m, 6) N, N m."""
-    key = np.round(np.hstack([q, w]), 9)
+    """Distinct (pose, load) pairs of a campaign: q (m, 6) rad, w (m, 6) N, N m.
+
+    Measured angles and wrenches of repeats differ by noise, so pairs are
+    grouped on a grid of :data:`Q_TOL` and :data:`W_TOL`; the first of each
+    group is kept, in the campaign's order.
+    """
+    key = np.hstack([np.round(q / Q_TOL), np.round(w / W_TOL)])
     _, idx = np.unique(key, axis=0, return_index=True)
     idx = np.sort(idx)
     return q[idx], w[idx]
+
+
+def draw_tests(m: int, n: int, trials: int, rng: np.random.Generator) -> np.ndarray:
+    """Indices (trials, n) into m design tests: each ``n // m`` times, plus ``n % m`` distinct."""
+    base = np.tile(np.arange(m), n // m)
+    extra = np.argsort(rng.random((trials, m)), axis=1)[:, : n % m]
+    return np.hstack([np.broadcast_to(base, (trials, base.size)), extra])
 
 
 def batched_wls(A: np.ndarray, d: np.ndarray, sigma: np.ndarray) -> np.ndarray:
@@ -95,7 +113,7 @@ def design_robustness(
     cols = list(joints)
     rows = []
     for n in tests:
-        idx = rng.integers(0, len(q), (trials, n))
+        idx = draw_tests(len(q), n, trials, rng)
         dq = rng.normal(size=(trials, n, 6)) * noise.joint_sigma
         J = jacobian(robot, q[idx] + dq)
         wn = w[idx] + rng.normal(size=(trials, n, 6)) * noise.wrench_sigma
