@@ -69,26 +69,63 @@ def solve_deflection_compliance(
     q : (..., n) joint angles (rad). x : (n,) or (..., n) joint compliances
         (rad/(N m)), 0 for a rigid joint. w : (..., 6) wrench (N, N m).
     tol : convergence on max |step| (rad).
+
+    Raises
+    ------
+    EquilibriumError
+        Newton's method did not converge for some pose.
+    """
+    dq, ok = solve_deflection_masked(robot, q, x, w, tol, max_iter)
+    if not np.all(ok):
+        raise EquilibriumError(
+            f"equilibrium did not converge in {max_iter} Newton steps at "
+            f"{int(np.sum(~ok))} pose(s): the wrench is too large for these compliances"
+        )
+    return dq
+
+
+def solve_deflection_masked(
+    robot: RobotModel,
+    q: np.ndarray,
+    x: np.ndarray,
+    w: np.ndarray,
+    tol: float = 1e-15,
+    max_iter: int = 50,
+    max_deflection: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Like :func:`solve_deflection_compliance`, batched without raising.
+
+    Returns dq (..., n) (rad, 0 where failed) and ``ok`` (...) bool: Newton
+    converged (max |step| <= max(tol, 1e-12) at the end) with a finite
+    deflection below ``max_deflection`` (rad) and a nonsingular Jacobian.
+    Used where some of many campaigns may hold absurd estimates (Monte-Carlo).
     """
     q = np.asarray(q, dtype=float)
     x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
     n = q.shape[-1]
     dq = np.zeros_like(q)
-    step = np.zeros_like(q)
+    bad = np.zeros(q.shape[:-1], dtype=bool)
+    last = np.full(q.shape[:-1], np.inf)
+    eye = np.eye(n)
     for _ in range(max_iter):
         state = chain_state(robot, q + dq)
         tau = np.einsum("...ji,...j->...i", jacobian_from_state(state), w)
-        F = dq - x * tau
-        dF = np.eye(n) - x[..., :, None] * complementary_stiffness_from_state(state, w)
+        F = np.where(bad[..., None], 0.0, dq - x * tau)
+        dF = eye - x[..., :, None] * complementary_stiffness_from_state(state, w)
+        singular = ~np.isfinite(dF).all(axis=(-2, -1))
+        singular |= np.abs(np.linalg.det(np.where(singular[..., None, None], eye, dF))) < 1e-12
+        bad |= singular
+        dF = np.where(bad[..., None, None], eye, dF)
         step = np.linalg.solve(dF, F[..., None])[..., 0]
         dq = dq - step
-        if np.max(np.abs(step), initial=0.0) <= tol:
-            return dq
-    raise EquilibriumError(
-        f"equilibrium did not converge in {max_iter} Newton steps (last step "
-        f"{np.max(np.abs(step)):.3g} rad): the wrench is too large for these compliances"
-    )
+        bad |= ~np.isfinite(dq).all(axis=-1) | (np.max(np.abs(dq), axis=-1) > max_deflection)
+        dq = np.where(bad[..., None], 0.0, dq)
+        last = np.where(bad, np.inf, np.max(np.abs(step), axis=-1, initial=0.0))
+        if np.all(bad | (last <= tol)):
+            break
+    ok = ~bad & (last <= max(tol, 1e-12))
+    return dq, ok
 
 
 def model_displacement(
@@ -97,22 +134,37 @@ def model_displacement(
     """Exact displacement screw (..., 6) [m; rad] and its derivative (..., 6, n) w.r.t. x.
 
     The derivative has units m/(rad/(N m)) and rad/(rad/(N m)) and is exact
-    (up to the Newton tolerance) at the solved equilibrium.
+    (up to the Newton tolerance) at the solved equilibrium. Raises
+    :class:`EquilibriumError` where the equilibrium cannot be solved.
     """
+    screw, D, ok = model_displacement_masked(robot, q, x, w, with_jacobian)
+    if not np.all(ok):
+        raise EquilibriumError(
+            f"equilibrium did not converge at {int(np.sum(~ok))} pose(s): the wrench is too "
+            "large for these compliances"
+        )
+    return screw, D
+
+
+def model_displacement_masked(
+    robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """:func:`model_displacement` plus ``ok`` (...) bool; values are 0 where not ok."""
     q = np.asarray(q, dtype=float)
     x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
-    dq = solve_deflection_compliance(robot, q, x, w)
+    dq, ok = solve_deflection_masked(robot, q, x, w)
     s0 = chain_state(robot, q)
     s1 = chain_state(robot, q + dq)
-    screw = pose_difference(s0.tip, s1.tip)
+    screw = np.where(ok[..., None], pose_difference(s0.tip, s1.tip), 0.0)
     if not with_jacobian:
-        return screw, None
+        return screw, None, ok
     J1 = jacobian_from_state(s1)
     tau = np.einsum("...ji,...j->...i", J1, w)
     n = q.shape[-1]
     M = np.eye(n) - x[..., :, None] * complementary_stiffness_from_state(s1, w)
+    M = np.where(ok[..., None, None], M, np.eye(n))
     ddq = np.linalg.solve(M, tau[..., None, :] * np.eye(n))  # (..., n, n): d dq_i / d x_j
     D = J1.copy()
     D[..., 3:, :] = so3_left_jacobian_inverse(screw[..., 3:]) @ J1[..., 3:, :]
-    return screw, D @ ddq
+    return screw, np.where(ok[..., None, None], D @ ddq, 0.0), ok

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.exact_fit import model_displacement
+from analysis.exact_fit import model_displacement_masked
 from analysis.kinematics import jacobian
 from analysis.lsq import qr_solve, stack_matrix, stack_vector, whitening
 from analysis.noise import NoiseModel, residual_covariance
@@ -26,7 +26,8 @@ class GaussNewtonFit:
     """x (..., p) compliances (rad/(N m)); F (..., m, 6, p) model Jacobian at x;
     f (..., m, 6) model displacement (m, rad); cov (..., m, 6, 6) residual
     covariance per test; cov_x (..., p, p) covariance of x from the noise
-    model, (F^T Sigma^-1 F)^-1; iterations; converged (...) bool."""
+    model, (F^T Sigma^-1 F)^-1; iterations; converged (...) bool; valid (...)
+    bool: the model could be evaluated (x and cov_x are NaN where not)."""
 
     x: np.ndarray
     F: np.ndarray
@@ -35,6 +36,7 @@ class GaussNewtonFit:
     cov_x: np.ndarray
     iterations: int
     converged: np.ndarray
+    valid: np.ndarray
 
 
 def covariances_per_test(noise, J, x_full, measured) -> np.ndarray:
@@ -81,32 +83,38 @@ def gauss_newton(
         return out
 
     def evaluate(xp, with_jacobian=True):
-        f, F = model_displacement(robot, q, full(xp)[..., None, :], w, with_jacobian)
+        f, F, ok = model_displacement_masked(robot, q, full(xp)[..., None, :], w, with_jacobian)
         if F is not None:
             F = F[..., cols] * measured[..., None]
-        return f, F
+        return f, F, np.all(ok, axis=-1)
 
     def whitened(Linv, f):
         return np.einsum("...ij,...j->...i", Linv, np.where(measured, dz - f, 0.0))
 
     x = np.array(x0, dtype=float)
-    f, F = evaluate(x)
+    valid = np.all(np.isfinite(x), axis=-1)
+    x = np.where(valid[..., None], x, 0.0)
+    f, F, ok = evaluate(x)
+    valid &= ok
     converged = np.zeros(batch, dtype=bool)
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
         if iterations <= reweight_iterations:
             Linv = whitening(covariances_per_test(noise, J, full(x), measured), measured)
         r = whitened(Linv, f)
-        step, _, _ = qr_solve(stack_matrix(Linv @ F), stack_vector(r))
+        Aw = stack_matrix(Linv @ F)
+        Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined
+        step, _, _ = qr_solve(Aw, stack_vector(r))
+        step = np.where(valid[..., None] & np.isfinite(step), step, 0.0)
         cost0 = np.sum(r**2, axis=(-2, -1))
         t = np.ones(batch)
         accepted = np.zeros(batch, dtype=bool)
         x_new, f_new = x.copy(), f.copy()
         for _ in range(12):
             x_try = x + t[..., None] * step
-            f_try, _ = evaluate(x_try, with_jacobian=False)
-            ok = ~accepted & (np.sum(whitened(Linv, f_try) ** 2, axis=(-2, -1))
-                              <= cost0 * (1 + 1e-8))
+            f_try, _, good = evaluate(x_try, with_jacobian=False)
+            ok = ~accepted & good & (np.sum(whitened(Linv, f_try) ** 2, axis=(-2, -1))
+                                     <= cost0 * (1 + 1e-8))
             x_new = np.where(ok[..., None], x_try, x_new)
             f_new = np.where(ok[..., None, None], f_try, f_new)
             accepted |= ok
@@ -115,13 +123,17 @@ def gauss_newton(
             t = np.where(accepted, t, 0.5 * t)
         moved = np.max(np.abs(np.where(accepted[..., None], t[..., None] * step, 0.0)), axis=-1)
         x = x_new
-        f, F = evaluate(x)
+        f, F, _ = evaluate(x)
         # a step no halving can make descend means the cost is at its floor
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
-        if np.all(converged):
+        if np.all(converged | ~valid):
             break
     cov = covariances_per_test(noise, J, full(x), measured)
     Linv = whitening(cov, measured)
-    _, cov_x, _ = qr_solve(stack_matrix(Linv @ F), stack_vector(whitened(Linv, f)))
+    Aw = stack_matrix(Linv @ F)
+    Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined
+    _, cov_x, _ = qr_solve(Aw, stack_vector(whitened(Linv, f)))
+    x = np.where(valid[..., None], x, np.nan)
+    cov_x = np.where(valid[..., None, None], cov_x, np.nan)
     return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,
-                          converged=converged)
+                          converged=converged & valid, valid=valid)

@@ -211,6 +211,11 @@ def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
 def fit_exact(robot, tests, joints, noise, start: np.ndarray) -> Fit:
     """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,)."""
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start)
+    if not gn.valid:
+        raise InputError(
+            "the exact fit cannot start: the equilibrium has no solution at the linear "
+            "estimate of the compliances (some k far too small, or negative); check the "
+            "data or use --method wls", where="--method")
     _, G = _linear_estimator(gn.F, tests.d, tests.measured, gn.cov, weighted=True)
     return Fit(x=gn.x, G=G, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations)
 

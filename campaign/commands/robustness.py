@@ -81,7 +81,8 @@ def register(app: typer.Typer) -> None:
             "w_eff = 0,2200,2200,200,200,0."),
         tests: str = typer.Option("1..20", help="Numbers of tests, e.g. 1..20 or 1,2,5,10."),
         trials: int = typer.Option(1000, help="Monte-Carlo trials per number of tests."),
-        method: str = typer.Option("ols", help="ols (the paper's estimator) or wls."),
+        method: str = typer.Option(
+            "ols", help="ols (the paper's estimator), wls, or exact (nonlinear, ~100 x slower)."),
         seed: int = typer.Option(0, help="Random seed."),
         pool_size: int = typer.Option(2000, help="Poses drawn from the zones and simulated."),
         min_dexterity: float = typer.Option(
@@ -119,8 +120,8 @@ def register(app: typer.Typer) -> None:
         counts = parse_tests(tests)
         if trials < 2:
             raise InputError("need at least 2 trials", where="--trials")
-        if method not in ("ols", "wls"):
-            raise InputError(f"expected ols or wls, got {method!r}", where="--method")
+        if method not in ("ols", "wls", "exact"):
+            raise InputError(f"expected ols, wls or exact, got {method!r}", where="--method")
         if pool_size < 10:
             raise InputError("need at least 10 poses", where="--pool-size")
         noise = noise_from_options(sigma_translation_um, sigma_rotation_urad, rotation_source,
