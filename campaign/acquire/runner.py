@@ -53,6 +53,26 @@ def utc(wall: float | None = None) -> str:
     return datetime.fromtimestamp(t, UTC).isoformat(timespec="microseconds")
 
 
+def load_may_hang(run_path) -> bool:
+    """True if events.jsonl of a run ends with a load applied and not removed."""
+    import json
+
+    state = False
+    path = run_path / "events.jsonl"
+    if not path.exists():
+        return False
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            kind = json.loads(line).get("event")
+        except ValueError:
+            continue
+        if kind == "load_applied":
+            state = True
+        elif kind == "load_removed":
+            state = False
+    return state
+
+
 class CheckFailed(Exception):
     """A measured test failed a check; carries the row that would have been written."""
 
@@ -137,6 +157,11 @@ class Runner:
         self._event("session_start", remaining=len(todo), finished=len(done))
         status, reason = "complete", ""
         try:
+            if todo and load_may_hang(self.run_dir.path):
+                # the last session ended with a load applied: take it off before any motion
+                self._phase("remove_load")
+                self.inst.load.remove()
+                self._event("load_removed", reason="left applied by the previous session")
             for i, (test, repeat) in enumerate(todo):
                 self._run_test(test, repeat)
                 self.reporter.phase(done=len(done) + i + 1, done_this_session=i + 1)

@@ -95,9 +95,14 @@ def test_resume_cuts_a_partial_last_line(tmp_path):
 def test_resume_of_a_complete_run_measures_nothing(kr240_plan, make_variant, tmp_path, cli):
     plan = make_variant(kr240_plan, tmp_path / "plan", tests=1, repeats=1)
     run = tmp_path / "run"
-    first = cli("acquire", "--plan", str(plan), "--out", str(run), "--fake", "--yes", "--quiet",
+    first = cli("acquire", "--plan", str(plan), "--out", str(run), "--fake", "--yes", "--json",
                 "--time-scale", "100")
     assert first.returncode == 0, first.stderr
+    lines = [json.loads(line) for line in first.stdout.splitlines()]  # JSON lines mode
+    assert lines[-1]["event"] == "finish" and lines[-1]["status"] == "complete"
+    assert lines[-1]["ok"] == 1
+    assert any(e["event"] == "phase" and e.get("phase") == "settle_loaded" for e in lines)
+    assert any("deflection_mm" in e for e in lines)
     size = (run / "samples.jsonl").stat().st_size
     again = cli("acquire", "--resume", str(run), "--fake", "--yes", "--quiet")
     assert again.returncode == 0, again.stderr
