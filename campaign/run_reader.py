@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.measurements import CSV_COLUMNS, R_COLS, W_COLS, from_csv_frame
+from analysis.measurements import CSV_COLUMNS, R_COLS, from_csv_frame
 
 FORMAT_VERSION = 1
 STATUSES = ("running", "complete", "aborted", "failed")
@@ -290,8 +290,3 @@ def read_run(path: str | Path, export: bool = True) -> Run:
     return Run(path=run, metadata=meta, status=status, reason=str(meta.get("reason") or ""),
                protocol_path=proto, protocol_sha256=digest, tests=frame, ok=ok,
                events=events, notes=notes)
-
-
-def wrench_columns() -> list[str]:
-    """Columns of the applied wrench in ``tests.csv`` (N, N m)."""
-    return list(W_COLS)

@@ -27,6 +27,7 @@ from analysis.report.formatting import (
 from analysis.report.model import Paragraph, Report, Section, Table
 from analysis.report.quantities import (
     deflection_map,
+    map_length,
     pose_stiffness,
     stiffness_for_prediction,
 )
@@ -223,7 +224,7 @@ def robustness_blocks(result: IdentificationResult, inp: ReportInputs,
 def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     """Assemble the report's sections (runs the maps and the Monte-Carlo study)."""
     k_pred, pred_notes = stiffness_for_prediction(result.k, inp.nominal)
-    length = inp.robot.characteristic_length or 1.0
+    length, length_source = map_length(inp.robot)
     table = deflection_map(inp.robot, k_pred, inp.wrench, inp.map_fixed, length)
     wt = wrench_text(inp.wrench)
     ft = fixed_text(inp.map_fixed)
@@ -258,6 +259,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "
                   "with the identified k and K_C (linear, eq. 6)."),
         *[Paragraph(n, "note") for n in pred_notes],
+        Paragraph(f"1/\u03ba_F of J_N with L = {length:.3f} m ({length_source})."),
         figures.poses_on_kappa_map(table, q_poses, labels, ft),
         figures.deflection_joint_map(table, q_poses, wt, ft),
         figures.deflection_cartesian_map(table, wt)])

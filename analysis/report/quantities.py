@@ -65,9 +65,21 @@ def pose_stiffness(robot: RobotModel, label: str, q: np.ndarray, k: np.ndarray,
 
 
 def map_grid(robot: RobotModel, fixed: np.ndarray, points: int = MAP_POINTS) -> GridSpec:
-    """(theta_2, theta_3) grid over the joint limits, ``points`` along the longer range."""
-    span = max(robot.upper[1] - robot.lower[1], robot.upper[2] - robot.lower[2])
-    return GridSpec.from_limits(robot, span / (points - 1), np.asarray(fixed, dtype=float))
+    """(theta_2, theta_3) grid over the joint limits within +-180 deg, ``points`` per axis."""
+    lo = np.maximum(robot.lower[1:3], -np.pi)
+    hi = np.minimum(robot.upper[1:3], np.pi)
+    return GridSpec(np.linspace(lo[0], hi[0], points), np.linspace(lo[1], hi[1], points),
+                    np.asarray(fixed, dtype=float))
+
+
+def map_length(robot: RobotModel) -> tuple[float, str]:
+    """Characteristic length L (m) for 1/kappa_F, and where it comes from."""
+    if robot.characteristic_length:
+        return float(robot.characteristic_length), "robot model"
+    from analysis.dexterity import characteristic_length
+
+    return float(characteristic_length(robot, starts=2, samples=4000)[0]), \
+        "computed (min kappa_F, Khan and Angeles)"
 
 
 def deflection_map(robot: RobotModel, k: np.ndarray, w: np.ndarray, fixed: np.ndarray,
