@@ -285,7 +285,9 @@ def identify(
     noise = noise or NoiseModel()
     if joints is None:
         joints = tuple(range(6)) if tests.has_rotations else (0, 1, 2)
-    joints = tuple(int(j) for j in joints)
+    joints = tuple(sorted({int(j) for j in joints}))
+    if not joints or joints[0] < 0 or joints[-1] > 5:
+        raise InputError(f"expected 0-based joint indices 0..5, got {joints}", where="joints")
     check_tests(robot, tests, joints)
     _, A_lin = _design(robot, tests, joints)
     cond = check_identifiable(A_lin, joints, cond_limit)

@@ -132,13 +132,13 @@ class IdentificationResult:
 
         ci = [None if np.isnan(self.ci[j, 0]) else [num(self.ci[j, 0]), num(self.ci[j, 1])]
               for j in range(6)]
+        level = f"{100 * self.confidence:g}"
         out = {
             "robot": self.robot,
             "method": self.method,
             "joints_identified": [j + 1 for j in self.joints],
             "joint_stiffness_Nm_per_rad": [num(v) for v in self.k],
-            "ci95_Nm_per_rad" if abs(self.confidence - 0.95) < 1e-12 else
-            f"ci{self.confidence * 100:g}_Nm_per_rad": ci,
+            f"ci{level}_Nm_per_rad": ci,
             "standard_error_Nm_per_rad": [num(v) for v in self.se_k],
             "joint_compliance_rad_per_Nm": [num(v) for v in self.x],
             "covariance_of_compliance": self.cov_x.tolist(),
