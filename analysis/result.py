@@ -58,7 +58,8 @@ class IdentificationResult:
     residuals : table, one row per test and measured component: test, line,
         pose, component, unit (m or rad), measured, predicted, residual, sigma,
         studentized, outlier.
-    linear : {"ols": x (p,), "wls": x (p,)} linear-model estimates for comparison.
+    linear : {"ols": x (p,), "wls": x (p,)} linear-model compliances of the
+        identified joints, for comparison (results.json: k per joint, 6 entries).
     change_vs_linear : {name: (6,) relative change of k, chosen vs that linear fit}.
     validation : leave-one-pose-out table (one row per held-out pose) or None.
     iterations : Gauss-Newton iterations (exact), 0 otherwise.
@@ -123,6 +124,13 @@ class IdentificationResult:
             warnings=list(warnings),
         )
 
+    def _per_joint(self, values: list) -> list:
+        """Values of the identified joints spread over 6 entries, None elsewhere."""
+        out: list = [None] * 6
+        for j, v in zip(self.joints, values, strict=True):
+            out[j] = v
+        return out
+
     def to_dict(self) -> dict:
         """JSON-ready dictionary (null for joints not identified; inf bounds as null)."""
 
@@ -155,7 +163,7 @@ class IdentificationResult:
             "chi2_p_value": num(self.p_value),
             "iterations": self.iterations,
             "linear_fits_Nm_per_rad": {
-                name: [num(1.0 / v) if v > 0 else None for v in xl]
+                name: self._per_joint([num(1.0 / v) if v > 0 else None for v in xl])
                 for name, xl in self.linear.items()
             },
             "relative_change_vs_linear": {

@@ -100,3 +100,15 @@ def test_validation_table_on_clean_data_predicts_to_solver_precision(kr240, zone
     v = res.validation
     assert list(v["held_out_pose"]) == [f"P{i}" for i in range(1, 6)]
     assert v["rms_translation_m"].max() < 1e-10 and v["rms_rotation_rad"].max() < 1e-10
+
+
+def test_results_dict_has_six_entries_per_joint(kr240, zone_poses, w_eff):
+    k = kr240.nominal_stiffness
+    res = identify(kr240, simulate(kr240, zone_poses, w_eff, k, rotations=False), "exact",
+                   validate=False)
+    out = res.to_dict()
+    for key in ("joint_stiffness_Nm_per_rad", "ci95_Nm_per_rad", "standard_error_Nm_per_rad"):
+        assert len(out[key]) == 6 and out[key][3:] == [None] * 3
+    for fit in out["linear_fits_Nm_per_rad"].values():
+        assert len(fit) == 6 and fit[3] is None and fit[0] > 0
+    assert out["joints_identified"] == [1, 2, 3] and out["n_tests"] == 12
