@@ -7,10 +7,10 @@ until interrupted (Ctrl-C) or until a ``shutdown`` command on the control channe
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 from typing import Any
 
-import tomllib
 import typer
 
 from analysis.errors import InputError

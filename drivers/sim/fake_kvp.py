@@ -31,7 +31,7 @@ class FakeKukaVarProxy(TcpFake):
     def _read(self, name: str) -> str | None:
         key = name.upper()
         if key == "$AXIS_ACT":
-            return kvp.format_axis(self.world.joint_angles()).replace("E6AXIS", "E6AXIS", 1)
+            return kvp.format_axis(self.world.joint_angles())
         with self._lock:
             return self.vars.get(key)
 
