@@ -41,12 +41,12 @@ File format (every number in the units the file declares)::
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 import pinocchio as pin
-import tomllib
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
