@@ -155,3 +155,17 @@ def test_cli_prints_addresses_serves_and_shuts_down(tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_rotated_sensor_mount_is_undone_by_wrench_to_base():
+    from drivers.sim.world import World
+
+    world = World(LabSettings(sensor_rotation=(0.3, -0.2, 1.0), sensor_offset=(0.01, 0.02, -0.1),
+                              force_noise=0.0, torque_noise=0.0, settle_time=0.0))
+    load = np.array([120.0, -30.0, -400.0, 5.0, -2.0, 1.0])
+    world.apply_load(load)
+    w_s = world.sensor_wrench()
+    assert np.linalg.norm(w_s[:3] - load[:3]) > 10  # really expressed in another frame
+    T = world.true_tool_pose()
+    np.testing.assert_allclose(wrench_to_base(w_s, T, world.sensor_mount, T[:3, 3]), load,
+                               atol=1e-9)
