@@ -131,13 +131,19 @@ def lab_settings(protocol: Protocol, time_scale: float | None):
         fakes.append(_spec(protocol, role).driver)
     if _spec(protocol, "robot").driver not in MANUAL:
         fakes.append("robot")
+    tool = protocol.tool
+    if any(tool.xyz_mm) or any(tool.rpy_deg):
+        # the lab's tool point is the robot model's own (the flange): a protocol tool would
+        # put the load, the reflectors and P somewhere else than the analysis assumes
+        raise InputError("the simulated lab has no tool offset (its tool point is the "
+                         "flange): set [tool] xyz_mm and rpy_deg to zero for --fake",
+                         where=protocol.where("tool"))
     mount = sensor_mount(protocol)
-    if np.any(np.abs(mount[:3, :3] - np.eye(3)) > 1e-12):
-        raise InputError("the simulated lab mounts the sensor with axes parallel to the tool "
-                         "frame: set mount_rpy_deg to [0, 0, 0] for --fake",
-                         where=protocol.where("instruments", "force_torque"))
+    from drivers.frames import matrix_to_rotvec
+
     return settings_from_protocol(protocol.lab, time_scale=time_scale, instruments=tuple(fakes),
-                                  sensor_offset=tuple(mount[:3, 3]))
+                                  sensor_offset=tuple(mount[:3, 3]),
+                                  sensor_rotation=tuple(matrix_to_rotvec(mount[:3, :3])))
 
 
 def open_instruments(protocol: Protocol, fake: bool, time_scale: float | None = None
