@@ -127,6 +127,8 @@ class Runner:
 
     def _phase(self, phase: str, **live: Any) -> None:
         self.ctx["phase"] = phase
+        self.run_dir.event({"t_utc": utc(), "event": "phase", "phase": phase,
+                            **{k: self.ctx.get(k) for k in ("test_id", "repeat", "attempt")}})
         self.reporter.phase(phase=phase, **{k: self.ctx.get(k) for k in
                                             ("test_id", "repeat", "attempt", "pose")}, **live)
 
