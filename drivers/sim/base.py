@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import threading
+from abc import ABC, abstractmethod
 
 from drivers.sim.world import World
 
 
-class FakeServer:
+class FakeServer(ABC):
     """A fake instrument served from background threads of the lab process.
 
     Subclasses set :attr:`url` in ``__init__`` (the address a real driver
@@ -34,8 +35,9 @@ class FakeServer:
     def start(self) -> None:
         self._spawn(self._run, "main")
 
-    def _run(self) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abstractmethod
+    def _run(self) -> None:
+        """Serve until ``stopping`` is set (the server's main loop)."""
 
     def stop(self) -> None:
         self.stopping.set()
@@ -43,7 +45,7 @@ class FakeServer:
         for t in self._threads:
             t.join(timeout=2.0)
 
-    def _close(self) -> None:
+    def _close(self) -> None:  # noqa: B027 - optional hook, nothing to release by default
         """Release sockets/fds (called from :meth:`stop`)."""
 
     def fault(self, name: str) -> bool:

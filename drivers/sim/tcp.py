@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+from abc import abstractmethod
 
 from drivers.sim.base import FakeServer
 from drivers.sim.world import World
@@ -72,8 +73,9 @@ class TcpFake(FakeServer):
                 return bytes(buf)
         return bytes(buf)
 
-    def serve(self, conn: socket.socket) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abstractmethod
+    def serve(self, conn: socket.socket) -> None:
+        """Handle one client connection until it closes."""
 
     def _close(self) -> None:
         for c in self._clients:
