@@ -9,6 +9,7 @@ atomically (temporary file, fsync, rename, fsync of the directory).
 from __future__ import annotations
 
 import csv
+import fcntl
 import io
 import json
 import os
@@ -27,6 +28,7 @@ SAMPLES = "samples.jsonl"
 TESTS = "tests.csv"
 EVENTS = "events.jsonl"
 PLAN = "plan.csv"
+LOCK = ".lock"
 
 #: columns of tests.csv: the public CSV import format, then the run's own columns
 TEST_COLUMNS = [*CSV_COLUMNS, "test_id", "repeat", "status", "flags", "repeatability_mm",
@@ -139,6 +141,7 @@ class RunDir:
         self._samples: Appender | None = None
         self._tests: Appender | None = None
         self._events: Appender | None = None
+        self._lock_fd = -1
 
     # -- creation and reopening ----------------------------------------------------------
     @classmethod
@@ -186,7 +189,19 @@ class RunDir:
         run._open_appenders(new=not (path / TESTS).exists())
         return run
 
+    def _lock(self) -> None:
+        """Hold an exclusive lock on the run (released by the kernel even on kill -9)."""
+        fd = os.open(self.path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            raise InputError("another campaign acquire is writing this run",
+                             where=str(self.path)) from None
+        self._lock_fd = fd
+
     def _open_appenders(self, new: bool) -> None:
+        self._lock()
         tests_path = self.path / TESTS
         fresh = not tests_path.exists() or tests_path.stat().st_size == 0
         self._samples = Appender(self.path / SAMPLES)
@@ -199,6 +214,9 @@ class RunDir:
         for app in (self._samples, self._tests, self._events):
             if app is not None:
                 app.close()
+        if self._lock_fd >= 0:
+            os.close(self._lock_fd)  # closing the descriptor releases the lock
+            self._lock_fd = -1
 
     # -- records ----------------------------------------------------------------------------
     def write_metadata(self) -> None:

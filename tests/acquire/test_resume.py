@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from campaign.acquire.rundir import RunDir, finished_tests, repair_tail
 
@@ -141,3 +142,16 @@ def test_ctrl_c_stops_unloads_records_and_resumes(kr240_plan, make_variant, tmp_
     tests = pd.read_csv(run / "tests.csv")
     keys = list(zip(tests.test_id, tests.repeat, strict=True))
     assert sorted(keys) == [(1, 1), (2, 1), (3, 1)] and done <= set(keys)
+
+
+def test_a_run_is_written_by_one_process_at_a_time(tmp_path):
+    from analysis.errors import InputError
+
+    run = RunDir.create(tmp_path / "run", {"fake": True}, "protocol.toml", "x = 1\n",
+                        "test\n")
+    try:
+        with pytest.raises(InputError, match="another campaign acquire"):
+            RunDir.open(tmp_path / "run")
+    finally:
+        run.close()
+    RunDir.open(tmp_path / "run").close()  # free again once closed
