@@ -226,7 +226,10 @@ class Runner:
                             phase=self.ctx.get("phase"))
                 if attempt == 2:
                     raise
-                self._recover()
+                try:
+                    self._recover()
+                except DriverError as again:
+                    raise type(again)(f"{again} (while recovering from: {err})") from again
                 self._event("retry", reason=f"device fault: {err}")
                 continue
             self.run_dir.test_row(row)

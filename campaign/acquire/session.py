@@ -78,8 +78,16 @@ def _protocol_copy_name(protocol: Protocol) -> str:
 
 
 def base_metadata(protocol: Protocol, plan_text: str, plan_source: Path, robot: Any,
-                  n_tests: int, opts: AcquireOptions, time_scale: float) -> dict[str, Any]:
-    """Metadata written before anything is connected (see docs/run_format.md)."""
+                  tests: list, opts: AcquireOptions, time_scale: float) -> dict[str, Any]:
+    """Metadata written before anything is connected (see docs/run_format.md).
+
+    ``repeats`` is the plan's (the same for every test as the planner writes it;
+    the protocol's if the plan's differ), ``n_planned_measurements`` the sum over tests.
+    """
+    n_tests = len(tests)
+    per_test = {t.repeats for t in tests}
+    repeats = per_test.pop() if len(per_test) == 1 else protocol.campaign.repeats
+    n_measurements = sum(t.repeats for t in tests)
     meta: dict[str, Any] = {
         "started_utc": utc(), "ended_utc": None,
         "operator": opts.operator or getpass.getuser(),
@@ -92,7 +100,8 @@ def base_metadata(protocol: Protocol, plan_text: str, plan_source: Path, robot: 
                         for role, spec in protocol.instruments.items()},
         "software": software_versions(),
         "plan_file": PLAN, "plan_source": str(plan_source), "plan_sha256": _sha(plan_text),
-        "n_planned_tests": n_tests, "repeats": protocol.campaign.repeats,
+        "n_planned_tests": n_tests, "repeats": repeats,
+        "n_planned_measurements": n_measurements,
         "fake": opts.fake, "fake_lab": None, "time_scale": time_scale,
         "command": sys.argv, "sessions": [],
     }
@@ -158,7 +167,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
     inst = open_instruments(protocol, opts.fake, lab_scale)
     try:
         if run is None:
-            meta = base_metadata(protocol, plan_text, plan_dir, robot, len(tests), opts,
+            meta = base_metadata(protocol, plan_text, plan_dir, robot, tests, opts,
                                  lab_scale or 1.0)
             run = RunDir.create(out, meta, _protocol_copy_name(protocol), protocol.text,
                                 plan_text)
