@@ -67,8 +67,9 @@ def rule_for(noise: float, time_scale: float = 1.0, settle_scale: float = 0.5,
     interval = 4 * settle_scale / (window / 2) / time_scale
     half_mean_sigma = noise * np.sqrt(2.0 / (window / 2)) * np.sqrt(3.0)
     tolerance = max(4.0 * half_mean_sigma, 2e-6)
-    return SettleRule(interval=interval, window=window, tolerance=tolerance,
-                      timeout=max(60.0 * settle_scale / time_scale, 20 * interval * window))
+    # at least 10 s of wall clock: a loaded machine must not turn into a settling failure
+    timeout = max(60.0 * settle_scale / time_scale, 20 * interval * window, 10.0)
+    return SettleRule(interval=interval, window=window, tolerance=tolerance, timeout=timeout)
 
 
 def half_difference(points: np.ndarray) -> float:
