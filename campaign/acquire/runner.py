@@ -157,7 +157,8 @@ class Runner:
         total = sum(t.repeats for t in self.tests)
         self.reporter.phase(done=len(done), total=total, done_this_session=0)
         self._event("session_start", remaining=len(todo), finished=len(done))
-        status, reason = "complete", ""
+        # anything but a finished loop leaves the robot stopped and unloaded (see finally)
+        status, reason = "failed", "unexpected error"
         try:
             if todo and load_may_hang(self.run_dir.path):
                 # the last session ended with a load applied: take it off before any motion
@@ -167,6 +168,7 @@ class Runner:
             for i, (test, repeat) in enumerate(todo):
                 self._run_test(test, repeat)
                 self.reporter.phase(done=len(done) + i + 1, done_this_session=i + 1)
+            status, reason = "complete", ""
         except SafetyRefusal as err:
             status, reason = "aborted", f"safety stop: {err}"
             self._event("abort", reason=reason)

@@ -52,7 +52,7 @@ def test_kill9_at_seeded_moments_then_resume(kr240_plan, make_variant, tmp_path)
     plan = make_variant(kr240_plan, tmp_path / "plan", repeats=2)  # 5 tests x 2 repeats
     run = tmp_path / "run"
     samples = run / "samples.jsonl"
-    rng = np.random.default_rng(20261122)
+    rng = np.random.default_rng(int(os.environ.get("ACQUIRE_KILL_SEED", "20261122")))
     # a measurement writes about 43 samples (430 in all); kill points spread over the whole run
     kill_at = np.sort(rng.integers(1, 400, size=3))
     proc = _start(["--plan", str(plan), "--out", str(run)])
