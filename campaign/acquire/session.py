@@ -2,8 +2,9 @@
 
 Order matters for safety and for the record: the plan is checked against the
 limits and printed (dry run) before anything is connected; the operator
-confirms; then the run directory's ``metadata.json`` is written, the
-instruments are connected and described in it, and only then does anything move.
+confirms; the instruments are connected; then the run directory's
+``metadata.json`` is written (with each instrument's ``describe()``), and only
+then does anything move.
 """
 
 from __future__ import annotations
@@ -166,6 +167,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         raise
     inst = open_instruments(protocol, opts.fake, lab_scale)
     try:
+        inst.connect()  # an unreachable instrument leaves no run directory behind
         if run is None:
             meta = base_metadata(protocol, plan_text, plan_dir, robot, tests, opts,
                                  lab_scale or 1.0)
@@ -173,7 +175,6 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
                                 plan_text)
         else:
             run.set_status("running", "")
-        inst.connect()
         session = {"started_utc": utc(), "instruments": inst.describe(),
                    "lab": inst.lab_addresses or None}
         run.metadata["instruments"] = session["instruments"]
