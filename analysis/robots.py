@@ -6,13 +6,17 @@ format users write, see :mod:`analysis.robot_files`), each number with its sourc
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+import pinocchio as pin
+
 from analysis.errors import InputError
 from analysis.robot_files import load_robot_file, load_urdf
-from analysis.robot_model import RobotModel
+from analysis.robot_model import Chain, RobotModel
 
 
 def _data_dir() -> Path:
@@ -69,3 +73,19 @@ def load_robot(spec: str, tip: str | None = None) -> RobotModel:
         "or a .toml/.yaml robot file, or a .urdf with --tip",
         where="--robot",
     )
+
+
+def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel:
+    """Copy of ``robot`` whose point P is moved by the tool (xyz in m, rpy in rad, flange frame)."""
+    if not np.any(xyz) and not np.any(rpy):
+        return robot
+    tool = pin.SE3(pin.rpy.rpyToMatrix(*map(float, rpy)), np.asarray(xyz, dtype=float))
+    model = pin.Model(robot.model)
+    flange = model.frames[robot.tip_frame]
+    frame = pin.Frame(
+        "tool_P", flange.parentJoint, robot.tip_frame, flange.placement * tool,
+        pin.FrameType.OP_FRAME,
+    )
+    tip = model.addFrame(frame)
+    chain = Chain(robot.chain.placements, robot.chain.axes, robot.chain.tip @ tool.homogeneous)
+    return dataclasses.replace(robot, model=model, tip_frame=tip, chain=chain)

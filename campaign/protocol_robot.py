@@ -6,17 +6,15 @@ zones; for the KR240-2 that of Dumas et al. 2011).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from analysis.errors import InputError
-from analysis.robot_model import Chain, RobotModel
-from analysis.robots import builtin_files, load_robot
+from analysis.robot_model import RobotModel
+from analysis.robots import builtin_files, load_robot, with_tool
 from campaign.protocol import DEG, Protocol
 
 
@@ -30,22 +28,6 @@ class SamplingBox:
     name: str
     lo: np.ndarray
     hi: np.ndarray
-
-
-def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel:
-    """Copy of ``robot`` whose point P is moved by the tool (xyz in m, rpy in rad, flange frame)."""
-    if not np.any(xyz) and not np.any(rpy):
-        return robot
-    tool = pin.SE3(pin.rpy.rpyToMatrix(*map(float, rpy)), np.asarray(xyz, dtype=float))
-    model = pin.Model(robot.model)
-    flange = model.frames[robot.tip_frame]
-    frame = pin.Frame(
-        "tool_P", flange.parentJoint, robot.tip_frame, flange.placement * tool,
-        pin.FrameType.OP_FRAME,
-    )
-    tip = model.addFrame(frame)
-    chain = Chain(robot.chain.placements, robot.chain.axes, robot.chain.tip @ tool.homogeneous)
-    return dataclasses.replace(robot, model=model, tip_frame=tip, chain=chain)
 
 
 def protocol_robot(protocol: Protocol) -> RobotModel:

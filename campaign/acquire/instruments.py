@@ -8,6 +8,7 @@ the protocol's addresses are used as they are.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -131,17 +132,13 @@ def lab_settings(protocol: Protocol, time_scale: float | None):
         fakes.append(_spec(protocol, role).driver)
     if _spec(protocol, "robot").driver not in MANUAL:
         fakes.append("robot")
-    tool = protocol.tool
-    if any(tool.xyz_mm) or any(tool.rpy_deg):
-        # the lab's tool point is the robot model's own (the flange): a protocol tool would
-        # put the load, the reflectors and P somewhere else than the analysis assumes
-        raise InputError("the simulated lab has no tool offset (its tool point is the "
-                         "flange): set [tool] xyz_mm and rpy_deg to zero for --fake",
-                         where=protocol.where("tool"))
     mount = sensor_mount(protocol)
     from drivers.frames import matrix_to_rotvec
 
+    tool = protocol.tool
     return settings_from_protocol(protocol.lab, time_scale=time_scale, instruments=tuple(fakes),
+                                  tool_xyz=tuple(float(v) * 1e-3 for v in tool.xyz_mm),
+                                  tool_rpy=tuple(math.radians(float(v)) for v in tool.rpy_deg),
                                   sensor_offset=tuple(mount[:3, 3]),
                                   sensor_rotation=tuple(matrix_to_rotvec(mount[:3, :3])))
 

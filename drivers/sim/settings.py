@@ -50,6 +50,10 @@ class LabSettings:
         Sensor origin in the tool frame (m).
     sensor_rotation : tuple of float
         Rotation vector (rad) of the sensor axes relative to the tool frame.
+    tool_xyz, tool_rpy : tuple of float
+        Tool point P and tool frame in the robot model's flange frame (m; fixed-axis
+        roll-pitch-yaw, rad), as the protocol's ``[tool]``; the load acts at P and the
+        reflectors, the probe and the sensor are placed in the tool frame.
     tracker_position : tuple of float
         Robot-base origin as seen in the tracker frame (m).
     tracker_yaw : float
@@ -79,6 +83,8 @@ class LabSettings:
     })
     sensor_offset: tuple[float, float, float] = (0.0, 0.0, -0.08)
     sensor_rotation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tool_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tool_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     tracker_position: tuple[float, float, float] = (-3.0, 1.0, -0.5)
     tracker_yaw: float = 0.5
     can_interface: str = "udp_multicast"
@@ -122,7 +128,7 @@ def settings_from_protocol(protocol: Mapping[str, Any] | Any, **overrides: Any) 
     values.update({k: v for k, v in protocol.items() if k in names})
     values.update({k: v for k, v in overrides.items() if v is not None})
     for key in ("true_joint_stiffness", "instruments", "home", "sensor_offset",
-                "sensor_rotation", "tracker_position"):
+                "sensor_rotation", "tracker_position", "tool_xyz", "tool_rpy"):
         if values.get(key) is not None:
             values[key] = tuple(values[key])
     try:

@@ -20,7 +20,7 @@ import numpy as np
 
 from analysis.equilibrium import solve_deflection
 from analysis.kinematics import tool_pose
-from analysis.robots import load_robot
+from analysis.robots import load_robot, with_tool
 from drivers.frames import matrix_to_rotvec, rotvec_to_matrix
 from drivers.sim.faults import Faults
 from drivers.sim.settings import LabSettings
@@ -31,7 +31,8 @@ class World:
 
     def __init__(self, settings: LabSettings) -> None:
         self.settings = settings
-        self.robot = load_robot(settings.robot)
+        self.robot = with_tool(load_robot(settings.robot), np.asarray(settings.tool_xyz, float),
+                               np.asarray(settings.tool_rpy, float))
         n = self.robot.n
         self.k = np.asarray(settings.true_joint_stiffness, dtype=float)
         if self.k.shape != (n,):

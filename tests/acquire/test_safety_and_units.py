@@ -147,18 +147,3 @@ def test_checks_flag_each_failure():
                               "tracker_uncertainty", "saturation"}
     assert np.isclose(bad.wrench_error, 200)
     json.dumps(bad.flags)
-
-
-def test_fake_lab_refuses_a_tool_offset_it_cannot_simulate(kr240_plan, make_variant, tmp_path):
-    from analysis.errors import InputError
-    from campaign.acquire.progress import QuietReporter
-    from campaign.acquire.session import AcquireOptions, acquire
-
-    plan = make_variant(kr240_plan, tmp_path / "plan", tests=1, repeats=1)
-    text = (plan / "protocol.toml").read_text()
-    (plan / "protocol.toml").write_text(text.replace("xyz_mm = [0, 0, 0]",
-                                                     "xyz_mm = [0, 0, 120]", 1))
-    with pytest.raises(InputError, match="no tool offset"):
-        acquire(plan, tmp_path / "run", None, AcquireOptions(fake=True, assume_yes=True),
-                QuietReporter(), say=lambda s: None)
-    assert not (tmp_path / "run").exists()
