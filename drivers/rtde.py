@@ -9,6 +9,13 @@ package, bytes) + ``uint8 type`` + payload, big-endian. Types used:
 answer uint8 recipe id + comma-separated types), ``I`` (73) setup inputs,
 ``S`` (83) start and ``P`` (80) pause (answer uint8 accepted),
 ``U`` (85) data package (uint8 recipe id + values), ``M`` (77) text message.
+
+Data packages flow both ways: the controller streams the output recipe, and the
+client sends input recipes (set up with ``I``; recipe ids count from 1 per
+connection, separately from the output recipe) to write the input registers
+and a few input variables. Register ranges: ``input_int_register_0..47``,
+``input_double_register_0..47``, ``input_bit_register_64..127`` (PolyScope 5.x;
+24..47 are the "upper range").
 """
 
 from __future__ import annotations
@@ -48,6 +55,38 @@ OUTPUT_TYPES: dict[str, str] = {
 }
 
 
+INPUT_TYPES: dict[str, str] = {
+    "speed_slider_mask": "UINT32", "speed_slider_fraction": "DOUBLE",
+    "standard_digital_output_mask": "UINT8", "standard_digital_output": "UINT8",
+    "configurable_digital_output_mask": "UINT8", "configurable_digital_output": "UINT8",
+    "tool_digital_output_mask": "UINT8", "tool_digital_output": "UINT8",
+    "standard_analog_output_mask": "UINT8", "standard_analog_output_type": "UINT8",
+    "standard_analog_output_0": "DOUBLE", "standard_analog_output_1": "DOUBLE",
+    "input_bit_registers0_to_31": "UINT32", "input_bit_registers32_to_63": "UINT32",
+    "external_force_torque": "VECTOR6D",
+}
+REGISTERS = range(48)
+BIT_REGISTERS = range(64, 128)
+
+
+def _register(name: str, prefix: str, numbers: range) -> bool:
+    tail = name[len(prefix):]
+    return name.startswith(prefix) and tail.isdigit() and int(tail) in numbers
+
+
+def input_type(name: str) -> str:
+    """RTDE type of an input variable, ``NOT_FOUND`` if unknown."""
+    if name in INPUT_TYPES:
+        return INPUT_TYPES[name]
+    if _register(name, "input_int_register_", REGISTERS):
+        return "INT32"
+    if _register(name, "input_double_register_", REGISTERS):
+        return "DOUBLE"
+    if _register(name, "input_bit_register_", BIT_REGISTERS):
+        return "BOOL"
+    return "NOT_FOUND"
+
+
 def output_type(name: str) -> str:
     """RTDE type of an output variable, ``NOT_FOUND`` if unknown."""
     if name in OUTPUT_TYPES:
@@ -85,6 +124,28 @@ def decode_setup_outputs(payload: bytes) -> tuple[float, list[str]]:
     (freq,) = struct.unpack(">d", payload[:8])
     names = [n for n in payload[8:].decode("ascii", "replace").split(",") if n]
     return freq, names
+
+
+def decode_names(payload: bytes) -> list[str]:
+    """Variable names of an input setup request (comma-separated, trailing comma allowed)."""
+    return [n for n in payload.decode("ascii", "replace").split(",") if n]
+
+
+def unpack_values(types: list[str], data: bytes) -> list:
+    """Values of a data package body (after the recipe id); vectors as lists."""
+    out: list = []
+    offset = 0
+    for t in types:
+        fmt = ">" + TYPE_FORMATS[t]
+        size = struct.calcsize(fmt)
+        if offset + size > len(data):
+            raise ProtocolError(f"data package too short for its recipe ({len(data)} bytes)")
+        vals = struct.unpack_from(fmt, data, offset)
+        out.append(list(vals) if len(vals) > 1 else vals[0])
+        offset += size
+    if offset != len(data):
+        raise ProtocolError(f"data package has {len(data) - offset} bytes beyond its recipe")
+    return out
 
 
 def pack_values(types: list[str], values: list) -> bytes:

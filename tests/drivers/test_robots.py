@@ -103,25 +103,34 @@ def test_manual_robot_asks_again_then_gives_up():
 class ControlDouble:
     """Explicit test double of ``rtde_control.RTDEControlInterface`` (not the real client).
 
-    The RTDE fake implements the receive side only; ur-rtde's control interface
-    uploads a URScript program and talks to it, which the fake does not emulate.
-    This double forwards ``moveJ`` to the simulated world so the URRobot control
-    path is exercised with the state then read back through real RTDE.
+    It forwards ``moveJ`` straight to the simulated world, so the URRobot control
+    path (caps, asynchronous moveJ, waiting on the receive side) is exercised
+    with the state read back through real RTDE; the real control client against
+    the fake controller is tested in ``test_ur_control_fake.py``.
     """
 
     def __init__(self, lab_client, accept=True):
         self.client, self.accept, self.calls = lab_client, accept, []
 
-    def moveJ(self, q, speed, acceleration):  # noqa: N802 (ur-rtde's name)
-        self.calls.append((list(q), speed, acceleration))
+    def moveJ(self, q, speed, acceleration, asynchronous=False):  # noqa: N802 (ur-rtde's name)
+        self.calls.append((list(q), speed, acceleration, asynchronous))
         if self.accept:
-            # like moveJ, return once the robot stands at the target (plus the fake's
-            # polling latency of the world state, a few milliseconds)
-            time.sleep(self.client.call("move", q=list(q), speed=speed)["duration"] + 0.05)
+            duration = self.client.call("move", q=list(q), speed=speed)["duration"]
+            if not asynchronous:
+                time.sleep(duration + 0.05)
         return self.accept
 
-    def stopJ(self, a):  # noqa: N802
+    def stopJ(self, a, asynchronous=False):  # noqa: N802
         self.calls.append(("stop", a))
+
+    def stopScript(self):  # noqa: N802
+        self.calls.append(("stopScript",))
+
+    def isConnected(self):  # noqa: N802
+        return True
+
+    def isProgramRunning(self):  # noqa: N802
+        return True
 
     def disconnect(self):
         pass
@@ -152,7 +161,7 @@ def test_ur_receive_side_through_real_ur_rtde(ur_lab):
             time.sleep(0.05)
             reached = robot.move_joints(target, speed=1.0, acceleration=2.0).value
             np.testing.assert_allclose(reached, target, atol=1e-12)
-            assert double.calls[0][1:] == (1.0, 2.0)
+            assert double.calls[0][1:] == (1.0, 1.4, True)  # acceleration capped to 1.4 rad/s^2
             double.accept = False
             with pytest.raises(DeviceFault, match="refused"):
                 robot.move_joints(target, 1.0, 2.0)
