@@ -16,7 +16,11 @@ import pandas as pd
 from analysis.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinematics import chain_state, jacobian_from_state
 from analysis.robot_model import RobotModel
-from analysis.stiffness import complementary_stiffness_from_jacobian, deflection
+from analysis.stiffness import (
+    complementary_stiffness_from_jacobian,
+    deflection,
+    influence_indices,
+)
 
 #: Worst-case wrench of the paper's section 3 (N, N m): 2200 N along and 400 N m about each axis.
 WORST_CASE_WRENCH = np.array([2200.0, 2200.0, 2200.0, 400.0, 400.0, 400.0])
@@ -92,13 +96,7 @@ def _pose_metrics(robot, q, k, w, length):
     inv_k = inverse_condition(normalized_jacobian(J, length))
     K_C = complementary_stiffness_from_jacobian(J, w)
     d_kc = deflection(J, k, w, K_C)
-    d_no = deflection(J, k, w)
-    n_kc = np.linalg.norm(d_kc[..., :3], axis=-1)
-    n_no = np.linalg.norm(d_no[..., :3], axis=-1)
-    denom = np.maximum(n_kc, n_no)
-    safe = np.where(denom > 0, denom, 1.0)
-    v_p = np.where(denom > 0, np.abs(n_kc - n_no) / safe, 0.0)
-    v_r = np.max(np.abs(d_kc[..., 3:] - d_no[..., 3:]), axis=-1)
+    v_p, v_r = influence_indices(d_kc, deflection(J, k, w))
     return {
         "inv_kappa_F": inv_k,
         "v_p": v_p,

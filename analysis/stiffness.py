@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import SingularPoseError
-from analysis.kinematics import ChainState, chain_state, cross, jacobian_from_state
+from analysis.kinematics import ChainState, chain_state, cross, jacobian, jacobian_from_state
 from analysis.robot_model import RobotModel
 
 
@@ -105,23 +105,25 @@ def deflection(
     return np.einsum("...ij,...j->...i", J, dq)
 
 
-def kc_influence(
-    robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Indices v_p (eq. 10, dimensionless) and v_r (eq. 11, rad) of the influence of K_C.
+def influence_indices(d_kc: np.ndarray, d_no: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """v_p (eq. 10) and v_r (eq. 11, rad) from the deflections with and without K_C (..., 6).
 
     v_p = |dp_KC - dp_noKC| / max(dp_KC, dp_noKC) with dp the norm of the
-    translational deflection; v_r = max_i |dr_KC,i - dr_noKC,i|. Batched over q.
+    translational deflection (0 where both are 0); v_r = max_i |dr_KC,i - dr_noKC,i|.
     """
-    state = chain_state(robot, q)
-    J = jacobian_from_state(state)
-    K_C = complementary_stiffness_from_state(state, w)
-    d_kc = deflection(J, k, w, K_C)
-    d_no = deflection(J, k, w)
     n_kc = np.linalg.norm(d_kc[..., :3], axis=-1)
     n_no = np.linalg.norm(d_no[..., :3], axis=-1)
     denom = np.maximum(n_kc, n_no)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        v_p = np.where(denom > 0, np.abs(n_kc - n_no) / np.where(denom > 0, denom, 1.0), 0.0)
+    v_p = np.where(denom > 0, np.abs(n_kc - n_no) / np.where(denom > 0, denom, 1.0), 0.0)
     v_r = np.max(np.abs(d_kc[..., 3:] - d_no[..., 3:]), axis=-1)
     return v_p, v_r
+
+
+def kc_influence(
+    robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices v_p (eq. 10, dimensionless) and v_r (eq. 11, rad) of the influence of K_C
+    at joint angles q (..., n) (rad) under wrench w (N, N m), joint stiffness k (N m/rad)."""
+    J = jacobian(robot, q)
+    K_C = complementary_stiffness_from_jacobian(J, w)
+    return influence_indices(deflection(J, k, w, K_C), deflection(J, k, w))
