@@ -167,3 +167,34 @@ def residual_covariance(
         return sig
     C = np.asarray(compliance, dtype=float)
     return sig + np.einsum("...ij,j,...kj->...ik", C, noise.wrench_sigma**2, C)
+
+
+def rigid_fit_sigma(
+    points: np.ndarray, sigma: float, point: np.ndarray | None = None
+) -> tuple[float, float]:
+    """Standard deviations of a tool pose fitted to N >= 3 reflectors measured in turn.
+
+    Each reflector position (tool frame, m) is measured with isotropic noise
+    ``sigma`` (m per coordinate). Linearising the rigid fit about the truth, the
+    small rotation has covariance ``sigma^2 M^-1`` with
+    ``M = sum_i (|c_i|^2 I - c_i c_i^T)`` (c_i: positions about their centroid),
+    and the fitted position of ``point`` (default the tool frame's origin, P) has
+    ``sigma^2 / N I + [d]x M^-1 [d]x^T sigma^2`` with d its offset from the centroid.
+
+    Returns
+    -------
+    (sigma_translation, sigma_rotation) : the largest per-axis standard
+    deviation of P's position (m) and of the rotation vector (rad).
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
+        raise ValueError("expected at least three reflector positions (N, 3) in m")
+    c = pts - pts.mean(axis=0)
+    M = np.sum(np.einsum("ni,ni->n", c, c))[None, None] * np.eye(3) - c.T @ c
+    if np.linalg.cond(M) > 1e12:
+        raise ValueError("reflectors are collinear: the rotation about their line is unknown")
+    cov_r = sigma**2 * np.linalg.inv(M)
+    d = (np.zeros(3) if point is None else np.asarray(point, dtype=float)) - pts.mean(axis=0)
+    dx = np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
+    cov_t = sigma**2 / pts.shape[0] * np.eye(3) + dx @ cov_r @ dx.T
+    return float(np.sqrt(np.max(np.diag(cov_t)))), float(np.sqrt(np.max(np.diag(cov_r))))

@@ -97,7 +97,8 @@ class InstrumentSpec(_Strict):
 
     driver: str = Field(min_length=1)
     address: str = Field(min_length=1)
-    options: dict[str, str | int | float | bool] = {}
+    # driver options; nested tables (e.g. reflectors_mm) are checked by their consumer
+    options: dict[str, str | int | float | bool | dict[str, list[float]]] = {}
     mount_xyz_mm: Vec3 | None = None
     mount_rpy_deg: Vec3 | None = None
     noise: NoiseSpec = NoiseSpec()
@@ -279,19 +280,69 @@ class Protocol(_Strict):
         """(m, 6) wrenches of the load cases, [N, N, N, N m, N m, N m], base frame."""
         return np.array([c.wrench() for c in self.load_cases])
 
+    def reflectors(self) -> dict[str, tuple[float, float, float]] | None:
+        """Reflector positions (m, tool frame) from the pose instrument's ``reflectors_mm``.
+
+        ``options = { reflectors_mm = { NAME = [x, y, z], ... } }`` (mm): three or
+        more reflectors measured in turn, the tool pose being their rigid fit.
+        None when the instrument is a 6-DoF probe (no such option).
+        """
+        spec = self.instruments.get("pose")
+        if spec is None:
+            return None
+        where = self.where("instruments", "pose", "options")
+        if "reflectors" in spec.options:
+            raise InputError("give reflector positions as reflectors_mm = { NAME = [x, y, z], "
+                             "... } (mm, tool frame)", where=where)
+        raw = spec.options.get("reflectors_mm")
+        if raw is None:
+            return None
+        if not isinstance(raw, dict) or len(raw) < 3:
+            raise InputError("reflectors_mm: expected at least three NAME = [x, y, z] "
+                             "entries (mm, tool frame)", where=where)
+        out = {}
+        for name, xyz in raw.items():
+            vec = np.array(xyz, dtype=float) if isinstance(xyz, list | tuple) else np.array([])
+            if vec.shape != (3,) or not np.all(np.isfinite(vec)):
+                raise InputError(f"reflectors_mm.{name}: expected [x, y, z] in mm, got {xyz!r}",
+                                 where=where)
+            out[str(name)] = tuple(float(v) * 1e-3 for v in vec)
+        return out
+
+    def pose_reading_sigma(self) -> tuple[float, float]:
+        """Standard deviation of one pose reading of the tool point: (m, rad) per axis.
+
+        A 6-DoF probe: the pose instrument's ``translation_um`` and
+        ``rotation_urad``. Reflectors (``reflectors_mm``): ``translation_um`` is the
+        noise of each point, and the rotation (and P's position) follow from the
+        geometry of the rigid fit (:func:`analysis.noise.rigid_fit_sigma`);
+        ``rotation_urad`` is then not needed.
+        """
+        from analysis.noise import rigid_fit_sigma
+
+        noise = self.instruments["pose"].noise
+        where = self.where("instruments", "pose", "noise")
+        reflectors = self.reflectors()
+        if noise.translation_um is None or (noise.rotation_urad is None and reflectors is None):
+            raise InputError("the pose instrument needs translation_um and rotation_urad "
+                             "(rotation_urad may be left out with reflectors_mm)", where=where)
+        if reflectors is None:
+            return noise.translation_um * 1e-6, noise.rotation_urad * 1e-6
+        try:
+            return rigid_fit_sigma(np.array(list(reflectors.values())),
+                                   noise.translation_um * 1e-6)
+        except ValueError as err:
+            raise InputError(str(err), where=self.where("instruments", "pose", "options")
+                             ) from None
+
     def measurement_sigma(self) -> np.ndarray:
         """(6,) standard deviation of one measured displacement component [m x3, rad x3].
 
-        From the ``pose`` instrument's noise, divided by sqrt(repeats) (the
-        runner averages the repeats of a test).
+        From :meth:`pose_reading_sigma`, divided by sqrt(repeats) (each test is
+        measured ``repeats`` times).
         """
-        noise = self.instruments["pose"].noise
-        if noise.translation_um is None or noise.rotation_urad is None:
-            raise InputError(
-                "the planner needs translation_um and rotation_urad of the pose instrument",
-                where=self.where("instruments", "pose", "noise"),
-            )
-        sigma = np.array([noise.translation_um * 1e-6] * 3 + [noise.rotation_urad * 1e-6] * 3)
+        s_t, s_r = self.pose_reading_sigma()
+        sigma = np.array([s_t] * 3 + [s_r] * 3)
         if np.any(sigma <= 0):
             raise InputError("instrument noise must be positive for the planner",
                              where=self.where("instruments", "pose", "noise"))

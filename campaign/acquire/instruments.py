@@ -120,6 +120,16 @@ def sensor_mount(protocol: Protocol) -> np.ndarray:
     return mount_matrix(xyz, rpy)
 
 
+def pose_options(protocol: Protocol) -> dict[str, Any]:
+    """Options of the pose instrument, ``reflectors_mm`` turned into ``reflectors`` (m)."""
+    options = dict(_spec(protocol, "pose").options)
+    options.pop("reflectors_mm", None)
+    reflectors = protocol.reflectors()
+    if reflectors is not None:
+        options["reflectors"] = reflectors
+    return options
+
+
 def lab_settings(protocol: Protocol, time_scale: float | None):
     """Settings of the simulated lab from the protocol's ``[fake_lab]`` and its instruments."""
     from drivers.sim.settings import settings_from_protocol
@@ -136,7 +146,9 @@ def lab_settings(protocol: Protocol, time_scale: float | None):
     from drivers.frames import matrix_to_rotvec
 
     tool = protocol.tool
+    reflectors = pose_options(protocol).get("reflectors")
     return settings_from_protocol(protocol.lab, time_scale=time_scale, instruments=tuple(fakes),
+                                  reflectors=reflectors,
                                   tool_xyz=tuple(float(v) * 1e-3 for v in tool.xyz_mm),
                                   tool_rpy=tuple(math.radians(float(v)) for v in tool.rpy_deg),
                                   sensor_offset=tuple(mount[:3, 3]),
@@ -152,6 +164,7 @@ def open_instruments(protocol: Protocol, fake: bool, time_scale: float | None = 
     addresses = {role: _spec(protocol, role).address for role in ROLES}
     options: dict[str, dict[str, Any]] = {role: dict(_spec(protocol, role).options)
                                           for role in ROLES}
+    options["pose"] = pose_options(protocol)
     if fake:
         from drivers.sim.control import LabClient
         from drivers.sim.lab import Lab
@@ -168,18 +181,14 @@ def open_instruments(protocol: Protocol, fake: bool, time_scale: float | None = 
                                      f"({'; '.join(lab.notes) or 'not started'})",
                                      where=protocol.where("instruments", role, "driver"))
                 addresses[role] = lab.addresses[name]
-            if drivers["robot"] == "ur":
-                raise InputError("the simulated UR controller serves RTDE readings only, it "
-                                 "cannot be moved: use a manual robot for --fake",
-                                 where=protocol.where("instruments", "robot", "driver"))
             control = lab.addresses["control"]
             if drivers["pose"] == "emscon":
                 # the protocol's pose noise is that of a 6-DoF probe: serve probe poses
                 for fake_server in lab.fakes:
                     if getattr(fake_server, "driver", "") == "emscon":
                         fake_server.mode = "6dof"
-            else:  # point-only instruments: a rigid fit over the lab's reflectors
-                options["pose"].update(reflectors=dict(settings.reflectors))
+            else:  # point-only instruments: a rigid fit over the reflectors
+                options["pose"]["reflectors"] = dict(settings.reflectors)
                 aim_client = LabClient(control)
                 clients.append(aim_client)
                 options["pose"]["aim"] = lambda name: aim_client.call("aim", target=name)

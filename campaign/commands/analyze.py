@@ -36,18 +36,14 @@ DISPLACEMENT_FROM_READING = float(np.sqrt(1.5))
 def _noise_from_protocol(protocol) -> NoiseModel:
     """Noise model of one test row from the protocol's instrument sigmas, defaults elsewhere.
 
-    The pose instrument's ``translation_um``/``rotation_urad`` are the sigma of
-    one reading; a row's displacement has :data:`DISPLACEMENT_FROM_READING`
-    times that.
+    One pose reading's sigma comes from :meth:`Protocol.pose_reading_sigma` (a
+    6-DoF probe's figures, or the rigid fit over the reflectors); a row's
+    displacement has :data:`DISPLACEMENT_FROM_READING` times that.
     """
     values: dict = {}
-    pose = protocol.instruments["pose"].noise
-    if pose.translation_um is not None:
-        values["translation_sigma_override"] = (pose.translation_um * 1e-6
-                                                * DISPLACEMENT_FROM_READING)
-    if pose.rotation_urad is not None:
-        values["rotation_sigma_override"] = (pose.rotation_urad * 1e-6
-                                             * DISPLACEMENT_FROM_READING)
+    s_t, s_r = protocol.pose_reading_sigma()
+    values["translation_sigma_override"] = s_t * DISPLACEMENT_FROM_READING
+    values["rotation_sigma_override"] = s_r * DISPLACEMENT_FROM_READING
     ft = protocol.instruments.get("force_torque")
     if ft is not None:
         values["force_sigma"] = ft.noise.force_N

@@ -1,0 +1,61 @@
+"""The UR10e protocol on the simulated lab: the real ur-rtde client moves the fake UR
+controller, a point tracker measures four reflectors in turn, the analysis weights the
+rotations by the rigid fit's noise, and the identification recovers the lab's truth."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from analysis.errors import InputError
+from analysis.identification import analyze_table
+from campaign.acquire.progress import QuietReporter
+from campaign.acquire.session import AcquireOptions, acquire
+from campaign.commands.analyze import _noise_from_protocol
+from campaign.planner import make_plan, write_plan
+from campaign.protocol import load_protocol
+from campaign.protocol_robot import protocol_robot
+from campaign.run_reader import read_run
+from tests.acquire.conftest import ROOT
+
+PROTOCOL = ROOT / "protocols" / "ur10e.toml"
+
+
+@pytest.mark.timeout(240)
+def test_ur10e_fake_campaign(tmp_path, time_scale):
+    protocol = load_protocol(PROTOCOL)
+    truth = np.array(protocol.fake_lab.true_joint_stiffness)
+    protocol.campaign.repeats = 1
+    plan = tmp_path / "plan"
+    write_plan(make_plan(protocol, candidates=2000), plan, figure=False)
+    t0 = time.monotonic()
+    outcome = acquire(plan, tmp_path / "run", None,
+                      AcquireOptions(fake=True, assume_yes=True, time_scale=time_scale),
+                      QuietReporter(), say=lambda s: None)
+    assert outcome.status == "complete", outcome.reason
+    assert time.monotonic() - t0 < 120
+    run = read_run(tmp_path / "run")
+    assert len(run.ok) == protocol.campaign.tests
+    result = analyze_table(run.ok, protocol_robot(protocol), noise=_noise_from_protocol(protocol),
+                           validate=False)
+    z = (result.k - truth) / result.se_k
+    assert np.all(np.abs(z) < 4), (result.k, truth, result.se_k)
+    # the rotation noise of the reflector fit is in the weights: residuals fit the model
+    assert 0.3 < result.chi2_reduced < 2.5
+
+
+def test_reflectors_option_is_checked(tmp_path):
+    text = PROTOCOL.read_text()
+    start = text.index("options = { reflectors_mm")
+    end = text.index("\n", start)
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text[:start] + "options = { reflectors = 3 }" + text[end:])
+    with pytest.raises(InputError, match="reflectors_mm"):
+        load_protocol(bad).reflectors()
+    two = tmp_path / "two.toml"
+    two.write_text(text[:start] + "options = { reflectors_mm = { A = [0, 0, 0], "
+                   "B = [100, 0, 0] } }" + text[end:])
+    with pytest.raises(InputError, match="at least three"):
+        load_protocol(two).reflectors()
