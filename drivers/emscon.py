@@ -39,6 +39,7 @@ from drivers.errors import ConnectionFailed, DeviceFault, DeviceTimeout, Protoco
 from drivers.frames import quat_to_matrix
 from drivers.readings import Point, Pose
 from drivers.roles import PoseTracker
+from drivers.tcp_link import TcpLink
 from drivers.units import length_factor
 
 EMSCON_PORT = 700
@@ -113,7 +114,7 @@ def encode_probe(status: int, xyz: np.ndarray, quat: np.ndarray) -> bytes:
     return PROBE_BODY.pack(status, 0, 0, 0, 0, *xyz, *quat, 0.0, 0.0, 0.0)
 
 
-class EmsconTracker(PoseTracker):
+class EmsconTracker(TcpLink, PoseTracker):
     """emScon-style laser tracker client.
 
     Parameters
@@ -122,6 +123,8 @@ class EmsconTracker(PoseTracker):
         ``socket://host[:700]``; options ``header`` (``int32``/``int64``),
         ``length_unit`` (default ``mm``).
     """
+
+    peer = "tracker"
 
     def __init__(self, address: str, *, timeout: float = 5.0, **kwargs: Any) -> None:
         super().__init__(address, timeout=timeout, **kwargs)
@@ -134,33 +137,6 @@ class EmsconTracker(PoseTracker):
             raise ConnectionFailed(f"{address!r}: header must be int32 or int64")
         self.unit = length_factor(addr.option("length_unit", "mm") or "mm")
         self._sock: socket.socket | None = None
-
-    def _connect(self) -> None:
-        try:
-            self._sock = socket.create_connection((self.host, self.port), timeout=self.timeout)
-        except TimeoutError as err:
-            raise DeviceTimeout(f"{self.address}: connect timed out") from err
-        except OSError as err:
-            raise ConnectionFailed(f"{self.address}: {err}") from err
-
-    def _close(self) -> None:
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None
-
-    def _recv_exact(self, n: int) -> bytes:
-        buf = bytearray()
-        while len(buf) < n:
-            try:
-                chunk = self._sock.recv(n - len(buf))
-            except TimeoutError as err:
-                raise DeviceTimeout(f"{self.address}: no answer within {self.timeout} s") from err
-            except OSError as err:
-                raise ConnectionFailed(f"{self.address}: {err}") from err
-            if not chunk:
-                raise ConnectionFailed(f"{self.address}: tracker closed the connection")
-            buf += chunk
-        return bytes(buf)
 
     def _read_packet(self) -> Packet:
         size, ptype = decode_header(self._recv_exact(HEADERS[self.header].size), self.header)

@@ -25,11 +25,12 @@ from drivers.address import parse_address
 from drivers.errors import ConnectionFailed, DeviceFault, DeviceTimeout, DriverError
 from drivers.readings import Pose
 from drivers.roles import RobotController
+from drivers.tcp_link import TcpLink
 
 KVP_PORT = 7000
 
 
-class KukaVarProxyRobot(RobotController):
+class KukaVarProxyRobot(TcpLink, RobotController):
     """KUKA robot via KUKAVARPROXY.
 
     Parameters
@@ -39,6 +40,8 @@ class KukaVarProxyRobot(RobotController):
         default 1.5), ``max_acc`` (rad/s^2 for 100 %, default 3.0),
         ``motion_timeout`` (s, default 120).
     """
+
+    peer = "KUKAVARPROXY"
 
     def __init__(self, address: str, *, timeout: float = 2.0, poll: float = 0.05,
                  **_: Any) -> None:
@@ -53,33 +56,6 @@ class KukaVarProxyRobot(RobotController):
         self.poll = poll
         self._sock: socket.socket | None = None
         self._msg_id = 0
-
-    def _connect(self) -> None:
-        try:
-            self._sock = socket.create_connection((self.host, self.port), timeout=self.timeout)
-        except TimeoutError as err:
-            raise DeviceTimeout(f"{self.address}: connect timed out") from err
-        except OSError as err:
-            raise ConnectionFailed(f"{self.address}: {err}") from err
-
-    def _close(self) -> None:
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None
-
-    def _recv_exact(self, n: int) -> bytes:
-        buf = bytearray()
-        while len(buf) < n:
-            try:
-                chunk = self._sock.recv(n - len(buf))
-            except TimeoutError as err:
-                raise DeviceTimeout(f"{self.address}: no reply within {self.timeout} s") from err
-            except OSError as err:
-                raise ConnectionFailed(f"{self.address}: {err}") from err
-            if not chunk:
-                raise ConnectionFailed(f"{self.address}: KUKAVARPROXY closed the connection")
-            buf += chunk
-        return bytes(buf)
 
     def _exchange(self, name: str, value: str | None = None) -> str:
         if not self.connected:
