@@ -51,6 +51,23 @@ def _noise_from_protocol(protocol) -> NoiseModel:
     return NoiseModel().with_overrides(**values)
 
 
+def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm) -> NoiseModel:
+    """Apply the command line's --sigma-* overrides (um, urad, N, N m) to ``noise``."""
+    values = {}
+    for key, value, scale, option in (
+        ("translation_sigma_override", t_um, 1e-6, "--sigma-translation-um"),
+        ("rotation_sigma_override", r_urad, 1e-6, "--sigma-rotation-urad"),
+        ("force_sigma", f_n, 1.0, "--force-sigma-N"),
+        ("moment_sigma", m_nm, 1.0, "--moment-sigma-Nm"),
+    ):
+        if value is None:
+            continue
+        if not (np.isfinite(value) and value > 0):
+            raise InputError("expected a positive number", where=option)
+        values[key] = value * scale
+    return noise.with_overrides(**values) if values else noise
+
+
 def _instrument_text(spec) -> str:
     if not isinstance(spec, dict):
         return str(spec)
@@ -207,8 +224,21 @@ def register(app: typer.Typer) -> None:
         trials: int = typer.Option(DEFAULT_TRIALS, help="Monte-Carlo trials per point of "
                                    "the robustness curve."),
         report: bool = typer.Option(True, "--report/--no-report", help="Write the report."),
+        sigma_translation_um: float = typer.Option(
+            None, help="Override: sigma of one measured displacement component (um)."),
+        sigma_rotation_urad: float = typer.Option(
+            None, help="Override: sigma of one measured rotation component (urad)."),
+        force_sigma_n: float = typer.Option(
+            None, "--force-sigma-N", help="Override: sigma of a force component (N)."),
+        moment_sigma_nm: float = typer.Option(
+            None, "--moment-sigma-Nm", help="Override: sigma of a moment component (N m)."),
     ) -> None:
-        """Identify joint stiffness from a run or a CSV file; write results.json and the report."""
+        """Identify joint stiffness from a run or a CSV file; write results.json and the report.
+
+        The measurement noise comes from the run's protocol (or the instrument
+        defaults of analysis/noise.py for a CSV file); the --sigma-* options
+        override it, per measured component of one test row.
+        """
         from analysis.identification import analyze_table, parse_joints
         from analysis.measurements import to_arrays
         from analysis.report.build import ReportInputs, build_report
@@ -229,6 +259,8 @@ def register(app: typer.Typer) -> None:
                 raise InputError("--measurements needs --out DIR", where="--out")
             table, model, noise, info, extras = _from_csv(measurements, robot, tip)
         protocol = extras["protocol"]
+        noise = _override_noise(noise, sigma_translation_um, sigma_rotation_urad,
+                                force_sigma_n, moment_sigma_nm)
         result = analyze_table(table, model, method=method, joints=parse_joints(joints),
                                noise=noise, covariance=covariance)
         paths = write_results(result, out)

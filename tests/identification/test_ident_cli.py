@@ -66,3 +66,30 @@ def test_analyze_csv_bad_cell_exit_2(tmp_path, capsys):
                str(tmp_path / "o"), "--no-report"])
     assert rc == 2
     assert "line 2, column dx_mm: 'abc' is not a number" in capsys.readouterr().err
+
+
+def test_analyze_noise_overrides_scale_the_intervals(tmp_path, kr240, zone_poses, w_eff):
+    """Doubling every sigma on the command line doubles the standard errors (known-sigma
+    covariance, exact fit: se is proportional to the noise scale) and leaves k unchanged."""
+    noise = NoiseModel()
+    tests = simulate(kr240, zone_poses[:6], w_eff, kr240.nominal_stiffness, noise, seed=4)
+    csv = tmp_path / "tests.csv"
+    to_csv_frame(table_from_arrays(tests.pose, tests.q, tests.w, tests.d))[CSV_COLUMNS].to_csv(
+        csv, index=False)
+    base = ["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--no-report"]
+    t, r = noise.translation_sigma, noise.rotation_sigma
+    f, m = noise.force_sigma, noise.moment_sigma
+    opts = ["--sigma-translation-um", f"{t * 1e6:.12g}", "--sigma-rotation-urad",
+            f"{r * 1e6:.12g}", "--force-sigma-N", f"{f:.12g}", "--moment-sigma-Nm", f"{m:.12g}"]
+    doubled = ["--sigma-translation-um", f"{2 * t * 1e6:.12g}", "--sigma-rotation-urad",
+               f"{2 * r * 1e6:.12g}", "--force-sigma-N", f"{2 * f:.12g}",
+               "--moment-sigma-Nm", f"{2 * m:.12g}"]
+    assert main([*base, "--out", str(tmp_path / "a"), *opts]) == 0
+    assert main([*base, "--out", str(tmp_path / "b"), *doubled]) == 0
+    a = json.loads((tmp_path / "a" / "results.json").read_text())
+    b = json.loads((tmp_path / "b" / "results.json").read_text())
+    np.testing.assert_allclose(b["joint_stiffness_Nm_per_rad"], a["joint_stiffness_Nm_per_rad"],
+                               rtol=1e-6)
+    np.testing.assert_allclose(b["standard_error_Nm_per_rad"],
+                               2 * np.array(a["standard_error_Nm_per_rad"]), rtol=1e-6)
+    assert main([*base, "--out", str(tmp_path / "c"), "--force-sigma-N", "-1"]) == 2
