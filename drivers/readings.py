@@ -103,6 +103,9 @@ class Wrench:
         zeros for a single sample.
     samples : int
         Number of samples averaged.
+    raw : ndarray, shape (samples, 6), or None
+        The individual samples averaged (same units and frame), kept so that a
+        campaign can store every reading.
     """
 
     value: np.ndarray
@@ -111,6 +114,7 @@ class Wrench:
     unit: str = "N, N m"
     spread: np.ndarray = field(default_factory=lambda: np.zeros(6))
     samples: int = 1
+    raw: np.ndarray | None = None
     source: str = ""
     timestamp: float = field(default_factory=_now)
     wall_time: float = field(default_factory=_wall)
@@ -128,4 +132,5 @@ def average_wrench(samples: np.ndarray, **kwargs: object) -> Wrench:
     """
     arr = np.asarray(samples, dtype=float).reshape(-1, 6)
     spread = arr.std(axis=0, ddof=1) if len(arr) > 1 else np.zeros(6)
-    return Wrench(value=arr.mean(axis=0), spread=spread, samples=len(arr), **kwargs)
+    return Wrench(value=arr.mean(axis=0), spread=spread, samples=len(arr), raw=arr.copy(),
+                  **kwargs)

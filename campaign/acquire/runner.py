@@ -300,8 +300,10 @@ class Runner:
         self._settle("settle_loaded", ref_point, R)
         self._phase("loaded")
         W = inst.ft.read_wrench(self.settings.wrench_samples)
+        # the mean is the value; every raw sample of the window is kept beside it
+        raw = None if W.raw is None else np.asarray(W.raw, float).tolist()
         self._sample("loaded", "force_torque", "wrench", "N, N m", "sensor", W.value,
-                     sigma=W.spread, wall=W.wall_time, samples=W.samples)
+                     sigma=W.spread, wall=W.wall_time, samples=W.samples, raw=raw)
         w_approx = sensor_wrench_to_base(W.value, T_fk, inst.sensor_mount)
         self.reporter.phase(wrench=w_approx)
         check_force(w_approx, self.max_force, self.max_moment)
