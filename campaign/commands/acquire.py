@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
@@ -64,10 +65,20 @@ def acquire(
     if quiet:
         def say(s: str) -> None:
             pass
+    if (quiet or json_lines) and not yes and not dry_run:
+        # a person is asked to confirm: the motion list and the question go to stderr,
+        # whatever the output mode (stdout stays machine-readable)
+        def say(s: str) -> None:
+            typer.echo(s, err=True)
+
+    def ask(prompt: str) -> str:
+        typer.echo(prompt, err=True, nl=False)
+        return sys.stdin.readline()  # "" at end of input: refused
+
     opts = AcquireOptions(fake=fake, assume_yes=yes, dry_run=dry_run, time_scale=time_scale,
                           operator=operator)
     try:
-        outcome = run_acquire(plan, out, resume, opts, reporter, say=say)
+        outcome = run_acquire(plan, out, resume, opts, reporter, say=say, ask=ask)
     finally:
         reporter.close()
     if outcome.status not in ("complete", "dry-run"):

@@ -147,3 +147,27 @@ def test_checks_flag_each_failure():
                               "tracker_uncertainty", "saturation"}
     assert np.isclose(bad.wrench_error, 200)
     json.dumps(bad.flags)
+
+
+@pytest.mark.parametrize("mode", ["--json", "--quiet", None])
+def test_confirmation_shows_the_motions_and_refuses_without_yes(kr240_plan, tmp_path, mode):
+    """Without --yes the motion list and the question reach the operator (stderr in the
+    machine-readable modes, so stdout stays parseable); anything but 'yes' refuses, exit 2,
+    and nothing is created."""
+    import subprocess
+    import sys
+
+    from tests.acquire.conftest import ROOT
+
+    out = tmp_path / "run"
+    args = [sys.executable, "-m", "campaign", "acquire", "--plan", str(kr240_plan), "--fake",
+            "--out", str(out)] + ([mode] if mode else [])
+    proc = subprocess.run(args, input="no\n", capture_output=True, text=True, timeout=120,
+                          cwd=ROOT)
+    assert proc.returncode == 2
+    shown = proc.stderr if mode else proc.stdout
+    assert "Type 'yes' to move the robot" in proc.stderr + proc.stdout
+    assert "5a" in shown and "not confirmed" in proc.stderr
+    if mode == "--json":
+        assert "Type 'yes'" not in proc.stdout
+    assert not out.exists()
