@@ -9,8 +9,9 @@ campaign's size the trial is the campaign's own design. Each trial simulates
 the exact displacement (nonlinear equilibrium) at the reference stiffness,
 adds the noise model's normal noise to the displacement, wrench and joint
 angles, and identifies with the paper's linear model (eqs. 16-18), weighted
-by the displacement sigmas (batched QR of the whitened, column-scaled
-stacked A). The Jacobian is evaluated at the noisy joint angles, as a real
+by each test's measurement covariance (displacement noise plus the wrench
+noise through the compliance; :func:`analysis.robustness.identify_batch`).
+The Jacobian is evaluated at the noisy joint angles, as a real
 identification would.
 """
 
@@ -24,9 +25,9 @@ import pandas as pd
 from analysis.equilibrium import EquilibriumError, displacement_screw
 from analysis.errors import InputError
 from analysis.kinematics import jacobian
-from analysis.linear_model import design_block
 from analysis.noise import NoiseModel
 from analysis.robot_model import RobotModel
+from analysis.robustness import identify_batch
 
 DEFAULT_TESTS = (3, 4, 5, 6, 8, 10, 15, 20)
 
@@ -53,27 +54,6 @@ def draw_tests(m: int, n: int, trials: int, rng: np.random.Generator) -> np.ndar
     base = np.tile(np.arange(m), n // m)
     extra = np.argsort(rng.random((trials, m)), axis=1)[:, : n % m]
     return np.hstack([np.broadcast_to(base, (trials, base.size)), extra])
-
-
-def batched_wls(A: np.ndarray, d: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """Least squares per trial: A (T, n, 6, p), d (T, n, 6), sigma (6,) -> x (T, p).
-
-    Rows are divided by ``sigma`` (m or rad), columns scaled to unit norm, then
-    solved by batched QR; a trial whose scaled matrix is rank deficient gives NaN.
-    """
-    T, n, _, p = A.shape
-    Aw = (A / sigma[:, None]).reshape(T, 6 * n, p)
-    dw = (d / sigma).reshape(T, 6 * n)
-    norms = np.linalg.norm(Aw, axis=1, keepdims=True)
-    norms = np.where(norms > 0, norms, 1.0)
-    Q, R = np.linalg.qr(Aw / norms)
-    diag = np.abs(np.diagonal(R, axis1=-2, axis2=-1))
-    bad = diag.min(axis=-1) <= 1e-12 * diag.max(axis=-1)
-    R = np.where(bad[:, None, None], np.eye(p), R)
-    y = np.linalg.solve(R, np.einsum("tri,tr->ti", Q, dw)[..., None])[..., 0]
-    x = y / norms[:, 0, :]
-    x[bad] = np.nan
-    return x
 
 
 def design_robustness(
@@ -118,7 +98,11 @@ def design_robustness(
         J = jacobian(robot, q[idx] + dq)
         wn = w[idx] + rng.normal(size=(trials, n, 6)) * noise.wrench_sigma
         d = d_true[idx] + rng.normal(size=(trials, n, 6)) * noise.displacement_sigma
-        x = batched_wls(design_block(J, wn)[..., cols], d, noise.displacement_sigma)
+        # (T, n, r, j) -> the (j, r, n, T) layout of the batched identification
+        x, _ = identify_batch(np.transpose(J, (3, 2, 1, 0)), np.transpose(wn, (2, 1, 0)),
+                              np.transpose(d, (2, 1, 0)), noise, method="wls", joints=cols,
+                              with_se=False)
+        x = x.T
         ok = np.all(np.isfinite(x), axis=1) & np.all(x > 0, axis=1)
         for c, j in enumerate(cols):
             kk = 1.0 / x[ok, c]
