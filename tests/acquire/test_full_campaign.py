@@ -29,7 +29,7 @@ def test_full_fake_campaign_recovers_the_true_stiffness(kr240_plan, tmp_path, ti
                       QuietReporter(), say=lambda s: None)
     elapsed = time.monotonic() - t0
     assert outcome.status == "complete", outcome.reason
-    assert elapsed < 60, f"5-pose campaign took {elapsed:.1f} s"
+    # speed is measured in benchmarks/bench_fake_campaign.py, not asserted here
 
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["status"] == "complete" and meta["ended_utc"]

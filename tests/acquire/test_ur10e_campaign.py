@@ -4,8 +4,6 @@ rotations by the rigid fit's noise, and the identification recovers the lab's tr
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -30,12 +28,10 @@ def test_ur10e_fake_campaign(tmp_path, time_scale):
     protocol.campaign.repeats = 1
     plan = tmp_path / "plan"
     write_plan(make_plan(protocol, candidates=2000), plan, figure=False)
-    t0 = time.monotonic()
     outcome = acquire(plan, tmp_path / "run", None,
                       AcquireOptions(fake=True, assume_yes=True, time_scale=time_scale),
                       QuietReporter(), say=lambda s: None)
     assert outcome.status == "complete", outcome.reason
-    assert time.monotonic() - t0 < 120
     run = read_run(tmp_path / "run")
     assert len(run.ok) == protocol.campaign.tests
     result = analyze_table(run.ok, protocol_robot(protocol), noise=_noise_from_protocol(protocol),
