@@ -45,7 +45,7 @@ def plot_joint_map(
         ax.plot([], [], "s", color="white", markeredgecolor="k", label="singular (hatched)")
     for name, (a, b), (c, d) in zones or []:
         ax.add_patch(plt.Rectangle((a, c), b - a, d - c, fill=False, ec="red", lw=1.5))
-        ax.text(a, d, f" {name}", color="red", va="bottom", fontsize=8)
+        ax.text(a, d, f" {name}", color="red", va="top", ha="left", fontsize=8)
     if points is not None and len(points):
         ax.plot(points["theta2_deg"], points["theta3_deg"], "o", mfc="white", mec="k",
                 label="planned poses")

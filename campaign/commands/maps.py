@@ -11,7 +11,7 @@ from rich.console import Console
 
 from analysis.dexterity import characteristic_length
 from analysis.errors import InputError
-from analysis.map_plots import plot_cartesian_map, plot_joint_map
+from analysis.map_plots import LABELS, plot_cartesian_map, plot_joint_map
 from analysis.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
 from campaign.options import parse_floats, robot_option, stiffness_option, wrench_option
 
@@ -68,11 +68,15 @@ def register(app: typer.Typer) -> None:
             for z in r.zones
             if 1 in z.ranges and 2 in z.ranges
         ]
+        fixed_deg = np.degrees(grid.fixed)
+        others = ", ".join(f"theta{j + 1} = {fixed_deg[j]:g}" for j in range(r.n)
+                           if j not in (1, 2))
         for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"), ("v_r_deg", "v_r")):
-            plot_joint_map(table, col, out / f"{name}_joint.png", f"{r.name}: {col}",
-                           zones=zones)
+            label = LABELS[col]
+            plot_joint_map(table, col, out / f"{name}_joint.png",
+                           f"{r.name}: {label}\n({others} deg)", zones=zones)
             plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
-                               f"{r.name}: {col} over the workspace")
+                               f"{r.name}: {label} over the workspace\n({others} deg)")
         ok = ~table["singular"]
         summary = {
             "robot": r.name,
