@@ -3,7 +3,8 @@
 Twelve fake KR240-2 campaigns with different lab seeds, each planned, acquired over
 loopback with the real drivers and identified with the protocol's noise model: the
 standardised errors z = (k - k_true) / se(k) must look standard normal. Observed on
-the development machine: std(z) per joint 0.87-1.12, mean(z) within +-0.5.
+the development machine: std(z) per joint 0.55-1.14 over two such runs, mean(z) within
++-0.5 (the wrench noise in the weights is conservative: 0.5 N per averaged reading).
 """
 
 from __future__ import annotations
@@ -46,8 +47,10 @@ def test_standardised_errors_of_twelve_campaigns(tmp_path):
                                noise=_noise_from_protocol(run_protocol), validate=False)
         zs.append((result.k - TRUE_K) / result.se_k)
     z = np.array(zs)
-    # 12 draws per joint: std within [0.6, 1.5], mean within +-0.9 (3 sigma of a mean of 12)
-    assert np.all((z.std(axis=0) > 0.6) & (z.std(axis=0) < 1.5)), z
+    # pooled over the 72 values the sample std of z has a spread of about 0.08
+    assert 0.75 < z.std() < 1.3, z
+    # per joint, 12 draws: loose bounds (3.3 sigma of a sample std; 3 sigma of a mean)
+    assert np.all((z.std(axis=0) > 0.4) & (z.std(axis=0) < 1.7)), z
     assert np.all(np.abs(z.mean(axis=0)) < 0.9), z
     # pooled: about 95 % of the 72 intervals cover the truth
     assert np.mean(np.abs(z) < 1.96) > 0.88
