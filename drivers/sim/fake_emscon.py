@@ -1,9 +1,14 @@
-"""Fake emScon-style laser tracker on loopback TCP (single points and 6-DoF probe)."""
+"""Fake emScon laser tracker on loopback TCP (single points and 6-DoF stationary probe results).
+
+Packet layouts are those of :mod:`drivers.emscon` (``SingleMeasResultT``,
+``ProbeStationaryResultT``, ``ProbePosResultT`` of Leica's ``ES_C_API_Def.h``).
+"""
 
 from __future__ import annotations
 
 import os
 import socket
+import struct
 
 import numpy as np
 
@@ -12,12 +17,15 @@ from drivers.emscon import (
     CMD_BODY,
     DT_COMMAND,
     DT_ERROR,
-    DT_PROBE,
+    DT_PROBE_POS,
+    DT_PROBE_STATIONARY,
+    DT_REFLECTOR_POS,
     DT_SINGLE,
     HEADERS,
     REPLY_BODY,
     encode_packet,
     encode_probe,
+    encode_probe_position,
     encode_single,
 )
 from drivers.frames import matrix_to_quat
@@ -25,20 +33,24 @@ from drivers.sim.tcp import TcpFake
 from drivers.sim.world import World
 
 NOT_READY = 10014  # ES_RS_SystemNotReadyForMeasurement
+REFLECTOR_POS_BODY = struct.Struct("<i3d")  # ReflectorPosResultT after the header
 
 
 class FakeEmscon(TcpFake):
     """Answers StartMeasurement with the world's aimed reflector (or the 6-DoF probe pose).
 
     ``mode`` is ``"point"`` or ``"6dof"``; lengths are sent in millimetres.
+    ``position_stream`` sends an unsolicited reflector/probe position packet
+    (as with ``bSendReflectorPositionData``) between acknowledgement and result.
     """
 
     driver = "emscon"
     device = "emscon"
 
-    def __init__(self, world: World, mode: str = "point", header: str = "int32") -> None:
+    def __init__(self, world: World, mode: str = "point", header: str = "int32",
+                 position_stream: bool = False) -> None:
         super().__init__(world)
-        self.mode, self.header = mode, header
+        self.mode, self.header, self.position_stream = mode, header, position_stream
         self.url = f"socket://{self.host}:{self.port}?header={header}&length_unit=mm"
 
     def serve(self, conn: socket.socket) -> None:
@@ -75,10 +87,17 @@ class FakeEmscon(TcpFake):
             conn.sendall(self._result())
 
     def _result(self) -> bytes:
+        s = self.world.settings
         if self.mode == "6dof":
             T = self.world.tracker_pose()
-            return encode_packet(DT_PROBE, encode_probe(0, T[:3, 3] * 1000,
-                                                        matrix_to_quat(T[:3, :3])), self.header)
-        p = self.world.tracker_point()
-        std = np.full(3, self.world.settings.tracker_noise * 1000)
-        return encode_packet(DT_SINGLE, encode_single(0, p * 1000, std), self.header)
+            xyz, q = T[:3, 3] * 1000, matrix_to_quat(T[:3, :3])
+            result = encode_packet(DT_PROBE_STATIONARY, encode_probe(
+                0, xyz, q, std=np.full(3, s.tracker_noise * 1000),
+                std_angles=np.full(3, s.tracker_angle_noise)), self.header)
+            stream = encode_packet(DT_PROBE_POS, encode_probe_position(xyz, q), self.header)
+        else:
+            p = self.world.tracker_point() * 1000
+            std = np.full(3, s.tracker_noise * 1000)
+            result = encode_packet(DT_SINGLE, encode_single(0, p, std), self.header)
+            stream = encode_packet(DT_REFLECTOR_POS, REFLECTOR_POS_BODY.pack(0, *p), self.header)
+        return stream + result if self.position_stream else result

@@ -99,6 +99,14 @@ def test_emscon_packets(data, header):
 
 
 @FAST
+@given(st.binary(min_size=emscon.PROBE_BODY.size, max_size=emscon.PROBE_BODY.size))
+def test_emscon_probe_bodies_of_the_right_length(data):
+    r = _own_errors_only(emscon.decode_probe, data)
+    if r is not None:
+        assert abs(np.linalg.norm(r["quat"]) - 1) <= 1e-3
+
+
+@FAST
 @given(st.binary(max_size=200))
 def test_rtde_headers_and_setup(data):
     _own_errors_only(rtde.decode_header, data[:3])

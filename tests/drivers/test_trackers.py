@@ -117,6 +117,77 @@ def test_six_dof_probe(world):
         fake.stop()
 
 
+@pytest.mark.parametrize("mode", ["point", "6dof"])
+def test_emscon_skips_position_packets_before_the_result(world, mode):
+    fake = FakeEmscon(world, mode=mode, position_stream=True)
+    fake.start()
+    try:
+        with EmsconTracker(fake.url, timeout=1.0) as drv:
+            truth = world.base_in_tracker @ world.true_tool_pose()
+            for _ in range(3):  # the skipped packet must not shift the next answer
+                value = (drv.measure_pose().value[:3, 3] if mode == "6dof"
+                         else drv.measure_point("P").value)
+                assert np.linalg.norm(value - truth[:3, 3]) < 8 * world.settings.tracker_noise
+    finally:
+        fake.stop()
+
+
+def _scripted_emscon(answer: bytes, repeat: bool = False) -> str:
+    """A one-client server answering a command with an OK acknowledgement + ``answer``.
+
+    With ``repeat`` it keeps sending ``answer`` every 10 ms (an endless position stream).
+    """
+    import socket
+    import threading
+
+    from drivers import emscon
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(1)
+
+    def serve():
+        conn, _ = srv.accept()
+        with conn:
+            while True:
+                head = conn.recv(12)
+                if len(head) < 12:
+                    return
+                ack = emscon.encode_packet(emscon.DT_COMMAND, emscon.REPLY_BODY.pack(49, 0))
+                conn.sendall(ack + answer)
+                while repeat:
+                    try:
+                        conn.sendall(answer)
+                    except OSError:
+                        return
+                    time.sleep(0.01)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return f"socket://127.0.0.1:{srv.getsockname()[1]}"
+
+
+def test_emscon_refuses_6d_errors_extended_statistics_and_endless_streams():
+    from drivers import emscon
+
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    bad_6d = emscon.encode_packet(emscon.DT_PROBE_STATIONARY, emscon.encode_probe(
+        0, np.zeros(3), q, rotation_status=emscon.ROT_STATUS_VALID | emscon.ROT_STATUS_ERROR))
+    with EmsconTracker(_scripted_emscon(bad_6d), timeout=1.0) as drv, \
+            pytest.raises(DeviceFault, match="rotation status"):
+        drv.measure_pose()
+    single2 = emscon.encode_packet(emscon.DT_SINGLE2, bytes(12 + 23 * 8))
+    with EmsconTracker(_scripted_emscon(single2), timeout=1.0) as drv, \
+            pytest.raises(ProtocolError, match="extended"):
+        drv.measure_point("P")
+    stream = emscon.encode_packet(emscon.DT_PROBE_POS, emscon.encode_probe_position(
+        np.zeros(3), q))
+    t0 = time.monotonic()
+    with EmsconTracker(_scripted_emscon(stream, repeat=True), timeout=0.3) as drv, \
+            pytest.raises(DeviceTimeout, match="no measurement result"):
+        drv.measure_pose()
+    assert time.monotonic() - t0 < 2.0
+
+
 def test_wrong_header_layout_is_detected(world):
     fake = FakeEmscon(world, header="int64")
     fake.start()

@@ -129,6 +129,55 @@ def test_emscon_command_packet_in_both_header_layouts(header, head_bytes):
     assert (size, ptype) == (len(pkt), 0)
 
 
+def test_emscon_data_type_numbers():
+    # ES_DataType in ES_C_API_Def.h (TPI V3.6)
+    assert (emscon.DT_COMMAND, emscon.DT_ERROR, emscon.DT_SINGLE) == (0, 1, 2)
+    assert emscon.DT_PROBE_STATIONARY == 4  # ES_DT_StationaryProbeMeasResult
+    assert (emscon.DT_REFLECTOR_POS, emscon.DT_STATUS_CHANGE, emscon.DT_SINGLE2) == (7, 8, 9)
+    assert emscon.DT_PROBE_POS == 11  # ES_DT_ProbePosResult: position indication only
+    assert emscon.C_START_MEASUREMENT == 49
+
+
+def test_emscon_stationary_probe_result_bytes():
+    # ProbeStationaryResultT, pack(4): sizeof 376; byte offsets from offsetof()
+    pkt = bytearray(376)
+    pkt[:48] = bytes.fromhex("78010000 04000000"  # lPacketSize 376, ES_DT_StationaryProbeMeasResult
+                             "00000000 06000000 00000000"  # status OK, ES_MM_6DStationary, try
+                             "01000000 01000000 03000000"  # trigger pressed, Status6D, probe id
+                             "02000000 00000000 05000000 01000000")  # field, tip OK, adapter
+    for offset, values in ((48, (1200.5, -300.25, 45.0)),  # dPosition1-3
+                           (72, (0.01, 0.02, 0.03, 0.04)),  # dStdDevPosition1-3, total
+                           (184, (0.5, 0.5, -0.5, 0.5)),  # dQuaternion0-3
+                           (216, (0.1, 0.2, 0.3)),  # dRotationAngleX-Z
+                           (240, (1e-5, 2e-5, 3e-5)),  # dStdDevRotationAngleX-Z
+                           (352, (21.5, 1001.25, 40.0))):  # temperature, pressure, humidity
+        struct.pack_into(f"<{len(values)}d", pkt, offset, *values)
+    size, ptype = emscon.decode_header(bytes(pkt[:8]))
+    assert (size, ptype) == (376, emscon.DT_PROBE_STATIONARY)
+    r = emscon.decode_probe(bytes(pkt[8:]))
+    assert (r["status"], r["mode"], r["try"], r["trigger"], r["rotation_status"]) == (0, 6, 0, 1, 1)
+    assert (r["probe_id"], r["field"], r["tip_status"]) == (3, 2, 0)
+    assert (r["tip_adapter_id"], r["tip_adapter_interface"]) == (5, 1)
+    np.testing.assert_array_equal(r["xyz"], [1200.5, -300.25, 45.0])
+    np.testing.assert_array_equal(r["std"], [0.01, 0.02, 0.03])
+    assert r["std_total"] == 0.04
+    np.testing.assert_array_equal(r["quat"], [0.5, 0.5, -0.5, 0.5])
+    np.testing.assert_array_equal(r["angles"], [0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(r["std_angles"], [1e-5, 2e-5, 3e-5])
+    assert (r["temperature"], r["pressure"], r["humidity"]) == (21.5, 1001.25, 40.0)
+    # the encoder used by the fake writes the same layout
+    body = emscon.encode_probe(0, r["xyz"], r["quat"], std=r["std"], angles=r["angles"])
+    assert len(body) == 368
+    assert body[:40] == bytes.fromhex("00000000 06000000 00000000 00000000 01000000"
+                                      "00000000 00000000 00000000 00000000 00000000")
+    assert body[48 - 8:72 - 8] == bytes(pkt[48:72])
+    assert body[184 - 8:216 - 8] == bytes(pkt[184:216])
+    # the 11-type probe position packet is shorter and is not a measurement result
+    assert emscon.PROBE_POS_BODY.size + 8 == 108
+    with pytest.raises(ProtocolError, match="368 bytes"):
+        emscon.decode_probe(emscon.encode_probe_position(np.zeros(3), np.array([1.0, 0, 0, 0])))
+
+
 def test_emscon_results_round_trip():
     body = emscon.encode_single(0, np.array([1000.0, -250.5, 3.25]), np.array([0.01] * 3))
     assert len(body) == 12 + 17 * 8
