@@ -8,7 +8,9 @@ YAML nodes carry their own marks.
 from __future__ import annotations
 
 import re
+import tomllib
 from collections.abc import Sequence
+from pathlib import Path
 
 from pydantic import ValidationError
 
@@ -117,3 +119,32 @@ def input_error_from_validation(err: ValidationError, path: str, text: str) -> I
         where = f"{path}:{line}" if line else path
         problems.append(f"{where}: {key}: {msg}{detail}")
     return InputError("\n".join(problems))
+
+
+def read_mapping_file(path: Path, what: str) -> tuple[dict, str]:
+    """Parse a TOML or YAML file whose top level is a table; returns (data, text).
+
+    ``what`` names the kind of file in messages ("robot file", "protocol file").
+    Errors name the file and, where the parser gives it, the line.
+    """
+    import yaml
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise InputError(f"cannot read {what}: {err.strerror}", where=str(path)) from err
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".yaml", ".yml"):
+            data = yaml.safe_load(text)
+        elif suffix == ".toml":
+            data = tomllib.loads(text)
+        else:
+            raise InputError(f"expected a .toml, .yaml or .yml {what}", where=str(path))
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(f"not valid TOML: {err}", where=str(path)) from err
+    except yaml.YAMLError as err:
+        raise InputError(f"not valid YAML: {err}", where=str(path)) from err
+    if not isinstance(data, dict):
+        raise InputError("expected a table of keys at the top level", where=str(path))
+    return data, text

@@ -41,18 +41,16 @@ File format (every number in the units the file declares)::
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 import pinocchio as pin
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from analysis.dh import DHRow, build_dh_model
 from analysis.errors import InputError
-from analysis.file_errors import input_error_from_validation
+from analysis.file_errors import input_error_from_validation, read_mapping_file
 from analysis.robot_model import RobotModel, Zone, chain_from_pinocchio
 
 _LENGTH = {"m": 1.0, "mm": 1e-3}
@@ -138,23 +136,6 @@ class RobotFile(_Strict):
         return self
 
 
-def _read_mapping(path: Path) -> tuple[dict, str]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError(f"cannot read robot file: {err.strerror}", where=str(path)) from err
-    try:
-        if path.suffix in (".yaml", ".yml"):
-            data = yaml.safe_load(text)
-        else:
-            data = tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, yaml.YAMLError) as err:
-        raise InputError(f"not valid {path.suffix[1:].upper()}: {err}", where=str(path)) from err
-    if not isinstance(data, dict):
-        raise InputError("expected a table of keys at the top level", where=str(path))
-    return data, text
-
-
 def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
     return pin.rpy.rpyToMatrix(float(rpy[0]), float(rpy[1]), float(rpy[2]))
 
@@ -217,7 +198,7 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
 def load_robot_file(path: str | Path, key: str = "") -> RobotModel:
     """Load a TOML or YAML robot description file (see module docstring)."""
     path = Path(path)
-    data, text = _read_mapping(path)
+    data, text = read_mapping_file(path, "robot file")
     try:
         spec = RobotFile.model_validate(data)
     except ValidationError as err:

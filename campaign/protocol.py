@@ -14,12 +14,10 @@ rad, N, N m). Every problem found in a file is reported as
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import yaml
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -31,7 +29,12 @@ from pydantic import (
 )
 
 from analysis.errors import InputError
-from analysis.file_errors import input_error_from_validation, toml_line, yaml_line
+from analysis.file_errors import (
+    input_error_from_validation,
+    read_mapping_file,
+    toml_line,
+    yaml_line,
+)
 
 DEG = math.pi / 180.0
 Vec3 = tuple[float, float, float]
@@ -378,28 +381,6 @@ class Protocol(_Strict):
         return out
 
 
-def _parse(path: Path) -> tuple[dict, str]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError(f"cannot read protocol file: {err.strerror}", where=str(path)) from err
-    suffix = path.suffix.lower()
-    try:
-        if suffix in (".yaml", ".yml"):
-            data = yaml.safe_load(text)
-        elif suffix == ".toml":
-            data = tomllib.loads(text)
-        else:
-            raise InputError("expected a .toml, .yaml or .yml protocol file", where=str(path))
-    except tomllib.TOMLDecodeError as err:
-        raise InputError(f"not valid TOML: {err}", where=str(path)) from err
-    except yaml.YAMLError as err:
-        raise InputError(f"not valid YAML: {err}", where=str(path)) from err
-    if not isinstance(data, dict):
-        raise InputError("expected a table of keys at the top level", where=str(path))
-    return data, text
-
-
 def load_protocol(path: str | Path) -> Protocol:
     """Read and validate a protocol file (schema, units, loads against safety limits).
 
@@ -413,7 +394,7 @@ def load_protocol(path: str | Path) -> Protocol:
         Naming the file, line and key of every problem.
     """
     path = Path(path)
-    data, text = _parse(path)
+    data, text = read_mapping_file(path, "protocol file")
     try:
         protocol = Protocol.model_validate(data)
     except ValidationError as err:

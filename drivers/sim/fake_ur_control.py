@@ -65,6 +65,7 @@ import socket
 import sys
 import threading
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -374,7 +375,7 @@ class ControlProgram(threading.Thread):
         return True
 
 
-class _LineServer:
+class _LineServer(ABC):
     """Accept loop on ``(host, port)``; each connection handled in its own thread."""
 
     def __init__(self, host: str, port: int, stop: threading.Event) -> None:
@@ -426,8 +427,9 @@ class _LineServer:
             for line in complete:
                 yield line.decode("utf-8", "replace").rstrip("\r")
 
+    @abstractmethod
     def serve(self, conn: socket.socket) -> None:
-        raise NotImplementedError
+        """Answer one client until it closes."""
 
     def close(self) -> None:
         try:
