@@ -55,13 +55,13 @@ def characteristic_length(
     Method (Khan and Angeles 2006, the paper's ref. [22]): L and the posture
     are chosen together to minimise kappa_F(J_N(q, L)); q_1 does not affect
     kappa_F and is held at 0. The problem is not convex: a batched search over
-    ``samples`` seeded random postures (within the limits, wrist angles within
-    +-pi) and a logarithmic grid of L picks the ``starts`` best pairs, each then
-    refined by a bounded Nelder-Mead search over (q_2..q_n, log L). For the
-    KR240-2 this returns L = 0.726 m (kappa_F = 1.32); a narrow basin elsewhere
-    (theta = 0, 32, -225, 0, -100 deg) reaches kappa_F = 1.28 at L = 0.70 m; the
-    paper gives 0.682 m. The search is a good local answer, not a proof of the
-    global one.
+    ``samples`` seeded random postures (within the limits; a joint with more
+    than a full turn within -pi..pi) and a logarithmic grid of L picks the
+    ``starts`` best pairs from distinct basins, each then refined by a bounded
+    Nelder-Mead search over (q_2..q_n, log L). For the KR240-2 this returns
+    L = 0.70 m (kappa_F = 1.28 near theta = 0, 31, -224, 0, -100 deg); the
+    paper gives 0.682 m. The search is a good answer, not a proof of the global
+    one.
 
     Returns
     -------
@@ -71,8 +71,11 @@ def characteristic_length(
     reach = np.linalg.norm(robot.chain.placements[:, :3, 3], axis=1).sum() + np.linalg.norm(
         robot.chain.tip[:3, 3]
     )
-    lo = np.maximum(robot.lower[1:], -np.pi)
-    hi = np.minimum(robot.upper[1:], np.pi)
+    # The search box is the joint limits; a joint turning more than a full turn
+    # is searched over one turn (-pi..pi), since J is periodic in each angle.
+    wide = robot.upper[1:] - robot.lower[1:] > 2 * np.pi
+    lo = np.where(wide, -np.pi, robot.lower[1:])
+    hi = np.where(wide, np.pi, robot.upper[1:])
     log_bounds = (np.log(reach / 100), np.log(reach * 10))
 
     # Coarse batched search.
@@ -81,13 +84,15 @@ def characteristic_length(
     J = jacobian(robot, q)
     lengths = np.geomspace(reach / 20, reach, 16)
     kappa = np.stack([frobenius_condition(normalized_jacobian(J, L)) for L in lengths], axis=1)
+    # Best (posture, L) pairs from distinct basins: a pick must differ from every
+    # earlier pick by more than 20 deg in some joint of q2..q5 (q6 rarely matters).
     flat = np.argsort(kappa, axis=None)
-    picks, used = [], set()
+    picks: list[tuple[int, int]] = []
     for idx in flat:
         i, j = divmod(int(idx), lengths.size)
-        if i not in used:
+        far = all(np.max(np.abs(q[i, 1:5] - q[k, 1:5])) > np.radians(20) for k, _ in picks)
+        if far:
             picks.append((i, j))
-            used.add(i)
         if len(picks) == starts:
             break
 
