@@ -21,6 +21,7 @@ File format (every number in the units the file declares)::
     stiffness = 1409800               # optional nominal stiffness, stiffness_unit
     controller_sign = 1               # q_ctrl = sign * q_model + offset
     controller_offset = 0             # angle_unit
+    controller_coupling = { q2 = 1 }  # optional: q_ctrl += 1 * q2_model (coupled axes)
 
     [tool]                            # tool point P in the flange frame
     xyz = [0, 0, 100]                 # length_unit
@@ -73,6 +74,15 @@ class JointSpec(_Strict):
     stiffness: float | None = Field(default=None, gt=0)
     controller_sign: Literal[1, -1] = 1
     controller_offset: float = 0.0
+    controller_coupling: dict[str, float] = {}
+
+    @field_validator("controller_coupling")
+    @classmethod
+    def _coupling_keys(cls, value: dict) -> dict:
+        for key in value:
+            if not (key.startswith("q") and key[1:].isdigit() and 1 <= int(key[1:]) <= 6):
+                raise ValueError(f"coupling key {key!r}: expected q1..q6")
+        return value
 
     @model_validator(mode="after")
     def _limits_ordered(self) -> JointSpec:
@@ -151,6 +161,21 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
     offset = np.array([j.controller_offset for j in spec.joints]) * ang
     lower = np.array([j.lower for j in spec.joints]) * ang
     upper = np.array([j.upper for j in spec.joints]) * ang
+    coupling = np.zeros((len(spec.joints), len(spec.joints)))
+    for i, j in enumerate(spec.joints):
+        for key, factor in j.controller_coupling.items():
+            k = int(key[1:]) - 1
+            if k == i:
+                raise InputError(f"joints[{i}].controller_coupling: a joint cannot be coupled "
+                                 "to itself (use controller_sign)", where=source_file)
+            coupling[i, k] = factor
+    if abs(np.linalg.det(np.diag(sign) + coupling)) < 1e-9:
+        raise InputError("controller_coupling makes the pendant convention singular: two "
+                         "pendant angles would describe the same pose", where=source_file)
+    if coupling.any() and spec.limits_convention == "controller":
+        raise InputError("with controller_coupling, give the joint limits in the model "
+                         'convention (limits_convention = "model"): coupled pendant limits '
+                         "are not a box in the model's angles", where=source_file)
     if spec.limits_convention == "controller":
         a, b = sign * (lower - offset), sign * (upper - offset)
         lower, upper = np.minimum(a, b) + 0.0, np.maximum(a, b) + 0.0  # no -0.0
@@ -186,12 +211,14 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         ),
         controller_sign=sign,
         controller_offset=offset,
+        controller_coupling=coupling,
         zones=zones,
         sources=dict(spec.sources),
         reference_poses=refs,
         source_file=source_file,
         key=key,
         convention=spec.convention,
+        notes=spec.notes,
     )
 
 

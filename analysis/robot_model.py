@@ -9,7 +9,10 @@ Joint-angle conventions
 -----------------------
 ``q_model`` is the joint variable of the kinematic model (for the KR240-2 the
 angles of Dumas et al. 2011, in which the paper's Table 4 zones are written).
-The controller shows ``q_ctrl = sign * q_model + offset``, per joint.
+The controller shows ``q_ctrl = sign * q_model + offset``, per joint, plus an
+optional linear coupling between joints (FANUC-style arms show J3 relative to
+the horizontal, i.e. a combination of the model's q2 and q3): in general
+``q_ctrl = M q_model + offset`` with ``M = diag(sign) + coupling``.
 """
 
 from __future__ import annotations
@@ -65,12 +68,14 @@ class RobotModel:
     characteristic_length: float | None = None
     controller_sign: np.ndarray | None = None
     controller_offset: np.ndarray | None = None
+    controller_coupling: np.ndarray | None = None  # (n, n), zero diagonal
     zones: list[Zone] = field(default_factory=list)
     sources: dict[str, str] = field(default_factory=dict)
     reference_poses: list[dict] = field(default_factory=list)
     source_file: str | None = None
     key: str = ""
     convention: str = ""
+    notes: str = ""
 
     def __post_init__(self) -> None:
         n = self.n
@@ -78,6 +83,13 @@ class RobotModel:
             self.controller_sign = np.ones(n)
         if self.controller_offset is None:
             self.controller_offset = np.zeros(n)
+        if self.controller_coupling is None:
+            self.controller_coupling = np.zeros((n, n))
+
+    @property
+    def controller_matrix(self) -> np.ndarray:
+        """M (n, n) of ``q_ctrl = M q_model + offset``."""
+        return np.diag(self.controller_sign) + self.controller_coupling
 
     @property
     def n(self) -> int:
@@ -86,11 +98,12 @@ class RobotModel:
 
     def to_controller(self, q: np.ndarray) -> np.ndarray:
         """Model joint angles (rad) -> controller (teach pendant) angles (rad)."""
-        return self.controller_sign * np.asarray(q, dtype=float) + self.controller_offset
+        return np.asarray(q, dtype=float) @ self.controller_matrix.T + self.controller_offset
 
     def from_controller(self, q_ctrl: np.ndarray) -> np.ndarray:
         """Controller (teach pendant) angles (rad) -> model joint angles (rad)."""
-        return self.controller_sign * (np.asarray(q_ctrl, dtype=float) - self.controller_offset)
+        shifted = np.asarray(q_ctrl, dtype=float) - self.controller_offset
+        return shifted @ np.linalg.inv(self.controller_matrix).T
 
     def check_q(self, q: np.ndarray, where: str = "q") -> np.ndarray:
         """Validate joint angles: shape (..., n) and finite; returns a float array."""

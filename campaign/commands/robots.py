@@ -32,13 +32,15 @@ def register(app: typer.Typer) -> None:
         r = load_robot(name, tip)
         table = Table(title=f"{r.name} ({r.source_file})")
         for col in ("joint", "lower (deg, model)", "upper (deg, model)",
-                    "pendant = sign*q + offset", "nominal k (N m/rad)"):
+                    "pendant = sign*q + offset (+ coupling)", "nominal k (N m/rad)"):
             table.add_column(col, justify="right")
         for j in range(r.n):
             k = "-" if r.nominal_stiffness is None else f"{r.nominal_stiffness[j]:,.0f}"
             table.add_row(
                 str(j + 1), f"{np.degrees(r.lower[j]):.1f}", f"{np.degrees(r.upper[j]):.1f}",
-                f"{int(r.controller_sign[j]):+d} q {np.degrees(r.controller_offset[j]):+.1f}",
+                f"{int(r.controller_sign[j]):+d} q {np.degrees(r.controller_offset[j]):+.1f}"
+                + "".join(f" {c:+g} q{k + 1}" for k, c in enumerate(r.controller_coupling[j])
+                          if c),
                 k,
             )
         console.print(table)
@@ -50,6 +52,8 @@ def register(app: typer.Typer) -> None:
                 for j, (a, b) in zone.ranges.items()
             )
             console.print(f"{zone.name}: {ranges}")
+        if r.notes:
+            console.print(f"[bold]note[/bold]: {r.notes}")
         for key, text in r.sources.items():
             console.print(f"[bold]source[/bold] {key}: {text}")
 

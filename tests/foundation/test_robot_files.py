@@ -114,3 +114,40 @@ def test_q_validation():
         r.check_q(np.zeros(5))
     with pytest.raises(InputError, match="finite"):
         r.check_q(np.array([0, 0, np.nan, 0, 0, 0]))
+
+
+FANUC = Path(__file__).resolve().parents[2] / "analysis/data/robots/fanuc-s420f.toml"
+
+
+def _coupled_fanuc(tmp_path, coupling="controller_coupling = { q2 = 1 }", limits="model"):
+    """FANUC file whose pendant J3 is q3 + q2 (relative to the horizontal)."""
+    text = FANUC.read_text()
+    third = [i for i in range(len(text)) if text.startswith("[[joints]]", i)][2]
+    text = text[:third] + "[[joints]]\n" + coupling + "\n" + text[third + len("[[joints]]\n"):]
+    text = text.replace('limits_convention = "model"', f'limits_convention = "{limits}"')
+    return _write(tmp_path, text)
+
+
+def test_controller_coupling_round_trip(tmp_path):
+    r = load_robot(str(_coupled_fanuc(tmp_path)))
+    q = np.radians([10, 20, 30, 40, 50, 60])
+    np.testing.assert_allclose(np.degrees(r.to_controller(q)), [10, 20, 50, 40, 50, 60])
+    rng = np.random.default_rng(0)
+    qs = rng.uniform(-1, 1, size=(7, 6))
+    np.testing.assert_allclose(r.from_controller(r.to_controller(qs)), qs, atol=1e-14)
+    # the kinematics do not change: only the pendant's numbers do
+    plain = load_robot("fanuc-s420f")
+    np.testing.assert_allclose(tool_pose(r, q), tool_pose(plain, q), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "coupling, limits, message",
+    [
+        ("controller_coupling = { q3 = 1 }", "model", "coupled to itself"),
+        ("controller_coupling = { q9 = 1 }", "model", "q1..q6"),
+        ("controller_coupling = { q2 = 1 }", "controller", "limits_convention"),
+    ],
+)
+def test_controller_coupling_errors(tmp_path, coupling, limits, message):
+    with pytest.raises(InputError, match=message):
+        load_robot(str(_coupled_fanuc(tmp_path, coupling, limits)))
