@@ -15,7 +15,7 @@ from campaign.protocol import DEG
 def kappa_map(
     robot: RobotModel, q_ref: np.ndarray, length: float, size: int = 181
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """1/kappa_F of J_N on a (theta_2, theta_3) grid over the joint limits (within +-180 deg).
+    """1/kappa_F of J_N on a (theta_2, theta_3) grid over the joint limits (at most one turn).
 
     Parameters
     ----------
@@ -25,9 +25,12 @@ def kappa_map(
     -------
     (t2, t3, inv_kappa) : grid axes (rad) and the map (size, size), indexed [i3, i2].
     """
-    half_turn = np.pi
-    t2 = np.linspace(max(robot.lower[1], -half_turn), min(robot.upper[1], half_turn), size)
-    t3 = np.linspace(max(robot.lower[2], -half_turn), min(robot.upper[2], half_turn), size)
+    # the joint limits, or one turn (-180..180 deg) for a joint turning more than that
+    lo, hi = robot.lower[1:3].copy(), robot.upper[1:3].copy()
+    wide = hi - lo > 2 * np.pi
+    lo[wide], hi[wide] = -np.pi, np.pi
+    t2 = np.linspace(lo[0], hi[0], size)
+    t3 = np.linspace(lo[1], hi[1], size)
     q = np.broadcast_to(np.asarray(q_ref, dtype=float), (size, size, robot.n)).copy()
     q[..., 1] = t2[None, :]
     q[..., 2] = t3[:, None]
@@ -70,7 +73,9 @@ def draw_plan_map(plan, path: Path) -> None:
     ax.set_title(f"{robot.name}: 1/kappa_F over (theta2, theta3), {others} deg", fontsize=9)
     ax.set_xlabel(r"$\theta_2$ (deg, model convention)")
     ax.set_ylabel(r"$\theta_3$ (deg, model convention)")
-    ax.legend(loc="lower right", fontsize=8)
+    # below the axes: inside, it would hide poses planned near a corner
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8,
+              frameon=False)
     fig.tight_layout()
     fig.savefig(path, metadata={"Software": None})
     plt.close(fig)
