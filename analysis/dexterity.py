@@ -71,11 +71,7 @@ def characteristic_length(
     reach = np.linalg.norm(robot.chain.placements[:, :3, 3], axis=1).sum() + np.linalg.norm(
         robot.chain.tip[:3, 3]
     )
-    # The search box is the joint limits; a joint turning more than a full turn
-    # is searched over one turn (-pi..pi), since J is periodic in each angle.
-    wide = robot.upper[1:] - robot.lower[1:] > 2 * np.pi
-    lo = np.where(wide, -np.pi, robot.lower[1:])
-    hi = np.where(wide, np.pi, robot.upper[1:])
+    lo, hi = (v[1:] for v in robot.map_limits())
     log_bounds = (np.log(reach / 100), np.log(reach * 10))
 
     # Coarse batched search.

@@ -46,13 +46,9 @@ class GridSpec:
         if fixed is None:
             fixed = np.zeros(robot.n)
             fixed[3:] = np.radians(45.0)
-        # J is periodic in each angle: a joint turning more than a full turn is mapped
-        # over one turn (-180..180 deg) rather than repeating the same poses
-        lo, hi = robot.lower[1:3].copy(), robot.upper[1:3].copy()
-        wide = hi - lo > 2 * np.pi
-        lo[wide], hi[wide] = -np.pi, np.pi
-        t2 = np.arange(lo[0], hi[0] + step / 2, step)
-        t3 = np.arange(lo[1], hi[1] + step / 2, step)
+        lo, hi = robot.map_limits()
+        t2 = np.arange(lo[1], hi[1] + step / 2, step)
+        t3 = np.arange(lo[2], hi[2] + step / 2, step)
         return cls(t2, t3, np.asarray(fixed, dtype=float))
 
     def poses(self) -> np.ndarray:

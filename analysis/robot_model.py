@@ -117,6 +117,14 @@ class RobotModel:
             raise InputError("joint angles must be finite numbers", where=where)
         return arr
 
+    def map_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint ranges (rad) to map or search: the limits, or one turn (-pi..pi) for a
+        joint turning more than a full turn (the kinematics are periodic in each angle)."""
+        lo, hi = self.lower.copy(), self.upper.copy()
+        wide = hi - lo > 2 * np.pi
+        lo[wide], hi[wide] = -np.pi, np.pi
+        return lo, hi
+
     def within_limits(self, q: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Boolean mask (...,): all joints inside [lower + margin, upper - margin] (rad)."""
         q = np.asarray(q, dtype=float)

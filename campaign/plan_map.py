@@ -25,12 +25,9 @@ def kappa_map(
     -------
     (t2, t3, inv_kappa) : grid axes (rad) and the map (size, size), indexed [i3, i2].
     """
-    # the joint limits, or one turn (-180..180 deg) for a joint turning more than that
-    lo, hi = robot.lower[1:3].copy(), robot.upper[1:3].copy()
-    wide = hi - lo > 2 * np.pi
-    lo[wide], hi[wide] = -np.pi, np.pi
-    t2 = np.linspace(lo[0], hi[0], size)
-    t3 = np.linspace(lo[1], hi[1], size)
+    lo, hi = robot.map_limits()
+    t2 = np.linspace(lo[1], hi[1], size)
+    t3 = np.linspace(lo[2], hi[2], size)
     q = np.broadcast_to(np.asarray(q_ref, dtype=float), (size, size, robot.n)).copy()
     q[..., 1] = t2[None, :]
     q[..., 2] = t3[:, None]

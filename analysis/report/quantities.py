@@ -65,9 +65,8 @@ def pose_stiffness(robot: RobotModel, label: str, q: np.ndarray, k: np.ndarray,
 
 
 def map_grid(robot: RobotModel, fixed: np.ndarray, points: int = MAP_POINTS) -> GridSpec:
-    """(theta_2, theta_3) grid over the joint limits within +-180 deg, ``points`` per axis."""
-    lo = np.maximum(robot.lower[1:3], -np.pi)
-    hi = np.minimum(robot.upper[1:3], np.pi)
+    """(theta_2, theta_3) grid over the joint limits (at most one turn), ``points`` per axis."""
+    lo, hi = (v[1:3] for v in robot.map_limits())
     return GridSpec(np.linspace(lo[0], hi[0], points), np.linspace(lo[1], hi[1], points),
                     np.asarray(fixed, dtype=float))
 
