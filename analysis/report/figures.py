@@ -23,6 +23,11 @@ WIDTH, HEIGHT = int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI)
 COMPONENT_MARKERS = {"dx": "o", "dy": "s", "dz": "^", "rx": "v", "ry": "D", "rz": "P"}
 
 
+def _legend_below(ax) -> None:
+    """Legend under the axes: inside, it would hide poses tested near a corner."""
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize=8, frameon=False)
+
+
 def _png(fig, name: str, caption: str) -> Figure:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
@@ -58,7 +63,7 @@ def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[st
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
     ax.set_title(f"Dexterity map, {fixed_text}", fontsize=9)
-    ax.legend(loc="lower right", fontsize=8)
+    _legend_below(ax)
     return _png(fig, "poses_kappa_map", "Tested poses on the 1/\u03ba_F map (map at "
                 f"{fixed_text}; the poses' own \u03b8\u2081, \u03b8\u2084..\u03b8\u2086 may "
                 "differ).")
@@ -149,7 +154,7 @@ def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: 
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
     ax.set_title(f"Predicted deflection under {wrench_text}", fontsize=8)
-    ax.legend(loc="lower right", fontsize=8)
+    _legend_below(ax)
     return _png(fig, "deflection_joint_map", "Norm of the predicted translational deflection "
                 f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}; colour "
                 "scale clipped at the 99th percentile.")
