@@ -6,7 +6,7 @@ noise model. Timed separately, in the same process:
 
 * simulation of the noisy measurements of all trials (J at the noisy joint
   angles, wrench, displacement);
-* batched identification (:func:`analysis.robustness.identify_batch`): A
+* batched identification (:func:`analysis.identification.robustness.identify_batch`): A
   from J and the measured wrench (eqs. 16-18), then least squares by QR, for
   OLS (the paper's estimator) and WLS (Cholesky whitening, one reweighting);
 * the per-trial loop baseline on a sample of trials: the same A built per
@@ -24,10 +24,15 @@ import time
 
 import numpy as np
 
-from analysis.linear_model import design_block
-from analysis.noise import NoiseModel
-from analysis.robots import load_robot
-from analysis.robustness import W_EFF, build_pool, identify_batch, simulate_measurements
+from analysis.identification.linear_model import design_block
+from analysis.identification.noise import NoiseModel
+from analysis.identification.robustness import (
+    W_EFF,
+    build_pool,
+    identify_batch,
+    simulate_measurements,
+)
+from analysis.model.robots import load_robot
 
 
 def per_trial_loop(Jc: np.ndarray, w: np.ndarray, d: np.ndarray, count: int) -> np.ndarray:

@@ -16,9 +16,9 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from analysis.dexterity import inverse_condition, normalized_jacobian
-from analysis.maps import WORST_CASE_WRENCH, GridSpec, pose_metrics
-from analysis.robots import load_robot
+from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, pose_metrics
+from analysis.model.robots import load_robot
 
 
 def per_pose_pinocchio(robot, q, k, w, length):

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.dexterity import inverse_condition, normalized_jacobian
-from analysis.kinematics import jacobian
-from analysis.linear_model import design_block
-from analysis.stiffness import kc_influence
+from analysis.identification.linear_model import design_block
+from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinetostatics.stiffness import kc_influence
+from analysis.model.kinematics import jacobian
 from campaign.design import information, scaled_blocks
 from campaign.planner import make_plan
 from campaign.protocol import load_protocol

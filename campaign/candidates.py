@@ -6,11 +6,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.dexterity import inverse_condition, normalized_jacobian
 from analysis.errors import InputError
-from analysis.kinematics import chain_state, jacobian_from_state
-from analysis.robot_model import RobotModel
-from analysis.stiffness import kc_influence
+from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinetostatics.stiffness import kc_influence
+from analysis.model.kinematics import chain_state, jacobian_from_state
+from analysis.model.robot_model import RobotModel
 from campaign.protocol import DEG, Protocol
 from campaign.protocol_robot import SamplingBox
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.linear_model import design_block
+from analysis.identification.linear_model import design_block
 
 
 def scaled_blocks(

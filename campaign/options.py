@@ -7,8 +7,8 @@ import math
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.robot_model import RobotModel
-from analysis.robots import load_robot
+from analysis.model.robot_model import RobotModel
+from analysis.model.robots import load_robot
 
 
 def parse_floats(text: str, where: str, count: int | None = None) -> np.ndarray:

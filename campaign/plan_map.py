@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.dexterity import inverse_condition, normalized_jacobian
-from analysis.kinematics import jacobian
-from analysis.robot_model import RobotModel
+from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.model.kinematics import jacobian
+from analysis.model.robot_model import RobotModel
 from campaign.protocol import DEG
 
 

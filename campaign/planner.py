@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.robot_model import RobotModel
+from analysis.model.robot_model import RobotModel
 from campaign.candidates import Candidates, check_enough, evaluate, sample
 from campaign.design import (
     criterion,

@@ -318,10 +318,10 @@ class Protocol(_Strict):
         A 6-DoF probe: the pose instrument's ``translation_um`` and
         ``rotation_urad``. Reflectors (``reflectors_mm``): ``translation_um`` is the
         noise of each point, and the rotation (and P's position) follow from the
-        geometry of the rigid fit (:func:`analysis.noise.rigid_fit_sigma`);
+        geometry of the rigid fit (:func:`analysis.identification.noise.rigid_fit_sigma`);
         ``rotation_urad`` is then not needed.
         """
-        from analysis.noise import rigid_fit_sigma
+        from analysis.identification.noise import rigid_fit_sigma
 
         noise = self.instruments["pose"].noise
         where = self.where("instruments", "pose", "noise")

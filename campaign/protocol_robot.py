@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.robot_model import RobotModel
-from analysis.robots import builtin_files, load_robot, with_tool
+from analysis.model.robot_model import RobotModel
+from analysis.model.robots import builtin_files, load_robot, with_tool
 from campaign.protocol import DEG, Protocol
 
 
@@ -160,7 +160,7 @@ def characteristic_length(protocol: Protocol, robot: RobotModel) -> float:
         return protocol.campaign.characteristic_length_mm * 1e-3
     if robot.characteristic_length is not None:
         return float(robot.characteristic_length)
-    from analysis.dexterity import characteristic_length as compute
+    from analysis.kinetostatics.dexterity import characteristic_length as compute
 
     length = compute(robot, starts=4, seed=0)[0]
     return float(round(length, 4)) if math.isfinite(length) else 1.0

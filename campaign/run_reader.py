@@ -12,7 +12,7 @@ Every problem that prevents the analysis raises
 Units: the tests table keeps the public CSV units (deg, N, N m, mm, mrad) and
 the run's own columns (``repeatability_mm``, ``drift_mm``, ``wrench_error_N``,
 ``tracker_sigma_mm``); :attr:`Run.ok` is the tidy SI table used by
-:func:`analysis.identification.analyze_table`.
+:func:`analysis.identification.estimate.analyze_table`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.measurements import CSV_COLUMNS, R_COLS, from_csv_frame
+from analysis.identification.measurements import CSV_COLUMNS, R_COLS, from_csv_frame
 
 FORMAT_VERSION = 1
 STATUSES = ("running", "complete", "aborted", "failed")
@@ -53,7 +53,7 @@ class Run:
     protocol_sha256 : SHA-256 of that copy (hex), None if absent.
     tests : every row of ``tests.csv`` (CSV units), with ``line`` (file line, header = 1)
         and ``flag_list`` (list of flags).
-    ok : tidy SI table of the rows with status ``ok`` (:mod:`analysis.measurements`).
+    ok : tidy SI table of the rows with status ``ok`` (:mod:`analysis.identification.measurements`).
     events : ``events.jsonl`` records.
     notes : things the report must mention (hash mismatch, dropped line, unknown flags...).
     """

@@ -10,9 +10,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.identification import OUTLIER_THRESHOLD
-from analysis.measurements import COMPONENTS, TestArrays
-from analysis.noise import NoiseModel
+from analysis.identification.estimate import OUTLIER_THRESHOLD
+from analysis.identification.measurements import COMPONENTS, TestArrays
+from analysis.identification.noise import NoiseModel
+from analysis.identification.result import IdentificationResult
+from analysis.model.robot_model import RobotModel
 from analysis.report import figures
 from analysis.report.design_robustness import design_robustness, design_tests
 from analysis.report.formatting import (
@@ -32,8 +34,6 @@ from analysis.report.quantities import (
     stiffness_for_prediction,
 )
 from analysis.report.summary import CampaignInfo, partial_text, quality_blocks, summary_table
-from analysis.result import IdentificationResult
-from analysis.robot_model import RobotModel
 
 SECTION_TITLES = (
     "Summary",

@@ -13,10 +13,14 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError, SingularPoseError
-from analysis.kinematics import jacobian
-from analysis.maps import GridSpec, joint_space_map
-from analysis.robot_model import RobotModel
-from analysis.stiffness import cartesian_stiffness, complementary_stiffness, deflection
+from analysis.kinetostatics.maps import GridSpec, joint_space_map
+from analysis.kinetostatics.stiffness import (
+    cartesian_stiffness,
+    complementary_stiffness,
+    deflection,
+)
+from analysis.model.kinematics import jacobian
+from analysis.model.robot_model import RobotModel
 
 RIGID = 1e12  # N m/rad: a joint taken as rigid
 MAP_POINTS = 61  # grid points along the longer of the theta_2, theta_3 ranges
@@ -75,7 +79,7 @@ def map_length(robot: RobotModel) -> tuple[float, str]:
     """Characteristic length L (m) for 1/kappa_F, and where it comes from."""
     if robot.characteristic_length:
         return float(robot.characteristic_length), "robot model"
-    from analysis.dexterity import characteristic_length
+    from analysis.kinetostatics.dexterity import characteristic_length
 
     return float(characteristic_length(robot, starts=2, samples=4000)[0]), \
         "computed (min kappa_F, Khan and Angeles)"
@@ -83,5 +87,8 @@ def map_length(robot: RobotModel) -> tuple[float, str]:
 
 def deflection_map(robot: RobotModel, k: np.ndarray, w: np.ndarray, fixed: np.ndarray,
                    length: float, points: int = MAP_POINTS) -> pd.DataFrame:
-    """Map table (:func:`analysis.maps.joint_space_map`): 1/kappa_F, deflection_mm, x/y/z_m."""
+    """Map table (:func:`analysis.kinetostatics.maps.joint_space_map`).
+
+    Columns: 1/kappa_F, deflection_mm, x/y/z_m.
+    """
     return joint_space_map(robot, map_grid(robot, fixed, points), k, w, length)

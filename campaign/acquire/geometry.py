@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.kinematics import jacobian, rotation_vector, tool_pose
-from analysis.robot_model import RobotModel
+from analysis.model.kinematics import jacobian, rotation_vector, tool_pose
+from analysis.model.robot_model import RobotModel
 from drivers.frames import rotvec_to_matrix, wrench_to_base
 
 #: directions tried for the approach offset, base frame: up first, then sideways, down
@@ -75,7 +75,7 @@ def displacement(unloaded: np.ndarray, loaded: np.ndarray, r_base_in_tracker: np
     """Displacement screw [dp (m); dr (rad)] of the tool, base-frame components.
 
     ``unloaded`` and ``loaded`` are tool poses in the tracker frame;
-    ``dr = rotvec(R_loaded R_unloaded^T)`` as in :func:`analysis.kinematics.pose_difference`,
+    ``dr = rotvec(R_loaded R_unloaded^T)`` as in :func:`analysis.model.kinematics.pose_difference`,
     both rotated from the tracker frame to the base frame.
     """
     R = np.asarray(r_base_in_tracker)

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.robot_model import RobotModel
+from analysis.model.robot_model import RobotModel
 from campaign.acquire.geometry import approach_pose
 from campaign.protocol import DEG, Protocol
 from drivers.errors import SafetyRefusal

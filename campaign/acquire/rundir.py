@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.measurements import CSV_COLUMNS
+from analysis.identification.measurements import CSV_COLUMNS
 
 FORMAT_VERSION = 1
 METADATA = "metadata.json"

@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from analysis.kinematics import rotation_vector, tool_pose
-from analysis.robot_model import RobotModel
+from analysis.model.kinematics import rotation_vector, tool_pose
+from analysis.model.robot_model import RobotModel
 from campaign.acquire.checks import Limits, evaluate
 from campaign.acquire.geometry import (
     base_in_tracker_rotation,

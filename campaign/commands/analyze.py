@@ -17,10 +17,10 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from analysis.errors import InputError
-from analysis.noise import NoiseModel
+from analysis.identification.noise import NoiseModel
 from campaign.options import parse_floats, robot_option
 
-# Kept in step with analysis.identification (not imported here: every CLI command
+# Kept in step with analysis.identification.estimate (not imported here: every CLI command
 # module is imported at start-up, and the identification pulls in scipy.stats).
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
@@ -110,7 +110,7 @@ def _run_info(run, robot_name: str, protocol):
 
 def _from_run(run_dir: Path):
     """(table, robot, noise, info, extras) of a run directory."""
-    from analysis.robots import load_robot
+    from analysis.model.robots import load_robot
     from campaign.protocol import load_protocol
     from campaign.protocol_robot import protocol_robot
     from campaign.run_reader import read_run
@@ -138,7 +138,7 @@ def _from_run(run_dir: Path):
 def _from_csv(path: Path, robot_spec: str | None, tip: str | None):
     import hashlib
 
-    from analysis.measurements import read_csv
+    from analysis.identification.measurements import read_csv
     from analysis.report.summary import CampaignInfo
 
     if not robot_spec:
@@ -236,14 +236,14 @@ def register(app: typer.Typer) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report.
 
         The measurement noise comes from the run's protocol (or the instrument
-        defaults of analysis/noise.py for a CSV file); the --sigma-* options
+        defaults of analysis/identification/noise.py for a CSV file); the --sigma-* options
         override it, per measured component of one test row.
         """
-        from analysis.identification import analyze_table, parse_joints
-        from analysis.measurements import to_arrays
+        from analysis.identification.estimate import analyze_table, parse_joints
+        from analysis.identification.measurements import to_arrays
+        from analysis.identification.result import write_results
         from analysis.report.build import ReportInputs, build_report
         from analysis.report.write import write_report
-        from analysis.result import write_results
 
         if (run_dir is None) == (measurements is None):
             raise InputError("give either RUN_DIR or --measurements FILE.csv --robot R",

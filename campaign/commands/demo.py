@@ -79,8 +79,8 @@ def _analyze_table(run_dir: Path) -> None:
     import numpy as np
     import pandas as pd
 
-    from analysis.identification import analyze_table
-    from analysis.measurements import from_csv_frame
+    from analysis.identification.estimate import analyze_table
+    from analysis.identification.measurements import from_csv_frame
     from campaign.protocol import load_protocol
     from campaign.protocol_robot import protocol_robot
 

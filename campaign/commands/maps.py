@@ -9,10 +9,10 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from analysis.dexterity import characteristic_length
 from analysis.errors import InputError
-from analysis.map_plots import LABELS, plot_cartesian_map, plot_joint_map
-from analysis.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
+from analysis.kinetostatics.dexterity import characteristic_length
+from analysis.kinetostatics.map_plots import LABELS, plot_cartesian_map, plot_joint_map
+from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
 from campaign.options import parse_floats, robot_option, stiffness_option, wrench_option
 
 

@@ -7,7 +7,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from analysis.robots import builtin_names, load_robot
+from analysis.model.robots import builtin_names, load_robot
 
 
 def register(app: typer.Typer) -> None:

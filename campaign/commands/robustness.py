@@ -42,7 +42,7 @@ def noise_from_options(
     tracker_distance_m, force_sigma_N, moment_sigma_Nm, encoder_resolution_deg,
 ):
     """NoiseModel with the command-line overrides (units as labelled)."""
-    from analysis.noise import NoiseModel
+    from analysis.identification.noise import NoiseModel
 
     def scaled(v, f):
         return None if v is None else v * f
@@ -112,7 +112,7 @@ def register(app: typer.Typer) -> None:
         come from the nonlinear equilibrium; normal noise on displacement,
         wrench and joint angles; identification as in the paper (eqs. 16-21).
         """
-        from analysis.robustness import W_EFF, plot_study, robustness_study
+        from analysis.identification.robustness import W_EFF, plot_study, robustness_study
 
         r = robot_option(robot, tip)
         k = stiffness_option(r, joint_stiffness)

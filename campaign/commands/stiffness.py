@@ -8,14 +8,14 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from analysis.equilibrium import displacement_screw
-from analysis.kinematics import chain_state, jacobian_from_state
-from analysis.maps import WORST_CASE_WRENCH
-from analysis.stiffness import (
+from analysis.kinetostatics.equilibrium import displacement_screw
+from analysis.kinetostatics.maps import WORST_CASE_WRENCH
+from analysis.kinetostatics.stiffness import (
     cartesian_stiffness,
     complementary_stiffness_from_state,
     deflection,
 )
+from analysis.model.kinematics import chain_state, jacobian_from_state
 from campaign.options import joint_angles_option, robot_option, stiffness_option, wrench_option
 
 

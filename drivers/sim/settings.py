@@ -22,7 +22,7 @@ class LabSettings:
     Attributes
     ----------
     robot : str
-        Robot spec for :func:`analysis.robots.load_robot`.
+        Robot spec for :func:`analysis.model.robots.load_robot`.
     true_joint_stiffness : tuple of float
         Joint stiffness (N m/rad) used to deflect the robot under load.
     seed : int

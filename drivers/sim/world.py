@@ -3,7 +3,7 @@
 State: the robot's commanded joint angles, the applied load, and the time of
 the last change. The tool's true pose follows the nonlinear elastostatic
 equilibrium ``K_theta dq = J(q + dq)^T w`` with the lab's true joint stiffness
-(:func:`analysis.equilibrium.solve_deflection`), reached by an exponential
+(:func:`analysis.kinetostatics.equilibrium.solve_deflection`), reached by an exponential
 settling with time constant ``settle_time / time_scale`` (wall-clock seconds).
 Joint encoders sit on the motor side, so the reported joint angles do not
 include the elastic deflection, as on a real robot.
@@ -18,9 +18,9 @@ import time
 
 import numpy as np
 
-from analysis.equilibrium import solve_deflection
-from analysis.kinematics import tool_pose
-from analysis.robots import load_robot, with_tool
+from analysis.kinetostatics.equilibrium import solve_deflection
+from analysis.model.kinematics import tool_pose
+from analysis.model.robots import load_robot, with_tool
 from drivers.frames import matrix_to_rotvec, rotvec_to_matrix
 from drivers.sim.faults import Faults
 from drivers.sim.settings import LabSettings

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification import analyze_table
+from analysis.identification.estimate import analyze_table
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
 from campaign.commands.analyze import _noise_from_protocol

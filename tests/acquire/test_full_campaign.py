@@ -9,8 +9,8 @@ import time
 import numpy as np
 import pandas as pd
 
-from analysis.identification import analyze_table
-from analysis.noise import NoiseModel
+from analysis.identification.estimate import analyze_table
+from analysis.identification.noise import NoiseModel
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.rundir import TEST_COLUMNS
 from campaign.acquire.session import AcquireOptions, acquire

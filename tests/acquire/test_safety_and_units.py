@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from analysis.kinematics import tool_pose
-from analysis.robots import load_robot
+from analysis.model.kinematics import tool_pose
+from analysis.model.robots import load_robot
 from campaign.acquire.checks import Limits, evaluate
 from campaign.acquire.geometry import approach_pose, displacement
 from campaign.acquire.settle import SettleRule, half_difference, rule_for, wait_settled

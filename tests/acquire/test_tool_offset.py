@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 
-from analysis.identification import analyze_table
-from analysis.kinematics import tool_pose
-from analysis.noise import NoiseModel
-from analysis.robots import load_robot
+from analysis.identification.estimate import analyze_table
+from analysis.identification.noise import NoiseModel
+from analysis.model.kinematics import tool_pose
+from analysis.model.robots import load_robot
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
 from campaign.planner import make_plan, write_plan

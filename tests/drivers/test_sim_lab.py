@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.equilibrium import displacement_screw
+from analysis.kinetostatics.equilibrium import displacement_screw
 from drivers.errors import DeviceFault
 from drivers.frames import matrix_to_rotvec, wrench_to_base
 from drivers.registry import open_driver

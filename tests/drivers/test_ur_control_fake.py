@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.robots import load_robot
+from analysis.model.robots import load_robot
 from drivers.sim.lab import Lab
 from drivers.sim.settings import LabSettings
 from drivers.ur import motion_time

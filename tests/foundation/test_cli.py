@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.kinematics import jacobian
-from analysis.robots import load_robot
-from analysis.stiffness import cartesian_stiffness, complementary_stiffness
+from analysis.kinetostatics.stiffness import cartesian_stiffness, complementary_stiffness
+from analysis.model.kinematics import jacobian
+from analysis.model.robots import load_robot
 from campaign.cli import main
 
 

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.dexterity import (
+from analysis.kinetostatics.dexterity import (
     characteristic_length,
     frobenius_condition,
     inverse_condition,
     normalized_jacobian,
 )
-from analysis.kinematics import jacobian
-from analysis.robots import load_robot
+from analysis.model.kinematics import jacobian
+from analysis.model.robots import load_robot
 
 
 def test_frobenius_condition_known_values():

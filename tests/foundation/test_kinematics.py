@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.kinematics import (
+from analysis.model.kinematics import (
     jacobian,
     pin_jacobian,
     pin_tool_pose,
     pose_difference,
     tool_pose,
 )
-from analysis.robots import builtin_names, load_robot
+from analysis.model.robots import builtin_names, load_robot
 
 ROBOTS = builtin_names()
 
@@ -134,8 +134,8 @@ def test_urdf_matches_dh_model_of_same_robot():
     """The UR5 URDF and UR's DH table describe the same arm (UR5, not e-series:
     d1 = 0.089159, a2 = -0.425, a3 = -0.39225, d4 = 0.10915, d5 = 0.09465, d6 = 0.0823).
     The tool0 frame of the URDF sits at the DH flange; compare positions at random poses."""
-    from analysis.dh import DHRow, build_dh_model
-    from analysis.robot_model import RobotModel, chain_from_pinocchio
+    from analysis.model.dh import DHRow, build_dh_model
+    from analysis.model.robot_model import RobotModel, chain_from_pinocchio
 
     urdf = load_robot(str(_erd_urdf("ur5_robot.urdf")), tip="tool0")
     rows = [DHRow(alpha=np.pi / 2, d=0.089159), DHRow(a=-0.425), DHRow(a=-0.39225),

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from analysis.errors import InputError
-from analysis.kinematics import tool_pose
-from analysis.robots import load_robot
+from analysis.model.kinematics import tool_pose
+from analysis.model.robots import load_robot
 
 KR = Path(__file__).resolve().parents[2] / "analysis/data/robots/kr240-2.toml"
 

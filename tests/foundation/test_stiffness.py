@@ -5,18 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.equilibrium import displacement_screw, solve_deflection
 from analysis.errors import SingularPoseError
-from analysis.kinematics import jacobian
-from analysis.maps import WORST_CASE_WRENCH, GridSpec, pose_metrics
-from analysis.robots import builtin_names, load_robot
-from analysis.stiffness import (
+from analysis.kinetostatics.equilibrium import displacement_screw, solve_deflection
+from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, pose_metrics
+from analysis.kinetostatics.stiffness import (
     cartesian_compliance,
     cartesian_stiffness,
     complementary_stiffness,
     deflection,
     kc_influence,
 )
+from analysis.model.kinematics import jacobian
+from analysis.model.robots import builtin_names, load_robot
 
 K_GENERIC = np.array([2.0e6, 1.5e6, 1.0e6, 4.0e5, 3.0e5, 2.0e5])
 

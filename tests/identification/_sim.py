@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.equilibrium import displacement_screw
-from analysis.measurements import TestArrays
-from analysis.noise import NoiseModel
+from analysis.identification.measurements import TestArrays
+from analysis.identification.noise import NoiseModel
+from analysis.kinetostatics.equilibrium import displacement_screw
 
 
 def simulate(robot, q, w, k, noise: NoiseModel | None = None, seed: int = 0,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.robots import load_robot
-from analysis.robustness import W_EFF, sample_poses
+from analysis.identification.robustness import W_EFF, sample_poses
+from analysis.model.robots import load_robot
 
 
 @pytest.fixture(scope="session")

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pandas as pd
 
-from analysis.measurements import CSV_COLUMNS, table_from_arrays, to_csv_frame
-from analysis.noise import NoiseModel
+from analysis.identification.measurements import CSV_COLUMNS, table_from_arrays, to_csv_frame
+from analysis.identification.noise import NoiseModel
 from campaign.cli import main
 
 from ._sim import simulate

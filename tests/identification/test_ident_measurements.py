@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from analysis.errors import InputError
-from analysis.measurements import (
+from analysis.identification.measurements import (
     CSV_COLUMNS,
     read_csv,
     table_from_arrays,

@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.equilibrium import displacement_screw, solve_deflection
-from analysis.exact_fit import model_displacement, solve_deflection_compliance
-from analysis.identification import identify
+from analysis.identification.estimate import identify
+from analysis.identification.exact_fit import model_displacement, solve_deflection_compliance
+from analysis.kinetostatics.equilibrium import displacement_screw, solve_deflection
 
 from ._sim import simulate
 
@@ -77,7 +77,7 @@ def test_joint_subset_others_rigid(kr240, zone_poses, w_eff):
 
 
 def test_compliance_form_matches_the_stiffness_form_equilibrium(kr240, zone_poses, w_eff):
-    """Independent check of the exact model against analysis.equilibrium."""
+    """Independent check of the exact model against analysis.kinetostatics.equilibrium."""
     k = kr240.nominal_stiffness
     q = zone_poses[:4]
     np.testing.assert_allclose(solve_deflection_compliance(kr240, q, 1 / k, w_eff),

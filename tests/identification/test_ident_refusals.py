@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from analysis.errors import InputError
-from analysis.identification import identify, parse_joints
+from analysis.identification.estimate import identify, parse_joints
 
 from ._sim import simulate
 

@@ -6,22 +6,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.batch_lsq import cholesky, forward_substitute, mgs_lstsq
-from analysis.dexterity import inverse_condition, normalized_jacobian
 from analysis.errors import InputError
-from analysis.identification import fit_linear
-from analysis.kinematics import jacobian
-from analysis.linear_model import design_block
-from analysis.lsq import block_diag_apply
-from analysis.measurements import TestArrays
-from analysis.noise import NoiseModel
-from analysis.robustness import (
+from analysis.identification.batch_lsq import cholesky, forward_substitute, mgs_lstsq
+from analysis.identification.estimate import fit_linear
+from analysis.identification.linear_model import design_block
+from analysis.identification.lsq import block_diag_apply
+from analysis.identification.measurements import TestArrays
+from analysis.identification.noise import NoiseModel
+from analysis.identification.robustness import (
     build_pool,
     identify_batch,
     robustness_study,
     sample_poses,
     simulate_measurements,
 )
+from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.model.kinematics import jacobian
 
 
 @pytest.fixture(scope="module")

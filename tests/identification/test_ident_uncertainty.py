@@ -1,7 +1,7 @@
 """Uncertainty: spread vs covariance, interval coverage, intervals of k, outliers.
 
 The Monte-Carlo checks run the exact fit batched over 1000 seeded campaigns
-(:func:`analysis.gauss_newton.gauss_newton`), with data from the nonlinear
+(:func:`analysis.identification.gauss_newton.gauss_newton`), with data from the nonlinear
 equilibrium and the noise model's normal noise on displacement, wrench and
 joint angles; identify() is checked to give the same covariance on one of
 them.
@@ -12,15 +12,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.gauss_newton import gauss_newton
-from analysis.identification import identify
-from analysis.kinematics import jacobian
-from analysis.linear_model import design_block
-from analysis.lsq import qr_solve
-from analysis.measurements import TestArrays
-from analysis.noise import NoiseModel
-from analysis.robustness import build_pool
-from analysis.uncertainty import critical_value, stiffness_interval
+from analysis.identification.estimate import identify
+from analysis.identification.gauss_newton import gauss_newton
+from analysis.identification.linear_model import design_block
+from analysis.identification.lsq import qr_solve
+from analysis.identification.measurements import TestArrays
+from analysis.identification.noise import NoiseModel
+from analysis.identification.robustness import build_pool
+from analysis.identification.uncertainty import critical_value, stiffness_interval
+from analysis.model.kinematics import jacobian
 
 from ._sim import simulate
 
@@ -29,7 +29,7 @@ TRIALS = 1000
 
 def _campaigns(robot, q, w_true, k, noise, rng):
     """Noisy (q, w, d) (T, m, 6) of campaigns at poses q (T, m, 6)."""
-    from analysis.equilibrium import displacement_screw
+    from analysis.kinetostatics.equilibrium import displacement_screw
 
     d = displacement_screw(robot, q, k, np.broadcast_to(w_true, q.shape))
     d = d + rng.normal(size=d.shape) * noise.displacement_sigma

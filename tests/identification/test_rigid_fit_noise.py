@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.noise import rigid_fit_sigma
+from analysis.identification.noise import rigid_fit_sigma
 from drivers.frames import fit_rigid, matrix_to_rotvec
 
 REFLECTORS = np.array([[0, 0, 0], [0.12, 0, -0.05], [0, 0.12, -0.05], [-0.08, -0.08, -0.02]])

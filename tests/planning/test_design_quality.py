@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.equilibrium import displacement_screw
-from analysis.linear_model import design_matrix
+from analysis.identification.linear_model import design_matrix
+from analysis.kinetostatics.equilibrium import displacement_screw
 from campaign.candidates import Candidates
 from campaign.design import information, predicted_se, random_design, scaled_blocks
 

@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.dexterity import inverse_condition, normalized_jacobian
-from analysis.kinematics import jacobian
-from analysis.linear_model import design_matrix
-from analysis.stiffness import kc_influence
+from analysis.identification.linear_model import design_matrix
+from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinetostatics.stiffness import kc_influence
+from analysis.model.kinematics import jacobian
 from campaign.plan_output import COLUMNS
 from campaign.planner import make_plan, read_plan, write_plan
 from campaign.protocol_robot import protocol_robot
@@ -77,7 +77,7 @@ def test_all_load_cases_per_pose(tmp_path, kr_protocol):
 
 
 def test_predicted_se_independent(kr_plan):
-    """se_k = k^2 sqrt(diag((A_w^T A_w)^-1)) from analysis.linear_model.design_matrix."""
+    """se_k = k^2 sqrt(diag((A_w^T A_w)^-1)), A_w from linear_model.design_matrix."""
     df = kr_plan.to_frame()
     q = df[[f"q{j}_model_deg" for j in range(1, 7)]].to_numpy() * DEG
     w = df[["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m"]].to_numpy()

@@ -1,7 +1,7 @@
 """Run directories for the report tests, in the layout of ``docs/run_format.md``.
 
 The displacements are simulated with the nonlinear equilibrium
-(:func:`analysis.equilibrium.displacement_screw`) of the KR240-2 at the
+(:func:`analysis.kinetostatics.equilibrium.displacement_screw`) of the KR240-2 at the
 paper's Table 2 stiffness, plus normal noise of the protocol's instrument
 sigmas (30 um, 20 urad per reading) as ``campaign acquire`` produces it
 (displacement = loaded - mean of the two unloaded readings: sqrt(1.5) times
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.equilibrium import displacement_screw
-from analysis.robots import load_robot
+from analysis.kinetostatics.equilibrium import displacement_screw
+from analysis.model.robots import load_robot
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOL = ROOT / "protocols" / "kr240-2.toml"

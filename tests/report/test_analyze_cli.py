@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from report_runs import write_csv, write_run
 
-import analysis.identification as identification
-from analysis.identification import analyze_table
-from analysis.measurements import read_csv
-from analysis.robots import load_robot
+import analysis.identification.estimate as identification
+from analysis.identification.estimate import analyze_table
+from analysis.identification.measurements import read_csv
+from analysis.model.robots import load_robot
 from campaign.cli import main
 from campaign.commands import analyze as analyze_command
 

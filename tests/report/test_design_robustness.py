@@ -7,11 +7,11 @@ import pytest
 from report_runs import REPEATS, SIGMA, TRUE_K
 
 from analysis.errors import InputError
-from analysis.identification import analyze_table
-from analysis.measurements import read_csv, to_arrays
-from analysis.noise import NoiseModel
+from analysis.identification.estimate import analyze_table
+from analysis.identification.measurements import read_csv, to_arrays
+from analysis.identification.noise import NoiseModel
+from analysis.model.robots import load_robot
 from analysis.report.design_robustness import design_robustness, design_tests, draw_tests
-from analysis.robots import load_robot
 
 
 def test_draws_repeat_the_design_then_add_distinct_tests():

@@ -13,14 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.dexterity import inverse_condition, normalized_jacobian
-from analysis.kinematics import chain_state, jacobian_from_state
-from analysis.robot_model import RobotModel
-from analysis.stiffness import (
+from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinetostatics.stiffness import (
     complementary_stiffness_from_jacobian,
     deflection,
     influence_indices,
 )
+from analysis.model.kinematics import chain_state, jacobian_from_state
+from analysis.model.robot_model import RobotModel
 
 #: Worst-case wrench of the paper's section 3 (N, N m): 2200 N along and 400 N m about each axis.
 WORST_CASE_WRENCH = np.array([2200.0, 2200.0, 2200.0, 400.0, 400.0, 400.0])

@@ -2,8 +2,8 @@
 
 Minimises sum_tests r^T Sigma^-1 r, r = d_measured - f(x), over the joint
 compliances x, where f is the finite displacement of
-:func:`analysis.exact_fit.model_displacement`. The weights Sigma (per test,
-:func:`analysis.noise.residual_covariance`) are re-evaluated at the first
+:func:`analysis.identification.exact_fit.model_displacement`. The weights Sigma (per test,
+:func:`analysis.identification.noise.residual_covariance`) are re-evaluated at the first
 iterates. Each step solves the whitened linearised problem by QR; a step
 that raises the cost is halved (per campaign) until it does not.
 """
@@ -14,11 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.exact_fit import model_displacement_masked
-from analysis.kinematics import jacobian
-from analysis.lsq import qr_solve, stack_matrix, stack_vector, whitening
-from analysis.noise import NoiseModel, residual_covariance
-from analysis.robot_model import RobotModel
+from analysis.identification.exact_fit import model_displacement_masked
+from analysis.identification.lsq import qr_solve, stack_matrix, stack_vector, whitening
+from analysis.identification.noise import NoiseModel, residual_covariance
+from analysis.model.kinematics import jacobian
+from analysis.model.robot_model import RobotModel
 
 
 @dataclass(frozen=True)

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.kinematics import chain_state, jacobian_from_state, pose_difference
-from analysis.robot_model import RobotModel
-from analysis.stiffness import complementary_stiffness_from_state
+from analysis.kinetostatics.stiffness import complementary_stiffness_from_state
+from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
+from analysis.model.robot_model import RobotModel
 
 
 class EquilibriumError(RuntimeError):

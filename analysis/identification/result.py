@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.measurements import TestArrays
-from analysis.noise import NoiseModel
+from analysis.identification.measurements import TestArrays
+from analysis.identification.noise import NoiseModel
 
 CI_METHOD = (
     "interval of the compliance x = 1/k, x +- c se(x), mapped through 1/x "

@@ -1,7 +1,7 @@
 """Built-in robot models and the one function that resolves ``--robot``.
 
 Built-in models are robot files shipped in ``analysis/data/robots`` (the same
-format users write, see :mod:`analysis.robot_files`), each number with its source.
+format users write, see :mod:`analysis.model.robot_files`), each number with its source.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import numpy as np
 import pinocchio as pin
 
 from analysis.errors import InputError
-from analysis.robot_files import load_robot_file, load_urdf
-from analysis.robot_model import Chain, RobotModel
+from analysis.model.robot_files import load_robot_file, load_urdf
+from analysis.model.robot_model import Chain, RobotModel
 
 
 def _data_dir() -> Path:

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize
 
-from analysis.kinematics import jacobian
-from analysis.robot_model import RobotModel
+from analysis.model.kinematics import jacobian
+from analysis.model.robot_model import RobotModel
 
 
 def normalized_jacobian(J: np.ndarray, length: float) -> np.ndarray:

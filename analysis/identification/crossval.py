@@ -15,12 +15,12 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.exact_fit import model_displacement
-from analysis.kinematics import jacobian
-from analysis.linear_model import design_block
-from analysis.measurements import TestArrays
-from analysis.noise import NoiseModel, residual_covariance
-from analysis.robot_model import RobotModel
+from analysis.identification.exact_fit import model_displacement
+from analysis.identification.linear_model import design_block
+from analysis.identification.measurements import TestArrays
+from analysis.identification.noise import NoiseModel, residual_covariance
+from analysis.model.kinematics import jacobian
+from analysis.model.robot_model import RobotModel
 
 
 def _rms(values: np.ndarray) -> float:
@@ -35,7 +35,7 @@ def leave_one_pose_out(
     noise: NoiseModel,
 ) -> pd.DataFrame | None:
     """Table of held-out prediction errors, or None with fewer than 3 distinct poses."""
-    from analysis.identification import check_identifiable, check_tests, fit
+    from analysis.identification.estimate import check_identifiable, check_tests, fit
 
     labels = list(dict.fromkeys(tests.pose.tolist()))
     if len(labels) < 3:

@@ -3,7 +3,7 @@
 Two implementations of the same quantities:
 
 * batched numpy functions over the chain extracted from the Pinocchio model
-  (:class:`analysis.robot_model.Chain`): a whole grid of poses at once;
+  (:class:`analysis.model.robot_model.Chain`): a whole grid of poses at once;
 * per-pose Pinocchio calls (``pin_*``), the reference the batched code is
   tested against.
 
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from analysis.robot_model import RobotModel
+from analysis.model.robot_model import RobotModel
 
 
 def _rotations(axes: np.ndarray, q: np.ndarray) -> np.ndarray:

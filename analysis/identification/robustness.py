@@ -14,17 +14,17 @@ How a trial is simulated
   poses with 1/kappa_F(J_N) below ``min_inverse_condition`` are redrawn
   (this also keeps the random wrist away from its singularity).
 * The true displacement of every pool pose under the true wrench comes from
-  the nonlinear equilibrium (:func:`analysis.equilibrium.displacement_screw`),
+  the nonlinear equilibrium (:func:`analysis.kinetostatics.equilibrium.displacement_screw`),
   not from the linear model being fitted.
 * A trial picks ``n`` pool poses at random (with replacement) and adds
   noise: d + N(0, sigma_d), w + N(0, sigma_w), q + N(0, sigma_q). The
   measured Jacobian J(q + dq_noise) is evaluated to first order from the
   pool's dJ/dq (error O(sigma_q^2), below 1e-10 relative).
-* Identification is batched over trials (:mod:`analysis.batch_lsq`, batch
+* Identification is batched over trials (:mod:`analysis.identification.batch_lsq`, batch
   on the last axis): per-test whitening by Cholesky factors and QR by
   modified Gram-Schmidt, ``ols`` (the paper's estimator, default) or
   ``wls``; or ``exact``: batched Gauss-Newton on the equilibrium
-  (:mod:`analysis.gauss_newton`) from the OLS start, about 100 times slower,
+  (:mod:`analysis.identification.gauss_newton`) from the OLS start, about 100 times slower,
   which removes the linearisation bias the linear fits show at large loads.
 """
 
@@ -36,14 +36,18 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.batch_lsq import CHUNK, cholesky, forward_substitute, mgs_lstsq
-from analysis.dexterity import characteristic_length, inverse_condition, normalized_jacobian
-from analysis.equilibrium import displacement_screw
 from analysis.errors import InputError
-from analysis.gauss_newton import gauss_newton
-from analysis.kinematics import jacobian
-from analysis.noise import NoiseModel
-from analysis.robot_model import RobotModel
+from analysis.identification.batch_lsq import CHUNK, cholesky, forward_substitute, mgs_lstsq
+from analysis.identification.gauss_newton import gauss_newton
+from analysis.identification.noise import NoiseModel
+from analysis.kinetostatics.dexterity import (
+    characteristic_length,
+    inverse_condition,
+    normalized_jacobian,
+)
+from analysis.kinetostatics.equilibrium import displacement_screw
+from analysis.model.kinematics import jacobian
+from analysis.model.robot_model import RobotModel
 
 #: The paper's eq. 22 wrench [fx fy fz (N); mx my mz (N m)].
 W_EFF = np.array([0.0, 2200.0, 2200.0, 200.0, 200.0, 0.0])

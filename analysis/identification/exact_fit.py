@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.equilibrium import EquilibriumError
-from analysis.kinematics import chain_state, jacobian_from_state, pose_difference
-from analysis.robot_model import RobotModel
-from analysis.stiffness import complementary_stiffness_from_state
+from analysis.kinetostatics.equilibrium import EquilibriumError
+from analysis.kinetostatics.stiffness import complementary_stiffness_from_state
+from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
+from analysis.model.robot_model import RobotModel
 
 
 def _skew(v: np.ndarray) -> np.ndarray:

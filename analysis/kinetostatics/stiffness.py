@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import SingularPoseError
-from analysis.kinematics import ChainState, chain_state, cross, jacobian, jacobian_from_state
-from analysis.robot_model import RobotModel
+from analysis.model.kinematics import ChainState, chain_state, cross, jacobian, jacobian_from_state
+from analysis.model.robot_model import RobotModel
 
 
 def complementary_stiffness_from_state(state: ChainState, w: np.ndarray) -> np.ndarray:

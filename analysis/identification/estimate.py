@@ -9,14 +9,14 @@ Estimators (``method``):
     A^+ Sigma A^+T with Sigma from the noise model.
 ``wls``
     Linear model, weighted by the inverse measurement covariance of each test
-    (:func:`analysis.noise.residual_covariance`: translation sigma (m) and
+    (:func:`analysis.identification.noise.residual_covariance`: translation sigma (m) and
     rotation sigma (rad) on the diagonal, plus the wrench noise propagated
     through the Cartesian compliance at the current estimate; two
     reweighting passes from the OLS estimate). Whitening uses each test's
     Cholesky factor; best linear unbiased estimator under the noise model.
 ``exact`` (default)
     Weighted Gauss-Newton on the nonlinear equilibrium model
-    (:mod:`analysis.exact_fit`), started from OLS, with step halving. The
+    (:mod:`analysis.identification.exact_fit`), started from OLS, with step halving. The
     measured displacement is finite, so the linear model is biased by the
     linearisation error (about 1-2 % of the deflection of the KR240-2 under
     the paper's w_eff, the size of the tracker noise); the exact fit removes
@@ -29,7 +29,7 @@ freedom for a reliable variance estimate, and the instruments are
 calibrated; the reduced chi-square and its p-value are reported as the check
 of that assumption. ``"residual"`` scales the covariance by the reduced
 chi-square and uses Student t intervals. Intervals: see
-:mod:`analysis.uncertainty`.
+:mod:`analysis.identification.uncertainty`.
 
 Joints not in ``joints`` are taken as rigid (x = 0). Without any rotation
 measurement the default is joints 1-3 with the wrist rigid (Knapczyk-Ryska,
@@ -44,10 +44,9 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.gauss_newton import covariances_per_test, gauss_newton
-from analysis.kinematics import jacobian
-from analysis.linear_model import design_block
-from analysis.lsq import (
+from analysis.identification.gauss_newton import covariances_per_test, gauss_newton
+from analysis.identification.linear_model import design_block
+from analysis.identification.lsq import (
     block_diag_apply,
     qr_solve,
     scaled_condition,
@@ -56,17 +55,18 @@ from analysis.lsq import (
     weakest_column,
     whitening,
 )
-from analysis.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays, to_arrays
-from analysis.noise import NoiseModel
-from analysis.result import Fit, IdentificationResult
-from analysis.robot_model import RobotModel
-from analysis.uncertainty import (
+from analysis.identification.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays, to_arrays
+from analysis.identification.noise import NoiseModel
+from analysis.identification.result import Fit, IdentificationResult
+from analysis.identification.uncertainty import (
     chi2_summary,
     critical_value,
     residual_variance,
     stiffness_interval,
     studentized,
 )
+from analysis.model.kinematics import jacobian
+from analysis.model.robot_model import RobotModel
 
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
@@ -268,7 +268,7 @@ def identify(
     Parameters
     ----------
     robot : the robot model (6 joints).
-    tests : :class:`analysis.measurements.TestArrays` (SI).
+    tests : :class:`analysis.identification.measurements.TestArrays` (SI).
     method : "ols", "wls" or "exact".
     joints : 0-based joints to identify (others rigid); default all six, or
         (0, 1, 2) when no rotation is measured.
@@ -354,7 +354,7 @@ def identify(
         noise=noise, warnings=warnings,
     )
     if validate:
-        from analysis.crossval import leave_one_pose_out
+        from analysis.identification.crossval import leave_one_pose_out
 
         result.validation = leave_one_pose_out(robot, tests, method, joints, noise)
     return result
@@ -368,6 +368,9 @@ def analyze_table(
     noise: NoiseModel | None = None,
     **options,
 ) -> IdentificationResult:
-    """Identify from the tidy SI table (:mod:`analysis.measurements`); see :func:`identify`."""
+    """Identify from the tidy SI table (:mod:`analysis.identification.measurements`).
+
+    See :func:`identify`.
+    """
     return identify(robot, to_arrays(table), method=method, joints=joints, noise=noise,
                     **options)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.kinematics import jacobian
-from analysis.robot_model import RobotModel
+from analysis.model.kinematics import jacobian
+from analysis.model.robot_model import RobotModel
 
 
 def design_block(J: np.ndarray, w: np.ndarray) -> np.ndarray:

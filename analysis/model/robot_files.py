@@ -49,10 +49,10 @@ import numpy as np
 import pinocchio as pin
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from analysis.dh import DHRow, build_dh_model
 from analysis.errors import InputError
 from analysis.file_errors import input_error_from_validation, read_mapping_file
-from analysis.robot_model import RobotModel, Zone, chain_from_pinocchio
+from analysis.model.dh import DHRow, build_dh_model
+from analysis.model.robot_model import RobotModel, Zone, chain_from_pinocchio
 
 _LENGTH = {"m": 1.0, "mm": 1e-3}
 _ANGLE = {"rad": 1.0, "deg": np.pi / 180.0}
