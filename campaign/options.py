@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.model.robot_model import RobotModel
-from analysis.model.robots import load_robot
+
+if TYPE_CHECKING:  # the robot model pulls in pinocchio: imported when a robot is loaded
+    from analysis.model.robot_model import RobotModel
 
 
 def parse_floats(text: str, where: str, count: int | None = None) -> np.ndarray:
@@ -31,6 +33,8 @@ def parse_floats(text: str, where: str, count: int | None = None) -> np.ndarray:
 
 def robot_option(robot: str, tip: str | None) -> RobotModel:
     """Resolve ``--robot``/``--tip`` (built-in name, robot file or URDF)."""
+    from analysis.model.robots import load_robot
+
     return load_robot(robot, tip)
 
 

@@ -9,9 +9,9 @@ the Cartesian position of P for the same poses (the workspace view), and
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.stiffness import (
@@ -21,6 +21,9 @@ from analysis.kinetostatics.stiffness import (
 )
 from analysis.model.kinematics import chain_state, jacobian_from_state
 from analysis.model.robot_model import RobotModel
+
+if TYPE_CHECKING:  # pandas is imported where a table is built (CLI start-up time)
+    import pandas as pd
 
 #: Worst-case wrench of the paper's section 3 (N, N m): 2200 N along and 400 N m about each axis.
 WORST_CASE_WRENCH = np.array([2200.0, 2200.0, 2200.0, 400.0, 400.0, 400.0])
@@ -117,6 +120,8 @@ def joint_space_map(
     (position of P), ``inv_kappa_F``, ``v_p``, ``v_r_deg``, ``deflection_mm``
     (norm of the translational deflection under w, with K_C), ``singular``.
     """
+    import pandas as pd
+
     q = grid.poses()
     m = pose_metrics(robot, q, k, w, length)
     pos = m["position"].reshape(-1, 3)

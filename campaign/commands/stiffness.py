@@ -8,14 +8,6 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from analysis.kinetostatics.equilibrium import displacement_screw
-from analysis.kinetostatics.maps import WORST_CASE_WRENCH
-from analysis.kinetostatics.stiffness import (
-    cartesian_stiffness,
-    complementary_stiffness_from_state,
-    deflection,
-)
-from analysis.model.kinematics import chain_state, jacobian_from_state
 from campaign.options import joint_angles_option, robot_option, stiffness_option, wrench_option
 
 
@@ -44,6 +36,16 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
     ) -> None:
         """Kinematic Jacobian, K_C (eq. 8), K_X with and without K_C (eqs. 6, 12), deflection."""
+        # analysis.* pulls in pinocchio: imported when the command runs, not at start-up
+        from analysis.kinetostatics.equilibrium import displacement_screw
+        from analysis.kinetostatics.maps import WORST_CASE_WRENCH
+        from analysis.kinetostatics.stiffness import (
+            cartesian_stiffness,
+            complementary_stiffness_from_state,
+            deflection,
+        )
+        from analysis.model.kinematics import chain_state, jacobian_from_state
+
         r = robot_option(robot, tip)
         qr = r.check_q(joint_angles_option(r, q, controller), where="--q")
         k = stiffness_option(r, joint_stiffness)
