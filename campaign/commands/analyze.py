@@ -264,6 +264,9 @@ def register(app: typer.Typer) -> None:
         result = analyze_table(table, model, method=method, joints=parse_joints(joints),
                                noise=noise, covariance=covariance)
         paths = write_results(result, out)
+        from analysis.identification.model_export import export_model  # model.toml, K_X
+
+        paths.update(export_model(result, model, out, table, info))
         if report:
             if trials < 10:
                 raise InputError("need at least 10 trials", where="--trials")
