@@ -35,6 +35,9 @@ def register(app: typer.Typer) -> None:
             None, help="Characteristic length L (m); default the model's, else computed."
         ),
         fmt: str = typer.Option("parquet", "--format", help="parquet or csv."),
+        upper_bound: bool = typer.Option(
+            False, "--deflection-upper-bound", help="Also map the 95 % upper bound of the "
+            "deflection |dp| from the identified model's covariance (model.toml)."),
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
         console = Console()
@@ -57,6 +60,17 @@ def register(app: typer.Typer) -> None:
         console.print(f"characteristic length L = {length:.4f} m ({how})")
         grid = GridSpec.from_limits(r, np.radians(step), fixed_q)
         table = joint_space_map(r, grid, k, w, length)
+        bound_cols = []
+        if upper_bound:
+            if r.compliance_covariance is None or joint_stiffness:
+                raise InputError("--deflection-upper-bound needs an identified model "
+                                 "(model.toml from campaign analyze) and no --joint-stiffness",
+                                 where="--deflection-upper-bound")
+            from analysis.kinetostatics.uncertainty import linear_deflection_upper_bound
+
+            table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
+                r, grid.poses(), k, w, r.compliance_covariance).ravel()
+            bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
         out.mkdir(parents=True, exist_ok=True)
         data = out / f"map_joint_space.{fmt}"
         if fmt == "parquet":
@@ -71,8 +85,9 @@ def register(app: typer.Typer) -> None:
         fixed_deg = np.degrees(grid.fixed)
         others = ", ".join(f"theta{j + 1} = {fixed_deg[j]:g}" for j in range(r.n)
                            if j not in (1, 2))
-        for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"), ("v_r_deg", "v_r")):
-            label = LABELS[col]
+        for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"), ("v_r_deg", "v_r"),
+                          *bound_cols):
+            label = LABELS.get(col, "95 % upper bound of |dp| (mm), identified model")
             plot_joint_map(table, col, out / f"{name}_joint.png",
                            f"{r.name}: {label}\n({others} deg)", zones=zones)
             plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
@@ -91,6 +106,9 @@ def register(app: typer.Typer) -> None:
             "wrench_N_Nm": w.tolist(),
             "joint_stiffness_Nm_per_rad": k.tolist(),
         }
+        if bound_cols:
+            summary["max_deflection_upper95_mm"] = float(
+                table.loc[ok, "deflection_upper95_mm"].max())
         (out / "map_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
         console.print(
             f"{len(table)} poses, {summary['singular_nodes']} singular; "

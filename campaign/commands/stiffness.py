@@ -25,6 +25,35 @@ def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
         console.print("  " + " ".join(f"{v: .4e}" for v in row))
 
 
+def _intervals(r, q, k, w, J, cov_x) -> dict:
+    """95 % intervals of the nonlinear deflection and of diag(K_X) from the model's covariance."""
+    from analysis.kinetostatics.uncertainty import (
+        Z95,
+        cartesian_stiffness_se,
+        predict_deflection,
+        stiffness_covariance,
+    )
+
+    pred = predict_deflection(r, q, k, w, cov_x)
+    lo, hi = pred.bounds(Z95)
+    se = np.diagonal(cartesian_stiffness_se(J, stiffness_covariance(k, cov_x)))
+    K_X = np.diagonal(cartesian_stiffness(J, k, complementary_stiffness_from_state(
+        chain_state(r, q), w)))
+    return {
+        "confidence": 0.95,
+        "deflection_nonlinear_sd": pred.sd.tolist(),
+        "deflection_nonlinear_lo95": lo.tolist(),
+        "deflection_nonlinear_hi95": hi.tolist(),
+        "K_X_diag_se": se.tolist(),
+        "K_X_diag_lo95": (K_X - Z95 * se).tolist(),
+        "K_X_diag_hi95": (K_X + Z95 * se).tolist(),
+        "method": "covariance of the identified compliances (model file [identification]) "
+                  "propagated by the delta method: d(dq)/dx_j = (K_theta - K_C)^-1 e_j "
+                  "k_j^2 dq_j at the loaded pose (exact for the linear model without K_C); "
+                  "K_X is linear in k, cov(k) from cov(x) by the delta method",
+    }
+
+
 def register(app: typer.Typer) -> None:
     @app.command("stiffness")
     def stiffness(
@@ -74,6 +103,9 @@ def register(app: typer.Typer) -> None:
                 "deflection": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation vector)",
             },
         }
+        cov_x = None if joint_stiffness else r.compliance_covariance
+        if cov_x is not None:
+            result["uncertainty"] = _intervals(r, qr, k, w, J, cov_x)
         if as_json:
             typer.echo(json.dumps(result, indent=2))
             return
@@ -90,3 +122,13 @@ def register(app: typer.Typer) -> None:
                          ("nonlinear equilibrium", exact)):
             console.print(f"  {label:22s} dp = {np.round(1e3 * d[:3], 4).tolist()} mm, "
                           f"dr = {np.round(1e3 * d[3:], 4).tolist()} mrad")
+        if cov_x is not None:
+            u = result["uncertainty"]
+            lo, hi = np.array(u["deflection_nonlinear_lo95"]), np.array(u["deflection_nonlinear_hi95"])
+            console.print("[bold]95 % intervals[/bold] (identified model, delta method)")
+            console.print(f"  dp from {np.round(1e3 * lo[:3], 4).tolist()} to "
+                          f"{np.round(1e3 * hi[:3], 4).tolist()} mm")
+            console.print(f"  dr from {np.round(1e3 * lo[3:], 4).tolist()} to "
+                          f"{np.round(1e3 * hi[3:], 4).tolist()} mrad")
+            console.print(f"  diag(K_X) +- {np.round(1.96 * np.array(u['K_X_diag_se']), 1).tolist()}"
+                          " (SI)")
