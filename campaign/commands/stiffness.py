@@ -124,11 +124,12 @@ def register(app: typer.Typer) -> None:
                           f"dr = {np.round(1e3 * d[3:], 4).tolist()} mrad")
         if cov_x is not None:
             u = result["uncertainty"]
-            lo, hi = np.array(u["deflection_nonlinear_lo95"]), np.array(u["deflection_nonlinear_hi95"])
+            lo = np.array(u["deflection_nonlinear_lo95"])
+            hi = np.array(u["deflection_nonlinear_hi95"])
             console.print("[bold]95 % intervals[/bold] (identified model, delta method)")
             console.print(f"  dp from {np.round(1e3 * lo[:3], 4).tolist()} to "
                           f"{np.round(1e3 * hi[:3], 4).tolist()} mm")
             console.print(f"  dr from {np.round(1e3 * lo[3:], 4).tolist()} to "
                           f"{np.round(1e3 * hi[3:], 4).tolist()} mrad")
-            console.print(f"  diag(K_X) +- {np.round(1.96 * np.array(u['K_X_diag_se']), 1).tolist()}"
-                          " (SI)")
+            half = np.round(1.96 * np.array(u["K_X_diag_se"]), 1).tolist()
+            console.print(f"  diag(K_X) +- {half} (SI)")
