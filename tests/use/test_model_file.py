@@ -125,7 +125,8 @@ def test_bad_identification_table_is_refused_with_its_line(identified, tmp_path)
     bad.write_text(text.replace('quantity = "compliance"', 'quantity = "stiffness"'))
     with pytest.raises(InputError, match=r"bad.toml:\d+: identification.quantity"):
         load_robot_file(bad)
+    one_two = "joints_identified = [\n    1,\n    2,"
     bad.write_text(text.replace("joints_nominal = []", "joints_nominal = [2]")
-                   .replace("joints_identified = [\n    1,\n    2,", "joints_identified = [\n    1,"))
+                   .replace(one_two, "joints_identified = [\n    1,"))
     with pytest.raises(InputError, match="joint 2 is nominal but has a non-zero covariance"):
         load_robot_file(bad)
