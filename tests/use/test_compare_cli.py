@@ -15,6 +15,7 @@ def test_compare_finds_a_softer_k2_and_refuses_other_robots(identified, tmp_path
     soft = TRUE_K.copy()
     soft[1] *= 0.95
     other = analyze(tmp_path, "soft", seed=9, k=soft)
+    capsys.readouterr()
     assert main(["compare", str(identified), str(other), "--json", "--plot",
                  str(tmp_path / "c.png")]) == 0
     out = json.loads(capsys.readouterr().out)
@@ -26,6 +27,7 @@ def test_compare_finds_a_softer_k2_and_refuses_other_robots(identified, tmp_path
     assert lo < soft[1] - TRUE_K[1] < hi
     assert (tmp_path / "c.png").is_file()
     same = analyze(tmp_path, "same", seed=10)
+    capsys.readouterr()
     assert main(["compare", str(identified), str(same), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert np.isclose(out["critical_z"], 2.638, atol=1e-3)
