@@ -173,7 +173,32 @@ def validation_blocks(result: IdentificationResult) -> list:
     ]
 
 
-def kx_blocks(inp: ReportInputs, k_pred: np.ndarray) -> list:
+def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> Table:
+    """K_X (with K_C) in engineering units: N/mm and N m/mrad blocks, principal stiffnesses."""
+    from analysis.kinetostatics.uncertainty import principal_stiffness
+
+    pt, pr = principal_stiffness(ps.K_X)
+    rows = []
+    for i, (unit, sl) in enumerate((("N/mm", slice(0, 3)), ("N m/mrad", slice(3, 6)))):
+        diag = 1e-3 * np.diag(ps.K_X)[sl]
+        se = None if se_diag is None else 1e-3 * se_diag[sl]
+        for a in range(3):
+            row = [AXES[3 * i + a], unit,
+                   *[f"{1e-3 * v:.4g}" for v in ps.K_X[sl, sl][a]],
+                   f"{diag[a]:.4g}" + ("" if se is None else f" \u00b1 {se[a]:.2g}"),
+                   f"{1e-3 * (pt if i == 0 else pr)[a]:.4g}"]
+            rows.append(row)
+    header = ["", "unit", "x / rx", "y / ry", "z / rz", "diagonal \u00b1 se", "principal"]
+    return Table(f"K_X at {label}, with K_C, engineering units", header, rows,
+                 caption="Translational block in N/mm, rotational block in N m/mrad. "
+                 "Principal stiffnesses: under a pure force (moment) along the principal "
+                 "directions, the inverses of the eigenvalues of the blocks of K_X^-1. "
+                 "Standard errors from the covariance of the identified compliances.",
+                 widths=[0.4, 0.8, 1, 1, 1, 1.4, 1], mono=True)
+
+
+def kx_blocks(inp: ReportInputs, k_pred: np.ndarray,
+              result: IdentificationResult | None = None) -> list:
     blocks: list = [Paragraph(
         f"K_X = J^-T (K_\u03b8 - K_C) J^-1 (eq. 6) and without K_C (eq. 12), at P in the base "
         f"frame, under the user wrench {wrench_text(inp.wrench)}. Units: rows/columns x, y, z "
@@ -191,7 +216,27 @@ def kx_blocks(inp: ReportInputs, k_pred: np.ndarray) -> list:
             rows = [[AXES[i], *[matrix_entry(v) for v in M[i]]] for i in range(6)]
             blocks.append(Table(f"K_X at {label}, {title} (SI)", ["", *AXES], rows,
                                 widths=[0.5] + [1] * 6, mono=True))
+        blocks.append(kx_engineering(ps, label, _kx_se_diag(inp, q, k_pred, result)))
     return blocks
+
+
+def _kx_se_diag(inp: ReportInputs, q: np.ndarray, k: np.ndarray,
+                result: IdentificationResult | None) -> np.ndarray | None:
+    """Standard errors of diag(K_X) (SI) from the identified compliances' covariance."""
+    if result is None:
+        return None
+    from analysis.kinetostatics.uncertainty import cartesian_stiffness_se, stiffness_covariance
+    from analysis.model.kinematics import jacobian
+
+    cov = np.zeros((6, 6))
+    cols = list(result.joints)
+    cov[np.ix_(cols, cols)] = result.cov_x
+    bad = ~np.isfinite(result.k)
+    cov[bad], cov[:, bad] = 0.0, 0.0
+    try:
+        return np.diag(cartesian_stiffness_se(jacobian(inp.robot, q), stiffness_covariance(k, cov)))
+    except np.linalg.LinAlgError:
+        return None
 
 
 def robustness_blocks(result: IdentificationResult, inp: ReportInputs,
@@ -263,7 +308,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         figures.poses_on_kappa_map(table, q_poses, labels, ft),
         figures.deflection_joint_map(table, q_poses, wt, ft),
         figures.deflection_cartesian_map(table, wt)])
-    kx_sec = Section(SECTION_TITLES[4], kx_blocks(inp, k_pred))
+    kx_sec = Section(SECTION_TITLES[4], kx_blocks(inp, k_pred, result))
     rob_sec = Section(SECTION_TITLES[5], robustness_blocks(result, inp, k_pred))
     title = f"Joint stiffness of {inp.robot.name}"
     subtitle = f"{inp.info.source}: {inp.info.location}"

@@ -43,7 +43,8 @@ def test_csv_import_writes_the_same_result_keys_and_a_report(tmp_path, rows):
                  str(out), "--method", "wls", "--trials", "20"]) == 0
     res = json.loads((out / "results.json").read_text())
     direct = analyze_table(read_csv(csv), load_robot("kr240-2"), method="wls").to_dict()
-    assert list(res) == list(direct)
+    # campaign analyze adds K_X at the tested poses and the model file (docs/use.md)
+    assert list(res) == [*direct, "cartesian_stiffness", "model_file"]
     np.testing.assert_allclose(res["joint_stiffness_Nm_per_rad"],
                                direct["joint_stiffness_Nm_per_rad"], rtol=1e-9)
     html = (out / "report.html").read_text(encoding="utf-8")
@@ -62,6 +63,7 @@ def test_poses_named_in_the_protocol_get_kx(tmp_path, rows):
     html = (tmp_path / "o" / "report.html").read_text(encoding="utf-8")
     parser.feed(html)
     assert "K_X at drilling, with K_C (SI)" in parser.titles
+    assert "K_X at drilling, with K_C, engineering units" in parser.titles
     assert "f = (0, 0, -500) N, m = (0, 0, 0) N m (protocol [report] wrench)" in html
 
 
