@@ -44,8 +44,10 @@ def norms(pc: PathCompensation) -> dict[str, np.ndarray]:
         "before_r_hi": norm_upper_bound(b[:, 3:], cb[:, 3:, 3:]),
         "after_p": np.linalg.norm(r[:, :3], axis=1),
         "after_r": np.linalg.norm(r[:, 3:], axis=1),
-        "after_p_hi": norm_upper_bound(r[:, :3], ca[:, :3, :3]),
-        "after_r_hi": norm_upper_bound(r[:, 3:], ca[:, 3:, 3:]),
+        # the error left is zero-mean: bound it in its worst direction (the model's
+        # residual, ~1e-15, would otherwise pick a random direction)
+        "after_p_hi": norm_upper_bound(np.zeros_like(r[:, :3]), ca[:, :3, :3]),
+        "after_r_hi": norm_upper_bound(np.zeros_like(r[:, 3:]), ca[:, 3:, 3:]),
     }
 
 
@@ -87,14 +89,20 @@ def plot(pc: PathCompensation, path: Path, title: str) -> Path:
     x = np.arange(1, len(n["before_p"]) + 1)
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     for ax, key, scale, unit in ((axes[0], "p", 1e3, "mm"), (axes[1], "r", 1e3, "mrad")):
-        ax.plot(x, scale * n[f"before_{key}"], color="tab:red", label="before (predicted)")
-        ax.fill_between(x, 0, scale * n[f"before_{key}_hi"], color="tab:red", alpha=0.15,
-                        label="before, 95 % upper bound")
-        ax.plot(x, scale * n[f"after_{key}"], color="tab:blue", label="after (model residual)")
-        ax.fill_between(x, 0, scale * n[f"after_{key}_hi"], color="tab:blue", alpha=0.3,
-                        label="after, 95 % upper bound (stiffness uncertainty)")
+        mid, hi = scale * n[f"before_{key}"], scale * n[f"before_{key}_hi"]
+        ax.plot(x, mid, color="tab:red", label="before: predicted")
+        ax.fill_between(x, np.maximum(2 * mid - hi, mid * 1e-3), hi, color="tab:red",
+                        alpha=0.25, label="before: 95 % band")
+        ax.plot(x, scale * n[f"after_{key}_hi"], color="tab:blue",
+                label="after: 95 % upper bound (stiffness uncertainty)")
+        ax.fill_between(x, scale * n[f"after_{key}_hi"] * 1e-3, scale * n[f"after_{key}_hi"],
+                        color="tab:blue", alpha=0.15)
+        ax.set_yscale("log")
         ax.set_ylabel(f"|{'dp' if key == 'p' else 'dr'}| ({unit})")
-        ax.grid(alpha=0.3)
+        ax.grid(alpha=0.3, which="both")
+    axes[1].text(0.01, 0.02, "after compensation the model's own residual is below "
+                 f"{1e6 * n['after_p'].max():.2g} um / {1e6 * n['after_r'].max():.2g} urad",
+                 transform=axes[1].transAxes, fontsize=8)
     axes[0].legend(fontsize=8, loc="upper right")
     axes[1].set_xlabel("point of the path")
     axes[0].set_title(title, fontsize=10)
