@@ -401,7 +401,8 @@ def fit_limits(robot: RobotModel, q: np.ndarray, margin: float = 0.0):
     """Move each wrapped angle by whole turns into [lower + margin, upper - margin].
 
     Returns (q_fitted, ok): where several turns fit, the one nearest the middle of
-    the range is taken; ``ok`` (...) is False where some joint fits in no turn.
+    the range is taken; ``ok`` (...) is False where some joint fits in no turn
+    (that joint keeps its input value).
     """
     lo, hi = robot.lower + margin, robot.upper - margin
     mid = 0.5 * (lo + hi)
@@ -415,4 +416,4 @@ def fit_limits(robot: RobotModel, q: np.ndarray, margin: float = 0.0):
         best = np.where(take, cand, best)
         gap = np.where(take, d, gap)
     ok = np.all(np.isfinite(best), axis=-1)
-    return best, ok
+    return np.where(np.isfinite(best), best, q), ok
