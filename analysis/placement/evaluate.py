@@ -101,17 +101,22 @@ def evaluate(problem: Problem, solver: IKSolver, placements: np.ndarray,
         reason[np.any(inside, axis=-1)] = KEEP_OUT
     reason[~in_limits] = LIMITS
     reason[~found] = UNREACHABLE
-    dp, cost = _costs(problem, J, R)
+    # the tool-frame wrench in base axes: the target's rotation includes the yaw
+    w = None if problem.wrench is None else base_wrench(T[..., :3, :3],
+                                                        problem.wrench[:, None, :])
+    dp, cost = costs(problem, J, w)
     cost = np.where(reason == OK, cost, np.inf)
     return Triples(reason, q, cost, dp)
 
 
-def _costs(problem: Problem, J: np.ndarray, R: np.ndarray):
-    """(dp (..., 3) m, per-triple cost) of the linear compliance model without K_C."""
+def costs(problem: Problem, J: np.ndarray, w: np.ndarray | None):
+    """(dp (..., 3) m, per-triple cost) of the linear compliance model without K_C.
+
+    J (..., 6, n) at P; w (..., 6) base-frame wrench at P (N, N m) or None.
+    """
     k = problem.k
     Jt = J[..., :3, :]
-    if problem.wrench is not None:
-        w = base_wrench(R, problem.wrench[:, None, :])  # (N, A, 6)
+    if w is not None:
         tau = np.einsum("...ji,...j->...i", J, w)
         dq = tau / k
         dp = np.einsum("...ij,...j->...i", Jt, dq)
