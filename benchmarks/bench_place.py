@@ -22,7 +22,7 @@ import pinocchio as pin
 from analysis.model.ik import IKSolver, fit_limits
 from analysis.model.robots import load_robot
 from analysis.placement.evaluate import Problem, evaluate
-from analysis.placement.poses import base_wrench, target_poses
+from analysis.placement.poses import target_poses
 
 
 def per_point(robot, solver, data, T, w_tool, k, margin):

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import typer
 
+
 def register(app: typer.Typer) -> None:
     @app.command("place")
     def place(
