@@ -181,7 +181,7 @@ def load_plan(directory: str | Path) -> tuple[Protocol, pd.DataFrame, str]:
     if not text.strip():
         raise InputError("empty file: no header and no tests", where=str(path))
     try:
-        df = pd.read_csv(io.StringIO(text),
+        df = pd.read_csv(io.StringIO(text), keep_default_na=False,
                          dtype={"zone": str, "load_case": str, "method": str})
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as err:
         raise InputError(f"not a CSV table: {str(err).strip()}", where=str(path)) from None

@@ -193,8 +193,8 @@ def _duration(seconds: float) -> str:
     if seconds < 120:
         return f"{seconds:.0f} s"
     if seconds < 2 * 3600:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
+        return f"{seconds:.0f} s = {seconds / 60:.0f} min"
+    return f"{seconds:.0f} s = {seconds / 3600:.1f} h"
 
 
 def dry_run_text(tests: list[PlannedTest], robot: RobotModel, protocol: Protocol,

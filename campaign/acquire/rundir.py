@@ -213,8 +213,9 @@ def copy_mismatches(path: Path, metadata: dict[str, Any]) -> list[str]:
     metadata does not hold (older runs) is not checked.
     """
     out = []
-    proto = metadata.get("protocol_file")
-    for name, key in ((proto if isinstance(proto, str) else None, "protocol_sha256"),
+    copies = [p.name for p in sorted(Path(path).glob("protocol.*"))
+              if p.suffix in (".toml", ".yaml", ".yml")]
+    for name, key in ((copies[0] if copies else None, "protocol_sha256"),
                       (PLAN, "plan_sha256")):
         expected = metadata.get(key)
         if not name or not isinstance(expected, str) or not (path / name).is_file():
