@@ -80,7 +80,9 @@ def planned_tests(protocol: Protocol, plan: pd.DataFrame, robot: RobotModel,
     ------
     InputError
         A target outside the limits minus the margin, a load above the safety
-        limits, a bad or duplicated test id (message names the test and row).
+        limits, a bad or duplicated test id, repeats that are not a whole number
+        from 1 to ``MAX_REPEATS``, controller (pendant) columns that are not the
+        model columns converted (message names the test and row).
     """
     safety = protocol.safety
     margin = safety.joint_margin_deg * DEG
