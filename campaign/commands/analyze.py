@@ -116,6 +116,9 @@ def _from_run(run_dir: Path):
     from campaign.run_reader import read_run
 
     run = read_run(run_dir)
+    for note in run.notes:  # the loud ones also go to the terminal
+        if note.startswith("WARNING"):
+            typer.echo(note, err=True)
     protocol = load_protocol(run.protocol_path) if run.protocol_path else None
     if protocol is not None:
         robot = protocol_robot(protocol)
