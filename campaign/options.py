@@ -102,6 +102,20 @@ def apply_tool(robot: RobotModel, tool: ToolPoint) -> RobotModel:
     return with_tool(robot, np.asarray(tool.xyz_mm) * 1e-3, np.radians(tool.rpy_deg))
 
 
+def robot_and_tool(robot: str, tip: str | None, tool_xyz_mm: str | None = None,
+                   tool_rpy_deg: str | None = None, default_tool: ToolPoint | None = None):
+    """(RobotModel with P at the tool, :class:`ToolPoint`) of the robot and tool options.
+
+    ``default_tool`` (e.g. from a tests.meta.json sidecar) fills what the
+    options do not give.
+    """
+    from analysis.model.robots import load_robot
+
+    model = load_robot(robot, tip)
+    tool = tool_option(tool_xyz_mm, tool_rpy_deg, default_tool)
+    return (model if tool.is_flange else apply_tool(model, tool)), tool
+
+
 def robot_option(robot: str, tip: str | None, tool_xyz_mm: str | None = None,
                  tool_rpy_deg: str | None = None) -> RobotModel:
     """Resolve ``--robot``/``--tip`` (built-in name, robot file or URDF) and the tool options.
@@ -109,11 +123,7 @@ def robot_option(robot: str, tip: str | None, tool_xyz_mm: str | None = None,
     ``tool_xyz_mm``/``tool_rpy_deg`` are the texts of ``--tool-xyz-mm`` and
     ``--tool-rpy-deg``; without them P is the model's tip (the flange centre).
     """
-    from analysis.model.robots import load_robot
-
-    model = load_robot(robot, tip)
-    tool = tool_option(tool_xyz_mm, tool_rpy_deg)
-    return model if tool.is_flange else apply_tool(model, tool)
+    return robot_and_tool(robot, tip, tool_xyz_mm, tool_rpy_deg)[0]
 
 
 def joint_angles_option(robot: RobotModel, text: str, controller: bool, where: str = "--q"):
