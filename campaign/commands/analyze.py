@@ -361,6 +361,11 @@ def register(app: typer.Typer) -> None:
         result = analyze_table(table, model, method=method, joints=joint_list,
                                noise=noise, covariance=covariance)
         result.assumptions = assumptions
+        if measurements is not None and extras["tool"].source.startswith("none given"):
+            result.warnings.insert(0, (
+                "no tool point given: P assumed at the flange centre; if the displacements "
+                "and wrench were measured at a tool point, give --tool-xyz-mm/--tool-rpy-deg "
+                "(a tool error need not show in the chi-square, it shows in k)"))
         refused = problems(result, model.nominal_stiffness)
         if refused and not accept_misfit:
             raise InputError(
