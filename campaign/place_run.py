@@ -42,6 +42,8 @@ class PlaceOptions:
     path: Path
     out: Path
     tip: str | None
+    tool_xyz_mm: str | None
+    tool_rpy_deg: str | None
     x_mm: str
     y_mm: str
     z_mm: str
@@ -142,7 +144,7 @@ def build_problem(o: PlaceOptions, console: Console):
         raise InputError("expected 0 or more workers", where="--workers")
     if o.chunk is not None and o.chunk < 1:
         raise InputError("expected at least one placement per task", where="--chunk")
-    robot = robot_option(o.robot, o.tip)
+    robot = robot_option(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
     if robot.n != 6:
         raise InputError(f"{robot.name} has {robot.n} joints: placement needs a 6-axis arm",
                          where="--robot")

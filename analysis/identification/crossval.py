@@ -1,7 +1,8 @@
 """Validation by prediction on held-out poses (leave one pose out).
 
-Each distinct pose label in turn is removed, the joint compliances are
-identified from the other tests with the same estimator, and the held-out
+Each distinct pose in turn (tests at joint angles equal to within the encoder
+noise, :mod:`analysis.identification.poses`, named by their labels) is removed,
+the joint compliances are identified from the other tests with the same estimator, and the held-out
 displacements are predicted (linear model for ols/wls, exact equilibrium for
 exact). Reported per held-out pose: RMS prediction error of the translations
 (m) and rotations (rad), and the RMS of the errors divided by the
@@ -19,6 +20,7 @@ from analysis.identification.exact_fit import model_displacement
 from analysis.identification.linear_model import design_block
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel, residual_covariance
+from analysis.identification.poses import group_names, pose_groups, pose_tolerance
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
@@ -37,16 +39,17 @@ def leave_one_pose_out(
     """Table of held-out prediction errors, or None with fewer than 3 distinct poses."""
     from analysis.identification.estimate import check_identifiable, check_tests, fit
 
-    labels = list(dict.fromkeys(tests.pose.tolist()))
-    if len(labels) < 3:
+    group = pose_groups(tests.q, pose_tolerance(noise))
+    names = group_names(tests.pose, group)
+    if len(names) < 3:
         return None
     rows = []
-    for label in labels:
-        held = tests.pose == label
+    for g, label in enumerate(names):
+        held = group == g
         train, test = tests.subset(~held), tests.subset(held)
         row = {"held_out_pose": label, "n_tests": int(held.sum())}
         try:
-            check_tests(robot, train, joints)
+            check_tests(robot, train, joints, noise)
             J = jacobian(robot, train.q)
             A = design_block(J, train.w)[..., list(joints)] * train.measured[..., None]
             check_identifiable(A, joints)

@@ -42,7 +42,7 @@ def solve_deflection(
     ----------
     q : (..., n) joint angles (rad); k : (n,) or (..., n) joint stiffness (N m/rad);
     w : (..., 6) wrench [f (N); m (N m)] at P, base frame.
-    tol : convergence on max |step| (rad).
+    tol : convergence on max |step| (rad), relative to max |dq| when that exceeds 1 rad.
     dq0 : (..., n) starting guess (rad), e.g. the solution at a nearby pose; zero if None.
     """
     q = np.asarray(q, dtype=float)
@@ -58,7 +58,9 @@ def solve_deflection(
         jac = Kt - complementary_stiffness_from_state(state, w)
         step = np.linalg.solve(jac, resid[..., None])[..., 0]
         dq = dq - step
-        if np.max(np.abs(step), initial=0.0) <= tol:
+        # relative to the deflection once it exceeds 1 rad: rounding keeps the step of a
+        # converged large deflection above an absolute 1e-14 rad
+        if np.max(np.abs(step), initial=0.0) <= tol * max(1.0, np.max(np.abs(dq), initial=0.0)):
             return dq
     raise EquilibriumError(
         f"equilibrium did not converge in {max_iter} Newton steps (last step "

@@ -23,7 +23,7 @@ from campaign.acquire.checks import limits_for
 from campaign.acquire.instruments import open_instruments
 from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
 from campaign.acquire.progress import Reporter
-from campaign.acquire.rundir import PLAN, RunDir, WriteFailure, export_parquet
+from campaign.acquire.rundir import PLAN, TESTS, RunDir, WriteFailure, export_parquet
 from campaign.acquire.runner import Runner, RunSettings, utc
 from campaign.acquire.settle import SettleRule, rule_for
 from campaign.plan_output import load_plan
@@ -76,6 +76,27 @@ def _sha(text: str) -> str:
 def _protocol_copy_name(protocol: Protocol) -> str:
     suffix = Path(protocol.path).suffix.lower() or ".toml"
     return f"protocol{suffix}"
+
+
+def write_tests_sidecar(run_path: Path, protocol: Protocol, robot: Any) -> None:
+    """tests.meta.json next to tests.csv: robot, tool, noise model (see campaign/tests_meta.py).
+
+    Written when the run starts (and on resume when missing), so a copy of the
+    run's tests.csv analysed on its own keeps its tool point and noise figures.
+    """
+    from campaign.run_noise import noise_from_protocol, protocol_noise_source
+    from campaign.tests_meta import sidecar_path, sidecar_record, write_sidecar
+
+    csv_path = Path(run_path) / TESTS
+    if sidecar_path(csv_path).exists():
+        return
+    record = sidecar_record(
+        robot_key=protocol.campaign.robot, robot_name=robot.name,
+        tool_xyz_mm=protocol.tool.xyz_mm, tool_rpy_deg=protocol.tool.rpy_deg,
+        tool_mass_kg=protocol.tool.mass_kg, noise=noise_from_protocol(protocol),
+        noise_source=protocol_noise_source(protocol), csv_name=TESTS,
+        protocol_sha256=_sha(protocol.text))
+    write_sidecar(csv_path, record)
 
 
 def base_metadata(protocol: Protocol, plan_text: str, plan_source: Path, robot: Any,
@@ -228,6 +249,7 @@ def _run_session(run: RunDir, inst: Any, robot: Any, tests: list, protocol: Prot
     sessions.append(session)
     run.metadata.update(status="running", reason="")
     run.write_metadata()
+    write_tests_sidecar(run.path, protocol, robot)
     reporter.start({"run_dir": str(run.path), "lab": inst.lab_addresses or None})
     settings = RunSettings(settle=_settle_rule(protocol, lab_scale or 1.0, opts.settle_scale))
     runner = Runner(run, robot, tests, inst, reporter, limits_for(protocol),

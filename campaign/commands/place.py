@@ -10,6 +10,8 @@ from pathlib import Path
 
 import typer
 
+from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
+
 
 def register(app: typer.Typer) -> None:
     @app.command("place")
@@ -18,6 +20,8 @@ def register(app: typer.Typer) -> None:
         path: Path = typer.Option(..., "--path", help="Part path CSV (workpiece frame)."),
         out: Path = typer.Option(..., help="Output directory."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         x_mm: str = typer.Option(..., help="Workpiece origin x range A..B (mm, base frame)."),
         y_mm: str = typer.Option(..., help="Workpiece origin y range A..B (mm)."),
         z_mm: str = typer.Option(..., help="Workpiece origin z range A..B (mm)."),
