@@ -10,7 +10,9 @@ What it implements, from the *Robotiq FT 300 Instruction Manual* (section 4.3,
 * Exception replies for anything else: 01 illegal function (other function codes),
   02 illegal data address (a register outside the map, a write elsewhere than 410),
   03 illegal data value (a count of 0 or above 125, another value written to 410).
-  Requests to another slave id, or with a bad CRC, get no answer (as on a bus).
+  Requests to another slave id, or with a bad CRC, get no answer (as on a bus); bytes
+  that do not complete a request are dropped after a silence of :data:`SILENCE` s (the
+  RTU end of frame, 3.5 characters on a wire, made longer for pty scheduling).
 * While streaming, 16-byte frames ``20 4E`` + six int16 (little-endian) + CRC at
   100 Hz; the sensor then ignores Modbus requests, and any 0xFF byte stops the
   stream (the manual: send 0xFF for about 0.5 s). Leading 0xFF bytes are skipped.
@@ -55,6 +57,7 @@ PRODUCTION_YEAR = 2016  # register 514
 FT_REGISTERS = range(180, 186)
 ACCEL_REGISTERS = range(190, 193)
 ID_REGISTERS = range(510, 515)
+SILENCE = 0.05  # s without a byte that ends a frame
 
 
 def _int16(values: np.ndarray) -> list[int]:
@@ -189,16 +192,20 @@ class FakeFT300(FakeServer):
         period = 1.0 / self.rate_hz
         next_t = time.monotonic()
         dead = False
+        last_rx = time.monotonic()
         while not self.stopping.is_set():
-            timeout = max(0.0, next_t - time.monotonic()) if self.streaming else 0.05
+            timeout = max(0.0, next_t - time.monotonic()) if self.streaming else SILENCE
             r, _, _ = select.select([self.master], [], [], timeout)
             if r:
                 try:
                     buf += os.read(self.master, 4096)
+                    last_rx = time.monotonic()
                 except (BlockingIOError, OSError):
                     pass
                 if not dead:
                     self._handle_input(buf)
+            elif buf and time.monotonic() - last_rx > SILENCE:
+                buf.clear()  # end of frame: what did not make a request is dropped
             if self.fault("disconnect"):
                 dead, self.streaming = True, False
             if not self.streaming:
