@@ -59,7 +59,7 @@ def characteristic_length(
     than a full turn within -pi..pi) and a logarithmic grid of L picks the
     ``starts`` best pairs from distinct basins, each then refined by a bounded
     Nelder-Mead search over (q_2..q_n, log L). For the KR240-2 this returns
-    L = 0.70 m (kappa_F = 1.28 near theta = 0, 31, -224, 0, -100 deg); the
+    L = 0.70 m (kappa_F = 1.285 near theta = 0, 29, -220, 0, -101 deg); the
     paper gives 0.682 m. The search is a good answer, not a proof of the global
     one.
 

@@ -43,7 +43,7 @@ def test_controller_angles_option(capsys):
     code, out, _ = run(["stiffness", "--robot", "kr240-2", "--q", "0,-90,90,0,30,0",
                         "--controller-angles", "--json"], capsys)
     assert code == 0
-    assert np.allclose(np.degrees(json.loads(out)["q_rad"]), [0, 90, -180, 0, 30, 0])
+    assert np.allclose(np.degrees(json.loads(out)["q_rad"]), [0, 90, -180, 0, -30, 0])
 
 
 @pytest.mark.parametrize(
