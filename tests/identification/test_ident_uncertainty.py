@@ -134,7 +134,8 @@ def test_outlier_is_flagged_and_located(kr240, zone_poses, w_eff):
 def test_outlier_threshold_counts_the_residuals(kr240, zone_poses, w_eff):
     """A 1 mm glitch beside two innocent residuals beyond 3 sigma: only the glitch is flagged."""
     noise = NoiseModel()
-    tests = simulate(kr240, zone_poses, w_eff, kr240.nominal_stiffness, noise, seed=7)
+    # seed chosen so that two innocent residuals exceed 3 sigma (found by a scan of seeds)
+    tests = simulate(kr240, zone_poses, w_eff, kr240.nominal_stiffness, noise, seed=13)
     tests.d[4, 2] += 1e-3  # dz of test 5, CSV line 6
     res = identify(kr240, tests, "exact", noise=noise, validate=False).residuals
     glitch = (res["line"] == 6) & (res["component"] == "dz")
