@@ -6,7 +6,8 @@ are imported only when invoked (``campaign --help`` lists them from the table),
 so that a command pays only for its own imports; a module not in the table is
 imported when the app is built. Bad input raises
 :class:`analysis.errors.InputError`; :func:`main` prints it as one line on
-stderr and exits with status 2, never with a traceback.
+stderr and exits with status 2, never with a traceback. So does a wrench the
+nonlinear equilibrium cannot carry (:class:`EquilibriumError`).
 """
 
 from __future__ import annotations
@@ -30,10 +31,15 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
                 "disk before the next motion."),
     "analyze": ("analyze", "Identify joint stiffness from a run or a CSV file; write "
                 "results.json and the report."),
+    "compare": ("compare", "Per joint: k_B - k_A with its 95 % interval, z score and verdict."),
+    "compensate": ("compensate", "Predict the deflection of P along a path and compute the "
+                   "compensated joints."),
     "demo": ("demo", "Plan, acquire on the simulated lab and analyse the KR240-2 campaign "
              "(Dumas et al. 2011)."),
     "lab": ("lab", "Start fake instruments on loopback that speak the real protocols."),
     "maps": ("maps", "Maps like the paper's Figs. 3 and 5: data table and PNG plots."),
+    "place": ("place", "Search the workpiece placement and tool angles that minimise P's "
+              "deflection."),
     "plan": ("plan", "Plan the tests: candidate poses in the zones, thresholds, optimal "
              "design."),
     "robots": ("robots", "List built-in robot models, or show one model's joints, limits and "
@@ -112,6 +118,13 @@ def build_app() -> typer.Typer:
     return app
 
 
+def _is_equilibrium_error(err: Exception) -> bool:
+    """True for the equilibrium solver's non-convergence (bad input, not a bug)."""
+    from analysis.kinetostatics.equilibrium import EquilibriumError
+
+    return isinstance(err, EquilibriumError)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit status."""
     app = build_app()
@@ -132,6 +145,10 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo("interrupted", err=True)
         return 130
     except Exception as err:
+        if type(err).__name__ == "EquilibriumError" and _is_equilibrium_error(err):
+            typer.echo(f"error: nonlinear equilibrium: {err}; reduce the wrench or check the "
+                       "joint stiffness", err=True)
+            return 2
         # Usage errors of the click layer under typer carry their own message and code.
         if hasattr(err, "show") and isinstance(getattr(err, "exit_code", None), int):
             err.show()

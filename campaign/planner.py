@@ -19,10 +19,9 @@ from campaign.candidates import Candidates, check_enough, evaluate, sample
 from campaign.design import (
     criterion,
     greedy_exchange,
-    information,
+    information_of_tests,
     predicted_se,
     random_design,
-    scaled_blocks,
 )
 from campaign.plan_output import COLUMNS, read_plan, write_plan
 from campaign.protocol import DEG, Protocol
@@ -189,12 +188,10 @@ def make_plan(
     wrenches = protocol.wrenches()
     pose, case, group = _tests(cand, protocol.loads.selection)
     if case.size and case[0] < 0:
-        F = sum(
-            information(scaled_blocks(cand.J[pose], wrenches[c], sigma, k_prior))
-            for c in range(len(wrenches))
-        )
+        W = np.broadcast_to(wrenches, (pose.size, *wrenches.shape))
     else:
-        F = information(scaled_blocks(cand.J[pose], wrenches[case], sigma, k_prior))
+        W = wrenches[case][:, None, :]
+    F = information_of_tests(cand.J[pose], W, sigma, k_prior)
     inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches)}
     n = protocol.campaign.tests
     rand = random_design(group, cand.zone[pose], n, seed)

@@ -57,6 +57,7 @@ from analysis.identification.lsq import (
 )
 from analysis.identification.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays, to_arrays
 from analysis.identification.noise import NoiseModel
+from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
 from analysis.identification.result import Fit, IdentificationResult
 from analysis.identification.uncertainty import (
     chi2_summary,
@@ -71,7 +72,24 @@ from analysis.model.robot_model import RobotModel
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
 COND_LIMIT = 1e6
-OUTLIER_THRESHOLD = 3.0
+#: family-wise level of the outlier test: the chance that any residual of a fit to data
+#: that follow the noise model is flagged
+OUTLIER_FAMILY_LEVEL = 0.01
+
+
+def outlier_threshold(n_residuals: int, level: float = OUTLIER_FAMILY_LEVEL) -> float:
+    """|studentized residual| beyond which a residual is an outlier (Sidak correction).
+
+    Each of the n residuals is tested two-sided at 1 - (1 - level)^(1/n), so
+    that with data that follow the noise model the chance of flagging any of
+    them is ``level``; a fixed 3-sigma cut flags ~0.27 % of innocent
+    residuals, i.e. a few in every campaign of a few hundred components.
+    """
+    from scipy import stats
+
+    n = max(int(n_residuals), 1)
+    per_residual = -np.expm1(np.log1p(-level) / n)  # 1 - (1 - level)^(1/n), accurately
+    return float(stats.norm.isf(per_residual / 2.0))
 
 
 def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...] | None:
@@ -93,8 +111,13 @@ def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...
     return tuple(sorted(out))
 
 
-def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]) -> None:
-    """Refuse data that cannot identify ``joints``; messages name the line, column or joint."""
+def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
+                noise: NoiseModel | None = None) -> None:
+    """Refuse data that cannot identify ``joints``; messages name the line, column or joint.
+
+    Poses are told apart by :mod:`analysis.identification.poses` (joint angles
+    equal to within the encoder noise of ``noise``).
+    """
     if robot.n != 6:
         raise InputError(f"{robot.name} has {robot.n} joints; the test format has 6")
     for name, arr, cols in (("joint angles", tests.q, Q_COLS), ("wrench", tests.w, W_COLS)):
@@ -127,13 +150,14 @@ def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]) -
             f"{n_eq} measured displacement components for {len(joints)} unknown joint "
             f"compliances: fewer equations than unknowns; add tests"
         )
-    distinct = np.unique(np.round(tests.q, 9), axis=0)
-    if distinct.shape[0] < 2:
+    tol = pose_tolerance(noise)
+    if count_poses(tests.q, tol) < 2:
         raise InputError(
             f"all {tests.m} tests (lines {tests.line[0]}..{tests.line[-1]}, columns "
-            f"{Q_COLS[0]}..{Q_COLS[-1]}) are at one pose: errors of the kinematic model and "
-            "tool point cannot be told from compliance, and nothing can be validated; "
-            "measure at two poses or more"
+            f"{Q_COLS[0]}..{Q_COLS[-1]}) are at one pose (joint angles equal to within "
+            f"{np.degrees(tol):.2g} deg, {POSE_TOLERANCE_SIGMAS:g} encoder sigmas): errors of "
+            "the kinematic model and tool point cannot be told from compliance, and nothing "
+            "can be validated; measure at two poses or more"
         )
 
 
@@ -230,7 +254,51 @@ def fit(robot, tests, joints, noise, method) -> Fit:
     return fit_exact(robot, tests, joints, noise, start)
 
 
-def _residual_table(tests, result_fit, var_r, scale, threshold) -> pd.DataFrame:
+#: at most this many residuals are set aside one by one by :func:`flag_outliers`
+MAX_OUTLIERS = 10
+
+
+def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
+    """(m, 6) studentized residuals of fit ``f`` (NaN where not measured)."""
+    GS = block_diag_apply(f.G, f.cov)
+    var_r = residual_variance(stack_matrix(f.A), GS, stack_vector(
+        np.diagonal(f.cov, axis1=-2, axis2=-1)), GS @ f.G.T)
+    resid = np.where(tests.measured, tests.d - f.predicted, np.nan)
+    return studentized(resid.reshape(-1), var_r * scale).reshape(tests.m, 6)
+
+
+def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
+                  scale: float, threshold: float) -> np.ndarray:
+    """(m, 6) bool: residuals beyond ``threshold``, found one at a time.
+
+    A gross error pulls the fit towards itself and inflates the residuals of
+    its neighbours (the other components of its test, tests at the same
+    pose), so only the largest |t| is tested; if beyond ``threshold`` it is set
+    aside, the rest is refitted and tested again (a sequential, Grubbs-like
+    procedure), at most :data:`MAX_OUTLIERS` times or while equations remain.
+    """
+    flags = np.zeros(tests.measured.shape, dtype=bool)
+    t = _studentized_matrix(tests, first, scale)
+    budget = min(MAX_OUTLIERS, int(tests.measured.sum()) - len(joints) - 1)
+    for _ in range(max(budget, 0) + 1):
+        candidate = np.where(tests.measured & ~flags & np.isfinite(t), np.abs(t), -np.inf)
+        i, c = np.unravel_index(int(np.argmax(candidate)), candidate.shape)
+        if not candidate[i, c] > threshold:
+            break
+        flags[i, c] = True
+        if int(flags.sum()) > budget:
+            break
+        keep = tests.measured & ~flags
+        rest = TestArrays(tests.pose, tests.q, tests.w, np.where(keep, tests.d, np.nan), keep,
+                          tests.line)
+        try:
+            t = _studentized_matrix(rest, fit(robot, rest, joints, noise, method), scale)
+        except InputError:
+            break
+    return flags
+
+
+def _residual_table(tests, result_fit, var_r, scale, flags) -> pd.DataFrame:
     m = tests.m
     meas = tests.measured
     sigma = np.sqrt(np.diagonal(result_fit.cov, axis1=-2, axis2=-1))
@@ -246,7 +314,7 @@ def _residual_table(tests, result_fit, var_r, scale, threshold) -> pd.DataFrame:
                 "component": COMPONENTS[c], "unit": "m" if c < 3 else "rad",
                 "measured": tests.d[i, c], "predicted": result_fit.predicted[i, c],
                 "residual": resid[i, c], "sigma": sigma[i, c],
-                "studentized": t[i, c], "outlier": bool(abs(t[i, c]) > threshold),
+                "studentized": t[i, c], "outlier": bool(flags[i, c]),
             })
     return pd.DataFrame(rows)
 
@@ -259,7 +327,7 @@ def identify(
     noise: NoiseModel | None = None,
     covariance: str = "model",
     cond_limit: float = COND_LIMIT,
-    outlier_threshold: float = OUTLIER_THRESHOLD,
+    outlier_level: float = OUTLIER_FAMILY_LEVEL,
     validate: bool = True,
     confidence: float = 0.95,
 ) -> IdentificationResult:
@@ -274,6 +342,7 @@ def identify(
         (0, 1, 2) when no rotation is measured.
     noise : instrument noise model (default :class:`NoiseModel()`).
     covariance : "model" (known sigmas) or "residual" (scaled by reduced chi-square).
+    outlier_level : family-wise level of the outlier test (:func:`outlier_threshold`).
     validate : run leave-one-pose-out validation (needs >= 3 poses).
     """
     if method not in METHODS:
@@ -288,7 +357,7 @@ def identify(
     joints = tuple(sorted({int(j) for j in joints}))
     if not joints or joints[0] < 0 or joints[-1] > 5:
         raise InputError(f"expected 0-based joint indices 0..5, got {joints}", where="joints")
-    check_tests(robot, tests, joints)
+    check_tests(robot, tests, joints, noise)
     _, A_lin = _design(robot, tests, joints)
     cond = check_identifiable(A_lin, joints, cond_limit)
     warnings: list[str] = []
@@ -340,16 +409,26 @@ def identify(
             warnings.append(f"joint {j + 1}: the {confidence:.0%} interval of its compliance "
                             "reaches 0, the data do not bound k from above")
 
-    residuals = _residual_table(tests, chosen, var_r, scale, outlier_threshold)
-    n_out = int(residuals["outlier"].sum())
-    if n_out:
-        warnings.append(f"{n_out} residual(s) beyond {outlier_threshold:g} sigma (studentized)")
+    threshold = outlier_threshold(n_eq, outlier_level)
+    flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold)
+    residuals = _residual_table(tests, chosen, var_r, scale, flags)
+    flagged = residuals[residuals["outlier"]]
+    if len(flagged):
+        where = ", ".join(
+            f"line {r.line} (pose {r.pose}) {r.component} t = {r.studentized:.1f}"
+            for r in flagged.reindex(flagged["studentized"].abs().sort_values(
+                ascending=False).index).head(5).itertuples())
+        more = f" and {len(flagged) - 5} more" if len(flagged) > 5 else ""
+        warnings.append(
+            f"{len(flagged)} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
+            f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
     Aw = stack_matrix(Linv @ chosen.A)
     result = IdentificationResult.build(
         robot=robot.name, method=method, joints=joints, x=chosen.x, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,
         condition_number_weighted=float(scaled_condition(Aw)), tests=tests, n_equations=n_eq,
         dof=dof, chi2_reduced=chi2_red, p_value=p_value, residuals=residuals,
+        n_poses=count_poses(tests.q, pose_tolerance(noise)), outlier_threshold=threshold,
         linear={k: v.x for k, v in linear.items()}, iterations=chosen.iterations,
         noise=noise, warnings=warnings,
     )

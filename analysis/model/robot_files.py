@@ -38,6 +38,19 @@ File format (every number in the units the file declares)::
 
     [sources]                         # where every number comes from
     geometry = "..."
+
+    [identification]                  # optional: written by `campaign analyze` (model.toml)
+    quantity = "compliance"           # the covariance is of x = 1/k, not of k
+    covariance_unit = "(rad/(N m))^2"
+    covariance = [[...], ...]         # 6 x 6, zero rows/columns for joints_nominal
+    joints_identified = [1, 2, 3, 4, 5, 6]
+    joints_nominal = []               # joints whose stiffness is the nominal one
+    method = "exact"                  # estimator of campaign analyze
+    covariance_source = "model"       # "model" (known sigmas) or "residual"
+    n_tests = 15
+    source_run = "path/to/run"
+    protocol_sha256 = "..."
+    date = "2025-01-01T12:00:00Z"     # when the model was written (UTC)
 """
 
 from __future__ import annotations
@@ -117,6 +130,47 @@ class ReferencePose(_Strict):
     source: str
 
 
+class IdentificationSpec(_Strict):
+    """``[identification]``: where an identified stiffness comes from and its covariance."""
+
+    quantity: Literal["compliance"]
+    covariance_unit: Literal["(rad/(N m))^2"]
+    covariance: list[list[float]]
+    joints_identified: list[int] = Field(min_length=1)
+    joints_nominal: list[int] = []
+    method: str
+    covariance_source: str = "model"
+    confidence: float = Field(default=0.95, gt=0, lt=1)
+    n_tests: int = Field(ge=1)
+    n_poses: int | None = Field(default=None, ge=1)
+    source_run: str
+    protocol_sha256: str = ""
+    date: str
+    software: str = ""
+    notes: list[str] = []
+
+    @model_validator(mode="after")
+    def _shape(self) -> IdentificationSpec:
+        n = len(self.covariance)
+        if n == 0 or any(len(row) != n for row in self.covariance):
+            raise ValueError("covariance must be a square matrix (one row per joint)")
+        cov = np.array(self.covariance, dtype=float)
+        if not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
+            raise ValueError("covariance must be symmetric")
+        if np.any(np.diag(cov) < 0):
+            raise ValueError("covariance has a negative variance on its diagonal")
+        for name, joints in (("joints_identified", self.joints_identified),
+                             ("joints_nominal", self.joints_nominal)):
+            if any(not 1 <= j <= n for j in joints) or len(set(joints)) != len(joints):
+                raise ValueError(f"{name}: expected distinct joint numbers 1..{n}")
+        if set(self.joints_identified) & set(self.joints_nominal):
+            raise ValueError("a joint cannot be both identified and nominal")
+        for j in self.joints_nominal:
+            if np.any(cov[j - 1] != 0):
+                raise ValueError(f"joint {j} is nominal but has a non-zero covariance row")
+        return self
+
+
 class RobotFile(_Strict):
     name: str
     aliases: list[str] = []
@@ -132,6 +186,7 @@ class RobotFile(_Strict):
     reference_poses: list[ReferencePose] = []
     sources: dict[str, str]
     notes: str = ""
+    identification: IdentificationSpec | None = None
 
     @model_validator(mode="after")
     def _convention_fields(self) -> RobotFile:
@@ -198,6 +253,15 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         {"q": np.array(r.q) * ang, "position": np.array(r.position) * ls, "source": r.source}
         for r in spec.reference_poses
     ]
+    cov = None
+    if spec.identification is not None:
+        cov = np.array(spec.identification.covariance, dtype=float)
+        if cov.shape != (len(spec.joints),) * 2:
+            raise InputError(f"[identification] covariance is {cov.shape[0]} x {cov.shape[1]}; "
+                             f"the robot has {len(spec.joints)} joints", where=source_file)
+        if nominal is None:
+            raise InputError("[identification] needs the stiffness of every joint "
+                             "(identified or nominal)", where=source_file)
     return RobotModel(
         name=spec.name,
         model=model,
@@ -219,6 +283,9 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         key=key,
         convention=spec.convention,
         notes=spec.notes,
+        compliance_covariance=cov,
+        identification=(None if spec.identification is None
+                        else spec.identification.model_dump()),
     )
 
 

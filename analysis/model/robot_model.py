@@ -76,6 +76,13 @@ class RobotModel:
     key: str = ""
     convention: str = ""
     notes: str = ""
+    #: (n, n) covariance of the joint compliances x = 1/k ((rad/(N m))^2) of an identified
+    #: model (``model.toml`` written by ``campaign analyze``); zero rows and columns for
+    #: joints that keep their nominal stiffness. None for a nominal model.
+    compliance_covariance: np.ndarray | None = None
+    #: the ``[identification]`` table of an identified model (method, n_tests, source run,
+    #: protocol hash, date...), as read from the file; None for a nominal model.
+    identification: dict | None = None
 
     def __post_init__(self) -> None:
         n = self.n

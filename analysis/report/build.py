@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.identification.estimate import OUTLIER_THRESHOLD
+from analysis.identification.estimate import OUTLIER_FAMILY_LEVEL
 from analysis.identification.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.result import IdentificationResult
@@ -149,7 +149,8 @@ def residual_table(result: IdentificationResult) -> Table:
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
     return Table("Residuals (measured - model) per test and component", cols, rows, marked,
-                 caption=f"* outlier: |studentized residual| > {OUTLIER_THRESHOLD:g}; "
+                 caption=f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} "
+                 f"(Sidak, {OUTLIER_FAMILY_LEVEL:.0%} family-wise over {len(res)} residuals); "
                  "highlighted rows hold an outlier. 'line': row of the input table.",
                  widths=[0.6, 0.8, 0.6, 1, 1, 1, 1, 1, 1])
 
@@ -173,7 +174,32 @@ def validation_blocks(result: IdentificationResult) -> list:
     ]
 
 
-def kx_blocks(inp: ReportInputs, k_pred: np.ndarray) -> list:
+def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> Table:
+    """K_X (with K_C) in engineering units: N/mm and N m/mrad blocks, principal stiffnesses."""
+    from analysis.kinetostatics.uncertainty import principal_stiffness
+
+    pt, pr = principal_stiffness(ps.K_X)
+    rows = []
+    for i, (unit, sl) in enumerate((("N/mm", slice(0, 3)), ("N m/mrad", slice(3, 6)))):
+        diag = 1e-3 * np.diag(ps.K_X)[sl]
+        se = None if se_diag is None else 1e-3 * se_diag[sl]
+        for a in range(3):
+            row = [AXES[3 * i + a], unit,
+                   *[f"{1e-3 * v:.4g}" for v in ps.K_X[sl, sl][a]],
+                   f"{diag[a]:.4g}" + ("" if se is None else f" \u00b1 {se[a]:.2g}"),
+                   f"{1e-3 * (pt if i == 0 else pr)[a]:.4g}"]
+            rows.append(row)
+    header = ["", "unit", "x / rx", "y / ry", "z / rz", "diagonal \u00b1 se", "principal"]
+    return Table(f"K_X at {label}, with K_C, engineering units", header, rows,
+                 caption="Translational block in N/mm, rotational block in N m/mrad. "
+                 "Principal stiffnesses: under a pure force (moment) along the principal "
+                 "directions, the inverses of the eigenvalues of the blocks of K_X^-1. "
+                 "Standard errors from the covariance of the identified compliances.",
+                 widths=[0.4, 0.8, 1, 1, 1, 1.4, 1], mono=True)
+
+
+def kx_blocks(inp: ReportInputs, k_pred: np.ndarray,
+              result: IdentificationResult | None = None) -> list:
     blocks: list = [Paragraph(
         f"K_X = J^-T (K_\u03b8 - K_C) J^-1 (eq. 6) and without K_C (eq. 12), at P in the base "
         f"frame, under the user wrench {wrench_text(inp.wrench)}. Units: rows/columns x, y, z "
@@ -191,7 +217,27 @@ def kx_blocks(inp: ReportInputs, k_pred: np.ndarray) -> list:
             rows = [[AXES[i], *[matrix_entry(v) for v in M[i]]] for i in range(6)]
             blocks.append(Table(f"K_X at {label}, {title} (SI)", ["", *AXES], rows,
                                 widths=[0.5] + [1] * 6, mono=True))
+        blocks.append(kx_engineering(ps, label, _kx_se_diag(inp, q, k_pred, result)))
     return blocks
+
+
+def _kx_se_diag(inp: ReportInputs, q: np.ndarray, k: np.ndarray,
+                result: IdentificationResult | None) -> np.ndarray | None:
+    """Standard errors of diag(K_X) (SI) from the identified compliances' covariance."""
+    if result is None:
+        return None
+    from analysis.kinetostatics.uncertainty import cartesian_stiffness_se, stiffness_covariance
+    from analysis.model.kinematics import jacobian
+
+    cov = np.zeros((6, 6))
+    cols = list(result.joints)
+    cov[np.ix_(cols, cols)] = result.cov_x
+    bad = ~np.isfinite(result.k)
+    cov[bad], cov[:, bad] = 0.0, 0.0
+    try:
+        return np.diag(cartesian_stiffness_se(jacobian(inp.robot, q), stiffness_covariance(k, cov)))
+    except np.linalg.LinAlgError:
+        return None
 
 
 def robustness_blocks(result: IdentificationResult, inp: ReportInputs,
@@ -232,6 +278,8 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     first = [int(np.flatnonzero(inp.tests.pose == lab)[0]) for lab in labels]
     q_poses = inp.tests.q[first]
     banner = [t for t in [partial_text(inp.info)] if t]
+    for problem in result.misfit_accepted:
+        banner.append(f"ACCEPTED DESPITE A REFUSAL (--accept-misfit): {problem}")
     if inp.info.n_failed:
         banner.append(f"{inp.info.n_failed} failed test row(s): see Data quality.")
     d = table["deflection_mm"].to_numpy()
@@ -245,7 +293,8 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         f"P over the (\u03b8\u2082, \u03b8\u2083) map ranges from {fixed(d.min(), 3)} to "
         f"{fixed(d.max(), 3)} mm (median {fixed(np.median(d), 3)} mm)." if d.size else "")
     summary = Section(SECTION_TITLES[0], [
-        *[Paragraph(t, "warning") for t in banner], answer, summary_table(inp.info),
+        *[Paragraph(t, "warning") for t in banner], *assumption_blocks(result), answer,
+        summary_table(inp.info),
         Paragraph("Data quality", "heading"), *quality_blocks(inp.info)])
     ident_sec = Section(SECTION_TITLES[1], [
         stiffness_table(result, inp), fit_paragraph(result),
@@ -253,7 +302,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         figures.stiffness_bars(result.k, result.ci, inp.nominal, inp.nominal_label,
                                result.confidence)])
     resid_sec = Section(SECTION_TITLES[2], [
-        residual_table(result), figures.residual_plot(result.residuals, OUTLIER_THRESHOLD),
+        residual_table(result), figures.residual_plot(result.residuals, result.outlier_threshold),
         *validation_blocks(result)])
     defl_sec = Section(SECTION_TITLES[3], [
         Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "
@@ -263,12 +312,37 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         figures.poses_on_kappa_map(table, q_poses, labels, ft),
         figures.deflection_joint_map(table, q_poses, wt, ft),
         figures.deflection_cartesian_map(table, wt)])
-    kx_sec = Section(SECTION_TITLES[4], kx_blocks(inp, k_pred))
+    kx_sec = Section(SECTION_TITLES[4], kx_blocks(inp, k_pred, result))
     rob_sec = Section(SECTION_TITLES[5], robustness_blocks(result, inp, k_pred))
     title = f"Joint stiffness of {inp.robot.name}"
     subtitle = f"{inp.info.source}: {inp.info.location}"
     return Report(title, subtitle, [summary, ident_sec, resid_sec, defl_sec, kx_sec, rob_sec],
                   banner)
+
+
+def assumption_blocks(result: IdentificationResult) -> list:
+    """The table of what the result rests on (empty when the caller recorded nothing)."""
+    a = result.assumptions
+    if not a:
+        return []
+    rows = []
+    if "robot" in a:
+        rows.append(["robot", str(a["robot"])])
+    if "tool_point" in a:
+        t = a["tool_point"]
+        rows.append(["tool point P", f"xyz {t['xyz_mm']} mm, rpy {t['rpy_deg']} deg in the "
+                                     f"flange frame ({t['source']})"])
+    if "noise" in a:
+        n = a["noise"]
+        rows.append(["noise per test row",
+                     f"translation {sig(n['translation_sigma_um'], 3)} \u00b5m, rotation "
+                     f"{sig(n['rotation_sigma_urad'], 3)} \u00b5rad, force "
+                     f"{sig(n['force_sigma_N'], 3)} N, moment {sig(n['moment_sigma_Nm'], 3)} N m "
+                     f"({n['source']})"])
+    for key in ("method", "covariance", "joints", "poses"):
+        if key in a:
+            rows.append([key, str(a[key])])
+    return [Table("Assumptions", ["item", "value"], rows, widths=[1, 3.2])]
 
 
 def pm_text(value: float) -> str:

@@ -10,7 +10,14 @@ import typer
 from rich.console import Console
 
 from analysis.errors import InputError
-from campaign.options import parse_floats, robot_option, stiffness_option, wrench_option
+from campaign.options import (
+    TOOL_RPY_HELP,
+    TOOL_XYZ_HELP,
+    parse_floats,
+    robot_option,
+    stiffness_option,
+    wrench_option,
+)
 
 
 def register(app: typer.Typer) -> None:
@@ -19,6 +26,8 @@ def register(app: typer.Typer) -> None:
         robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
         out: Path = typer.Option(..., help="Output directory."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         step: float = typer.Option(1.0, help="Grid step (deg)."),
         fixed: str = typer.Option(
             None, help="Other joints q1..q6 in degrees (model convention); entries 2 and 3 "
@@ -32,6 +41,9 @@ def register(app: typer.Typer) -> None:
             None, help="Characteristic length L (m); default the model's, else computed."
         ),
         fmt: str = typer.Option("parquet", "--format", help="parquet or csv."),
+        upper_bound: bool = typer.Option(
+            False, "--deflection-upper-bound", help="Also map the 95 % upper bound of the "
+            "deflection |dp| from the identified model's covariance (model.toml)."),
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
         # pinocchio, scipy, pandas and matplotlib: imported when the command runs
@@ -40,7 +52,7 @@ def register(app: typer.Typer) -> None:
         from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
 
         console = Console()
-        r = robot_option(robot, tip)
+        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
         if step <= 0 or not np.isfinite(step):
             raise InputError("expected a positive step in degrees", where="--step")
         if fmt not in ("parquet", "csv"):
@@ -59,6 +71,17 @@ def register(app: typer.Typer) -> None:
         console.print(f"characteristic length L = {length:.4f} m ({how})")
         grid = GridSpec.from_limits(r, np.radians(step), fixed_q)
         table = joint_space_map(r, grid, k, w, length)
+        bound_cols = []
+        if upper_bound:
+            if r.compliance_covariance is None or joint_stiffness:
+                raise InputError("--deflection-upper-bound needs an identified model "
+                                 "(model.toml from campaign analyze) and no --joint-stiffness",
+                                 where="--deflection-upper-bound")
+            from analysis.kinetostatics.uncertainty import linear_deflection_upper_bound
+
+            table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
+                r, grid.poses(), k, w, r.compliance_covariance).ravel()
+            bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
         out.mkdir(parents=True, exist_ok=True)
         data = out / f"map_joint_space.{fmt}"
         if fmt == "parquet":
@@ -73,8 +96,9 @@ def register(app: typer.Typer) -> None:
         fixed_deg = np.degrees(grid.fixed)
         others = ", ".join(f"theta{j + 1} = {fixed_deg[j]:g}" for j in range(r.n)
                            if j not in (1, 2))
-        for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"), ("v_r_deg", "v_r")):
-            label = LABELS[col]
+        for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"), ("v_r_deg", "v_r"),
+                          *bound_cols):
+            label = LABELS.get(col, "95 % upper bound of |dp| (mm), identified model")
             plot_joint_map(table, col, out / f"{name}_joint.png",
                            f"{r.name}: {label}\n({others} deg)", zones=zones)
             plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
@@ -93,6 +117,9 @@ def register(app: typer.Typer) -> None:
             "wrench_N_Nm": w.tolist(),
             "joint_stiffness_Nm_per_rad": k.tolist(),
         }
+        if bound_cols:
+            summary["max_deflection_upper95_mm"] = float(
+                table.loc[ok, "deflection_upper95_mm"].max())
         (out / "map_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
         console.print(
             f"{len(table)} poses, {summary['singular_nodes']} singular; "

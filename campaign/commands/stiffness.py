@@ -8,7 +8,16 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from campaign.options import joint_angles_option, robot_option, stiffness_option, wrench_option
+from analysis.errors import SingularPoseError
+from campaign.options import (
+    TOOL_RPY_HELP,
+    TOOL_XYZ_HELP,
+    joint_angles_option,
+    robot_option,
+    stiffness_option,
+    tool_option,
+    wrench_option,
+)
 
 
 def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
@@ -17,12 +26,48 @@ def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
         console.print("  " + " ".join(f"{v: .4e}" for v in row))
 
 
+def _intervals(r, q, k, w, J, cov_x) -> dict:
+    """95 % intervals of the nonlinear deflection and of diag(K_X) from the model's covariance."""
+    from analysis.kinetostatics.stiffness import (
+        cartesian_stiffness,
+        complementary_stiffness_from_state,
+    )
+    from analysis.kinetostatics.uncertainty import (
+        Z95,
+        cartesian_stiffness_se,
+        predict_deflection,
+        stiffness_covariance,
+    )
+    from analysis.model.kinematics import chain_state
+
+    pred = predict_deflection(r, q, k, w, cov_x)
+    lo, hi = pred.bounds(Z95)
+    se = np.diagonal(cartesian_stiffness_se(J, stiffness_covariance(k, cov_x)))
+    K_X = np.diagonal(cartesian_stiffness(J, k, complementary_stiffness_from_state(
+        chain_state(r, q), w)))
+    return {
+        "confidence": 0.95,
+        "deflection_nonlinear_sd": pred.sd.tolist(),
+        "deflection_nonlinear_lo95": lo.tolist(),
+        "deflection_nonlinear_hi95": hi.tolist(),
+        "K_X_diag_se": se.tolist(),
+        "K_X_diag_lo95": (K_X - Z95 * se).tolist(),
+        "K_X_diag_hi95": (K_X + Z95 * se).tolist(),
+        "method": "covariance of the identified compliances (model file [identification]) "
+                  "propagated by the delta method: d(dq)/dx_j = (K_theta - K_C)^-1 e_j "
+                  "k_j^2 dq_j at the loaded pose (exact for the linear model without K_C); "
+                  "K_X is linear in k, cov(k) from cov(x) by the delta method",
+    }
+
+
 def register(app: typer.Typer) -> None:
     @app.command("stiffness")
     def stiffness(
         robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
         q: str = typer.Option(..., help="Joint angles in degrees, comma-separated."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         controller: bool = typer.Option(
             False, "--controller-angles", help="--q is in the teach-pendant convention."
         ),
@@ -46,26 +91,40 @@ def register(app: typer.Typer) -> None:
         )
         from analysis.model.kinematics import chain_state, jacobian_from_state
 
-        r = robot_option(robot, tip)
+        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
+        tool = tool_option(tool_xyz_mm, tool_rpy_deg)
         qr = r.check_q(joint_angles_option(r, q, controller), where="--q")
         k = stiffness_option(r, joint_stiffness)
         w = wrench_option(wrench, WORST_CASE_WRENCH)
         state = chain_state(r, qr)
         J = jacobian_from_state(state)
         K_C = complementary_stiffness_from_state(state, w)
-        K_X = cartesian_stiffness(J, k, K_C)
-        K_X0 = cartesian_stiffness(J, k)
+        # K_X needs J^-1; at a singular pose (e.g. the KUKA home pose, A5 = 0) J, K_C and
+        # the deflections are still defined and are reported, K_X is marked undefined.
+        undefined: dict[str, str] = {}
+        K_X = K_X0 = None
+        try:
+            K_X = cartesian_stiffness(J, k, K_C)
+            K_X0 = cartesian_stiffness(J, k)
+        except SingularPoseError:
+            sv = np.linalg.svd(J, compute_uv=False)
+            reason = (f"J is singular at this pose (smallest singular value {sv[-1]:.3g}, "
+                      f"largest {sv[0]:.3g}): K_X = J^-T (K_theta - K_C) J^-1 needs J^-1; "
+                      "the compliance J (K_theta - K_C)^-1 J^T and the deflections are defined")
+            undefined = {"K_X": reason, "K_X_without_K_C": reason}
         lin = deflection(J, k, w, K_C)
         exact = displacement_screw(r, qr, k, w)
         result = {
             "robot": r.name,
+            "tool": tool.describe(),
             "q_rad": qr.tolist(),
             "joint_stiffness_Nm_per_rad": k.tolist(),
             "wrench_N_Nm": w.tolist(),
             "J": J.tolist(),
             "K_C": K_C.tolist(),
-            "K_X": K_X.tolist(),
-            "K_X_without_K_C": K_X0.tolist(),
+            "K_X": None if K_X is None else K_X.tolist(),
+            "K_X_without_K_C": None if K_X0 is None else K_X0.tolist(),
+            "undefined": undefined,
             "deflection": lin.tolist(),
             "deflection_without_K_C": deflection(J, k, w).tolist(),
             "deflection_nonlinear": exact.tolist(),
@@ -76,19 +135,38 @@ def register(app: typer.Typer) -> None:
                 "deflection": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation vector)",
             },
         }
+        cov_x = None if joint_stiffness else r.compliance_covariance
+        if cov_x is not None:
+            result["uncertainty"] = _intervals(r, qr, k, w, J, cov_x)
         if as_json:
             typer.echo(json.dumps(result, indent=2))
             return
         console = Console()
         console.print(f"[bold]{r.name}[/bold]  q = {np.degrees(qr).round(3).tolist()} deg "
                       "(model convention)")
+        console.print(f"tool: {tool.text()}")
         console.print(f"k = {k.tolist()} N m/rad;  w = {w.tolist()} N, N m")
         _matrix(console, "J", J, "rows 1-3 m/rad, rows 4-6 rad/rad")
         _matrix(console, "K_C", K_C, "N m/rad")
-        _matrix(console, "K_X with K_C", K_X, "N/m, N/rad, N, N m/rad blocks")
-        _matrix(console, "K_X without K_C", K_X0, "same units")
+        if K_X is None:
+            console.print(f"[bold]K_X[/bold] (with and without K_C): undefined: "
+                          f"{undefined['K_X']}")
+        else:
+            _matrix(console, "K_X with K_C", K_X, "N/m, N/rad, N, N m/rad blocks")
+            _matrix(console, "K_X without K_C", K_X0, "same units")
         console.print("[bold]deflection of P[/bold] (mm, mrad)")
         for label, d in (("with K_C", lin), ("without K_C", deflection(J, k, w)),
                          ("nonlinear equilibrium", exact)):
             console.print(f"  {label:22s} dp = {np.round(1e3 * d[:3], 4).tolist()} mm, "
                           f"dr = {np.round(1e3 * d[3:], 4).tolist()} mrad")
+        if cov_x is not None:
+            u = result["uncertainty"]
+            lo = np.array(u["deflection_nonlinear_lo95"])
+            hi = np.array(u["deflection_nonlinear_hi95"])
+            console.print("[bold]95 % intervals[/bold] (identified model, delta method)")
+            console.print(f"  dp from {np.round(1e3 * lo[:3], 4).tolist()} to "
+                          f"{np.round(1e3 * hi[:3], 4).tolist()} mm")
+            console.print(f"  dr from {np.round(1e3 * lo[3:], 4).tolist()} to "
+                          f"{np.round(1e3 * hi[3:], 4).tolist()} mrad")
+            half = np.round(1.96 * np.array(u["K_X_diag_se"]), 1).tolist()
+            console.print(f"  diag(K_X) +- {half} (SI)")

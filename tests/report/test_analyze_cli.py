@@ -43,7 +43,8 @@ def test_csv_import_writes_the_same_result_keys_and_a_report(tmp_path, rows):
                  str(out), "--method", "wls", "--trials", "20"]) == 0
     res = json.loads((out / "results.json").read_text())
     direct = analyze_table(read_csv(csv), load_robot("kr240-2"), method="wls").to_dict()
-    assert list(res) == list(direct)
+    # campaign analyze adds K_X at the tested poses and the model file (docs/use.md)
+    assert list(res) == [*direct, "cartesian_stiffness", "model_file"]
     np.testing.assert_allclose(res["joint_stiffness_Nm_per_rad"],
                                direct["joint_stiffness_Nm_per_rad"], rtol=1e-9)
     html = (out / "report.html").read_text(encoding="utf-8")
@@ -62,6 +63,7 @@ def test_poses_named_in_the_protocol_get_kx(tmp_path, rows):
     html = (tmp_path / "o" / "report.html").read_text(encoding="utf-8")
     parser.feed(html)
     assert "K_X at drilling, with K_C (SI)" in parser.titles
+    assert "K_X at drilling, with K_C, engineering units" in parser.titles
     assert "f = (0, 0, -500) N, m = (0, 0, 0) N m (protocol [report] wrench)" in html
 
 
@@ -129,12 +131,21 @@ class _Rows(HTMLParser):
             self._cell += data
 
 
-def test_an_outlier_is_marked_in_the_residual_table(tmp_path, rows):
+def test_an_outlier_is_marked_in_the_residual_table(tmp_path, rows, capsys):
     rows = [dict(r) for r in rows]
     rows[7]["dy_mm"] += 0.5  # 0.5 mm on one component: about 17 sigma
     out = tmp_path / "o"
-    assert main(["analyze", str(write_run(tmp_path / "run", rows)), "--trials", "10",
-                 "--out", str(out)]) == 0
+    run = str(write_run(tmp_path / "run", rows))
+    # chi-square p ~ 1e-14: refused, naming the glitch's tests.csv line first
+    assert main(["analyze", run, "--trials", "10", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "misfit" in err and "worst rows: line 9 (pose P3) dy" in err
+    assert "--accept-misfit" in err and not (out / "results.json").exists()
+    assert main(["analyze", run, "--trials", "10", "--out", str(out), "--accept-misfit"]) == 0
+    res = json.loads((out / "results.json").read_text())
+    assert res["misfit_accepted"]["accepted"] and "misfit" in res["misfit_accepted"]["problems"][0]
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "ACCEPTED DESPITE A REFUSAL" in html and "Assumptions" in html
     parser = _Rows()
     parser.feed((out / "report.html").read_text(encoding="utf-8"))
     marked = [cells for m, cells in parser.rows if m]
