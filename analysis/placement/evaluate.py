@@ -88,6 +88,11 @@ def evaluate(problem: Problem, solver: IKSolver, placements: np.ndarray,
     """Evaluate every (placement, point, angle) triple in configuration ``flags``."""
     robot = problem.robot
     R = problem.rotations if rotations is None else rotations
+    if solver.kind == "spherical_wrist":
+        from analysis.placement.wrist_eval import evaluate_wrist
+
+        return Triples(*evaluate_wrist(problem, solver, np.asarray(placements, dtype=float),
+                                       flags, R))
     T = target_poses(placements, problem.points, R)
     q, found = solver.solve(T, flags, check=False)
     q, in_limits = fit_limits(robot, np.where(found[..., None], q, 0.0), problem.margin)
