@@ -98,6 +98,34 @@ def _cos_sin_branch(a, b, rhs, sign: int, slack: float):
     return (a * rhs - b * root) * inv, (b * rhs + a * root) * inv, ok
 
 
+def _unit(c, s):
+    """(c, s) / |(c, s)|: cosine and sine of atan2(s, c); (1, 0) where both vanish."""
+    n = np.sqrt(c * c + s * s)
+    zero = n == 0.0
+    if np.any(zero):
+        n = np.where(zero, 1.0, n)
+        return np.where(zero, 1.0, c / n), np.where(zero, 0.0, s / n)
+    inv = 1.0 / n
+    return c * inv, s * inv
+
+
+def rzc(c, s, w: np.ndarray) -> Vec:
+    """Rz(q) w for a constant vector w (3,); zero entries cost nothing."""
+    return (_row(np.array([w[0], -w[1], 0.0]), (c, s, 0.0)),
+            _row(np.array([w[1], w[0], 0.0]), (c, s, 0.0)), float(w[2]))
+
+
+def apply(cols: list, v: Vec) -> Vec:
+    """Matrix given by its columns (SoA vectors) times v; float zero entries of v skipped."""
+    out = None
+    for col, vi in zip(cols, v, strict=True):
+        if isinstance(vi, float) and vi == 0.0:
+            continue
+        term = tuple(vi * col[i] for i in range(3))
+        out = term if out is None else tuple(out[i] + term[i] for i in range(3))
+    return (0.0, 0.0, 0.0) if out is None else out
+
+
 @dataclass(frozen=True)
 class NormalChain:
     """A 6R chain with axes 2, 3 parallel and a spherical wrist, normalised (module doc).
@@ -139,8 +167,10 @@ class NormalChain:
 
 @dataclass
 class WristSolution:
-    """Joint angles q[i] (rad, (-pi, pi]) with their cos c[i] and sin s[i] (arrays),
-    ok (bool array), the wrist centre (base frame, m), and the chain they belong to."""
+    """Joint angles q[i] (rad, [-pi, pi]) with the cos c[i] and sin s[i] of q1..q5
+    (arrays), ok (bool array; arm_ok on the arm's shape and wrist_ok), the wrist
+    centre (base frame, m), frame4: the columns (base frame) of G_3 L_4, whose z
+    axis is joint axis 4, and the chain they belong to."""
 
     chain: NormalChain
     q: list
@@ -148,6 +178,9 @@ class WristSolution:
     s: list
     ok: np.ndarray
     centre: Vec
+    frame4: list | None = None
+    arm_ok: np.ndarray | None = None
+    wrist_ok: np.ndarray | None = None
 
     def to_base(self, v: Vec, frame: int) -> Vec:
         """Components in the base frame of a vector given in G_frame (frame = 0..6)."""
@@ -204,15 +237,14 @@ def solve_wrist(chain: NormalChain, centre: Vec, z6: Vec, x6: Vec,
     wr = (c3 * w[0] - s3 * w[1], s3 * w[0] + c3 * w[1])
     ux = t[0] + R2[0, 0] * wr[0] + R2[0, 1] * wr[1]
     uy = t[1] + R2[1, 0] * wr[0] + R2[1, 1] * wr[1]
-    d2 = ux * f[0] + uy * f[1]
-    x2 = ux * f[1] - uy * f[0]
-    n2 = np.sqrt(d2 * d2 + x2 * x2)
-    n2 = np.where(n2 > 0.0, n2, 1.0)
-    c2, s2 = d2 / n2, x2 / n2
+    c2, s2 = _unit(ux * f[0] + uy * f[1], ux * f[1] - uy * f[0])
     cs_c, cs_s = [c1, c2, c3], [s1, s2, s3]
     sol = WristSolution(chain, [], cs_c, cs_s, ok1 & ok3, centre)
-    # wrist: Rz(q4) R(w2, q5) x = y (Paden-Kahan 2), then q6 (Paden-Kahan 1)
-    y = cmv(L.rot[3].T, sol.from_base(z6, 3))
+    # wrist, in the frame F = G_3 L_4 whose z axis is axis 4 (columns in the base
+    # frame, arm shape): Rz(q4) R(w2, q5) x = y (Paden-Kahan 2), then q6 (sub-problem 1)
+    F = [sol.to_base(tuple(L.rot[3][:, i]), 3) for i in range(3)]
+    sol.frame4 = F
+    y = tuple(dot(F[i], z6) for i in range(3))
     w2 = L.rot[4][:, 2]
     x = L.rot[4] @ L.rot[5][:, 2]
     c12 = float(w2[2])
@@ -229,22 +261,16 @@ def solve_wrist(chain: NormalChain, centre: Vec, z6: Vec, x6: Vec,
          alpha + beta * w2[2])
     # q5 about w2 takes x to z: atan2((x_p x z) . w2, x_p . z), x_p = x without its w2 part
     xp = x - wx * w2
-    g = np.cross(w2, xp)
-    c5n, s5n = cdot(xp, z), cdot(g, z)
-    # q4 about z takes z to y
-    c4n = z[0] * y[0] + z[1] * y[1]
-    s4n = z[0] * y[1] - z[1] * y[0]
-    n4 = np.sqrt(c4n * c4n + s4n * s4n)
-    n5 = np.sqrt(c5n * c5n + s5n * s5n)
-    c4, s4 = c4n / np.where(n4 > 0, n4, 1.0), s4n / np.where(n4 > 0, n4, 1.0)
-    c5, s5 = c5n / np.where(n5 > 0, n5, 1.0), s5n / np.where(n5 > 0, n5, 1.0)
+    c5, s5 = _unit(cdot(xp, z), cdot(np.cross(w2, xp), z))
+    # q4 about e_z takes z to y
+    c4, s4 = _unit(z[0] * y[0] + z[1] * y[1], z[0] * y[1] - z[1] * y[0])
     cs_c += [c4, c5]
     cs_s += [s4, s5]
-    # q6: G_5^T x6 = L_6 Rz(q6) e_x
-    m = cmv(L.rot[5].T, sol.from_base(x6, 5))
-    q6 = np.arctan2(m[1], m[0])
-    cs_c.append(np.cos(q6))
-    cs_s.append(np.sin(q6))
-    sol.q = [np.arctan2(cs_s[i], cs_c[i]) for i in range(5)] + [q6]
-    sol.ok = sol.ok & (g2 > -1e-9)
+    # q6: (F Rz(q4) L_5 Rz(q5) L_6)^T x6 = Rz(q6) e_x
+    v = tuple(dot(F[i], x6) for i in range(3))
+    v = cmv(L.rot[5].T, rzt(c5, s5, cmv(L.rot[4].T, rzt(c4, s4, v))))
+    sol.q = [np.arctan2(cs_s[i], cs_c[i]) for i in range(5)] + [np.arctan2(v[1], v[0])]
+    sol.arm_ok = sol.ok
+    sol.wrist_ok = g2 > -1e-9
+    sol.ok = sol.arm_ok & sol.wrist_ok
     return sol
