@@ -183,15 +183,9 @@ class WristSolution:
     wrist_ok: np.ndarray | None = None
 
     def to_base(self, v: Vec, frame: int) -> Vec:
-        """Components in the base frame of a vector given in G_frame (frame = 0..6)."""
+        """Components in the base frame of a vector given in G_frame (frame = 0..5)."""
         for i in range(frame - 1, -1, -1):
             v = cmv(self.chain.rot[i], rz(self.c[i], self.s[i], v))
-        return v
-
-    def from_base(self, v: Vec, frame: int) -> Vec:
-        """Components in G_frame of a vector given in the base frame."""
-        for i in range(frame):
-            v = rzt(self.c[i], self.s[i], cmv(self.chain.rot[i].T, v))
         return v
 
     def axes_and_origins(self, upto: int = 6) -> tuple[list, list]:
