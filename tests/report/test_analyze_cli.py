@@ -62,8 +62,8 @@ def test_poses_named_in_the_protocol_get_kx(tmp_path, rows):
     parser = _H3()
     html = (tmp_path / "o" / "report.html").read_text(encoding="utf-8")
     parser.feed(html)
-    assert "K_X at drilling, with K_C (SI)" in parser.titles
-    assert "K_X at drilling, with K_C, engineering units" in parser.titles
+    assert "K_X at pose drilling, with K_C" in parser.titles
+    assert "Effect of K_C (the load's geometric stiffness)" in parser.titles
     assert "f = (0, 0, -500) N, m = (0, 0, 0) N m (protocol [report] wrench)" in html
 
 
