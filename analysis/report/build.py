@@ -6,7 +6,7 @@ naming its unit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -14,6 +14,7 @@ from analysis.identification.estimate import OUTLIER_FAMILY_LEVEL
 from analysis.identification.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.result import IdentificationResult
+from analysis.kinetostatics.map_fixed import MapFixed, map_fixed_joints
 from analysis.model.robot_model import RobotModel
 from analysis.report import figures
 from analysis.report.design_robustness import design_robustness, design_tests
@@ -60,7 +61,8 @@ class ReportInputs:
     poses : (label, q (6,) rad) where K_X is reported.
     nominal : (6,) reference stiffness (N m/rad) or None; nominal_label names it.
     true_k : (6,) true stiffness of a simulated lab, or None.
-    map_fixed : (6,) joint values of the maps (rad; entries 2 and 3 ignored).
+    map_fixed : joint values of the maps (:class:`MapFixed`, or (6,) rad with entries
+        2 and 3 ignored; default the median of the tested poses).
     trials : Monte-Carlo trials per number of tests for the robustness curve.
     """
 
@@ -74,7 +76,7 @@ class ReportInputs:
     nominal: np.ndarray | None = None
     nominal_label: str = "nominal"
     true_k: np.ndarray | None = None
-    map_fixed: np.ndarray = field(default_factory=lambda: np.radians([0, 0, 0, 45, 45, 45]))
+    map_fixed: MapFixed | np.ndarray | None = None
     trials: int = 300
 
 
@@ -85,16 +87,22 @@ def wrench_text(w: np.ndarray) -> str:
     return f"f = ({f}) N, m = ({m}) N m"
 
 
-def fixed_text(q: np.ndarray) -> str:
-    deg = np.degrees(q)
-    return ", ".join(f"\u03b8{i + 1} = {deg[i]:.0f}" for i in (0, 3, 4, 5)) + " deg"
+def map_fixed_of(inp: ReportInputs) -> MapFixed:
+    """The maps' fixed joints as a :class:`MapFixed` (given, or by the one rule)."""
+    if isinstance(inp.map_fixed, MapFixed):
+        return inp.map_fixed
+    if inp.map_fixed is None:
+        return map_fixed_joints(inp.robot.n, None, inp.tests.q)
+    q = np.asarray(inp.map_fixed, dtype=float)
+    return MapFixed(q, (), ())
 
 
 def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
     """k, interval, standard error, comparison with the nominal (and true) values."""
     conf = f"{result.confidence:.0%}"
+    short = inp.nominal_label.split(" (")[0]  # "nominal" or "prior"
     cols = ["joint", "k (kN m/rad)", f"{conf} interval (kN m/rad)", "se (kN m/rad)",
-            "se/k (%)", f"{inp.nominal_label} (kN m/rad)", "k/nominal - 1 (%)"]
+            "se/k (%)", f"{inp.nominal_label} (kN m/rad)", f"k/{short} - 1 (%)"]
     if inp.true_k is not None:
         cols += ["true (kN m/rad)", "k/true - 1 (%)"]
     rows, marked = [], []
@@ -199,8 +207,8 @@ def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> Table:
         se = "" if se_diag is None else f" {PM} {sig(1e-3 * se_diag[i], 2)}"
         rows.append([KX_ROWS[i], *[eng(v) for v in M[i]], eng(diag[i]) + se,
                      eng(principal[i])])
-    return Table(f"K_X at {pose_title(label, start=False)}, with K_C", ["", *KX_COLS, f"diagonal {PM} se",
-                                               "principal"], rows,
+    return Table(f"K_X at {pose_title(label, start=False)}, with K_C",
+                 ["", *KX_COLS, f"diagonal {PM} se", "principal"], rows,
                  caption="Row: force (N) or moment (N m) at P; column: translation (mm) or "
                  "rotation (mrad) of P, base frame; so the translational block reads in N/mm "
                  "and the rotational one in N m/mrad. Principal: the stiffness P shows under a "
@@ -316,9 +324,11 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     """Assemble the report's sections (runs the maps and the Monte-Carlo study)."""
     k_pred, pred_notes = stiffness_for_prediction(result.k, inp.nominal)
     length, length_source = map_length(inp.robot)
-    table = deflection_map(inp.robot, k_pred, inp.wrench, inp.map_fixed, length)
+    mf = map_fixed_of(inp)
+    table = deflection_map(inp.robot, k_pred, inp.wrench, mf.q, length)
     wt = wrench_text(inp.wrench)
-    ft = fixed_text(inp.map_fixed)
+    ft = mf.values_text()
+    rule = mf.rule_text()
     labels = list(dict.fromkeys(inp.tests.pose.tolist()))
     first = [int(np.flatnonzero(inp.tests.pose == lab)[0]) for lab in labels]
     q_poses = inp.tests.q[first]
@@ -354,8 +364,8 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
                   "with the identified k and K_C (linear, eq. 6)."),
         *[Paragraph(n, "note") for n in pred_notes],
         Paragraph(f"1/\u03ba_F of J_N with L = {length:.3f} m ({length_source})."),
-        figures.poses_on_kappa_map(table, q_poses, labels, ft),
-        figures.deflection_joint_map(table, q_poses, wt, ft),
+        figures.poses_on_kappa_map(table, q_poses, labels, ft, rule),
+        figures.deflection_joint_map(table, q_poses, wt, ft, labels, rule),
         figures.deflection_cartesian_map(table, wt)])
     kx_sec = Section(SECTION_TITLES[4], kx_blocks(inp, k_pred, result))
     rob_sec = Section(SECTION_TITLES[5], robustness_blocks(result, inp, k_pred))

@@ -257,12 +257,12 @@ def _wrench(protocol, text: str | None, w_tests: np.ndarray) -> tuple[np.ndarray
     return w_tests[0].copy(), "wrench of the first test"
 
 
-def _map_fixed(protocol) -> np.ndarray:
-    fixed = np.radians([0.0, 0.0, 0.0, 45.0, 45.0, 45.0])
-    if protocol is not None:
-        for key, value in protocol.sampling.fixed_deg.items():
-            fixed[int(key[1:]) - 1] = np.radians(value)
-    return fixed
+def _map_fixed(protocol, n: int, q_poses: np.ndarray):
+    """The maps' fixed joints: the plan map's rule (protocol fixed_deg, else the poses' median)."""
+    from analysis.kinetostatics.map_fixed import map_fixed_joints
+
+    return map_fixed_joints(n, None if protocol is None else protocol.sampling.fixed_deg,
+                            q_poses)
 
 
 def _print(console: Console, result, paths: dict) -> None:
@@ -393,7 +393,9 @@ def register(app: typer.Typer) -> None:
                 robot=model, tests=tests, info=info, noise=noise, wrench=w,
                 wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
                 nominal=None if nominal is None else np.asarray(nominal, float),
-                nominal_label=label, true_k=extras["true_k"], map_fixed=_map_fixed(protocol),
+                nominal_label=label, true_k=extras["true_k"],
+                map_fixed=_map_fixed(protocol, model.n, tests.q[
+                    [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
                 trials=trials)
             paths.update(write_report(build_report(result, inputs), out))
         summary = {"run": str(run_dir) if run_dir else None, "partial": info.partial,

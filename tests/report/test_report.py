@@ -170,11 +170,12 @@ def test_html_residuals_validation_and_kx(complete):
                           "rz (/mrad)"]
     m = np.array([[float(v) for v in r[1:7]] for r in kx[1:]])
     # independent: K_X of eq. 6 at the --pose with the identified k, scaled to N/mm, N m/mrad
+    from report_runs import PROTOCOL
+
     from analysis.kinetostatics.stiffness import cartesian_stiffness, complementary_stiffness
     from analysis.model.kinematics import jacobian
     from campaign.protocol import load_protocol
     from campaign.protocol_robot import protocol_robot
-    from report_runs import PROTOCOL
 
     robot = protocol_robot(load_protocol(PROTOCOL))
     q = np.radians([0, 30, -190, 10, 40, 20])
