@@ -59,7 +59,8 @@ class ReportInputs:
     info : campaign summary. noise : the noise model used for the identification.
     wrench : (6,) user wrench [N, N m] at P, base frame; wrench_source says where it comes from.
     poses : (label, q (6,) rad) where K_X is reported.
-    nominal : (6,) reference stiffness (N m/rad) or None; nominal_label names it.
+    nominal : (6,) reference stiffness (N m/rad) or None; nominal_label names it,
+        nominal_source says where its values come from (e.g. a paper's table).
     true_k : (6,) true stiffness of a simulated lab, or None.
     map_fixed : joint values of the maps (:class:`MapFixed`, or (6,) rad with entries
         2 and 3 ignored; default the median of the tested poses).
@@ -75,6 +76,7 @@ class ReportInputs:
     poses: list[tuple[str, np.ndarray]]
     nominal: np.ndarray | None = None
     nominal_label: str = "nominal"
+    nominal_source: str = ""
     true_k: np.ndarray | None = None
     map_fixed: MapFixed | np.ndarray | None = None
     trials: int = 300
@@ -122,7 +124,9 @@ def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
         outside = ident and np.isfinite(nom) and not (result.ci[j, 0] <= nom <= result.ci[j, 1])
         marked.append(bool(outside))
     return Table("Identified joint stiffness", cols, rows, marked,
-                 caption=f"Highlighted: the {inp.nominal_label} value lies outside the "
+                 caption=(f"{short.capitalize()} values: {inp.nominal_source}. "
+                          if inp.nominal_source and inp.nominal is not None else "")
+                 + f"Highlighted: the {inp.nominal_label} value lies outside the "
                  f"{conf} interval. Interval: {conf} interval of the compliance 1/k mapped "
                  "to k ('inf': the data do not bound k from above).",
                  widths=[0.6, 1.1, 1.7, 1.0, 0.8, 1.2, 1.1] + ([1.0, 1.0] if inp.true_k

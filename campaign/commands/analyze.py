@@ -175,9 +175,8 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     if meta is not None and meta.noise is not None:
         noise, noise_source = meta.noise, meta.noise_source
     info = CampaignInfo(source="csv", location=str(path), robot=robot.name, tool=tool.text(),
-                        protocol_file="- (imported CSV)",
-                        protocol_sha256="CSV SHA-256 " + hashlib.sha256(
-                            path.read_bytes()).hexdigest(),
+                        protocol_file="-", protocol_sha256="-",
+                        measurements_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
                         n_rows=len(table), n_ok=len(table), notes=notes)
     return table, robot, noise, info, {"protocol": None, "true_k": None, "tool": tool,
                                        "noise_source": noise_source,
@@ -247,14 +246,21 @@ def _poses(robot, protocol, pose_args: list[str], q_tests: np.ndarray, labels) -
     return poses
 
 
-def _wrench(protocol, text: str | None, w_tests: np.ndarray) -> tuple[np.ndarray, str]:
+def _wrench(protocol, text: str | None, w_tests: np.ndarray,
+            noise: NoiseModel) -> tuple[np.ndarray, str]:
     if text:
         return parse_floats(text, "--wrench", 6), "--wrench"
     if protocol is not None and protocol.report.wrench is not None:
         return np.asarray(protocol.report.wrench, float), "protocol [report] wrench"
     if protocol is not None:
         return protocol.wrenches()[0], f"first load case '{protocol.load_cases[0].name}'"
-    return w_tests[0].copy(), "wrench of the first test"
+    from analysis.report.quantities import load_cases
+
+    # not the first test's measured wrench: its noise would show as a load component
+    w, n = load_cases(w_tests, noise.force_sigma, noise.moment_sigma)[0]
+    return w, (f"load case 1 of the imported tests: mean of its {n} measured wrench(es) "
+               f"rounded to the noise sigmas ({noise.force_sigma:g} N, "
+               f"{noise.moment_sigma:g} N m); --wrench to choose another")
 
 
 def _map_fixed(protocol, n: int, q_poses: np.ndarray):
@@ -385,15 +391,25 @@ def register(app: typer.Typer) -> None:
                 raise InputError("need at least 10 trials", where="--trials")
             tests = to_arrays(table)
             labels = list(dict.fromkeys(tests.pose.tolist()))
-            w, w_source = _wrench(protocol, wrench, tests.w)
+            w, w_source = _wrench(protocol, wrench, tests.w, noise)
+            if protocol is None:
+                from analysis.report.build import wrench_text
+                from analysis.report.quantities import load_cases
+
+                info.wrenches = [(wrench_text(c), n) for c, n in
+                                 load_cases(tests.w, noise.force_sigma, noise.moment_sigma)]
             nominal, label = model.nominal_stiffness, "nominal (robot model)"
+            nominal_source = (model.sources or {}).get(
+                "stiffness", "the robot file's [stiffness] (its [sources] give no reference)")
             if nominal is None and protocol is not None and protocol.campaign.prior_stiffness:
                 nominal, label = np.asarray(protocol.campaign.prior_stiffness), "prior (protocol)"
+                nominal_source = f"protocol {Path(protocol.path).name} [campaign] " \
+                    "prior_stiffness"
             inputs = ReportInputs(
                 robot=model, tests=tests, info=info, noise=noise, wrench=w,
                 wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
                 nominal=None if nominal is None else np.asarray(nominal, float),
-                nominal_label=label, true_k=extras["true_k"],
+                nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
                 map_fixed=_map_fixed(protocol, model.n, tests.q[
                     [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
                 trials=trials)
