@@ -104,7 +104,11 @@ def build_app() -> typer.Typer:
     )
 
     @app.callback()
-    def _root() -> None:
+    def _root(
+        version: bool = typer.Option(False, "--version", is_eager=True,
+                                     callback=_print_version,
+                                     help="Print the version and exit."),
+    ) -> None:
         """Plan, run and analyse joint-stiffness identification campaigns of serial robots."""
 
     lazy_modules = {module for module, _ in LAZY_COMMANDS.values()}
@@ -116,6 +120,20 @@ def build_app() -> typer.Typer:
         if register is not None:
             register(app)
     return app
+
+
+def _print_version(value: bool) -> None:
+    """``campaign --version``: the installed package's version."""
+    if not value:
+        return
+    import importlib.metadata
+
+    try:
+        version = importlib.metadata.version("robot-stiffness-campaign")
+    except importlib.metadata.PackageNotFoundError:
+        version = "unknown (not installed)"
+    typer.echo(f"campaign (robot-stiffness-campaign) {version}")
+    raise typer.Exit(0)
 
 
 def _is_equilibrium_error(err: Exception) -> bool:

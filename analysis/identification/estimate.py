@@ -415,7 +415,8 @@ def identify(
     flagged = residuals[residuals["outlier"]]
     if len(flagged):
         where = ", ".join(
-            f"line {r.line} (pose {r.pose}) {r.component} t = {r.studentized:.1f}"
+            f"test {r.test + 1} line {r.line} (pose {r.pose}) {r.component} "
+            f"t = {r.studentized:.1f}"
             for r in flagged.reindex(flagged["studentized"].abs().sort_values(
                 ascending=False).index).head(5).itertuples())
         more = f" and {len(flagged) - 5} more" if len(flagged) > 5 else ""

@@ -170,7 +170,7 @@ def test_a_good_import_is_not_refused_and_records_its_assumptions(tmp_path, rows
     res = json.loads((out / "results.json").read_text())
     a = res["assumptions"]
     assert a["tool_point"]["source"] == "none given: flange centre assumed"
-    assert "defaults" in a["noise"]["source"] and "--sigma-translation-um" in a["noise"]["source"]
+    assert "defaults" in a["noise"]["source"] and "--translation-sigma-um" in a["noise"]["source"]
     assert a["method"].startswith("exact")
     assert res["misfit_accepted"] == {"accepted": False, "problems": []}
 
