@@ -169,8 +169,9 @@ def check_identifiable(
     return cond
 
 
-def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured) -> np.ndarray:
-    return covariances_per_test(noise, J, x_full, measured)
+def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
+                 w: np.ndarray | None = None) -> np.ndarray:
+    return covariances_per_test(noise, J, x_full, measured, w)
 
 
 def _linear_estimator(A, d, measured, cov, weighted: bool):
@@ -196,14 +197,14 @@ def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
 def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
     """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18)."""
     J, A = _design(robot, tests, joints)
-    cov = _covariances(noise, J, np.zeros(6), tests.measured)
+    cov = _covariances(noise, J, np.zeros(6), tests.measured, tests.w)
     x, G = _linear_estimator(A, tests.d, tests.measured, cov, weighted=False)
     if weighted:
         for _ in range(2):
-            cov = _covariances(noise, J, _full(x, joints), tests.measured)
+            cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
             x, G = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
     else:
-        cov = _covariances(noise, J, _full(x, joints), tests.measured)
+        cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
     pred = np.einsum("mrp,p->mr", A, x)
     return Fit(x=x, G=G, A=A, cov=cov, predicted=pred, iterations=0)
 
