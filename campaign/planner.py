@@ -175,7 +175,7 @@ def case_contributions(plan_in: dict, design: Design, names: list[str]) -> list[
 
 def make_plan(
     protocol: Protocol,
-    strategy: str = "d-optimal",
+    strategy: str = "worst-joint",
     seed: int = 0,
     candidates: int = 10000,
     tests: int | None = None,
@@ -217,6 +217,8 @@ def make_plan(
             update={"campaign": protocol.campaign.model_copy(update={"tests": tests})}
         )
     robot = protocol_robot(protocol)
+    if weights is not None and strategy != "weighted":
+        raise InputError("weights are used by --strategy weighted only", where="--weights")
     if strategy == "weighted":
         if weights is None or len(weights) != robot.n or not all(
                 np.isfinite(v) and v >= 0 for v in weights) or not any(weights):

@@ -15,8 +15,14 @@ def plan(
     protocol: Path = typer.Option(..., "--protocol", "-p", help="Protocol file (.toml/.yaml)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output directory of the plan."),
     strategy: str = typer.Option(
-        "d-optimal", "--strategy", help=f"One of {', '.join(STRATEGIES)}."
+        "worst-joint", "--strategy",
+        help=f"One of {', '.join(STRATEGIES)}. worst-joint: smallest largest relative standard "
+             "error of k (no joint worse than the median random zone design); weighted: "
+             "smallest --weights-weighted sum of the relative standard errors."
     ),
+    weights: str = typer.Option(None, "--weights",
+                                help="Weights of the joints' relative standard errors, "
+                                     "comma-separated (with --strategy weighted)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the candidate draw and random design."),
     candidates: int = typer.Option(10000, "--candidates", help="Candidate poses drawn."),
     tests: int = typer.Option(None, "--tests", help="Test poses (default: the protocol's)."),
@@ -28,8 +34,12 @@ def plan(
     copy, OUT/plan_map.png and OUT/summary.txt/json, and prints the predicted
     standard error of every joint stiffness beside that of a random zone design.
     """
+    from campaign.options import parse_floats
+
     proto = load_protocol(protocol)
-    result = make_plan(proto, strategy=strategy, seed=seed, candidates=candidates, tests=tests)
+    wts = None if weights is None else parse_floats(weights, "--weights")
+    result = make_plan(proto, strategy=strategy, seed=seed, candidates=candidates, tests=tests,
+                       weights=wts)
     path = write_plan(result, out, figure=not no_figure)
     typer.echo(summary_text(result), nl=False)
     typer.echo(f"plan written to {path}")
