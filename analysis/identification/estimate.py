@@ -332,6 +332,13 @@ def identify(
     cov_x = cov_x * scale
     se_x = np.sqrt(np.diag(cov_x))
     ci = stiffness_interval(chosen.x, se_x, crit)
+    if method in ("ols", "wls"):
+        from analysis.identification.linear_bias import bias_decision, linearisation_bias
+
+        widen, note = bias_decision(method, joints, linearisation_bias(
+            robot, tests, joints, chosen.x, chosen.G, chosen.predicted), se_x)
+        ci = stiffness_interval(chosen.x, se_x + widen / crit, crit)
+        warnings.append(note)
     if np.isfinite(p_value) and p_value < 1e-3:
         warnings.append(f"reduced chi-square {chi2_red:.3g} (p = {p_value:.2g}): residuals do "
                         "not match the noise model; check the noise figures or use "
