@@ -231,6 +231,14 @@ def fit(robot, tests, joints, noise, method) -> Fit:
     return fit_exact(robot, tests, joints, noise, start)
 
 
+def fit_training(robot, tests, joints, noise, method) -> np.ndarray:
+    """Compliances (p,) of ``joints`` from ``tests`` after the data checks (cross-validation)."""
+    check_tests(robot, tests, joints)
+    _, A = _design(robot, tests, joints)
+    check_identifiable(A, joints)
+    return fit(robot, tests, joints, noise, method).x
+
+
 def _residual_table(tests, result_fit, var_r, scale, threshold) -> pd.DataFrame:
     m = tests.m
     meas = tests.measured
@@ -364,7 +372,9 @@ def identify(
     if validate:
         from analysis.identification.crossval import leave_one_pose_out
 
-        result.validation = leave_one_pose_out(robot, tests, method, joints, noise)
+        result.validation = leave_one_pose_out(
+            robot, tests, method, joints, noise,
+            lambda train: fit_training(robot, train, joints, noise, method))
     return result
 
 
