@@ -121,6 +121,40 @@ def input_error_from_validation(err: ValidationError, path: str, text: str) -> I
     return InputError("\n".join(problems))
 
 
+def read_utf8(path: Path, what: str) -> str:
+    """The text of ``path``, which must be UTF-8 (a BOM is accepted and dropped).
+
+    Raises
+    ------
+    InputError
+        Unreadable, or not UTF-8 text: binary, UTF-16 or another encoding (the
+        message names the byte offset and the likely cause).
+    """
+    try:
+        data = Path(path).read_bytes()
+    except OSError as err:
+        raise InputError(f"cannot read {what}: {err.strerror}", where=str(path)) from err
+    return decode_utf8(data, str(path), what)
+
+
+def decode_utf8(data: bytes, where: str, what: str) -> str:
+    """``data`` decoded as UTF-8 (BOM dropped), else an :class:`InputError` naming ``where``."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(f"{what} is UTF-16 text; save it as UTF-8", where=where)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        raise InputError(f"{what} is not UTF-8 text (binary, or another encoding): byte "
+                         f"{err.start} on line {line}", where=where) from None
+    if "\x00" in text:
+        line = text.count("\n", 0, text.index("\x00")) + 1
+        raise InputError(f"{what} is not text (NUL byte on line {line}; UTF-16 without a "
+                         "byte-order mark, or a binary file)", where=where)
+    # the same newline translation as text-mode reading
+    return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
 def read_mapping_file(path: Path, what: str) -> tuple[dict, str]:
     """Parse a TOML or YAML file whose top level is a table; returns (data, text).
 
@@ -129,10 +163,7 @@ def read_mapping_file(path: Path, what: str) -> tuple[dict, str]:
     """
     import yaml
 
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError(f"cannot read {what}: {err.strerror}", where=str(path)) from err
+    text = read_utf8(path, what)
     suffix = path.suffix.lower()
     try:
         if suffix in (".yaml", ".yml"):

@@ -1,81 +1,141 @@
-"""Benchmark: the 0.5 deg (theta_2, theta_3) map of the KR240-2, batched vs a per-pose loop.
+"""Benchmark: the 0.5 deg (theta_2, theta_3) map of the KR240-2, batched vs the best per-pose loop.
 
-Computes 1/kappa_F, v_p and v_r for every node of the 0.5 deg grid with the
-batched numpy code, and the same quantities for a sample of poses with a
-per-pose loop through Pinocchio (Jacobian, kinematic Hessian for K_C). Prints
-both throughputs and their ratio, measured in the same process.
+Work measured: 1/kappa_F, v_p and v_r (which need J, K_C and two deflections)
+at every pose.
 
-Run: ``python benchmarks/bench_maps.py [--sample 400]``
+* Batched: ``pose_metrics`` on the whole 0.5 deg grid, one thread
+  (``threads=1`` and BLAS pinned to one thread with threadpoolctl).
+* Baseline: the best per-pose loop we know with Pinocchio: one ``Data`` created
+  once, ``computeJointJacobians`` + frame Jacobian, K_C from Pinocchio's
+  kinematic Hessian (exact, no finite differences), one 6x6 inverse for kappa_F
+  and one 6x6 solve for the deflection. Pinocchio is single-threaded; BLAS is
+  pinned to one thread as well. Timed on a random sample of the same grid.
+
+Both sides are timed the same way: CPU time (``time.process_time``) and wall
+time, best of ``--repeat`` runs each, the runs interleaved (batched, loop,
+batched, loop, ...) so that load from other processes hits both alike. Every
+output of the loop (1/kappa_F, v_p, v_r) is compared with the batched result at
+the same poses before any ratio is printed. The threaded figure (default
+thread count, BLAS unpinned) is reported separately, wall time.
+
+Run: ``python benchmarks/bench_maps.py [--sample 3000] [--repeat 3]``
+The last line printed is one JSON object with the figures.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import time
 
 import numpy as np
 import pinocchio as pin
+from threadpoolctl import threadpool_limits
 
-from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, pose_metrics
 from analysis.model.robots import load_robot
 
 
-def per_pose_pinocchio(robot, q, k, w, length):
-    """1/kappa_F, v_p, v_r at one pose with Pinocchio calls (the loop baseline)."""
-    model, data = robot.model, robot.model.createData()
-    pin.computeJointJacobians(model, data, q)
-    pin.updateFramePlacements(model, data)
-    frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-    J = pin.getFrameJacobian(model, data, robot.tip_frame, frame)
-    # K_C by central differences of J^T w through Pinocchio (the loop has no closed form)
-    K_C = np.zeros((6, 6))
-    h = 1e-7
-    for i in range(6):
-        e = np.zeros(6)
-        e[i] = h
-        Jp = pin.computeFrameJacobian(model, data, q + e, robot.tip_frame, frame)
-        Jm = pin.computeFrameJacobian(model, data, q - e, robot.tip_frame, frame)
-        K_C[:, i] = (Jp.T @ w - Jm.T @ w) / (2 * h)
-    inv_k = float(inverse_condition(normalized_jacobian(J, length)))
-    d_kc = J @ np.linalg.solve(np.diag(k) - K_C, J.T @ w)
-    d_no = J @ ((J.T @ w) / k)
-    a, b = np.linalg.norm(d_kc[:3]), np.linalg.norm(d_no[:3])
-    return inv_k, abs(a - b) / max(a, b), np.abs(d_kc[3:] - d_no[3:]).max()
+class PinocchioLoop:
+    """1/kappa_F, v_p, v_r one pose at a time through Pinocchio (the baseline)."""
+
+    def __init__(self, robot, k, w, length):
+        self.model, self.data = robot.model, robot.model.createData()
+        self.tip = robot.tip_frame
+        self.joint = robot.model.frames[robot.tip_frame].parentJoint
+        self.k, self.w = np.asarray(k, dtype=float), np.asarray(w, dtype=float)
+        self.scale = np.array([1.0 / length] * 3 + [1.0] * 3)[:, None]
+        self.Kt = np.diag(self.k)
+
+    def __call__(self, q):
+        model, data, lwa = self.model, self.data, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        J = pin.getFrameJacobian(model, data, self.tip, lwa)
+        pin.computeJointKinematicHessians(model, data)
+        # The binding returns the tensor with its axes reversed: H[k, i, r] = dJ[r, i]/dq_k
+        # for the Jacobian of the joint origin o (LOCAL_WORLD_ALIGNED).
+        H = pin.getJointKinematicHessian(model, data, self.joint, lwa)
+        # Shift to P = o + r on the same body: J_P,lin_i = J_o,lin_i + w_i x r and
+        # dr/dq_k = w_k x r.
+        r = data.oMf[self.tip].translation - data.oMi[self.joint].translation
+        om = J[3:].T
+        d_lin = (H[:, :, :3] + np.cross(H[:, :, 3:], r)
+                 + np.cross(om[None, :, :], np.cross(om, r)[:, None, :]))
+        K_C = (d_lin @ self.w[:3] + H[:, :, 3:] @ self.w[3:]).T  # K_C[i, k] = dtau_i/dq_k
+        JN = J * self.scale
+        kappa = np.linalg.norm(JN) * np.linalg.norm(np.linalg.inv(JN)) / 6.0
+        tau = J.T @ self.w
+        d_kc = J @ np.linalg.solve(self.Kt - K_C, tau)
+        d_no = J @ (tau / self.k)
+        a, b = np.linalg.norm(d_kc[:3]), np.linalg.norm(d_no[:3])
+        return 1.0 / kappa, abs(a - b) / max(a, b), np.abs(d_kc[3:] - d_no[3:]).max()
+
+
+def timed(fn):
+    """(cpu seconds, wall seconds, result) of one call."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    out = fn()
+    return time.process_time() - c0, time.perf_counter() - t0, out
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sample", type=int, default=400, help="poses for the loop baseline")
-    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--sample", type=int, default=3000, help="poses for the loop baseline")
+    parser.add_argument("--repeat", type=int, default=3, help="runs per side (best is kept)")
     args = parser.parse_args()
     robot = load_robot("kr240-2")
     k, w, L = robot.nominal_stiffness, WORST_CASE_WRENCH, 0.682
-    grid = GridSpec.from_limits(robot, np.radians(0.5))
-    q = grid.poses()
+    q = GridSpec.from_limits(robot, np.radians(0.5)).poses()
     n = q.shape[0] * q.shape[1]
-
-    best = np.inf
-    for _ in range(args.repeat):
-        t0 = time.perf_counter()
-        metrics = pose_metrics(robot, q, k, w, L)
-        best = min(best, time.perf_counter() - t0)
-    batched_rate = n / best
-
     flat = q.reshape(-1, 6)
     idx = np.random.default_rng(0).choice(n, size=args.sample, replace=False)
-    t0 = time.perf_counter()
-    loop = np.array([per_pose_pinocchio(robot, flat[i], k, w, L) for i in idx])
-    loop_rate = args.sample / (time.perf_counter() - t0)
+    loop = PinocchioLoop(robot, k, w, L)
 
-    # same numbers both ways (K_C by finite differences in the loop: ~1e-6 relative)
-    assert np.allclose(loop[:, 0], metrics["inv_kappa_F"].ravel()[idx], rtol=1e-9)
-    assert np.allclose(loop[:, 1], metrics["v_p"].ravel()[idx], rtol=1e-3, atol=1e-7)
+    batched_cpu = batched_wall = loop_cpu = loop_wall = np.inf
+    with threadpool_limits(limits=1):
+        for _ in range(args.repeat):
+            c, t, metrics = timed(lambda: pose_metrics(robot, q, k, w, L, threads=1))
+            batched_cpu, batched_wall = min(batched_cpu, c), min(batched_wall, t)
+            c, t, ref = timed(lambda: np.array([loop(flat[i]) for i in idx]))
+            loop_cpu, loop_wall = min(loop_cpu, c), min(loop_wall, t)
+    threaded_wall = np.inf
+    for _ in range(args.repeat):
+        _, t, _ = timed(lambda: pose_metrics(robot, q, k, w, L))
+        threaded_wall = min(threaded_wall, t)
 
-    print(f"0.5 deg map: {q.shape[0]} x {q.shape[1]} = {n} poses in {best:.3f} s "
-          f"(batched numpy: {batched_rate:,.0f} poses/s)")
-    print(f"per-pose Pinocchio loop: {loop_rate:,.0f} poses/s on {args.sample} poses")
-    print(f"ratio batched / loop: {batched_rate / loop_rate:.1f}x")
+    # Same numbers both ways before any ratio (the loop's K_C is exact, so tight).
+    errors = {}
+    for col, key, rtol, atol in ((0, "inv_kappa_F", 1e-9, 1e-12), (1, "v_p", 1e-7, 1e-12),
+                                 (2, "v_r", 1e-7, 1e-15)):
+        mine = metrics[key].ravel()[idx]
+        np.testing.assert_allclose(mine, ref[:, col], rtol=rtol, atol=atol, err_msg=key)
+        errors[key] = float(np.max(np.abs(mine - ref[:, col]) / np.maximum(np.abs(ref[:, col]),
+                                                                            atol)))
+
+    us = 1e6
+    b_cpu, l_cpu = batched_cpu / n * us, loop_cpu / args.sample * us
+    b_wall, l_wall = batched_wall / n * us, loop_wall / args.sample * us
+    t_wall = threaded_wall / n * us
+    print(f"0.5 deg map: {q.shape[0]} x {q.shape[1]} = {n} poses; best of {args.repeat}, "
+          "interleaved, single-threaded (threads=1, BLAS pinned to 1)")
+    print(f"batched numpy:        {b_cpu:7.3f} us CPU/pose, {b_wall:7.3f} us wall/pose")
+    print(f"Pinocchio loop (Hessian K_C, {args.sample} poses): {l_cpu:7.2f} us CPU/pose, "
+          f"{l_wall:7.2f} us wall/pose")
+    print("outputs agree (max relative difference): "
+          + ", ".join(f"{key} {v:.1e}" for key, v in errors.items()))
+    print(f"ratio loop / batched: {l_cpu / b_cpu:.1f}x CPU, {l_wall / b_wall:.1f}x wall")
+    print(f"threaded batched ({os.cpu_count()} CPUs, BLAS default): {t_wall:.3f} us wall/pose")
+    print(json.dumps({
+        "benchmark": "maps", "poses": n, "loop_sample": args.sample, "repeat": args.repeat,
+        "batched_cpu_us_per_pose": round(b_cpu, 3), "batched_wall_us_per_pose": round(b_wall, 3),
+        "loop_cpu_us_per_pose": round(l_cpu, 3), "loop_wall_us_per_pose": round(l_wall, 3),
+        "ratio_cpu": round(l_cpu / b_cpu, 2), "ratio_wall": round(l_wall / b_wall, 2),
+        "threaded_wall_us_per_pose": round(t_wall, 3), "cpus": os.cpu_count(),
+        "max_rel_diff": errors,
+        "baseline": "per-pose Pinocchio loop: frame Jacobian + kinematic Hessian, Data once",
+    }))
 
 
 if __name__ == "__main__":

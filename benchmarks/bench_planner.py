@@ -1,89 +1,144 @@
-"""Benchmark of the planner: 1e4 candidates to 5-20 pose designs on the KR240-2.
+"""Benchmark of the planner on the KR240-2: batched vs the same algorithm run per candidate.
 
-Run: ``python benchmarks/bench_planner.py``. Prints the time of each stage, the
-throughput in candidates per second and, in the same run, the ratio against a
-naive baseline (per-candidate Python loops: one Jacobian, one 1/kappa_F, one
-K_C check and one determinant at a time; greedy selection without exchange).
+Work measured: draw N candidate poses, evaluate them (limits, 1/kappa_F, v_p
+and v_r per load case), build the information matrix of every valid test and
+choose the design (greedy + exchange, same screening).
+
+* Batched: ``make_plan`` (blocks of poses, BLAS pinned to one thread, J reused
+  across load cases).
+* Baseline: the same algorithm with per-candidate evaluation: one Jacobian,
+  one 1/kappa_F, K_C and the two deflections per load case (J reused) and one information matrix
+  per test at a time, then the same ``greedy_exchange`` (greedy plus exchange,
+  same screening). Run on the same candidates; the two designs must be equal.
+
+Both sides single-threaded (threadpoolctl), CPU time (``time.process_time``)
+and wall time, best of ``--repeat`` runs, interleaved. Batched throughput is
+also reported at 1e4 and 1e5 candidates to show it is linear.
+
+Run: ``python benchmarks/bench_planner.py [--baseline-candidates 2000] [--repeat 2]``
+The last line printed is one JSON object with the figures.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-from analysis.identification.linear_model import design_block
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
-from analysis.kinetostatics.stiffness import kc_influence
+from analysis.kinetostatics.stiffness import (
+    complementary_stiffness_from_jacobian,
+    deflection,
+    influence_indices,
+)
 from analysis.model.kinematics import jacobian
-from campaign.design import information, scaled_blocks
-from campaign.planner import make_plan
-from campaign.protocol import load_protocol
+from campaign.candidates import sample
+from campaign.design import greedy_exchange, information, scaled_blocks
+from campaign.planner import _expand, make_plan
+from campaign.protocol import DEG, load_protocol
+from campaign.protocol_robot import (
+    characteristic_length,
+    prior_stiffness,
+    protocol_robot,
+    sampling_boxes,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def naive_plan(plan, n: int, subset: int) -> float:
-    """Seconds per candidate of a naive planner, measured on ``subset`` candidates."""
-    protocol, robot = plan.protocol, plan.robot
-    q = plan.candidates.q[:subset]
-    wrenches = protocol.wrenches()
-    th = protocol.thresholds
-    start = time.perf_counter()
-    tests = []
-    for qi in q:
-        J = jacobian(robot, qi)
-        if inverse_condition(normalized_jacobian(J, plan.length)) < th.min_inv_kappa_F:
+def per_candidate_plan(protocol, candidates: int, seed: int = 0):
+    """(pose, case) rows of the D-optimal design, every candidate evaluated on its own."""
+    robot = protocol_robot(protocol)
+    k, sigma = prior_stiffness(protocol, robot), protocol.measurement_sigma()
+    length = characteristic_length(protocol, robot)
+    q, _ = sample(sampling_boxes(protocol, robot), candidates, seed)
+    th, wrenches = protocol.thresholds, protocol.wrenches()
+    margin = protocol.safety.joint_margin_deg * DEG
+    tests, F = [], []
+    for i, qi in enumerate(q):
+        if not robot.within_limits(qi[None], margin - 1e-12)[0]:
             continue
+        J = jacobian(robot, qi)
+        if inverse_condition(normalized_jacobian(J, length)) < th.min_inv_kappa_F:
+            continue
+        ok = []
         for w in wrenches:
-            v_p, v_r = kc_influence(robot, qi, plan.k_prior, w)
-            if v_p <= th.max_v_p and v_r <= np.radians(th.max_v_r_deg):
-                B = design_block(J, w) / plan.sigma[:, None] / plan.k_prior
-                tests.append(B.T @ B)
-    M = 1e-9 * np.eye(6)
-    used: set[int] = set()
-    for _ in range(n):
-        best, best_val = -1, -np.inf
-        for i, F in enumerate(tests):
-            if i in used:
-                continue
-            val = np.linalg.slogdet(M + F)[1]
-            if val > best_val:
-                best, best_val = i, val
-        used.add(best)
-        M = M + tests[best]
-    return (time.perf_counter() - start) / len(q)
+            v_p, v_r = influence_indices(
+                deflection(J, k, w, complementary_stiffness_from_jacobian(J, w)),
+                deflection(J, k, w))
+            ok.append(v_p <= th.max_v_p and v_r <= th.max_v_r_deg * DEG)
+        if protocol.loads.selection == "all":
+            if all(ok):
+                tests.append((i, -1))
+                F.append(sum(information(scaled_blocks(J, w, sigma, k)) for w in wrenches))
+        else:
+            for c, good in enumerate(ok):
+                if good:
+                    tests.append((i, c))
+                    F.append(information(scaled_blocks(J, wrenches[c], sigma, k)))
+    pose, case = (np.array(v, dtype=int) for v in zip(*tests, strict=True))
+    picks = greedy_exchange(np.array(F), pose, protocol.campaign.tests, kind="d")
+    return _expand(pose[picks], case[picks], len(wrenches))
+
+
+def timed(fn):
+    c0, t0 = time.process_time(), time.perf_counter()
+    out = fn()
+    return time.process_time() - c0, time.perf_counter() - t0, out
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--candidates", type=int, default=10000)
-    parser.add_argument("--naive-subset", type=int, default=500)
+    parser.add_argument("--baseline-candidates", type=int, default=2000)
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10000, 100000])
+    parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args()
     protocol = load_protocol(ROOT / "protocols" / "kr240-2.toml")
     make_plan(protocol, candidates=200)  # warm-up (imports, caches)
-    print(f"KR240-2, {args.candidates} candidates x {len(protocol.load_cases)} load cases")
-    best = np.inf
-    for n in (5, 10, 20):
-        for strategy in ("d-optimal", "e-optimal"):
-            t0 = time.perf_counter()
-            plan = make_plan(protocol, strategy, seed=0, candidates=args.candidates, tests=n)
-            dt = time.perf_counter() - t0
-            best = min(best, dt / args.candidates) if n == 5 and strategy == "d-optimal" else best
-            print(f"  {strategy:9s} n={n:2d}: {dt:6.2f} s, "
-                  f"{args.candidates / dt:8.0f} candidates/s")
-    cand = plan.candidates
-    t0 = time.perf_counter()
-    pose, case = np.nonzero(cand.valid)
-    information(scaled_blocks(cand.J[pose], protocol.wrenches()[case], plan.sigma, plan.k_prior))
-    print(f"  information matrices of {pose.size} tests: {time.perf_counter() - t0:.3f} s")
-    naive = naive_plan(plan, 5, args.naive_subset)
-    print(f"naive baseline (per-candidate loops, greedy only), measured on "
-          f"{args.naive_subset} candidates: {1 / naive:8.0f} candidates/s")
-    print(f"speed-up of the batched planner (n=5, d-optimal, with exchange): "
-          f"{naive / best:.1f}x")
+    n0 = args.baseline_candidates
+    fig = {"batched_cpu": np.inf, "batched_wall": np.inf, "loop_cpu": np.inf, "loop_wall": np.inf}
+    with threadpool_limits(limits=1):
+        for _ in range(args.repeat):
+            c, t, plan = timed(lambda: make_plan(protocol, "d-optimal", seed=0, candidates=n0))
+            fig["batched_cpu"], fig["batched_wall"] = min(fig["batched_cpu"], c), min(
+                fig["batched_wall"], t)
+            c, t, rows = timed(lambda: per_candidate_plan(protocol, n0))
+            fig["loop_cpu"], fig["loop_wall"] = min(fig["loop_cpu"], c), min(fig["loop_wall"], t)
+        same = (np.array_equal(rows[0], plan.chosen.pose)
+                and np.array_equal(rows[1], plan.chosen.case))
+        if not same:
+            raise SystemExit(f"designs differ: batched {plan.chosen.pose.tolist()} "
+                             f"vs per-candidate {rows[0].tolist()}")
+        sizes = {}
+        for n in args.sizes:
+            best = min(timed(lambda n=n: make_plan(protocol, "d-optimal", seed=0,
+                                                   candidates=n))[0]
+                       for _ in range(args.repeat))
+            sizes[n] = best / n * 1e6
+    us = {key: v / n0 * 1e6 for key, v in fig.items()}
+    print(f"KR240-2, {len(protocol.load_cases)} load cases, D-optimal, "
+          f"{protocol.campaign.tests} tests; single-threaded, best of {args.repeat}, interleaved")
+    print(f"on {n0} candidates: batched {us['batched_cpu']:.1f} us CPU/candidate, "
+          f"per-candidate {us['loop_cpu']:.1f} us CPU/candidate; same design "
+          f"(poses {plan.chosen.pose.tolist()})")
+    print(f"ratio per-candidate / batched: {us['loop_cpu'] / us['batched_cpu']:.1f}x CPU, "
+          f"{us['loop_wall'] / us['batched_wall']:.1f}x wall")
+    for n, v in sizes.items():
+        print(f"batched make_plan at {n} candidates: {v:.1f} us CPU/candidate")
+    print(json.dumps({
+        "benchmark": "planner", "baseline_candidates": n0, "repeat": args.repeat,
+        "batched_cpu_us_per_candidate": round(us["batched_cpu"], 2),
+        "loop_cpu_us_per_candidate": round(us["loop_cpu"], 2),
+        "ratio_cpu": round(us["loop_cpu"] / us["batched_cpu"], 2),
+        "ratio_wall": round(us["loop_wall"] / us["batched_wall"], 2),
+        "batched_cpu_us_per_candidate_at": {str(n): round(v, 2) for n, v in sizes.items()},
+        "same_design": True,
+        "baseline": "same algorithm; per-candidate evaluation and information; same greedy",
+    }))
 
 
 if __name__ == "__main__":

@@ -7,8 +7,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
-from analysis.kinetostatics.stiffness import kc_influence
+from analysis.kinetostatics.dexterity import inverse_condition_em
+from analysis.kinetostatics.maps import BLOCK
+from analysis.kinetostatics.small_linalg import to_entry_major
+from analysis.kinetostatics.stiffness import (
+    complementary_stiffness_em,
+    deflections_em,
+    influence_indices,
+)
 from analysis.model.kinematics import chain_state, jacobian_from_state
 from analysis.model.robot_model import RobotModel
 from campaign.protocol import DEG, Protocol
@@ -40,6 +46,11 @@ class Candidates:
     v_r: np.ndarray
     valid: np.ndarray
     rejected: dict[str, int] = field(default_factory=dict)
+
+
+def _row_scale(length: float) -> np.ndarray:
+    """diag(I/L, I) of eq. 4 as an entry-major row scale (6, 1, 1)."""
+    return np.array([1.0 / length] * 3 + [1.0] * 3)[:, None, None]
 
 
 def sample(boxes: list[SamplingBox], count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -74,17 +85,31 @@ def evaluate(
     th = protocol.thresholds
     wrenches = protocol.wrenches()
     inside = robot.within_limits(q, margin - 1e-12)
-    state = chain_state(robot, q)
-    J = jacobian_from_state(state)
-    inv_kappa = inverse_condition(normalized_jacobian(J, length))
-    dexterous = inside & (inv_kappa >= th.min_inv_kappa_F)
     N, m = q.shape[0], wrenches.shape[0]
+    J = np.empty((N, 6, robot.n))
+    inv_kappa = np.empty(N)
     v_p = np.full((N, m), np.nan)
     v_r = np.full((N, m), np.nan)
-    idx = np.flatnonzero(dexterous)
-    if idx.size:
-        for c, w in enumerate(wrenches):
-            v_p[idx, c], v_r[idx, c] = kc_influence(robot, q[idx], k_prior, w)
+    # Blocks of poses, BLAS on one thread: large unblocked batches make the 3x3
+    # products hit BLAS threading and memory traffic (superlinear time). J is
+    # computed once per pose and reused for every load case.
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        for lo in range(0, N, BLOCK):
+            sl = slice(lo, min(lo + BLOCK, N))
+            J[sl] = jacobian_from_state(chain_state(robot, q[sl]))
+            E = to_entry_major(J[sl])
+            inv_kappa[sl] = inverse_condition_em(E * _row_scale(length))
+            keep = inside[sl] & (inv_kappa[sl] >= th.min_inv_kappa_F)
+            if not keep.any():
+                continue
+            Ek = E[:, :, keep]
+            rows = np.flatnonzero(keep) + lo
+            for c, w in enumerate(wrenches):
+                d_kc, d_no = deflections_em(Ek, k_prior, w, complementary_stiffness_em(Ek, w))
+                v_p[rows, c], v_r[rows, c] = influence_indices(d_kc.T, d_no.T)
+    dexterous = inside & (inv_kappa >= th.min_inv_kappa_F)
     with np.errstate(invalid="ignore"):
         kc_ok = (v_p <= th.max_v_p) & (v_r <= th.max_v_r_deg * DEG)
     valid = dexterous[:, None] & kc_ok

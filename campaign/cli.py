@@ -3,7 +3,8 @@
 Every sub-command lives in its own module of :mod:`campaign.commands` and
 registers itself with ``register(app)``. Bad input raises
 :class:`analysis.errors.InputError`; :func:`main` prints it as one line on
-stderr and exits with status 2, never with a traceback.
+stderr and exits with status 2, never with a traceback. So does a wrench the
+nonlinear equilibrium cannot carry (:class:`EquilibriumError`).
 """
 
 from __future__ import annotations
@@ -40,6 +41,13 @@ def build_app() -> typer.Typer:
     return app
 
 
+def _is_equilibrium_error(err: Exception) -> bool:
+    """True for the equilibrium solver's non-convergence (bad input, not a bug)."""
+    from analysis.kinetostatics.equilibrium import EquilibriumError
+
+    return isinstance(err, EquilibriumError)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit status."""
     app = build_app()
@@ -60,6 +68,10 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo("interrupted", err=True)
         return 130
     except Exception as err:
+        if type(err).__name__ == "EquilibriumError" and _is_equilibrium_error(err):
+            typer.echo(f"error: nonlinear equilibrium: {err}; reduce the wrench or check the "
+                       "joint stiffness", err=True)
+            return 2
         # Usage errors of the click layer under typer carry their own message and code.
         if hasattr(err, "show") and isinstance(getattr(err, "exit_code", None), int):
             err.show()

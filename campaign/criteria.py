@@ -33,6 +33,7 @@ from analysis.identification.noise import NoiseModel, residual_covariance
 from campaign.design import greedy_exchange, information, random_design
 
 GUARD_PENALTY = 10.0
+BLOCK = 4096  # poses per block of candidate_information
 TIE_BREAK = 0.1
 #: candidates evaluated exactly per exchange step (the rest screened by a first-order gain)
 SCREEN = 384
@@ -59,6 +60,18 @@ def candidate_information(
         joint differentiated), for the encoder term; left out when None.
     """
     w = np.broadcast_to(np.asarray(wrenches, dtype=float), (*J.shape[:-2], 6))
+    if J.ndim == 3 and J.shape[0] > BLOCK:
+        # blocks of poses with BLAS on one thread: small products on huge batches
+        # otherwise hit BLAS threading (as campaign.design.information_of_tests)
+        from threadpoolctl import threadpool_limits
+
+        out = np.empty((J.shape[0], J.shape[-1], J.shape[-1]))
+        with threadpool_limits(limits=1):
+            for lo in range(0, J.shape[0], BLOCK):
+                sl = slice(lo, lo + BLOCK)
+                out[sl] = candidate_information(J[sl], w[sl], noise, k_prior, rows,
+                                                None if dJ is None else dJ[sl])
+        return out
     x0 = 1.0 / np.asarray(k_prior, dtype=float)
     A = design_block(J, w)
     C = np.einsum("...ij,j,...kj->...ik", J, x0, J)

@@ -38,6 +38,31 @@ def information(B: np.ndarray) -> np.ndarray:
     return np.einsum("...ri,...rj->...ij", B, B)
 
 
+def information_of_tests(
+    J: np.ndarray, W: np.ndarray, sigma: np.ndarray, k_prior: np.ndarray, block: int = 4096
+) -> np.ndarray:
+    """Information F (T, n, n) of T tests, each one pose J (T, 6, n) under c wrenches W (T, c, 6).
+
+    Equal to ``sum_c information(scaled_blocks(J, W[:, c], sigma, k_prior))``, computed
+    without the blocks: with ``t = J^T w / k0`` the block is ``diag(1/sigma) J diag(t)``, so
+    ``F = G o (t t^T)`` with ``G = J^T diag(sigma^-2) J`` the same for every load case
+    (o: element-wise product). Runs in blocks of poses with BLAS on one thread (3x3 and
+    6x6 products on huge batches otherwise hit BLAS threading).
+    """
+    from threadpoolctl import threadpool_limits
+
+    T, n = J.shape[0], J.shape[-1]
+    F = np.empty((T, n, n))
+    s2 = 1.0 / np.asarray(sigma, dtype=float) ** 2
+    with threadpool_limits(limits=1):
+        for lo in range(0, T, block):
+            Jb, Wb = J[lo:lo + block], W[lo:lo + block]
+            G = np.einsum("tri,r,trj->tij", Jb, s2, Jb, optimize=True)
+            t = np.einsum("tri,tcr->tci", Jb, Wb) / k_prior
+            F[lo:lo + block] = G * np.einsum("tci,tcj->tij", t, t)
+    return F
+
+
 def predicted_se(M: np.ndarray, k_prior: np.ndarray) -> np.ndarray:
     """Standard error of each identified k (N m/rad) for information M (n, n) of relative x.
 

@@ -1,14 +1,25 @@
-"""Parsing of command-line values: lists of numbers with units, robot selection."""
+"""Parsing of command-line values: lists of numbers with units, robot selection.
+
+Every command that takes ``--robot`` declares the same four options,
+``--robot``, ``--tip``, ``--tool-xyz-mm`` and ``--tool-rpy-deg`` (use
+:data:`TOOL_XYZ_HELP` / :data:`TOOL_RPY_HELP`), and resolves them with one
+call to :func:`robot_option`, so the tool point P means the same everywhere:
+the protocol's ``[tool]`` (xyz in mm and roll-pitch-yaw in deg of P in the
+flange frame).
+"""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.model.robot_model import RobotModel
-from analysis.model.robots import load_robot
+
+if TYPE_CHECKING:
+    from analysis.model.robot_model import RobotModel
 
 
 def parse_floats(text: str, where: str, count: int | None = None) -> np.ndarray:
@@ -29,9 +40,90 @@ def parse_floats(text: str, where: str, count: int | None = None) -> np.ndarray:
     return np.array(values, dtype=float)
 
 
-def robot_option(robot: str, tip: str | None) -> RobotModel:
-    """Resolve ``--robot``/``--tip`` (built-in name, robot file or URDF)."""
-    return load_robot(robot, tip)
+TOOL_XYZ_HELP = ("Tool point P in the flange frame: x,y,z in mm (as the protocol's [tool] "
+                 "xyz_mm); default the flange centre.")
+TOOL_RPY_HELP = ("Orientation of the tool frame at P relative to the flange: roll,pitch,yaw "
+                 "in deg (as the protocol's [tool] rpy_deg); default 0,0,0.")
+
+
+@dataclass(frozen=True)
+class ToolPoint:
+    """The tool point P relative to the flange, in the protocol's units, and where it came from.
+
+    xyz_mm : (3,) position of P in the flange frame (mm).
+    rpy_deg : (3,) roll, pitch, yaw of the tool frame relative to the flange (deg).
+    source : where the values came from, e.g. "--tool-xyz-mm/--tool-rpy-deg",
+        "protocol [tool]", "tests.meta.json", or "none given: flange centre assumed".
+    """
+
+    xyz_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    source: str = "none given: flange centre assumed"
+
+    @property
+    def is_flange(self) -> bool:
+        return not any(self.xyz_mm) and not any(self.rpy_deg)
+
+    def describe(self) -> dict:
+        """JSON-ready record (mm, deg)."""
+        return {"xyz_mm": list(self.xyz_mm), "rpy_deg": list(self.rpy_deg),
+                "frame": "flange", "source": self.source}
+
+    def text(self) -> str:
+        return (f"P at xyz {list(self.xyz_mm)} mm, rpy {list(self.rpy_deg)} deg in the flange "
+                f"frame ({self.source})")
+
+
+def tool_option(xyz_text: str | None, rpy_text: str | None,
+                default: ToolPoint | None = None) -> ToolPoint:
+    """``--tool-xyz-mm``/``--tool-rpy-deg`` as a :class:`ToolPoint`.
+
+    An option not given keeps ``default``'s value (a protocol's or a sidecar's
+    tool); with neither, P is the flange centre and the source says so.
+    """
+    base = default or ToolPoint()
+    if xyz_text is None and rpy_text is None:
+        return base
+    xyz = base.xyz_mm if xyz_text is None else tuple(
+        float(v) for v in parse_floats(xyz_text, "--tool-xyz-mm", 3))
+    rpy = base.rpy_deg if rpy_text is None else tuple(
+        float(v) for v in parse_floats(rpy_text, "--tool-rpy-deg", 3))
+    given = [o for o, t in (("--tool-xyz-mm", xyz_text), ("--tool-rpy-deg", rpy_text)) if t]
+    source = "/".join(given)
+    if default is not None and len(given) < 2:
+        source += f" (rest from {default.source})"
+    return ToolPoint(xyz, rpy, source)
+
+
+def apply_tool(robot: RobotModel, tool: ToolPoint) -> RobotModel:
+    """``robot`` with P moved to ``tool`` (see :func:`analysis.model.robots.with_tool`)."""
+    from analysis.model.robots import with_tool
+
+    return with_tool(robot, np.asarray(tool.xyz_mm) * 1e-3, np.radians(tool.rpy_deg))
+
+
+def robot_and_tool(robot: str, tip: str | None, tool_xyz_mm: str | None = None,
+                   tool_rpy_deg: str | None = None, default_tool: ToolPoint | None = None):
+    """(RobotModel with P at the tool, :class:`ToolPoint`) of the robot and tool options.
+
+    ``default_tool`` (e.g. from a tests.meta.json sidecar) fills what the
+    options do not give.
+    """
+    from analysis.model.robots import load_robot
+
+    model = load_robot(robot, tip)
+    tool = tool_option(tool_xyz_mm, tool_rpy_deg, default_tool)
+    return (model if tool.is_flange else apply_tool(model, tool)), tool
+
+
+def robot_option(robot: str, tip: str | None, tool_xyz_mm: str | None = None,
+                 tool_rpy_deg: str | None = None) -> RobotModel:
+    """Resolve ``--robot``/``--tip`` (built-in name, robot file or URDF) and the tool options.
+
+    ``tool_xyz_mm``/``tool_rpy_deg`` are the texts of ``--tool-xyz-mm`` and
+    ``--tool-rpy-deg``; without them P is the model's tip (the flange centre).
+    """
+    return robot_and_tool(robot, tip, tool_xyz_mm, tool_rpy_deg)[0]
 
 
 def joint_angles_option(robot: RobotModel, text: str, controller: bool, where: str = "--q"):

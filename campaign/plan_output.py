@@ -65,7 +65,7 @@ def _se_rows(plan: Plan) -> list[dict]:
 
 def _noise_dict(plan: Plan) -> dict:
     """The noise model of one test row the predictions use, and the sources left at default."""
-    from campaign.protocol_noise import undeclared_sources
+    from campaign.run_noise import undeclared_sources
 
     if plan.noise is None:
         return {}
@@ -204,13 +204,35 @@ def write_plan(plan: Plan, out: str | Path, figure: bool = True) -> Path:
     return csv_path
 
 
+#: most repeats of one test a plan may ask for (a plan above it is refused, not run for days)
+MAX_REPEATS = 1000
+
+
 def read_plan(directory: str | Path) -> tuple[Protocol, pd.DataFrame]:
     """Read a plan directory written by :func:`write_plan`: (protocol, plan table).
 
     The table has the columns :data:`COLUMNS`: angles in degrees
     (``q*_model_deg`` model convention, ``q*_ctrl_deg`` controller convention),
     wrench components in N and N m in the robot base frame, ``v_r_deg`` in deg.
+    ``test`` and ``repeats`` are whole numbers (1 <= repeats <= :data:`MAX_REPEATS`),
+    the angles and wrench finite numbers; test ids are unique.
+
+    Raises
+    ------
+    InputError
+        No protocol copy, a plan that is not UTF-8 CSV text, a missing column, or
+        a bad cell (the message names the line and column).
     """
+    protocol, df, _ = load_plan(directory)
+    return protocol, df
+
+
+def load_plan(directory: str | Path) -> tuple[Protocol, pd.DataFrame, str]:
+    """:func:`read_plan` and the verbatim text of ``plan.csv`` (hashed into a run)."""
+    import io
+
+    from analysis.file_errors import read_utf8
+
     directory = Path(directory)
     copies = sorted(p for p in directory.glob("protocol.*")
                     if p.suffix in (".toml", ".yaml", ".yml"))
@@ -218,12 +240,52 @@ def read_plan(directory: str | Path) -> tuple[Protocol, pd.DataFrame]:
         raise InputError("no protocol.toml/.yaml in the plan directory", where=str(directory))
     protocol = load_protocol(copies[0])
     path = directory / PLAN_FILE
+    text = read_utf8(path, "plan")
+    if not text.strip():
+        raise InputError("empty file: no header and no tests", where=str(path))
     try:
-        df = pd.read_csv(path, dtype={"zone": str, "load_case": str, "method": str})
-    except (OSError, pd.errors.ParserError) as err:
-        raise InputError(f"cannot read the plan: {err}", where=str(path)) from err
+        df = pd.read_csv(io.StringIO(text), keep_default_na=False,
+                         dtype={"zone": str, "load_case": str, "method": str})
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as err:
+        raise InputError(f"not a CSV table: {str(err).strip()}", where=str(path)) from None
+    df.columns = [str(c).strip() for c in df.columns]
     missing = [c for c in COLUMNS if c not in df.columns]
     if missing:
         raise InputError(f"plan table lacks columns {missing}", where=str(path))
-    return protocol, df
+    if df.empty:
+        raise InputError("the plan has no tests (a header only)", where=str(path))
+    df = df.reset_index(drop=True)
+    lines = np.arange(len(df)) + 2  # file line of each row (header = 1)
+    # the planner's figures of merit (inv_kappa_F, v_p, v_r_deg) are information only
+    for col in COLUMNS[COLUMNS.index("repeats") + 1:COLUMNS.index("inv_kappa_F")]:
+        df[col] = _numbers(df, col, lines, path)
+    for col in ("test", "repeats"):
+        df[col] = _numbers(df, col, lines, path)
+    for col, low, high in (("test", 0, 2**53), ("repeats", 1, MAX_REPEATS)):
+        values = df[col].to_numpy()
+        for bad, what in ((values != np.round(values), "is not a whole number"),
+                          ((values < low) | (values > high), f"is outside {low}..{high}")):
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise InputError(f"line {lines[i]}, column {col}: {values[i]:g} {what}",
+                                 where=str(path))
+        df[col] = values.astype(np.int64)
+    seen: dict[int, int] = {}
+    for test, line in zip(df["test"], lines, strict=True):
+        if test in seen:
+            raise InputError(f"line {line}, column test: test {test} already on line "
+                             f"{seen[test]} (test ids must be unique)", where=str(path))
+        seen[test] = line
+    return protocol, df, text
 
+
+def _numbers(df: pd.DataFrame, col: str, lines: np.ndarray, path: Path) -> np.ndarray:
+    """Column ``col`` as finite floats; an :class:`InputError` names the first bad cell."""
+    raw = df[col].astype(str).str.strip().where(df[col].notna(), "")
+    values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        what = "empty" if raw.iloc[i] == "" else f"{raw.iloc[i]!r} is not a finite number"
+        raise InputError(f"line {lines[i]}, column {col}: {what}", where=str(path))
+    return values

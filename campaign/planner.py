@@ -22,7 +22,6 @@ from campaign.criteria import candidate_information, choose, random_reference, r
 from campaign.design import criterion, greedy_exchange, random_design
 from campaign.plan_output import COLUMNS, read_plan, write_plan
 from campaign.protocol import DEG, Protocol
-from campaign.protocol_noise import protocol_noise
 from campaign.protocol_robot import (
     SamplingBox,
     characteristic_length,
@@ -30,6 +29,7 @@ from campaign.protocol_robot import (
     protocol_robot,
     sampling_boxes,
 )
+from campaign.run_noise import noise_from_protocol
 
 __all__ = ["COLUMNS", "STRATEGIES", "Design", "Plan", "make_plan", "read_plan", "write_plan"]
 
@@ -62,7 +62,7 @@ class Plan:
     k_prior : (n,) prior joint stiffness (N m/rad). sigma : (6,) displacement sigma
         of one averaged test [m x3; rad x3]. length : characteristic length L (m).
     noise : noise model of one test row (the identification's, see
-        :mod:`campaign.protocol_noise`); the predictions include every source.
+        :mod:`campaign.run_noise`); the predictions include every source.
     random_median_se : (n,) median predicted standard error of k (N m/rad) over
         201 seeded random zone designs (the reference of the worst-joint criterion).
     case_contributions : per load case, its tests and the relative se of every
@@ -227,7 +227,7 @@ def make_plan(
         weights = np.asarray(weights, dtype=float)
     k_prior = prior_stiffness(protocol, robot)
     protocol.measurement_sigma()  # refuses a pose instrument without noise figures
-    noise = protocol_noise(protocol)
+    noise = noise_from_protocol(protocol)
     rows = protocol.campaign.repeats
     sigma = noise.displacement_sigma / np.sqrt(rows)
     length = characteristic_length(protocol, robot)

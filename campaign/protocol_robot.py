@@ -30,8 +30,12 @@ class SamplingBox:
     hi: np.ndarray
 
 
-def protocol_robot(protocol: Protocol) -> RobotModel:
-    """Load the protocol's robot (built-in name, or file relative to the protocol) with its tool."""
+def protocol_robot(protocol: Protocol, tool: tuple | None = None) -> RobotModel:
+    """Load the protocol's robot (built-in name, or file relative to the protocol) with its tool.
+
+    ``tool`` (xyz in m, rpy in rad) replaces the protocol's ``[tool]`` (an
+    analysis that overrides it with --tool-xyz-mm/--tool-rpy-deg).
+    """
     spec = protocol.campaign.robot
     if spec.strip().lower() not in builtin_files():
         candidate = Path(spec)
@@ -45,8 +49,10 @@ def protocol_robot(protocol: Protocol) -> RobotModel:
     if robot.n != 6:
         raise InputError(f"expected a six-joint robot, got {robot.n} joints",
                          where=protocol.where("campaign", "robot"))
-    tool = protocol.tool
-    return with_tool(robot, np.array(tool.xyz_mm) * 1e-3, np.array(tool.rpy_deg) * DEG)
+    if tool is not None:
+        return with_tool(robot, np.asarray(tool[0], float), np.asarray(tool[1], float))
+    spec = protocol.tool
+    return with_tool(robot, np.array(spec.xyz_mm) * 1e-3, np.array(spec.rpy_deg) * DEG)
 
 
 def prior_stiffness(protocol: Protocol, robot: RobotModel) -> np.ndarray:

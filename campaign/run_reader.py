@@ -103,15 +103,17 @@ class Run:
 
 
 def _read_json(path: Path) -> dict:
+    from analysis.file_errors import read_utf8
+
+    text = read_utf8(path, path.name)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as err:
-        raise InputError(f"cannot read: {err.strerror}", where=str(path)) from err
+        data = json.loads(text)
     except json.JSONDecodeError as err:
-        raise InputError(f"not valid JSON (line {err.lineno}): {err.msg}",
-                         where=str(path)) from err
+        raise InputError(f"not valid JSON (line {err.lineno}): {err.msg}; the run record is "
+                         "damaged", where=str(path)) from None
     if not isinstance(data, dict):
-        raise InputError("expected a JSON object", where=str(path))
+        raise InputError(f"expected a JSON object, found a {type(data).__name__}; the run "
+                         "record is damaged", where=str(path))
     return data
 
 
@@ -130,14 +132,31 @@ def _read_events(path: Path, notes: list[str]) -> list[dict]:
     if not path.is_file():
         return []
     events = []
-    for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    for i, line in enumerate(path.read_bytes().splitlines(), start=1):
         if not line.strip():
             continue
         try:
-            events.append(json.loads(line))
-        except json.JSONDecodeError:
-            notes.append(f"{path.name} line {i}: not JSON, skipped")
+            record = json.loads(line)
+        except ValueError:  # not JSON, or not UTF-8
+            record = None
+        if isinstance(record, dict):
+            events.append(record)
+        else:
+            notes.append(f"{path.name} line {i}: not a JSON object, skipped")
     return events
+
+
+def _load_notes(events: list[dict]) -> list[str]:
+    """Loud notes when a session ended with the load still on the tool."""
+    out = []
+    for e in events:
+        if e.get("event") == "load_left":
+            session = e.get("session")
+            out.append(f"WARNING: the load was left applied at the end of "
+                       f"{'session ' + str(session) if session else 'a session'} "
+                       f"(test {e.get('test_id')}, repeat {e.get('repeat')}): "
+                       f"{e.get('reason') or 'see events.jsonl'}")
+    return out
 
 
 def _protocol_file(run: Path, meta: dict) -> Path | None:
@@ -166,8 +185,12 @@ def _read_tests_text(path: Path, partial: bool, notes: list[str]) -> pd.DataFram
         raise InputError("empty file: no header", where=str(path))
     import io
 
-    frame = pd.read_csv(io.StringIO("\n".join(lines) + "\n"), dtype=str,
-                        skipinitialspace=True, keep_default_na=False)
+    try:
+        frame = pd.read_csv(io.StringIO("\n".join(lines) + "\n"), dtype=str,
+                            skipinitialspace=True, keep_default_na=False)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as err:
+        raise InputError(f"not a CSV table ({str(err).strip()}); the run record is damaged",
+                         where=str(path)) from None
     frame.columns = [str(c).strip() for c in frame.columns]
     missing = [c for c in CSV_COLUMNS + RUN_COLUMNS if c not in frame.columns]
     if missing:
@@ -175,6 +198,27 @@ def _read_tests_text(path: Path, partial: bool, notes: list[str]) -> pd.DataFram
                          where=str(path))
     frame["line"] = np.arange(len(frame)) + 2
     return frame
+
+
+def _check_keys(frame: pd.DataFrame, where: str) -> None:
+    """test_id and repeat are whole numbers, and each (test_id, repeat) is one row."""
+    keys = {}
+    for col in ("test_id", "repeat"):
+        raw = frame[col].astype(str).str.strip()
+        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(values) | (values != np.round(values))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(f"line {frame['line'].iloc[i]}, column {col}: {raw.iloc[i]!r} is "
+                             "not a whole number; the run record is damaged", where=where)
+        keys[col] = values.astype(np.int64)
+    seen: dict[tuple[int, int], int] = {}
+    for t, r, line in zip(keys["test_id"], keys["repeat"], frame["line"], strict=True):
+        if (t, r) in seen:
+            raise InputError(f"lines {seen[(t, r)]} and {line}: test {t} repeat {r} recorded "
+                             "twice (each measurement must be counted once); the run record "
+                             "is damaged: keep one of the rows", where=where)
+        seen[(t, r)] = line
 
 
 def _check_cells(frame: pd.DataFrame, where: str) -> None:
@@ -271,6 +315,7 @@ def read_run(path: str | Path, export: bool = True) -> Run:
                          where=str(run))
     frame = _read_tests_text(tests_path, status != "complete", notes)
     frame["status"] = frame["status"].str.strip()
+    _check_keys(frame, str(tests_path))
     _check_cells(frame, str(tests_path))
     frame["flag_list"] = _flags(frame, notes)
     for col in QUALITY_COLUMNS:
@@ -282,11 +327,22 @@ def read_run(path: str | Path, export: bool = True) -> Run:
         digest = hashlib.sha256(proto.read_bytes()).hexdigest()
         expected = meta.get("protocol_sha256")
         if expected and expected != digest:
-            notes.append(f"{proto.name} does not match protocol_sha256 of the metadata "
-                         "(the copy was edited after the run)")
+            # the robot, tool and noise come from this copy: a changed one changes k
+            raise InputError(f"{proto.name} does not match protocol_sha256 of metadata.json "
+                             "(the copy was changed after the run started): restore the "
+                             "original; to analyse with other figures use the --sigma-* "
+                             "options, or import tests.csv with --measurements",
+                             where=str(run))
+    plan_sha = meta.get("plan_sha256")
+    if isinstance(plan_sha, str) and (run / "plan.csv").is_file():
+        # the plan is not used by the analysis, so this is said loudly, not refused
+        if hashlib.sha256((run / "plan.csv").read_bytes()).hexdigest() != plan_sha:
+            notes.append("WARNING: plan.csv does not match plan_sha256 of metadata.json: the "
+                         "copy was changed after the run started (not used by the analysis)")
     if export:
         _export_parquet(run, frame, notes)
     events = _read_events(run / "events.jsonl", notes)
+    notes.extend(_load_notes(events))
     return Run(path=run, metadata=meta, status=status, reason=str(meta.get("reason") or ""),
                protocol_path=proto, protocol_sha256=digest, tests=frame, ok=ok,
                events=events, notes=notes)

@@ -135,7 +135,9 @@ class GeoComTracker(PoseTracker):
         self._trid = self._trid % 7 + 1  # ids 1..7 in turn
         try:
             self._ser.reset_input_buffer()
-            self._ser.write(encode_request(rpc, *params, trid=self._trid))
+            # the leading LF clears the instrument's receive buffer (manual, section 2.2:
+            # "[<LF>]%R1Q,..."), so a partial request left by an earlier failure is dropped
+            self._ser.write(b"\n" + encode_request(rpc, *params, trid=self._trid))
             deadline = time.monotonic() + self.timeout
             line = b""
             while True:
@@ -145,6 +147,14 @@ class GeoComTracker(PoseTracker):
                 if len(line) >= 512:
                     raise ProtocolError("GeoCOM reply longer than 512 bytes")
                 if line.endswith(b"\n"):
+                    if not line.strip():
+                        line = b""  # a stray terminator: not a reply
+                        continue
+                    # a partial line before the reply (an earlier reply cut short, line
+                    # noise) runs into it: the reply starts at its last "%R1P"
+                    start = line.rfind(b"%R1P")
+                    if start > 0:
+                        line = line[start:]
                     trid = reply_trid(line)
                     if trid is None or trid == self._trid:
                         break

@@ -67,7 +67,8 @@ class KukaVarProxyRobot(TcpLink, RobotController):
             self._sock.sendall(kvp.encode_request(self._msg_id, name, value))
             head = self._recv_exact(4)
             (length,) = struct.unpack(">H", head[2:])
-            return kvp.decode_reply(head, self._recv_exact(length), self._msg_id)
+            return kvp.decode_reply(head, self._recv_exact(length), self._msg_id, name,
+                                    read=value is None)
         except (DriverError, OSError) as err:
             self._close()  # never read a late reply as the answer to the next request
             if isinstance(err, DriverError):

@@ -12,7 +12,17 @@ request::
 reply::
 
     uint16 message id | uint16 content length | uint8 function
-    | uint16 value length | value | 3 status bytes (00 01 01 = success)
+    | uint16 value length | value | uint16 1 | uint8 success flag
+
+The 3-byte tail is a one-byte field with its length: ``00 01 01`` on success,
+``00 01 00`` on failure (KUKAVARPROXY's ``basMain.readMsg``); the content length
+counts the tail. A refused write echoes the value with the failure flag. A read of a
+name the controller does not know is answered by the proxy with an *empty* value
+(its ``ShowVar`` swallows the cross-comm error); :func:`decode_reply` with
+``read=True`` refuses that as an unknown variable. Functions other than 0 and 1
+(2, 3: the proxy's PLC array formats) are not used here; the proxy answers an unknown
+function with a header of content length 0. ``PING`` is answered ``PONG`` by the proxy
+itself.
 
 Values are KRL text, e.g. ``{E6AXIS: A1 0.0, A2 -90.0, ...}`` for ``$AXIS_ACT``
 (degrees) or ``TRUE``.
@@ -29,6 +39,7 @@ from drivers.errors import DeviceFault, ProtocolError
 
 READ, WRITE = 0, 1
 OK_TAIL = b"\x00\x01\x01"
+FAIL_TAIL = b"\x00\x01\x00"
 _AXIS = re.compile(r"\bA([1-6])\s+([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
 
 
@@ -65,19 +76,23 @@ def decode_request(data: bytes) -> tuple[int, int, str, str | None]:
 def encode_reply(msg_id: int, func: int, value: str, ok: bool = True) -> bytes:
     """Encode a reply carrying ``value`` and the status tail (used by the fake)."""
     bval = value.encode("ascii")
-    content = struct.pack(">BH", func, len(bval)) + bval + (OK_TAIL if ok else b"\x00\x00\x00")
+    content = struct.pack(">BH", func, len(bval)) + bval + (OK_TAIL if ok else FAIL_TAIL)
     return struct.pack(">HH", msg_id & 0xFFFF, len(content)) + content
 
 
-def decode_reply(header: bytes, content: bytes, expect_id: int) -> str:
+def decode_reply(header: bytes, content: bytes, expect_id: int, name: str = "",
+                 read: bool = False) -> str:
     """Decode a reply (4-byte header + content) and return its value text.
+
+    ``name`` is the variable asked for (for messages); with ``read`` an empty value
+    (the proxy's answer to an unknown variable) is refused.
 
     Raises
     ------
     ProtocolError
         Wrong message id, inconsistent lengths.
     DeviceFault
-        The controller reports failure (unknown variable, write refused).
+        The controller reports failure (write refused), or a read returns no value.
     """
     if len(header) != 4:
         raise ProtocolError("KVP reply header must be 4 bytes")
@@ -89,8 +104,15 @@ def decode_reply(header: bytes, content: bytes, expect_id: int) -> str:
     func, vlen = struct.unpack(">BH", content[:3])
     if 3 + vlen + 3 != len(content):
         raise ProtocolError("KVP reply value length inconsistent")
-    if content[-3:] != OK_TAIL:
-        raise DeviceFault(f"controller refused the request (status {content[-3:].hex()})")
+    if content[-3:-1] != b"\x00\x01":
+        raise ProtocolError(f"KVP reply status field malformed ({content[-3:].hex(' ')})")
+    what = f" for {name}" if name else ""
+    if content[-1] != 1:
+        raise DeviceFault(f"controller refused the request{what} "
+                          f"(status {content[-3:].hex(' ')})")
+    if read and vlen == 0:
+        raise DeviceFault(f"controller returned no value{what}: unknown variable "
+                          "(not declared, or not GLOBAL in a PUBLIC .dat)?")
     return content[3:3 + vlen].decode("ascii", "replace")
 
 

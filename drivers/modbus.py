@@ -69,3 +69,35 @@ def decode_write_registers_reply(frame: bytes, slave: int, first: int, count: in
         raise ProtocolError(f"Modbus exception code {body[2]} from slave {body[0]}")
     if body != struct.pack(">BBHH", slave, 0x10, first, count):
         raise ProtocolError(f"unexpected Modbus reply {frame.hex(' ')}")
+
+
+#: Modbus exception codes (Modbus Application Protocol V1.1b3, section 7).
+ILLEGAL_FUNCTION, ILLEGAL_DATA_ADDRESS, ILLEGAL_DATA_VALUE = 1, 2, 3
+
+
+def encode_read_registers(slave: int, function: int, first: int, count: int) -> bytes:
+    """Function 3 (holding) or 4 (input registers) request: ``count`` registers from ``first``."""
+    return with_crc(struct.pack(">BBHH", slave, function, first, count))
+
+
+def encode_read_reply(slave: int, function: int, values: list[int]) -> bytes:
+    """Reply to a function 3/4 read: byte count then the registers, big-endian (used by fakes)."""
+    payload = b"".join(struct.pack(">H", v & 0xFFFF) for v in values)
+    return with_crc(struct.pack(">BBB", slave, function, len(payload)) + payload)
+
+
+def encode_exception(slave: int, function: int, code: int) -> bytes:
+    """Exception reply: the function code with bit 7 set, then the exception code."""
+    return with_crc(struct.pack(">BBB", slave, (function | 0x80) & 0xFF, code))
+
+
+def request_length(buf: bytes | bytearray) -> int | None:
+    """Length of the RTU request at the start of ``buf`` (functions 3, 4, 6, 16), or None
+    when it cannot be known yet (too few bytes) or the function is not one of those."""
+    if len(buf) < 2:
+        return None
+    if buf[1] in (3, 4, 6):
+        return 8
+    if buf[1] == 16:
+        return 9 + buf[6] if len(buf) >= 7 else None
+    return None

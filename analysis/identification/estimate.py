@@ -44,19 +44,28 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.gauss_newton import covariances_per_test, gauss_newton
-from analysis.identification.linear_model import design_block
+from analysis.identification.fitting import (  # noqa: F401 (re-exported: the public entry points stay)
+    COND_LIMIT,
+    _covariances,
+    _design,
+    _full,
+    _linear_estimator,
+    check_identifiable,
+    check_tests,
+    fit,
+    fit_exact,
+    fit_linear,
+)
 from analysis.identification.lsq import (
     block_diag_apply,
-    qr_solve,
     scaled_condition,
     stack_matrix,
     stack_vector,
-    weakest_column,
     whitening,
 )
-from analysis.identification.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays, to_arrays
+from analysis.identification.measurements import COMPONENTS, TestArrays, to_arrays
 from analysis.identification.noise import NoiseModel
+from analysis.identification.poses import count_poses, pose_tolerance
 from analysis.identification.result import Fit, IdentificationResult
 from analysis.identification.uncertainty import (
     chi2_summary,
@@ -65,13 +74,28 @@ from analysis.identification.uncertainty import (
     stiffness_interval,
     studentized,
 )
-from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
-COND_LIMIT = 1e6
-OUTLIER_THRESHOLD = 3.0
+#: family-wise level of the outlier test: the chance that any residual of a fit to data
+#: that follow the noise model is flagged
+OUTLIER_FAMILY_LEVEL = 0.01
+
+
+def outlier_threshold(n_residuals: int, level: float = OUTLIER_FAMILY_LEVEL) -> float:
+    """|studentized residual| beyond which a residual is an outlier (Sidak correction).
+
+    Each of the n residuals is tested two-sided at 1 - (1 - level)^(1/n), so
+    that with data that follow the noise model the chance of flagging any of
+    them is ``level``; a fixed 3-sigma cut flags ~0.27 % of innocent
+    residuals, i.e. a few in every campaign of a few hundred components.
+    """
+    from scipy import stats
+
+    n = max(int(n_residuals), 1)
+    per_residual = -np.expm1(np.log1p(-level) / n)  # 1 - (1 - level)^(1/n), accurately
+    return float(stats.norm.isf(per_residual / 2.0))
 
 
 def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...] | None:
@@ -93,153 +117,51 @@ def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...
     return tuple(sorted(out))
 
 
-def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]) -> None:
-    """Refuse data that cannot identify ``joints``; messages name the line, column or joint."""
-    if robot.n != 6:
-        raise InputError(f"{robot.name} has {robot.n} joints; the test format has 6")
-    for name, arr, cols in (("joint angles", tests.q, Q_COLS), ("wrench", tests.w, W_COLS)):
-        bad = ~np.isfinite(arr)
-        if np.any(bad):
-            i, j = np.argwhere(bad)[0]
-            raise InputError(f"line {tests.line[i]}, column {cols[j]}: {name} must be finite")
-    bad = np.isinf(tests.d) | (np.isnan(tests.d) & tests.measured)
-    if np.any(bad):
-        i, j = np.argwhere(bad)[0]
-        raise InputError(f"line {tests.line[i]}, component {COMPONENTS[j]}: displacement must "
-                         "be finite where measured")
-    zero = np.all(tests.w == 0.0, axis=1)
-    if np.any(zero):
-        i = int(np.flatnonzero(zero)[0])
-        raise InputError(f"line {tests.line[i]}, columns {', '.join(W_COLS)}: zero wrench; a "
-                         "test needs a load")
-    tol = 1e-9
-    out = (tests.q < robot.lower - tol) | (tests.q > robot.upper + tol)
-    if np.any(out):
-        i, j = np.argwhere(out)[0]
-        raise InputError(
-            f"line {tests.line[i]}, column {Q_COLS[j]}: {np.degrees(tests.q[i, j]):.3f} deg is "
-            f"outside the limits of {robot.name} [{np.degrees(robot.lower[j]):.1f}, "
-            f"{np.degrees(robot.upper[j]):.1f}] deg (model convention; a controller-angle mix-up?)",
-        )
-    n_eq = int(tests.measured.sum())
-    if n_eq < len(joints):
-        raise InputError(
-            f"{n_eq} measured displacement components for {len(joints)} unknown joint "
-            f"compliances: fewer equations than unknowns; add tests"
-        )
-    distinct = np.unique(np.round(tests.q, 9), axis=0)
-    if distinct.shape[0] < 2:
-        raise InputError(
-            f"all {tests.m} tests (lines {tests.line[0]}..{tests.line[-1]}, columns "
-            f"{Q_COLS[0]}..{Q_COLS[-1]}) are at one pose: errors of the kinematic model and "
-            "tool point cannot be told from compliance, and nothing can be validated; "
-            "measure at two poses or more"
-        )
+#: at most this many residuals are set aside one by one by :func:`flag_outliers`
+MAX_OUTLIERS = 10
 
 
-def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]):
-    J = jacobian(robot, tests.q)
-    A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
-    return J, A
+def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
+    """(m, 6) studentized residuals of fit ``f`` (NaN where not measured)."""
+    GS = block_diag_apply(f.G, f.cov)
+    var_r = residual_variance(stack_matrix(f.A), GS, stack_vector(
+        np.diagonal(f.cov, axis1=-2, axis2=-1)), GS @ f.G.T)
+    resid = np.where(tests.measured, tests.d - f.predicted, np.nan)
+    return studentized(resid.reshape(-1), var_r * scale).reshape(tests.m, 6)
 
 
-def check_identifiable(
-    A: np.ndarray, joints: tuple[int, ...], cond_limit: float = COND_LIMIT
-) -> float:
-    """Condition number of the column-scaled A (m, 6, p); refuse naming the weakest joint."""
-    stacked = stack_matrix(A)
-    norms = np.linalg.norm(stacked, axis=0)
-    if np.any(norms == 0):
-        j = joints[int(np.flatnonzero(norms == 0)[0])]
-        raise InputError(
-            f"joint {j + 1} cannot be identified: no test moves the tool through it "
-            f"(its column of A is zero: no torque on joint {j + 1}, or no measured component "
-            "it moves); take it as rigid with --joints or add tests that load it",
-            where="--joints",
-        )
-    cond = float(scaled_condition(stacked))
-    if not cond <= cond_limit:
-        j = joints[weakest_column(stacked)]
-        raise InputError(
-            f"joint {j + 1} cannot be identified from these tests: the condition number of "
-            f"the column-scaled A is {cond:.3g} (limit {cond_limit:.0e}) and joint {j + 1} "
-            "dominates its null direction; take it as rigid with --joints or add poses",
-            where="--joints",
-        )
-    return cond
+def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
+                  scale: float, threshold: float) -> np.ndarray:
+    """(m, 6) bool: residuals beyond ``threshold``, found one at a time.
+
+    A gross error pulls the fit towards itself and inflates the residuals of
+    its neighbours (the other components of its test, tests at the same
+    pose), so only the largest |t| is tested; if beyond ``threshold`` it is set
+    aside, the rest is refitted and tested again (a sequential, Grubbs-like
+    procedure), at most :data:`MAX_OUTLIERS` times or while equations remain.
+    """
+    flags = np.zeros(tests.measured.shape, dtype=bool)
+    t = _studentized_matrix(tests, first, scale)
+    budget = min(MAX_OUTLIERS, int(tests.measured.sum()) - len(joints) - 1)
+    for _ in range(max(budget, 0) + 1):
+        candidate = np.where(tests.measured & ~flags & np.isfinite(t), np.abs(t), -np.inf)
+        i, c = np.unravel_index(int(np.argmax(candidate)), candidate.shape)
+        if not candidate[i, c] > threshold:
+            break
+        flags[i, c] = True
+        if int(flags.sum()) > budget:
+            break
+        keep = tests.measured & ~flags
+        rest = TestArrays(tests.pose, tests.q, tests.w, np.where(keep, tests.d, np.nan), keep,
+                          tests.line)
+        try:
+            t = _studentized_matrix(rest, fit(robot, rest, joints, noise, method), scale)
+        except InputError:
+            break
+    return flags
 
 
-def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
-                 w: np.ndarray | None = None) -> np.ndarray:
-    return covariances_per_test(noise, J, x_full, measured, w)
-
-
-def _linear_estimator(A, d, measured, cov, weighted: bool):
-    """x = G d for per-test blocks; returns x, G (p, 6m)."""
-    dz = np.where(measured, d, 0.0)
-    if weighted:
-        Linv = whitening(cov, measured)
-        x, _, pinv_w = qr_solve(stack_matrix(Linv @ A), stack_vector(np.einsum(
-            "...ij,...j->...i", Linv, dz)))
-        m = A.shape[0]
-        G = np.einsum("pmi,mij->pmj", pinv_w.reshape(-1, m, 6), Linv).reshape(-1, 6 * m)
-    else:
-        x, _, G = qr_solve(stack_matrix(A), stack_vector(dz))
-    return x, G
-
-
-def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
-    x = np.zeros(6)
-    x[list(joints)] = x_p
-    return x
-
-
-def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
-    """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18)."""
-    J, A = _design(robot, tests, joints)
-    cov = _covariances(noise, J, np.zeros(6), tests.measured, tests.w)
-    x, G = _linear_estimator(A, tests.d, tests.measured, cov, weighted=False)
-    if weighted:
-        for _ in range(2):
-            cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
-            x, G = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
-    else:
-        cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
-    pred = np.einsum("mrp,p->mr", A, x)
-    return Fit(x=x, G=G, A=A, cov=cov, predicted=pred, iterations=0)
-
-
-def fit_exact(robot, tests, joints, noise, start: np.ndarray) -> Fit:
-    """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,)."""
-    gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start)
-    if not gn.valid:
-        raise InputError(
-            "the exact fit cannot start: the equilibrium has no solution at the linear "
-            "estimate of the compliances (some k far too small, or negative); check the "
-            "data or use --method wls", where="--method")
-    _, G = _linear_estimator(gn.F, tests.d, tests.measured, gn.cov, weighted=True)
-    return Fit(x=gn.x, G=G, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations)
-
-
-def fit(robot, tests, joints, noise, method) -> Fit:
-    """Fit by ``method`` (ols, wls, exact)."""
-    if method == "ols":
-        return fit_linear(robot, tests, joints, noise, weighted=False)
-    if method == "wls":
-        return fit_linear(robot, tests, joints, noise, weighted=True)
-    start = fit_linear(robot, tests, joints, noise, weighted=False).x
-    return fit_exact(robot, tests, joints, noise, start)
-
-
-def fit_training(robot, tests, joints, noise, method) -> np.ndarray:
-    """Compliances (p,) of ``joints`` from ``tests`` after the data checks (cross-validation)."""
-    check_tests(robot, tests, joints)
-    _, A = _design(robot, tests, joints)
-    check_identifiable(A, joints)
-    return fit(robot, tests, joints, noise, method).x
-
-
-def _residual_table(tests, result_fit, var_r, scale, threshold) -> pd.DataFrame:
+def _residual_table(tests, result_fit, var_r, scale, flags) -> pd.DataFrame:
     m = tests.m
     meas = tests.measured
     sigma = np.sqrt(np.diagonal(result_fit.cov, axis1=-2, axis2=-1))
@@ -255,7 +177,7 @@ def _residual_table(tests, result_fit, var_r, scale, threshold) -> pd.DataFrame:
                 "component": COMPONENTS[c], "unit": "m" if c < 3 else "rad",
                 "measured": tests.d[i, c], "predicted": result_fit.predicted[i, c],
                 "residual": resid[i, c], "sigma": sigma[i, c],
-                "studentized": t[i, c], "outlier": bool(abs(t[i, c]) > threshold),
+                "studentized": t[i, c], "outlier": bool(flags[i, c]),
             })
     return pd.DataFrame(rows)
 
@@ -268,7 +190,7 @@ def identify(
     noise: NoiseModel | None = None,
     covariance: str = "model",
     cond_limit: float = COND_LIMIT,
-    outlier_threshold: float = OUTLIER_THRESHOLD,
+    outlier_level: float = OUTLIER_FAMILY_LEVEL,
     validate: bool = True,
     confidence: float = 0.95,
 ) -> IdentificationResult:
@@ -283,6 +205,7 @@ def identify(
         (0, 1, 2) when no rotation is measured.
     noise : instrument noise model (default :class:`NoiseModel()`).
     covariance : "model" (known sigmas) or "residual" (scaled by reduced chi-square).
+    outlier_level : family-wise level of the outlier test (:func:`outlier_threshold`).
     validate : run leave-one-pose-out validation (needs >= 3 poses).
     """
     if method not in METHODS:
@@ -297,7 +220,7 @@ def identify(
     joints = tuple(sorted({int(j) for j in joints}))
     if not joints or joints[0] < 0 or joints[-1] > 5:
         raise InputError(f"expected 0-based joint indices 0..5, got {joints}", where="joints")
-    check_tests(robot, tests, joints)
+    check_tests(robot, tests, joints, noise)
     _, A_lin = _design(robot, tests, joints)
     cond = check_identifiable(A_lin, joints, cond_limit)
     warnings: list[str] = []
@@ -356,25 +279,33 @@ def identify(
             warnings.append(f"joint {j + 1}: the {confidence:.0%} interval of its compliance "
                             "reaches 0, the data do not bound k from above")
 
-    residuals = _residual_table(tests, chosen, var_r, scale, outlier_threshold)
-    n_out = int(residuals["outlier"].sum())
-    if n_out:
-        warnings.append(f"{n_out} residual(s) beyond {outlier_threshold:g} sigma (studentized)")
+    threshold = outlier_threshold(n_eq, outlier_level)
+    flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold)
+    residuals = _residual_table(tests, chosen, var_r, scale, flags)
+    flagged = residuals[residuals["outlier"]]
+    if len(flagged):
+        where = ", ".join(
+            f"line {r.line} (pose {r.pose}) {r.component} t = {r.studentized:.1f}"
+            for r in flagged.reindex(flagged["studentized"].abs().sort_values(
+                ascending=False).index).head(5).itertuples())
+        more = f" and {len(flagged) - 5} more" if len(flagged) > 5 else ""
+        warnings.append(
+            f"{len(flagged)} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
+            f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
     Aw = stack_matrix(Linv @ chosen.A)
     result = IdentificationResult.build(
         robot=robot.name, method=method, joints=joints, x=chosen.x, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,
         condition_number_weighted=float(scaled_condition(Aw)), tests=tests, n_equations=n_eq,
         dof=dof, chi2_reduced=chi2_red, p_value=p_value, residuals=residuals,
+        n_poses=count_poses(tests.q, pose_tolerance(noise)), outlier_threshold=threshold,
         linear={k: v.x for k, v in linear.items()}, iterations=chosen.iterations,
         noise=noise, warnings=warnings,
     )
     if validate:
         from analysis.identification.crossval import leave_one_pose_out
 
-        result.validation = leave_one_pose_out(
-            robot, tests, method, joints, noise,
-            lambda train: fit_training(robot, train, joints, noise, method))
+        result.validation = leave_one_pose_out(robot, tests, method, joints, noise)
     return result
 
 

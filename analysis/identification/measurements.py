@@ -42,6 +42,10 @@ _TO_SI = {
     **{c: (s, 1e-3) for c, s in zip(D_COLS + R_COLS, SI_D, strict=True)},
 }
 COMPONENTS = ["dx", "dy", "dz", "rx", "ry", "rz"]
+#: largest magnitude accepted per SI column, far beyond any stiffness test (a typing or
+#: unit error otherwise overflows the linear algebra): 10 turns, 10 MN, 10 MN m, 10 m, 1 rad
+PLAUSIBLE_MAX = {**{c: 20 * np.pi for c in SI_Q}, **{c: 1e7 for c in SI_W},
+                 **{c: 10.0 for c in SI_D[:3]}, **{c: 1.0 for c in SI_D[3:]}}
 
 
 @dataclass(frozen=True)
@@ -181,6 +185,16 @@ def validate_table(table: pd.DataFrame, where: str = "measurements") -> None:
                 f"{label(i)}, column {csv_name(col)}: {what} (a number is required)",
                 where=where,
             )
+        with np.errstate(invalid="ignore"):
+            huge = np.abs(values) > PLAUSIBLE_MAX[col]
+        if np.any(huge):
+            i = int(np.flatnonzero(huge)[0])
+            name = csv_name(col)
+            factor = _TO_SI[name][1] if name in _TO_SI else 1.0
+            raise InputError(
+                f"{label(i)}, column {name}: {values[i] / factor:.6g} is beyond any plausible "
+                f"value (|value| <= {PLAUSIBLE_MAX[col] / factor:.3g}); check the units and "
+                "the cell", where=where)
     rot = table[SI_D[3:]].to_numpy(dtype=float)
     partial = np.isnan(rot).any(axis=1) & ~np.isnan(rot).all(axis=1)
     if np.any(partial):

@@ -9,7 +9,7 @@ Defaults and where they come from
 ---------------------------------
 * Laser tracker point (3-DoF): MPE 15 um + 6 um/m transverse and
   10 um + 0.3 um/m in distance (interferometer) -- typical of current laser
-  trackers (figures quoted in ``shared/method.md``), at ``tracker_distance``
+  trackers (manufacturers' MPE figures per ISO 10360-10), at ``tracker_distance``
   = 3 m from the tool. Direction to the tracker unknown: per base-frame
   component, sigma^2 = (2 sigma_t^2 + sigma_r^2) / 3.
 * A displacement is the difference of two measured poses (unloaded, loaded):

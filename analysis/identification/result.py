@@ -64,6 +64,12 @@ class IdentificationResult:
     validation : leave-one-pose-out table (one row per held-out pose) or None.
     iterations : Gauss-Newton iterations (exact), 0 otherwise.
     noise : the noise model used. warnings : messages for the user.
+    outlier_threshold : |studentized residual| beyond which a residual is an
+        outlier (Sidak-corrected for the number of residuals).
+    assumptions : what the result rests on (tool point, noise figures and
+        their source, method, ...), filled by the caller; results.json ``assumptions``.
+    misfit_accepted : refusals of :mod:`analysis.identification.plausibility`
+        overridden by the user (``--accept-misfit``); empty when none.
     """
 
     robot: str
@@ -91,11 +97,15 @@ class IdentificationResult:
     noise: NoiseModel
     warnings: list[str] = field(default_factory=list)
     validation: pd.DataFrame | None = None
+    outlier_threshold: float = float("nan")
+    assumptions: dict = field(default_factory=dict)
+    misfit_accepted: list[str] = field(default_factory=list)
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
               condition_number, condition_number_weighted, tests: TestArrays, n_equations,
-              dof, chi2_reduced, p_value, residuals, linear, iterations, noise, warnings):
+              dof, chi2_reduced, p_value, residuals, linear, iterations, noise, warnings,
+              n_poses: int, outlier_threshold: float):
         cols = list(joints)
         x_full = np.zeros(6)
         x_full[cols] = x
@@ -118,10 +128,10 @@ class IdentificationResult:
             se_k=se_k, ci=ci_full, confidence=confidence, covariance=covariance,
             condition_number=condition_number,
             condition_number_weighted=condition_number_weighted, n_tests=tests.m,
-            n_poses=len(np.unique(np.round(tests.q, 9), axis=0)), n_equations=n_equations,
+            n_poses=int(n_poses), n_equations=n_equations,
             dof=dof, chi2_reduced=chi2_reduced, p_value=p_value, residuals=residuals,
             linear=linear, change_vs_linear=change, iterations=iterations, noise=noise,
-            warnings=list(warnings),
+            warnings=list(warnings), outlier_threshold=float(outlier_threshold),
         )
 
     def _per_joint(self, values: list) -> list:
@@ -142,6 +152,9 @@ class IdentificationResult:
               for j in range(6)]
         level = f"{100 * self.confidence:g}"
         out = {
+            "assumptions": self.assumptions,
+            "misfit_accepted": {"accepted": bool(self.misfit_accepted),
+                                "problems": list(self.misfit_accepted)},
             "robot": self.robot,
             "method": self.method,
             "joints_identified": [j + 1 for j in self.joints],
@@ -161,6 +174,7 @@ class IdentificationResult:
             "condition_number_weighted": num(self.condition_number_weighted),
             "chi2_reduced": num(self.chi2_reduced),
             "chi2_p_value": num(self.p_value),
+            "outlier_threshold_studentized": num(self.outlier_threshold),
             "iterations": self.iterations,
             "linear_fits_Nm_per_rad": {
                 name: self._per_joint([num(1.0 / v) if v > 0 else None for v in xl])

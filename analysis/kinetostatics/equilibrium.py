@@ -48,7 +48,8 @@ def newton_deflection(
     ----------
     q : (..., n) joint angles (rad). x : (n,) or (..., n) joint compliances
         (rad/(N m)). w : (..., 6) wrench [f (N); m (N m)] at P, base frame.
-    tol : a pose has converged when its last max |step| <= tol (rad); iteration
+    tol : a pose has converged when its last max |step| <= tol (rad; relative to
+        max |dq| when that exceeds 1 rad); iteration
         stops when every pose has converged or failed.
     dq0 : (..., n) starting guess (rad), zero if None.
     max_deflection : a pose whose |dq| exceeds this (rad) is marked failed.
@@ -57,7 +58,8 @@ def newton_deflection(
     -------
     dq : (..., n) deflection (rad), 0 where failed.
     failed : (...) bool, singular Newton matrix, non-finite or too large deflection.
-    last_step : (...) last max |step| of each pose (rad), inf where failed.
+    last_step : (...) last max |step| of each pose (rad), divided by max |dq| when that
+        exceeds 1 rad; inf where failed.
     """
     q = np.asarray(q, dtype=float)
     x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
@@ -80,7 +82,10 @@ def newton_deflection(
         dq = dq - step
         bad |= ~np.isfinite(dq).all(axis=-1) | (np.max(np.abs(dq), axis=-1) > max_deflection)
         dq = np.where(bad[..., None], 0.0, dq)
-        last = np.where(bad, np.inf, np.max(np.abs(step), axis=-1, initial=0.0))
+        # relative to the deflection once it exceeds 1 rad: rounding keeps the step of a
+        # converged large deflection above an absolute 1e-14 rad
+        scale = np.maximum(1.0, np.max(np.abs(dq), axis=-1, initial=0.0))
+        last = np.where(bad, np.inf, np.max(np.abs(step), axis=-1, initial=0.0) / scale)
         if np.all(bad | (last <= tol)):
             break
     return dq, bad, last
@@ -101,7 +106,7 @@ def solve_deflection(
     ----------
     q : (..., n) joint angles (rad); k : (n,) or (..., n) joint stiffness (N m/rad);
     w : (..., 6) wrench [f (N); m (N m)] at P, base frame.
-    tol : convergence on max |step| (rad).
+    tol : convergence on max |step| (rad), relative to max |dq| when that exceeds 1 rad.
     dq0 : (..., n) starting guess (rad), e.g. the solution at a nearby pose; zero if None.
 
     Raises

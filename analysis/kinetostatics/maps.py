@@ -8,15 +8,17 @@ the Cartesian position of P for the same poses (the workspace view), and
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinetostatics.dexterity import inverse_condition_em
+from analysis.kinetostatics.small_linalg import to_entry_major
 from analysis.kinetostatics.stiffness import (
-    complementary_stiffness_from_jacobian,
-    deflection,
+    complementary_stiffness_em,
+    deflections_em,
     influence_indices,
 )
 from analysis.model.kinematics import chain_state, jacobian_from_state
@@ -60,7 +62,7 @@ class GridSpec:
 
 
 #: Poses per block when a large batch is split across threads.
-BLOCK = 8192
+BLOCK = 4096
 
 
 def pose_metrics(
@@ -77,34 +79,36 @@ def pose_metrics(
     q = np.asarray(q, dtype=float)
     shape = q.shape[:-1]
     flat = q.reshape(-1, q.shape[-1])
-    if flat.shape[0] <= BLOCK:
-        return _pose_metrics(robot, q, k, w, length)
-    import os
-    from concurrent.futures import ThreadPoolExecutor
+    blocks = [flat[i:i + BLOCK] for i in range(0, max(flat.shape[0], 1), BLOCK)]
+    workers = min(len(blocks), threads or os.cpu_count() or 1)
+    if workers <= 1:
+        parts = [_pose_metrics(robot, b, k, w, length) for b in blocks]
+    else:
+        from concurrent.futures import ThreadPoolExecutor
 
-    blocks = [flat[i:i + BLOCK] for i in range(0, flat.shape[0], BLOCK)]
-    with ThreadPoolExecutor(max_workers=threads or os.cpu_count() or 1) as pool:
-        parts = list(pool.map(lambda b: _pose_metrics(robot, b, k, w, length), blocks))
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            parts = list(pool.map(lambda b: _pose_metrics(robot, b, k, w, length), blocks))
     return {
-        key: np.concatenate([p[key] for p in parts]).reshape(*shape, *parts[0][key].shape[1:])
+        key: np.concatenate([p[key] for p in parts]).reshape((*shape, *parts[0][key].shape[1:]))
         for key in parts[0]
     }
 
 
 def _pose_metrics(robot, q, k, w, length):
+    """The kernel of :func:`pose_metrics` on one block of poses (N, n), entry-major inside."""
     state = chain_state(robot, q)
-    J = jacobian_from_state(state)
-    inv_k = inverse_condition(normalized_jacobian(J, length))
-    K_C = complementary_stiffness_from_jacobian(J, w)
-    d_kc = deflection(J, k, w, K_C)
-    v_p, v_r = influence_indices(d_kc, deflection(J, k, w))
+    E = to_entry_major(jacobian_from_state(state))  # J as (6, n, N)
+    scale = np.array([1.0 / length] * 3 + [1.0] * 3)[:, None, None]
+    inv_k = inverse_condition_em(E * scale)
+    d_kc, d_no = deflections_em(E, k, w, complementary_stiffness_em(E, w))
+    v_p, v_r = influence_indices(d_kc.T, d_no.T)
     return {
         "inv_kappa_F": inv_k,
         "v_p": v_p,
         "v_r": v_r,
         "singular": inv_k < SINGULAR_INV_KAPPA,
         "position": state.tip[..., :3, 3],
-        "deflection": d_kc,
+        "deflection": d_kc.T,
     }
 
 

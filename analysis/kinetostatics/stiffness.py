@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import SingularPoseError
-from analysis.model.kinematics import ChainState, chain_state, cross, jacobian, jacobian_from_state
+from analysis.kinetostatics.small_linalg import solve_dominant, to_entry_major
+from analysis.model.kinematics import ChainState, chain_state, jacobian, jacobian_from_state
 from analysis.model.robot_model import RobotModel
 
 
@@ -29,21 +30,45 @@ def complementary_stiffness_from_jacobian(J: np.ndarray, w: np.ndarray) -> np.nd
     dJ_i/dtheta_k = [omega_k x v_i; omega_k x omega_i] for k <= i, and
     [omega_i x v_k; 0] for k > i. Only J (at P, base axes) is needed.
     """
-    v = np.swapaxes(J[..., :3, :], -1, -2)  # (..., n, 3)
-    om = np.swapaxes(J[..., 3:, :], -1, -2)
+    J = np.asarray(J, dtype=float)
     w = np.asarray(w, dtype=float)
-    f = np.broadcast_to(w[..., None, :3], v.shape)
-    m = np.broadcast_to(w[..., None, 3:], v.shape)
-    n = v.shape[-2]
-    # Triple products rewritten as matrix products:
-    # (omega_k x v_i) . f + (omega_k x omega_i) . m = omega_k . (v_i x f + omega_i x m)
-    # (omega_i x v_k) . f = omega_i . (v_k x f)
-    vf = cross(v, f)
-    lower = om @ np.swapaxes(vf + cross(om, m), -1, -2)  # [k, i], used for k <= i
-    upper = vf @ np.swapaxes(om, -1, -2)  # [k, i] = (v_k x f) . omega_i, used for k > i
-    tri = np.triu(np.ones((n, n), dtype=bool))  # k <= i
-    d = np.where(tri, lower, upper)  # d[..., k, i] = (dJ_i/dtheta_k) . w
-    return np.swapaxes(d, -1, -2)
+    if w.ndim > 1:  # one wrench per pose: broadcast, then the same batched kernel
+        batch = np.broadcast_shapes(J.shape[:-2], w.shape[:-1])
+        J = np.broadcast_to(J, (*batch, *J.shape[-2:]))
+        w_em = np.ascontiguousarray(np.broadcast_to(w, (*batch, 6)).reshape(-1, 6).T)
+    else:
+        batch, w_em = J.shape[:-2], w
+    n = J.shape[-1]
+    K = complementary_stiffness_em(to_entry_major(J.reshape(-1, 6, n)), w_em)
+    return np.moveaxis(K, -1, 0).reshape(*batch, n, n)
+
+
+def complementary_stiffness_em(E: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """K_C entry-major (n, n, N) from J entry-major (6, n, N) and w (6,) or (6, N).
+
+    The kernel of :func:`complementary_stiffness_from_jacobian`. Triple products
+    rewritten as dot products:
+    (omega_k x v_i) . f + (omega_k x omega_i) . m = omega_k . (v_i x f + omega_i x m),
+    (omega_i x v_k) . f = omega_i . (v_k x f).
+    """
+    v, om = E[:3], E[3:]  # (3, n, N): components, joint, pose
+    w = np.asarray(w, dtype=float)
+    f = w[:3].reshape(3, 1, -1) if w.ndim > 1 else w[:3].reshape(3, 1, 1)
+    m = w[3:].reshape(f.shape)
+    vf = _cross0(v, f)
+    a = vf + _cross0(om, m)
+    # lower[k, i] = omega_k . a_i (used for k <= i); upper[k, i] = vf_k . omega_i (k > i)
+    lower = sum(om[c][:, None] * a[c][None] for c in range(3))
+    upper = sum(vf[c][:, None] * om[c][None] for c in range(3))
+    n = E.shape[1]
+    tri = np.triu(np.ones((n, n), dtype=bool))[:, :, None]
+    return np.swapaxes(np.where(tri, lower, upper), 0, 1)  # K_C[i, k] = d[k, i]
+
+
+def _cross0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the first axis (entry-major vectors)."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
 
 
 def complementary_stiffness(robot: RobotModel, q: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -101,8 +126,33 @@ def deflection(
     if K_C is None:
         dq = tau / np.asarray(k, dtype=float)  # K_theta is diagonal
     else:
-        dq = np.linalg.solve(_kdiag(k, J.shape[-1]) - K_C, tau[..., None])[..., 0]
+        n = J.shape[-1]
+        A = _kdiag(k, n) - K_C
+        batch = np.broadcast_shapes(A.shape[:-2], tau.shape[:-1])
+        A = np.broadcast_to(A, (*batch, n, n)).reshape(-1, n, n)
+        b = np.broadcast_to(tau, (*batch, n)).reshape(-1, n)
+        dq = solve_dominant(to_entry_major(A), b.T.copy()).T.reshape(*batch, n)
     return np.einsum("...ij,...j->...i", J, dq)
+
+
+def deflections_em(
+    E: np.ndarray, k: np.ndarray, w: np.ndarray, K_C: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Deflections (6, N) with and without K_C, entry-major J (6, n, N) and K_C (n, n, N).
+
+    The kernel of :func:`deflection` for maps: K_theta - K_C is diagonally
+    dominant for industrial robots under realistic wrenches, so it is solved by
+    batched elimination without pivoting (LAPACK where the guard fails).
+    """
+    k = np.asarray(k, dtype=float)
+    n = E.shape[1]
+    tau = np.einsum("rin,r->in", E, np.asarray(w, dtype=float))  # J^T w, (n, N)
+    A = -K_C
+    A[np.arange(n), np.arange(n)] += k[:, None]
+    dq = solve_dominant(A, tau)
+    d_kc = np.einsum("rin,in->rn", E, dq)
+    d_no = np.einsum("rin,in->rn", E, tau / k[:, None])
+    return d_kc, d_no
 
 
 def influence_indices(d_kc: np.ndarray, d_no: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

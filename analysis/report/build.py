@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.identification.estimate import OUTLIER_THRESHOLD
+from analysis.identification.estimate import OUTLIER_FAMILY_LEVEL
 from analysis.identification.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.result import IdentificationResult
@@ -149,7 +149,8 @@ def residual_table(result: IdentificationResult) -> Table:
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
     return Table("Residuals (measured - model) per test and component", cols, rows, marked,
-                 caption=f"* outlier: |studentized residual| > {OUTLIER_THRESHOLD:g}; "
+                 caption=f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} "
+                 f"(Sidak, {OUTLIER_FAMILY_LEVEL:.0%} family-wise over {len(res)} residuals); "
                  "highlighted rows hold an outlier. 'line': row of the input table.",
                  widths=[0.6, 0.8, 0.6, 1, 1, 1, 1, 1, 1])
 
@@ -277,6 +278,8 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     first = [int(np.flatnonzero(inp.tests.pose == lab)[0]) for lab in labels]
     q_poses = inp.tests.q[first]
     banner = [t for t in [partial_text(inp.info)] if t]
+    for problem in result.misfit_accepted:
+        banner.append(f"ACCEPTED DESPITE A REFUSAL (--accept-misfit): {problem}")
     if inp.info.n_failed:
         banner.append(f"{inp.info.n_failed} failed test row(s): see Data quality.")
     d = table["deflection_mm"].to_numpy()
@@ -290,7 +293,8 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         f"P over the (\u03b8\u2082, \u03b8\u2083) map ranges from {fixed(d.min(), 3)} to "
         f"{fixed(d.max(), 3)} mm (median {fixed(np.median(d), 3)} mm)." if d.size else "")
     summary = Section(SECTION_TITLES[0], [
-        *[Paragraph(t, "warning") for t in banner], answer, summary_table(inp.info),
+        *[Paragraph(t, "warning") for t in banner], *assumption_blocks(result), answer,
+        summary_table(inp.info),
         Paragraph("Data quality", "heading"), *quality_blocks(inp.info)])
     ident_sec = Section(SECTION_TITLES[1], [
         stiffness_table(result, inp), fit_paragraph(result),
@@ -298,7 +302,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         figures.stiffness_bars(result.k, result.ci, inp.nominal, inp.nominal_label,
                                result.confidence)])
     resid_sec = Section(SECTION_TITLES[2], [
-        residual_table(result), figures.residual_plot(result.residuals, OUTLIER_THRESHOLD),
+        residual_table(result), figures.residual_plot(result.residuals, result.outlier_threshold),
         *validation_blocks(result)])
     defl_sec = Section(SECTION_TITLES[3], [
         Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "
@@ -314,6 +318,31 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     subtitle = f"{inp.info.source}: {inp.info.location}"
     return Report(title, subtitle, [summary, ident_sec, resid_sec, defl_sec, kx_sec, rob_sec],
                   banner)
+
+
+def assumption_blocks(result: IdentificationResult) -> list:
+    """The table of what the result rests on (empty when the caller recorded nothing)."""
+    a = result.assumptions
+    if not a:
+        return []
+    rows = []
+    if "robot" in a:
+        rows.append(["robot", str(a["robot"])])
+    if "tool_point" in a:
+        t = a["tool_point"]
+        rows.append(["tool point P", f"xyz {t['xyz_mm']} mm, rpy {t['rpy_deg']} deg in the "
+                                     f"flange frame ({t['source']})"])
+    if "noise" in a:
+        n = a["noise"]
+        rows.append(["noise per test row",
+                     f"translation {sig(n['translation_sigma_um'], 3)} \u00b5m, rotation "
+                     f"{sig(n['rotation_sigma_urad'], 3)} \u00b5rad, force "
+                     f"{sig(n['force_sigma_N'], 3)} N, moment {sig(n['moment_sigma_Nm'], 3)} N m "
+                     f"({n['source']})"])
+    for key in ("method", "covariance", "joints", "poses"):
+        if key in a:
+            rows.append([key, str(a[key])])
+    return [Table("Assumptions", ["item", "value"], rows, widths=[1, 3.2])]
 
 
 def pm_text(value: float) -> str:

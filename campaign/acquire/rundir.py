@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import csv
 import fcntl
+import hashlib
 import io
 import json
 import os
+import shutil
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -59,14 +62,44 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
+class WriteFailure(Exception):
+    """A record of the run could not be written (disk full, read-only, ...).
+
+    Not an :class:`OSError` on purpose: the runner tells a failed write of its
+    own record apart from an instrument's socket error.
+    """
+
+    def __init__(self, path: Path, err: OSError) -> None:
+        self.path, self.errno = Path(path), err.errno
+        super().__init__(f"cannot write {self.path.name} in {self.path.parent}: "
+                         f"{err.strerror or err}")
+
+
 def atomic_write(path: Path, text: str) -> None:
-    """Replace ``path`` by ``text`` atomically (temp file, fsync, rename, fsync dir)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    """Replace ``path`` by ``text`` atomically (temp file, fsync, rename, fsync dir).
+
+    The temporary file has a name of its own per process and call, so two
+    writers never share it; it is removed when the write fails.
+
+    Raises
+    ------
+    WriteFailure
+        The file could not be written (the old content is left in place).
+    """
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except OSError as err:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise WriteFailure(path, err) from err
     _fsync_dir(path.parent)
 
 
@@ -98,17 +131,113 @@ class Appender:
         self._fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
 
     def write(self, text: str) -> None:
+        """Append ``text`` (whole lines); :class:`WriteFailure` if it cannot be written.
+
+        A failed write is cut back off (or, if even that fails, left as a partial
+        line that :func:`repair_tail` cuts at resume), so the file keeps whole lines.
+        """
         data = text.encode("utf-8")
         view = memoryview(data)
-        while view:
-            n = os.write(self._fd, view)
-            view = view[n:]
-        os.fsync(self._fd)
+        size = -1
+        try:
+            size = os.fstat(self._fd).st_size
+            while view:
+                n = os.write(self._fd, view)
+                view = view[n:]
+            os.fsync(self._fd)
+        except OSError as err:
+            if size >= 0:
+                try:
+                    os.ftruncate(self._fd, size)
+                except OSError:
+                    pass
+            raise WriteFailure(self.path, err) from err
 
     def close(self) -> None:
         if self._fd >= 0:
             os.close(self._fd)
             self._fd = -1
+
+
+def _require_empty(path: Path) -> None:
+    if path.exists() and (not path.is_dir() or any(path.iterdir())):
+        raise InputError("run directory exists and is not empty; use --resume to "
+                         "continue it, or choose another --out", where=str(path))
+
+
+def _remove_stale_creations(path: Path) -> None:
+    """Remove ``.NAME.creating-*`` directories left by a creation that was killed.
+
+    Only those whose lock can be taken: a creation still under way holds its lock.
+    """
+    for old in path.parent.glob(f".{path.name}.creating-*"):
+        try:
+            fd = os.open(old / LOCK, os.O_RDWR)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            continue
+        else:
+            shutil.rmtree(old, ignore_errors=True)
+        finally:
+            os.close(fd)
+
+
+def read_metadata(path: Path) -> dict[str, Any]:
+    """``metadata.json`` as a dict; an :class:`InputError` names the file when it is not one."""
+    from analysis.file_errors import read_utf8
+
+    text = read_utf8(path, "metadata.json")
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise InputError(f"not valid JSON (line {err.lineno}, column {err.colno}): {err.msg}; "
+                         "the run record is damaged", where=str(path)) from None
+    if not isinstance(data, dict):
+        raise InputError(f"expected a JSON object, found a {type(data).__name__}; the run "
+                         "record is damaged", where=str(path))
+    return data
+
+
+def sha256_file(path: Path) -> str:
+    """SHA-256 (hex) of the bytes of ``path``."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def copy_mismatches(path: Path, metadata: dict[str, Any]) -> list[str]:
+    """Copies in run ``path`` that no longer match the hash recorded when the run started.
+
+    Returns one message per mismatching file (protocol copy, plan.csv); a hash the
+    metadata does not hold (older runs) is not checked.
+    """
+    out = []
+    copies = [p.name for p in sorted(Path(path).glob("protocol.*"))
+              if p.suffix in (".toml", ".yaml", ".yml")]
+    for name, key in ((copies[0] if copies else None, "protocol_sha256"),
+                      (PLAN, "plan_sha256")):
+        expected = metadata.get(key)
+        if not name or not isinstance(expected, str) or not (path / name).is_file():
+            continue
+        try:
+            digest = sha256_file(path / name)
+        except OSError as err:
+            out.append(f"{name}: cannot read: {err.strerror}")
+            continue
+        if digest != expected:
+            out.append(f"{name} does not match {key} of metadata.json (sha256 {digest[:12]}... "
+                       f"instead of {expected[:12]}...): the copy was changed after the run "
+                       "started")
+    return out
+
+
+def verify_copies(path: Path, metadata: dict[str, Any]) -> None:
+    """Refuse a run whose protocol or plan copy was changed after it started."""
+    problems = copy_mismatches(path, metadata)
+    if problems:
+        raise InputError("; ".join(problems) + "; restore the original, or start a new run "
+                         "with --plan", where=str(path))
 
 
 def format_row(row: dict[str, Any]) -> str:
@@ -138,6 +267,8 @@ class RunDir:
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.metadata: dict[str, Any] = {}
+        #: number of the acquire session writing now (1 = the first), in every record
+        self.session: int | None = None
         self._samples: Appender | None = None
         self._tests: Appender | None = None
         self._events: Appender | None = None
@@ -147,47 +278,90 @@ class RunDir:
     @classmethod
     def create(cls, path: Path, metadata: dict[str, Any], protocol_name: str,
                protocol_text: str, plan_text: str) -> RunDir:
-        """Make a new run directory: metadata first, then the protocol and plan copies."""
+        """Make a new run directory, atomically and exclusively.
+
+        Everything (metadata, protocol and plan copies, tests.csv header, lock) is
+        written in a temporary directory beside ``path``, which is then renamed to
+        ``path``: a crash leaves either no run or a whole one (plus at worst a
+        ``.NAME.creating-*`` directory, removed by the next creation), and of two
+        processes creating the same run only one rename succeeds.
+        """
         path = Path(path)
-        if path.exists() and any(path.iterdir()):
-            raise InputError("run directory exists and is not empty; use --resume to "
-                             "continue it, or choose another --out", where=str(path))
+        _require_empty(path)
         try:
-            path.mkdir(parents=True, exist_ok=True)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            _remove_stale_creations(path)
+            tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.creating-", dir=path.parent))
+            os.chmod(tmp, 0o755)
         except OSError as err:
             raise InputError(f"cannot create the run directory: {err.strerror}",
                              where=str(path)) from err
-        run = cls(path)
-        run.metadata = dict(metadata, format_version=FORMAT_VERSION, status="running",
-                            reason="")
-        run.write_metadata()
-        atomic_write(path / protocol_name, protocol_text)
-        atomic_write(path / PLAN, plan_text)
-        run._open_appenders(new=True)
+        run = cls(tmp)
+        try:
+            run.metadata = dict(metadata, format_version=FORMAT_VERSION, status="running",
+                                reason="")
+            run._open_appenders(new=True)
+            run.write_metadata()
+            atomic_write(tmp / protocol_name, protocol_text)
+            atomic_write(tmp / PLAN, plan_text)
+            try:
+                # POSIX rename replaces an empty directory and fails on a non-empty one
+                os.rename(tmp, path)
+            except OSError as err:
+                raise InputError("run directory was created by another process meanwhile "
+                                 f"({err.strerror}); choose another --out",
+                                 where=str(path)) from None
+        except BaseException as err:
+            run.close()
+            shutil.rmtree(tmp, ignore_errors=True)
+            if isinstance(err, WriteFailure):
+                raise InputError(f"cannot create the run directory: {err}",
+                                 where=str(path)) from None
+            raise
+        run._moved_to(path)
+        _fsync_dir(path.parent)
         return run
 
     @classmethod
     def open(cls, path: Path) -> RunDir:
-        """Reopen an existing run for ``--resume``: repair partial lines, read metadata."""
+        """Reopen an existing run for ``--resume``.
+
+        Checks that the metadata is a readable object of this format, that the
+        protocol and plan copies still match the hashes recorded at the start, and
+        that tests.csv names each (test_id, repeat) once; then cuts partial last lines.
+        """
         path = Path(path)
         meta_path = path / METADATA
         if not meta_path.is_file():
             raise InputError("not a run directory (no metadata.json)", where=str(path))
-        try:
-            metadata = json.loads(meta_path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as err:
-            raise InputError(f"cannot read metadata.json: {err}", where=str(meta_path)) from err
+        metadata = read_metadata(meta_path)
         if metadata.get("format_version") != FORMAT_VERSION:
             raise InputError(f"run format {metadata.get('format_version')!r} is not "
                              f"{FORMAT_VERSION}", where=str(meta_path))
         if not (path / PLAN).is_file():
             raise InputError("run directory lacks its plan.csv copy", where=str(path))
-        for name in (SAMPLES, TESTS, EVENTS):
-            repair_tail(path / name)
+        if not isinstance(metadata.get("sessions", []), list):
+            raise InputError("sessions: expected a list", where=str(meta_path))
+        verify_copies(path, metadata)
         run = cls(path)
         run.metadata = metadata
-        run._open_appenders(new=not (path / TESTS).exists())
+        run._lock()  # before repairing: another process may be appending
+        try:
+            for name in (SAMPLES, TESTS, EVENTS):
+                repair_tail(path / name)
+            finished_tests(path)  # refuses a damaged or duplicated row before any motion
+            run._open_appenders(new=not (path / TESTS).exists())
+        except BaseException:
+            run.close()
+            raise
         return run
+
+    def _moved_to(self, path: Path) -> None:
+        self.path = path
+        for app, name in ((self._samples, SAMPLES), (self._tests, TESTS),
+                          (self._events, EVENTS)):
+            if app is not None:
+                app.path = path / name
 
     def _lock(self) -> None:
         """Hold an exclusive lock on the run (released by the kernel even on kill -9)."""
@@ -201,7 +375,8 @@ class RunDir:
         self._lock_fd = fd
 
     def _open_appenders(self, new: bool) -> None:
-        self._lock()
+        if self._lock_fd < 0:
+            self._lock()
         tests_path = self.path / TESTS
         fresh = not tests_path.exists() or tests_path.stat().st_size == 0
         self._samples = Appender(self.path / SAMPLES)
@@ -262,20 +437,70 @@ def read_tests(path: Path) -> pd.DataFrame:
 
 
 def finished_tests(path: Path) -> set[tuple[int, int]]:
-    """(test_id, repeat) pairs with a row in tests.csv of run ``path``."""
-    df = read_tests(path)
-    return {(int(a), int(b)) for a, b in zip(df["test_id"], df["repeat"], strict=True)}
+    """(test_id, repeat) pairs with a row in tests.csv of run ``path``.
+
+    A last line without its end of line (being written, or cut by a crash) is not
+    a finished test. Raises :class:`InputError` naming the line of a row whose
+    test_id or repeat is not a whole number, or of a (test_id, repeat) seen twice.
+    """
+    from analysis.file_errors import decode_utf8
+
+    f = Path(path) / TESTS
+    if not f.exists():
+        return set()
+    data = f.read_bytes()
+    if not data.endswith(b"\n"):
+        data = data[:data.rfind(b"\n") + 1]
+    text = decode_utf8(data, str(f), "tests.csv")
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        return set()
+    header = [c.strip() for c in rows[0]]
+    try:
+        i_test, i_rep = header.index("test_id"), header.index("repeat")
+    except ValueError:
+        raise InputError("line 1: the header lacks test_id or repeat (see "
+                         "docs/run_format.md); the run record is damaged", where=str(f)) from None
+    seen: dict[tuple[int, int], int] = {}
+    for line, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        try:
+            key = (_whole(row[i_test]), _whole(row[i_rep]))
+        except (IndexError, ValueError, OverflowError):
+            raise InputError(f"line {line}: not a test row ({len(row)} fields, test_id/repeat "
+                             "not whole numbers); the run record is damaged: repair or remove "
+                             "that line", where=str(f)) from None
+        if key in seen:
+            raise InputError(f"lines {seen[key]} and {line}: test {key[0]} repeat {key[1]} "
+                             "recorded twice; the run record is damaged: keep one of them",
+                             where=str(f))
+        seen[key] = line
+    return set(seen)
+
+
+def _whole(text: str) -> int:
+    value = float(text)
+    if value != int(value):
+        raise ValueError(text)
+    return int(value)
 
 
 def read_samples(path: Path) -> pd.DataFrame:
-    """samples.jsonl of run ``path`` as a DataFrame (a partial last line is skipped)."""
+    """samples.jsonl of run ``path`` as a DataFrame (partial or damaged lines are skipped)."""
     rows = []
     f = Path(path) / SAMPLES
     if f.exists():
-        with open(f, encoding="utf-8") as fh:
+        with open(f, "rb") as fh:
             for line in fh:
-                if line.endswith("\n"):
-                    rows.append(json.loads(line))
+                if not line.endswith(b"\n"):
+                    continue
+                try:
+                    record = json.loads(line)
+                except ValueError:  # a damaged line is not a reading
+                    continue
+                if isinstance(record, dict):
+                    rows.append(record)
     return pd.DataFrame(rows)
 
 

@@ -39,7 +39,7 @@ from campaign.acquire.geometry import (
 from campaign.acquire.instruments import Instruments
 from campaign.acquire.preflight import Motion, PlannedTest
 from campaign.acquire.progress import Reporter
-from campaign.acquire.rundir import RunDir, read_samples
+from campaign.acquire.rundir import RunDir, WriteFailure, read_samples
 from campaign.acquire.settle import SettleRule, wait_settled
 from drivers.errors import DriverError, SafetyRefusal
 from drivers.readings import Pose
@@ -61,10 +61,10 @@ def load_may_hang(run_path) -> bool:
     path = run_path / "events.jsonl"
     if not path.exists():
         return False
-    for line in path.read_text(encoding="utf-8").splitlines():
+    for line in path.read_bytes().splitlines():
         try:
             kind = json.loads(line).get("event")
-        except ValueError:
+        except (ValueError, AttributeError):  # a damaged line, or not an object
             continue
         if kind == "load_applied":
             state = True
@@ -105,12 +105,17 @@ class Runner:
         self.ctx: dict[str, Any] = {}
         self.counts = {"ok": 0, "failed": 0}
         self.first_unloaded: dict[int, np.ndarray] = {}
+        #: events that could not be written while making safe (told in the final reason)
+        self.unrecorded: list[str] = []
+        #: why the load is still on the tool at the end, or None when it is not
+        self.load_left: str | None = None
 
     # -- records ---------------------------------------------------------------------------
     def _sample(self, phase: str, instrument: str, quantity: str, unit: str, frame: str,
                 value: Any, sigma: Any = None, wall: float | None = None, **extra: Any) -> None:
         self.run_dir.sample({
-            "t_utc": utc(wall), "test_id": self.ctx.get("test_id"),
+            "t_utc": utc(wall), "session": self.run_dir.session,
+            "test_id": self.ctx.get("test_id"),
             "repeat": self.ctx.get("repeat"), "attempt": self.ctx.get("attempt"),
             "phase": phase, "instrument": instrument, "quantity": quantity, "unit": unit,
             "frame": frame, "value": np.asarray(value, dtype=float).ravel().tolist(),
@@ -118,16 +123,27 @@ class Runner:
             **extra})
 
     def _event(self, event: str, **fields: Any) -> None:
-        record = {"t_utc": utc(), "event": event, **{k: self.ctx.get(k) for k in
-                                                     ("test_id", "repeat", "attempt")}, **fields}
+        record = {"t_utc": utc(), "event": event, "session": self.run_dir.session,
+                  **{k: self.ctx.get(k) for k in ("test_id", "repeat", "attempt")}, **fields}
         self.run_dir.event(record)
         self.reporter.event(record)
         if self.on_event is not None:
             self.on_event(record)
 
+    def _record(self, event: str, **fields: Any) -> None:
+        """:meth:`_event` while making safe: a failed write must not stop the stopping.
+
+        What could not be written is kept and told to the operator.
+        """
+        try:
+            self._event(event, **fields)
+        except WriteFailure:
+            self.unrecorded.append(f"{event}: {fields.get('reason', '')}".rstrip(": "))
+
     def _phase(self, phase: str, **live: Any) -> None:
         self.ctx["phase"] = phase
         self.run_dir.event({"t_utc": utc(), "event": "phase", "phase": phase,
+                            "session": self.run_dir.session,
                             **{k: self.ctx.get(k) for k in ("test_id", "repeat", "attempt")}})
         self.reporter.phase(phase=phase, **{k: self.ctx.get(k) for k in
                                             ("test_id", "repeat", "attempt", "pose")}, **live)
@@ -171,39 +187,65 @@ class Runner:
             status, reason = "complete", ""
         except SafetyRefusal as err:
             status, reason = "aborted", f"safety stop: {err}"
-            self._event("abort", reason=reason)
+            self._record("abort", reason=reason)
         except DriverError as err:
             status, reason = "failed", f"device fault after a retry: {err}"
-            self._event("abort", reason=reason)
+            self._record("abort", reason=reason)
+        except WriteFailure as err:
+            status, reason = "failed", f"{err}; free space or fix the permissions, then --resume"
+            self._record("abort", reason=reason)
         except KeyboardInterrupt:
             status, reason = "aborted", "interrupted by the operator (Ctrl-C)"
-            self._event("interrupt", reason=reason)
+            self._record("interrupt", reason=reason)
         finally:
             self._make_safe(status)
-        self.run_dir.set_status(status, reason, ended_utc=utc())
+        if self.load_left:
+            reason = f"{reason}; LOAD STILL APPLIED: {self.load_left}".lstrip("; ")
+        if self.unrecorded:
+            reason += f"; not recorded in events.jsonl: {', '.join(self.unrecorded)}"
+        extra: dict[str, Any] = {"ended_utc": utc()}
+        if self.load_left:
+            extra["load_left_applied"] = self.load_left
+        try:
+            self.run_dir.set_status(status, reason, **extra)
+        except WriteFailure as err:
+            reason += f"; metadata.json still says running ({err})"
         return status, reason
 
     def _make_safe(self, status: str) -> None:
-        """Stop motion and remove the load (if any) before the status is written."""
+        """Stop motion and remove the load (if any) before the status is written.
+
+        Every step is recorded in events.jsonl: ``robot_stopped`` (or a ``fault``
+        saying the stop failed), ``load_removed``, or ``load_left`` when the load is
+        still on the tool (a manual load, or a removal that failed), which is also
+        shown to the operator.
+        """
         main = threading.current_thread() is threading.main_thread()
         old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
         try:
             if status != "complete":
                 try:
                     self.inst.robot.stop()
+                    self._record("robot_stopped")
                 except (DriverError, OSError) as err:
-                    self._event("fault", reason=f"stop: {err}")
+                    self._record("fault", reason=f"could not stop the robot: {err}")
+                    self.reporter.message(f"COULD NOT STOP THE ROBOT: {err}: use the "
+                                          "controller's stop")
             if self.load_applied:
                 if self.inst.automated_load:
                     try:
                         self.inst.load.remove()
                         self.load_applied = False
-                        self._event("load_removed")
+                        self._record("load_removed", reason="safe stop")
                     except (DriverError, OSError) as err:
-                        self._event("fault", reason=f"could not remove the load: {err}")
+                        self.load_left = f"could not remove the load: {err}"
+                        self._record("load_left", reason=self.load_left)
+                        self.reporter.message(f"THE LOAD IS STILL APPLIED ({err}): "
+                                              "REMOVE IT BY HAND before anything else")
                 else:
+                    self.load_left = "manual load: remove it by hand"
                     self.reporter.message("REMOVE THE LOAD FROM THE TOOL by hand")
-                    self._event("load_left", reason="manual load: remove it by hand")
+                    self._record("load_left", reason=self.load_left)
         finally:
             if main:
                 signal.signal(signal.SIGINT, old)
@@ -243,10 +285,11 @@ class Runner:
             return
 
     def _recover(self) -> None:
-        """After a fault: remove the load, reconnect every instrument."""
+        """After a fault: remove the load (recorded), reconnect every instrument."""
         if self.load_applied:
             self.inst.load.remove()
             self.load_applied = False
+            self._event("load_removed", reason="before the retry")
         self.inst.reconnect()
 
     # -- one measurement ---------------------------------------------------------------------

@@ -23,10 +23,10 @@ from campaign.acquire.checks import limits_for
 from campaign.acquire.instruments import open_instruments
 from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
 from campaign.acquire.progress import Reporter
-from campaign.acquire.rundir import PLAN, RunDir, export_parquet
+from campaign.acquire.rundir import PLAN, TESTS, RunDir, WriteFailure, export_parquet
 from campaign.acquire.runner import Runner, RunSettings, utc
-from campaign.acquire.settle import rule_for
-from campaign.plan_output import read_plan
+from campaign.acquire.settle import SettleRule, rule_for
+from campaign.plan_output import load_plan
 from campaign.protocol import Protocol
 from campaign.protocol_robot import protocol_robot
 from drivers.errors import SafetyRefusal
@@ -76,6 +76,27 @@ def _sha(text: str) -> str:
 def _protocol_copy_name(protocol: Protocol) -> str:
     suffix = Path(protocol.path).suffix.lower() or ".toml"
     return f"protocol{suffix}"
+
+
+def write_tests_sidecar(run_path: Path, protocol: Protocol, robot: Any) -> None:
+    """tests.meta.json next to tests.csv: robot, tool, noise model (see campaign/tests_meta.py).
+
+    Written when the run starts (and on resume when missing), so a copy of the
+    run's tests.csv analysed on its own keeps its tool point and noise figures.
+    """
+    from campaign.run_noise import noise_from_protocol, protocol_noise_source
+    from campaign.tests_meta import sidecar_path, sidecar_record, write_sidecar
+
+    csv_path = Path(run_path) / TESTS
+    if sidecar_path(csv_path).exists():
+        return
+    record = sidecar_record(
+        robot_key=protocol.campaign.robot, robot_name=robot.name,
+        tool_xyz_mm=protocol.tool.xyz_mm, tool_rpy_deg=protocol.tool.rpy_deg,
+        tool_mass_kg=protocol.tool.mass_kg, noise=noise_from_protocol(protocol),
+        noise_source=protocol_noise_source(protocol), csv_name=TESTS,
+        protocol_sha256=_sha(protocol.text))
+    write_sidecar(csv_path, record)
 
 
 def base_metadata(protocol: Protocol, plan_text: str, plan_source: Path, robot: Any,
@@ -133,23 +154,27 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
     run: RunDir | None = None
     if resume is not None:
         run = RunDir.open(resume)
-        protocol, plan = read_plan(resume)
-        plan_text = (resume / PLAN).read_text(encoding="utf-8")
+        try:
+            protocol, plan, plan_text = load_plan(resume)
+        except BaseException:
+            run.close()
+            raise
         if bool(run.metadata.get("fake")) != opts.fake:
             run.close()
             how = "with" if run.metadata.get("fake") else "without"
             raise InputError(f"this run was started {how} --fake; resume it the same way",
                              where=str(resume))
-        where_plan = str(resume / PLAN)
+        where_plan = str(resume / "plan.csv")
     else:
-        protocol, plan = read_plan(plan_dir)
-        plan_text = (plan_dir / PLAN).read_text(encoding="utf-8")
-        where_plan = str(plan_dir / PLAN)
+        protocol, plan, plan_text = load_plan(plan_dir)
+        where_plan = str(plan_dir / "plan.csv")
     try:
         robot = protocol_robot(protocol)
         tests = planned_tests(protocol, plan, robot, where=where_plan)
         done = run.finished() if run is not None else set()
-        say(dry_run_text(tests, robot, protocol, done))
+        rule = _settle_rule(protocol, 1.0, opts.settle_scale)  # robot time, for the estimate
+        say(dry_run_text(tests, robot, protocol, done,
+                         settle_s=(rule.window - 1) * rule.interval))
         if opts.dry_run:
             say("dry run: nothing connected, nothing moved")
             return Outcome("dry-run", "", resume)
@@ -166,6 +191,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
             run.close()
         raise
     inst = open_instruments(protocol, opts.fake, lab_scale)
+    counts = {"ok": 0, "failed": 0}
     try:
         inst.connect()  # an unreachable instrument leaves no run directory behind
         if run is None:
@@ -173,29 +199,27 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
                                  lab_scale or 1.0)
             run = RunDir.create(out, meta, _protocol_copy_name(protocol), protocol.text,
                                 plan_text)
-        else:
-            run.set_status("running", "")
-        session = {"started_utc": utc(), "instruments": inst.describe(),
-                   "lab": inst.lab_addresses or None}
-        run.metadata["instruments"] = session["instruments"]
-        run.metadata.setdefault("sessions", []).append(session)
-        run.write_metadata()
-        reporter.start({"run_dir": str(run.path), "lab": inst.lab_addresses or None})
-        noise = (protocol.instruments["pose"].noise.translation_um or 30.0) * 1e-6
-        settings = RunSettings(settle=rule_for(noise, lab_scale or 1.0, opts.settle_scale))
-        runner = Runner(run, robot, tests, inst, reporter, limits_for(protocol),
-                        motion_limits(protocol), settings, protocol.safety.max_force_N,
-                        protocol.safety.max_moment_N_m, on_event=on_event)
-        status, reason = runner.run()
-        export_parquet(run.path)
-        counts = runner.counts
+        try:
+            status, reason = _run_session(run, inst, robot, tests, protocol, opts,
+                                          lab_scale, reporter, on_event, counts)
+        except WriteFailure as err:
+            # only before the runner started: it handles its own write failures
+            status, reason = "failed", f"{err}; nothing moved; free space or fix the " \
+                                       "permissions, then --resume"
+            try:
+                run.set_status(status, reason, ended_utc=utc())
+            except WriteFailure:
+                pass
     except BaseException as err:
         if run is not None and run.metadata.get("status") == "running":
-            if isinstance(err, KeyboardInterrupt):
-                run.set_status("aborted", "interrupted by the operator (Ctrl-C)",
-                               ended_utc=utc())
-            else:
-                run.set_status("failed", f"{type(err).__name__}: {err}", ended_utc=utc())
+            try:
+                if isinstance(err, KeyboardInterrupt):
+                    run.set_status("aborted", "interrupted by the operator (Ctrl-C)",
+                                   ended_utc=utc())
+                else:
+                    run.set_status("failed", f"{type(err).__name__}: {err}", ended_utc=utc())
+            except WriteFailure:
+                pass  # the original error says more than a second failed write
         raise
     finally:
         inst.close()
@@ -205,3 +229,37 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
     reporter.finish(status, reason, {"run_dir": str(run.path), "ok": outcome.ok,
                                      "failed": outcome.failed})
     return outcome
+
+
+def _settle_rule(protocol: Protocol, time_scale: float, settle_scale: float) -> SettleRule:
+    noise = (protocol.instruments["pose"].noise.translation_um or 30.0) * 1e-6
+    return rule_for(noise, time_scale, settle_scale)
+
+
+def _run_session(run: RunDir, inst: Any, robot: Any, tests: list, protocol: Protocol,
+                 opts: AcquireOptions, lab_scale: float | None, reporter: Reporter,
+                 on_event: Callable[[dict[str, Any]], None] | None,
+                 counts: dict[str, int]) -> tuple[str, str]:
+    """Record the session in the metadata, run the remaining tests, export Parquet."""
+    sessions = run.metadata.setdefault("sessions", [])
+    run.session = len(sessions) + 1
+    session = {"id": run.session, "started_utc": utc(), "instruments": inst.describe(),
+               "lab": inst.lab_addresses or None}
+    run.metadata["instruments"] = session["instruments"]
+    sessions.append(session)
+    run.metadata.update(status="running", reason="")
+    run.write_metadata()
+    write_tests_sidecar(run.path, protocol, robot)
+    reporter.start({"run_dir": str(run.path), "lab": inst.lab_addresses or None})
+    settings = RunSettings(settle=_settle_rule(protocol, lab_scale or 1.0, opts.settle_scale))
+    runner = Runner(run, robot, tests, inst, reporter, limits_for(protocol),
+                    motion_limits(protocol), settings, protocol.safety.max_force_N,
+                    protocol.safety.max_moment_N_m, on_event=on_event)
+    status, reason = runner.run()
+    counts.update(runner.counts)
+    try:
+        export_parquet(run.path)
+    except (OSError, ValueError) as err:
+        reporter.message(f"could not write the Parquet exports ({err}); campaign analyze "
+                         "writes them when missing")
+    return status, reason

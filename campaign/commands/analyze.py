@@ -18,7 +18,15 @@ from rich.table import Table as RichTable
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.options import parse_floats, robot_option
+from campaign.options import (
+    TOOL_RPY_HELP,
+    TOOL_XYZ_HELP,
+    ToolPoint,
+    parse_floats,
+    robot_and_tool,
+    tool_option,
+)
+from campaign.run_noise import noise_from_protocol, protocol_noise_source
 
 # Kept in step with analysis.identification.estimate (not imported here: every CLI command
 # module is imported at start-up, and the identification pulls in scipy.stats).
@@ -27,16 +35,16 @@ DEFAULT_METHOD = "exact"
 DEFAULT_TRIALS = 200
 
 
-def _noise_from_protocol(protocol) -> NoiseModel:
-    """Noise model of one test row from the protocol (:mod:`campaign.protocol_noise`)."""
-    from campaign.protocol_noise import protocol_noise
-
-    return protocol_noise(protocol)
+# kept importable from here (tests and older scripts import it from this module)
+_noise_from_protocol = noise_from_protocol
 
 
-def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm) -> NoiseModel:
-    """Apply the command line's --sigma-* overrides (um, urad, N, N m) to ``noise``."""
-    values = {}
+def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm) -> tuple[NoiseModel, list]:
+    """Apply the command line's --sigma-* overrides (um, urad, N, N m) to ``noise``.
+
+    Returns the noise model and the options that changed it.
+    """
+    values, used = {}, []
     for key, value, scale, option in (
         ("translation_sigma_override", t_um, 1e-6, "--sigma-translation-um"),
         ("rotation_sigma_override", r_urad, 1e-6, "--sigma-rotation-urad"),
@@ -48,7 +56,8 @@ def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm) -> NoiseModel:
         if not (np.isfinite(value) and value > 0):
             raise InputError("expected a positive number", where=option)
         values[key] = value * scale
-    return noise.with_overrides(**values) if values else noise
+        used.append(option)
+    return (noise.with_overrides(**values) if values else noise), used
 
 
 def _instrument_text(spec) -> str:
@@ -59,15 +68,13 @@ def _instrument_text(spec) -> str:
                      for k in keys if spec.get(k) not in (None, ""))
 
 
-def _run_info(run, robot_name: str, protocol):
+def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
     from analysis.report.summary import CampaignInfo
 
     meta = run.metadata
-    tool = meta.get("tool")
+    tool = tool.text()
     if protocol is not None:
-        t = protocol.tool
-        tool = f"P at xyz {list(t.xyz_mm)} mm, rpy {list(t.rpy_deg)} deg (flange), " \
-               f"{t.mass_kg:g} kg"
+        tool += f", {protocol.tool.mass_kg:g} kg"
     flagged = []
     for _, r in run.flagged().iterrows():
         flagged.append({"test_id": r["test_id"], "repeat": r["repeat"], "pose": r["pose"],
@@ -91,50 +98,136 @@ def _run_info(run, robot_name: str, protocol):
     )
 
 
-def _from_run(run_dir: Path):
-    """(table, robot, noise, info, extras) of a run directory."""
-    from analysis.model.robots import load_robot
+def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
+    """(table, robot, noise, info, extras) of a run directory.
+
+    extras: protocol, true_k, tool (:class:`ToolPoint`), noise_source, robot_source.
+    """
     from campaign.protocol import load_protocol
     from campaign.protocol_robot import protocol_robot
     from campaign.run_reader import read_run
+    from campaign.tests_meta import read_sidecar
 
     run = read_run(run_dir)
+    for note in run.notes:  # the loud ones also go to the terminal
+        if note.startswith("WARNING"):
+            typer.echo(note, err=True)
     protocol = load_protocol(run.protocol_path) if run.protocol_path else None
     if protocol is not None:
-        robot = protocol_robot(protocol)
-        noise = _noise_from_protocol(protocol)
+        t = protocol.tool
+        tool = tool_option(tool_xyz, tool_rpy, ToolPoint(
+            tuple(t.xyz_mm), tuple(t.rpy_deg), f"protocol [tool] ({Path(protocol.path).name})"))
+        robot = protocol_robot(protocol, (np.asarray(tool.xyz_mm) * 1e-3,
+                                          np.radians(tool.rpy_deg)))
+        noise, noise_source = noise_from_protocol(protocol), protocol_noise_source(protocol)
+        robot_source = f"protocol {Path(protocol.path).name} [campaign] robot"
     else:
         key = (run.metadata.get("robot") or {}).get("key")
         if not key:
             raise InputError("no protocol copy and no robot.key in the metadata: cannot tell "
                              "the robot", where=str(run.path / "metadata.json"))
-        robot, noise = load_robot(str(key)), NoiseModel()
-        run.notes.append("no protocol copy in the run: robot from the metadata, no tool "
-                         "offset, default noise model")
-    info = _run_info(run, robot.name, protocol)
+        meta = read_sidecar(run.path / "tests.csv")
+        robot, tool = robot_and_tool(str(key), None, tool_xyz, tool_rpy,
+                                     meta.tool if meta else None)
+        noise, noise_source = NoiseModel(), "defaults of analysis/identification/noise.py"
+        if meta is not None and meta.noise is not None:
+            noise, noise_source = meta.noise, meta.noise_source
+        robot_source = "run metadata robot.key"
+        run.notes.append(f"no protocol copy in the run: robot from the metadata, tool "
+                         f"{tool.source}, noise from {noise_source}")
+    info = _run_info(run, robot.name, protocol, tool)
     true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
     extras = {"protocol": protocol, "true_k": None if true_k is None else np.asarray(true_k,
-                                                                                      float)}
+                                                                                      float),
+              "tool": tool, "noise_source": noise_source, "robot_source": robot_source}
     return run.ok, robot, noise, info, extras
 
 
-def _from_csv(path: Path, robot_spec: str | None, tip: str | None):
+def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str | None,
+              tool_rpy: str | None):
+    """(table, robot, noise, info, extras) of a tests CSV file and its sidecar, if any."""
     import hashlib
 
     from analysis.identification.measurements import read_csv
     from analysis.report.summary import CampaignInfo
+    from campaign.tests_meta import read_sidecar
 
-    if not robot_spec:
-        raise InputError("--measurements needs --robot (built-in name, robot file or URDF)",
-                         where="--robot")
+    meta = read_sidecar(path)
+    notes = []
+    if meta is not None:
+        notes.append(f"sidecar {meta.path.name} read: tool, noise figures and robot from it "
+                     "unless given on the command line")
+    if robot_spec:
+        robot_source = "--robot"
+        if meta is not None and meta.robot_key and str(meta.robot_key).lower() != \
+                robot_spec.strip().lower():
+            robot_source += f" (the sidecar names {meta.robot_key!r})"
+    elif meta is not None and meta.robot_key:
+        robot_spec, robot_source = str(meta.robot_key), f"sidecar {meta.path.name}"
+    else:
+        raise InputError("--measurements needs --robot (built-in name, robot file or URDF); "
+                         "no sidecar names it", where="--robot")
     table = read_csv(path)
-    robot = robot_option(robot_spec, tip)
-    info = CampaignInfo(source="csv", location=str(path), robot=robot.name,
+    robot, tool = robot_and_tool(robot_spec, tip, tool_xyz, tool_rpy,
+                                 meta.tool if meta else None)
+    noise, noise_source = NoiseModel(), "defaults of analysis/identification/noise.py " \
+        "(no sidecar)"
+    if meta is not None and meta.noise is not None:
+        noise, noise_source = meta.noise, meta.noise_source
+    info = CampaignInfo(source="csv", location=str(path), robot=robot.name, tool=tool.text(),
                         protocol_file="- (imported CSV)",
                         protocol_sha256="CSV SHA-256 " + hashlib.sha256(
                             path.read_bytes()).hexdigest(),
-                        n_rows=len(table), n_ok=len(table))
-    return table, robot, NoiseModel(), info, {"protocol": None, "true_k": None}
+                        n_rows=len(table), n_ok=len(table), notes=notes)
+    return table, robot, noise, info, {"protocol": None, "true_k": None, "tool": tool,
+                                       "noise_source": noise_source,
+                                       "robot_source": robot_source}
+
+
+METHOD_TEXT = {
+    "ols": "ols: unweighted least squares on the linear model (the paper's eqs. 16-21)",
+    "wls": "wls: linear model weighted by the measurement covariance",
+    "exact": "exact: weighted Gauss-Newton on the nonlinear equilibrium",
+}
+
+
+def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, method: str,
+                 covariance: str, joints) -> dict:
+    """What the analysis rests on (results.json ``assumptions``, the terminal, the report)."""
+    from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, pose_tolerance
+    from campaign.tests_meta import CONVENTIONS
+
+    tool: ToolPoint = extras["tool"]
+    return {
+        "robot": f"{model.name} ({extras['robot_source']})",
+        "tool_point": tool.describe(),
+        "noise": {**noise.describe(), "source": noise_source},
+        "method": METHOD_TEXT.get(method, method),
+        "covariance": ("model: the noise figures are taken as known" if covariance == "model"
+                       else "residual: scaled by the reduced chi-square"),
+        "joints": ("all six, or 1-3 when no rotation is measured" if joints is None
+                   else ", ".join(str(j + 1) for j in joints) + " (others rigid)"),
+        "poses": (f"tests whose joint angles agree to within "
+                  f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
+                  "encoder sigmas) are at one pose"),
+        "conventions": CONVENTIONS,
+    }
+
+
+def _print_assumptions(console: Console, a: dict) -> None:
+    n, t = a["noise"], a["tool_point"]
+    console.print("[bold]Assumptions[/bold]")
+    for line in (
+        f"  robot: {a['robot']}",
+        f"  tool point P: xyz {t['xyz_mm']} mm, rpy {t['rpy_deg']} deg in the flange frame "
+        f"({t['source']})",
+        f"  noise per test row: translation {n['translation_sigma_um']:.3g} um, rotation "
+        f"{n['rotation_sigma_urad']:.3g} urad, force {n['force_sigma_N']:.3g} N, moment "
+        f"{n['moment_sigma_Nm']:.3g} N m ({n['source']})",
+        f"  method: {a['method']}; covariance {a['covariance']}; joints {a['joints']}",
+        f"  poses: {a['poses']}",
+    ):
+        console.print(line, markup=False, highlight=False)
 
 
 def _poses(robot, protocol, pose_args: list[str], q_tests: np.ndarray, labels) -> list:
@@ -173,6 +266,8 @@ def _map_fixed(protocol) -> np.ndarray:
 
 
 def _print(console: Console, result, paths: dict) -> None:
+    from rich.markup import escape
+
     from analysis.report.formatting import interval_kNm, k_kNm
 
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
@@ -183,7 +278,9 @@ def _print(console: Console, result, paths: dict) -> None:
                       if np.isfinite(result.k[j]) else "-")
     console.print(table)
     for w in result.warnings:
-        console.print(f"[yellow]warning:[/yellow] {w}")
+        console.print(f"[yellow]warning:[/yellow] {escape(w)}")
+    for w in result.misfit_accepted:
+        console.print(f"[red]ACCEPTED WITH --accept-misfit:[/red] {escape(w)}")
     for name, p in paths.items():
         console.print(f"{name}: {p}")
 
@@ -215,15 +312,27 @@ def register(app: typer.Typer) -> None:
             None, "--force-sigma-N", help="Override: sigma of a force component (N)."),
         moment_sigma_nm: float = typer.Option(
             None, "--moment-sigma-Nm", help="Override: sigma of a moment component (N m)."),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP + " Overrides the "
+                                        "protocol's or the sidecar's tool."),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
+        accept_misfit: bool = typer.Option(
+            False, "--accept-misfit", help="Write the result even when the checks refuse it "
+            "(misfit, too good to be true, k > 10 x from nominal); results.json and the "
+            "report then say so."),
     ) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report.
 
-        The measurement noise comes from the run's protocol (or the instrument
-        defaults of analysis/identification/noise.py for a CSV file); the --sigma-* options
-        override it, per measured component of one test row.
+        The measurement noise comes from the run's protocol (for a CSV file from
+        its sidecar FILE.meta.json, else the instrument defaults of
+        analysis/identification/noise.py); the --sigma-* options override it, per
+        measured component of one test row. The tool point comes from the protocol
+        (the sidecar; else the flange centre) unless --tool-xyz-mm/--tool-rpy-deg
+        give it. A result the data do not support (misfit, too good, k more than
+        10 x from the model's nominal) is refused unless --accept-misfit.
         """
         from analysis.identification.estimate import analyze_table, parse_joints
         from analysis.identification.measurements import to_arrays
+        from analysis.identification.plausibility import problems
         from analysis.identification.result import write_results
         from analysis.report.build import ReportInputs, build_report
         from analysis.report.write import write_report
@@ -235,17 +344,38 @@ def register(app: typer.Typer) -> None:
             if robot:
                 raise InputError("a run names its robot in its protocol; drop --robot",
                                  where="--robot")
-            table, model, noise, info, extras = _from_run(run_dir)
+            table, model, noise, info, extras = _from_run(run_dir, tool_xyz_mm, tool_rpy_deg)
             out = out or run_dir / "analysis"
         else:
             if out is None:
                 raise InputError("--measurements needs --out DIR", where="--out")
-            table, model, noise, info, extras = _from_csv(measurements, robot, tip)
+            table, model, noise, info, extras = _from_csv(measurements, robot, tip,
+                                                          tool_xyz_mm, tool_rpy_deg)
         protocol = extras["protocol"]
-        noise = _override_noise(noise, sigma_translation_um, sigma_rotation_urad,
-                                force_sigma_n, moment_sigma_nm)
-        result = analyze_table(table, model, method=method, joints=parse_joints(joints),
+        noise, overridden = _override_noise(noise, sigma_translation_um, sigma_rotation_urad,
+                                            force_sigma_n, moment_sigma_nm)
+        noise_source = extras["noise_source"] + (
+            f"; overridden by {', '.join(overridden)}" if overridden else "")
+        joint_list = parse_joints(joints)
+        assumptions = _assumptions(model, extras, noise, noise_source, method, covariance,
+                                   joint_list)
+        console = Console()
+        _print_assumptions(console, assumptions)
+        result = analyze_table(table, model, method=method, joints=joint_list,
                                noise=noise, covariance=covariance)
+        result.assumptions = assumptions
+        if measurements is not None and extras["tool"].source.startswith("none given"):
+            result.warnings.insert(0, (
+                "no tool point given: P assumed at the flange centre; if the displacements "
+                "and wrench were measured at a tool point, give --tool-xyz-mm/--tool-rpy-deg "
+                "(a tool error need not show in the chi-square, it shows in k)"))
+        refused = problems(result, model.nominal_stiffness)
+        if refused and not accept_misfit:
+            raise InputError(
+                "refused, the data do not support this stiffness: " + " | ".join(refused)
+                + "; to keep the result anyway rerun with --accept-misfit (results.json and "
+                "the report then say so)", where=str(run_dir or measurements))
+        result.misfit_accepted = refused
         paths = write_results(result, out)
         from analysis.identification.model_export import export_model  # model.toml, K_X
 
@@ -269,4 +399,4 @@ def register(app: typer.Typer) -> None:
         summary = {"run": str(run_dir) if run_dir else None, "partial": info.partial,
                    "status": info.status, "failed_rows": info.n_failed}
         (Path(out) / "analysis.json").write_text(json.dumps(summary, indent=2) + "\n")
-        _print(Console(), result, paths)
+        _print(console, result, paths)

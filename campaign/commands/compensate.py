@@ -18,6 +18,7 @@ import numpy as np
 import typer
 
 from analysis.errors import InputError
+from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
 def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> dict:
@@ -49,6 +50,8 @@ def register(app: typer.Typer) -> None:
                                   "fx_N,fy_N,fz_N,mx_Nm,my_Nm,mz_Nm."),
         out: Path = typer.Option(..., help="Output directory."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         controller: bool = typer.Option(False, "--controller-angles", help="The path's "
                                         "joints are teach-pendant angles (output too)."),
         wrench: str = typer.Option(None, help="Constant wrench fx,fy,fz (N), mx,my,mz (N m) "
@@ -79,7 +82,7 @@ def register(app: typer.Typer) -> None:
             raise InputError("expected at least 1 reading", where="--readings")
         if not min_inv_kappa > 0:
             raise InputError("expected a positive number", where="--min-inv-kappa")
-        r = robot_option(robot, tip)
+        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
         if r.n != 6:
             raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
         k = stiffness_option(r, joint_stiffness)

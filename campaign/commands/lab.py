@@ -3,6 +3,14 @@
 Each line of output is ``name=address`` (``name`` is a driver registry name,
 or ``control`` for the lab's control channel), then ``ready``. The lab runs
 until interrupted (Ctrl-C) or until a ``shutdown`` command on the control channel.
+
+``--protocol`` takes a campaign protocol (a file with a ``[campaign]`` table, as in
+``protocols/``): the lab then simulates what it describes -- its robot and tool, the
+``[fake_lab]`` true stiffness, noise and seed, the reflectors of the pose instrument,
+and a fake for each instrument driver of its ``[instruments]`` table -- exactly as
+``campaign acquire --fake`` does. A file without ``[campaign]`` is read as bare lab
+settings (the :class:`drivers.sim.settings.LabSettings` field names, optionally in a
+``[lab]`` table).
 """
 
 from __future__ import annotations
@@ -37,6 +45,52 @@ def _read_protocol(path: Path) -> dict[str, Any]:
     return data
 
 
+def _protocol_settings(path: Path, seed: int | None, time_scale: float | None,
+                       instruments: tuple[str, ...] | None, can_interface: str | None):
+    """Lab settings of a campaign protocol, plus the emScon mode its pose noise implies."""
+    import dataclasses
+
+    from campaign.acquire.instruments import lab_settings
+    from campaign.protocol import load_protocol
+
+    protocol = load_protocol(path)
+    settings = lab_settings(protocol, time_scale)
+    changes: dict[str, Any] = {}
+    if seed is not None:
+        changes["seed"] = seed
+    if instruments is not None:
+        changes["instruments"] = instruments
+    if can_interface is not None:
+        changes["can_interface"] = can_interface
+    if changes:
+        settings = dataclasses.replace(settings, **changes)
+    # without reflectors_mm the protocol's pose noise is that of a 6-DoF probe
+    probe = protocol.instruments["pose"].driver == "emscon" and protocol.reflectors() is None
+    return protocol, settings, probe
+
+
+def _describe(settings: Any, probe: bool) -> list[str]:
+    """What the lab simulates, one line each (printed on stderr)."""
+    import math
+
+    k = ", ".join(f"{v:,.0f}" for v in settings.true_joint_stiffness)
+    return [
+        f"robot {settings.robot}, tool xyz_mm "
+        f"{[round(v * 1e3, 3) for v in settings.tool_xyz]}, rpy_deg "
+        f"{[round(math.degrees(v), 3) for v in settings.tool_rpy]}",
+        f"true joint stiffness (N m/rad): {k}",
+        f"noise: tracker {settings.tracker_noise * 1e6:g} um, probe rotation "
+        f"{settings.tracker_angle_noise * 1e6:g} urad, force {settings.force_noise:g} N, "
+        f"torque {settings.torque_noise:g} N m, encoders {settings.encoder_noise * 1e6:g} urad",
+        "reflectors (mm, tool frame): " + ", ".join(
+            f"{name} {[round(c * 1e3, 3) for c in xyz]}"
+            for name, xyz in settings.reflectors.items()),
+        f"instruments: {', '.join(settings.instruments)}"
+        + ("; emscon serves 6-DoF probe poses" if probe else ""),
+        f"seed {settings.seed}, time scale {settings.time_scale:g}",
+    ]
+
+
 def register(app: typer.Typer) -> None:
     """Add the ``lab`` command to ``app``."""
 
@@ -64,15 +118,31 @@ def register(app: typer.Typer) -> None:
         base = _read_protocol(protocol) if protocol is not None else {}
         chosen = tuple(s.strip() for s in instruments.split(",") if s.strip()) \
             if instruments else None
-        settings = settings_from_protocol(base, seed=seed, time_scale=time_scale, robot=robot,
-                                          instruments=chosen, can_interface=can_interface)
+        probe = False
+        if protocol is not None and "campaign" in base:
+            if robot is not None:
+                raise InputError("the protocol names the robot ([campaign] robot): drop --robot",
+                                 where="--robot")
+            _, settings, probe = _protocol_settings(protocol, seed, time_scale, chosen,
+                                                    can_interface)
+        else:
+            settings = settings_from_protocol(base, seed=seed, time_scale=time_scale,
+                                              robot=robot, instruments=chosen,
+                                              can_interface=can_interface)
         try:
             sim = Lab(settings)
         except ValueError as err:
             raise InputError(str(err), where="lab settings") from err
         try:
-            for name, url in sim.start().items():
+            addresses = sim.start()
+            if probe:
+                for fake_server in sim.fakes:
+                    if getattr(fake_server, "driver", "") == "emscon":
+                        fake_server.mode = "6dof"
+            for name, url in addresses.items():
                 typer.echo(f"{name}={url}")
+            for line in _describe(settings, probe):
+                typer.echo(f"lab: {line}", err=True)
             for note in sim.notes:
                 typer.echo(f"note: {note}", err=True)
             typer.echo("ready")

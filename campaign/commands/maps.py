@@ -13,7 +13,14 @@ from analysis.errors import InputError
 from analysis.kinetostatics.dexterity import characteristic_length
 from analysis.kinetostatics.map_plots import LABELS, plot_cartesian_map, plot_joint_map
 from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
-from campaign.options import parse_floats, robot_option, stiffness_option, wrench_option
+from campaign.options import (
+    TOOL_RPY_HELP,
+    TOOL_XYZ_HELP,
+    parse_floats,
+    robot_option,
+    stiffness_option,
+    wrench_option,
+)
 
 
 def register(app: typer.Typer) -> None:
@@ -22,6 +29,8 @@ def register(app: typer.Typer) -> None:
         robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
         out: Path = typer.Option(..., help="Output directory."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         step: float = typer.Option(1.0, help="Grid step (deg)."),
         fixed: str = typer.Option(
             None, help="Other joints q1..q6 in degrees (model convention); entries 2 and 3 "
@@ -41,7 +50,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
         console = Console()
-        r = robot_option(robot, tip)
+        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
         if step <= 0 or not np.isfinite(step):
             raise InputError("expected a positive step in degrees", where="--step")
         if fmt not in ("parquet", "csv"):

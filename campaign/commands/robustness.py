@@ -12,7 +12,13 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from analysis.errors import InputError
-from campaign.options import robot_option, stiffness_option, wrench_option
+from campaign.options import (
+    TOOL_RPY_HELP,
+    TOOL_XYZ_HELP,
+    robot_option,
+    stiffness_option,
+    wrench_option,
+)
 
 
 def parse_tests(text: str) -> list[int]:
@@ -74,6 +80,8 @@ def register(app: typer.Typer) -> None:
     def robustness(
         robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         joint_stiffness: str = typer.Option(
             None, help="True k1,...,k6 (N m/rad); default the model's nominal values."),
         wrench: str = typer.Option(
@@ -114,7 +122,7 @@ def register(app: typer.Typer) -> None:
         """
         from analysis.identification.robustness import W_EFF, plot_study, robustness_study
 
-        r = robot_option(robot, tip)
+        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
         k = stiffness_option(r, joint_stiffness)
         w = wrench_option(wrench, W_EFF)
         counts = parse_tests(tests)

@@ -8,6 +8,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
+from analysis.errors import SingularPoseError
 from analysis.kinetostatics.equilibrium import displacement_screw
 from analysis.kinetostatics.maps import WORST_CASE_WRENCH
 from analysis.kinetostatics.stiffness import (
@@ -16,7 +17,15 @@ from analysis.kinetostatics.stiffness import (
     deflection,
 )
 from analysis.model.kinematics import chain_state, jacobian_from_state
-from campaign.options import joint_angles_option, robot_option, stiffness_option, wrench_option
+from campaign.options import (
+    TOOL_RPY_HELP,
+    TOOL_XYZ_HELP,
+    joint_angles_option,
+    robot_option,
+    stiffness_option,
+    tool_option,
+    wrench_option,
+)
 
 
 def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
@@ -60,6 +69,8 @@ def register(app: typer.Typer) -> None:
         robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
         q: str = typer.Option(..., help="Joint angles in degrees, comma-separated."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         controller: bool = typer.Option(
             False, "--controller-angles", help="--q is in the teach-pendant convention."
         ),
@@ -73,26 +84,40 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
     ) -> None:
         """Kinematic Jacobian, K_C (eq. 8), K_X with and without K_C (eqs. 6, 12), deflection."""
-        r = robot_option(robot, tip)
+        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
+        tool = tool_option(tool_xyz_mm, tool_rpy_deg)
         qr = r.check_q(joint_angles_option(r, q, controller), where="--q")
         k = stiffness_option(r, joint_stiffness)
         w = wrench_option(wrench, WORST_CASE_WRENCH)
         state = chain_state(r, qr)
         J = jacobian_from_state(state)
         K_C = complementary_stiffness_from_state(state, w)
-        K_X = cartesian_stiffness(J, k, K_C)
-        K_X0 = cartesian_stiffness(J, k)
+        # K_X needs J^-1; at a singular pose (e.g. the KUKA home pose, A5 = 0) J, K_C and
+        # the deflections are still defined and are reported, K_X is marked undefined.
+        undefined: dict[str, str] = {}
+        K_X = K_X0 = None
+        try:
+            K_X = cartesian_stiffness(J, k, K_C)
+            K_X0 = cartesian_stiffness(J, k)
+        except SingularPoseError:
+            sv = np.linalg.svd(J, compute_uv=False)
+            reason = (f"J is singular at this pose (smallest singular value {sv[-1]:.3g}, "
+                      f"largest {sv[0]:.3g}): K_X = J^-T (K_theta - K_C) J^-1 needs J^-1; "
+                      "the compliance J (K_theta - K_C)^-1 J^T and the deflections are defined")
+            undefined = {"K_X": reason, "K_X_without_K_C": reason}
         lin = deflection(J, k, w, K_C)
         exact = displacement_screw(r, qr, k, w)
         result = {
             "robot": r.name,
+            "tool": tool.describe(),
             "q_rad": qr.tolist(),
             "joint_stiffness_Nm_per_rad": k.tolist(),
             "wrench_N_Nm": w.tolist(),
             "J": J.tolist(),
             "K_C": K_C.tolist(),
-            "K_X": K_X.tolist(),
-            "K_X_without_K_C": K_X0.tolist(),
+            "K_X": None if K_X is None else K_X.tolist(),
+            "K_X_without_K_C": None if K_X0 is None else K_X0.tolist(),
+            "undefined": undefined,
             "deflection": lin.tolist(),
             "deflection_without_K_C": deflection(J, k, w).tolist(),
             "deflection_nonlinear": exact.tolist(),
@@ -112,11 +137,16 @@ def register(app: typer.Typer) -> None:
         console = Console()
         console.print(f"[bold]{r.name}[/bold]  q = {np.degrees(qr).round(3).tolist()} deg "
                       "(model convention)")
+        console.print(f"tool: {tool.text()}")
         console.print(f"k = {k.tolist()} N m/rad;  w = {w.tolist()} N, N m")
         _matrix(console, "J", J, "rows 1-3 m/rad, rows 4-6 rad/rad")
         _matrix(console, "K_C", K_C, "N m/rad")
-        _matrix(console, "K_X with K_C", K_X, "N/m, N/rad, N, N m/rad blocks")
-        _matrix(console, "K_X without K_C", K_X0, "same units")
+        if K_X is None:
+            console.print(f"[bold]K_X[/bold] (with and without K_C): undefined: "
+                          f"{undefined['K_X']}")
+        else:
+            _matrix(console, "K_X with K_C", K_X, "N/m, N/rad, N, N m/rad blocks")
+            _matrix(console, "K_X without K_C", K_X0, "same units")
         console.print("[bold]deflection of P[/bold] (mm, mrad)")
         for label, d in (("with K_C", lin), ("without K_C", deflection(J, k, w)),
                          ("nonlinear equilibrium", exact)):

@@ -1,4 +1,9 @@
-"""Fake GeoCOM-style instrument: TMC_DoMeasure and TMC_GetCoordinate, over TCP or a serial pty."""
+"""Fake GeoCOM instrument over TCP or a serial pty (ASCII protocol, *TPS1200 GeoCOM Reference
+Manual* section 2): requests ``[<LF>]%R1Q,<RPC>[,<TrId>]:<params>`` each on one line; an
+empty line (the LF a client sends to clear the line) is ignored. RPCs: COM_NullProc (0),
+CSV_GetInstrumentNo (5003), CSV_GetInstrumentName (5004), TMC_DoMeasure (2008),
+TMC_GetCoordinate (2082); others get return code 1.
+"""
 
 from __future__ import annotations
 
@@ -15,6 +20,11 @@ from drivers.sim.base import FakeServer
 from drivers.sim.tcp import TcpFake
 from drivers.sim.world import World
 
+RPC_NULL_PROC = 0  # COM_NullProc: "%R1Q,0:" -> "%R1P,0,0:0"
+RPC_INSTRUMENT_NO = 5003  # CSV_GetInstrumentNo -> serial number (long)
+RPC_INSTRUMENT_NAME = 5004  # CSV_GetInstrumentName -> name (string)
+INSTRUMENT_NO = 123456
+INSTRUMENT_NAME = "SIM GEOCOM"
 RC_ANGLE_ONLY = 1285  # TMC_ANGLE_OK: no distance, as when the beam is lost
 RC_UNKNOWN_RPC = 1  # GRC_IVRESULT is close enough for an RPC the fake does not know
 LATE_DELAY = 1.5  # s, how late a "late" reply comes
@@ -23,6 +33,8 @@ LATE_DELAY = 1.5  # s, how late a "late" reply comes
 def respond(fake: FakeServer, line: bytes, send: Callable[[bytes], None]) -> bool:
     """Answer one request line through ``send``; False means "hang up" (disconnect fault)."""
     world = fake.world
+    if not line.strip():
+        return True  # an empty line (a client clearing the line): ignored, as instruments do
     try:
         rpc, _params, trid = decode_request(line)
     except ProtocolError:
@@ -35,7 +47,13 @@ def respond(fake: FakeServer, line: bytes, send: Callable[[bytes], None]) -> boo
     if fake.fault("garbage"):
         send(os.urandom(int(world.rng.integers(1, 60))) + b"\r\n")
         return True
-    if rpc == RPC_DO_MEASURE:
+    if rpc == RPC_NULL_PROC:
+        send(encode_reply(0, trid=trid))
+    elif rpc == RPC_INSTRUMENT_NO:
+        send(encode_reply(0, INSTRUMENT_NO, trid=trid))
+    elif rpc == RPC_INSTRUMENT_NAME:
+        send(encode_reply(0, f'"{INSTRUMENT_NAME}"', trid=trid))
+    elif rpc == RPC_DO_MEASURE:
         send(encode_reply(0, trid=trid))
     elif rpc == RPC_GET_COORDINATE:
         if fake.fault("beam_lost"):

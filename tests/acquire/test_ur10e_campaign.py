@@ -4,6 +4,8 @@ rotations by the rigid fit's noise, and the identification recovers the lab's tr
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ from analysis.errors import InputError
 from analysis.identification.estimate import analyze_table
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
+from campaign.cli import main
 from campaign.commands.analyze import _noise_from_protocol
 from campaign.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
@@ -40,6 +43,16 @@ def test_ur10e_fake_campaign(tmp_path, time_scale):
     assert np.all(np.abs(z) < 4), (result.k, truth, result.se_k)
     # the rotation noise of the reflector fit is in the weights: residuals fit the model
     assert 0.3 < result.chi2_reduced < 2.5
+    # tests.csv travels with its sidecar: re-imported alone it gives the run's k
+    meta = json.loads((tmp_path / "run" / "tests.meta.json").read_text())
+    assert meta["tool"]["xyz_mm"] == [0.0, 0.0, 120.0] and meta["robot"]["key"] == "ur10e"
+    assert main(["analyze", str(tmp_path / "run"), "--no-report", "--out",
+                 str(tmp_path / "a_run")]) == 0
+    assert main(["analyze", "--measurements", str(tmp_path / "run" / "tests.csv"),
+                 "--no-report", "--out", str(tmp_path / "a_csv")]) == 0
+    k_run, k_csv = (json.loads((tmp_path / d / "results.json").read_text())
+                    ["joint_stiffness_Nm_per_rad"] for d in ("a_run", "a_csv"))
+    np.testing.assert_allclose(k_csv, k_run, rtol=1e-9)
 
 
 def test_reflectors_option_is_checked(tmp_path):

@@ -48,8 +48,12 @@ def fake_var(kuka, name):
 
 def test_kuka_refused_variable_and_faults(kuka, world):
     fake, drv = kuka
-    with pytest.raises(DeviceFault, match="refused"):
+    with pytest.raises(DeviceFault, match="no value for NO_SUCH_VAR: unknown variable"):
         drv.read_var("NO_SUCH_VAR")
+    with pytest.raises(DeviceFault, match="refused the request for NO_SUCH_VAR"):
+        drv.write_var("NO_SUCH_VAR", "1")
+    with pytest.raises(DeviceFault, match=r"refused the request for \$AXIS_ACT"):
+        drv.write_var("$AXIS_ACT", "{E6AXIS: A1 0}")  # read-only on the controller
     world.faults.inject(fake.device, "drop", 1)
     with pytest.raises(DeviceTimeout):
         drv.read_joints()

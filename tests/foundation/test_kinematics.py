@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from analysis.model.kinematics import (
+    chain_state,
     jacobian,
     pin_jacobian,
     pin_tool_pose,
@@ -81,13 +82,45 @@ def test_kr240_geometry_modified_dh():
     forearm vertical; hand-computed wrist-centre and flange positions."""
     robot = load_robot("kr240-2")
     T = tool_pose(robot, np.zeros(6))
-    # x = d2 + d3 + d4 (d4 = -0.041), z = RL4 + RL6
-    np.testing.assert_allclose(T[:3, 3], [0.350 + 1.150 - 0.041, 0.0, 1.200 + 0.215], atol=1e-12)
+    # x = d2 + d3 + d4 (d4 = +0.041), z = RL4 + RL6
+    np.testing.assert_allclose(T[:3, 3], [0.350 + 1.150 + 0.041, 0.0, 1.200 + 0.215], atol=1e-12)
     # home position A2 = -90, A3 = +90 (pendant) -> upper arm up, forearm forward
     q = robot.from_controller(np.radians([0, -90, 90, 0, 0, 0]))
     np.testing.assert_allclose(np.degrees(q[:3]), [0, 90, -180], atol=1e-12)
-    np.testing.assert_allclose(tool_pose(robot, q)[:3, 3], [0.35 + 1.2 + 0.215, 0, 1.15 + 0.041],
+    # P = flange centre 1.109 m above A2 (1.150 - 0.041), 1.765 m ahead of A1
+    np.testing.assert_allclose(tool_pose(robot, q)[:3, 3], [0.35 + 1.2 + 0.215, 0, 1.15 - 0.041],
                                atol=1e-12)
+
+
+def test_kr240_forearm_axis_hangs_below_a3_at_home():
+    """KUKA's KR 2000-family arms carry the A4 axis below A3 at the pendant home
+    (0, -90, 90, 0, 0, 0): here 41 mm below, forearm along +x0, wrist axes on that line."""
+    robot = load_robot("kr240-2")
+    q = robot.from_controller(np.radians([0, -90, 90, 0, 0, 0]))
+    s = chain_state(robot, q)
+    a3, wrist = s.origins[2], s.origins[3]  # A4's frame origin is the wrist centre
+    np.testing.assert_allclose(a3, [0.35, 0, 1.15], atol=1e-12)
+    np.testing.assert_allclose(s.axes[3], [1, 0, 0], atol=1e-12)  # A4 along the forearm
+    # the A4 axis (the line along x0 through the wrist centre) passes 41 mm below A3
+    np.testing.assert_allclose(wrist - a3, [1.2, 0.0, -0.041], atol=1e-12)
+    np.testing.assert_allclose(s.origins[4], wrist, atol=1e-12)  # A5 meets A4 there
+
+
+def test_kr240_positive_pendant_directions_match_kuka():
+    """Each A_i turns positive about KUKA's axis direction (base x forward, z up, home
+    pose): A1 about -z, A2 and A3 about +y, A4 about -x, A5 about +y, A6 about -x. These
+    are the joint axes of ROS-Industrial's sign-checked KUKA KR models (kuka_experimental:
+    KR 150-2, KR 120 R2500 pro, KR 6/10/16 families)."""
+    robot = load_robot("kr240-2")
+    q0 = robot.from_controller(np.radians([0, -90, 90, 0, 0, 0]))
+    s = chain_state(robot, q0)
+    signed = s.axes * robot.controller_sign[:, None]
+    kuka = np.array([[0, 0, -1], [0, 1, 0], [0, 1, 0], [-1, 0, 0], [0, 1, 0], [-1, 0, 0]])
+    np.testing.assert_allclose(signed, kuka, atol=1e-12)
+    # and independently of the axes: +10 deg on A5 from home tips the flange down (-z0)
+    # as KUKA's A5 about +y does to a tool pointing along +x0
+    q = robot.from_controller(np.radians([0, -90, 90, 0, 10, 0]))
+    assert tool_pose(robot, q)[2, 3] < tool_pose(robot, q0)[2, 3] - 0.03
 
 
 def test_puma_standard_dh_elbow_up_pose():

@@ -25,7 +25,7 @@ def _mm_copy(tmp_path):
     """The KR240-2 file converted to millimetres by hand."""
     text = KR.read_text()
     text = text.replace('length_unit = "m"', 'length_unit = "mm"')
-    for a, b in (("0.350", "350"), ("1.150", "1150"), ("-0.041", "-41"), ("1.200", "1200"),
+    for a, b in (("0.350", "350"), ("1.150", "1150"), ("0.041", "41"), ("1.200", "1200"),
                  ("0.215", "215"), ("0.682", "682")):
         text = text.replace(f"= {a}", f"= {b}")
     return _write(tmp_path, text)

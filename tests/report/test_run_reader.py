@@ -30,11 +30,25 @@ def test_complete_run_counts_flags_and_si_table(complete_run):
     assert run.notes == []
 
 
-def test_protocol_hash_mismatch_is_noted(tmp_path, rows):
+def test_protocol_changed_after_the_run_is_refused(tmp_path, rows):
     run_dir = write_run(tmp_path / "r", rows)
     (run_dir / "protocol.toml").write_text((run_dir / "protocol.toml").read_text() + "\n# x\n")
-    run = read_run(run_dir, export=False)
-    assert any("protocol_sha256" in n for n in run.notes)
+    with pytest.raises(InputError, match="protocol.toml does not match protocol_sha256"):
+        read_run(run_dir, export=False)
+
+
+def test_plan_changed_after_the_run_is_said_loudly(tmp_path, rows):
+    import hashlib
+
+    run_dir = write_run(tmp_path / "r", rows)
+    (run_dir / "plan.csv").write_text("test\n1\n")
+    meta = json.loads((run_dir / "metadata.json").read_text())
+    meta["plan_sha256"] = hashlib.sha256(b"test\n1\n").hexdigest()
+    (run_dir / "metadata.json").write_text(json.dumps(meta))
+    assert read_run(run_dir, export=False).notes == []  # unchanged copy: nothing said
+    (run_dir / "plan.csv").write_text("test\n2\n")
+    notes = read_run(run_dir, export=False).notes
+    assert len(notes) == 1 and notes[0].startswith("WARNING: plan.csv does not match")
 
 
 def test_aborted_run_drops_half_written_line(aborted_run):
@@ -59,6 +73,14 @@ def test_parquet_exports_written_when_missing(tmp_path, rows):
         (lambda d: (d / "metadata.json").unlink(), "no metadata.json"),
         (lambda d: (d / "tests.csv").unlink(), "finished no test"),
         (lambda d: (d / "metadata.json").write_text("{not json"), "not valid JSON"),
+        (lambda d: (d / "metadata.json").write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe\x00"),
+         "metadata.json is not UTF-8 text"),
+        (lambda d: (d / "metadata.json").write_text("[1, 2]"),
+         "expected a JSON object, found a list"),
+        (lambda d: _cell(d, 4, "test_id", "x"), "line 4, column test_id: 'x' is not a whole"),
+        (lambda d: _duplicate(d, 3), "lines 3 and 17: test 1 repeat 2 recorded twice"),
+        (lambda d: _insert(d, 5, "garbage,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,\n"),
+         "not a CSV table"),
         (lambda d: _meta(d, status="paused"), "status 'paused'"),
         (lambda d: _meta(d, format_version=7), "format_version 7"),
         (lambda d: _cell(d, 3, "dy_mm", "abc"), "line 3, column dy_mm: 'abc' is not a number"),
@@ -99,3 +121,15 @@ def _cell(run_dir, line, column, value):
     cells[HEADER.index(column)] = value
     lines[line - 1] = ",".join(cells)
     (run_dir / "tests.csv").write_text("\n".join(lines) + "\n")
+
+
+def _duplicate(d, line):
+    """Append a copy of file line ``line`` of tests.csv."""
+    lines = (d / "tests.csv").read_text().splitlines(keepends=True)
+    (d / "tests.csv").write_text("".join(lines) + lines[line - 1])
+
+
+def _insert(d, line, text):
+    """Insert ``text`` as file line ``line`` of tests.csv."""
+    lines = (d / "tests.csv").read_text().splitlines(keepends=True)
+    (d / "tests.csv").write_text("".join(lines[:line - 1]) + text + "".join(lines[line - 1:]))

@@ -1,4 +1,4 @@
-"""The measurement noise model of one test row, from a protocol's instrument sigmas.
+"""Noise model of one test row of a run, from its protocol's instrument figures.
 
 One module for the planner (predicted standard errors, design criteria) and
 the analysis (weights, intervals), so that the plan predicts what the
@@ -20,8 +20,13 @@ from analysis.identification.noise import NoiseModel
 DISPLACEMENT_FROM_READING = float(np.sqrt(1.5))
 
 
-def protocol_noise(protocol) -> NoiseModel:
-    """Noise model of one test row (one repeat) of ``protocol``'s campaign (SI)."""
+def noise_from_protocol(protocol) -> NoiseModel:
+    """Noise model of one test row from the protocol's instrument sigmas, defaults elsewhere.
+
+    One pose reading's sigma comes from :meth:`Protocol.pose_reading_sigma` (a
+    6-DoF probe's figures, or the rigid fit over the reflectors); a row's
+    displacement has :data:`DISPLACEMENT_FROM_READING` times that.
+    """
     values: dict = {}
     s_t, s_r = protocol.pose_reading_sigma()
     values["translation_sigma_override"] = s_t * DISPLACEMENT_FROM_READING
@@ -53,3 +58,12 @@ def undeclared_sources(protocol) -> list[str]:
     if rob is None or rob.noise.joint_urad is None:
         out.append(f"encoder noise (default {d.joint_sigma * 1e6:.3g} urad)")
     return out
+
+
+def protocol_noise_source(protocol) -> str:
+    """Where :func:`noise_from_protocol`'s figures come from, in words."""
+    from pathlib import Path
+
+    name = Path(str(protocol.path)).name
+    return (f"protocol {name} [instruments] noise (pose reading x sqrt(1.5) for loaded - "
+            "mean of two unloaded readings; defaults where the protocol gives none)")

@@ -1,0 +1,110 @@
+"""Checks that an identified stiffness is believable before anyone uses it.
+
+Three checks, each a refusal unless the user accepts the result anyway
+(``campaign analyze --accept-misfit``):
+
+* **misfit**: the reduced chi-square says the model does not explain the data,
+  P(chi2 >= observed) < :data:`MISFIT_P` (the residuals are far larger than the
+  noise figures);
+* **too good**: P(chi2 <= observed) < :data:`MISFIT_P`, the residuals are far
+  smaller than the noise figures allow: typically a consistent unit error
+  (displacements typed in m instead of mm are 1000 x too small, and so is
+  every residual) or noise figures far too large;
+* **far from nominal**: an identified k differs from the robot model's nominal
+  stiffness by more than :data:`NOMINAL_FACTOR` either way (only where the
+  model has one): a unit error of the displacements or the wrench, or a
+  wrong tool point, not a property of the robot.
+
+Each message names the likely causes in order and the worst rows (input line
+numbers), so the user can look at the data rather than at the code.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.identification.result import IdentificationResult
+
+#: probability below which the chi-square test refuses (either tail)
+MISFIT_P = 1e-6
+#: largest believable ratio between an identified k and the model's nominal one
+NOMINAL_FACTOR = 10.0
+#: number of rows named in a message
+WORST_ROWS = 5
+
+CAUSES_MISFIT = (
+    "the tool point P (the displacements and wrench must be at the P given to the analysis: "
+    "--tool-xyz-mm/--tool-rpy-deg or the protocol's [tool])",
+    "units (q in deg, forces in N, moments in N m, displacements in mm, rotations in mrad)",
+    "the pose sign convention (model vs controller joint angles, base-frame components)",
+    "the noise figures (--sigma-translation-um, --sigma-rotation-urad, --force-sigma-N, "
+    "--moment-sigma-Nm)",
+)
+CAUSES_TOO_GOOD = (
+    "units (displacements typed in m instead of mm, rotations in rad instead of mrad: "
+    "1000 x too small)",
+    "noise figures far larger than the instruments' (--sigma-* options, protocol noise)",
+    "data computed from a model rather than measured",
+)
+CAUSES_NOMINAL = (
+    "units (displacements in m instead of mm, forces in kN instead of N)",
+    "the tool point P",
+    "the robot model (another robot's file)",
+)
+
+
+def worst_rows(result: IdentificationResult, n: int = WORST_ROWS) -> str:
+    """The n largest |studentized| residuals as 'line L (pose P) dz t = 5.1, ...'."""
+    res = result.residuals
+    if res is None or not len(res):
+        return "no residuals"
+    order = res["studentized"].abs().sort_values(ascending=False).index[:n]
+    return ", ".join(f"line {int(r.line)} (pose {r.pose}) {r.component} t = {r.studentized:.2g}"
+                     for r in res.loc[order].itertuples())
+
+
+def _causes(causes: tuple[str, ...]) -> str:
+    return "; ".join(f"({i}) {c}" for i, c in enumerate(causes, start=1))
+
+
+def chi2_lower_tail(result: IdentificationResult) -> float:
+    """P(chi2 <= observed) of the fit (NaN without residual degrees of freedom)."""
+    from scipy import stats
+
+    if result.dof <= 0 or not np.isfinite(result.chi2_reduced):
+        return float("nan")
+    return float(stats.chi2.cdf(result.chi2_reduced * result.dof, result.dof))
+
+
+def problems(result: IdentificationResult, nominal: np.ndarray | None,
+             nominal_label: str = "nominal stiffness of the robot model") -> list[str]:
+    """Messages of every failed check (empty when the result is believable)."""
+    out = []
+    chi2 = f"reduced chi-square {result.chi2_reduced:.3g} with {result.dof} degrees of freedom"
+    if result.dof > 0 and np.isfinite(result.p_value) and result.p_value < MISFIT_P:
+        out.append(
+            f"misfit: the model does not explain the data ({chi2}, P(chi2 >= observed) = "
+            f"{result.p_value:.2g} < {MISFIT_P:g}); likely causes, most likely first: "
+            f"{_causes(CAUSES_MISFIT)}; worst rows: {worst_rows(result)}")
+    low = chi2_lower_tail(result)
+    if np.isfinite(low) and low < MISFIT_P:
+        out.append(
+            f"too good to be true: the residuals are far smaller than the noise figures "
+            f"({chi2}, P(chi2 <= observed) = {low:.2g} < {MISFIT_P:g}); likely causes: "
+            f"{_causes(CAUSES_TOO_GOOD)}")
+    if nominal is not None:
+        nominal = np.asarray(nominal, dtype=float)
+        far = []
+        for j in result.joints:
+            k, k0 = result.k[j], nominal[j]
+            if not (np.isfinite(k) and np.isfinite(k0) and k0 > 0 and k > 0):
+                continue
+            ratio = k / k0
+            if ratio > NOMINAL_FACTOR or ratio < 1.0 / NOMINAL_FACTOR:
+                far.append(f"k{j + 1} = {k:.3g} N m/rad is {ratio:.3g} x the {nominal_label} "
+                           f"{k0:.3g}")
+        if far:
+            out.append(
+                f"implausible stiffness: {'; '.join(far)} (more than {NOMINAL_FACTOR:g} x "
+                f"either way); likely causes: {_causes(CAUSES_NOMINAL)}")
+    return out

@@ -1,0 +1,56 @@
+"""Blocked candidate evaluation and the Gram-matrix information identity, against the
+per-candidate reference computations."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import analysis.kinetostatics.maps as maps
+from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+from analysis.kinetostatics.stiffness import kc_influence
+from analysis.model.kinematics import jacobian
+from campaign.candidates import evaluate, sample
+from campaign.design import information, information_of_tests, scaled_blocks
+from campaign.protocol_robot import (
+    characteristic_length,
+    prior_stiffness,
+    protocol_robot,
+    sampling_boxes,
+)
+
+
+def test_information_identity_matches_blocks(kr_protocol):
+    rng = np.random.default_rng(5)
+    robot = protocol_robot(kr_protocol)
+    J = jacobian(robot, rng.uniform(-2, 2, (50, 6)))
+    wrenches = kr_protocol.wrenches()
+    sigma, k = kr_protocol.measurement_sigma(), robot.nominal_stiffness
+    case = rng.integers(0, len(wrenches), 50)
+    one = information_of_tests(J, wrenches[case][:, None, :], sigma, k, block=7)
+    ref = information(scaled_blocks(J, wrenches[case], sigma, k))
+    np.testing.assert_allclose(one, ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+    every = information_of_tests(J, np.broadcast_to(wrenches, (50, *wrenches.shape)), sigma, k)
+    ref_all = sum(information(scaled_blocks(J, w, sigma, k)) for w in wrenches)
+    np.testing.assert_allclose(every, ref_all, rtol=1e-12, atol=1e-12 * np.abs(ref_all).max())
+
+
+def test_blocked_evaluation_matches_per_candidate(kr_protocol, monkeypatch):
+    import campaign.candidates as candidates
+
+    monkeypatch.setattr(candidates, "BLOCK", 37)  # several blocks, one ragged
+    assert maps.BLOCK != 37
+    robot = protocol_robot(kr_protocol)
+    k = prior_stiffness(kr_protocol, robot)
+    q, zone = sample(sampling_boxes(kr_protocol, robot), 200, seed=3)
+    L = characteristic_length(kr_protocol, robot)
+    cand = evaluate(kr_protocol, robot, q, zone, k, L)
+    J = jacobian(robot, q)
+    np.testing.assert_allclose(cand.J, J, rtol=0, atol=1e-14)
+    inv_k = inverse_condition(normalized_jacobian(J, L))
+    np.testing.assert_allclose(cand.inv_kappa, inv_k, rtol=1e-10)
+    rows = np.flatnonzero(np.isfinite(cand.v_p[:, 0]))
+    assert rows.size > 50
+    for c, w in enumerate(kr_protocol.wrenches()):
+        v_p, v_r = kc_influence(robot, q[rows], k, w)
+        np.testing.assert_allclose(cand.v_p[rows, c], v_p, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(cand.v_r[rows, c], v_r, rtol=1e-9, atol=1e-15)
