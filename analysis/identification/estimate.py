@@ -252,6 +252,9 @@ def identify(
     Linv = whitening(chosen.cov, tests.measured)
     resid = np.where(tests.measured, tests.d - chosen.predicted, 0.0)
     chi2_red, p_value = chi2_summary(np.einsum("mij,mj->mi", Linv, resid), dof)
+    from analysis.identification.noise_check import noise_ratio_notes
+
+    warnings += noise_ratio_notes(resid, chosen.cov, tests.measured, noise, len(joints))
     scale = 1.0
     crit = critical_value(confidence)
     if covariance == "residual":
