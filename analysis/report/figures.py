@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import io
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+# Figures built directly (no pyplot): no GUI backend is chosen or imported, no global
+# figure list to close; savefig renders with Agg.
+from matplotlib.figure import Figure as MplFigure
 
-from analysis.report.model import Figure  # noqa: E402
+from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
 DPI = 150
@@ -31,13 +31,12 @@ def _legend_below(ax) -> None:
 def _png(fig, name: str, caption: str) -> Figure:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
-    plt.close(fig)
     return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption)
 
 
 def _new(**kw):
-    fig, ax = plt.subplots(figsize=SIZE_IN, dpi=DPI, layout="constrained", **kw)
-    return fig, ax
+    fig = MplFigure(figsize=SIZE_IN, dpi=DPI, layout="constrained", **kw)
+    return fig, fig.subplots()
 
 
 def _grid(table: pd.DataFrame, column: str):

@@ -348,8 +348,6 @@ def register(app: typer.Typer) -> None:
         from analysis.identification.measurements import to_arrays
         from analysis.identification.plausibility import problems
         from analysis.identification.result import write_results
-        from analysis.report.build import ReportInputs, build_report
-        from analysis.report.write import write_report
 
         if (run_dir is None) == (measurements is None):
             raise InputError("give either RUN_DIR or --measurements FILE.csv --robot R",
@@ -396,6 +394,10 @@ def register(app: typer.Typer) -> None:
 
         paths.update(export_model(result, model, out, table, info))
         if report:
+            # the report makes figures: matplotlib is imported only here
+            from analysis.report.build import ReportInputs, build_report
+            from analysis.report.write import write_report
+
             if trials < 10:
                 raise InputError("need at least 10 trials", where="--trials")
             tests = to_arrays(table)

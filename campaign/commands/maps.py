@@ -10,9 +10,6 @@ import typer
 from rich.console import Console
 
 from analysis.errors import InputError
-from analysis.kinetostatics.dexterity import characteristic_length
-from analysis.kinetostatics.map_plots import LABELS, plot_cartesian_map, plot_joint_map
-from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -49,6 +46,11 @@ def register(app: typer.Typer) -> None:
             "deflection |dp| from the identified model's covariance (model.toml)."),
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
+        # pinocchio, scipy, pandas and matplotlib: imported when the command runs
+        from analysis.kinetostatics.dexterity import characteristic_length
+        from analysis.kinetostatics.map_plots import LABELS, plot_cartesian_map, plot_joint_map
+        from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
+
         console = Console()
         r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
         if step <= 0 or not np.isfinite(step):

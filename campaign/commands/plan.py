@@ -6,9 +6,9 @@ from pathlib import Path
 
 import typer
 
-from campaign.plan_output import summary_text
-from campaign.planner import STRATEGIES, make_plan, write_plan
-from campaign.protocol import load_protocol
+# Kept in step with campaign.planner.STRATEGIES (checked by a test): the planner pulls in
+# pandas and every command module is imported when the command line starts.
+STRATEGIES = ("worst-joint", "weighted", "d-optimal", "e-optimal", "zones-random")
 
 
 def plan(
@@ -35,6 +35,9 @@ def plan(
     standard error of every joint stiffness beside that of a random zone design.
     """
     from campaign.options import parse_floats
+    from campaign.plan_output import summary_text
+    from campaign.planner import make_plan, write_plan
+    from campaign.protocol import load_protocol
 
     proto = load_protocol(protocol)
     wts = None if weights is None else parse_floats(weights, "--weights")

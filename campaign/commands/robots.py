@@ -7,8 +7,6 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from analysis.model.robots import builtin_names, load_robot
-
 
 def register(app: typer.Typer) -> None:
     @app.command("robots")
@@ -17,6 +15,8 @@ def register(app: typer.Typer) -> None:
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
     ) -> None:
         """List built-in robot models, or show one model's joints, limits and sources."""
+        from analysis.model.robots import builtin_names, load_robot  # pinocchio: lazily
+
         console = Console()
         if name is None:
             table = Table(title="Built-in robot models")

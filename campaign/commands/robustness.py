@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from analysis.errors import InputError
@@ -120,6 +119,8 @@ def register(app: typer.Typer) -> None:
         come from the nonlinear equilibrium; normal noise on displacement,
         wrench and joint angles; identification as in the paper (eqs. 16-21).
         """
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
         from analysis.identification.robustness import W_EFF, plot_study, robustness_study
 
         r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
