@@ -36,6 +36,8 @@ class Covariance(StrEnum):
 class Strategy(StrEnum):
     """Test selection of ``campaign plan`` (campaign.planner.STRATEGIES)."""
 
+    worst_joint = "worst-joint"
+    weighted = "weighted"
     d_optimal = "d-optimal"
     e_optimal = "e-optimal"
     zones_random = "zones-random"

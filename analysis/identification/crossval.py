@@ -23,6 +23,13 @@ import pandas as pd
 
 from analysis.errors import InputError
 from analysis.identification.exact_fit import model_displacement
+from analysis.identification.fitting import (
+    COND_LIMIT,
+    check_identifiable,
+    check_tests,
+    fit,
+    fit_exact,
+)
 from analysis.identification.linear_model import design_block
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel, residual_covariance
@@ -47,8 +54,6 @@ def leave_one_pose_out(
 
     ``batched=False`` refits from scratch for every pose (the reference path).
     """
-    from analysis.identification.estimate import check_identifiable, check_tests, fit, fit_exact
-
     group = pose_groups(tests.q, pose_tolerance(noise))
     names = group_names(tests.pose, group)
     if len(names) < 3:
@@ -93,7 +98,7 @@ def leave_one_pose_out(
         err = np.where(test.measured, test.d - pred, np.nan)
         Jt = jacobian(robot, test.q)
         C = np.einsum("...ij,j,...kj->...ik", Jt, x, Jt)
-        sig = np.sqrt(np.diagonal(residual_covariance(noise, C), axis1=-2, axis2=-1))
+        sig = np.sqrt(np.diagonal(residual_covariance(noise, C, test.w), axis1=-2, axis2=-1))
         norm = err / sig
         rows.append({
             **row,
@@ -108,8 +113,6 @@ def leave_one_pose_out(
 def _ols_batched(robot, tests, fold, labels, joints, noise) -> pd.DataFrame:
     """Leave-one-pose-out for ols in one batched computation (see the module docstring)."""
     from scipy.linalg import solve_triangular
-
-    from analysis.identification.estimate import COND_LIMIT, check_identifiable, check_tests
 
     cols = list(joints)
     J = jacobian(robot, tests.q)
@@ -164,7 +167,7 @@ def _ols_batched(robot, tests, fold, labels, joints, noise) -> pd.DataFrame:
     pred = np.einsum("mrj,mj->mr", design_block(J, tests.w), xt)
     err = np.where(tests.measured, tests.d - pred, np.nan)
     C = np.einsum("mij,mj,mkj->mik", J, xt, J)
-    sig = np.sqrt(np.diagonal(residual_covariance(noise, C), axis1=-2, axis2=-1))
+    sig = np.sqrt(np.diagonal(residual_covariance(noise, C, tests.w), axis1=-2, axis2=-1))
     norm = err / sig
     rows = []
     for h, label in enumerate(labels):

@@ -39,10 +39,13 @@ class GaussNewtonFit:
     valid: np.ndarray
 
 
-def covariances_per_test(noise, J, x_full, measured) -> np.ndarray:
-    """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6)."""
+def covariances_per_test(noise, J, x_full, measured, w=None) -> np.ndarray:
+    """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6).
+
+    ``w`` (..., m, 6): the measured wrenches, for wrench noise proportional to the reading.
+    """
     C = np.einsum("...ij,...j,...kj->...ik", J, x_full[..., None, :], J)
-    cov = residual_covariance(noise, C)
+    cov = residual_covariance(noise, C, w)
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
 
 
@@ -100,7 +103,7 @@ def gauss_newton(
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
         if iterations <= reweight_iterations:
-            Linv = whitening(covariances_per_test(noise, J, full(x), measured), measured)
+            Linv = whitening(covariances_per_test(noise, J, full(x), measured, w), measured)
         r = whitened(Linv, f)
         Aw = stack_matrix(Linv @ F)
         Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined
@@ -128,7 +131,7 @@ def gauss_newton(
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
         if np.all(converged | ~valid):
             break
-    cov = covariances_per_test(noise, J, full(x), measured)
+    cov = covariances_per_test(noise, J, full(x), measured, w)
     Linv = whitening(cov, measured)
     Aw = stack_matrix(Linv @ F)
     Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined

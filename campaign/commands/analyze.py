@@ -40,8 +40,9 @@ DEFAULT_TRIALS = 200
 _noise_from_protocol = noise_from_protocol
 
 
-def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm) -> tuple[NoiseModel, list]:
-    """Apply the command line's *-sigma-* overrides (um, urad, N, N m) to ``noise``.
+def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm, q_urad=None, f_pct=None,
+                    m_pct=None) -> tuple[NoiseModel, list]:
+    """Apply the command line's *-sigma-* overrides (um, urad, N, N m, urad, %) to ``noise``.
 
     Returns the noise model and the options that changed it.
     """
@@ -51,10 +52,13 @@ def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm) -> tuple[NoiseMo
         ("rotation_sigma_override", r_urad, 1e-6, "--rotation-sigma-urad"),
         ("force_sigma", f_n, 1.0, "--force-sigma-N"),
         ("moment_sigma", m_nm, 1.0, "--moment-sigma-Nm"),
+        ("joint_sigma_override", q_urad, 1e-6, "--joint-sigma-urad"),
+        ("force_relative", f_pct, 0.01, "--force-pct"),
+        ("moment_relative", m_pct, 0.01, "--moment-pct"),
     ):
         if value is None:
             continue
-        if not (np.isfinite(value) and value > 0):
+        if not (np.isfinite(value) and (value > 0 or (value == 0 and option.endswith("pct")))):
             raise InputError("expected a positive number", where=option)
         values[key] = value * scale
         used.append(option)
@@ -229,8 +233,10 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"  tool point P: xyz {t['xyz_mm']} mm, rpy {t['rpy_deg']} deg in the flange frame "
         f"({t['source']})",
         f"  noise per test row: translation {n['translation_sigma_um']:.3g} um, rotation "
-        f"{n['rotation_sigma_urad']:.3g} urad, force {n['force_sigma_N']:.3g} N, moment "
-        f"{n['moment_sigma_Nm']:.3g} N m ({n['source']})",
+        f"{n['rotation_sigma_urad']:.3g} urad, force {n['force_sigma_N']:.3g} N + "
+        f"{n['force_relative_percent']:.3g} % of |f|, moment {n['moment_sigma_Nm']:.3g} N m + "
+        f"{n['moment_relative_percent']:.3g} % of |m|, encoders "
+        f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg ({n['source']})",
         f"  method: {a['method']}; covariance {a['covariance']}; joints {a['joints']}",
         f"  poses: {a['poses']}",
     ):
@@ -334,6 +340,14 @@ def register(app: typer.Typer) -> None:
             None, "--force-sigma-N", help="Override: sigma of a force component (N)."),
         moment_sigma_nm: float = typer.Option(
             None, "--moment-sigma-Nm", help="Override: sigma of a moment component (N m)."),
+        joint_sigma_urad: float = typer.Option(
+            None, help="Override: sigma of a joint angle reading, encoders (urad)."),
+        force_pct: float = typer.Option(
+            None, "--force-pct", help="F/T force noise in % of |f| of the reading, in "
+                                      "quadrature with --force-sigma-N."),
+        moment_pct: float = typer.Option(
+            None, "--moment-pct", help="F/T moment noise in % of |m| of the reading, in "
+                                       "quadrature with --moment-sigma-Nm."),
         tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP + " Overrides the "
                                         "protocol's or the sidecar's tool."),
         tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
@@ -380,7 +394,8 @@ def register(app: typer.Typer) -> None:
                                                           tool_xyz_mm, tool_rpy_deg)
         protocol = extras["protocol"]
         noise, overridden = _override_noise(noise, translation_sigma_um, rotation_sigma_urad,
-                                            force_sigma_n, moment_sigma_nm)
+                                            force_sigma_n, moment_sigma_nm, joint_sigma_urad,
+                                            force_pct, moment_pct)
         noise_source = extras["noise_source"] + (
             f"; overridden by {', '.join(overridden)}" if overridden else "")
         joint_list = parse_joints(joints)

@@ -13,9 +13,15 @@ def plan(
     protocol: Path = typer.Option(..., "--protocol", "-p", help="Protocol file (.toml/.yaml)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output directory of the plan."),
     strategy: Strategy = typer.Option(
-        "d-optimal", "--strategy", help="d-optimal (max log det of the information), "
-        "e-optimal (max smallest eigenvalue) or zones-random (random poses in the zones)."
+        "worst-joint", "--strategy",
+        help="worst-joint: smallest largest relative standard error of k (no joint worse than "
+             "the median random zone design); weighted: smallest --weights-weighted sum of the "
+             "relative standard errors; d-optimal (max log det of the information), e-optimal "
+             "(max smallest eigenvalue) or zones-random (random poses in the zones)."
     ),
+    weights: str = typer.Option(None, "--weights",
+                                help="Weights of the joints' relative standard errors, "
+                                     "comma-separated (with --strategy weighted)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the candidate draw and random design."),
     candidates: int = typer.Option(10000, "--candidates", help="Candidate poses drawn."),
     tests: int = typer.Option(None, "--tests", help="Test poses (default: the protocol's)."),
@@ -33,15 +39,17 @@ def plan(
     """
     import json
 
+    from campaign.options import parse_floats
     from campaign.plan_output import summary_text
     from campaign.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     proto = load_protocol(protocol)
     output_dir(out, force)
+    wts = None if weights is None else parse_floats(weights, "--weights")
     with stage(f"candidate evaluation and {strategy} design ({candidates} candidates)"):
         result = make_plan(proto, strategy=str(strategy), seed=seed, candidates=candidates,
-                           tests=tests)
+                           tests=tests, weights=wts)
     with stage("writing the plan" + ("" if no_figure else " and plan_map.png")):
         path = write_plan(result, out, figure=not no_figure)
     if as_json:

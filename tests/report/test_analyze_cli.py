@@ -43,9 +43,9 @@ def test_csv_import_writes_the_same_result_keys_and_a_report(tmp_path, rows):
     csv = write_csv(tmp_path / "tests.csv", rows)
     out = tmp_path / "out"
     assert main(["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--out",
-                 str(out), "--method", "wls", "--trials", "20"]) == 0
+                 str(out), "--method", "exact", "--trials", "20"]) == 0
     res = json.loads((out / "results.json").read_text())
-    direct = analyze_table(read_csv(csv), load_robot("kr240-2"), method="wls").to_dict()
+    direct = analyze_table(read_csv(csv), load_robot("kr240-2"), method="exact").to_dict()
     # campaign analyze adds K_X at the tested poses and the model file (docs/use.md)
     assert list(res) == [*direct, "cartesian_stiffness", "model_file"]
     np.testing.assert_allclose(res["joint_stiffness_Nm_per_rad"],
