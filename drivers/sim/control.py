@@ -92,16 +92,22 @@ class ControlServer:
 
         class Handler(socketserver.StreamRequestHandler):
             def handle(self) -> None:
-                for line in self.rfile:
-                    try:
-                        req = json.loads(line)
-                        if not isinstance(req, dict):
-                            raise ValueError("request must be a JSON object")
-                    except ValueError as err:
-                        reply = {"ok": False, "error": f"bad JSON: {err}"}
-                    else:
-                        reply = handle_command(world, req, outer.addresses, on_shutdown)
-                    self.wfile.write((json.dumps(reply) + "\n").encode())
+                try:
+                    for line in self.rfile:
+                        self.wfile.write((json.dumps(self._answer(line)) + "\n").encode())
+                except (ConnectionResetError, BrokenPipeError):
+                    # the client went away (e.g. closed right after "shutdown"): nothing
+                    # left to answer, and not an error of the lab
+                    return
+
+            def _answer(self, line: bytes) -> dict:
+                try:
+                    req = json.loads(line)
+                    if not isinstance(req, dict):
+                        raise ValueError("request must be a JSON object")
+                except ValueError as err:
+                    return {"ok": False, "error": f"bad JSON: {err}"}
+                return handle_command(world, req, outer.addresses, on_shutdown)
 
         self.addresses = addresses
         self.server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), Handler)

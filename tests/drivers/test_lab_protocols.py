@@ -107,7 +107,7 @@ def test_lab_simulates_the_protocol(path):
             client.call("shutdown")
         assert proc.wait(timeout=20) == 0
         err = proc.stderr.read()
-        assert "Traceback" not in err
+        assert "Traceback" not in err, err
         k_line = next(line for line in err.splitlines() if "true joint stiffness" in line)
         assert f"{protocol.fake_lab.true_joint_stiffness[0]:,.0f}" in k_line
         assert f"tool xyz_mm {[float(v) for v in protocol.tool.xyz_mm]}" in err
