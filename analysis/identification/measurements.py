@@ -139,8 +139,8 @@ def _read_numeric(path: Path) -> pd.DataFrame | None:
     """
     try:
         frame = pd.read_csv(path, skipinitialspace=True, keep_default_na=False,
-                            na_values={c: _NA_TEXT for c in CSV_COLUMNS[1:]}, dtype={"pose": str}, engine="c",
-                            low_memory=False)
+                            na_values={c: _NA_TEXT for c in CSV_COLUMNS[1:]},
+                            dtype={"pose": str}, engine="c", low_memory=False)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError,
             OSError):
         return None
