@@ -47,8 +47,9 @@ from analysis.errors import InputError
 from analysis.identification.gauss_newton import covariances_per_test, gauss_newton
 from analysis.identification.linear_model import design_block
 from analysis.identification.lsq import (
-    block_diag_apply,
     qr_solve,
+    residual_variance_blocks,
+    sandwich,
     scaled_condition,
     stack_matrix,
     stack_vector,
@@ -62,7 +63,6 @@ from analysis.identification.result import Fit, IdentificationResult
 from analysis.identification.uncertainty import (
     chi2_summary,
     critical_value,
-    residual_variance,
     stiffness_interval,
     studentized,
 )
@@ -198,17 +198,18 @@ def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured)
 
 
 def _linear_estimator(A, d, measured, cov, weighted: bool):
-    """x = G d for per-test blocks; returns x, G (p, 6m)."""
+    """x = G d for per-test blocks; returns x, bread (p, p), Linv (m, 6, 6) or None.
+
+    G = bread A^T Linv^T Linv (bread A^T for OLS), see :class:`Fit`.
+    """
     dz = np.where(measured, d, 0.0)
     if weighted:
         Linv = whitening(cov, measured)
-        x, _, pinv_w = qr_solve(stack_matrix(Linv @ A), stack_vector(np.einsum(
-            "...ij,...j->...i", Linv, dz)))
-        m = A.shape[0]
-        G = np.einsum("pmi,mij->pmj", pinv_w.reshape(-1, m, 6), Linv).reshape(-1, 6 * m)
-    else:
-        x, _, G = qr_solve(stack_matrix(A), stack_vector(dz))
-    return x, G
+        x, bread, _ = qr_solve(stack_matrix(Linv @ A), stack_vector(np.einsum(
+            "...ij,...j->...i", Linv, dz)), with_pinv=False)
+        return x, bread, Linv
+    x, bread, _ = qr_solve(stack_matrix(A), stack_vector(dz), with_pinv=False)
+    return x, bread, None
 
 
 def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
@@ -221,15 +222,15 @@ def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
     """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18)."""
     J, A = _design(robot, tests, joints)
     cov = _covariances(noise, J, np.zeros(6), tests.measured)
-    x, G = _linear_estimator(A, tests.d, tests.measured, cov, weighted=False)
+    x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=False)
     if weighted:
         for _ in range(2):
             cov = _covariances(noise, J, _full(x, joints), tests.measured)
-            x, G = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
+            x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
     else:
         cov = _covariances(noise, J, _full(x, joints), tests.measured)
     pred = np.einsum("mrp,p->mr", A, x)
-    return Fit(x=x, G=G, A=A, cov=cov, predicted=pred, iterations=0)
+    return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv)
 
 
 def fit_exact(robot, tests, joints, noise, start: np.ndarray) -> Fit:
@@ -240,8 +241,9 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray) -> Fit:
             "the exact fit cannot start: the equilibrium has no solution at the linear "
             "estimate of the compliances (some k far too small, or negative); check the "
             "data or use --method wls", where="--method")
-    _, G = _linear_estimator(gn.F, tests.d, tests.measured, gn.cov, weighted=True)
-    return Fit(x=gn.x, G=G, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations)
+    # the linearised estimator at the solution: bread = (F^T W F)^-1 = gn.cov_x
+    return Fit(x=gn.x, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations,
+               bread=gn.cov_x, Linv=whitening(gn.cov, tests.measured))
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:
@@ -260,11 +262,10 @@ MAX_OUTLIERS = 10
 
 def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
     """(m, 6) studentized residuals of fit ``f`` (NaN where not measured)."""
-    GS = block_diag_apply(f.G, f.cov)
-    var_r = residual_variance(stack_matrix(f.A), GS, stack_vector(
-        np.diagonal(f.cov, axis1=-2, axis2=-1)), GS @ f.G.T)
+    cov_x = sandwich(f.A, f.cov, f.bread, f.Linv)
+    var_r = residual_variance_blocks(f.A, f.cov, f.bread, cov_x, f.Linv)
     resid = np.where(tests.measured, tests.d - f.predicted, np.nan)
-    return studentized(resid.reshape(-1), var_r * scale).reshape(tests.m, 6)
+    return studentized(resid, var_r * scale)
 
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
@@ -299,24 +300,24 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
 
 
 def _residual_table(tests, result_fit, var_r, scale, flags) -> pd.DataFrame:
-    m = tests.m
+    """One row per test and measured component, tests in order, components in order.
+
+    ``var_r`` (m, 6) residual variances.
+    """
     meas = tests.measured
     sigma = np.sqrt(np.diagonal(result_fit.cov, axis1=-2, axis2=-1))
     resid = np.where(meas, tests.d - result_fit.predicted, np.nan)
-    t = studentized(resid.reshape(-1), var_r * scale).reshape(m, 6)
-    rows = []
-    for i in range(m):
-        for c in range(6):
-            if not meas[i, c]:
-                continue
-            rows.append({
-                "test": i, "line": int(tests.line[i]), "pose": str(tests.pose[i]),
-                "component": COMPONENTS[c], "unit": "m" if c < 3 else "rad",
-                "measured": tests.d[i, c], "predicted": result_fit.predicted[i, c],
-                "residual": resid[i, c], "sigma": sigma[i, c],
-                "studentized": t[i, c], "outlier": bool(flags[i, c]),
-            })
-    return pd.DataFrame(rows)
+    t = studentized(resid, var_r * scale)
+    i, c = np.nonzero(meas)  # row-major: by test, then component
+    return pd.DataFrame({
+        "test": i.astype(np.int64), "line": tests.line[i].astype(np.int64),
+        "pose": tests.pose[i].astype(str).astype(object),
+        "component": np.array(COMPONENTS, dtype=object)[c],
+        "unit": np.where(c < 3, "m", "rad").astype(object),
+        "measured": tests.d[i, c], "predicted": result_fit.predicted[i, c],
+        "residual": resid[i, c], "sigma": sigma[i, c], "studentized": t[i, c],
+        "outlier": flags[i, c].astype(bool),
+    })
 
 
 def identify(
@@ -380,13 +381,9 @@ def identify(
     p = len(joints)
     n_eq = int(tests.measured.sum())
     dof = n_eq - p
-    flat_cov = chosen.cov
-    GS = block_diag_apply(chosen.G, flat_cov)
-    cov_x = GS @ chosen.G.T
-    A_flat = stack_matrix(chosen.A)
-    diag_sigma = stack_vector(np.diagonal(flat_cov, axis1=-2, axis2=-1))
-    var_r = residual_variance(A_flat, GS, diag_sigma, cov_x)
-    Linv = whitening(chosen.cov, tests.measured)
+    cov_x = sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv)
+    var_r = residual_variance_blocks(chosen.A, chosen.cov, chosen.bread, cov_x, chosen.Linv)
+    Linv = chosen.Linv if chosen.Linv is not None else whitening(chosen.cov, tests.measured)
     resid = np.where(tests.measured, tests.d - chosen.predicted, 0.0)
     chi2_red, p_value = chi2_summary(np.einsum("mij,mj->mi", Linv, resid), dof)
     scale = 1.0

@@ -104,7 +104,7 @@ def gauss_newton(
         r = whitened(Linv, f)
         Aw = stack_matrix(Linv @ F)
         Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined
-        step, _, _ = qr_solve(Aw, stack_vector(r))
+        step, _, _ = qr_solve(Aw, stack_vector(r), with_pinv=False)
         step = np.where(valid[..., None] & np.isfinite(step), step, 0.0)
         cost0 = np.sum(r**2, axis=(-2, -1))
         t = np.ones(batch)
@@ -132,7 +132,7 @@ def gauss_newton(
     Linv = whitening(cov, measured)
     Aw = stack_matrix(Linv @ F)
     Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined
-    _, cov_x, _ = qr_solve(Aw, stack_vector(whitened(Linv, f)))
+    _, cov_x, _ = qr_solve(Aw, stack_vector(whitened(Linv, f)), with_pinv=False)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)
     return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,
