@@ -59,12 +59,15 @@ def leave_one_pose_out(
     noise: NoiseModel,
     batched: bool = True,
     max_exact_refits: int | None = None,
+    full_fit=None,
 ) -> pd.DataFrame | None:
     """Table of held-out prediction errors, or None with fewer than 3 distinct poses.
 
     ``batched=False`` refits from scratch for every pose (the reference path).
     ``max_exact_refits`` (default :data:`EXACT_REFITS_MAX`): with more poses than
     this, exact folds take one Gauss-Newton step from the full-data estimate.
+    ``full_fit``: the :class:`analysis.identification.result.Fit` of ``method`` on all
+    the tests, if the caller has it (saves refitting the full data).
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
@@ -88,7 +91,8 @@ def leave_one_pose_out(
     start = None
     if batched and method == "exact":
         try:
-            full = fit(robot, tests, joints, noise, method)
+            full = full_fit if full_fit is not None else fit(robot, tests, joints, noise,
+                                                             method)
             start = full.x
         except InputError:
             start = None

@@ -161,8 +161,25 @@ def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
         )
 
 
+#: the last Jacobian computed by :func:`_jacobian` (the fit, the outlier refits and the
+#: checks of one identification all need J at the same joint angles)
+_J_CACHE: dict = {}
+
+
+def _jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """J(q) (m, 6, 6), reused while the robot and the bytes of q are the same."""
+    import hashlib
+
+    q = np.ascontiguousarray(q, dtype=float)
+    key = (id(robot), q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest())
+    if _J_CACHE.get("key") != key or _J_CACHE.get("robot") is not robot:
+        _J_CACHE.clear()
+        _J_CACHE.update(key=key, robot=robot, J=jacobian(robot, q))
+    return _J_CACHE["J"]
+
+
 def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]):
-    J = jacobian(robot, tests.q)
+    J = _jacobian(robot, tests.q)
     A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
     return J, A
 
@@ -432,7 +449,8 @@ def identify(
     if validate:
         from analysis.identification.crossval import leave_one_pose_out
 
-        result.validation = leave_one_pose_out(robot, tests, method, joints, noise)
+        result.validation = leave_one_pose_out(robot, tests, method, joints, noise,
+                                               full_fit=chosen)
     return result
 
 

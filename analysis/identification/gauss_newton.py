@@ -39,9 +39,31 @@ class GaussNewtonFit:
     valid: np.ndarray
 
 
+#: tests per block when one campaign's model is evaluated: the equilibrium's working
+#: arrays then stay in cache (measured 12.6 us/test in blocks of 4e3-1.6e4 tests, 41 us/test
+#: as one block of 1e5)
+EVAL_BLOCK = 8192
+
+
+def _model_in_blocks(robot, q, x, w, with_jacobian):
+    """:func:`model_displacement_masked` for one campaign (q (m, 6)) in blocks of tests."""
+    if q.ndim != 2 or q.shape[0] <= EVAL_BLOCK:
+        return model_displacement_masked(robot, q, x, w, with_jacobian)
+    m = q.shape[0]
+    f, ok = np.empty((m, 6)), np.empty(m, dtype=bool)
+    F = np.empty((m, 6, q.shape[-1])) if with_jacobian else None
+    for s in range(0, m, EVAL_BLOCK):
+        sl = slice(s, s + EVAL_BLOCK)
+        fb, Fb, okb = model_displacement_masked(robot, q[sl], x, w[sl], with_jacobian)
+        f[sl], ok[sl] = fb, okb
+        if with_jacobian:
+            F[sl] = Fb
+    return f, F, ok
+
+
 def covariances_per_test(noise, J, x_full, measured) -> np.ndarray:
     """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6)."""
-    C = np.einsum("...ij,...j,...kj->...ik", J, x_full[..., None, :], J)
+    C = (J * x_full[..., None, None, :]) @ np.swapaxes(J, -1, -2)  # J diag(x) J^T
     cov = residual_covariance(noise, C)
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
 
@@ -83,7 +105,7 @@ def gauss_newton(
         return out
 
     def evaluate(xp, with_jacobian=True):
-        f, F, ok = model_displacement_masked(robot, q, full(xp)[..., None, :], w, with_jacobian)
+        f, F, ok = _model_in_blocks(robot, q, full(xp)[..., None, :], w, with_jacobian)
         if F is not None:
             F = F[..., cols] * measured[..., None]
         return f, F, np.all(ok, axis=-1)

@@ -157,11 +157,18 @@ def sandwich(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
     p = A.shape[-1]
     meat = np.zeros((p, p))
     for s in range(0, A.shape[0], block):
-        Ab = A[s:s + block]
-        WA = Ab if Linv is None else np.swapaxes(Linv[s:s + block], -1, -2) @ (
-            Linv[s:s + block] @ Ab)
-        meat += np.einsum("mri,mrs,msj->ij", WA, cov[s:s + block], WA, optimize=True)
+        WA = _weighted(A, Linv, s, block)
+        meat += WA.reshape(-1, p).T @ (cov[s:s + block] @ WA).reshape(-1, p)
     return bread @ meat @ bread.T
+
+
+def _weighted(A, Linv, s, block):
+    """W A = Linv^T Linv A for the tests s:s+block (A itself when Linv is None)."""
+    Ab = A[s:s + block]
+    if Linv is None:
+        return Ab
+    Lb = Linv[s:s + block]
+    return np.swapaxes(Lb, -1, -2) @ (Lb @ Ab)
 
 
 def residual_variance_blocks(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
@@ -178,11 +185,10 @@ def residual_variance_blocks(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
     out = np.empty((m, 6))
     for s in range(0, m, block):
         Ab, Sb = A[s:s + block], cov[s:s + block]
-        WA = Ab if Linv is None else np.swapaxes(Linv[s:s + block], -1, -2) @ (
-            Linv[s:s + block] @ Ab)
-        GS = np.einsum("pq,mrq,mrs->mps", bread, WA, Sb, optimize=True)  # G_i Sigma_i
-        cross = np.einsum("mrp,mpr->mr", Ab, GS)
-        quad = np.einsum("mrp,pq,mrq->mr", Ab, cov_x, Ab, optimize=True)
+        p = Ab.shape[-1]
+        SWA = Sb @ _weighted(A, Linv, s, block)  # (G_i Sigma_i)^T = Sigma_i W_i A_i bread
+        cross = np.sum((Ab.reshape(-1, p) @ bread).reshape(Ab.shape) * SWA, axis=-1)
+        quad = np.sum((Ab.reshape(-1, p) @ cov_x).reshape(Ab.shape) * Ab, axis=-1)
         out[s:s + block] = np.maximum(np.diagonal(Sb, axis1=-2, axis2=-1) - 2 * cross + quad,
                                       0.0)
     return out

@@ -166,7 +166,8 @@ def residual_covariance(
     if compliance is None:
         return sig
     C = np.asarray(compliance, dtype=float)
-    return sig + np.einsum("...ij,j,...kj->...ik", C, noise.wrench_sigma**2, C)
+    # C diag(s^2) C^T as one batched matmul (a 3-operand einsum is ~5x slower at 1e6 tests)
+    return sig + (C * noise.wrench_sigma**2) @ np.swapaxes(C, -1, -2)
 
 
 def rigid_fit_sigma(
