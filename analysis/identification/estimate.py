@@ -238,8 +238,7 @@ def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
 def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
     """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18)."""
     J, A = _design(robot, tests, joints)
-    cov = _covariances(noise, J, np.zeros(6), tests.measured)
-    x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=False)
+    x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, None, weighted=False)
     if weighted:
         for _ in range(2):
             cov = _covariances(noise, J, _full(x, joints), tests.measured)
@@ -326,11 +325,13 @@ def _residual_table(tests, result_fit, var_r, scale, flags) -> pd.DataFrame:
     resid = np.where(meas, tests.d - result_fit.predicted, np.nan)
     t = studentized(resid, var_r * scale)
     i, c = np.nonzero(meas)  # row-major: by test, then component
+    # text columns as categoricals: 6e6 rows of Python strings would take ~1 GB
+    codes, labels = pd.factorize(np.asarray(tests.pose).astype(str))
     return pd.DataFrame({
         "test": i.astype(np.int64), "line": tests.line[i].astype(np.int64),
-        "pose": tests.pose[i].astype(str).astype(object),
-        "component": np.array(COMPONENTS, dtype=object)[c],
-        "unit": np.where(c < 3, "m", "rad").astype(object),
+        "pose": pd.Categorical.from_codes(codes[i], categories=labels),
+        "component": pd.Categorical.from_codes(c, categories=COMPONENTS),
+        "unit": pd.Categorical.from_codes((c >= 3).astype(np.int8), categories=["m", "rad"]),
         "measured": tests.d[i, c], "predicted": result_fit.predicted[i, c],
         "residual": resid[i, c], "sigma": sigma[i, c], "studentized": t[i, c],
         "outlier": flags[i, c].astype(bool),

@@ -62,7 +62,17 @@ def _model_in_blocks(robot, q, x, w, with_jacobian):
 
 
 def covariances_per_test(noise, J, x_full, measured) -> np.ndarray:
-    """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6)."""
+    """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6).
+
+    One campaign (J (m, 6, 6)) is done in blocks of :data:`EVAL_BLOCK` tests
+    (the (m, 6, 6) temporaries of 1e6 tests do not fit in cache).
+    """
+    if J.ndim == 3 and J.shape[0] > EVAL_BLOCK:
+        out = np.empty(J.shape[:-1] + (6,))
+        for s in range(0, J.shape[0], EVAL_BLOCK):
+            sl = slice(s, s + EVAL_BLOCK)
+            out[sl] = covariances_per_test(noise, J[sl], x_full, measured[sl])
+        return out
     C = (J * x_full[..., None, None, :]) @ np.swapaxes(J, -1, -2)  # J diag(x) J^T
     cov = residual_covariance(noise, C)
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)

@@ -42,10 +42,25 @@ def pose_groups(q: np.ndarray, tol: float) -> np.ndarray:
     than ``tol``) is resolved exactly by a sweep along its widest joint that
     links the pairs within ``tol`` of each other (:func:`_components_by_sweep`).
     """
-    q = np.atleast_2d(np.asarray(q, dtype=float))
+    import hashlib
+
+    q = np.ascontiguousarray(np.atleast_2d(np.asarray(q, dtype=float)))
     m = q.shape[0]
     if m == 0:
         return np.zeros(0, dtype=int)
+    key = (q.shape, float(tol), hashlib.blake2b(q.tobytes(), digest_size=16).digest())
+    if _LAST.get("key") != key:
+        _LAST.clear()
+        _LAST.update(key=key, group=_pose_groups(q, tol))
+    return _LAST["group"].copy()
+
+
+#: the last grouping (the checks, the result, the validation and the export of one
+#: identification group the same joint angles)
+_LAST: dict = {}
+
+
+def _pose_groups(q: np.ndarray, tol: float) -> np.ndarray:
     part = _split_at_gaps(q, tol)
     lo = np.full((part.max() + 1, q.shape[1]), np.inf)
     hi = np.full_like(lo, -np.inf)

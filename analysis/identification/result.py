@@ -267,7 +267,19 @@ def write_table(frame: pd.DataFrame, path: Path) -> None:
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    pacsv.write_csv(pa.Table.from_pandas(frame, preserve_index=False), str(path))
+    writer = None
+    try:
+        for s in range(0, len(frame), 500_000):  # blocks bound the memory of the copy
+            block = frame.iloc[s:s + 500_000]
+            block = block.astype({c: str for c in block.columns
+                                  if isinstance(block[c].dtype, pd.CategoricalDtype)})
+            table = pa.Table.from_pandas(block, preserve_index=False)
+            if writer is None:
+                writer = pacsv.CSVWriter(str(path), table.schema)
+            writer.write_table(table)
+    finally:
+        if writer is not None:
+            writer.close()
 
 
 def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str, Path]:
