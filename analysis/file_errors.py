@@ -161,21 +161,22 @@ def read_mapping_file(path: Path, what: str) -> tuple[dict, str]:
     ``what`` names the kind of file in messages ("robot file", "protocol file").
     Errors name the file and, where the parser gives it, the line.
     """
-    import yaml
-
     text = read_utf8(path, what)
     suffix = path.suffix.lower()
-    try:
-        if suffix in (".yaml", ".yml"):
+    if suffix in (".yaml", ".yml"):
+        import yaml  # only YAML files pay for its import (command start-up time)
+
+        try:
             data = yaml.safe_load(text)
-        elif suffix == ".toml":
+        except yaml.YAMLError as err:
+            raise InputError(f"not valid YAML: {err}", where=str(path)) from err
+    elif suffix == ".toml":
+        try:
             data = tomllib.loads(text)
-        else:
-            raise InputError(f"expected a .toml, .yaml or .yml {what}", where=str(path))
-    except tomllib.TOMLDecodeError as err:
-        raise InputError(f"not valid TOML: {err}", where=str(path)) from err
-    except yaml.YAMLError as err:
-        raise InputError(f"not valid YAML: {err}", where=str(path)) from err
+        except tomllib.TOMLDecodeError as err:
+            raise InputError(f"not valid TOML: {err}", where=str(path)) from err
+    else:
+        raise InputError(f"expected a .toml, .yaml or .yml {what}", where=str(path))
     if not isinstance(data, dict):
         raise InputError("expected a table of keys at the top level", where=str(path))
     return data, text

@@ -42,9 +42,14 @@ def draw_plan_map(plan, path: Path) -> None:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
+    from analysis.kinetostatics.map_fixed import map_fixed_joints
+
     robot = plan.robot
-    box0 = plan.boxes[0]
-    q_ref = (box0.lo + box0.hi) / 2
+    cand = plan.candidates
+    chosen = np.unique(plan.chosen.pose)
+    # the report's rule: protocol fixed_deg, else the median of the (planned) tested poses
+    fixed = map_fixed_joints(robot.n, plan.protocol.sampling.fixed_deg, cand.q[chosen])
+    q_ref = fixed.q
     t2, t3, inv_k = kappa_map(robot, q_ref, plan.length)
     fig, ax = plt.subplots(figsize=(7.0, 5.6), dpi=110)
     mesh = ax.contourf(t2 / DEG, t3 / DEG, inv_k, levels=20, cmap="gray")
@@ -52,27 +57,33 @@ def draw_plan_map(plan, path: Path) -> None:
     for box in plan.boxes:
         ax.add_patch(Rectangle((box.lo[1] / DEG, box.lo[2] / DEG), (box.hi[1] - box.lo[1]) / DEG,
                                (box.hi[2] - box.lo[2]) / DEG, fill=False, ec="tab:blue", lw=1.2))
+        # inside the box's top-left corner: above it, a zone on the upper limit is clipped
         ax.text(box.lo[1] / DEG, box.hi[2] / DEG, box.name, color="tab:blue", fontsize=8,
-                va="bottom")
-    cand = plan.candidates
+                va="top", ha="left", bbox={"boxstyle": "round,pad=0.15", "fc": "white",
+                                           "ec": "none", "alpha": 0.85}, zorder=4)
     ok = np.any(cand.valid, axis=1)
-    ax.plot(cand.q[ok, 1] / DEG, cand.q[ok, 2] / DEG, ",", color="tab:cyan", alpha=0.5)
+    ax.plot(cand.q[ok, 1] / DEG, cand.q[ok, 2] / DEG, ".", ms=1, color="tab:cyan", alpha=0.5,
+            label=f"candidates passing the thresholds ({int(ok.sum())})")
     rnd = np.unique(plan.random.pose)
     ax.plot(cand.q[rnd, 1] / DEG, cand.q[rnd, 2] / DEG, "s", mfc="none", mec="tab:orange",
             ms=8, label="random zone design")
-    chosen = np.unique(plan.chosen.pose)
-    ax.plot(cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG, "o", color="tab:red", ms=6,
-            label=f"{plan.strategy} design")
+    ax.plot(cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG, "o", color="tab:red", mec="black",
+            ms=7, clip_on=False, zorder=5, label=f"{plan.strategy} design")
     for i, p in enumerate(chosen):
-        ax.annotate(str(i + 1), (cand.q[p, 1] / DEG, cand.q[p, 2] / DEG), color="tab:red",
-                    xytext=(4, 4), textcoords="offset points", fontsize=8)
-    others = ", ".join(f"q{j + 1} = {q_ref[j] / DEG:.0f}" for j in (0, 3, 4, 5))
-    ax.set_title(f"{robot.name}: 1/kappa_F over (theta2, theta3), {others} deg", fontsize=9)
+        ax.annotate(str(i + 1), (cand.q[p, 1] / DEG, cand.q[p, 2] / DEG), color="black",
+                    xytext=(5, 5), textcoords="offset points", fontsize=8, fontweight="bold",
+                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none",
+                          "alpha": 0.85}, zorder=6, annotation_clip=False)
+    ax.set_title(f"{robot.name}: $1/\\kappa_F$ over ($\\theta_2$, $\\theta_3$) at "
+                 f"{fixed.values_text()}\n({fixed.rule_text()})", fontsize=9)
     ax.set_xlabel(r"$\theta_2$ (deg, model convention)")
     ax.set_ylabel(r"$\theta_3$ (deg, model convention)")
     # below the axes: inside, it would hide poses planned near a corner
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8,
-              frameon=False)
+    legend = ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=3, fontsize=8,
+                       frameon=False, markerscale=1.0)
+    for handle in legend.legend_handles:  # the candidates' 1-pt dots would not show
+        if handle.get_label().startswith("candidates"):
+            handle.set_markersize(6)
     fig.tight_layout()
     fig.savefig(path, metadata={"Software": None})
     plt.close(fig)

@@ -57,8 +57,38 @@ def _se_rows(plan: Plan) -> list[dict]:
             "se_random_N_m_per_rad": b,
             "se_random_percent": 100 * b / k,
             "random_over_design": b / a if a > 0 else float("inf"),
+            **({} if plan.random_median_se is None else {
+                "se_random_median_percent": 100 * float(plan.random_median_se[j]) / k}),
         })
     return rows
+
+
+def _noise_dict(plan: Plan) -> dict:
+    """The noise model of one test row the predictions use, and the sources left at default."""
+    from campaign.run_noise import undeclared_sources
+
+    if plan.noise is None:
+        return {}
+    return {"noise_model_per_row": plan.noise.describe(),
+            "noise_defaults_used": undeclared_sources(plan.protocol)}
+
+
+def _criterion_dict(plan: Plan) -> dict:
+    """Worst joint's relative se: design vs the median of 201 random zone designs."""
+    if plan.random_median_se is None:
+        return {}
+    mine = float(np.max(plan.chosen.se / plan.k_prior))
+    ref = float(np.max(plan.random_median_se / plan.k_prior))
+    out = {"worst_joint": {
+        "design_percent": 100 * mine, "random_median_percent": 100 * ref,
+        "reduction_percent": 100 * (1 - mine / ref),
+        "joint_design": int(np.argmax(plan.chosen.se / plan.k_prior)) + 1,
+        "joint_random": int(np.argmax(plan.random_median_se / plan.k_prior)) + 1}}
+    if plan.weights is not None:
+        out["weights"] = [float(v) for v in plan.weights]
+    if plan.case_contributions is not None:
+        out["load_case_contributions"] = plan.case_contributions
+    return out
 
 
 def summary_dict(plan: Plan) -> dict:
@@ -84,6 +114,8 @@ def summary_dict(plan: Plan) -> dict:
         "design": {"log_det": plan.chosen.log_det, "min_eig": plan.chosen.min_eig},
         "random_zone_design": {"log_det": plan.random.log_det, "min_eig": plan.random.min_eig},
         "predicted_standard_errors": _se_rows(plan),
+        **_noise_dict(plan),
+        **_criterion_dict(plan),
     }
 
 
@@ -113,7 +145,38 @@ def summary_text(plan: Plan) -> str:
             f"{r['se_random_N_m_per_rad']:>12.1f} {r['se_random_percent']:>7.3f} "
             f"{r['random_over_design']:>6.2f}"
         )
+    lines += _criterion_lines(s)
     return "\n".join(lines) + "\n"
+
+
+def _criterion_lines(s: dict) -> list[str]:
+    lines = []
+    if "noise_model_per_row" in s:
+        n = s["noise_model_per_row"]
+        lines += ["", f"noise per test row: {n['translation_sigma_um']:.2f} um, "
+                  f"{n['rotation_sigma_urad']:.2f} urad, F/T {n['force_sigma_N']:.3g} N + "
+                  f"{n['force_relative_percent']:.3g} % of |f|, {n['moment_sigma_Nm']:.3g} N m + "
+                  f"{n['moment_relative_percent']:.3g} % of |m|, encoders "
+                  f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg (every source in the predictions)"]
+        if s["noise_defaults_used"]:
+            lines.append("not declared in the protocol, defaults used: "
+                         + "; ".join(s["noise_defaults_used"]))
+    if "worst_joint" in s:
+        w = s["worst_joint"]
+        lines.append(
+            f"worst joint: k{w['joint_design']} at {w['design_percent']:.3f} % (design) vs "
+            f"k{w['joint_random']} at {w['random_median_percent']:.3f} % (median of 201 random "
+            f"zone designs): {w['reduction_percent']:.0f} % lower")
+    for c in s.get("load_case_contributions", []):
+        if not c["tests"]:
+            lines.append(f"load case {c['load_case']}: not used")
+            continue
+        worst = max(c["relative_se_without"])
+        lines.append(
+            f"load case {c['load_case']}: {c['tests']} test(s); without them the worst "
+            "relative se would be " + ("unbounded (a joint not identifiable)" if worst == np.inf
+                                       else f"{100 * worst:.3f} %"))
+    return lines
 
 
 def write_plan(plan: Plan, out: str | Path, figure: bool = True) -> Path:

@@ -8,21 +8,18 @@ acquisition runner.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
+from analysis.identification.noise import NoiseModel
 from analysis.model.robot_model import RobotModel
 from campaign.candidates import Candidates, check_enough, evaluate, sample
-from campaign.design import (
-    criterion,
-    greedy_exchange,
-    information_of_tests,
-    predicted_se,
-    random_design,
-)
+from campaign.criteria import candidate_information, choose, random_reference, relative_se
+from campaign.design import criterion, greedy_exchange, random_design
 from campaign.plan_output import COLUMNS, read_plan, write_plan
 from campaign.protocol import DEG, Protocol
 from campaign.protocol_robot import (
@@ -32,10 +29,11 @@ from campaign.protocol_robot import (
     protocol_robot,
     sampling_boxes,
 )
+from campaign.run_noise import noise_from_protocol
 
 __all__ = ["COLUMNS", "STRATEGIES", "Design", "Plan", "make_plan", "read_plan", "write_plan"]
 
-STRATEGIES = ("d-optimal", "e-optimal", "zones-random")
+STRATEGIES = ("worst-joint", "weighted", "d-optimal", "e-optimal", "zones-random")
 
 
 @dataclass
@@ -47,6 +45,7 @@ class Design:
     se: np.ndarray  # (n,) predicted standard error of k (N m/rad)
     log_det: float  # log det of the information matrix of relative compliances
     min_eig: float  # its smallest eigenvalue
+    picks: np.ndarray | None = None  # (p,) indices of the chosen candidate tests
 
 
 @dataclass
@@ -60,8 +59,14 @@ class Plan:
     candidates : the evaluated candidate poses.
     boxes : sampling box of each zone (rad).
     chosen, random : the chosen design and the random zone design (same seed).
-    k_prior : (n,) prior joint stiffness (N m/rad). sigma : (6,) measurement sigma
+    k_prior : (n,) prior joint stiffness (N m/rad). sigma : (6,) displacement sigma
         of one averaged test [m x3; rad x3]. length : characteristic length L (m).
+    noise : noise model of one test row (the identification's, see
+        :mod:`campaign.run_noise`); the predictions include every source.
+    random_median_se : (n,) median predicted standard error of k (N m/rad) over
+        201 seeded random zone designs (the reference of the worst-joint criterion).
+    case_contributions : per load case, its tests and the relative se of every
+        joint without them (see :func:`case_contributions`).
     """
 
     protocol: Protocol
@@ -75,6 +80,10 @@ class Plan:
     k_prior: np.ndarray
     sigma: np.ndarray
     length: float
+    noise: NoiseModel | None = None
+    random_median_se: np.ndarray | None = None
+    case_contributions: list[dict] | None = None
+    weights: np.ndarray | None = None
 
     def to_frame(self) -> pd.DataFrame:
         """One row per test, columns :data:`COLUMNS` (degrees, N, N m; v_r in deg)."""
@@ -133,31 +142,62 @@ def _design(plan_in: dict, picks: np.ndarray) -> Design:
     return Design(
         pose=pose,
         case=case,
-        se=predicted_se(M, plan_in["k"]),
+        se=plan_in["k"] * relative_se(_full_information(plan_in, pose, case)),
         log_det=float(criterion(M, "d")),
         min_eig=float(criterion(M, "e")),
+        picks=np.asarray(picks, dtype=int),
     )
+
+
+def _full_information(plan_in: dict, pose: np.ndarray, case: np.ndarray) -> np.ndarray:
+    """Information of the design's tests with every noise source, encoders included."""
+    from analysis.identification.robustness import jacobian_derivative
+
+    cand = plan_in["cand"]
+    dJ = jacobian_derivative(plan_in["robot"], cand.q[pose])
+    F = candidate_information(cand.J[pose], plan_in["wrenches"][case], plan_in["noise"],
+                              plan_in["k"], plan_in["rows"], dJ)
+    return F.sum(axis=0)
+
+
+def case_contributions(plan_in: dict, design: Design, names: list[str]) -> list[dict]:
+    """What each load case brings: its tests, and each joint's relative se without them."""
+    out = []
+    for c, name in enumerate(names):
+        keep = design.case != c
+        used = int(np.sum(~keep))
+        without = (relative_se(_full_information(plan_in, design.pose[keep], design.case[keep]))
+                   if used and keep.any() else np.full(len(plan_in["k"]), np.inf))
+        out.append({"load_case": name, "tests": used,
+                    "relative_se_without": [float(v) for v in without] if used else None})
+    return out
 
 
 def make_plan(
     protocol: Protocol,
-    strategy: str = "d-optimal",
+    strategy: str = "worst-joint",
     seed: int = 0,
     candidates: int = 10000,
     tests: int | None = None,
+    weights: Sequence[float] | None = None,
 ) -> Plan:
     """Plan the campaign of ``protocol``.
 
     Parameters
     ----------
     protocol : a loaded protocol (:func:`campaign.protocol.load_protocol`).
-    strategy : ``d-optimal`` (max log det of the information matrix of the
-        weighted A), ``e-optimal`` (max smallest eigenvalue) or ``zones-random``
-        (the paper's practice: random poses cycling through the zones).
+    strategy : ``worst-joint`` (min the largest relative standard error of k,
+        guarded so that no joint is worse than the median random zone design;
+        :mod:`campaign.criteria`), ``weighted`` (min the ``weights``-weighted sum of
+        the relative standard errors), ``d-optimal`` (max log det of the
+        information matrix), ``e-optimal`` (max smallest eigenvalue) or
+        ``zones-random`` (the paper's practice: random poses cycling through the
+        zones). Every criterion uses the identification's noise model.
     seed : seed of the candidate draw and of the random design.
     candidates : number of candidate poses drawn over the zones.
     tests : number of test poses; default the protocol's ``campaign.tests`` (an
         override is recorded in the summary, not in the protocol copy).
+    weights : (n,) weights of the joints' relative standard errors (``weighted``).
 
     Raises
     ------
@@ -177,8 +217,19 @@ def make_plan(
             update={"campaign": protocol.campaign.model_copy(update={"tests": tests})}
         )
     robot = protocol_robot(protocol)
+    if weights is not None and strategy != "weighted":
+        raise InputError("weights are used by --strategy weighted only", where="--weights")
+    if strategy == "weighted":
+        if weights is None or len(weights) != robot.n or not all(
+                np.isfinite(v) and v >= 0 for v in weights) or not any(weights):
+            raise InputError(f"the weighted criterion needs {robot.n} weights >= 0, not all 0",
+                             where="--weights")
+        weights = np.asarray(weights, dtype=float)
     k_prior = prior_stiffness(protocol, robot)
-    sigma = protocol.measurement_sigma()
+    protocol.measurement_sigma()  # refuses a pose instrument without noise figures
+    noise = noise_from_protocol(protocol)
+    rows = protocol.campaign.repeats
+    sigma = noise.displacement_sigma / np.sqrt(rows)
     length = characteristic_length(protocol, robot)
     boxes = sampling_boxes(protocol, robot)
     q, zone = sample(boxes, candidates, seed)
@@ -188,17 +239,25 @@ def make_plan(
     wrenches = protocol.wrenches()
     pose, case, group = _tests(cand, protocol.loads.selection)
     if case.size and case[0] < 0:
-        W = np.broadcast_to(wrenches, (pose.size, *wrenches.shape))
+        F = sum(
+            candidate_information(cand.J[pose], wrenches[c], noise, k_prior, rows)
+            for c in range(len(wrenches))
+        )
     else:
-        W = wrenches[case][:, None, :]
-    F = information_of_tests(cand.J[pose], W, sigma, k_prior)
-    inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches)}
+        F = candidate_information(cand.J[pose], wrenches[case], noise, k_prior, rows)
+    inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches),
+              "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows}
     n = protocol.campaign.tests
-    rand = random_design(group, cand.zone[pose], n, seed)
+    zone = cand.zone[pose]
+    rand = random_design(group, zone, n, seed)
     if strategy == "zones-random":
         picks = rand
+    elif strategy in ("worst-joint", "weighted"):
+        picks = choose(F, group, zone, n, seed,
+                       kind="worst" if strategy == "worst-joint" else "weighted", weights=weights)
     else:
         picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e")
+    chosen = _design(inputs, picks)
     return Plan(
         protocol=protocol,
         robot=robot,
@@ -206,9 +265,14 @@ def make_plan(
         seed=seed,
         candidates=cand,
         boxes=boxes,
-        chosen=_design(inputs, picks),
+        chosen=chosen,
         random=_design(inputs, rand),
         k_prior=k_prior,
         sigma=sigma,
         length=length,
+        noise=noise,
+        random_median_se=k_prior * random_reference(F, group, zone, n, seed)[1],
+        case_contributions=case_contributions(
+            inputs, chosen, [c.name for c in protocol.load_cases]),
+        weights=weights,
     )

@@ -93,6 +93,9 @@ class NoiseSpec(_Strict):
     force_N: float | None = Field(default=None, ge=0)
     torque_N_m: float | None = Field(default=None, ge=0)
     joint_urad: float | None = Field(default=None, ge=0)
+    # F/T noise proportional to the reading: % of |f| (of |m|), in quadrature with force_N
+    force_pct: float | None = Field(default=None, ge=0)
+    torque_pct: float | None = Field(default=None, ge=0)
 
 
 class InstrumentSpec(_Strict):

@@ -1,4 +1,12 @@
-"""Noise model of one test row of a run, from its protocol's instrument figures."""
+"""Noise model of one test row of a run, from its protocol's instrument figures.
+
+One module for the planner (predicted standard errors, design criteria) and
+the analysis (weights, intervals), so that the plan predicts what the
+identification will see. Sources: the pose instrument (a 6-DoF probe's
+figures, or the rigid fit over the reflectors), the F/T sensor (absolute and
+% of reading) and the robot's encoders; a source the protocol leaves out
+keeps the default of :class:`analysis.identification.noise.NoiseModel`.
+"""
 
 from __future__ import annotations
 
@@ -27,7 +35,29 @@ def noise_from_protocol(protocol) -> NoiseModel:
     if ft is not None:
         values["force_sigma"] = ft.noise.force_N
         values["moment_sigma"] = ft.noise.torque_N_m
+        if ft.noise.force_pct is not None:
+            values["force_relative"] = ft.noise.force_pct / 100.0
+        if ft.noise.torque_pct is not None:
+            values["moment_relative"] = ft.noise.torque_pct / 100.0
+    rob = protocol.instruments.get("robot")
+    if rob is not None and rob.noise.joint_urad is not None:
+        values["joint_sigma_override"] = rob.noise.joint_urad * 1e-6
     return NoiseModel().with_overrides(**values)
+
+
+def undeclared_sources(protocol) -> list[str]:
+    """Noise sources the protocol does not declare (their defaults are used), with the default."""
+    d = NoiseModel()
+    out = []
+    ft = protocol.instruments.get("force_torque")
+    if ft is None or ft.noise.force_N is None:
+        out.append(f"F/T force noise (default {d.force_sigma:.3g} N)")
+    if ft is None or ft.noise.torque_N_m is None:
+        out.append(f"F/T moment noise (default {d.moment_sigma:.3g} N m)")
+    rob = protocol.instruments.get("robot")
+    if rob is None or rob.noise.joint_urad is None:
+        out.append(f"encoder noise (default {d.joint_sigma * 1e6:.3g} urad)")
+    return out
 
 
 def protocol_noise_source(protocol) -> str:

@@ -32,6 +32,13 @@ import pandas as pd
 
 from analysis.errors import InputError
 from analysis.identification.exact_fit import model_displacement, model_displacement_masked
+from analysis.identification.fitting import (
+    COND_LIMIT,
+    check_identifiable,
+    check_tests,
+    fit,
+    fit_exact,
+)
 from analysis.identification.linear_model import design_block
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel, residual_covariance
@@ -71,8 +78,6 @@ def leave_one_pose_out(
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
-    from analysis.identification.estimate import check_identifiable, check_tests, fit, fit_exact
-
     group = pose_groups(tests.q, pose_tolerance(noise))
     names = group_names(tests.pose, group)
     if len(names) < 3:
@@ -132,7 +137,7 @@ def leave_one_pose_out(
         err = np.where(test.measured, test.d - pred, np.nan)
         Jt = jacobian(robot, test.q)
         C = np.einsum("...ij,j,...kj->...ik", Jt, x, Jt)
-        sig = np.sqrt(np.diagonal(residual_covariance(noise, C), axis1=-2, axis2=-1))
+        sig = np.sqrt(np.diagonal(residual_covariance(noise, C, test.w), axis1=-2, axis2=-1))
         norm = err / sig
         rows.append({
             **row,
@@ -157,7 +162,6 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     """
     from scipy.linalg import solve_triangular
 
-    from analysis.identification.estimate import COND_LIMIT, check_identifiable, check_tests
     from analysis.identification.lsq import TEST_BLOCK, column_scale, tall_r
 
     cols = list(joints)
@@ -225,7 +229,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
             pred = np.einsum("mrj,mj->mr", design_block(J, w), xt)
         err = np.where(meas, tests.d[sl] - pred, 0.0)
         C = np.einsum("mij,mj,mkj->mik", J, xt, J)
-        sig = np.sqrt(np.diagonal(residual_covariance(noise, C), axis1=-2, axis2=-1))
+        sig = np.sqrt(np.diagonal(residual_covariance(noise, C, w), axis1=-2, axis2=-1))
         sums[0] += np.bincount(f, np.sum(err[:, :3] ** 2, axis=1), P)
         sums[1] += np.bincount(f, np.sum(err[:, 3:] ** 2, axis=1), P)
         sums[2] += np.bincount(f, np.sum((err / sig) ** 2, axis=1), P)

@@ -44,21 +44,28 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.gauss_newton import covariances_per_test, gauss_newton
-from analysis.identification.linear_model import design_block
+from analysis.identification.fitting import (  # noqa: F401 (re-exported: the public entry points stay)
+    COND_LIMIT,
+    _covariances,
+    _design,
+    _full,
+    _linear_estimator,
+    check_identifiable,
+    check_tests,
+    fit,
+    fit_exact,
+    fit_linear,
+)
 from analysis.identification.lsq import (
-    qr_solve,
     residual_variance_blocks,
     sandwich,
     scaled_condition,
     stack_matrix,
-    stack_vector,
-    weakest_column,
     whitening,
 )
-from analysis.identification.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays, to_arrays
+from analysis.identification.measurements import COMPONENTS, TestArrays, to_arrays
 from analysis.identification.noise import NoiseModel
-from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
+from analysis.identification.poses import count_poses, pose_tolerance
 from analysis.identification.result import Fit, IdentificationResult
 from analysis.identification.uncertainty import (
     chi2_summary,
@@ -66,12 +73,10 @@ from analysis.identification.uncertainty import (
     stiffness_interval,
     studentized,
 )
-from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
-COND_LIMIT = 1e6
 #: family-wise level of the outlier test: the chance that any residual of a fit to data
 #: that follow the noise model is flagged
 OUTLIER_FAMILY_LEVEL = 0.01
@@ -109,167 +114,6 @@ def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...
     if len(set(out)) != len(out) or not out:
         raise InputError("list each joint once, e.g. 1,2,3", where="--joints")
     return tuple(sorted(out))
-
-
-def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
-                noise: NoiseModel | None = None) -> None:
-    """Refuse data that cannot identify ``joints``; messages name the line, column or joint.
-
-    Poses are told apart by :mod:`analysis.identification.poses` (joint angles
-    equal to within the encoder noise of ``noise``).
-    """
-    if robot.n != 6:
-        raise InputError(f"{robot.name} has {robot.n} joints; the test format has 6")
-    for name, arr, cols in (("joint angles", tests.q, Q_COLS), ("wrench", tests.w, W_COLS)):
-        bad = ~np.isfinite(arr)
-        if np.any(bad):
-            i, j = np.argwhere(bad)[0]
-            raise InputError(f"line {tests.line[i]}, column {cols[j]}: {name} must be finite")
-    bad = np.isinf(tests.d) | (np.isnan(tests.d) & tests.measured)
-    if np.any(bad):
-        i, j = np.argwhere(bad)[0]
-        raise InputError(f"line {tests.line[i]}, component {COMPONENTS[j]}: displacement must "
-                         "be finite where measured")
-    zero = np.all(tests.w == 0.0, axis=1)
-    if np.any(zero):
-        i = int(np.flatnonzero(zero)[0])
-        raise InputError(f"line {tests.line[i]}, columns {', '.join(W_COLS)}: zero wrench; a "
-                         "test needs a load")
-    tol = 1e-9
-    out = (tests.q < robot.lower - tol) | (tests.q > robot.upper + tol)
-    if np.any(out):
-        i, j = np.argwhere(out)[0]
-        raise InputError(
-            f"line {tests.line[i]}, column {Q_COLS[j]}: {np.degrees(tests.q[i, j]):.3f} deg is "
-            f"outside the limits of {robot.name} [{np.degrees(robot.lower[j]):.1f}, "
-            f"{np.degrees(robot.upper[j]):.1f}] deg (model convention; a controller-angle mix-up?)",
-        )
-    n_eq = int(tests.measured.sum())
-    if n_eq < len(joints):
-        raise InputError(
-            f"{n_eq} measured displacement components for {len(joints)} unknown joint "
-            f"compliances: fewer equations than unknowns; add tests"
-        )
-    tol = pose_tolerance(noise)
-    if count_poses(tests.q, tol) < 2:
-        raise InputError(
-            f"all {tests.m} tests (lines {tests.line[0]}..{tests.line[-1]}, columns "
-            f"{Q_COLS[0]}..{Q_COLS[-1]}) are at one pose (joint angles equal to within "
-            f"{np.degrees(tol):.2g} deg, {POSE_TOLERANCE_SIGMAS:g} encoder sigmas): errors of "
-            "the kinematic model and tool point cannot be told from compliance, and nothing "
-            "can be validated; measure at two poses or more"
-        )
-
-
-#: the last Jacobian computed by :func:`_jacobian` (the fit, the outlier refits and the
-#: checks of one identification all need J at the same joint angles)
-_J_CACHE: dict = {}
-
-
-def _jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
-    """J(q) (m, 6, 6), reused while the robot and the bytes of q are the same."""
-    import hashlib
-
-    q = np.ascontiguousarray(q, dtype=float)
-    key = (id(robot), q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest())
-    if _J_CACHE.get("key") != key or _J_CACHE.get("robot") is not robot:
-        _J_CACHE.clear()
-        _J_CACHE.update(key=key, robot=robot, J=jacobian(robot, q))
-    return _J_CACHE["J"]
-
-
-def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]):
-    J = _jacobian(robot, tests.q)
-    A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
-    return J, A
-
-
-def check_identifiable(
-    A: np.ndarray, joints: tuple[int, ...], cond_limit: float = COND_LIMIT
-) -> float:
-    """Condition number of the column-scaled A (m, 6, p); refuse naming the weakest joint."""
-    stacked = stack_matrix(A)
-    norms = np.linalg.norm(stacked, axis=0)
-    if np.any(norms == 0):
-        j = joints[int(np.flatnonzero(norms == 0)[0])]
-        raise InputError(
-            f"joint {j + 1} cannot be identified: no test moves the tool through it "
-            f"(its column of A is zero: no torque on joint {j + 1}, or no measured component "
-            "it moves); take it as rigid with --joints or add tests that load it",
-            where="--joints",
-        )
-    cond = float(scaled_condition(stacked))
-    if not cond <= cond_limit:
-        j = joints[weakest_column(stacked)]
-        raise InputError(
-            f"joint {j + 1} cannot be identified from these tests: the condition number of "
-            f"the column-scaled A is {cond:.3g} (limit {cond_limit:.0e}) and joint {j + 1} "
-            "dominates its null direction; take it as rigid with --joints or add poses",
-            where="--joints",
-        )
-    return cond
-
-
-def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured) -> np.ndarray:
-    return covariances_per_test(noise, J, x_full, measured)
-
-
-def _linear_estimator(A, d, measured, cov, weighted: bool):
-    """x = G d for per-test blocks; returns x, bread (p, p), Linv (m, 6, 6) or None.
-
-    G = bread A^T Linv^T Linv (bread A^T for OLS), see :class:`Fit`.
-    """
-    dz = np.where(measured, d, 0.0)
-    if weighted:
-        Linv = whitening(cov, measured)
-        x, bread, _ = qr_solve(stack_matrix(Linv @ A), stack_vector(np.einsum(
-            "...ij,...j->...i", Linv, dz)), with_pinv=False)
-        return x, bread, Linv
-    x, bread, _ = qr_solve(stack_matrix(A), stack_vector(dz), with_pinv=False)
-    return x, bread, None
-
-
-def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
-    x = np.zeros(6)
-    x[list(joints)] = x_p
-    return x
-
-
-def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
-    """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18)."""
-    J, A = _design(robot, tests, joints)
-    x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, None, weighted=False)
-    if weighted:
-        for _ in range(2):
-            cov = _covariances(noise, J, _full(x, joints), tests.measured)
-            x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
-    else:
-        cov = _covariances(noise, J, _full(x, joints), tests.measured)
-    pred = np.einsum("mrp,p->mr", A, x)
-    return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv)
-
-
-def fit_exact(robot, tests, joints, noise, start: np.ndarray) -> Fit:
-    """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,)."""
-    gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start)
-    if not gn.valid:
-        raise InputError(
-            "the exact fit cannot start: the equilibrium has no solution at the linear "
-            "estimate of the compliances (some k far too small, or negative); check the "
-            "data or use --method wls", where="--method")
-    # the linearised estimator at the solution: bread = (F^T W F)^-1 = gn.cov_x
-    return Fit(x=gn.x, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations,
-               bread=gn.cov_x, Linv=whitening(gn.cov, tests.measured))
-
-
-def fit(robot, tests, joints, noise, method) -> Fit:
-    """Fit by ``method`` (ols, wls, exact)."""
-    if method == "ols":
-        return fit_linear(robot, tests, joints, noise, weighted=False)
-    if method == "wls":
-        return fit_linear(robot, tests, joints, noise, weighted=True)
-    start = fit_linear(robot, tests, joints, noise, weighted=False).x
-    return fit_exact(robot, tests, joints, noise, start)
 
 
 #: at most this many residuals are set aside one by one by :func:`flag_outliers`
@@ -404,6 +248,9 @@ def identify(
     Linv = chosen.Linv if chosen.Linv is not None else whitening(chosen.cov, tests.measured)
     resid = np.where(tests.measured, tests.d - chosen.predicted, 0.0)
     chi2_red, p_value = chi2_summary(np.einsum("mij,mj->mi", Linv, resid), dof)
+    from analysis.identification.noise_check import noise_ratio_notes
+
+    warnings += noise_ratio_notes(resid, chosen.cov, tests.measured, noise, len(joints))
     scale = 1.0
     crit = critical_value(confidence)
     if covariance == "residual":
@@ -415,6 +262,13 @@ def identify(
     cov_x = cov_x * scale
     se_x = np.sqrt(np.diag(cov_x))
     ci = stiffness_interval(chosen.x, se_x, crit)
+    if method in ("ols", "wls"):
+        from analysis.identification.linear_bias import bias_decision, linearisation_bias
+
+        widen, note = bias_decision(method, joints, linearisation_bias(
+            robot, tests, joints, chosen.x, chosen.estimator, chosen.predicted), se_x)
+        ci = stiffness_interval(chosen.x, se_x + widen / crit, crit)
+        warnings.append(note)
     if np.isfinite(p_value) and p_value < 1e-3:
         warnings.append(f"reduced chi-square {chi2_red:.3g} (p = {p_value:.2g}): residuals do "
                         "not match the noise model; check the noise figures or use "
@@ -430,7 +284,8 @@ def identify(
     flagged = residuals[residuals["outlier"]]
     if len(flagged):
         where = ", ".join(
-            f"line {r.line} (pose {r.pose}) {r.component} t = {r.studentized:.1f}"
+            f"test {r.test + 1} line {r.line} (pose {r.pose}) {r.component} "
+            f"t = {r.studentized:.1f}"
             for r in flagged.reindex(flagged["studentized"].abs().sort_values(
                 ascending=False).index).head(5).itertuples())
         more = f" and {len(flagged) - 5} more" if len(flagged) > 5 else ""

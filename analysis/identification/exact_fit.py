@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.kinetostatics.equilibrium import EquilibriumError
+from analysis.kinetostatics.equilibrium import EquilibriumError, newton_deflection
 from analysis.kinetostatics.stiffness import complementary_stiffness_from_state
 from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
 from analysis.model.robot_model import RobotModel
@@ -99,33 +99,11 @@ def solve_deflection_masked(
     converged (max |step| <= max(tol, 1e-12) at the end) with a finite
     deflection below ``max_deflection`` (rad) and a nonsingular Jacobian.
     Used where some of many campaigns may hold absurd estimates (Monte-Carlo).
+    The solver is :func:`analysis.kinetostatics.equilibrium.newton_deflection`.
     """
-    q = np.asarray(q, dtype=float)
-    x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
-    w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
-    n = q.shape[-1]
-    dq = np.zeros_like(q)
-    bad = np.zeros(q.shape[:-1], dtype=bool)
-    last = np.full(q.shape[:-1], np.inf)
-    eye = np.eye(n)
-    for _ in range(max_iter):
-        state = chain_state(robot, q + dq)
-        tau = np.einsum("...ji,...j->...i", jacobian_from_state(state), w)
-        F = np.where(bad[..., None], 0.0, dq - x * tau)
-        dF = eye - x[..., :, None] * complementary_stiffness_from_state(state, w)
-        singular = ~np.isfinite(dF).all(axis=(-2, -1))
-        singular |= np.abs(np.linalg.det(np.where(singular[..., None, None], eye, dF))) < 1e-12
-        bad |= singular
-        dF = np.where(bad[..., None, None], eye, dF)
-        step = np.linalg.solve(dF, F[..., None])[..., 0]
-        dq = dq - step
-        bad |= ~np.isfinite(dq).all(axis=-1) | (np.max(np.abs(dq), axis=-1) > max_deflection)
-        dq = np.where(bad[..., None], 0.0, dq)
-        last = np.where(bad, np.inf, np.max(np.abs(step), axis=-1, initial=0.0))
-        if np.all(bad | (last <= tol)):
-            break
-    ok = ~bad & (last <= max(tol, 1e-12))
-    return dq, ok
+    dq, bad, last = newton_deflection(robot, q, x, w, tol, max_iter,
+                                      max_deflection=max_deflection)
+    return dq, ~bad & (last <= max(tol, 1e-12))
 
 
 def model_displacement(

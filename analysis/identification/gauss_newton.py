@@ -61,9 +61,10 @@ def _model_in_blocks(robot, q, x, w, with_jacobian):
     return f, F, ok
 
 
-def covariances_per_test(noise, J, x_full, measured) -> np.ndarray:
+def covariances_per_test(noise, J, x_full, measured, w=None) -> np.ndarray:
     """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6).
 
+    ``w`` (..., m, 6): the measured wrenches, for wrench noise proportional to the reading.
     One campaign (J (m, 6, 6)) is done in blocks of :data:`EVAL_BLOCK` tests
     (the (m, 6, 6) temporaries of 1e6 tests do not fit in cache).
     """
@@ -71,10 +72,11 @@ def covariances_per_test(noise, J, x_full, measured) -> np.ndarray:
         out = np.empty(J.shape[:-1] + (6,))
         for s in range(0, J.shape[0], EVAL_BLOCK):
             sl = slice(s, s + EVAL_BLOCK)
-            out[sl] = covariances_per_test(noise, J[sl], x_full, measured[sl])
+            out[sl] = covariances_per_test(noise, J[sl], x_full, measured[sl],
+                                           None if w is None else w[sl])
         return out
     C = (J * x_full[..., None, None, :]) @ np.swapaxes(J, -1, -2)  # J diag(x) J^T
-    cov = residual_covariance(noise, C)
+    cov = residual_covariance(noise, C, w)
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
 
 
@@ -132,7 +134,7 @@ def gauss_newton(
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
         if iterations <= reweight_iterations:
-            Linv = whitening(covariances_per_test(noise, J, full(x), measured), measured)
+            Linv = whitening(covariances_per_test(noise, J, full(x), measured, w), measured)
         r = whitened(Linv, f)
         Aw = stack_matrix(Linv @ F)
         Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined
@@ -160,7 +162,7 @@ def gauss_newton(
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
         if np.all(converged | ~valid):
             break
-    cov = covariances_per_test(noise, J, full(x), measured)
+    cov = covariances_per_test(noise, J, full(x), measured, w)
     Linv = whitening(cov, measured)
     Aw = stack_matrix(Linv @ F)
     Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined

@@ -28,8 +28,14 @@ Defaults and where they come from
   (ATI Omega160 class) with an uncertainty of 1.25 % of full scale at 95 %:
   sigma_f = 15.6 N, sigma_m = 2.5 N m. Taring and gravity compensation are
   assumed done; drift is not modelled.
+  A sensor specified in % of the reading adds ``force_relative`` times the
+  magnitude of the measured force (and ``moment_relative`` times that of the
+  moment) to every component, in quadrature with the absolute sigma.
 * Joint angles: encoder resolution 0.001 deg, quantisation sigma =
-  resolution / sqrt(12) (joint-angle calibration errors are not modelled).
+  resolution / sqrt(12) (joint-angle calibration errors are not modelled),
+  or ``joint_sigma_override``. Joint-angle noise moves the model's
+  displacement by ``sum_k dd/dq_k dq_k``; :func:`residual_covariance` adds that
+  term when it is given the derivative.
 """
 
 from __future__ import annotations
@@ -60,6 +66,9 @@ class NoiseModel:
     encoder_resolution : joint encoder resolution (rad).
     translation_sigma_override, rotation_sigma_override : if set, the standard
         deviation of one displacement component (m, rad) used as is.
+    force_relative, moment_relative : wrench noise proportional to the reading,
+        as a fraction of |f| (of |m|) per component (0.005 = 0.5 % of reading).
+    joint_sigma_override : if set, sigma of a joint angle reading (rad).
     """
 
     tracker_transverse_mpe_m: float = 15e-6
@@ -75,6 +84,9 @@ class NoiseModel:
     encoder_resolution: float = np.radians(0.001)
     translation_sigma_override: float | None = None
     rotation_sigma_override: float | None = None
+    force_relative: float = 0.0
+    moment_relative: float = 0.0
+    joint_sigma_override: float | None = None
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
@@ -127,9 +139,29 @@ class NoiseModel:
         """(6,) sigma of [fx fy fz (N); mx my mz (N m)]."""
         return np.array([self.force_sigma] * 3 + [self.moment_sigma] * 3)
 
+    def wrench_sigma_at(self, wrench: np.ndarray | None = None) -> np.ndarray:
+        """(..., 6) sigma of each wrench component for readings ``wrench`` (..., 6) (N, N m).
+
+        Absolute sigma in quadrature with the part proportional to the reading
+        (``force_relative`` |f|, ``moment_relative`` |m|); :attr:`wrench_sigma`
+        when ``wrench`` is None or the relative parts are zero.
+        """
+        if wrench is None or (self.force_relative == 0 and self.moment_relative == 0):
+            return self.wrench_sigma if wrench is None else np.broadcast_to(
+                self.wrench_sigma, np.shape(wrench)).copy()
+        w = np.asarray(wrench, dtype=float)
+        f = self.force_relative * np.linalg.norm(w[..., :3], axis=-1)
+        m = self.moment_relative * np.linalg.norm(w[..., 3:], axis=-1)
+        sf = np.sqrt(self.force_sigma**2 + f**2)
+        sm = np.sqrt(self.moment_sigma**2 + m**2)
+        return np.concatenate([np.repeat(sf[..., None], 3, -1), np.repeat(sm[..., None], 3, -1)],
+                              axis=-1)
+
     @property
     def joint_sigma(self) -> float:
-        """sigma of a joint angle reading (rad): quantisation, resolution / sqrt(12)."""
+        """sigma of a joint angle reading (rad): the override, else resolution / sqrt(12)."""
+        if self.joint_sigma_override is not None:
+            return float(self.joint_sigma_override)
         return float(self.encoder_resolution / np.sqrt(12.0))
 
     def with_overrides(self, **values) -> NoiseModel:
@@ -143,6 +175,8 @@ class NoiseModel:
             "rotation_sigma_urad": self.rotation_sigma * 1e6,
             "force_sigma_N": self.force_sigma,
             "moment_sigma_Nm": self.moment_sigma,
+            "force_relative_percent": 100 * self.force_relative,
+            "moment_relative_percent": 100 * self.moment_relative,
             "joint_sigma_deg": float(np.degrees(self.joint_sigma)),
             "rotation_source": self.rotation_source,
             "tracker_distance_m": self.tracker_distance,
@@ -151,23 +185,34 @@ class NoiseModel:
 
 
 def residual_covariance(
-    noise: NoiseModel, compliance: np.ndarray | None = None
+    noise: NoiseModel,
+    compliance: np.ndarray | None = None,
+    wrench: np.ndarray | None = None,
+    joint_gradient: np.ndarray | None = None,
 ) -> np.ndarray:
     """Covariance (..., 6, 6) of the residual ``d_measured - A x`` of one test.
 
-    ``Sigma = diag(sigma_d^2) + C diag(sigma_w^2) C^T``: the displacement noise
-    plus the wrench noise propagated at first order through the Cartesian
-    compliance ``C = J K_theta^-1 J^T`` (m/N, rad/(N m), ...), since the model
-    ``A x = C w`` is evaluated at the measured wrench. ``compliance`` None
-    gives the displacement term only. Joint-angle noise is left out: with
-    encoder quantisation it changes A by ~1e-5 relative, far below the rest.
+    ``Sigma = diag(sigma_d^2) + C diag(sigma_w^2) C^T [+ sigma_q^2 G G^T]``: the
+    displacement noise plus the wrench noise propagated at first order through
+    the Cartesian compliance ``C = J K_theta^-1 J^T`` (m/N, rad/(N m), ...),
+    since the model ``A x = C w`` is evaluated at the measured wrench.
+    ``wrench`` (..., 6) (N, N m): the readings, for noise proportional to the
+    reading (:meth:`NoiseModel.wrench_sigma_at`). ``joint_gradient`` (..., 6, n):
+    derivative of the model displacement with respect to the measured joint
+    angles (m/rad, rad/rad), for the encoder term; left out when None (with
+    encoder quantisation it is ~1e-5 of the deflection, far below the rest).
+    ``compliance`` None gives the displacement term only.
     """
     sig = np.diag(noise.displacement_sigma**2)
-    if compliance is None:
-        return sig
-    C = np.asarray(compliance, dtype=float)
-    # C diag(s^2) C^T as one batched matmul (a 3-operand einsum is ~5x slower at 1e6 tests)
-    return sig + (C * noise.wrench_sigma**2) @ np.swapaxes(C, -1, -2)
+    if compliance is not None:
+        C = np.asarray(compliance, dtype=float)
+        ws2 = noise.wrench_sigma_at(wrench) ** 2
+        # C diag(s^2) C^T as a batched matmul (a 3-operand einsum is ~5x slower at 1e6 tests)
+        sig = sig + (C * ws2[..., None, :]) @ np.swapaxes(C, -1, -2)
+    if joint_gradient is not None:
+        G = np.asarray(joint_gradient, dtype=float)
+        sig = sig + noise.joint_sigma**2 * (G @ np.swapaxes(G, -1, -2))
+    return sig
 
 
 def rigid_fit_sigma(

@@ -37,7 +37,7 @@ CAUSES_MISFIT = (
     "--tool-xyz-mm/--tool-rpy-deg or the protocol's [tool])",
     "units (q in deg, forces in N, moments in N m, displacements in mm, rotations in mrad)",
     "the pose sign convention (model vs controller joint angles, base-frame components)",
-    "the noise figures (--sigma-translation-um, --sigma-rotation-urad, --force-sigma-N, "
+    "the noise figures (--translation-sigma-um, --rotation-sigma-urad, --force-sigma-N, "
     "--moment-sigma-Nm)",
 )
 CAUSES_TOO_GOOD = (

@@ -20,6 +20,32 @@ CI_METHOD = (
 )
 
 
+@dataclass(frozen=True)
+class FactoredEstimator:
+    """x = G d with G = bread A^T W (W = Linv^T Linv per test, identity if Linv is None),
+    applied to stacked vectors (6m,) block by block (never forming the p x 6m G)."""
+
+    bread: np.ndarray
+    A: np.ndarray
+    Linv: np.ndarray | None = None
+    block: int = 8_000
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.bread.shape[0], 6 * self.A.shape[0])
+
+    def __matmul__(self, v: np.ndarray) -> np.ndarray:
+        v = np.asarray(v, dtype=float).reshape(self.A.shape[0], 6)
+        acc = np.zeros(self.A.shape[-1])
+        for s in range(0, self.A.shape[0], self.block):
+            vb = v[s:s + self.block]
+            if self.Linv is not None:
+                Lb = self.Linv[s:s + self.block]
+                vb = np.einsum("mji,mj->mi", Lb, np.einsum("mij,mj->mi", Lb, vb))
+            acc += np.einsum("mrp,mr->p", self.A[s:s + self.block], vb)
+        return self.bread @ acc
+
+
 @dataclass
 class Fit:
     """One estimator's output on per-test blocks (internal).
@@ -40,6 +66,11 @@ class Fit:
     iterations: int
     bread: np.ndarray
     Linv: np.ndarray | None = None
+
+    @property
+    def estimator(self) -> FactoredEstimator:
+        """G as an operator: ``fit.estimator @ v`` = G v for stacked v (6m,), blockwise."""
+        return FactoredEstimator(self.bread, self.A, self.Linv)
 
     @property
     def G(self) -> np.ndarray:

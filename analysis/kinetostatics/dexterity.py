@@ -4,7 +4,6 @@ and the characteristic length."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize
 
 from analysis.kinetostatics.small_linalg import inverse_frobenius2, to_entry_major
 from analysis.model.kinematics import jacobian
@@ -80,6 +79,8 @@ def characteristic_length(
     -------
     (L, q_opt, kappa_min) : L in m, the optimal posture (rad), the minimum kappa_F.
     """
+    from scipy.optimize import minimize  # heavy: only this search needs it
+
     rng = np.random.default_rng(seed)
     reach = np.linalg.norm(robot.chain.placements[:, :3, 3], axis=1).sum() + np.linalg.norm(
         robot.chain.tip[:3, 3]

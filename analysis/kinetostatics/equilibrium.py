@@ -27,6 +27,70 @@ class EquilibriumError(RuntimeError):
         self.unconverged = unconverged
 
 
+def newton_deflection(
+    robot: RobotModel,
+    q: np.ndarray,
+    x: np.ndarray,
+    w: np.ndarray,
+    tol: float = 1e-14,
+    max_iter: int = 50,
+    dq0: np.ndarray | None = None,
+    max_deflection: float = np.inf,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The one Newton solver of the equilibrium, batched, in joint compliances; never raises.
+
+    Solves ``F(dq) = dq - x * J(q + dq)^T w = 0`` (``K_theta dq = J^T w``
+    multiplied by ``X = K_theta^-1``: the same Newton steps as the stiffness
+    form, ``(K_theta - K_C)^-1 (K_theta dq - J^T w)``, and defined for rigid
+    joints, x = 0). Its Jacobian is ``I - X K_C(q + dq)``.
+
+    Parameters
+    ----------
+    q : (..., n) joint angles (rad). x : (n,) or (..., n) joint compliances
+        (rad/(N m)). w : (..., 6) wrench [f (N); m (N m)] at P, base frame.
+    tol : a pose has converged when its last max |step| <= tol (rad; relative to
+        max |dq| when that exceeds 1 rad); iteration
+        stops when every pose has converged or failed.
+    dq0 : (..., n) starting guess (rad), zero if None.
+    max_deflection : a pose whose |dq| exceeds this (rad) is marked failed.
+
+    Returns
+    -------
+    dq : (..., n) deflection (rad), 0 where failed.
+    failed : (...) bool, singular Newton matrix, non-finite or too large deflection.
+    last_step : (...) last max |step| of each pose (rad), divided by max |dq| when that
+        exceeds 1 rad; inf where failed.
+    """
+    q = np.asarray(q, dtype=float)
+    x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
+    w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
+    n = q.shape[-1]
+    dq = np.zeros_like(q) if dq0 is None else np.array(dq0, dtype=float)
+    bad = np.zeros(q.shape[:-1], dtype=bool)
+    last = np.full(q.shape[:-1], np.inf)
+    eye = np.eye(n)
+    for _ in range(max_iter):
+        state = chain_state(robot, q + dq)
+        tau = np.einsum("...ji,...j->...i", jacobian_from_state(state), w)
+        F = np.where(bad[..., None], 0.0, dq - x * tau)
+        dF = eye - x[..., :, None] * complementary_stiffness_from_state(state, w)
+        singular = ~np.isfinite(dF).all(axis=(-2, -1))
+        singular |= np.abs(np.linalg.det(np.where(singular[..., None, None], eye, dF))) < 1e-12
+        bad |= singular
+        dF = np.where(bad[..., None, None], eye, dF)
+        step = np.linalg.solve(dF, F[..., None])[..., 0]
+        dq = dq - step
+        bad |= ~np.isfinite(dq).all(axis=-1) | (np.max(np.abs(dq), axis=-1) > max_deflection)
+        dq = np.where(bad[..., None], 0.0, dq)
+        # relative to the deflection once it exceeds 1 rad: rounding keeps the step of a
+        # converged large deflection above an absolute 1e-14 rad
+        scale = np.maximum(1.0, np.max(np.abs(dq), axis=-1, initial=0.0))
+        last = np.where(bad, np.inf, np.max(np.abs(step), axis=-1, initial=0.0) / scale)
+        if np.all(bad | (last <= tol)):
+            break
+    return dq, bad, last
+
+
 def solve_deflection(
     robot: RobotModel,
     q: np.ndarray,
@@ -44,29 +108,24 @@ def solve_deflection(
     w : (..., 6) wrench [f (N); m (N m)] at P, base frame.
     tol : convergence on max |step| (rad), relative to max |dq| when that exceeds 1 rad.
     dq0 : (..., n) starting guess (rad), e.g. the solution at a nearby pose; zero if None.
+
+    Raises
+    ------
+    EquilibriumError
+        Some pose did not converge in ``max_iter`` steps (or its Newton matrix
+        is singular); ``unconverged`` masks those poses.
     """
-    q = np.asarray(q, dtype=float)
-    k = np.asarray(k, dtype=float)
-    w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
-    n = q.shape[-1]
-    Kt = k[..., :, None] * np.eye(n)
-    dq = np.zeros_like(q) if dq0 is None else np.array(dq0, dtype=float)
-    for _ in range(max_iter):
-        state = chain_state(robot, q + dq)
-        J = jacobian_from_state(state)
-        resid = k * dq - np.einsum("...ji,...j->...i", J, w)
-        jac = Kt - complementary_stiffness_from_state(state, w)
-        step = np.linalg.solve(jac, resid[..., None])[..., 0]
-        dq = dq - step
-        # relative to the deflection once it exceeds 1 rad: rounding keeps the step of a
-        # converged large deflection above an absolute 1e-14 rad
-        if np.max(np.abs(step), initial=0.0) <= tol * max(1.0, np.max(np.abs(dq), initial=0.0)):
-            return dq
-    raise EquilibriumError(
-        f"equilibrium did not converge in {max_iter} Newton steps (last step "
-        f"{np.max(np.abs(step)):.3g} rad): the wrench is too large for this stiffness",
-        unconverged=np.max(np.abs(step), axis=-1) > tol,
-    )
+    x = 1.0 / np.asarray(k, dtype=float)
+    dq, bad, last = newton_deflection(robot, q, x, w, tol, max_iter, dq0)
+    unconverged = bad | (last > tol)
+    if np.any(unconverged):
+        worst = np.max(np.where(np.isfinite(last), last, np.inf))
+        raise EquilibriumError(
+            f"equilibrium did not converge in {max_iter} Newton steps (last step "
+            f"{worst:.3g} rad): the wrench is too large for this stiffness",
+            unconverged=unconverged,
+        )
+    return dq
 
 
 def displacement_screw(

@@ -45,10 +45,13 @@ def plot_joint_map(
         ax.plot([], [], "s", color="white", markeredgecolor="k", label="singular (hatched)")
     for name, (a, b), (c, d) in zones or []:
         ax.add_patch(plt.Rectangle((a, c), b - a, d - c, fill=False, ec="red", lw=1.5))
-        ax.text(a, d, f" {name}", color="red", va="top", ha="left", fontsize=8)
+        # inside the box (never clipped by the frame), on white (readable on any colour map)
+        ax.text(a, d, f"{name}", color="darkred", va="top", ha="left", fontsize=8,
+                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none",
+                      "alpha": 0.85})
     if points is not None and len(points):
         ax.plot(points["theta2_deg"], points["theta3_deg"], "o", mfc="white", mec="k",
-                label="planned poses")
+                mew=1.5, clip_on=False, zorder=5, label="planned poses")
     ax.set_xlabel("theta_2 (deg, model convention)")
     ax.set_ylabel("theta_3 (deg, model convention)")
     ax.set_title(title, fontsize=10)

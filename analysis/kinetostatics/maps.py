@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from analysis.kinetostatics.dexterity import inverse_condition_em
 from analysis.kinetostatics.small_linalg import to_entry_major
@@ -23,6 +23,9 @@ from analysis.kinetostatics.stiffness import (
 )
 from analysis.model.kinematics import chain_state, jacobian_from_state
 from analysis.model.robot_model import RobotModel
+
+if TYPE_CHECKING:  # pandas is imported where a table is built (CLI start-up time)
+    import pandas as pd
 
 #: Worst-case wrench of the paper's section 3 (N, N m): 2200 N along and 400 N m about each axis.
 WORST_CASE_WRENCH = np.array([2200.0, 2200.0, 2200.0, 400.0, 400.0, 400.0])
@@ -121,6 +124,8 @@ def joint_space_map(
     (position of P), ``inv_kappa_F``, ``v_p``, ``v_r_deg``, ``deflection_mm``
     (norm of the translational deflection under w, with K_C), ``singular``.
     """
+    import pandas as pd
+
     q = grid.poses()
     m = pose_metrics(robot, q, k, w, length)
     pos = m["position"].reshape(-1, 3)

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from analysis.model.ik_soa import NormalChain, solve_wrist
 from analysis.model.kinematics import pose_difference, tool_pose
 from analysis.model.robot_model import RobotModel
 
@@ -152,6 +153,7 @@ class IKSolver:
     planar_w: np.ndarray | None = None  # the planar problem's end point in frame 3 (m)
     point_in_4: np.ndarray | None = None  # parallel_axes: the axes-5-6 point in frame 4 (m)
     axis2_in_4: np.ndarray | None = None  # parallel_axes: axis 2 in frame 4 coordinates
+    normal: NormalChain | None = None  # spherical_wrist: the normalised chain (ik_soa)
 
     @property
     def flags(self) -> tuple[tuple[int, int, int], ...]:
@@ -176,9 +178,10 @@ class IKSolver:
                 and not _parallel(f.axis[4], f.axis[5]):
             local6 = f.rot[5].T @ (wrist - f.pos[5])
             w3 = f.rot[2].T @ (wrist - f.pos[2])
+            normal = NormalChain.build(ch.placements, ch.axes, ch.tip, local6, w3)
             return cls(robot, "spherical_wrist", point_local=local6,
                        lateral=float((wrist - p0) @ u2), s3=s3,
-                       planar_w=ch.placements[2, :3, :3] @ w3)
+                       planar_w=ch.placements[2, :3, :3] @ w3, normal=normal)
         s4 = _parallel(f.axis[1], f.axis[3])
         x56, dist = _closest_point(f.origin[4:], f.axis[4:])
         if s4 and dist <= 1e-12 * scale and not _parallel(f.axis[4], f.axis[5]) \
@@ -239,35 +242,18 @@ class IKSolver:
         return R @ ch.placements[2, :3, :3] @ _rot(ch.axes[2], q3)
 
     def _solve_spherical(self, T: np.ndarray, flags: tuple[int, int, int]):
-        ch = self.robot.chain
-        shoulder, elbow, wrist = flags
-        R6 = T[..., :3, :3] @ ch.tip[:3, :3].T
-        o6 = T[..., :3, 3] - _mv(R6, np.broadcast_to(ch.tip[:3, 3], T.shape[:-2] + (3,)))
-        c = o6 + _mv(R6, np.broadcast_to(self.point_local, o6.shape))
-        q1, ok1 = self._q1(c, shoulder)
-        q2, q3, ok2 = self._q23(q1, c, elbow)
-        R3 = self._arm_rotation(q1, q2, q3)
-        Wt = np.swapaxes(R3, -1, -2) @ R6  # wrist rotation, frame 3 -> frame 6
-        P4, P5, P6 = (ch.placements[i, :3, :3] for i in (3, 4, 5))
-        a4, a5, a6 = ch.axes[3], ch.axes[4], ch.axes[5]
-        y = _mtv(np.broadcast_to(P4, Wt.shape), _mv(Wt, np.broadcast_to(a6, c.shape)))
-        w1, w2 = a4, P5 @ a5
-        x = P5 @ P6 @ a6
-        c12 = w1 @ w2
-        den = c12 * c12 - 1.0
-        alpha = (c12 * (w2 @ x) - _dot(y, w1)) / den
-        beta = (c12 * _dot(y, w1) - w2 @ x) / den
-        n12 = np.cross(w1, w2)
-        g2 = (x @ x - alpha**2 - beta**2 - 2 * alpha * beta * c12) / (n12 @ n12)
-        gamma = wrist * np.sqrt(np.maximum(g2, 0.0))
-        z = alpha[..., None] * w1 + beta[..., None] * w2 + gamma[..., None] * n12
-        q5 = _subproblem1(w2, np.broadcast_to(x, z.shape), z)
-        q4 = _subproblem1(w1, z, y)
-        M = np.swapaxes(P4 @ _rot(a4, q4) @ P5 @ _rot(a5, q5) @ P6, -1, -2) @ Wt
-        r = _perpendicular(a6)
-        q6 = _subproblem1(a6, np.broadcast_to(r, z.shape), _mv(M, np.broadcast_to(r, z.shape)))
-        q = np.stack([q1, q2, q3, q4, q5, q6], axis=-1)
-        return _wrap(q), ok1 & ok2 & (g2 > -1e-9)
+        """The structure-of-arrays solver of :mod:`analysis.model.ik_soa` on poses T."""
+        L = self.normal
+        R, p = T[..., :3, :3], T[..., :3, 3]
+
+        def turn(v):  # R v for a constant v, as three arrays
+            return tuple(R[..., i, :] @ v for i in range(3))
+
+        tool = turn(L.tool)
+        centre = tuple(p[..., i] + tool[i] for i in range(3))
+        sol = solve_wrist(L, centre, turn(L.k6z), turn(L.k6x), flags)
+        q = np.stack(np.broadcast_arrays(*sol.q), axis=-1)
+        return _wrap(q), np.broadcast_to(sol.ok, q.shape[:-1])
 
     def _solve_parallel(self, T: np.ndarray, flags: tuple[int, int, int]):
         ch = self.robot.chain

@@ -133,12 +133,17 @@ def pin_jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
 
 
 def rotation_vector(rot: np.ndarray) -> np.ndarray:
-    """Rotation vector (..., 3) (rad) of rotation matrices (..., 3, 3)."""
-    from scipy.spatial.transform import Rotation
+    """Rotation vector (..., 3) (rad) of rotation matrices (..., 3, 3).
 
+    Pinocchio's SO(3) logarithm, one matrix at a time: scipy's Rotation gives the
+    same numbers (to 1e-15 rad relative) but importing scipy.spatial costs about
+    0.35 s of CPU, paid by every command that reports a deflection.
+    """
     rot = np.asarray(rot, dtype=float)
     flat = rot.reshape(-1, 3, 3)
-    vec = Rotation.from_matrix(flat).as_rotvec()
+    vec = np.empty((flat.shape[0], 3))
+    for i, m in enumerate(flat):
+        vec[i] = pin.log3(m)
     return vec.reshape(*rot.shape[:-2], 3)
 
 

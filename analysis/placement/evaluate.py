@@ -84,10 +84,21 @@ class Triples:
 
 
 def evaluate(problem: Problem, solver: IKSolver, placements: np.ndarray,
-             flags: tuple[int, int, int], rotations: np.ndarray | None = None) -> Triples:
-    """Evaluate every (placement, point, angle) triple in configuration ``flags``."""
+             flags: tuple[int, int, int], rotations: np.ndarray | None = None,
+             general: bool = False) -> Triples:
+    """Evaluate every (placement, point, angle) triple in configuration ``flags``.
+
+    A spherical wrist goes through :mod:`analysis.placement.wrist_eval` (J from the
+    IK's frames) unless ``general``: then, as for every other solver, J comes from
+    the chain kinematics of :mod:`analysis.model.kinematics` at the IK's joints.
+    """
     robot = problem.robot
     R = problem.rotations if rotations is None else rotations
+    if solver.kind == "spherical_wrist" and not general:
+        from analysis.placement.wrist_eval import evaluate_wrist
+
+        return Triples(*evaluate_wrist(problem, solver, np.asarray(placements, dtype=float),
+                                       flags, R))
     T = target_poses(placements, problem.points, R)
     q, found = solver.solve(T, flags, check=False)
     q, in_limits = fit_limits(robot, np.where(found[..., None], q, 0.0), problem.margin)

@@ -14,8 +14,24 @@ from __future__ import annotations
 import numpy as np
 
 
-def _wrap(d: np.ndarray) -> np.ndarray:
-    return np.pi - np.mod(np.pi - d, 2 * np.pi)
+def _wide(qj: np.ndarray, max_step: float) -> bool:
+    """Whether two angles of this joint can differ by a whole turn plus at most max_step
+    (only then does the shortest way round differ from the plain difference)."""
+    finite = qj[np.isfinite(qj)]
+    return finite.size > 0 and float(finite.max() - finite.min()) >= 2 * np.pi - max_step
+
+
+def _reachable(qs: list, wide: list, n: int, max_step: float) -> np.ndarray:
+    """(B, A_now, A_prev): every joint moves by at most max_step (shortest way round)
+    from point n - 1 to point n; False where an angle is NaN."""
+    ok = None
+    for qj, w in zip(qs, wide, strict=True):
+        d = qj[:, n, :, None] - qj[:, n - 1, None, :]
+        if w:
+            d -= (2 * np.pi) * np.rint(d * (0.5 / np.pi))
+        np.abs(d, out=d)
+        ok = d <= max_step if ok is None else np.logical_and(ok, d <= max_step, out=ok)
+    return ok
 
 
 def choose_angles(cost: np.ndarray, q: np.ndarray, max_step: float, mode: str):
@@ -40,9 +56,12 @@ def choose_angles(cost: np.ndarray, q: np.ndarray, max_step: float, mode: str):
     V = c[:, 0].copy()
     back = np.zeros((B, N, A), dtype=np.int32)
     stuck = np.where(np.all(np.isinf(V), axis=1), 0, -1)
+    # one contiguous (B, N, A) array per joint: the pair tests below run joint by joint
+    qs = [np.ascontiguousarray(q[..., j]) for j in range(q.shape[-1])]
+    wide = [_wide(qj, max_step) for qj in qs]
     for n in range(1, N):
-        d = np.max(np.abs(_wrap(q[:, n, :, None, :] - q[:, n - 1, None, :, :])), axis=-1)
-        cand = np.where(d <= max_step, V[:, None, :], np.inf)  # (B, A_now, A_prev)
+        reach = _reachable(qs, wide, n, max_step)
+        cand = np.where(reach, V[:, None, :], np.inf)  # (B, A_now, A_prev)
         b = np.argmin(cand, axis=-1)
         best = np.take_along_axis(cand, b[..., None], axis=-1)[..., 0]
         V = best + c[:, n] if square else np.maximum(best, c[:, n])

@@ -6,7 +6,7 @@ naming its unit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -14,15 +14,18 @@ from analysis.identification.estimate import OUTLIER_FAMILY_LEVEL
 from analysis.identification.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.result import IdentificationResult
+from analysis.kinetostatics.map_fixed import MapFixed, map_fixed_joints
 from analysis.model.robot_model import RobotModel
 from analysis.report import figures
 from analysis.report.design_robustness import design_robustness, design_tests
 from analysis.report.formatting import (
     MICRO,
+    PM,
+    clean,
+    eng,
     fixed,
     interval_kNm,
     k_kNm,
-    matrix_entry,
     percent,
     sig,
 )
@@ -56,9 +59,11 @@ class ReportInputs:
     info : campaign summary. noise : the noise model used for the identification.
     wrench : (6,) user wrench [N, N m] at P, base frame; wrench_source says where it comes from.
     poses : (label, q (6,) rad) where K_X is reported.
-    nominal : (6,) reference stiffness (N m/rad) or None; nominal_label names it.
+    nominal : (6,) reference stiffness (N m/rad) or None; nominal_label names it,
+        nominal_source says where its values come from (e.g. a paper's table).
     true_k : (6,) true stiffness of a simulated lab, or None.
-    map_fixed : (6,) joint values of the maps (rad; entries 2 and 3 ignored).
+    map_fixed : joint values of the maps (:class:`MapFixed`, or (6,) rad with entries
+        2 and 3 ignored; default the median of the tested poses).
     trials : Monte-Carlo trials per number of tests for the robustness curve.
     """
 
@@ -71,8 +76,9 @@ class ReportInputs:
     poses: list[tuple[str, np.ndarray]]
     nominal: np.ndarray | None = None
     nominal_label: str = "nominal"
+    nominal_source: str = ""
     true_k: np.ndarray | None = None
-    map_fixed: np.ndarray = field(default_factory=lambda: np.radians([0, 0, 0, 45, 45, 45]))
+    map_fixed: MapFixed | np.ndarray | None = None
     trials: int = 300
 
 
@@ -83,16 +89,22 @@ def wrench_text(w: np.ndarray) -> str:
     return f"f = ({f}) N, m = ({m}) N m"
 
 
-def fixed_text(q: np.ndarray) -> str:
-    deg = np.degrees(q)
-    return ", ".join(f"\u03b8{i + 1} = {deg[i]:.0f}" for i in (0, 3, 4, 5)) + " deg"
+def map_fixed_of(inp: ReportInputs) -> MapFixed:
+    """The maps' fixed joints as a :class:`MapFixed` (given, or by the one rule)."""
+    if isinstance(inp.map_fixed, MapFixed):
+        return inp.map_fixed
+    if inp.map_fixed is None:
+        return map_fixed_joints(inp.robot.n, None, inp.tests.q)
+    q = np.asarray(inp.map_fixed, dtype=float)
+    return MapFixed(q, (), ())
 
 
 def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
     """k, interval, standard error, comparison with the nominal (and true) values."""
     conf = f"{result.confidence:.0%}"
+    short = inp.nominal_label.split(" (")[0]  # "nominal" or "prior"
     cols = ["joint", "k (kN m/rad)", f"{conf} interval (kN m/rad)", "se (kN m/rad)",
-            "se/k (%)", f"{inp.nominal_label} (kN m/rad)", "k/nominal - 1 (%)"]
+            "se/k (%)", f"{inp.nominal_label} (kN m/rad)", f"k/{short} - 1 (%)"]
     if inp.true_k is not None:
         cols += ["true (kN m/rad)", "k/true - 1 (%)"]
     rows, marked = [], []
@@ -112,7 +124,9 @@ def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
         outside = ident and np.isfinite(nom) and not (result.ci[j, 0] <= nom <= result.ci[j, 1])
         marked.append(bool(outside))
     return Table("Identified joint stiffness", cols, rows, marked,
-                 caption=f"Highlighted: the {inp.nominal_label} value lies outside the "
+                 caption=(f"{short.capitalize()} values: {inp.nominal_source}. "
+                          if inp.nominal_source and inp.nominal is not None else "")
+                 + f"Highlighted: the {inp.nominal_label} value lies outside the "
                  f"{conf} interval. Interval: {conf} interval of the compliance 1/k mapped "
                  "to k ('inf': the data do not bound k from above).",
                  widths=[0.6, 1.1, 1.7, 1.0, 0.8, 1.2, 1.1] + ([1.0, 1.0] if inp.true_k
@@ -174,51 +188,94 @@ def validation_blocks(result: IdentificationResult) -> list:
     ]
 
 
+KX_ROWS = ["fx (N)", "fy (N)", "fz (N)", "mx (N m)", "my (N m)", "mz (N m)"]
+KX_COLS = ["x (/mm)", "y (/mm)", "z (/mm)", "rx (/mrad)", "ry (/mrad)", "rz (/mrad)"]
+
+
 def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> Table:
-    """K_X (with K_C) in engineering units: N/mm and N m/mrad blocks, principal stiffnesses."""
+    """K_X (with K_C) in engineering units, its diagonal with standard errors and the
+    principal stiffnesses.
+
+    Every column is per mm (translation) or per mrad (rotation) of P, every row
+    a force (N) or a moment (N m), so each SI entry is scaled by 1e-3: the
+    translational block reads in N/mm, the rotational one in N m/mrad.
+    """
     from analysis.kinetostatics.uncertainty import principal_stiffness
 
     pt, pr = principal_stiffness(ps.K_X)
+    M = clean(1e-3 * ps.K_X)
+    principal = 1e-3 * np.concatenate([pt, pr])
+    diag = np.diag(M)
     rows = []
-    for i, (unit, sl) in enumerate((("N/mm", slice(0, 3)), ("N m/mrad", slice(3, 6)))):
-        diag = 1e-3 * np.diag(ps.K_X)[sl]
-        se = None if se_diag is None else 1e-3 * se_diag[sl]
-        for a in range(3):
-            row = [AXES[3 * i + a], unit,
-                   *[f"{1e-3 * v:.4g}" for v in ps.K_X[sl, sl][a]],
-                   f"{diag[a]:.4g}" + ("" if se is None else f" \u00b1 {se[a]:.2g}"),
-                   f"{1e-3 * (pt if i == 0 else pr)[a]:.4g}"]
-            rows.append(row)
-    header = ["", "unit", "x / rx", "y / ry", "z / rz", "diagonal \u00b1 se", "principal"]
-    return Table(f"K_X at {label}, with K_C, engineering units", header, rows,
-                 caption="Translational block in N/mm, rotational block in N m/mrad. "
-                 "Principal stiffnesses: under a pure force (moment) along the principal "
-                 "directions, the inverses of the eigenvalues of the blocks of K_X^-1. "
-                 "Standard errors from the covariance of the identified compliances.",
-                 widths=[0.4, 0.8, 1, 1, 1, 1.4, 1], mono=True)
+    for i in range(6):
+        se = "" if se_diag is None else f" {PM} {sig(1e-3 * se_diag[i], 2)}"
+        rows.append([KX_ROWS[i], *[eng(v) for v in M[i]], eng(diag[i]) + se,
+                     eng(principal[i])])
+    return Table(f"K_X at {pose_title(label, start=False)}, with K_C",
+                 ["", *KX_COLS, f"diagonal {PM} se", "principal"], rows,
+                 caption="Row: force (N) or moment (N m) at P; column: translation (mm) or "
+                 "rotation (mrad) of P, base frame; so the translational block reads in N/mm "
+                 "and the rotational one in N m/mrad. Principal: the stiffness P shows under a "
+                 "pure force (top three, N/mm) or a pure moment (bottom three, N m/mrad) along "
+                 "the principal directions, largest first (inverse eigenvalues of the blocks "
+                 "of K_X\u207b\u00b9). Standard errors from the covariance of the identified "
+                 "compliances.",
+                 widths=[0.8, 0.9, 0.9, 0.9, 0.9, 0.9, 0.9, 1.2, 0.9], mono=True)
+
+
+def kc_effect_table(poses: list) -> Table:
+    """What K_C changes: deflection with and without it, relative change of the K_X blocks."""
+    rows = []
+    for ps in poses:
+        d, d0 = ps.deflection, ps.deflection_no_KC
+        dp, dp0 = 1e3 * np.linalg.norm(d[:3]), 1e3 * np.linalg.norm(d0[:3])
+        diff = 1e3 * np.linalg.norm(d[:3] - d0[:3])
+        rel = []
+        for sl in (slice(0, 3), slice(3, 6)):
+            a, b = ps.K_X[sl, sl], ps.K_X_no_KC[sl, sl]
+            rel.append(np.linalg.norm(a - b) / np.linalg.norm(b))
+        rows.append([ps.label, eng(dp), eng(dp0), eng(diff),
+                     fixed(100 * diff / dp, 2) if dp > 0 else "-",
+                     fixed(100 * rel[0], 2), fixed(100 * rel[1], 2)])
+    return Table(
+        "Effect of K_C (the load's geometric stiffness)",
+        ["pose", "|\u03b4p| with K_C (mm)", "|\u03b4p| without (mm)",
+         "|\u03b4p_with - \u03b4p_without| (mm)", "of |\u03b4p| (%)",
+         "\u0394K_X translation (%)", "\u0394K_X rotation (%)"], rows,
+        caption="\u0394K_X: Frobenius norm of K_X(with K_C) - K_X(without) over that of "
+        "K_X(without), per diagonal block. A few % or less: K_C can be neglected at "
+        "this load.", widths=[1.6, 1, 1, 1.3, 0.9, 1.1, 1.1])
 
 
 def kx_blocks(inp: ReportInputs, k_pred: np.ndarray,
               result: IdentificationResult | None = None) -> list:
     blocks: list = [Paragraph(
-        f"K_X = J^-T (K_\u03b8 - K_C) J^-1 (eq. 6) and without K_C (eq. 12), at P in the base "
-        f"frame, under the user wrench {wrench_text(inp.wrench)}. Units: rows/columns x, y, z "
-        "and rx, ry, rz; blocks N/m (translation), N m/rad (rotation), N/rad and N (mixed).")]
+        "K_X = J\u207b\u1d40 (K_\u03b8 \u2212 K_C) J\u207b\u00b9 (eq. 6), at P in the base "
+        f"frame, under the user wrench {wrench_text(inp.wrench)}; K_C is the "
+        "complementary stiffness the load adds through the change of J (eq. 12 drops it).")]
+    computed = []
     for label, q in inp.poses:
         ps = pose_stiffness(inp.robot, label, q, k_pred, inp.wrench)
-        deg = ", ".join(f"{v:.2f}" for v in np.degrees(ps.q))
-        dp, dp0 = 1e3 * ps.deflection[:3], 1e3 * ps.deflection_no_KC[:3]
+        computed.append(ps)
+        deg = ", ".join(fixed(v, 2) for v in clean(np.degrees(ps.q), 360.0))
+        d = clean(ps.deflection, np.abs(ps.deflection).max())
+        dp, dr = 1e3 * d[:3], 1e3 * d[3:]
         blocks.append(Paragraph(
-            f"Pose {label}: q = ({deg}) deg (model convention). Deflection of P: "
-            f"({', '.join(f'{v:.4f}' for v in dp)}) mm with K_C, "
-            f"({', '.join(f'{v:.4f}' for v in dp0)}) mm without; |\u03b4p| = "
-            f"{np.linalg.norm(dp):.4f} mm."))
-        for title, M in (("with K_C", ps.K_X), ("without K_C", ps.K_X_no_KC)):
-            rows = [[AXES[i], *[matrix_entry(v) for v in M[i]]] for i in range(6)]
-            blocks.append(Table(f"K_X at {label}, {title} (SI)", ["", *AXES], rows,
-                                widths=[0.5] + [1] * 6, mono=True))
+            f"{pose_title(label)}: q = ({deg}) deg (model convention). Deflection of P "
+            f"with K_C: \u03b4p = ({', '.join(eng(v, 3) for v in dp)}) mm, |\u03b4p| = "
+            f"{eng(float(np.linalg.norm(dp)), 3)} mm; \u03b4\u03c6 = "
+            f"({', '.join(eng(v, 3) for v in dr)}) mrad."))
         blocks.append(kx_engineering(ps, label, _kx_se_diag(inp, q, k_pred, result)))
+    if computed:
+        blocks.append(kc_effect_table(computed))
     return blocks
+
+
+def pose_title(label: str, start: bool = True) -> str:
+    """'Pose 1' ('pose 1' unless ``start``) for a bare label; a label that already
+    says 'pose' is not prefixed again (no 'Pose pose 1')."""
+    text = label if label.lower().startswith("pose") else f"pose {label}"
+    return text[0].upper() + text[1:] if start else text
 
 
 def _kx_se_diag(inp: ReportInputs, q: np.ndarray, k: np.ndarray,
@@ -271,9 +328,11 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     """Assemble the report's sections (runs the maps and the Monte-Carlo study)."""
     k_pred, pred_notes = stiffness_for_prediction(result.k, inp.nominal)
     length, length_source = map_length(inp.robot)
-    table = deflection_map(inp.robot, k_pred, inp.wrench, inp.map_fixed, length)
+    mf = map_fixed_of(inp)
+    table = deflection_map(inp.robot, k_pred, inp.wrench, mf.q, length)
     wt = wrench_text(inp.wrench)
-    ft = fixed_text(inp.map_fixed)
+    ft = mf.values_text()
+    rule = mf.rule_text()
     labels = list(dict.fromkeys(inp.tests.pose.tolist()))
     first = [int(np.flatnonzero(inp.tests.pose == lab)[0]) for lab in labels]
     q_poses = inp.tests.q[first]
@@ -290,8 +349,8 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         f"Joints {', '.join(str(j + 1) for j in ident)} identified from {result.n_tests} "
         f"tests; 95 % intervals span {pm_text(min(half, default=np.nan))} to "
         f"{pm_text(max(half, default=np.nan))} of k. Under {wt} the predicted deflection of "
-        f"P over the (\u03b8\u2082, \u03b8\u2083) map ranges from {fixed(d.min(), 3)} to "
-        f"{fixed(d.max(), 3)} mm (median {fixed(np.median(d), 3)} mm)." if d.size else "")
+        f"P over the (\u03b8\u2082, \u03b8\u2083) map ranges from {eng(d.min(), 3)} to "
+        f"{eng(d.max(), 3)} mm (median {eng(float(np.median(d)), 3)} mm)." if d.size else "")
     summary = Section(SECTION_TITLES[0], [
         *[Paragraph(t, "warning") for t in banner], *assumption_blocks(result), answer,
         summary_table(inp.info),
@@ -309,8 +368,8 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
                   "with the identified k and K_C (linear, eq. 6)."),
         *[Paragraph(n, "note") for n in pred_notes],
         Paragraph(f"1/\u03ba_F of J_N with L = {length:.3f} m ({length_source})."),
-        figures.poses_on_kappa_map(table, q_poses, labels, ft),
-        figures.deflection_joint_map(table, q_poses, wt, ft),
+        figures.poses_on_kappa_map(table, q_poses, labels, ft, rule),
+        figures.deflection_joint_map(table, q_poses, wt, ft, labels, rule),
         figures.deflection_cartesian_map(table, wt)])
     kx_sec = Section(SECTION_TITLES[4], kx_blocks(inp, k_pred, result))
     rob_sec = Section(SECTION_TITLES[5], robustness_blocks(result, inp, k_pred))

@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import io
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+# Figures built directly (no pyplot): no GUI backend is chosen or imported, no global
+# figure list to close; savefig renders with Agg.
+from matplotlib.figure import Figure as MplFigure
 
-from analysis.report.model import Figure  # noqa: E402
+from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
 DPI = 150
@@ -28,16 +28,34 @@ def _legend_below(ax) -> None:
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize=8, frameon=False)
 
 
+POSE_STYLE = {"marker": "o", "mfc": "white", "mec": "black", "mew": 1.5, "ms": 8,
+              "linestyle": "none"}  # visible on grey and on viridis alike
+LABEL_BOX = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85}
+
+
+def draw_poses(ax, t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str]) -> None:
+    """Tested poses as white dots with a black edge, each numbered with its plan label.
+
+    Markers and labels are not clipped (a pose on a joint limit sits on the
+    axes' edge) and the labels sit on a white box (readable on any colour map).
+    """
+    ax.plot(t2_deg, t3_deg, clip_on=False, zorder=5, label="tested poses (plan labels)",
+            **POSE_STYLE)
+    for a, b, text in zip(t2_deg, t3_deg, labels, strict=True):
+        ax.annotate(text, (a, b), xytext=(6, 5), textcoords="offset points", fontsize=8,
+                    fontweight="bold", color="black", bbox=LABEL_BOX, zorder=6,
+                    annotation_clip=False)
+
+
 def _png(fig, name: str, caption: str) -> Figure:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
-    plt.close(fig)
     return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption)
 
 
 def _new(**kw):
-    fig, ax = plt.subplots(figsize=SIZE_IN, dpi=DPI, layout="constrained", **kw)
-    return fig, ax
+    fig = MplFigure(figsize=SIZE_IN, dpi=DPI, layout="constrained", **kw)
+    return fig, fig.subplots()
 
 
 def _grid(table: pd.DataFrame, column: str):
@@ -49,24 +67,30 @@ def _grid(table: pd.DataFrame, column: str):
 
 
 def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[str],
-                       fixed_text: str) -> Figure:
+                       fixed_text: str, rule: str = "") -> Figure:
     """1/kappa_F over (theta_2, theta_3) with the tested poses; q_tests (m, 6) rad."""
     fig, ax = _new()
     t2, t3, z = _grid(table, "inv_kappa_F")
     cs = ax.contourf(t2, t3, z, levels=20, cmap="gray")
     fig.colorbar(cs, ax=ax, label="1/\u03ba_F of J_N")
     deg = np.degrees(q_tests)
-    ax.plot(deg[:, 1], deg[:, 2], "o", color="tab:red", mec="white", ms=7, label="tested poses")
-    for (a, b), text in zip(deg[:, 1:3], labels, strict=True):
-        ax.annotate(text, (a, b), xytext=(5, 4), textcoords="offset points", color="tab:red",
-                    fontsize=8, fontweight="bold")
+    draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
     ax.set_title(f"Dexterity map, {fixed_text}", fontsize=9)
     _legend_below(ax)
-    return _png(fig, "poses_kappa_map", "Tested poses on the 1/\u03ba_F map (map at "
-                f"{fixed_text}; the poses' own \u03b8\u2081, \u03b8\u2084..\u03b8\u2086 may "
-                "differ).")
+    return _png(fig, "poses_kappa_map", f"Tested poses {_pose_list(labels)} on the "
+                f"1/\u03ba_F map ({fixed_text}{_rule(rule)}; the poses' own \u03b8\u2081, "
+                "\u03b8\u2084..\u03b8\u2086 may differ).")
+
+
+def _rule(rule: str) -> str:
+    return f": {rule}" if rule else ""
+
+
+def _pose_list(labels: list[str]) -> str:
+    """'(labels 1, 2, 3)' for a caption: the figures' pose numbers in text form."""
+    return f"(labels {', '.join(labels)})" if labels else ""
 
 
 def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
@@ -100,7 +124,7 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
                 label="interval unbounded above")
     if relative:
         ax.axhline(0.0, color="k", lw=1.2, label=nominal_label)
-        ax.set_ylabel(f"k / {nominal_label.split(' (')[0]} - 1 (%)")
+        ax.set_ylabel(f"k / {nominal_label.split(' (')[0]} \u2212 1 (%)")
     else:
         ax.set_ylabel("joint stiffness (kN m/rad)")
     for j in joints[~ok]:
@@ -111,7 +135,9 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     ax.legend(fontsize=8)
     ax.set_title("Identified joint stiffness" + (f", relative to the {nominal_label}"
                                                   if relative else ""), fontsize=9)
-    what = f"relative to the {nominal_label} (0 %)" if relative else "in kN m/rad"
+    short = nominal_label.split(" (")[0]
+    what = (f"as k / {short} \u2212 1 in % (the {nominal_label} is the 0 line)" if relative
+            else "in kN m/rad")
     return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals, {what}.")
 
 
@@ -129,19 +155,23 @@ def residual_plot(residuals: pd.DataFrame, threshold: float) -> Figure:
         ax.plot(tests[out] + 1, residuals.loc[out, "studentized"], "o", ms=11, mfc="none",
                 mec="red", mew=1.5, label="outlier")
     for s in (-threshold, threshold):
-        ax.axhline(s, color="red", ls="--", lw=1)
+        ax.axhline(s, color="red", ls="--", lw=1, zorder=3)
     ax.axhline(0, color="k", lw=0.8)
+    # the threshold lines inside the frame, never on it
+    extent = max(float(np.nanmax(np.abs(residuals["studentized"]), initial=0.0)), threshold)
+    ax.set_ylim(-1.15 * extent, 1.15 * extent)
     ax.set_xlabel("test (row of the identification, 1-based)")
     ax.set_ylabel("studentized residual (1)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))
     ax.set_title("Residuals per test and component", fontsize=9)
-    return _png(fig, "residuals", f"Studentized residuals; dashed lines at \u00b1{threshold:g}; "
+    return _png(fig, "residuals", f"Studentized residuals; dashed lines at \u00b1{threshold:.2f}; "
                 "circled in red: outliers.")
 
 
 def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: str,
-                         fixed_text: str) -> Figure:
+                         fixed_text: str, labels: list[str] | None = None,
+                         rule: str = "") -> Figure:
     """Norm of the predicted translational deflection (mm) over (theta_2, theta_3)."""
     fig, ax = _new()
     t2, t3, z = _grid(table, "deflection_mm")
@@ -150,14 +180,16 @@ def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: 
     cs = ax.contourf(t2, t3, np.clip(z, None, vmax), levels=20, cmap="viridis")
     fig.colorbar(cs, ax=ax, label="|\u03b4p| (mm)")
     deg = np.degrees(q_tests)
-    ax.plot(deg[:, 1], deg[:, 2], "o", mfc="none", mec="white", ms=7, label="tested poses")
+    labels = labels if labels is not None else [str(i + 1) for i in range(len(deg))]
+    draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
     ax.set_title(f"Predicted deflection under {wrench_text}", fontsize=8)
     _legend_below(ax)
     return _png(fig, "deflection_joint_map", "Norm of the predicted translational deflection "
-                f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}; colour "
-                "scale clipped at the 99th percentile.")
+                f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}"
+                f"{_rule(rule)}, with the tested poses {_pose_list(labels)}; colour scale "
+                "clipped at the 99th percentile.")
 
 
 def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:
@@ -190,6 +222,9 @@ def robustness_curve(table: pd.DataFrame, n_campaign: int, se_rel: dict[int, flo
             ax.plot([n_campaign], [100 * se_rel[j]], "*", ms=10, color=line.get_color())
     ax.axvline(n_campaign, color="k", ls=":", lw=1)
     ax.set_yscale("log")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # a number of tests
     ax.set_xlabel("number of tests drawn from this campaign's design")
     ax.set_ylabel("relative std of k (%)")
     ax.grid(alpha=0.3, which="both")

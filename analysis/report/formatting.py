@@ -10,6 +10,32 @@ import math
 
 MICRO = "\u00b5"
 PM = "\u00b1"
+MINUS = "-"
+ROUND_OFF = 1e-9  # |value| below this fraction of its table's scale is round-off: shown as 0
+
+
+def clean(values, scale: float | None = None, rel: float = ROUND_OFF):
+    """``values`` with round-off set to exactly 0.
+
+    An entry is round-off when ``|v| <= rel * scale``; ``scale`` defaults to
+    the largest finite ``|v|`` (a K_X entry of 4.7e-11 N/m beside 1.6e6 N/m
+    is the floating-point residue of a zero, not a stiffness).
+    """
+    import numpy as np
+
+    a = np.array(values, dtype=float)
+    finite = np.isfinite(a)
+    if scale is None:
+        scale = float(np.max(np.abs(a[finite]), initial=0.0))
+    a[finite & (np.abs(a) <= rel * scale)] = 0.0
+    return a
+
+
+def _no_negative_zero(text: str) -> str:
+    """'-0', '-0.000' -> '0', '0.000' (a rounded zero has no sign)."""
+    if text.startswith("-") and not any(c in "123456789" for c in text.split("e")[0]):
+        return text[1:]
+    return text
 
 
 def sig(value: float | None, digits: int = 5, zeros: bool = False) -> str:
@@ -21,9 +47,25 @@ def sig(value: float | None, digits: int = 5, zeros: bool = False) -> str:
         return "-"
     if math.isinf(value):
         return "inf" if value > 0 else "-inf"
+    if value == 0:
+        value = 0.0  # drops the sign of -0.0
     text = f"{value:#.{digits}g}" if zeros else f"{value:.{digits}g}"
     text = text.rstrip(".")
-    return text.replace("e+0", "e").replace("e-0", "e-").replace("e+", "e")
+    return _no_negative_zero(text.replace("e+0", "e").replace("e-0", "e-").replace("e+", "e"))
+
+
+def eng(value: float | None, digits: int = 4) -> str:
+    """An engineering value with ``digits`` significant digits, without exponent for
+    0.001 <= |value| < 10**digits (``1606``, ``162.9``, ``0.9200``), clean zero."""
+    if value is None or not math.isfinite(value):
+        return sig(value)
+    if value == 0:
+        return "0"
+    mag = abs(value)
+    if 1e-3 <= mag < 10 ** digits:
+        decimals = max(digits - 1 - math.floor(math.log10(mag)), 0)
+        return _no_negative_zero(f"{value:.{decimals}f}")
+    return sig(value, digits)
 
 
 def k_kNm(value: float | None) -> str:
@@ -42,18 +84,12 @@ def percent(value: float | None, digits: int = 2) -> str:
     """A ratio as a percentage with ``digits`` decimals and a sign."""
     if value is None or not math.isfinite(value):
         return "-"
-    return f"{100 * value:+.{digits}f}"
+    text = f"{100 * value:+.{digits}f}"
+    return text if any(c in "123456789" for c in text) else text[1:]
 
 
 def fixed(value: float | None, decimals: int) -> str:
     """Fixed-point number; '-' for None/NaN."""
     if value is None or not math.isfinite(value):
         return "-"
-    return f"{value:.{decimals}f}"
-
-
-def matrix_entry(value: float) -> str:
-    """A K_X entry in SI, 3 significant digits in exponent form (e.g. ``1.23e7``)."""
-    if value == 0 or not math.isfinite(value):
-        return sig(value)
-    return f"{value:.2e}".replace("e+0", "e").replace("e-0", "e-").replace("e+", "e")
+    return _no_negative_zero(f"{value:.{decimals}f}")

@@ -27,6 +27,29 @@ nav ol { columns: 2; }
 """
 
 
+#: plain-text notation of the report model -> HTML (subscripts, superscripts, italics)
+NOTATION = [
+    ("K_X\u207b\u00b9", "<i>K</i><sub>X</sub><sup>\u22121</sup>"),
+    ("J\u207b\u1d40", "<i>J</i><sup>\u2212T</sup>"),
+    ("J\u207b\u00b9", "<i>J</i><sup>\u22121</sup>"),
+    ("K_X", "<i>K</i><sub>X</sub>"), ("K_C", "<i>K</i><sub>C</sub>"),
+    ("K_\u03b8", "<i>K</i><sub>\u03b8</sub>"), ("J_N", "<i>J</i><sub>N</sub>"),
+    ("\u03ba_F", "<i>\u03ba</i><sub>F</sub>"),
+    ("\u03b4p_without", "\u03b4<i>p</i><sub>without</sub>"),
+    ("\u03b4p_with", "\u03b4<i>p</i><sub>with</sub>"),
+]
+
+
+def _math(text: str) -> str:
+    """Escaped ``text`` with the report's formula notation as HTML (K_X -> K<sub>X</sub>).
+
+    Headings keep the plain text (anchors, navigation and the PDF's outline)."""
+    out = escape(text)
+    for plain, html in NOTATION:
+        out = out.replace(escape(plain), html)
+    return out
+
+
 def _anchor(title: str) -> str:
     return "".join(c if c.isalnum() else "-" for c in title.lower()).strip("-")
 
@@ -35,12 +58,12 @@ def _paragraph(p: Paragraph) -> str:
     if p.kind == "heading":
         return f"<h3>{escape(p.text)}</h3>"
     cls = f' class="{p.kind}"' if p.kind in ("note", "warning") else ""
-    return f"<p{cls}>{escape(p.text)}</p>"
+    return f"<p{cls}>{_math(p.text)}</p>"
 
 
 def _table(t: Table) -> str:
     align = ["r" if a == "right" else "l" for a in t.alignment()]
-    head = "".join(f'<th class="{a}">{escape(c)}</th>' for c, a in zip(t.columns, align,
+    head = "".join(f'<th class="{a}">{_math(c)}</th>' for c, a in zip(t.columns, align,
                                                                          strict=True))
     body = []
     for row, mark in zip(t.rows, t.marked, strict=True):
@@ -48,7 +71,7 @@ def _table(t: Table) -> str:
                                                                              strict=True))
         body.append(f'<tr class="marked">{cells}</tr>' if mark else f"<tr>{cells}</tr>")
     cls = ' class="mono"' if t.mono else ""
-    caption = f'<p class="caption">{escape(t.caption)}</p>' if t.caption else ""
+    caption = f'<p class="caption">{_math(t.caption)}</p>' if t.caption else ""
     return (f"<h3>{escape(t.title)}</h3><table{cls}><thead><tr>{head}</tr></thead>"
             f"<tbody>{''.join(body)}</tbody></table>{caption}")
 
@@ -57,7 +80,7 @@ def _figure(f: Figure) -> str:
     data = base64.b64encode(f.png).decode("ascii")
     return (f'<figure id="fig-{escape(f.name)}"><img src="data:image/png;base64,{data}" '
             f'width="{f.width}" height="{f.height}" alt="{escape(f.caption)}">'
-            f"<figcaption>{escape(f.caption)}</figcaption></figure>")
+            f"<figcaption>{_math(f.caption)}</figcaption></figure>")
 
 
 def _section(s: Section) -> str:

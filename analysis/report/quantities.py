@@ -92,3 +92,37 @@ def deflection_map(robot: RobotModel, k: np.ndarray, w: np.ndarray, fixed: np.nd
     Columns: 1/kappa_F, deflection_mm, x/y/z_m.
     """
     return joint_space_map(robot, map_grid(robot, fixed, points), k, w, length)
+
+
+def load_cases(w: np.ndarray, force_sigma: float, moment_sigma: float,
+               sigmas: float = 5.0) -> list[tuple[np.ndarray, int]]:
+    """Distinct wrenches of measured tests, (mean wrench rounded to the noise, count).
+
+    Tests whose wrenches agree within ``sigmas`` noise sigmas on every
+    component are one load case (greedy, in test order). Of each case's mean,
+    a component within 3 standard errors of zero is shown as 0 (a measured
+    0.19 N of noise on a nominal zero is not a load) and the others are rounded
+    to the decade below their standard error. Returns cases in order of first
+    appearance.
+    """
+    w = np.asarray(w, dtype=float)
+    scale = np.array([force_sigma] * 3 + [moment_sigma] * 3)
+    label = np.full(len(w), -1)
+    centres: list[np.ndarray] = []
+    for i, wi in enumerate(w):
+        for c, centre in enumerate(centres):
+            if np.all(np.abs(wi - centre) <= sigmas * scale):
+                label[i] = c
+                break
+        else:
+            centres.append(wi)
+            label[i] = len(centres) - 1
+    out = []
+    for c in range(len(centres)):
+        n = int((label == c).sum())
+        mean = w[label == c].mean(axis=0)
+        se = scale / np.sqrt(n)
+        step = 10.0 ** np.floor(np.log10(se))
+        rounded = np.where(np.abs(mean) < 3 * se, 0.0, np.round(mean / step) * step)
+        out.append((rounded + 0.0, n))
+    return out

@@ -26,6 +26,8 @@ class CampaignInfo:
     instruments : role -> description (driver, address, serial...).
     started_utc, ended_utc, operator, status, reason : from the run metadata.
     protocol_file, protocol_sha256 : the protocol and its SHA-256 (hex).
+    measurements_sha256 : SHA-256 of an imported measurements file ('' for a run).
+    wrenches : the distinct wrenches of an imported file, (text, number of tests).
     software : package -> version recorded at acquisition.
     n_planned, n_rows, n_ok, n_failed : test rows planned, present, ok, failed.
     flagged : rows of the data-quality table (dicts: test_id, repeat, pose, status,
@@ -46,6 +48,8 @@ class CampaignInfo:
     reason: str = ""
     protocol_file: str = "-"
     protocol_sha256: str = "-"
+    measurements_sha256: str = ""
+    wrenches: list[tuple[str, int]] = field(default_factory=list)
     software: dict[str, str] = field(default_factory=dict)
     n_planned: int | None = None
     n_rows: int = 0
@@ -92,8 +96,13 @@ def summary_table(info: CampaignInfo) -> Table:
         ["status", info.status + (f" ({info.reason})" if info.reason else "")],
         ["started / ended (UTC)", f"{info.started_utc} / {info.ended_utc}"],
         ["operator", info.operator],
-        ["protocol", info.protocol_file],
-        ["protocol SHA-256", info.protocol_sha256],
+        *([["protocol", info.protocol_file], ["protocol SHA-256", info.protocol_sha256]]
+          if info.source == "run" or info.protocol_sha256 not in ("", "-") else
+          [["protocol", "none (imported measurements)"]]),
+        *([["measurements SHA-256", info.measurements_sha256]]
+          if info.measurements_sha256 else []),
+        *[[f"load case {i + 1}", f"{text} ({n} test(s))"]
+          for i, (text, n) in enumerate(info.wrenches)],
         ["test rows", f"{info.n_rows} recorded ({info.n_ok} ok, {info.n_failed} failed)"
                       + (f", {info.n_planned} planned" if info.n_planned else "")],
     ]

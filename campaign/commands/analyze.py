@@ -18,6 +18,7 @@ from rich.table import Table as RichTable
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
+from campaign.cli_common import Covariance, Method, print_json, stage
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -39,25 +40,36 @@ DEFAULT_TRIALS = 200
 _noise_from_protocol = noise_from_protocol
 
 
-def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm) -> tuple[NoiseModel, list]:
-    """Apply the command line's --sigma-* overrides (um, urad, N, N m) to ``noise``.
+def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm, q_urad=None, f_pct=None,
+                    m_pct=None) -> tuple[NoiseModel, list]:
+    """Apply the command line's *-sigma-* overrides (um, urad, N, N m, urad, %) to ``noise``.
 
     Returns the noise model and the options that changed it.
     """
     values, used = {}, []
     for key, value, scale, option in (
-        ("translation_sigma_override", t_um, 1e-6, "--sigma-translation-um"),
-        ("rotation_sigma_override", r_urad, 1e-6, "--sigma-rotation-urad"),
+        ("translation_sigma_override", t_um, 1e-6, "--translation-sigma-um"),
+        ("rotation_sigma_override", r_urad, 1e-6, "--rotation-sigma-urad"),
         ("force_sigma", f_n, 1.0, "--force-sigma-N"),
         ("moment_sigma", m_nm, 1.0, "--moment-sigma-Nm"),
+        ("joint_sigma_override", q_urad, 1e-6, "--joint-sigma-urad"),
+        ("force_relative", f_pct, 0.01, "--force-pct"),
+        ("moment_relative", m_pct, 0.01, "--moment-pct"),
     ):
         if value is None:
             continue
-        if not (np.isfinite(value) and value > 0):
+        if not (np.isfinite(value) and (value > 0 or (value == 0 and option.endswith("pct")))):
             raise InputError("expected a positive number", where=option)
         values[key] = value * scale
         used.append(option)
     return (noise.with_overrides(**values) if values else noise), used
+
+
+def _alias(value, old, name: str):
+    """The value of a renamed option given by its new or its hidden old name."""
+    if value is not None and old is not None:
+        raise InputError("given twice (old and new name)", where=name)
+    return value if value is not None else old
 
 
 def _instrument_text(spec) -> str:
@@ -175,9 +187,8 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     if meta is not None and meta.noise is not None:
         noise, noise_source = meta.noise, meta.noise_source
     info = CampaignInfo(source="csv", location=str(path), robot=robot.name, tool=tool.text(),
-                        protocol_file="- (imported CSV)",
-                        protocol_sha256="CSV SHA-256 " + hashlib.sha256(
-                            path.read_bytes()).hexdigest(),
+                        protocol_file="-", protocol_sha256="-",
+                        measurements_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
                         n_rows=len(table), n_ok=len(table), notes=notes)
     return table, robot, noise, info, {"protocol": None, "true_k": None, "tool": tool,
                                        "noise_source": noise_source,
@@ -222,8 +233,10 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"  tool point P: xyz {t['xyz_mm']} mm, rpy {t['rpy_deg']} deg in the flange frame "
         f"({t['source']})",
         f"  noise per test row: translation {n['translation_sigma_um']:.3g} um, rotation "
-        f"{n['rotation_sigma_urad']:.3g} urad, force {n['force_sigma_N']:.3g} N, moment "
-        f"{n['moment_sigma_Nm']:.3g} N m ({n['source']})",
+        f"{n['rotation_sigma_urad']:.3g} urad, force {n['force_sigma_N']:.3g} N + "
+        f"{n['force_relative_percent']:.3g} % of |f|, moment {n['moment_sigma_Nm']:.3g} N m + "
+        f"{n['moment_relative_percent']:.3g} % of |m|, encoders "
+        f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg ({n['source']})",
         f"  method: {a['method']}; covariance {a['covariance']}; joints {a['joints']}",
         f"  poses: {a['poses']}",
     ):
@@ -247,22 +260,29 @@ def _poses(robot, protocol, pose_args: list[str], q_tests: np.ndarray, labels) -
     return poses
 
 
-def _wrench(protocol, text: str | None, w_tests: np.ndarray) -> tuple[np.ndarray, str]:
+def _wrench(protocol, text: str | None, w_tests: np.ndarray,
+            noise: NoiseModel) -> tuple[np.ndarray, str]:
     if text:
         return parse_floats(text, "--wrench", 6), "--wrench"
     if protocol is not None and protocol.report.wrench is not None:
         return np.asarray(protocol.report.wrench, float), "protocol [report] wrench"
     if protocol is not None:
         return protocol.wrenches()[0], f"first load case '{protocol.load_cases[0].name}'"
-    return w_tests[0].copy(), "wrench of the first test"
+    from analysis.report.quantities import load_cases
+
+    # not the first test's measured wrench: its noise would show as a load component
+    w, n = load_cases(w_tests, noise.force_sigma, noise.moment_sigma)[0]
+    return w, (f"load case 1 of the imported tests: mean of its {n} measured wrench(es) "
+               f"rounded to the noise sigmas ({noise.force_sigma:g} N, "
+               f"{noise.moment_sigma:g} N m); --wrench to choose another")
 
 
-def _map_fixed(protocol) -> np.ndarray:
-    fixed = np.radians([0.0, 0.0, 0.0, 45.0, 45.0, 45.0])
-    if protocol is not None:
-        for key, value in protocol.sampling.fixed_deg.items():
-            fixed[int(key[1:]) - 1] = np.radians(value)
-    return fixed
+def _map_fixed(protocol, n: int, q_poses: np.ndarray):
+    """The maps' fixed joints: the plan map's rule (protocol fixed_deg, else the poses' median)."""
+    from analysis.kinetostatics.map_fixed import map_fixed_joints
+
+    return map_fixed_joints(n, None if protocol is None else protocol.sampling.fixed_deg,
+                            q_poses)
 
 
 def _print(console: Console, result, paths: dict) -> None:
@@ -293,9 +313,13 @@ def register(app: typer.Typer) -> None:
         robot: str = typer.Option(None, help="Robot of --measurements: built-in, file or URDF."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
         out: Path = typer.Option(None, help="Output directory (default RUN_DIR/analysis)."),
-        method: str = typer.Option(DEFAULT_METHOD, help=f"One of {', '.join(METHODS)}."),
+        method: Method = typer.Option(DEFAULT_METHOD, help="Estimator: ols (the paper's "
+                                      "linear least squares), wls (weighted), exact "
+                                      "(Gauss-Newton on the nonlinear equilibrium)."),
         joints: str = typer.Option(None, help="Joints to identify, e.g. 1,2,3 (others rigid)."),
-        covariance: str = typer.Option("model", help="model (known sigmas) or residual."),
+        covariance: Covariance = typer.Option(
+            "model", help="model (the noise figures are known) or residual (scaled by the "
+            "reduced chi-square)."),
         pose: list[str] = typer.Option(  # noqa: B008 (typer's way of a repeatable option)
             [], help="Joint angles (deg, model convention) where K_X is reported; repeatable."),
         wrench: str = typer.Option(
@@ -304,14 +328,26 @@ def register(app: typer.Typer) -> None:
         trials: int = typer.Option(DEFAULT_TRIALS, help="Monte-Carlo trials per point of "
                                    "the robustness curve."),
         report: bool = typer.Option(True, "--report/--no-report", help="Write the report."),
-        sigma_translation_um: float = typer.Option(
-            None, help="Override: sigma of one measured displacement component (um)."),
-        sigma_rotation_urad: float = typer.Option(
-            None, help="Override: sigma of one measured rotation component (urad)."),
+        translation_sigma_um: float = typer.Option(
+            None, "--translation-sigma-um",
+            help="Override: sigma of one measured displacement component (um)."),
+        rotation_sigma_urad: float = typer.Option(
+            None, "--rotation-sigma-urad",
+            help="Override: sigma of one measured rotation component (urad)."),
+        old_translation: float = typer.Option(None, "--sigma-translation-um", hidden=True),
+        old_rotation: float = typer.Option(None, "--sigma-rotation-urad", hidden=True),
         force_sigma_n: float = typer.Option(
             None, "--force-sigma-N", help="Override: sigma of a force component (N)."),
         moment_sigma_nm: float = typer.Option(
             None, "--moment-sigma-Nm", help="Override: sigma of a moment component (N m)."),
+        joint_sigma_urad: float = typer.Option(
+            None, help="Override: sigma of a joint angle reading, encoders (urad)."),
+        force_pct: float = typer.Option(
+            None, "--force-pct", help="F/T force noise in % of |f| of the reading, in "
+                                      "quadrature with --force-sigma-N."),
+        moment_pct: float = typer.Option(
+            None, "--moment-pct", help="F/T moment noise in % of |m| of the reading, in "
+                                       "quadrature with --moment-sigma-Nm."),
         tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP + " Overrides the "
                                         "protocol's or the sidecar's tool."),
         tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
@@ -319,12 +355,15 @@ def register(app: typer.Typer) -> None:
             False, "--accept-misfit", help="Write the result even when the checks refuse it "
             "(misfit, too good to be true, k > 10 x from nominal); results.json and the "
             "report then say so."),
+        as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
+                                     "(the keys of results.json, SI units) instead of "
+                                     "the tables."),
     ) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report.
 
         The measurement noise comes from the run's protocol (for a CSV file from
         its sidecar FILE.meta.json, else the instrument defaults of
-        analysis/identification/noise.py); the --sigma-* options override it, per
+        analysis/identification/noise.py); the --*-sigma-* options override it, per
         measured component of one test row. The tool point comes from the protocol
         (the sidecar; else the flange centre) unless --tool-xyz-mm/--tool-rpy-deg
         give it. A result the data do not support (misfit, too good, k more than
@@ -334,9 +373,11 @@ def register(app: typer.Typer) -> None:
         from analysis.identification.measurements import to_arrays
         from analysis.identification.plausibility import problems
         from analysis.identification.result import write_results
-        from analysis.report.build import ReportInputs, build_report
-        from analysis.report.write import write_report
 
+        method, covariance = str(method), str(covariance)
+        translation_sigma_um = _alias(translation_sigma_um, old_translation,
+                                      "--translation-sigma-um")
+        rotation_sigma_urad = _alias(rotation_sigma_urad, old_rotation, "--rotation-sigma-urad")
         if (run_dir is None) == (measurements is None):
             raise InputError("give either RUN_DIR or --measurements FILE.csv --robot R",
                              where="campaign analyze")
@@ -352,17 +393,20 @@ def register(app: typer.Typer) -> None:
             table, model, noise, info, extras = _from_csv(measurements, robot, tip,
                                                           tool_xyz_mm, tool_rpy_deg)
         protocol = extras["protocol"]
-        noise, overridden = _override_noise(noise, sigma_translation_um, sigma_rotation_urad,
-                                            force_sigma_n, moment_sigma_nm)
+        noise, overridden = _override_noise(noise, translation_sigma_um, rotation_sigma_urad,
+                                            force_sigma_n, moment_sigma_nm, joint_sigma_urad,
+                                            force_pct, moment_pct)
         noise_source = extras["noise_source"] + (
             f"; overridden by {', '.join(overridden)}" if overridden else "")
         joint_list = parse_joints(joints)
         assumptions = _assumptions(model, extras, noise, noise_source, method, covariance,
                                    joint_list)
-        console = Console()
+        # with --json, stdout carries the JSON document only
+        console = Console(stderr=as_json)
         _print_assumptions(console, assumptions)
-        result = analyze_table(table, model, method=method, joints=joint_list,
-                               noise=noise, covariance=covariance)
+        with stage(f"identification ({method}) and validation"):
+            result = analyze_table(table, model, method=method, joints=joint_list,
+                                   noise=noise, covariance=covariance)
         result.assumptions = assumptions
         if measurements is not None and extras["tool"].source.startswith("none given"):
             result.warnings.insert(0, (
@@ -381,22 +425,47 @@ def register(app: typer.Typer) -> None:
 
         paths.update(export_model(result, model, out, table, info))
         if report:
+            # the report makes figures: matplotlib is imported only here
+            from analysis.report.build import ReportInputs, build_report
+            from analysis.report.write import write_report
+
             if trials < 10:
                 raise InputError("need at least 10 trials", where="--trials")
             tests = to_arrays(table)
             labels = list(dict.fromkeys(tests.pose.tolist()))
-            w, w_source = _wrench(protocol, wrench, tests.w)
+            w, w_source = _wrench(protocol, wrench, tests.w, noise)
+            if protocol is None:
+                from analysis.report.build import wrench_text
+                from analysis.report.quantities import load_cases
+
+                info.wrenches = [(wrench_text(c), n) for c, n in
+                                 load_cases(tests.w, noise.force_sigma, noise.moment_sigma)]
             nominal, label = model.nominal_stiffness, "nominal (robot model)"
+            nominal_source = (model.sources or {}).get(
+                "stiffness", "the robot file's [stiffness] (its [sources] give no reference)")
             if nominal is None and protocol is not None and protocol.campaign.prior_stiffness:
                 nominal, label = np.asarray(protocol.campaign.prior_stiffness), "prior (protocol)"
+                nominal_source = f"protocol {Path(protocol.path).name} [campaign] " \
+                    "prior_stiffness"
             inputs = ReportInputs(
                 robot=model, tests=tests, info=info, noise=noise, wrench=w,
                 wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
                 nominal=None if nominal is None else np.asarray(nominal, float),
-                nominal_label=label, true_k=extras["true_k"], map_fixed=_map_fixed(protocol),
+                nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
+                map_fixed=_map_fixed(protocol, model.n, tests.q[
+                    [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
                 trials=trials)
-            paths.update(write_report(build_report(result, inputs), out))
+            with stage("report: maps, K_X, Monte-Carlo robustness, figures"):
+                built = build_report(result, inputs)
+            with stage("report: HTML and PDF"):
+                paths.update(write_report(built, out))
         summary = {"run": str(run_dir) if run_dir else None, "partial": info.partial,
                    "status": info.status, "failed_rows": info.n_failed}
         (Path(out) / "analysis.json").write_text(json.dumps(summary, indent=2) + "\n")
+        if as_json:
+            for w in result.warnings:  # still on the terminal, beside the JSON on stdout
+                typer.echo(f"warning: {w}", err=True)
+            print_json({**json.loads((Path(out) / "results.json").read_text()),
+                        "files": {k: str(v) for k, v in paths.items()}, **summary})
+            return
         _print(console, result, paths)

@@ -18,6 +18,7 @@ import numpy as np
 import typer
 
 from analysis.errors import InputError
+from campaign.cli_common import WrenchFrame, output_dir
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
@@ -56,8 +57,9 @@ def register(app: typer.Typer) -> None:
                                         "joints are teach-pendant angles (output too)."),
         wrench: str = typer.Option(None, help="Constant wrench fx,fy,fz (N), mx,my,mz (N m) "
                                    "at P when the path has no wrench columns."),
-        wrench_frame: str = typer.Option("base", help="base, or tool (e.g. a spindle "
-                                         "dynamometer's frame)."),
+        wrench_frame: WrenchFrame = typer.Option(
+            "base", help="Frame of the wrench components: base, or tool (e.g. a spindle "
+            "dynamometer's frame)."),
         joint_stiffness: str = typer.Option(None, help="k1,...,k6 (N m/rad) instead of the "
                                             "model's (no uncertainty then)."),
         min_inv_kappa: float = typer.Option(0.02, help="Refuse points where 1/kappa_F of "
@@ -68,6 +70,8 @@ def register(app: typer.Typer) -> None:
                                       "(with --verify-fake)."),
         readings: int = typer.Option(1, help="Probe readings averaged per point "
                                      "(--verify-fake)."),
+        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
+                                   "(its files are replaced)."),
     ) -> None:
         """Predict the deflection of P along a path and compute the compensated joints."""
         from analysis.kinetostatics.path_compensation import compensate_path
@@ -88,13 +92,9 @@ def register(app: typer.Typer) -> None:
         k = stiffness_option(r, joint_stiffness)
         cov = None if joint_stiffness else r.compliance_covariance
         w_const = None if wrench is None else parse_floats(wrench, "--wrench", 6)
-        pin = read_path(path, r, controller, w_const, wrench_frame)
+        pin = read_path(path, r, controller, w_const, str(wrench_frame))
         pc = compensate_path(r, pin.q, k, pin.w, cov, pin.line, str(path), min_inv_kappa)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
-            raise InputError(f"cannot create the output directory: {err}",
-                             where=str(out)) from None
+        output_dir(out, force)
         table = co.output_table(pin.frame, pc, r, controller)
         table.to_csv(out / "compensated.csv", index=False)
         convention = "pendant" if controller else "model"

@@ -15,7 +15,6 @@ settings (the :class:`drivers.sim.settings.LabSettings` field names, optionally 
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -25,24 +24,12 @@ from analysis.errors import InputError
 
 
 def _read_protocol(path: Path) -> dict[str, Any]:
-    """Parse a protocol file (TOML or YAML) into a plain dict."""
+    """Parse a protocol file (TOML or YAML, UTF-8) into a plain dict."""
+    from analysis.file_errors import read_mapping_file
+
     if not path.is_file():
         raise InputError("protocol file not found", where=str(path))
-    text = path.read_text(encoding="utf-8")
-    try:
-        if path.suffix.lower() == ".toml":
-            data = tomllib.loads(text)
-        else:
-            import yaml
-
-            data = yaml.safe_load(text)
-    except (tomllib.TOMLDecodeError, ValueError) as err:
-        raise InputError(f"cannot parse: {err}", where=str(path)) from err
-    except Exception as err:  # yaml.YAMLError without importing yaml at module level
-        raise InputError(f"cannot parse: {err}", where=str(path)) from err
-    if not isinstance(data, dict):
-        raise InputError("expected a table of settings at the top level", where=str(path))
-    return data
+    return read_mapping_file(path, "protocol file")[0]
 
 
 def _protocol_settings(path: Path, seed: int | None, time_scale: float | None,

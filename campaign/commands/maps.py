@@ -10,9 +10,7 @@ import typer
 from rich.console import Console
 
 from analysis.errors import InputError
-from analysis.kinetostatics.dexterity import characteristic_length
-from analysis.kinetostatics.map_plots import LABELS, plot_cartesian_map, plot_joint_map
-from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
+from campaign.cli_common import TableFormat, output_dir, print_json, stage
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -43,13 +41,23 @@ def register(app: typer.Typer) -> None:
         length: float = typer.Option(
             None, help="Characteristic length L (m); default the model's, else computed."
         ),
-        fmt: str = typer.Option("parquet", "--format", help="parquet or csv."),
+        fmt: TableFormat = typer.Option("parquet", "--format", help="Map table format."),
         upper_bound: bool = typer.Option(
             False, "--deflection-upper-bound", help="Also map the 95 % upper bound of the "
             "deflection |dp| from the identified model's covariance (model.toml)."),
+        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
+                                   "(its map files are replaced)."),
+        as_json: bool = typer.Option(False, "--json", help="Print map_summary.json (SI "
+                                     "units) instead of the text summary."),
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
-        console = Console()
+        # pinocchio, scipy, pandas and matplotlib: imported when the command runs
+        from analysis.kinetostatics.dexterity import characteristic_length
+        from analysis.kinetostatics.map_plots import LABELS, plot_cartesian_map, plot_joint_map
+        from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
+
+        console = Console(stderr=as_json)
+        fmt = str(fmt)
         r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
         if step <= 0 or not np.isfinite(step):
             raise InputError("expected a positive step in degrees", where="--step")
@@ -64,11 +72,14 @@ def register(app: typer.Typer) -> None:
         if length is None and r.characteristic_length is not None:
             length, how = r.characteristic_length, "from the robot model"
         elif length is None:
-            length, _, _ = characteristic_length(r)
+            with stage("characteristic length"):
+                length, _, _ = characteristic_length(r)
             how = "computed (minimum condition number of J_N over posture and L)"
+        output_dir(out, force)
         console.print(f"characteristic length L = {length:.4f} m ({how})")
         grid = GridSpec.from_limits(r, np.radians(step), fixed_q)
-        table = joint_space_map(r, grid, k, w, length)
+        with stage(f"map of {r.name} ({step:g} deg grid)"):
+            table = joint_space_map(r, grid, k, w, length)
         bound_cols = []
         if upper_bound:
             if r.compliance_covariance is None or joint_stiffness:
@@ -80,7 +91,6 @@ def register(app: typer.Typer) -> None:
             table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
                 r, grid.poses(), k, w, r.compliance_covariance).ravel()
             bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
-        out.mkdir(parents=True, exist_ok=True)
         data = out / f"map_joint_space.{fmt}"
         if fmt == "parquet":
             table.to_parquet(data, index=False)
@@ -94,13 +104,14 @@ def register(app: typer.Typer) -> None:
         fixed_deg = np.degrees(grid.fixed)
         others = ", ".join(f"theta{j + 1} = {fixed_deg[j]:g}" for j in range(r.n)
                            if j not in (1, 2))
-        for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"), ("v_r_deg", "v_r"),
-                          *bound_cols):
-            label = LABELS.get(col, "95 % upper bound of |dp| (mm), identified model")
-            plot_joint_map(table, col, out / f"{name}_joint.png",
-                           f"{r.name}: {label}\n({others} deg)", zones=zones)
-            plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
-                               f"{r.name}: {label} over the workspace\n({others} deg)")
+        with stage("plots"):
+            for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"),
+                              ("v_r_deg", "v_r"), *bound_cols):
+                label = LABELS.get(col, "95 % upper bound of |dp| (mm), identified model")
+                plot_joint_map(table, col, out / f"{name}_joint.png",
+                               f"{r.name}: {label}\n({others} deg)", zones=zones)
+                plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
+                                   f"{r.name}: {label} over the workspace\n({others} deg)")
         ok = ~table["singular"]
         summary = {
             "robot": r.name,
@@ -119,6 +130,9 @@ def register(app: typer.Typer) -> None:
             summary["max_deflection_upper95_mm"] = float(
                 table.loc[ok, "deflection_upper95_mm"].max())
         (out / "map_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        if as_json:
+            print_json({**summary, "files": sorted(str(p) for p in out.iterdir())})
+            return
         console.print(
             f"{len(table)} poses, {summary['singular_nodes']} singular; "
             f"max v_p = {summary['max_v_p']:.4f}, max v_r = {summary['max_v_r_deg']:.4f} deg, "

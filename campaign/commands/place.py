@@ -10,6 +10,7 @@ from pathlib import Path
 
 import typer
 
+from campaign.cli_common import Objective, Program
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
@@ -47,7 +48,7 @@ def register(app: typer.Typer) -> None:
         keep_out_mm: str = typer.Option(
             None, help="Keep-out box x0..x1,y0..y1,z0..z1 (mm, base frame) that no joint "
             "origin may enter (e.g. the table below the part)."),
-        objective: str = typer.Option(
+        objective: Objective = typer.Option(
             "max", help="max: largest |dp| along the path; rms: root mean square |dp|; "
             "compliance: largest worst-direction translational compliance."),
         upper_bound: bool = typer.Option(
@@ -64,11 +65,17 @@ def register(app: typer.Typer) -> None:
             "0 runs in this process without Dask."),
         chunk: int = typer.Option(None, help="Placements per task (default: automatic)."),
         runner_ups: int = typer.Option(5, help="Runner-up placements listed."),
-        program: str = typer.Option(
+        program: Program = typer.Option(
             "auto", help="Robot program of the path: krl, urscript, none, or auto (by robot)."),
+        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
+                                   "(its files are replaced)."),
     ) -> None:
         """Search the workpiece placement and tool angles that minimise P's deflection."""
         args = dict(locals())
+        from campaign.cli_common import output_dir
         from campaign.place_run import PlaceOptions, run_place
 
+        output_dir(args.pop("out"), args.pop("force"))
+        args["out"] = out
+        args["objective"], args["program"] = str(objective), str(program)
         run_place(PlaceOptions(**args))

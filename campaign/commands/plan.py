@@ -6,21 +6,30 @@ from pathlib import Path
 
 import typer
 
-from campaign.plan_output import summary_text
-from campaign.planner import STRATEGIES, make_plan, write_plan
-from campaign.protocol import load_protocol
+from campaign.cli_common import Strategy, output_dir, print_json, stage
 
 
 def plan(
     protocol: Path = typer.Option(..., "--protocol", "-p", help="Protocol file (.toml/.yaml)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output directory of the plan."),
-    strategy: str = typer.Option(
-        "d-optimal", "--strategy", help=f"One of {', '.join(STRATEGIES)}."
+    strategy: Strategy = typer.Option(
+        "worst-joint", "--strategy",
+        help="worst-joint: smallest largest relative standard error of k (no joint worse than "
+             "the median random zone design); weighted: smallest --weights-weighted sum of the "
+             "relative standard errors; d-optimal (max log det of the information), e-optimal "
+             "(max smallest eigenvalue) or zones-random (random poses in the zones)."
     ),
+    weights: str = typer.Option(None, "--weights",
+                                help="Weights of the joints' relative standard errors, "
+                                     "comma-separated (with --strategy weighted)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the candidate draw and random design."),
     candidates: int = typer.Option(10000, "--candidates", help="Candidate poses drawn."),
     tests: int = typer.Option(None, "--tests", help="Test poses (default: the protocol's)."),
     no_figure: bool = typer.Option(False, "--no-figure", help="Skip plan_map.png."),
+    force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
+                               "(its plan files are replaced)."),
+    as_json: bool = typer.Option(False, "--json", help="Print summary.json (SI units) "
+                                 "instead of the text summary."),
 ) -> None:
     """Plan the tests: candidate poses in the zones, thresholds, optimal design.
 
@@ -28,9 +37,25 @@ def plan(
     copy, OUT/plan_map.png and OUT/summary.txt/json, and prints the predicted
     standard error of every joint stiffness beside that of a random zone design.
     """
+    import json
+
+    from campaign.options import parse_floats
+    from campaign.plan_output import summary_text
+    from campaign.planner import make_plan, write_plan
+    from campaign.protocol import load_protocol
+
     proto = load_protocol(protocol)
-    result = make_plan(proto, strategy=strategy, seed=seed, candidates=candidates, tests=tests)
-    path = write_plan(result, out, figure=not no_figure)
+    output_dir(out, force)
+    wts = None if weights is None else parse_floats(weights, "--weights")
+    with stage(f"candidate evaluation and {strategy} design ({candidates} candidates)"):
+        result = make_plan(proto, strategy=str(strategy), seed=seed, candidates=candidates,
+                           tests=tests, weights=wts)
+    with stage("writing the plan" + ("" if no_figure else " and plan_map.png")):
+        path = write_plan(result, out, figure=not no_figure)
+    if as_json:
+        summary = json.loads((out / "summary.json").read_text())
+        print_json({**summary, "plan_file": str(path)})
+        return
     typer.echo(summary_text(result), nl=False)
     typer.echo(f"plan written to {path}")
 

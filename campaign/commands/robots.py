@@ -7,7 +7,26 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from analysis.model.robots import builtin_names, load_robot
+from campaign.cli_common import print_json
+
+
+def robot_dict(r) -> dict:
+    """A robot model as JSON (SI units, radians; the keys' suffixes say so)."""
+    return {
+        "name": r.name, "source_file": str(r.source_file) if r.source_file else None,
+        "convention": r.convention, "joints": r.n,
+        "lower_rad": r.lower.tolist(), "upper_rad": r.upper.tolist(),
+        "controller_sign": [int(v) for v in r.controller_sign],
+        "controller_offset_rad": r.controller_offset.tolist(),
+        "controller_coupling": np.asarray(r.controller_coupling).tolist(),
+        "nominal_stiffness_Nm_per_rad": None if r.nominal_stiffness is None
+        else np.asarray(r.nominal_stiffness, float).tolist(),
+        "characteristic_length_m": r.characteristic_length,
+        "zones": [{"name": z.name, "ranges_rad": {f"q{j + 1}": [float(a), float(b)]
+                                                  for j, (a, b) in z.ranges.items()}}
+                  for z in r.zones],
+        "notes": r.notes or None, "sources": dict(r.sources),
+    }
 
 
 def register(app: typer.Typer) -> None:
@@ -15,9 +34,19 @@ def register(app: typer.Typer) -> None:
     def robots(
         name: str = typer.Argument(None, help="Show this model (built-in name or file)."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
+        as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units, rad)."),
     ) -> None:
         """List built-in robot models, or show one model's joints, limits and sources."""
-        console = Console()
+        from analysis.model.robots import builtin_names, load_robot  # pinocchio: lazily
+
+        console = Console(width=min(Console().width, 80))  # fits an 80-column terminal
+        if as_json:
+            if name is None:
+                print_json({"robots": [{"key": key, **robot_dict(load_robot(key))}
+                                       for key in builtin_names()]})
+            else:
+                print_json(robot_dict(load_robot(name, tip)))
+            return
         if name is None:
             table = Table(title="Built-in robot models")
             for col in ("name", "model", "convention", "nominal stiffness", "zones"):
@@ -30,12 +59,14 @@ def register(app: typer.Typer) -> None:
             console.print(table)
             return
         r = load_robot(name, tip)
-        table = Table(title=f"{r.name} ({r.source_file})")
-        for col in ("joint", "lower (deg, model)", "upper (deg, model)",
-                    "pendant = sign*q + offset (+ coupling)", "nominal k (N m/rad)"):
+        table = Table(title=f"{r.name} ({r.source_file})",
+                      caption="angles in the model convention; pendant angle = sign q + "
+                      "offset (+ coupling)")
+        for col in ("joint", "lower (deg)", "upper (deg)", "pendant (deg)",
+                    "nominal k (kN m/rad)"):
             table.add_column(col, justify="right")
         for j in range(r.n):
-            k = "-" if r.nominal_stiffness is None else f"{r.nominal_stiffness[j]:,.0f}"
+            k = "-" if r.nominal_stiffness is None else f"{r.nominal_stiffness[j] / 1e3:,.2f}"
             table.add_row(
                 str(j + 1), f"{np.degrees(r.lower[j]):.1f}", f"{np.degrees(r.upper[j]):.1f}",
                 f"{int(r.controller_sign[j]):+d} q {np.degrees(r.controller_offset[j]):+.1f}"

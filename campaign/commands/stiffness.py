@@ -9,14 +9,6 @@ import typer
 from rich.console import Console
 
 from analysis.errors import SingularPoseError
-from analysis.kinetostatics.equilibrium import displacement_screw
-from analysis.kinetostatics.maps import WORST_CASE_WRENCH
-from analysis.kinetostatics.stiffness import (
-    cartesian_stiffness,
-    complementary_stiffness_from_state,
-    deflection,
-)
-from analysis.model.kinematics import chain_state, jacobian_from_state
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -36,12 +28,17 @@ def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
 
 def _intervals(r, q, k, w, J, cov_x) -> dict:
     """95 % intervals of the nonlinear deflection and of diag(K_X) from the model's covariance."""
+    from analysis.kinetostatics.stiffness import (
+        cartesian_stiffness,
+        complementary_stiffness_from_state,
+    )
     from analysis.kinetostatics.uncertainty import (
         Z95,
         cartesian_stiffness_se,
         predict_deflection,
         stiffness_covariance,
     )
+    from analysis.model.kinematics import chain_state
 
     pred = predict_deflection(r, q, k, w, cov_x)
     lo, hi = pred.bounds(Z95)
@@ -84,6 +81,16 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
     ) -> None:
         """Kinematic Jacobian, K_C (eq. 8), K_X with and without K_C (eqs. 6, 12), deflection."""
+        # analysis.* pulls in pinocchio: imported when the command runs, not at start-up
+        from analysis.kinetostatics.equilibrium import displacement_screw
+        from analysis.kinetostatics.maps import WORST_CASE_WRENCH
+        from analysis.kinetostatics.stiffness import (
+            cartesian_stiffness,
+            complementary_stiffness_from_state,
+            deflection,
+        )
+        from analysis.model.kinematics import chain_state, jacobian_from_state
+
         r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
         tool = tool_option(tool_xyz_mm, tool_rpy_deg)
         qr = r.check_q(joint_angles_option(r, q, controller), where="--q")

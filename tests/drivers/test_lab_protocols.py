@@ -129,3 +129,14 @@ def test_protocol_without_fake_lab_and_robot_conflict_are_refused(tmp_path, caps
     assert main(["lab", "--fake", "--protocol", str(ROOT / "protocols" / "kr240-2.toml"),
                  "--robot", "ur5e"]) == 2
     assert "drop --robot" in capsys.readouterr().err
+
+
+def test_protocol_that_is_not_utf8_is_refused_in_one_line(tmp_path, capsys):
+    from campaign.cli import main
+
+    text = (ROOT / "protocols" / "kr240-2.toml").read_text(encoding="utf-8")
+    utf16 = tmp_path / "p.toml"
+    utf16.write_bytes(text.encode("utf-16"))
+    assert main(["lab", "--fake", "--protocol", str(utf16)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "UTF-16" in err and str(utf16) in err

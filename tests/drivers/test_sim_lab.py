@@ -114,7 +114,7 @@ def test_cli_refuses_without_fake_and_bad_inputs(tmp_path, capsys):
     bad = tmp_path / "p.toml"
     bad.write_text("robot = [unclosed")
     assert main(["lab", "--fake", "--protocol", str(bad)]) == 2
-    assert "cannot parse" in capsys.readouterr().err
+    assert "not valid TOML" in capsys.readouterr().err
     assert main(["lab", "--fake", "--protocol", str(tmp_path / "missing.toml")]) == 2
     assert "not found" in capsys.readouterr().err
     assert main(["lab", "--fake", "--instruments", "laser-cannon"]) == 2

@@ -80,6 +80,11 @@ def test_sandwich_and_residual_variance_equal_the_hat_matrix_forms(kr240, zone_p
     np.testing.assert_allclose(cov_block, cov_dense, rtol=1e-10, atol=1e-12 * np.abs(
         cov_dense).max())
     np.testing.assert_allclose(var_block, var_dense, rtol=1e-9, atol=1e-12 * var_dense.max())
+    # the blockwise operator equals the dense G (blocks of 4 tests)
+    v = np.random.default_rng(5).normal(size=G.shape[1])
+    est = f.estimator
+    est = type(est)(est.bread, est.A, est.Linv, block=4)
+    np.testing.assert_allclose(est @ v, G @ v, rtol=1e-10, atol=1e-12 * np.abs(G @ v).max())
     # the estimator reproduces the estimate: x = G d (linear fits)
     if method != "exact":
         np.testing.assert_allclose(G @ stack_vector(tests.d), f.x, rtol=1e-10)

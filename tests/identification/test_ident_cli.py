@@ -33,7 +33,7 @@ def test_robustness_bad_options_exit_2(capsys):
     assert "--tests" in capsys.readouterr().err
     assert main(["robustness", "--robot", "kr240-2", "--tests", "3", "--trials", "10",
                  "--rotation-source", "camera"]) == 2
-    assert "rotation_source" in capsys.readouterr().err
+    assert "--rotation-source" in capsys.readouterr().err
 
 
 def test_analyze_csv_writes_results_json(tmp_path, kr240, zone_poses, w_eff):
@@ -79,9 +79,9 @@ def test_analyze_noise_overrides_scale_the_intervals(tmp_path, kr240, zone_poses
     base = ["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--no-report"]
     t, r = noise.translation_sigma, noise.rotation_sigma
     f, m = noise.force_sigma, noise.moment_sigma
-    opts = ["--sigma-translation-um", f"{t * 1e6:.12g}", "--sigma-rotation-urad",
+    opts = ["--translation-sigma-um", f"{t * 1e6:.12g}", "--rotation-sigma-urad",
             f"{r * 1e6:.12g}", "--force-sigma-N", f"{f:.12g}", "--moment-sigma-Nm", f"{m:.12g}"]
-    doubled = ["--sigma-translation-um", f"{2 * t * 1e6:.12g}", "--sigma-rotation-urad",
+    doubled = ["--translation-sigma-um", f"{2 * t * 1e6:.12g}", "--rotation-sigma-urad",
                f"{2 * r * 1e6:.12g}", "--force-sigma-N", f"{2 * f:.12g}",
                "--moment-sigma-Nm", f"{2 * m:.12g}"]
     assert main([*base, "--out", str(tmp_path / "a"), *opts]) == 0

@@ -141,7 +141,7 @@ def test_infeasible_placements_are_reported(tmp_path, capsys):
     assert all(p["reason"].startswith("unreachable") for p in inf["placements"])
     code = main(["place", "--robot", "kr240-2", "--path", str(path), "--out", str(out),
                  "--x-mm", "4000..5000", "--y-mm", "0", "--z-mm", "200", "--x-step-mm", "1000",
-                 "--wrench", WRENCH, "--workers", "0"])
+                 "--wrench", WRENCH, "--workers", "0", "--force"])
     err = capsys.readouterr().err
     assert code == 2 and "no feasible placement among 2" in err and "unreachable" in err
 

@@ -77,16 +77,33 @@ def test_all_load_cases_per_pose(tmp_path, kr_protocol):
 
 
 def test_predicted_se_independent(kr_plan):
-    """se_k = k^2 sqrt(diag((A_w^T A_w)^-1)), A_w from linear_model.design_matrix."""
+    """se_k = k^2 sqrt(diag((A^T S^-1 A)^-1)) with S per row: tracker noise (x sqrt(1.5):
+    loaded minus the mean of two unloaded readings), F/T noise through the compliance
+    J K^-1 J^T, encoder noise through a finite-difference derivative of C(q) w; 3 rows a test."""
     df = kr_plan.to_frame()
     q = df[[f"q{j}_model_deg" for j in range(1, 7)]].to_numpy() * DEG
     w = df[["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m"]].to_numpy()
-    A = design_matrix(kr_plan.robot, q, w)
-    sigma = np.tile(np.r_[[30e-6] * 3, [20e-6] * 3] / np.sqrt(3), len(df))
-    Aw = A / sigma[:, None]
-    se_x = np.sqrt(np.diag(np.linalg.inv(Aw.T @ Aw)))
     k = np.array([1409800, 400760, 935280, 360000, 370000, 380000.0])
-    assert np.allclose(kr_plan.chosen.se, k**2 * se_x, rtol=1e-6)
+    robot = kr_plan.robot
+
+    def disp(qq, ww):
+        J = jacobian(robot, qq)
+        return J @ np.diag(1 / k) @ J.T @ ww
+
+    info = np.zeros((6, 6))
+    sd = np.r_[[30e-6] * 3, [20e-6] * 3] * np.sqrt(1.5)
+    sw = np.r_[[0.5] * 3, [0.05] * 3]
+    sq = np.radians(0.001) / np.sqrt(12)
+    for qi, wi in zip(q, w, strict=True):
+        J = jacobian(robot, qi)
+        A = design_matrix(robot, qi[None], wi)
+        C = J @ np.diag(1 / k) @ J.T
+        G = np.stack([(disp(qi + 1e-6 * e, wi) - disp(qi - 1e-6 * e, wi)) / 2e-6
+                      for e in np.eye(6)], axis=1)
+        S = np.diag(sd**2) + C @ np.diag(sw**2) @ C.T + sq**2 * G @ G.T
+        info += 3 * A.T @ np.linalg.solve(S, A)
+    se_x = np.sqrt(np.diag(np.linalg.inv(info)))
+    assert np.allclose(kr_plan.chosen.se, k**2 * se_x, rtol=1e-5)
 
 
 def test_plan_directory_round_trip(tmp_path, kr_plan):

@@ -34,7 +34,7 @@ def test_spread_at_the_campaign_size_meets_its_standard_errors(tmp_path, rows):
     tests = to_arrays(table)
     q, w = design_tests(tests.q, tests.w)
     assert len(q) == 5  # 15 rows = 5 poses x 3 repeats
-    result = analyze_table(table, robot, method="wls", noise=noise, validate=False)
+    result = analyze_table(table, robot, method="exact", noise=noise, validate=False)
     n = 5 * REPEATS
     curve = design_robustness(robot, q, w, TRUE_K, noise, range(6), tests=(3, n, 4 * n),
                               trials=400, seed=1)

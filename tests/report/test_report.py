@@ -165,14 +165,34 @@ def test_html_residuals_validation_and_kx(complete):
     val = doc.tables["Held-out validation (leave one pose out)"]
     assert [r[0] for r in val[1:]] == ["P1", "P2", "P3", "P4", "P5"]
     assert all(0.2 < float(r[4]) < 3 for r in val[1:])
-    kx = doc.tables["K_X at pose 1 (command line), with K_C (SI)"]
-    kx0 = doc.tables["K_X at pose 1 (command line), without K_C (SI)"]
-    m = np.array([[float(v) for v in r[1:]] for r in kx[1:]])
-    m0 = np.array([[float(v) for v in r[1:]] for r in kx0[1:]])
-    assert m.shape == (6, 6)
-    np.testing.assert_allclose(m0, m0.T, rtol=0.02, atol=1e-3 * np.abs(m0).max())
-    assert np.all(np.linalg.eigvalsh((m0 + m0.T) / 2) > 0)  # a stiffness: positive definite
-    assert not np.allclose(m, m0, rtol=1e-4)  # K_C changes K_X under the wrench
+    kx = doc.tables["K_X at pose 1 (command line), with K_C"]
+    assert kx[0][1:7] == ["x (/mm)", "y (/mm)", "z (/mm)", "rx (/mrad)", "ry (/mrad)",
+                          "rz (/mrad)"]
+    m = np.array([[float(v) for v in r[1:7]] for r in kx[1:]])
+    # independent: K_X of eq. 6 at the --pose with the identified k, scaled to N/mm, N m/mrad
+    from report_runs import PROTOCOL
+
+    from analysis.kinetostatics.stiffness import cartesian_stiffness, complementary_stiffness
+    from analysis.model.kinematics import jacobian
+    from campaign.protocol import load_protocol
+    from campaign.protocol_robot import protocol_robot
+
+    robot = protocol_robot(load_protocol(PROTOCOL))
+    q = np.radians([0, 30, -190, 10, 40, 20])
+    w = np.array([0, 2200, 2200, 200, 200, 0.0])
+    k = np.array(res["joint_stiffness_Nm_per_rad"])
+    K = 1e-3 * cartesian_stiffness(jacobian(robot, q), k, complementary_stiffness(robot, q, w))
+    np.testing.assert_allclose(m, K, rtol=1e-3, atol=1e-3 * np.abs(K).max())
+    principal = np.array([float(r[8]) for r in kx[1:]])
+    assert np.all(np.diff(principal[:3]) <= 0) and np.all(np.diff(principal[3:]) <= 0)
+    # no SI e-notation and no round-off residue in the engineering table
+    assert not any("e" in c for r in kx[1:] for c in r[1:])
+    effect = doc.tables["Effect of K_C (the load's geometric stiffness)"]
+    row = effect[1]
+    dp_with, dp_without, diff = (float(v) for v in row[1:4])
+    assert abs(dp_with - dp_without) <= diff + 1e-3  # triangle inequality
+    assert float(row[4]) == pytest.approx(100 * diff / dp_with, abs=0.02)
+    assert 0 < float(row[5]) < 20  # K_C changes K_X under the wrench, by a little
 
 
 def test_pdf_pages_and_numbers(complete):

@@ -101,8 +101,8 @@ def test_import_without_and_with_the_tool_options(ur_run, tmp_path, capsys):
     shutil.copy(ur_run / "tests.csv", csv)
     assert main(["analyze", str(ur_run), "--out", str(tmp_path / "run"), "--no-report"]) == 0
     nm = noise_from_protocol(load_protocol(UR10E))
-    noise = ["--sigma-translation-um", repr(nm.translation_sigma * 1e6),
-             "--sigma-rotation-urad", repr(nm.rotation_sigma * 1e6),
+    noise = ["--translation-sigma-um", repr(nm.translation_sigma * 1e6),
+             "--rotation-sigma-urad", repr(nm.rotation_sigma * 1e6),
              "--force-sigma-N", repr(nm.force_sigma), "--moment-sigma-Nm", repr(nm.moment_sigma)]
     capsys.readouterr()
     flange = ["analyze", "--measurements", str(csv), "--robot", "ur10e", *noise,
@@ -164,13 +164,13 @@ def test_a_good_import_is_not_refused_and_records_its_assumptions(tmp_path, rows
     csv = write_csv(tmp_path / "ok.csv", rows)
     out = tmp_path / "o"
     assert main(["analyze", "--measurements", str(csv), "--robot", "kr240-2",
-                 "--sigma-translation-um", repr(float(30 * np.sqrt(1.5))),
-                 "--sigma-rotation-urad", repr(float(20 * np.sqrt(1.5))),
+                 "--translation-sigma-um", repr(float(30 * np.sqrt(1.5))),
+                 "--rotation-sigma-urad", repr(float(20 * np.sqrt(1.5))),
                  "--no-report", "--out", str(out)]) == 0
     res = json.loads((out / "results.json").read_text())
     a = res["assumptions"]
     assert a["tool_point"]["source"] == "none given: flange centre assumed"
-    assert "defaults" in a["noise"]["source"] and "--sigma-translation-um" in a["noise"]["source"]
+    assert "defaults" in a["noise"]["source"] and "--translation-sigma-um" in a["noise"]["source"]
     assert a["method"].startswith("exact")
     assert res["misfit_accepted"] == {"accepted": False, "problems": []}
 

@@ -24,13 +24,24 @@ PROTOCOL = "protocols/kr240-2.toml"
 
 
 def _path_points(robot, count: int, seed: int, span: float = 1.0) -> np.ndarray:
-    """A smooth joint-space path between two well-conditioned poses (model rad)."""
-    from analysis.identification.robustness import sample_poses
+    """A smooth joint-space path between two well-conditioned poses (model rad).
 
-    ends = sample_poses(robot, 2, np.random.default_rng(seed), min_inverse_condition=0.25,
-                        length=robot.characteristic_length or 1.0)
+    The end poses are drawn from ``seed``; draws whose straight joint-space path passes
+    near a singularity (1/kappa_F < 0.05 anywhere) are skipped, deterministically.
+    """
+    from analysis.identification.robustness import sample_poses
+    from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
+    from analysis.model.kinematics import jacobian
+
+    length = robot.characteristic_length or 1.0
+    rng = np.random.default_rng(seed)
     t = np.linspace(0.0, 1.0, count)[:, None]
-    return ends[0] + span * (ends[1] - ends[0]) * t
+    for _ in range(50):
+        ends = sample_poses(robot, 2, rng, min_inverse_condition=0.25, length=length)
+        q = ends[0] + span * (ends[1] - ends[0]) * t
+        if inverse_condition(normalized_jacobian(jacobian(robot, q), length)).min() >= 0.05:
+            return q
+    raise AssertionError("no well-conditioned path in 50 draws")
 
 
 @pytest.mark.parametrize("key", builtin_names())

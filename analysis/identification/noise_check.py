@@ -1,0 +1,66 @@
+"""Do the residuals agree with the declared noise? Per component group, which one is off.
+
+The identification weights every residual by the declared noise
+(:func:`analysis.identification.noise.residual_covariance`). For each group
+of measured components -- translations and rotations -- the ratio
+``s = sqrt(mean((r / sigma)^2) / (1 - p / n))`` estimates actual over declared
+noise (``sigma`` the declared standard deviation of each residual, ``p``
+parameters, ``n`` equations: the fit absorbs p of the n degrees of freedom).
+A group with ``s > FACTOR`` or ``s < 1 / FACTOR`` is named, with the term
+that dominates its declared sigma (tracker or F/T through the compliance),
+so the user knows which figure to revisit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.identification.noise import NoiseModel
+
+FACTOR = 2.0
+#: fewer residuals than this in a group make its ratio too uncertain to judge
+MIN_RESIDUALS = 8
+
+
+def noise_ratio_notes(
+    residual: np.ndarray,
+    cov: np.ndarray,
+    measured: np.ndarray,
+    noise: NoiseModel,
+    n_params: int,
+    factor: float = FACTOR,
+) -> list[str]:
+    """Messages for component groups whose residuals disagree with the declared noise.
+
+    Parameters
+    ----------
+    residual : (m, 6) measured minus predicted displacement (m, rad).
+    cov : (m, 6, 6) declared residual covariance of each test.
+    measured : (m, 6) bool. noise : the declared noise model. n_params : fitted parameters.
+    """
+    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1))
+    n_eq = int(measured.sum())
+    if n_eq <= n_params:
+        return []
+    keep = 1.0 - n_params / n_eq
+    notes = []
+    for name, cols, disp in (("translation", slice(0, 3), noise.translation_sigma),
+                             ("rotation", slice(3, 6), noise.rotation_sigma)):
+        mask = measured[:, cols]
+        if mask.sum() < MIN_RESIDUALS:
+            continue
+        z = (residual[:, cols] / sig[:, cols])[mask]
+        s = float(np.sqrt(np.mean(z**2) / keep))
+        if 1.0 / factor <= s <= factor:
+            continue
+        # which declared term dominates this group's sigma
+        ft_share = float(np.median(1.0 - (disp / sig[:, cols][mask]) ** 2))
+        source = ("the F/T noise (it dominates the declared sigma through the compliance)"
+                  if ft_share > 0.5 else
+                  f"the {'tracker' if name == 'translation' else 'rotation (tracker fit or probe)'}"
+                  " noise")
+        way = "too small" if s > factor else "too large"
+        notes.append(f"{name} residuals are {s:.2g} times the declared noise: {source} looks "
+                     f"{way} by about that factor (check the instrument figures or the "
+                     "--sigma-* options)")
+    return notes

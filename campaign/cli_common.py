@@ -1,0 +1,153 @@
+"""What every ``campaign`` command shares: choices as enums, ``--json`` output,
+``--force`` for output directories, progress of long stages.
+
+Only the standard library, typer and rich at import time: every command module
+is imported at start-up.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from enum import StrEnum
+from pathlib import Path
+
+from analysis.errors import InputError
+
+
+class Method(StrEnum):
+    """Estimator of the joint compliances (analysis.identification.estimate.METHODS)."""
+
+    ols = "ols"
+    wls = "wls"
+    exact = "exact"
+
+
+class Covariance(StrEnum):
+    """Covariance of the estimate: the noise figures taken as known, or scaled by chi-square."""
+
+    model = "model"
+    residual = "residual"
+
+
+class Strategy(StrEnum):
+    """Test selection of ``campaign plan`` (campaign.planner.STRATEGIES)."""
+
+    worst_joint = "worst-joint"
+    weighted = "weighted"
+    d_optimal = "d-optimal"
+    e_optimal = "e-optimal"
+    zones_random = "zones-random"
+
+
+class TableFormat(StrEnum):
+    parquet = "parquet"
+    csv = "csv"
+
+
+class WrenchFrame(StrEnum):
+    base = "base"
+    tool = "tool"
+
+
+class Objective(StrEnum):
+    max = "max"
+    rms = "rms"
+    compliance = "compliance"
+
+
+class Program(StrEnum):
+    auto = "auto"
+    krl = "krl"
+    urscript = "urscript"
+    none = "none"
+
+
+class RotationSource(StrEnum):
+    reflectors = "reflectors"
+    probe = "probe"
+
+
+def json_ready(value):
+    """``value`` with numpy scalars/arrays as Python numbers/lists and NaN/inf as None."""
+    if isinstance(value, dict):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(v) for v in value]
+    if hasattr(value, "tolist"):
+        return json_ready(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def print_json(obj) -> None:
+    """One JSON document on stdout (results.json key style: snake_case with SI units)."""
+    import typer
+
+    typer.echo(json.dumps(json_ready(obj), indent=2))
+
+
+def output_dir(out: Path, force: bool, where: str = "--out") -> Path:
+    """Create ``out``; refuse a non-empty existing directory unless ``force``.
+
+    ``campaign acquire`` and ``demo`` never overwrite a run; the other commands
+    that write a directory follow the same rule, with ``--force`` to replace
+    the files they write (other files are left alone).
+    """
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a directory", where=str(out))
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise InputError("output directory exists and is not empty; choose another or add "
+                         "--force to overwrite its files", where=f"{where} {out}")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"cannot create the output directory: {err}", where=str(out)) from None
+    return out
+
+
+@contextmanager
+def stage(text: str, enabled: bool = True) -> Iterator[None]:
+    """A spinner with the elapsed time on stderr while ``text`` runs (terminal only).
+
+    Nothing is drawn when stderr is not a terminal (pipes, tests, --json), so
+    machine-read output stays clean.
+    """
+    from rich.console import Console
+
+    console = Console(stderr=True)
+    if not (enabled and console.is_terminal):
+        yield
+        return
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    t0 = time.monotonic()
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                  console=console, transient=True) as progress:
+        progress.add_task(text, total=None)
+        yield
+    console.print(f"{text}: {time.monotonic() - t0:.1f} s", style="dim")
+
+
+@contextmanager
+def progress_bar(text: str, total: int, enabled: bool = True):
+    """A progress bar on stderr (terminal only); yields ``advance(n)``."""
+    from rich.console import Console
+
+    console = Console(stderr=True)
+    if not (enabled and console.is_terminal):
+        yield lambda n=1: None
+        return
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(),
+                  TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn(),
+                  console=console, transient=True) as progress:
+        task = progress.add_task(text, total=total)
+        yield lambda n=1: progress.advance(task, n)

@@ -1,0 +1,70 @@
+"""Every noise source is an option, and residuals name a declared noise that is off by > 2x."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from analysis.identification.estimate import identify
+from analysis.identification.measurements import TestArrays
+from analysis.kinetostatics.equilibrium import displacement_screw
+from campaign.commands.analyze import _override_noise
+from tests.quality._coverage import NOISE, campaign_setup
+
+
+@pytest.fixture(scope="module")
+def setup(own_protocol_path):
+    return campaign_setup(own_protocol_path, poses=8)
+
+
+def _tests(setup, actual, seed=0):
+    robot, q, W, k = setup
+    qq = np.repeat(q, len(W), axis=0)
+    ww = np.tile(W, (len(q), 1))
+    d = displacement_screw(robot, qq, k, ww)
+    rng = np.random.default_rng(seed)
+    wm = ww + rng.normal(size=ww.shape) * actual.wrench_sigma_at(ww)
+    dm = d + rng.normal(size=d.shape) * actual.displacement_sigma
+    return TestArrays(pose=np.repeat([f"P{i}" for i in range(len(q))], len(W)), q=qq, w=wm,
+                      d=dm, measured=np.ones(d.shape, bool), line=np.arange(len(qq)) + 2)
+
+
+def _notes(res):
+    return [w for w in res.warnings if "times the declared noise" in w]
+
+
+def test_declared_noise_right_gives_no_note(setup):
+    res = identify(setup[0], _tests(setup, NOISE), "exact", noise=NOISE, validate=False)
+    assert _notes(res) == []
+
+
+def test_tracker_noise_three_times_declared_is_named(setup):
+    actual = replace(NOISE, translation_sigma_override=3 * NOISE.translation_sigma)
+    res = identify(setup[0], _tests(setup, actual), "exact", noise=NOISE, validate=False)
+    notes = _notes(res)
+    assert len(notes) == 1 and notes[0].startswith("translation residuals are")
+    assert "tracker noise looks too small" in notes[0]
+    ratio = float(notes[0].split(" are ")[1].split(" times")[0])
+    assert 2.4 < ratio < 3.6
+
+
+def test_rotation_noise_declared_four_times_too_large_is_named(setup):
+    declared = replace(NOISE, rotation_sigma_override=4 * NOISE.rotation_sigma)
+    res = identify(setup[0], _tests(setup, NOISE), "exact", noise=declared, validate=False)
+    notes = _notes(res)
+    assert len(notes) == 1 and notes[0].startswith("rotation residuals")
+    assert "too large" in notes[0]
+
+
+def test_cli_noise_options_reach_the_model():
+    noise, used = _override_noise(NOISE, None, None, 2.0, None, 7.0, 0.5, 0.25)
+    assert noise.force_sigma == 2.0
+    assert noise.joint_sigma == pytest.approx(7e-6)
+    assert noise.force_relative == pytest.approx(0.005)
+    assert noise.moment_relative == pytest.approx(0.0025)
+    assert used == ["--force-sigma-N", "--joint-sigma-urad", "--force-pct", "--moment-pct"]
+    # 0.5 % of a 1000 N reading in quadrature with 2 N
+    s = noise.wrench_sigma_at(np.array([600.0, 0, 800.0, 0, 0, 0]))
+    assert s[0] == pytest.approx(np.hypot(2.0, 5.0))
