@@ -239,6 +239,9 @@ def identify(
         chosen = fit_exact(robot, tests, joints, noise, start=ols.x)
     else:
         chosen = linear[method]
+    # only the estimates of the linear fits are kept (their per-test arrays are ~1 kB/test)
+    linear_x = {k: v.x for k, v in linear.items()}
+    del linear, ols
 
     p = len(joints)
     n_eq = int(tests.measured.sum())
@@ -299,7 +302,7 @@ def identify(
         condition_number_weighted=float(scaled_condition(Aw)), tests=tests, n_equations=n_eq,
         dof=dof, chi2_reduced=chi2_red, p_value=p_value, residuals=residuals,
         n_poses=count_poses(tests.q, pose_tolerance(noise)), outlier_threshold=threshold,
-        linear={k: v.x for k, v in linear.items()}, iterations=chosen.iterations,
+        linear=linear_x, iterations=chosen.iterations,
         noise=noise, warnings=warnings,
     )
     if validate:
