@@ -223,6 +223,7 @@ def identify(
     check_tests(robot, tests, joints, noise)
     _, A_lin = _design(robot, tests, joints)
     cond = check_identifiable(A_lin, joints, cond_limit)
+    del A_lin  # the fits build their own; at 1e6 tests each (m, 6, p) array is ~0.3 GB
     warnings: list[str] = []
     if not tests.has_rotations and any(j >= 3 for j in joints):
         warnings.append("no rotation measured: wrist joints are identified from translations "
@@ -310,6 +311,9 @@ def identify(
 
         result.validation = leave_one_pose_out(robot, tests, method, joints, noise,
                                                full_fit=chosen)
+    from analysis.identification.fitting import _J_CACHE
+
+    _J_CACHE.clear()  # J is not needed after the identification (0.3 GB at 1e6 tests)
     return result
 
 
