@@ -180,3 +180,23 @@ def read_mapping_file(path: Path, what: str) -> tuple[dict, str]:
     if not isinstance(data, dict):
         raise InputError("expected a table of keys at the top level", where=str(path))
     return data, text
+
+
+def read_json_object(path: Path, what: str) -> dict:
+    """A JSON file whose top level is an object (UTF-8); errors name the file and line.
+
+    Used for the records of a run (``metadata.json``): a damaged one is refused with
+    a one-line message, never a traceback.
+    """
+    import json
+
+    text = read_utf8(path, what)
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise InputError(f"not valid JSON (line {err.lineno}, column {err.colno}): {err.msg}; "
+                         "the run record is damaged", where=str(path)) from None
+    if not isinstance(data, dict):
+        raise InputError(f"expected a JSON object, found a {type(data).__name__}; the run "
+                         "record is damaged", where=str(path))
+    return data

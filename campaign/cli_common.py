@@ -33,6 +33,14 @@ class Covariance(StrEnum):
     residual = "residual"
 
 
+class Robust(StrEnum):
+    """Robust fitting of ``campaign analyze`` (analysis.identification.robust.ROBUST_METHODS)."""
+
+    none = "none"
+    huber = "huber"
+    tukey = "tukey"
+
+
 class Strategy(StrEnum):
     """Test selection of ``campaign plan`` (campaign.planner.STRATEGIES)."""
 

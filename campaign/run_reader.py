@@ -102,21 +102,6 @@ class Run:
         return {f: counts[f] for f in order}
 
 
-def _read_json(path: Path) -> dict:
-    from analysis.file_errors import read_utf8
-
-    text = read_utf8(path, path.name)
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise InputError(f"not valid JSON (line {err.lineno}): {err.msg}; the run record is "
-                         "damaged", where=str(path)) from None
-    if not isinstance(data, dict):
-        raise InputError(f"expected a JSON object, found a {type(data).__name__}; the run "
-                         "record is damaged", where=str(path))
-    return data
-
-
 def _check_metadata(meta: dict, where: str) -> None:
     version = meta.get("format_version")
     if version != FORMAT_VERSION:
@@ -305,7 +290,9 @@ def read_run(path: str | Path, export: bool = True) -> Run:
     if not meta_path.is_file():
         raise InputError(f"no {METADATA}: not a run directory (see docs/run_format.md)",
                          where=str(run))
-    meta = _read_json(meta_path)
+    from analysis.file_errors import read_json_object
+
+    meta = read_json_object(meta_path, meta_path.name)
     _check_metadata(meta, str(meta_path))
     status = meta["status"]
     notes: list[str] = []

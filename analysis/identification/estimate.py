@@ -67,6 +67,7 @@ from analysis.identification.measurements import COMPONENTS, TestArrays, to_arra
 from analysis.identification.noise import NoiseModel
 from analysis.identification.poses import count_poses, pose_tolerance
 from analysis.identification.result import Fit, IdentificationResult
+from analysis.identification.robust import ROBUST_METHODS, robust_fit
 from analysis.identification.uncertainty import (
     chi2_summary,
     critical_value,
@@ -193,6 +194,7 @@ def identify(
     outlier_level: float = OUTLIER_FAMILY_LEVEL,
     validate: bool = True,
     confidence: float = 0.95,
+    robust: str = "none",
 ) -> IdentificationResult:
     """Identify joint stiffness from tests; see the module docstring for the estimators.
 
@@ -207,6 +209,10 @@ def identify(
     covariance : "model" (known sigmas) or "residual" (scaled by reduced chi-square).
     outlier_level : family-wise level of the outlier test (:func:`outlier_threshold`).
     validate : run leave-one-pose-out validation (needs >= 3 poses).
+    robust : "none" (the Gaussian fit), "huber" or "tukey": IRLS around ``method``
+        (:mod:`analysis.identification.robust`). The chi-square, the noise-ratio notes
+        and the validation then use the components kept (weight >= 0.5); the
+        ``outlier`` column marks the ones down-weighted below it.
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}",
@@ -214,6 +220,12 @@ def identify(
     if covariance not in ("model", "residual"):
         raise InputError(f"expected 'model' or 'residual', got {covariance!r}",
                          where="covariance")
+    if robust not in ROBUST_METHODS:
+        raise InputError(f"unknown robust estimator {robust!r}: expected one of "
+                         f"{', '.join(ROBUST_METHODS)}", where="--robust")
+    if robust != "none" and method == "ols":
+        raise InputError("robust fitting weights the residuals whitened by the noise model: "
+                         "use --method exact (or wls), not ols", where="--robust")
     noise = noise or NoiseModel()
     if joints is None:
         joints = tuple(range(6)) if tests.has_rotations else (0, 1, 2)
@@ -243,18 +255,25 @@ def identify(
     # only the estimates of the linear fits are kept (their per-test arrays are ~1 kB/test)
     linear_x = {k: v.x for k, v in linear.items()}
     del linear, ols
+    rob = None
+    kept = tests.measured
+    if robust != "none":
+        rob = robust_fit(robot, tests, joints, noise, method, robust, start=chosen.x)
+        chosen = rob.fit
+        kept = rob.kept(tests.measured)
 
     p = len(joints)
     n_eq = int(tests.measured.sum())
-    dof = n_eq - p
+    # the goodness of fit is that of the components the fit rests on
+    dof = int(kept.sum()) - p
     cov_x = sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv)
     var_r = residual_variance_blocks(chosen.A, chosen.cov, chosen.bread, cov_x, chosen.Linv)
-    Linv = chosen.Linv if chosen.Linv is not None else whitening(chosen.cov, tests.measured)
-    resid = np.where(tests.measured, tests.d - chosen.predicted, 0.0)
+    Linv = whitening(chosen.cov, kept)
+    resid = np.where(kept, tests.d - chosen.predicted, 0.0)
     chi2_red, p_value = chi2_summary(np.einsum("mij,mj->mi", Linv, resid), dof)
     from analysis.identification.noise_check import noise_ratio_notes
 
-    warnings += noise_ratio_notes(resid, chosen.cov, tests.measured, noise, len(joints))
+    warnings += noise_ratio_notes(resid, chosen.cov, kept, noise, len(joints))
     scale = 1.0
     crit = critical_value(confidence)
     if covariance == "residual":
@@ -283,10 +302,16 @@ def identify(
                             "reaches 0, the data do not bound k from above")
 
     threshold = outlier_threshold(n_eq, outlier_level)
-    flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold)
+    if rob is None:
+        flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold)
+    else:
+        flags = tests.measured & ~kept
     residuals = _residual_table(tests, chosen, var_r, scale, flags)
+    if rob is not None:
+        residuals["weight"] = rob.weights[tests.measured]
+        warnings.append(rob.summary())
     flagged = residuals[residuals["outlier"]]
-    if len(flagged):
+    if len(flagged) and rob is None:
         where = ", ".join(
             f"test {r.test + 1} line {r.line} (pose {r.pose}) {r.component} "
             f"t = {r.studentized:.1f}"
@@ -306,11 +331,16 @@ def identify(
         linear=linear_x, iterations=chosen.iterations,
         noise=noise, warnings=warnings,
     )
+    if rob is not None:
+        result.robust = rob.describe()
     if validate:
         from analysis.identification.crossval import leave_one_pose_out
 
-        result.validation = leave_one_pose_out(robot, tests, method, joints, noise,
-                                               full_fit=chosen)
+        # robust: validated on the components the robust fit kept (weight >= 0.5)
+        valid_tests = tests if rob is None else TestArrays(
+            tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
+        result.validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
+                                               full_fit=chosen if rob is None else None)
     from analysis.identification.fitting import _J_CACHE
 
     _J_CACHE.clear()  # J is not needed after the identification (0.3 GB at 1e6 tests)

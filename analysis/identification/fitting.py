@@ -131,8 +131,8 @@ def check_identifiable(
 
 
 def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
-                 w: np.ndarray | None = None) -> np.ndarray:
-    return covariances_per_test(noise, J, x_full, measured, w)
+                 w: np.ndarray | None = None, weights: np.ndarray | None = None) -> np.ndarray:
+    return covariances_per_test(noise, J, x_full, measured, w, weights)
 
 
 def _linear_estimator(A, d, measured, cov, weighted: bool):
@@ -156,13 +156,19 @@ def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
     return x
 
 
-def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
-    """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18)."""
+def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=None) -> Fit:
+    """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18).
+
+    WLS only: ``weights`` (m, 6) robust weights (:func:`_covariances`; ``cov`` of the
+    result is then the weighted one), ``start`` (p,) compliances to evaluate the first
+    weights at instead of the OLS estimate.
+    """
     J, A = _design(robot, tests, joints)
     x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, None, weighted=False)
     if weighted:
+        x = x if start is None else np.asarray(start, dtype=float)
         for _ in range(2):
-            cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
+            cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w, weights)
             x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
     else:
         cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
@@ -170,9 +176,14 @@ def fit_linear(robot, tests, joints, noise, weighted: bool) -> Fit:
     return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv)
 
 
-def fit_exact(robot, tests, joints, noise, start: np.ndarray) -> Fit:
-    """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,)."""
-    gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start)
+def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None) -> Fit:
+    """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,).
+
+    ``weights`` (m, 6): robust weights (:func:`_covariances`); ``cov`` of the result is
+    then the weighted one.
+    """
+    gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
+                      weights=weights)
     if not gn.valid:
         raise InputError(
             "the exact fit cannot start: the equilibrium has no solution at the linear "

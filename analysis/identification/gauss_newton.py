@@ -61,10 +61,13 @@ def _model_in_blocks(robot, q, x, w, with_jacobian):
     return f, F, ok
 
 
-def covariances_per_test(noise, J, x_full, measured, w=None) -> np.ndarray:
+def covariances_per_test(noise, J, x_full, measured, w=None, weights=None) -> np.ndarray:
     """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6).
 
     ``w`` (..., m, 6): the measured wrenches, for wrench noise proportional to the reading.
+    ``weights`` (..., m, 6) > 0 where measured: robust weights
+    (:mod:`analysis.identification.robust`); component i's variance is divided by
+    weights_i and its correlations kept, Sigma_w = D^-1/2 Sigma D^-1/2 with D = diag(weights).
     One campaign (J (m, 6, 6)) is done in blocks of :data:`EVAL_BLOCK` tests
     (the (m, 6, 6) temporaries of 1e6 tests do not fit in cache).
     """
@@ -73,10 +76,14 @@ def covariances_per_test(noise, J, x_full, measured, w=None) -> np.ndarray:
         for s in range(0, J.shape[0], EVAL_BLOCK):
             sl = slice(s, s + EVAL_BLOCK)
             out[sl] = covariances_per_test(noise, J[sl], x_full, measured[sl],
-                                           None if w is None else w[sl])
+                                           None if w is None else w[sl],
+                                           None if weights is None else weights[sl])
         return out
     C = (J * x_full[..., None, None, :]) @ np.swapaxes(J, -1, -2)  # J diag(x) J^T
     cov = residual_covariance(noise, C, w)
+    if weights is not None:
+        s = 1.0 / np.sqrt(np.where(measured, weights, 1.0))
+        cov = cov * s[..., :, None] * s[..., None, :]
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
 
 
@@ -92,6 +99,7 @@ def gauss_newton(
     max_iter: int = 30,
     tol: float = 1e-9,
     reweight_iterations: int = 3,
+    weights: np.ndarray | None = None,
 ) -> GaussNewtonFit:
     """Fit compliances of ``joints`` (others rigid) to finite displacements.
 
@@ -105,6 +113,8 @@ def gauss_newton(
         are accepted when the cost does not rise by more than 1e-8 relative.
     reweight_iterations : the weights follow x for this many iterations,
         then stay fixed so that the last iterations are plain Gauss-Newton.
+    weights : (..., m, 6) robust weights > 0 where measured, or None (all 1); see
+        :func:`covariances_per_test`. The returned ``cov`` and ``cov_x`` are the weighted ones.
     """
     cols = list(joints)
     dz = np.where(measured, d, 0.0)
@@ -134,7 +144,8 @@ def gauss_newton(
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
         if iterations <= reweight_iterations:
-            Linv = whitening(covariances_per_test(noise, J, full(x), measured, w), measured)
+            Linv = whitening(covariances_per_test(noise, J, full(x), measured, w, weights),
+                              measured)
         r = whitened(Linv, f)
         Aw = stack_matrix(Linv @ F)
         Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined
@@ -162,7 +173,7 @@ def gauss_newton(
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
         if np.all(converged | ~valid):
             break
-    cov = covariances_per_test(noise, J, full(x), measured, w)
+    cov = covariances_per_test(noise, J, full(x), measured, w, weights)
     Linv = whitening(cov, measured)
     Aw = stack_matrix(Linv @ F)
     Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))  # keep QR defined

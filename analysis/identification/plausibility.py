@@ -10,6 +10,10 @@ Three checks, each a refusal unless the user accepts the result anyway
   smaller than the noise figures allow: typically a consistent unit error
   (displacements typed in m instead of mm are 1000 x too small, and so is
   every residual) or noise figures far too large;
+* **robust fit hiding a misfit**: a robust fit (``--robust``) down-weighted more
+  than :data:`MAX_DOWN_WEIGHTED` of the components: that is not a few glitches
+  but data the model does not explain, which down-weighting would hide from
+  the chi-square;
 * **far from nominal**: an identified k differs from the robot model's nominal
   stiffness by more than :data:`NOMINAL_FACTOR` either way (only where the
   model has one): a unit error of the displacements or the wrench, or a
@@ -29,6 +33,8 @@ from analysis.identification.result import IdentificationResult
 MISFIT_P = 1e-6
 #: largest believable ratio between an identified k and the model's nominal one
 NOMINAL_FACTOR = 10.0
+#: largest fraction of the components a robust fit may down-weight (Gaussian data: ~1 %)
+MAX_DOWN_WEIGHTED = 0.1
 #: number of rows named in a message
 WORST_ROWS = 5
 
@@ -86,6 +92,14 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
             f"misfit: the model does not explain the data ({chi2}, P(chi2 >= observed) = "
             f"{result.p_value:.2g} < {MISFIT_P:g}); likely causes, most likely first: "
             f"{_causes(CAUSES_MISFIT)}; worst rows: {worst_rows(result)}")
+    rob = result.robust
+    if rob is not None and len(rob["down_weighted"]) > MAX_DOWN_WEIGHTED * result.n_equations:
+        out.append(
+            f"misfit hidden by the robust fit: {rob['method']} down-weighted "
+            f"{len(rob['down_weighted'])} of {result.n_equations} components below weight "
+            f"{rob['reported_below_weight']:g} (more than {MAX_DOWN_WEIGHTED:.0%}; glitches are "
+            f"a few rows); likely causes, most likely first: {_causes(CAUSES_MISFIT)}; worst "
+            f"rows: {worst_rows(result)}")
     low = chi2_lower_tail(result)
     if np.isfinite(low) and low < MISFIT_P:
         out.append(

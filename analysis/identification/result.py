@@ -113,6 +113,9 @@ class IdentificationResult:
         their source, method, ...), filled by the caller; results.json ``assumptions``.
     misfit_accepted : refusals of :mod:`analysis.identification.plausibility`
         overridden by the user (``--accept-misfit``); empty when none.
+    robust : None for the Gaussian fit, else the robust fit's summary
+        (:meth:`analysis.identification.robust.RobustFit.describe`: method, constant,
+        iterations, down-weighted rows); results.json ``robust``.
     """
 
     robot: str
@@ -143,6 +146,7 @@ class IdentificationResult:
     outlier_threshold: float = float("nan")
     assumptions: dict = field(default_factory=dict)
     misfit_accepted: list[str] = field(default_factory=list)
+    robust: dict | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -227,6 +231,7 @@ class IdentificationResult:
                 name: [num(v) for v in c] for name, c in self.change_vs_linear.items()
             },
             "noise": self.noise.describe(),
+            "robust": self.robust,
             "warnings": self.warnings,
             **residual_summary(self.residuals),
             "validation": None if self.validation is None else _records(self.validation),

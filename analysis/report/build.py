@@ -181,15 +181,41 @@ def residual_table(result: IdentificationResult) -> Table:
     u, ur = f"{MICRO}m", f"{MICRO}rad"
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
+    mark = (f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} (Sidak, "
+            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {len(all_res)} residuals)"
+            if result.robust is None else
+            f"* down-weighted below {result.robust['reported_below_weight']:g} by the "
+            f"{result.robust['method']} fit (see the robust fitting table)")
     return Table("Residuals (measured - model) per test and component", cols, rows, marked,
-                 caption=f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} "
-                 f"(Sidak, {OUTLIER_FAMILY_LEVEL:.0%} family-wise over {len(all_res)} "
-                 "residuals); highlighted rows hold an outlier. 'line': row of the input table."
+                 caption=f"{mark}; highlighted rows hold one. 'line': row of the input table."
                  + ("" if res is all_res else
                     f" Listed: the {REPORT_TESTS_LISTED} of {n_tests} tests with the largest "
                     "|studentized| residuals (outliers first); every test is in "
                     "residuals.csv."),
                  widths=[0.6, 0.8, 0.6, 1, 1, 1, 1, 1, 1])
+
+
+def robust_blocks(result: IdentificationResult) -> list:
+    """The robust fit's down-weighted components (none for the Gaussian fit)."""
+    rob = result.robust
+    if rob is None:
+        return []
+    text = (f"Robust fit: {rob['method']} IRLS, c = {rob['constant']:g} on residuals whitened "
+            f"by the noise model's sigma (scale 1), {rob['iterations']} reweighting "
+            "iterations; covariance of the weighted fit with the final weights fixed.")
+    if not rob["down_weighted"]:
+        return [Paragraph(f"{text} No component down-weighted below "
+                          f"{rob['reported_below_weight']:g}.")]
+    rows = [[str(d["test"]), str(d["line"]), str(d["pose"]), d["component"],
+             f"{d['weight']:.3g}", f"{d['whitened_residual']:.1f}"]
+            for d in rob["down_weighted"]]
+    return [Paragraph(text), Table(
+        "Components down-weighted by the robust fit", ["test", "line", "pose", "component",
+                                                         "weight", "residual / sigma"], rows,
+        [d["weight"] < 0.1 for d in rob["down_weighted"]],
+        caption=f"Components with weight below {rob['reported_below_weight']:g} (1: full "
+        "weight, 0: left out); highlighted: below 0.1, effectively discarded. They are left "
+        "out of the chi-square and the validation. 'line': row of the input table.")]
 
 
 def validation_blocks(result: IdentificationResult) -> list:
@@ -385,7 +411,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
                                result.confidence)])
     resid_sec = Section(SECTION_TITLES[2], [
         residual_table(result), figures.residual_plot(result.residuals, result.outlier_threshold),
-        *validation_blocks(result)])
+        *robust_blocks(result), *validation_blocks(result)])
     defl_sec = Section(SECTION_TITLES[3], [
         Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "
                   "with the identified k and K_C (linear, eq. 6)."),
@@ -421,8 +447,9 @@ def assumption_blocks(result: IdentificationResult) -> list:
                      f"{sig(n['rotation_sigma_urad'], 3)} \u00b5rad, force "
                      f"{sig(n['force_sigma_N'], 3)} N, moment {sig(n['moment_sigma_Nm'], 3)} N m "
                      f"({n['source']})"])
-    for key in ("method", "covariance", "joints", "poses"):
-        if key in a:
+    for key in ("method", "robust", "covariance", "joints", "poses"):
+        # the default Gaussian fit needs no row of its own: the method row says it
+        if key in a and not (key == "robust" and str(a[key]).startswith("none")):
             rows.append([key, str(a[key])])
     return [Table("Assumptions", ["item", "value"], rows, widths=[1, 3.2])]
 

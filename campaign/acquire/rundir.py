@@ -187,18 +187,9 @@ def _remove_stale_creations(path: Path) -> None:
 
 def read_metadata(path: Path) -> dict[str, Any]:
     """``metadata.json`` as a dict; an :class:`InputError` names the file when it is not one."""
-    from analysis.file_errors import read_utf8
+    from analysis.file_errors import read_json_object
 
-    text = read_utf8(path, "metadata.json")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise InputError(f"not valid JSON (line {err.lineno}, column {err.colno}): {err.msg}; "
-                         "the run record is damaged", where=str(path)) from None
-    if not isinstance(data, dict):
-        raise InputError(f"expected a JSON object, found a {type(data).__name__}; the run "
-                         "record is damaged", where=str(path))
-    return data
+    return read_json_object(path, "metadata.json")
 
 
 def sha256_file(path: Path) -> str:

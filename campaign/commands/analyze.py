@@ -18,7 +18,7 @@ from rich.table import Table as RichTable
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.cli_common import Covariance, Method, print_json, stage
+from campaign.cli_common import Covariance, Method, Robust, print_json, stage
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -203,7 +203,7 @@ METHOD_TEXT = {
 
 
 def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, method: str,
-                 covariance: str, joints) -> dict:
+                 covariance: str, joints, robust: str = "none") -> dict:
     """What the analysis rests on (results.json ``assumptions``, the terminal, the report)."""
     from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, pose_tolerance
     from campaign.tests_meta import CONVENTIONS
@@ -216,6 +216,9 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
         "method": METHOD_TEXT.get(method, method),
         "covariance": ("model: the noise figures are taken as known" if covariance == "model"
                        else "residual: scaled by the reduced chi-square"),
+        "robust": ("none: the Gaussian fit" if robust == "none" else
+                   f"{robust} IRLS on the residuals whitened by the noise model's sigma "
+                   "(scale 1: the noise figures are taken as known)"),
         "joints": ("all six, or 1-3 when no rotation is measured" if joints is None
                    else ", ".join(str(j + 1) for j in joints) + " (others rigid)"),
         "poses": (f"tests whose joint angles agree to within "
@@ -238,6 +241,7 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"{n['moment_relative_percent']:.3g} % of |m|, encoders "
         f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg ({n['source']})",
         f"  method: {a['method']}; covariance {a['covariance']}; joints {a['joints']}",
+        f"  robust fitting: {a['robust']}",
         f"  poses: {a['poses']}",
     ):
         console.print(line, markup=False, highlight=False)
@@ -317,6 +321,10 @@ def register(app: typer.Typer) -> None:
                                       "linear least squares), wls (weighted), exact "
                                       "(Gauss-Newton on the nonlinear equilibrium)."),
         joints: str = typer.Option(None, help="Joints to identify, e.g. 1,2,3 (others rigid)."),
+        robust: Robust = typer.Option(
+            "none", help="Robust fit for campaigns with glitches: none (the Gaussian fit), "
+            "huber (c = 1.345) or tukey (c = 4.685) IRLS on the whitened residuals; the "
+            "down-weighted rows are reported. Needs --method exact or wls."),
         covariance: Covariance = typer.Option(
             "model", help="model (the noise figures are known) or residual (scaled by the "
             "reduced chi-square)."),
@@ -374,7 +382,7 @@ def register(app: typer.Typer) -> None:
         from analysis.identification.plausibility import problems
         from analysis.identification.result import write_results
 
-        method, covariance = str(method), str(covariance)
+        method, covariance, robust = str(method), str(covariance), str(robust)
         translation_sigma_um = _alias(translation_sigma_um, old_translation,
                                       "--translation-sigma-um")
         rotation_sigma_urad = _alias(rotation_sigma_urad, old_rotation, "--rotation-sigma-urad")
@@ -400,13 +408,13 @@ def register(app: typer.Typer) -> None:
             f"; overridden by {', '.join(overridden)}" if overridden else "")
         joint_list = parse_joints(joints)
         assumptions = _assumptions(model, extras, noise, noise_source, method, covariance,
-                                   joint_list)
+                                   joint_list, robust)
         # with --json, stdout carries the JSON document only
         console = Console(stderr=as_json)
         _print_assumptions(console, assumptions)
         with stage(f"identification ({method}) and validation"):
             result = analyze_table(table, model, method=method, joints=joint_list,
-                                   noise=noise, covariance=covariance)
+                                   noise=noise, covariance=covariance, robust=robust)
         result.assumptions = assumptions
         if measurements is not None and extras["tool"].source.startswith("none given"):
             result.warnings.insert(0, (
