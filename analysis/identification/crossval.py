@@ -13,7 +13,16 @@ For ols the refits are one batched computation: with the thin QR ``A = Q R``
 of the full stacked design and ``U = A R^-1``, removing the rows H of a pose
 gives ``x_-H = R^-1 (I - U_H^T U_H)^-1 (Q^T d - U_H^T d_H)``: a p x p solve per
 pose (its conditioning is that of the pose's leverage, not A's squared). For
-exact, each refit starts from the full-data estimate (warm start).
+exact, each refit starts from the full-data estimate (warm start); with more
+than :data:`EXACT_REFITS_MAX` distinct poses each fold instead takes one
+Gauss-Newton step from the full-data estimate x: the same downdate applied to
+the whitened Jacobian F_w and residual r_w at x,
+``x_-H = x + R^-1 (I - U_H^T U_H)^-1 (Q^T r_w - U_H^T r_wH)`` (the fold's cost is
+quadratic in the step up to the model's curvature, which is ~1 % of the
+deflection, so the step lands within a small fraction of the fold's
+uncertainty of the refit; the table's note says so). Both paths hold
+memory linear in the number of tests (factors built blockwise, per-fold sums
+by bincount).
 """
 
 from __future__ import annotations
@@ -22,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.exact_fit import model_displacement
+from analysis.identification.exact_fit import model_displacement, model_displacement_masked
 from analysis.identification.fitting import (
     COND_LIMIT,
     check_identifiable,
@@ -37,6 +46,13 @@ from analysis.identification.poses import group_names, pose_groups, pose_toleran
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
+#: leave-one-pose-out with the exact fit refits every fold (warm-started) up to this
+#: many distinct poses; beyond, each fold takes one Gauss-Newton step from the full-data
+#: estimate (a full refit per pose costs ~P times the fit: hours for 1e4 poses)
+EXACT_REFITS_MAX = 50
+ONE_STEP_NOTE = ("one Gauss-Newton step from the full-data estimate (more than "
+                 f"{EXACT_REFITS_MAX} poses)")
+
 
 def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
@@ -49,11 +65,19 @@ def leave_one_pose_out(
     joints: tuple[int, ...],
     noise: NoiseModel,
     batched: bool = True,
+    max_exact_refits: int | None = None,
+    full_fit=None,
 ) -> pd.DataFrame | None:
     """Table of held-out prediction errors, or None with fewer than 3 distinct poses.
 
     ``batched=False`` refits from scratch for every pose (the reference path).
+    ``max_exact_refits`` (default :data:`EXACT_REFITS_MAX`): with more poses than
+    this, exact folds take one Gauss-Newton step from the full-data estimate.
+    ``full_fit``: the :class:`analysis.identification.result.Fit` of ``method`` on all
+    the tests, if the caller has it (saves refitting the full data).
     """
+    if max_exact_refits is None:
+        max_exact_refits = EXACT_REFITS_MAX
     group = pose_groups(tests.q, pose_tolerance(noise))
     names = group_names(tests.pose, group)
     if len(names) < 3:
@@ -64,13 +88,28 @@ def leave_one_pose_out(
         except InputError:
             batched = False
         else:
-            return _ols_batched(robot, tests, group, names, joints, noise)
+            J = jacobian(robot, tests.q)
+            A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
+            return _downdate_batched(robot, tests, group, names, joints, noise, A,
+                                     np.where(tests.measured, tests.d, 0.0),
+                                     np.zeros(len(joints)), method)
     start = None
     if batched and method == "exact":
         try:
-            start = fit(robot, tests, joints, noise, method).x
+            full = full_fit if full_fit is not None else fit(robot, tests, joints, noise,
+                                                             method)
+            start = full.x
         except InputError:
             start = None
+        if start is not None and len(names) > max_exact_refits:
+            # one Gauss-Newton step per fold from the full-data estimate (module docstring)
+            Aw = full.Linv @ full.A
+            rw = np.einsum("mij,mj->mi", full.Linv,
+                           np.where(tests.measured, tests.d - full.predicted, 0.0))
+            table = _downdate_batched(robot, tests, group, names, joints, noise, Aw, rw,
+                                      full.x, method)
+            table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
+            return table
     rows = []
     for g, label in enumerate(names):
         held = group == g
@@ -110,25 +149,35 @@ def leave_one_pose_out(
     return pd.DataFrame(rows)
 
 
-def _ols_batched(robot, tests, fold, labels, joints, noise) -> pd.DataFrame:
-    """Leave-one-pose-out for ols in one batched computation (see the module docstring)."""
+def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
+                      ) -> pd.DataFrame:
+    """Every fold's estimate from one factorisation of the full (whitened) system.
+
+    ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the (whitened) design and right-hand
+    side: for ols the design and the measured displacements (``x0`` = 0, the
+    fold estimate is the exact least-squares refit); for exact the whitened
+    Jacobian and residual at the full-data estimate ``x0`` (one Gauss-Newton
+    step per fold). Memory is linear in the number of tests (the factor is
+    built blockwise, :func:`analysis.identification.lsq.tall_r`).
+    """
     from scipy.linalg import solve_triangular
 
+    from analysis.identification.lsq import TEST_BLOCK, column_scale, tall_r
+
     cols = list(joints)
-    J = jacobian(robot, tests.q)
-    A = design_block(J, tests.w)[..., cols] * tests.measured[..., None]  # (m, 6, p)
-    dz = np.where(tests.measured, tests.d, 0.0)
-    m, p = A.shape[0], A.shape[-1]
-    scale = np.linalg.norm(A.reshape(-1, p), axis=0)
-    scale = np.where(scale > 0, scale, 1.0)
-    Q, R = np.linalg.qr(A.reshape(-1, p) / scale)
-    c = Q.T @ dz.reshape(-1)
-    U = solve_triangular(R, (A.reshape(-1, p) / scale).T, trans="T").T.reshape(m, 6, p)
+    m, p = Aw.shape[0], Aw.shape[-1]
     P = len(labels)  # fold: the pose group of each test, as in the reference path
+    scale = column_scale(Aw.reshape(-1, p))
+    Rc = tall_r(Aw.reshape(-1, p) / scale, rw.reshape(-1))
+    R, c = Rc[:p, :p], Rc[:p, p]
     S = np.zeros((P, p, p))
-    np.add.at(S, fold, np.einsum("mri,mrj->mij", U, U))
     t = np.zeros((P, p))
-    np.add.at(t, fold, np.einsum("mri,mr->mi", U, dz))
+    for s in range(0, m, TEST_BLOCK):
+        sl = slice(s, s + TEST_BLOCK)
+        b = Aw[sl].shape[0]
+        U = solve_triangular(R, (Aw[sl].reshape(-1, p) / scale).T, trans="T").T.reshape(b, 6, p)
+        np.add.at(S, fold[sl], np.einsum("mri,mrj->mij", U, U))
+        np.add.at(t, fold[sl], np.einsum("mri,mr->mi", U, rw[sl]))
     with np.errstate(divide="ignore", invalid="ignore"):
         lev = np.linalg.eigvalsh(S)[:, -1]  # largest leverage of each pose block
     ok = lev < 1.0 - 1e-10
@@ -152,7 +201,9 @@ def _ols_batched(robot, tests, fold, labels, joints, noise) -> pd.DataFrame:
         train = fold != h
         try:
             check_tests(robot, tests.subset(train), joints)
-            check_identifiable(A[train], joints)
+            sub = tests.subset(train)
+            A = design_block(jacobian(robot, sub.q), sub.w)[..., cols] * sub.measured[..., None]
+            check_identifiable(A, joints)
         except InputError as err:
             notes[h], ok[h] = str(err), False
             continue
@@ -160,30 +211,41 @@ def _ols_batched(robot, tests, fold, labels, joints, noise) -> pd.DataFrame:
             notes[h] = "the other poses cannot identify the compliances (leverage 1)"
     z = np.zeros((P, p))
     z[ok] = np.linalg.solve(np.eye(p) - S[ok], (c - t[ok])[..., None])[..., 0]
-    x_p = solve_triangular(R, z.T).T / scale  # (P, p)
+    x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
     x = np.zeros((P, 6))
     x[:, cols] = x_p
-    xt = x[fold]  # the held-out estimate used for each test
-    pred = np.einsum("mrj,mj->mr", design_block(J, tests.w), xt)
-    err = np.where(tests.measured, tests.d - pred, np.nan)
-    C = np.einsum("mij,mj,mkj->mik", J, xt, J)
-    sig = np.sqrt(np.diagonal(residual_covariance(noise, C, tests.w), axis1=-2, axis2=-1))
-    norm = err / sig
-    rows = []
-    for h, label in enumerate(labels):
-        held = fold == h
-        row = {"held_out_pose": label, "n_tests": int(held.sum())}
-        if not ok[h]:
-            rows.append({**row, "rms_translation_m": np.nan, "rms_rotation_rad": np.nan,
-                         "rms_normalized": np.nan, "note": notes[h]})
-            continue
-        meas = tests.measured[held]
-        e = err[held]
-        rows.append({
-            **row,
-            "rms_translation_m": _rms(e[:, :3][meas[:, :3]]),
-            "rms_rotation_rad": _rms(e[:, 3:][meas[:, 3:]]),
-            "rms_normalized": _rms(norm[held][meas]),
-            "note": "",
-        })
-    return pd.DataFrame(rows)
+    # held-out prediction errors, summed per fold (test blocks bound the memory)
+    sums = np.zeros((3, P))  # squared errors: translation, rotation, normalised
+    failed = np.zeros(P, dtype=bool)
+    for s in range(0, m, TEST_BLOCK):
+        sl = slice(s, s + TEST_BLOCK)
+        f, q, w, meas = fold[sl], tests.q[sl], tests.w[sl], tests.measured[sl]
+        xt = x[f]  # the held-out estimate used for each test
+        J = jacobian(robot, q)
+        if method == "exact":
+            pred, _, good = model_displacement_masked(robot, q, xt, w, with_jacobian=False)
+            failed |= np.bincount(f, ~good, P) > 0
+        else:
+            pred = np.einsum("mrj,mj->mr", design_block(J, w), xt)
+        err = np.where(meas, tests.d[sl] - pred, 0.0)
+        C = np.einsum("mij,mj,mkj->mik", J, xt, J)
+        sig = np.sqrt(np.diagonal(residual_covariance(noise, C, w), axis1=-2, axis2=-1))
+        sums[0] += np.bincount(f, np.sum(err[:, :3] ** 2, axis=1), P)
+        sums[1] += np.bincount(f, np.sum(err[:, 3:] ** 2, axis=1), P)
+        sums[2] += np.bincount(f, np.sum((err / sig) ** 2, axis=1), P)
+    counts = np.stack([np.bincount(fold, tests.measured[:, :3].sum(axis=1), P),
+                       np.bincount(fold, tests.measured[:, 3:].sum(axis=1), P),
+                       np.bincount(fold, tests.measured.sum(axis=1), P)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rms = np.where(counts > 0, np.sqrt(sums / np.where(counts > 0, counts, 1)), np.nan)
+    for h in np.flatnonzero(ok & failed):
+        ok[h] = False
+        notes[h] = ("the equilibrium has no solution at this fold's estimate for a held-out "
+                    "test (wrench too large for these compliances)")
+    rms[:, ~ok] = np.nan
+    return pd.DataFrame({
+        "held_out_pose": list(labels),
+        "n_tests": np.bincount(fold, minlength=P).astype(int),
+        "rms_translation_m": rms[0], "rms_rotation_rad": rms[1], "rms_normalized": rms[2],
+        "note": notes,
+    })

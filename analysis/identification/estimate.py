@@ -57,10 +57,10 @@ from analysis.identification.fitting import (  # noqa: F401 (re-exported: the pu
     fit_linear,
 )
 from analysis.identification.lsq import (
-    block_diag_apply,
+    residual_variance_blocks,
+    sandwich,
     scaled_condition,
     stack_matrix,
-    stack_vector,
     whitening,
 )
 from analysis.identification.measurements import COMPONENTS, TestArrays, to_arrays
@@ -71,7 +71,6 @@ from analysis.identification.robust import ROBUST_METHODS, robust_fit
 from analysis.identification.uncertainty import (
     chi2_summary,
     critical_value,
-    residual_variance,
     stiffness_interval,
     studentized,
 )
@@ -124,11 +123,10 @@ MAX_OUTLIERS = 10
 
 def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
     """(m, 6) studentized residuals of fit ``f`` (NaN where not measured)."""
-    GS = block_diag_apply(f.G, f.cov)
-    var_r = residual_variance(stack_matrix(f.A), GS, stack_vector(
-        np.diagonal(f.cov, axis1=-2, axis2=-1)), GS @ f.G.T)
+    cov_x = sandwich(f.A, f.cov, f.bread, f.Linv)
+    var_r = residual_variance_blocks(f.A, f.cov, f.bread, cov_x, f.Linv)
     resid = np.where(tests.measured, tests.d - f.predicted, np.nan)
-    return studentized(resid.reshape(-1), var_r * scale).reshape(tests.m, 6)
+    return studentized(resid, var_r * scale)
 
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
@@ -163,24 +161,26 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
 
 
 def _residual_table(tests, result_fit, var_r, scale, flags) -> pd.DataFrame:
-    m = tests.m
+    """One row per test and measured component, tests in order, components in order.
+
+    ``var_r`` (m, 6) residual variances.
+    """
     meas = tests.measured
     sigma = np.sqrt(np.diagonal(result_fit.cov, axis1=-2, axis2=-1))
     resid = np.where(meas, tests.d - result_fit.predicted, np.nan)
-    t = studentized(resid.reshape(-1), var_r * scale).reshape(m, 6)
-    rows = []
-    for i in range(m):
-        for c in range(6):
-            if not meas[i, c]:
-                continue
-            rows.append({
-                "test": i, "line": int(tests.line[i]), "pose": str(tests.pose[i]),
-                "component": COMPONENTS[c], "unit": "m" if c < 3 else "rad",
-                "measured": tests.d[i, c], "predicted": result_fit.predicted[i, c],
-                "residual": resid[i, c], "sigma": sigma[i, c],
-                "studentized": t[i, c], "outlier": bool(flags[i, c]),
-            })
-    return pd.DataFrame(rows)
+    t = studentized(resid, var_r * scale)
+    i, c = np.nonzero(meas)  # row-major: by test, then component
+    # text columns as categoricals: 6e6 rows of Python strings would take ~1 GB
+    codes, labels = pd.factorize(np.asarray(tests.pose).astype(str))
+    return pd.DataFrame({
+        "test": i.astype(np.int64), "line": tests.line[i].astype(np.int64),
+        "pose": pd.Categorical.from_codes(codes[i], categories=labels),
+        "component": pd.Categorical.from_codes(c, categories=COMPONENTS),
+        "unit": pd.Categorical.from_codes((c >= 3).astype(np.int8), categories=["m", "rad"]),
+        "measured": tests.d[i, c], "predicted": result_fit.predicted[i, c],
+        "residual": resid[i, c], "sigma": sigma[i, c], "studentized": t[i, c],
+        "outlier": flags[i, c].astype(bool),
+    })
 
 
 def identify(
@@ -235,6 +235,7 @@ def identify(
     check_tests(robot, tests, joints, noise)
     _, A_lin = _design(robot, tests, joints)
     cond = check_identifiable(A_lin, joints, cond_limit)
+    del A_lin  # the fits build their own; at 1e6 tests each (m, 6, p) array is ~0.3 GB
     warnings: list[str] = []
     if not tests.has_rotations and any(j >= 3 for j in joints):
         warnings.append("no rotation measured: wrist joints are identified from translations "
@@ -251,6 +252,9 @@ def identify(
         chosen = fit_exact(robot, tests, joints, noise, start=ols.x)
     else:
         chosen = linear[method]
+    # only the estimates of the linear fits are kept (their per-test arrays are ~1 kB/test)
+    linear_x = {k: v.x for k, v in linear.items()}
+    del linear, ols
     rob = None
     kept = tests.measured
     if robust != "none":
@@ -262,12 +266,8 @@ def identify(
     n_eq = int(tests.measured.sum())
     # the goodness of fit is that of the components the fit rests on
     dof = int(kept.sum()) - p
-    flat_cov = chosen.cov
-    GS = block_diag_apply(chosen.G, flat_cov)
-    cov_x = GS @ chosen.G.T
-    A_flat = stack_matrix(chosen.A)
-    diag_sigma = stack_vector(np.diagonal(flat_cov, axis1=-2, axis2=-1))
-    var_r = residual_variance(A_flat, GS, diag_sigma, cov_x)
+    cov_x = sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv)
+    var_r = residual_variance_blocks(chosen.A, chosen.cov, chosen.bread, cov_x, chosen.Linv)
     Linv = whitening(chosen.cov, kept)
     resid = np.where(kept, tests.d - chosen.predicted, 0.0)
     chi2_red, p_value = chi2_summary(np.einsum("mij,mj->mi", Linv, resid), dof)
@@ -289,7 +289,7 @@ def identify(
         from analysis.identification.linear_bias import bias_decision, linearisation_bias
 
         widen, note = bias_decision(method, joints, linearisation_bias(
-            robot, tests, joints, chosen.x, chosen.G, chosen.predicted), se_x)
+            robot, tests, joints, chosen.x, chosen.estimator, chosen.predicted), se_x)
         ci = stiffness_interval(chosen.x, se_x + widen / crit, crit)
         warnings.append(note)
     if np.isfinite(p_value) and p_value < 1e-3:
@@ -328,7 +328,7 @@ def identify(
         condition_number_weighted=float(scaled_condition(Aw)), tests=tests, n_equations=n_eq,
         dof=dof, chi2_reduced=chi2_red, p_value=p_value, residuals=residuals,
         n_poses=count_poses(tests.q, pose_tolerance(noise)), outlier_threshold=threshold,
-        linear={k: v.x for k, v in linear.items()}, iterations=chosen.iterations,
+        linear=linear_x, iterations=chosen.iterations,
         noise=noise, warnings=warnings,
     )
     if rob is not None:
@@ -339,7 +339,11 @@ def identify(
         # robust: validated on the components the robust fit kept (weight >= 0.5)
         valid_tests = tests if rob is None else TestArrays(
             tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
-        result.validation = leave_one_pose_out(robot, valid_tests, method, joints, noise)
+        result.validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
+                                               full_fit=chosen if rob is None else None)
+    from analysis.identification.fitting import _J_CACHE
+
+    _J_CACHE.clear()  # J is not needed after the identification (0.3 GB at 1e6 tests)
     return result
 
 

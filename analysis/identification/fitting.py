@@ -81,8 +81,25 @@ def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
         )
 
 
+#: the last Jacobian computed by :func:`_jacobian` (the fit, the outlier refits and the
+#: checks of one identification all need J at the same joint angles)
+_J_CACHE: dict = {}
+
+
+def _jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """J(q) (m, 6, 6), reused while the robot and the bytes of q are the same."""
+    import hashlib
+
+    q = np.ascontiguousarray(q, dtype=float)
+    key = (id(robot), q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest())
+    if _J_CACHE.get("key") != key or _J_CACHE.get("robot") is not robot:
+        _J_CACHE.clear()
+        _J_CACHE.update(key=key, robot=robot, J=jacobian(robot, q))
+    return _J_CACHE["J"]
+
+
 def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]):
-    J = jacobian(robot, tests.q)
+    J = _jacobian(robot, tests.q)
     A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
     return J, A
 
@@ -119,17 +136,18 @@ def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
 
 
 def _linear_estimator(A, d, measured, cov, weighted: bool):
-    """x = G d for per-test blocks; returns x, G (p, 6m)."""
+    """x = G d for per-test blocks; returns x, bread (p, p), Linv (m, 6, 6) or None.
+
+    G = bread A^T Linv^T Linv (bread A^T for OLS), see :class:`Fit`.
+    """
     dz = np.where(measured, d, 0.0)
     if weighted:
         Linv = whitening(cov, measured)
-        x, _, pinv_w = qr_solve(stack_matrix(Linv @ A), stack_vector(np.einsum(
-            "...ij,...j->...i", Linv, dz)))
-        m = A.shape[0]
-        G = np.einsum("pmi,mij->pmj", pinv_w.reshape(-1, m, 6), Linv).reshape(-1, 6 * m)
-    else:
-        x, _, G = qr_solve(stack_matrix(A), stack_vector(dz))
-    return x, G
+        x, bread, _ = qr_solve(stack_matrix(Linv @ A), stack_vector(np.einsum(
+            "...ij,...j->...i", Linv, dz)), with_pinv=False)
+        return x, bread, Linv
+    x, bread, _ = qr_solve(stack_matrix(A), stack_vector(dz), with_pinv=False)
+    return x, bread, None
 
 
 def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
@@ -146,17 +164,16 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
     weights at instead of the OLS estimate.
     """
     J, A = _design(robot, tests, joints)
-    cov = _covariances(noise, J, np.zeros(6), tests.measured, tests.w)
-    x, G = _linear_estimator(A, tests.d, tests.measured, cov, weighted=False)
+    x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, None, weighted=False)
     if weighted:
         x = x if start is None else np.asarray(start, dtype=float)
         for _ in range(2):
             cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w, weights)
-            x, G = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
+            x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
     else:
         cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
     pred = np.einsum("mrp,p->mr", A, x)
-    return Fit(x=x, G=G, A=A, cov=cov, predicted=pred, iterations=0)
+    return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv)
 
 
 def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None) -> Fit:
@@ -172,8 +189,9 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None) -> F
             "the exact fit cannot start: the equilibrium has no solution at the linear "
             "estimate of the compliances (some k far too small, or negative); check the "
             "data or use --method wls", where="--method")
-    _, G = _linear_estimator(gn.F, tests.d, tests.measured, gn.cov, weighted=True)
-    return Fit(x=gn.x, G=G, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations)
+    # the linearised estimator at the solution: bread = (F^T W F)^-1 = gn.cov_x
+    return Fit(x=gn.x, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations,
+               bread=gn.cov_x, Linv=whitening(gn.cov, tests.measured))
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:

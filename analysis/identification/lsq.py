@@ -21,8 +21,11 @@ def scaled_condition(A: np.ndarray) -> np.ndarray:
     """2-norm condition number of A (..., r, p) after scaling each column to unit norm.
 
     ``inf`` when a column is zero or A is rank deficient to working precision.
+    A tall 2-D A is reduced to its triangular factor first (same singular values).
     """
     norms = np.linalg.norm(A, axis=-2)
+    if A.ndim == 2 and A.shape[0] > TALL_ROWS:
+        A = tall_r(A)
     s = np.linalg.svd(A / np.where(norms > 0, norms, 1.0)[..., None, :], compute_uv=False)
     with np.errstate(divide="ignore"):
         cond = np.where(s[..., -1] > s[..., 0] * 1e-15, s[..., 0] / s[..., -1], np.inf)
@@ -34,25 +37,36 @@ def weakest_column(A: np.ndarray) -> int:
     norms = np.linalg.norm(A, axis=0)
     if np.any(norms == 0):
         return int(np.flatnonzero(norms == 0)[0])
+    if A.shape[0] > TALL_ROWS:
+        A = tall_r(A)  # same right singular vectors
     _, _, vt = np.linalg.svd(A / norms, full_matrices=False)
     return int(np.argmax(np.abs(vt[-1])))
 
 
-def qr_solve(A: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def qr_solve(A: np.ndarray, d: np.ndarray, with_pinv: bool = True
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Least-squares solution of A x ~ d, batched: A (..., r, p), d (..., r).
 
     Returns
     -------
     x : (..., p) solution.
     cov_unit : (..., p, p) (A^T A)^-1, from R^-1 of the column-scaled QR.
-    pinv : (..., p, r) the left inverse A^+ = R^-1 Q^T (unscaled), so x = A^+ d.
+    pinv : (..., p, r) the left inverse A^+ = R^-1 Q^T (unscaled), so x = A^+ d;
+        None when ``with_pinv`` is False (then a tall 2-D A, more than
+        :data:`TALL_ROWS` rows, is solved blockwise by :func:`tall_solve`).
     """
+    if not with_pinv and A.ndim == 2 and A.shape[0] > TALL_ROWS:
+        x, cov_unit = tall_solve(A, d)
+        return x, cov_unit, None
     scale = column_scale(A)
     Q, R = np.linalg.qr(A / scale[..., None, :])
     Rinv = np.linalg.inv(R)
+    cov_unit = (Rinv @ np.swapaxes(Rinv, -1, -2)) / (scale[..., :, None] * scale[..., None, :])
+    if not with_pinv:
+        z = np.einsum("...rp,...r->...p", Q, d)
+        return np.einsum("...pq,...q->...p", Rinv, z) / scale, cov_unit, None
     pinv = (Rinv @ np.swapaxes(Q, -1, -2)) / scale[..., :, None]
     x = np.einsum("...pr,...r->...p", pinv, d)
-    cov_unit = (Rinv @ np.swapaxes(Rinv, -1, -2)) / (scale[..., :, None] * scale[..., None, :])
     return x, cov_unit, pinv
 
 
@@ -88,3 +102,93 @@ def block_diag_apply(G: np.ndarray, cov: np.ndarray) -> np.ndarray:
     Gb = G.reshape(*G.shape[:-1], cov.shape[-3], 6)
     return np.einsum("...pmi,...mij->...pmj", Gb, cov).reshape(G.shape)
 
+
+
+#: rows per block of the tall (TSQR) path and tests per block of the blockwise statistics
+ROW_BLOCK = 48_000
+TEST_BLOCK = 8_000
+#: stacked systems with more rows than this are factorised blockwise (no Q, no A^+)
+TALL_ROWS = 4 * ROW_BLOCK
+
+
+def tall_r(A: np.ndarray, d: np.ndarray | None = None, block: int = ROW_BLOCK) -> np.ndarray:
+    """Triangular factor of [A | d] (r, p) -> (p(+1), p(+1)) by blocks of rows (TSQR).
+
+    Each block of rows is reduced to its R by Householder QR and the stacked R
+    factors are reduced again: the R of the whole matrix (up to the signs of
+    its rows) with O(p^2) memory per block, instead of the r x p factor Q.
+    """
+    aug = A if d is None else None
+    p = A.shape[-1] + (0 if d is None else 1)
+    Rs = []
+    for s in range(0, A.shape[0], block):
+        blk = aug[s:s + block] if aug is not None else np.column_stack(
+            [A[s:s + block], d[s:s + block]])
+        Rs.append(np.linalg.qr(blk, mode="r")[:p])
+        if len(Rs) > 64:
+            Rs = [np.linalg.qr(np.vstack(Rs), mode="r")[:p]]
+    return np.linalg.qr(np.vstack(Rs), mode="r")[:p]
+
+
+def tall_solve(A: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x, (A^T A)^-1 of the least-squares A x ~ d for one tall A (r, p), blockwise.
+
+    Same estimate as :func:`qr_solve` (Householder QR of the column-scaled A,
+    no normal equations), without forming Q or A^+.
+    """
+    p = A.shape[-1]
+    scale = column_scale(A)
+    R = tall_r(A / scale, d)
+    Rinv = np.linalg.inv(R[:p, :p])
+    x = (Rinv @ R[:p, p]) / scale
+    cov_unit = (Rinv @ Rinv.T) / (scale[:, None] * scale[None, :])
+    return x, cov_unit
+
+
+def sandwich(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
+             Linv: np.ndarray | None = None, block: int = TEST_BLOCK) -> np.ndarray:
+    """Covariance (p, p) of x = G d, G = bread A^T W, from per-test blocks.
+
+    A (m, 6, p) design (zero rows where not measured), cov (m, 6, 6) residual
+    covariance Sigma, W = Linv^T Linv (identity for OLS, ``Linv`` None).
+    ``bread (sum A^T W Sigma W A) bread`` summed over tests in blocks: equal to
+    G Sigma G^T without the p x 6m matrix G.
+    """
+    p = A.shape[-1]
+    meat = np.zeros((p, p))
+    for s in range(0, A.shape[0], block):
+        WA = _weighted(A, Linv, s, block)
+        meat += WA.reshape(-1, p).T @ (cov[s:s + block] @ WA).reshape(-1, p)
+    return bread @ meat @ bread.T
+
+
+def _weighted(A, Linv, s, block):
+    """W A = Linv^T Linv A for the tests s:s+block (A itself when Linv is None)."""
+    Ab = A[s:s + block]
+    if Linv is None:
+        return Ab
+    Lb = Linv[s:s + block]
+    return np.swapaxes(Lb, -1, -2) @ (Lb @ Ab)
+
+
+def residual_variance_blocks(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
+                             cov_x: np.ndarray, Linv: np.ndarray | None = None,
+                             block: int = TEST_BLOCK) -> np.ndarray:
+    """diag Var(r) (m, 6) of the residuals r = (I - A G) e of x = G d, G = bread A^T W.
+
+    Per test i: ``diag(Sigma_i) - 2 diag(A_i G_i Sigma_i) + diag(A_i cov_x A_i^T)``
+    with ``G_i = bread A_i^T W_i`` -- the diagonal blocks of the hat-matrix
+    expression of :func:`analysis.identification.uncertainty.residual_variance`,
+    without forming the hat matrix (or G).
+    """
+    m = A.shape[0]
+    out = np.empty((m, 6))
+    for s in range(0, m, block):
+        Ab, Sb = A[s:s + block], cov[s:s + block]
+        p = Ab.shape[-1]
+        SWA = Sb @ _weighted(A, Linv, s, block)  # (G_i Sigma_i)^T = Sigma_i W_i A_i bread
+        cross = np.sum((Ab.reshape(-1, p) @ bread).reshape(Ab.shape) * SWA, axis=-1)
+        quad = np.sum((Ab.reshape(-1, p) @ cov_x).reshape(Ab.shape) * Ab, axis=-1)
+        out[s:s + block] = np.maximum(np.diagonal(Sb, axis1=-2, axis2=-1) - 2 * cross + quad,
+                                      0.0)
+    return out

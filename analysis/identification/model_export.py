@@ -141,12 +141,19 @@ def write_model_file(data: dict, path: Path) -> Path:
     return path
 
 
+#: K_X is listed at most at this many distinct tested poses (a 1e6-row import would
+#: otherwise write ~1e6 entries of 6 x 6 matrices into results.json)
+POSES_LISTED = 200
+
+
 def cartesian_stiffness_at_tests(result: IdentificationResult, robot: RobotModel,
                                  tests: TestArrays) -> dict:
     """K_X with and without K_C, standard errors and principal stiffnesses at the tested poses.
 
-    One entry per distinct tested pose, with the wrench of its first test
-    (K_C depends on the wrench). Joints not identified take the nominal
+    One entry per distinct tested pose (joint angles equal to within the
+    encoder noise, :mod:`analysis.identification.poses`), at most
+    :data:`POSES_LISTED` in order of appearance, with the wrench of its first
+    test (K_C depends on the wrench). Joints not identified take the nominal
     stiffness (rigid without one) and contribute no uncertainty.
     """
     from analysis.kinetostatics.stiffness import (
@@ -169,9 +176,13 @@ def cartesian_stiffness_at_tests(result: IdentificationResult, robot: RobotModel
     cov_x[~finite, :] = 0.0
     cov_x[:, ~finite] = 0.0
     cov_k = stiffness_covariance(k, cov_x)
-    _, first = np.unique(np.round(tests.q, 9), axis=0, return_index=True)
+    from analysis.identification.poses import pose_groups, pose_tolerance
+
+    group = pose_groups(tests.q, pose_tolerance(result.noise))
+    _, first = np.unique(group, return_index=True)  # groups are numbered by appearance
+    listed = first[:POSES_LISTED]
     poses = []
-    for i in sorted(first):
+    for i in listed:
         q, w = tests.q[i], tests.w[i]
         J = jacobian(robot, q)
         K_C = complementary_stiffness_from_jacobian(J, w)
@@ -191,6 +202,8 @@ def cartesian_stiffness_at_tests(result: IdentificationResult, robot: RobotModel
         })
     return {
         "poses": poses,
+        "poses_listed": (f"all {len(first)} distinct poses" if len(first) == len(listed) else
+                         f"the first {len(listed)} of {len(first)} distinct poses"),
         "joint_stiffness_Nm_per_rad": k.tolist(),
         "notes": notes,
         "method": "K_X = J^-T (K_theta - K_C) J^-1 (eq. 6) and without K_C (eq. 12), at P, "

@@ -207,10 +207,11 @@ def residual_covariance(
     if compliance is not None:
         C = np.asarray(compliance, dtype=float)
         ws2 = noise.wrench_sigma_at(wrench) ** 2
-        sig = sig + np.einsum("...ij,...j,...kj->...ik", C, ws2, C)
+        # C diag(s^2) C^T as a batched matmul (a 3-operand einsum is ~5x slower at 1e6 tests)
+        sig = sig + (C * ws2[..., None, :]) @ np.swapaxes(C, -1, -2)
     if joint_gradient is not None:
         G = np.asarray(joint_gradient, dtype=float)
-        sig = sig + noise.joint_sigma**2 * np.einsum("...ik,...jk->...ij", G, G)
+        sig = sig + noise.joint_sigma**2 * (G @ np.swapaxes(G, -1, -2))
     return sig
 
 

@@ -20,21 +20,64 @@ CI_METHOD = (
 )
 
 
+@dataclass(frozen=True)
+class FactoredEstimator:
+    """x = G d with G = bread A^T W (W = Linv^T Linv per test, identity if Linv is None),
+    applied to stacked vectors (6m,) block by block (never forming the p x 6m G)."""
+
+    bread: np.ndarray
+    A: np.ndarray
+    Linv: np.ndarray | None = None
+    block: int = 8_000
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.bread.shape[0], 6 * self.A.shape[0])
+
+    def __matmul__(self, v: np.ndarray) -> np.ndarray:
+        v = np.asarray(v, dtype=float).reshape(self.A.shape[0], 6)
+        acc = np.zeros(self.A.shape[-1])
+        for s in range(0, self.A.shape[0], self.block):
+            vb = v[s:s + self.block]
+            if self.Linv is not None:
+                Lb = self.Linv[s:s + self.block]
+                vb = np.einsum("mji,mj->mi", Lb, np.einsum("mij,mj->mi", Lb, vb))
+            acc += np.einsum("mrp,mr->p", self.A[s:s + self.block], vb)
+        return self.bread @ acc
+
+
 @dataclass
 class Fit:
     """One estimator's output on per-test blocks (internal).
 
-    x (p,) compliances (rad/(N m)); G (p, 6m) linear(ised) estimator x = G d;
-    A (m, 6, p) model (or its Jacobian) per test; cov (m, 6, 6) residual
-    covariance per test; predicted (m, 6) model displacement (m, rad).
+    x (p,) compliances (rad/(N m)); A (m, 6, p) model (or its Jacobian) per
+    test; cov (m, 6, 6) residual covariance per test; predicted (m, 6) model
+    displacement (m, rad). The linear(ised) estimator x = G d is kept in
+    factored form, G = bread A^T W with W = Linv^T Linv per test (identity
+    when ``Linv`` is None, OLS) and bread (p, p) = (A^T W A)^-1: memory
+    linear in the number of tests (:mod:`analysis.identification.lsq` computes
+    its covariance and residual variances blockwise).
     """
 
     x: np.ndarray
-    G: np.ndarray
     A: np.ndarray
     cov: np.ndarray
     predicted: np.ndarray
     iterations: int
+    bread: np.ndarray
+    Linv: np.ndarray | None = None
+
+    @property
+    def estimator(self) -> FactoredEstimator:
+        """G as an operator: ``fit.estimator @ v`` = G v for stacked v (6m,), blockwise."""
+        return FactoredEstimator(self.bread, self.A, self.Linv)
+
+    @property
+    def G(self) -> np.ndarray:
+        """The dense estimator matrix (p, 6m); for small campaigns and tests only."""
+        WA = self.A if self.Linv is None else np.swapaxes(self.Linv, -1, -2) @ (
+            self.Linv @ self.A)
+        return self.bread @ WA.reshape(-1, WA.shape[-1]).T
 
 
 @dataclass
@@ -190,10 +233,43 @@ class IdentificationResult:
             "noise": self.noise.describe(),
             "robust": self.robust,
             "warnings": self.warnings,
-            "residuals": _records(self.residuals),
+            **residual_summary(self.residuals),
             "validation": None if self.validation is None else _records(self.validation),
         }
         return out
+
+
+#: results.json lists every residual up to this many rows; beyond, the largest
+#: |studentized| ones and a histogram (all rows stay in residuals.csv)
+RESIDUALS_LISTED = 1000
+#: bin edges of the histogram of studentized residuals in results.json
+HISTOGRAM_EDGES = np.array([-np.inf, -6, -5, -4, -3, -2, -1, 0, 1, 2, 3, 4, 5, 6, np.inf])
+
+
+def residual_summary(residuals: pd.DataFrame, listed: int = RESIDUALS_LISTED) -> dict:
+    """results.json entries for the residual table: ``residuals`` (rows), what they are,
+    and a histogram of the studentized residuals.
+
+    Up to ``listed`` rows every row is listed in table order; beyond, the
+    ``listed`` rows of largest |studentized| (outliers first), largest first.
+    """
+    t = residuals["studentized"].to_numpy(dtype=float)
+    finite = np.isfinite(t)
+    counts, _ = np.histogram(t[finite], HISTOGRAM_EDGES)
+    edges = [None if not math.isfinite(e) else float(e) for e in HISTOGRAM_EDGES]
+    out = {"residual_histogram": {"studentized_edges": edges, "counts": counts.tolist(),
+                                  "not_finite": int((~finite).sum())}}
+    if len(residuals) <= listed:
+        out["residuals_listed"] = f"all {len(residuals)} rows"
+        out["residuals"] = _records(residuals)
+        return out
+    key = np.where(finite, np.abs(t), -1.0) + np.where(
+        residuals["outlier"].to_numpy(dtype=bool), np.inf, 0.0)
+    top = np.argsort(-key, kind="stable")[:listed]
+    out["residuals_listed"] = (f"the {listed} of {len(residuals)} rows with the largest "
+                               "|studentized| (outliers first); every row is in residuals.csv")
+    out["residuals"] = _records(residuals.iloc[top])
+    return out
 
 
 def _records(frame: pd.DataFrame) -> list[dict]:
@@ -213,6 +289,35 @@ def _records(frame: pd.DataFrame) -> list[dict]:
     return out
 
 
+def write_table(frame: pd.DataFrame, path: Path) -> None:
+    """CSV of ``frame``: floats in shortest round-trip form, empty cells for NaN.
+
+    Tables of 1e5 rows or more go through the Arrow CSV writer, ~10x faster
+    than pandas' (measured: 0.9 s against 9 s of CPU for 1e6 rows); it writes
+    the same numbers and header, but quotes text cells and writes booleans as
+    true/false (pandas.read_csv reads both files to equal frames).
+    """
+    if len(frame) < 100_000:
+        frame.to_csv(path, index=False)
+        return
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    writer = None
+    try:
+        for s in range(0, len(frame), 500_000):  # blocks bound the memory of the copy
+            block = frame.iloc[s:s + 500_000]
+            block = block.astype({c: str for c in block.columns
+                                  if isinstance(block[c].dtype, pd.CategoricalDtype)})
+            table = pa.Table.from_pandas(block, preserve_index=False)
+            if writer is None:
+                writer = pacsv.CSVWriter(str(path), table.schema)
+            writer.write_table(table)
+    finally:
+        if writer is not None:
+            writer.close()
+
+
 def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str, Path]:
     """Write ``results.json``, ``residuals.csv`` (and ``validation.csv``) into ``out_dir``.
 
@@ -225,7 +330,7 @@ def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str
         raise InputError(f"cannot create the output directory: {err}", where=str(out)) from err
     paths = {"results": out / "results.json", "residuals": out / "residuals.csv"}
     paths["results"].write_text(json.dumps(result.to_dict(), indent=2) + "\n")
-    result.residuals.to_csv(paths["residuals"], index=False)
+    write_table(result.residuals, paths["residuals"])
     if result.validation is not None:
         paths["validation"] = out / "validation.csv"
         result.validation.to_csv(paths["validation"], index=False)

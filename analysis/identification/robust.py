@@ -223,10 +223,11 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
     # the final fit at the converged weights: its G is the weighted estimator
     final = _weighted_fit(robot, tests, joints, noise, method, weights, x)
     # G's columns of components with weight 0 are zero: they do not enter x
-    G = final.G
     pred, A = _model(robot, tests, joints, method, final.x, J, A_lin)
     cov = _covariances(noise, J, _full(final.x, joints), tests.measured, tests.w)
-    fit = Fit(x=final.x, G=G, A=A, cov=cov, predicted=pred, iterations=n_it)
+    # G = final.bread A^T W_weighted, kept factored (memory linear in the tests)
+    fit = Fit(x=final.x, A=A, cov=cov, predicted=pred, iterations=n_it, bread=final.bread,
+              Linv=final.Linv)
     down = tuple(
         DownWeighted(test=int(i), line=int(tests.line[i]), pose=str(tests.pose[i]),
                      component=COMPONENTS[j], weight=float(weights[i, j]),

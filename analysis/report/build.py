@@ -143,9 +143,28 @@ def fit_paragraph(result: IdentificationResult) -> Paragraph:
     )
 
 
+#: the report's residual table lists at most this many tests
+REPORT_TESTS_LISTED = 200
+
+
 def residual_table(result: IdentificationResult) -> Table:
-    """One row per test: residual of each measured component (um, urad); '*' marks outliers."""
-    res = result.residuals
+    """One row per test: residual of each measured component (um, urad); '*' marks outliers.
+
+    Beyond :data:`REPORT_TESTS_LISTED` tests, only the tests holding the largest
+    |studentized| residuals (outliers first) are listed, in test order; the
+    caption says so (every row is in residuals.csv).
+    """
+    import pandas as pd
+
+    res = all_res = result.residuals
+    n_tests = int(all_res["test"].nunique())
+    if n_tests > REPORT_TESTS_LISTED:
+        t = np.abs(all_res["studentized"].to_numpy(dtype=float))
+        key = np.where(np.isfinite(t), t, -1.0) + np.where(
+            all_res["outlier"].to_numpy(dtype=bool), np.inf, 0.0)
+        worst = all_res["test"].to_numpy()[np.argsort(-key, kind="stable")]
+        keep = pd.unique(worst)[:REPORT_TESTS_LISTED]
+        res = all_res[all_res["test"].isin(keep)]
     rows, marked = [], []
     for test, group in res.groupby("test", sort=True):
         cells = {c: "-" for c in COMPONENTS}
@@ -163,12 +182,16 @@ def residual_table(result: IdentificationResult) -> Table:
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
     mark = (f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} (Sidak, "
-            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {len(res)} residuals)"
+            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {len(all_res)} residuals)"
             if result.robust is None else
             f"* down-weighted below {result.robust['reported_below_weight']:g} by the "
             f"{result.robust['method']} fit (see the robust fitting table)")
     return Table("Residuals (measured - model) per test and component", cols, rows, marked,
-                 caption=f"{mark}; highlighted rows hold one. 'line': row of the input table.",
+                 caption=f"{mark}; highlighted rows hold one. 'line': row of the input table."
+                 + ("" if res is all_res else
+                    f" Listed: the {REPORT_TESTS_LISTED} of {n_tests} tests with the largest "
+                    "|studentized| residuals (outliers first); every test is in "
+                    "residuals.csv."),
                  widths=[0.6, 0.8, 0.6, 1, 1, 1, 1, 1, 1])
 
 

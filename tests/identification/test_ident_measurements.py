@@ -116,3 +116,26 @@ def test_tidy_table_from_arrays_validates_rows():
     d = np.zeros((2, 6))
     with pytest.raises(InputError, match=r"row 1, columns fx_N.*zero wrench"):
         to_arrays(table_from_arrays(["a", "b"], q, w, d))
+
+
+@pytest.mark.parametrize("rotations", ["full", "empty", "nan-text"])
+def test_numeric_fast_path_equals_the_text_path(tmp_path, rotations):
+    """read_csv's C-parsed path gives the table of the cell-by-cell text path, bit for bit."""
+    from analysis.identification.measurements import _read_numeric, from_csv_frame
+
+    rng = np.random.default_rng(3)
+    f = _frame(7)
+    f[CSV_COLUMNS[1:]] = f[CSV_COLUMNS[1:]].to_numpy() + rng.normal(size=(7, 18))
+    f["pose"] = [" NaN", "P1 ", "P1", "x", "7", "P5", "P6"]  # labels stay text
+    edit = None
+    if rotations == "empty":
+        f[["rx_mrad", "ry_mrad", "rz_mrad"]] = np.nan
+    elif rotations == "nan-text":
+        f.loc[2, ["rx_mrad", "ry_mrad", "rz_mrad"]] = np.nan
+        edit = lambda text: text.replace(",,,\n", ",NaN, nan,NAN\n")  # noqa: E731
+    path = _write(tmp_path, f, edit)
+    assert _read_numeric(path) is not None  # the fast path is taken
+    fast = read_csv(path)
+    text = from_csv_frame(pd.read_csv(path, dtype=str, skipinitialspace=True,
+                                      keep_default_na=False), where=str(path))
+    pd.testing.assert_frame_equal(fast, text)

@@ -167,3 +167,40 @@ def test_exact_fit_removes_the_linearisation_bias_of_k3(kr240, w_eff):
     # the exact fit's predicted spread matches the Monte-Carlo spread (+-20 %, 300 trials)
     ratio = exact["std_Nm_per_rad"] / exact["predicted_std_Nm_per_rad"]
     assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio.to_numpy()
+
+
+def test_pose_first_gather_equals_the_batch_last_reference(pool):
+    """measured_jacobians (pose-first gather, one contraction per test) equals the former
+    batch-last gather with six multiply-adds, to 1e-14 relative (summation order only)."""
+    from analysis.identification.robustness import draw_campaigns, measured_jacobians
+
+    draw = draw_campaigns(pool, 7, 300, NoiseModel(), np.random.default_rng(11))
+    ref = pool.Jc[:, :, draw.idx]
+    for k in range(6):
+        ref = ref + pool.dJc[k][:, :, draw.idx] * draw.dq[k]
+    fast = measured_jacobians(pool, draw)
+    assert fast.shape == (6, 6, 7, 300) and fast.flags.c_contiguous
+    np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-14 * np.abs(ref).max())
+
+
+def test_batched_ols_standard_errors_equal_the_dense_sandwich(kr240, pool):
+    """identify_batch's OLS se (einsum with its own contraction order) equals the dense
+    G Sigma G^T of the single-campaign fit, 1e-9 relative."""
+    noise = NoiseModel()
+    rng = np.random.default_rng(8)
+    idx = np.array([1, 40, 90, 150, 210, 280])
+    w = pool.w + rng.normal(size=(6, 6)) * noise.wrench_sigma
+    d = pool.d[:, idx].T + rng.normal(size=(6, 6)) * noise.displacement_sigma
+    x, se = identify_batch(pool.Jc[:, :, idx][..., None], w.T[..., None], d.T[..., None],
+                           noise, "ols")
+    tests = TestArrays(np.array(list("abcdef")), pool.q[idx], w, d, np.ones((6, 6), bool),
+                       np.arange(6) + 2)
+    single = fit_linear(kr240, tests, tuple(range(6)), noise, weighted=False)
+    np.testing.assert_allclose(x[:, 0], single.x, rtol=1e-9)
+    # the batch's covariance uses the nominal wrench sigma (no reading-proportional part)
+    from analysis.identification.gauss_newton import covariances_per_test
+
+    cov = covariances_per_test(noise, jacobian(kr240, pool.q[idx]), single.x, tests.measured)
+    G = single.G
+    ref = np.sqrt(np.diag(block_diag_apply(G, cov) @ G.T))
+    np.testing.assert_allclose(se[:, 0], ref, rtol=1e-9)

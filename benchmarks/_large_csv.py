@@ -1,0 +1,55 @@
+"""A tests CSV of N simulated stiffness tests, for the large-import benchmark.
+
+KR240-2 with its nominal stiffness, poses drawn in its zones, ``per_pose``
+tests per pose (load cases: forces of 1-2.5 kN and moments of 100-300 N m in
+random directions), displacements from the exact equilibrium plus the default
+noise model's noise (joint angles, wrench, displacement).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from analysis.identification.measurements import CSV_COLUMNS
+from analysis.identification.noise import NoiseModel
+from analysis.identification.robustness import sample_poses
+from analysis.kinetostatics.equilibrium import displacement_screw
+from analysis.model.robots import load_robot
+
+
+def simulated_tests(n: int, per_pose: int = 10, seed: int = 0):
+    """(pose labels, q rad, w N/N m, d m/rad) of n tests (noisy, as measured)."""
+    robot = load_robot("kr240-2")
+    rng = np.random.default_rng(seed)
+    n_poses = max(3, -(-n // per_pose))
+    qp = sample_poses(robot, n_poses, rng)
+    idx = np.repeat(np.arange(n_poses), per_pose)[:n]
+    q = qp[idx]
+    f = rng.normal(size=(n, 3))
+    f *= rng.uniform(1000, 2500, (n, 1)) / np.linalg.norm(f, axis=1, keepdims=True)
+    mo = rng.normal(size=(n, 3))
+    mo *= rng.uniform(100, 300, (n, 1)) / np.linalg.norm(mo, axis=1, keepdims=True)
+    w = np.hstack([f, mo])
+    d = np.empty((n, 6))
+    for s in range(0, n, 50_000):
+        sl = slice(s, min(n, s + 50_000))
+        d[sl] = displacement_screw(robot, q[sl], robot.nominal_stiffness, w[sl])
+    noise = NoiseModel()
+    d = d + rng.normal(size=d.shape) * noise.displacement_sigma
+    w = w + rng.normal(size=w.shape) * noise.wrench_sigma
+    q = q + rng.normal(size=q.shape) * noise.joint_sigma
+    labels = np.char.add("P", (idx + 1).astype(str))
+    return labels, q, w, d
+
+
+def write_csv(path: Path, n: int, per_pose: int = 10, seed: int = 0) -> None:
+    """Write n simulated tests in the public CSV format (deg, N, N m, mm, mrad)."""
+    labels, q, w, d = simulated_tests(n, per_pose, seed)
+    values = np.hstack([np.degrees(q), w, 1e3 * d])
+    with open(path, "w") as fh:
+        fh.write(",".join(CSV_COLUMNS) + "\n")
+        body = np.column_stack([labels, np.char.mod("%.10g", values)])
+        fh.write("\n".join(",".join(row) for row in body.tolist()))
+        fh.write("\n")

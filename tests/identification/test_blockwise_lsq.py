@@ -1,0 +1,90 @@
+"""Blockwise least squares and statistics equal the dense reference computations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.identification import lsq
+from analysis.identification.estimate import fit
+from analysis.identification.lsq import (
+    block_diag_apply,
+    qr_solve,
+    residual_variance_blocks,
+    sandwich,
+    scaled_condition,
+    stack_matrix,
+    stack_vector,
+    tall_r,
+    tall_solve,
+    weakest_column,
+)
+from analysis.identification.noise import NoiseModel
+from analysis.identification.uncertainty import residual_variance
+
+from ._sim import simulate
+
+
+def test_tall_solve_equals_qr_solve_across_blocks():
+    """Rows in 7 blocks of 50 (+ a short one): same x and (A^T A)^-1 as one QR.
+
+    Both are backward stable; they differ by rounding, ~1e-10 relative here."""
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(353, 5)) * np.array([1e-6, 1.0, 1e3, 2.0, 1e-2])
+    d = A @ rng.normal(size=5) + 1e-3 * rng.normal(size=353)
+    x0, cov0, _ = qr_solve(A, d)
+    scale = lsq.column_scale(A)
+    R = tall_r(A / scale, d, block=50)
+    Rinv = np.linalg.inv(R[:5, :5])
+    x1 = Rinv @ R[:5, 5] / scale
+    cov1 = Rinv @ Rinv.T / np.outer(scale, scale)
+    np.testing.assert_allclose(x1, x0, rtol=1e-8)
+    np.testing.assert_allclose(cov1, cov0, rtol=1e-8)
+    x2, cov2 = tall_solve(A, d)  # default blocks (one block here)
+    np.testing.assert_allclose(x2, x0, rtol=1e-8)
+    np.testing.assert_allclose(cov2, cov0, rtol=1e-8)
+
+
+def test_tall_condition_and_weakest_column_equal_the_dense_ones(monkeypatch):
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(400, 4))
+    A[:, 3] = A[:, 0] + 1e-4 * rng.normal(size=400)  # near-dependent pair
+    cond, weak = float(scaled_condition(A)), weakest_column(A)
+    monkeypatch.setattr(lsq, "TALL_ROWS", 100)
+    monkeypatch.setattr(lsq, "ROW_BLOCK", 64)
+    assert float(scaled_condition(A)) == pytest.approx(cond, rel=1e-8)
+    assert weakest_column(A) == weak
+    x0, cov0, _ = qr_solve(A, A[:, 1])
+    x1, cov1, pinv = qr_solve(A, A[:, 1], with_pinv=False)  # tall path now
+    assert pinv is None
+    np.testing.assert_allclose(x1, x0, atol=1e-12)
+    np.testing.assert_allclose(cov1, cov0, rtol=1e-8)
+
+
+@pytest.mark.parametrize("method", ["ols", "wls", "exact"])
+def test_sandwich_and_residual_variance_equal_the_hat_matrix_forms(kr240, zone_poses, w_eff,
+                                                                   method):
+    """G Sigma G^T and diag Var(r) from the dense p x 6m G equal the blockwise sums
+    (blocks of 3 tests, so block edges are crossed), to 1e-10 relative."""
+    tests = simulate(kr240, zone_poses[:10], w_eff, kr240.nominal_stiffness, NoiseModel(),
+                     seed=2)
+    joints = tuple(range(6))
+    f = fit(kr240, tests, joints, NoiseModel(), method)
+    G = f.G
+    GS = block_diag_apply(G, f.cov)
+    cov_dense = GS @ G.T
+    var_dense = residual_variance(stack_matrix(f.A), GS, stack_vector(
+        np.diagonal(f.cov, axis1=-2, axis2=-1)), cov_dense).reshape(-1, 6)
+    cov_block = sandwich(f.A, f.cov, f.bread, f.Linv, block=3)
+    var_block = residual_variance_blocks(f.A, f.cov, f.bread, cov_block, f.Linv, block=3)
+    np.testing.assert_allclose(cov_block, cov_dense, rtol=1e-10, atol=1e-12 * np.abs(
+        cov_dense).max())
+    np.testing.assert_allclose(var_block, var_dense, rtol=1e-9, atol=1e-12 * var_dense.max())
+    # the blockwise operator equals the dense G (blocks of 4 tests)
+    v = np.random.default_rng(5).normal(size=G.shape[1])
+    est = f.estimator
+    est = type(est)(est.bread, est.A, est.Linv, block=4)
+    np.testing.assert_allclose(est @ v, G @ v, rtol=1e-10, atol=1e-12 * np.abs(G @ v).max())
+    # the estimator reproduces the estimate: x = G d (linear fits)
+    if method != "exact":
+        np.testing.assert_allclose(G @ stack_vector(tests.d), f.x, rtol=1e-10)

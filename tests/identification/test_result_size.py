@@ -1,0 +1,62 @@
+"""Large results are summarised: results.json and the report list the worst residuals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from analysis.identification.result import residual_summary
+
+
+def _residuals(n_tests: int, seed: int = 0) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    t = rng.normal(size=n_tests * 3)
+    t[7] = np.nan
+    return pd.DataFrame({
+        "test": np.repeat(np.arange(n_tests), 3), "line": np.repeat(np.arange(n_tests), 3) + 2,
+        "pose": pd.Categorical(np.repeat([f"P{i}" for i in range(n_tests)], 3)),
+        "component": pd.Categorical(np.tile(["dx", "dy", "dz"], n_tests)),
+        "residual": t * 1e-5, "studentized": t, "outlier": np.arange(n_tests * 3) == 11,
+    })
+
+
+def test_all_rows_listed_up_to_the_limit():
+    res = _residuals(10)
+    out = residual_summary(res, listed=30)
+    assert out["residuals_listed"] == "all 30 rows"
+    assert [r["test"] for r in out["residuals"]] == list(res["test"])
+    assert sum(out["residual_histogram"]["counts"]) == 29
+    assert out["residual_histogram"]["not_finite"] == 1
+
+
+def test_beyond_the_limit_the_largest_studentized_outliers_first():
+    res = _residuals(400, seed=1)
+    out = residual_summary(res, listed=25)
+    listed = pd.DataFrame(out["residuals"])
+    assert len(listed) == 25 and "25 of 1200 rows" in out["residuals_listed"]
+    assert listed["outlier"].iloc[0]  # the outlier first, whatever its |t|
+    rest = np.abs(listed["studentized"].iloc[1:].to_numpy())
+    assert np.all(np.diff(rest) <= 0)
+    finite = np.abs(res["studentized"][~res["outlier"]].dropna())
+    assert rest.min() >= np.sort(finite.to_numpy())[-24]  # the 24 largest non-outliers
+    counts = out["residual_histogram"]["counts"]
+    assert sum(counts) == 1199
+    edges = out["residual_histogram"]["studentized_edges"]
+    assert edges[0] is None and edges[-1] is None and len(counts) == len(edges) - 1
+
+
+def test_report_table_lists_the_worst_tests(monkeypatch):
+    from types import SimpleNamespace
+
+    from analysis.report import build
+
+    res = _residuals(50, seed=2)
+    worst_test = int(res.loc[res["studentized"].abs().idxmax(), "test"])
+    result = SimpleNamespace(residuals=res, outlier_threshold=3.5, robust=None)
+    monkeypatch.setattr(build, "REPORT_TESTS_LISTED", 2)
+    table = build.residual_table(result)
+    listed = sorted(int(r[0]) - 1 for r in table.rows)
+    assert listed == sorted({3, worst_test})  # the outlier's test (row 11) and the worst
+    assert "the 2 of 50 tests" in table.caption
+    monkeypatch.setattr(build, "REPORT_TESTS_LISTED", 200)
+    assert len(build.residual_table(result).rows) == 50
