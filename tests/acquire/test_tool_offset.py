@@ -55,7 +55,10 @@ def test_fake_campaign_with_tool_offset(tmp_path, time_scale):
     result = analyze_table(run.ok, robot, noise=noise, validate=False)
     z = (result.k - TRUE_K) / result.se_k
     assert np.all(np.abs(z) < 4), (result.k, result.se_k)
-    assert np.max(np.abs(result.k[:3] / TRUE_K[:3] - 1)) < 0.015  # arm joints: se ~0.3 %
+    # arm joints: relative se 0.1-0.7 % with the worst-joint design (which spends tests on
+    # the wrist), so 3 % is over 4 se for each of them
+    assert np.all(result.se_k[:3] / result.k[:3] < 0.0075)
+    assert np.max(np.abs(result.k[:3] / TRUE_K[:3] - 1)) < 0.03
     # the same data read with the flange as P is wrong by far more than its error bars
     wrong = analyze_table(run.ok, flange, noise=noise, validate=False, method="exact")
     assert np.max(np.abs(wrong.k / TRUE_K - 1)) > 0.1
