@@ -28,7 +28,8 @@ pinocchio"`` (best of ``--repeat`` for each; the machine may be shared, so
 each figure is the best of the repeats).
 
 Run: ``python benchmarks/bench_large_import.py [--sizes 10000 100000 1000000]
-[--data DIR] [--repeat 3]``. The last line is one JSON object.
+[--data DIR] [--repeat 3] [--demo-only]``; ``--demo-only`` times only the demo
+analysis against the imports. The last line is one JSON object.
 """
 
 from __future__ import annotations
@@ -134,6 +135,8 @@ def main() -> None:
     parser.add_argument("--data", type=Path, default=None,
                         help="directory for the generated CSV files (kept; reused if present)")
     parser.add_argument("--repeat", type=int, default=3, help="repeats of the small analyses")
+    parser.add_argument("--demo-only", action="store_true",
+                        help="only the demo analysis with its report against the imports")
     args = parser.parse_args()
     launcher = Launcher()  # before the large imports and arrays of this process
     from _large_csv import write_csv
@@ -145,7 +148,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         data = args.data or Path(tmp)
         data.mkdir(parents=True, exist_ok=True)
-        for n in args.sizes:
+        for n in [] if args.demo_only else args.sizes:
             csv = data / f"tests_{n}.csv"
             if not csv.exists():
                 write_csv(csv, n)
@@ -179,9 +182,9 @@ def main() -> None:
 
         # small analyses: 1000 tests with validation; the demo run with its report
         csv = data / "tests_1000.csv"
-        if not csv.exists():
+        if not csv.exists() and not args.demo_only:
             write_csv(csv, 1000)
-        for method in ("ols", "exact"):
+        for method in () if args.demo_only else ("ols", "exact"):
             r = best(launcher, analyze_csv(csv, Path(tmp) / f"small_{method}", method), args.repeat)
             figures["small"][f"analyze_1000_tests_validation_{method}"] = r
             print(f"1000 tests, validation, {method}: {r['cpu_s']:.2f} s CPU (best of "

@@ -91,11 +91,11 @@ def outlier_threshold(n_residuals: int, level: float = OUTLIER_FAMILY_LEVEL) -> 
     them is ``level``; a fixed 3-sigma cut flags ~0.27 % of innocent
     residuals, i.e. a few in every campaign of a few hundred components.
     """
-    from scipy import stats
+    from scipy import special  # norm.isf(p) = -ndtri(p), without importing scipy.stats
 
     n = max(int(n_residuals), 1)
     per_residual = -np.expm1(np.log1p(-level) / n)  # 1 - (1 - level)^(1/n), accurately
-    return float(stats.norm.isf(per_residual / 2.0))
+    return float(-special.ndtri(per_residual / 2.0))
 
 
 def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...] | None:

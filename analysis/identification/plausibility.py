@@ -75,11 +75,11 @@ def _causes(causes: tuple[str, ...]) -> str:
 
 def chi2_lower_tail(result: IdentificationResult) -> float:
     """P(chi2 <= observed) of the fit (NaN without residual degrees of freedom)."""
-    from scipy import stats
+    from scipy import special  # chi2.cdf, without importing scipy.stats
 
     if result.dof <= 0 or not np.isfinite(result.chi2_reduced):
         return float("nan")
-    return float(stats.chi2.cdf(result.chi2_reduced * result.dof, result.dof))
+    return float(special.chdtr(result.dof, result.chi2_reduced * result.dof))
 
 
 def problems(result: IdentificationResult, nominal: np.ndarray | None,

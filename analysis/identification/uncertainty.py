@@ -15,15 +15,18 @@ is reported as a standard error only.
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
+
+# scipy.special, not scipy.stats: the same functions (scipy.stats' t, norm and chi2
+# call these), without the ~0.4 s import of scipy.stats at every analysis.
+from scipy import special
 
 
 def critical_value(confidence: float = 0.95, dof: float | None = None) -> float:
     """Two-sided critical value: normal, or Student t with ``dof`` degrees of freedom."""
     p = 0.5 + confidence / 2.0
     if dof is None:
-        return float(stats.norm.ppf(p))
-    return float(stats.t.ppf(p, dof))
+        return float(special.ndtri(p))
+    return float(special.stdtrit(dof, p))
 
 
 def compliance_interval(x: np.ndarray, se_x: np.ndarray, c: float) -> np.ndarray:
@@ -69,4 +72,4 @@ def chi2_summary(whitened_residual: np.ndarray, dof: int) -> tuple[float, float]
     chi2 = float(np.sum(whitened_residual**2))
     if dof <= 0:
         return float("nan"), float("nan")
-    return chi2 / dof, float(stats.chi2.sf(chi2, dof))
+    return chi2 / dof, float(special.chdtrc(dof, chi2))

@@ -48,14 +48,47 @@ def draw_poses(ax, t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str]) ->
 
 
 def _png(fig, name: str, caption: str) -> Figure:
+    """The figure drawn once on an Agg canvas, as an RGB PNG (opaque white background:
+    no alpha channel, which the PDF would otherwise split into a soft mask)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from PIL import Image
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    rgb = np.asarray(canvas.buffer_rgba())[..., :3]
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
+    Image.fromarray(rgb).save(buf, format="PNG", dpi=(DPI, DPI), compress_level=6)
     return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption)
 
 
-def _new(**kw):
-    fig = MplFigure(figsize=SIZE_IN, dpi=DPI, layout="constrained", **kw)
+#: fixed margins (fractions of the canvas) for the report's one layout: title above,
+#: axis labels and a legend row below, colour bar on the right. A fixed layout draws each
+#: figure once; constrained layout measured every text first (about half the drawing cost).
+MARGINS = {"left": 0.115, "right": 0.97, "bottom": 0.13, "top": 0.92}
+LEGEND_BELOW_BOTTOM = 0.225  # room for the x label and one legend row under the axes
+COLORBAR_RIGHT = 0.84  # axes end here; the colour bar and its label take the rest
+POSES_TOP = 0.87  # room between the title and the axes for the label of a pose on the top edge
+POSE_TITLE_PAD = 16.0  # points: the title above such a label
+
+
+def _new(legend_below: bool = False, colorbar: bool = False, poses: bool = False):
+    fig = MplFigure(figsize=SIZE_IN, dpi=DPI)
+    margins = dict(MARGINS)
+    if legend_below:
+        margins["bottom"] = LEGEND_BELOW_BOTTOM
+    if colorbar:
+        margins["right"] = COLORBAR_RIGHT
+    if poses:
+        margins["top"] = POSES_TOP
+    fig.subplots_adjust(**margins)
     return fig, fig.subplots()
+
+
+def _colorbar(fig, ax, mappable, label: str) -> None:
+    """Colour bar in a fixed axes right of ``ax`` (same height), labelled."""
+    box = ax.get_position()
+    cax = fig.add_axes((box.x1 + 0.02, box.y0, 0.025, box.height))
+    fig.colorbar(mappable, cax=cax, label=label)
 
 
 def _grid(table: pd.DataFrame, column: str):
@@ -69,15 +102,15 @@ def _grid(table: pd.DataFrame, column: str):
 def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[str],
                        fixed_text: str, rule: str = "") -> Figure:
     """1/kappa_F over (theta_2, theta_3) with the tested poses; q_tests (m, 6) rad."""
-    fig, ax = _new()
+    fig, ax = _new(legend_below=True, colorbar=True, poses=True)
     t2, t3, z = _grid(table, "inv_kappa_F")
     cs = ax.contourf(t2, t3, z, levels=20, cmap="gray")
-    fig.colorbar(cs, ax=ax, label="1/\u03ba_F of J_N")
+    _colorbar(fig, ax, cs, "1/\u03ba_F of J_N")
     deg = np.degrees(q_tests)
     draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
-    ax.set_title(f"Dexterity map, {fixed_text}", fontsize=9)
+    ax.set_title(f"Dexterity map, {fixed_text}", fontsize=9, pad=POSE_TITLE_PAD)
     _legend_below(ax)
     return _png(fig, "poses_kappa_map", f"Tested poses {_pose_list(labels)} on the "
                 f"1/\u03ba_F map ({fixed_text}{_rule(rule)}; the poses' own \u03b8\u2081, "
@@ -143,7 +176,7 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
 
 def residual_plot(residuals: pd.DataFrame, threshold: float) -> Figure:
     """Studentized residual per test and component; outliers (|t| > threshold) in red."""
-    fig, ax = _new()
+    fig, ax = _new(legend_below=True)
     tests = residuals["test"].to_numpy()
     for comp, marker in COMPONENT_MARKERS.items():
         sel = residuals["component"] == comp
@@ -173,18 +206,18 @@ def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: 
                          fixed_text: str, labels: list[str] | None = None,
                          rule: str = "") -> Figure:
     """Norm of the predicted translational deflection (mm) over (theta_2, theta_3)."""
-    fig, ax = _new()
+    fig, ax = _new(legend_below=True, colorbar=True, poses=True)
     t2, t3, z = _grid(table, "deflection_mm")
     finite = z[np.isfinite(z)]
     vmax = np.percentile(finite, 99) if finite.size else 1.0
     cs = ax.contourf(t2, t3, np.clip(z, None, vmax), levels=20, cmap="viridis")
-    fig.colorbar(cs, ax=ax, label="|\u03b4p| (mm)")
+    _colorbar(fig, ax, cs, "|\u03b4p| (mm)")
     deg = np.degrees(q_tests)
     labels = labels if labels is not None else [str(i + 1) for i in range(len(deg))]
     draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
-    ax.set_title(f"Predicted deflection under {wrench_text}", fontsize=8)
+    ax.set_title(f"Predicted deflection under {wrench_text}", fontsize=8, pad=POSE_TITLE_PAD)
     _legend_below(ax)
     return _png(fig, "deflection_joint_map", "Norm of the predicted translational deflection "
                 f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}"
@@ -194,7 +227,7 @@ def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: 
 
 def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:
     """The same deflection over the positions of P in the arm's plane (radial distance, z)."""
-    fig, ax = _new()
+    fig, ax = _new(colorbar=True)
     x, y = table["x_m"].to_numpy(), table["y_m"].to_numpy()
     radial = np.hypot(x, y) * np.where(x < 0, -1.0, 1.0)
     z = table["deflection_mm"].to_numpy()
@@ -202,7 +235,7 @@ def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:
     vmax = np.percentile(z[ok], 99) if ok.any() else 1.0
     sc = ax.scatter(radial[ok], table["z_m"].to_numpy()[ok], c=np.clip(z[ok], None, vmax),
                     s=5, cmap="viridis")
-    fig.colorbar(sc, ax=ax, label="|\u03b4p| (mm)")
+    _colorbar(fig, ax, sc, "|\u03b4p| (mm)")
     ax.set_xlabel("horizontal distance of P from axis 1 (m)")
     ax.set_ylabel("height of P (m)")
     ax.set_aspect("equal", adjustable="datalim")

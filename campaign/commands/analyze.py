@@ -30,7 +30,7 @@ from campaign.options import (
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
 
 # Kept in step with analysis.identification.estimate (not imported here: every CLI command
-# module is imported at start-up, and the identification pulls in scipy.stats).
+# module is imported at start-up, and the identification pulls in scipy).
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
 DEFAULT_TRIALS = 200
