@@ -58,10 +58,12 @@ from analysis.identification.fitting import (  # noqa: F401 (re-exported: the pu
     fit_linear,
 )
 from analysis.identification.lsq import (
+    TEST_BLOCK,
     residual_variance_blocks,
     sandwich,
     scaled_condition,
     stack_matrix,
+    whitened_r,
     whitening,
 )
 from analysis.identification.measurements import COMPONENTS, TestArrays, to_arrays
@@ -309,7 +311,9 @@ def identify(
     dof = int(kept.sum()) - p
     cov_x = sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv)
     var_r = residual_variance_blocks(chosen.A, chosen.cov, chosen.bread, cov_x, chosen.Linv)
-    Linv = whitening(chosen.cov, kept)
+    # the fit's own whitening when it used the same components (saves an (m, 6, 6) array)
+    Linv = chosen.Linv if rob is None and chosen.Linv is not None else whitening(chosen.cov,
+                                                                                 kept)
     resid = np.where(kept, tests.d - chosen.predicted, 0.0)
     chi2_red, p_value = chi2_summary(np.einsum("mij,mj->mi", Linv, resid), dof)
     from analysis.identification.noise_check import noise_ratio_notes
@@ -362,7 +366,8 @@ def identify(
         warnings.append(
             f"{len(flagged)} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
             f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
-    Aw = stack_matrix(Linv @ chosen.A)
+    # R of the whitened system: its scaled condition without the (6m, p) Linv A
+    Aw = whitened_r(Linv, chosen.A) if tests.m > TEST_BLOCK else stack_matrix(Linv @ chosen.A)
     result = IdentificationResult.build(
         robot=robot.name, method=method, joints=joints, x=chosen.x, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,

@@ -133,6 +133,23 @@ def tall_r(A: np.ndarray, d: np.ndarray | None = None, block: int = ROW_BLOCK,
     return np.linalg.qr(np.vstack(Rs), mode="r")[:p]
 
 
+def whitened_r(Linv: np.ndarray, A: np.ndarray, block: int = TEST_BLOCK) -> np.ndarray:
+    """Triangular factor R (p, p) of the stacked whitened system Linv A, blockwise.
+
+    ``Linv`` (m, 6, 6), ``A`` (m, 6, p). R^T R = A^T W A, so R has the column norms
+    and singular values of the stacked Linv A (6m, p) (:func:`scaled_condition` of
+    R equals that of Linv A) without forming it.
+    """
+    p = A.shape[-1]
+    Rs = []
+    for s in range(0, A.shape[0], block):
+        Rs.append(np.linalg.qr((Linv[s:s + block] @ A[s:s + block]).reshape(-1, p),
+                               mode="r")[:p])
+        if len(Rs) > 64:
+            Rs = [np.linalg.qr(np.vstack(Rs), mode="r")[:p]]
+    return np.linalg.qr(np.vstack(Rs), mode="r")[:p]
+
+
 def tall_solve(A: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """x, (A^T A)^-1 of the least-squares A x ~ d for one tall A (r, p), blockwise.
 
