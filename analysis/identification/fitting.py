@@ -183,7 +183,7 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None) -> F
     then the weighted one.
     """
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
-                      weights=weights)
+                      weights=weights, J=_jacobian(robot, tests.q))
     if not gn.valid:
         raise InputError(
             "the exact fit cannot start: the equilibrium has no solution at the linear "

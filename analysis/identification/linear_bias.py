@@ -23,6 +23,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.exact_fit import model_displacement_masked
+from analysis.identification.gauss_newton import EVAL_BLOCK
 from analysis.identification.lsq import stack_vector
 from analysis.identification.measurements import TestArrays
 from analysis.model.robot_model import RobotModel
@@ -47,10 +48,15 @@ def linearisation_bias(
     """
     x_full = np.zeros(robot.n)
     x_full[list(joints)] = x
-    f, _, ok = model_displacement_masked(robot, tests.q, x_full, tests.w, with_jacobian=False)
-    if not np.all(ok):
-        return np.full(len(joints), np.nan)
-    diff = np.where(tests.measured, f - predicted, 0.0)
+    # the equilibrium in blocks of tests: its chain states are ~2.6 kB per test at once
+    diff = np.empty_like(predicted)
+    for s in range(0, tests.m, EVAL_BLOCK):
+        sl = slice(s, s + EVAL_BLOCK)
+        f, _, ok = model_displacement_masked(robot, tests.q[sl], x_full, tests.w[sl],
+                                             with_jacobian=False)
+        if not np.all(ok):
+            return np.full(len(joints), np.nan)
+        diff[sl] = np.where(tests.measured[sl], f - predicted[sl], 0.0)
     return G @ stack_vector(diff)
 
 

@@ -111,20 +111,40 @@ TEST_BLOCK = 8_000
 TALL_ROWS = 4 * ROW_BLOCK
 
 
-def tall_r(A: np.ndarray, d: np.ndarray | None = None, block: int = ROW_BLOCK) -> np.ndarray:
+def tall_r(A: np.ndarray, d: np.ndarray | None = None, block: int = ROW_BLOCK,
+           scale: np.ndarray | None = None) -> np.ndarray:
     """Triangular factor of [A | d] (r, p) -> (p(+1), p(+1)) by blocks of rows (TSQR).
 
     Each block of rows is reduced to its R by Householder QR and the stacked R
     factors are reduced again: the R of the whole matrix (up to the signs of
     its rows) with O(p^2) memory per block, instead of the r x p factor Q.
+    ``scale`` (p,): factorise [A / scale | d] instead (divided block by block: no scaled
+    copy of A).
     """
-    aug = A if d is None else None
     p = A.shape[-1] + (0 if d is None else 1)
     Rs = []
     for s in range(0, A.shape[0], block):
-        blk = aug[s:s + block] if aug is not None else np.column_stack(
-            [A[s:s + block], d[s:s + block]])
+        blk = A[s:s + block] if scale is None else A[s:s + block] / scale
+        if d is not None:
+            blk = np.column_stack([blk, d[s:s + block]])
         Rs.append(np.linalg.qr(blk, mode="r")[:p])
+        if len(Rs) > 64:
+            Rs = [np.linalg.qr(np.vstack(Rs), mode="r")[:p]]
+    return np.linalg.qr(np.vstack(Rs), mode="r")[:p]
+
+
+def whitened_r(Linv: np.ndarray, A: np.ndarray, block: int = TEST_BLOCK) -> np.ndarray:
+    """Triangular factor R (p, p) of the stacked whitened system Linv A, blockwise.
+
+    ``Linv`` (m, 6, 6), ``A`` (m, 6, p). R^T R = A^T W A, so R has the column norms
+    and singular values of the stacked Linv A (6m, p) (:func:`scaled_condition` of
+    R equals that of Linv A) without forming it.
+    """
+    p = A.shape[-1]
+    Rs = []
+    for s in range(0, A.shape[0], block):
+        Rs.append(np.linalg.qr((Linv[s:s + block] @ A[s:s + block]).reshape(-1, p),
+                               mode="r")[:p])
         if len(Rs) > 64:
             Rs = [np.linalg.qr(np.vstack(Rs), mode="r")[:p]]
     return np.linalg.qr(np.vstack(Rs), mode="r")[:p]
@@ -138,7 +158,7 @@ def tall_solve(A: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     p = A.shape[-1]
     scale = column_scale(A)
-    R = tall_r(A / scale, d)
+    R = tall_r(A, d, scale=scale)
     Rinv = np.linalg.inv(R[:p, :p])
     x = (Rinv @ R[:p, p]) / scale
     cov_unit = (Rinv @ Rinv.T) / (scale[:, None] * scale[None, :])

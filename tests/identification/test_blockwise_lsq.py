@@ -88,3 +88,15 @@ def test_sandwich_and_residual_variance_equal_the_hat_matrix_forms(kr240, zone_p
     # the estimator reproduces the estimate: x = G d (linear fits)
     if method != "exact":
         np.testing.assert_allclose(G @ stack_vector(tests.d), f.x, rtol=1e-10)
+
+
+def test_whitened_r_has_the_condition_and_gram_of_the_stacked_system():
+    rng = np.random.default_rng(11)
+    m = 1000
+    A = rng.normal(size=(m, 6, 5)) * np.array([1e-3, 1.0, 1e2, 1e-6, 10.0])
+    L = np.tril(rng.normal(size=(m, 6, 6))) + 4 * np.eye(6)
+    R = lsq.whitened_r(L, A, block=97)  # several blocks and a ragged last one
+    Aw = (L @ A).reshape(-1, 5)
+    np.testing.assert_allclose(R.T @ R, Aw.T @ Aw, rtol=1e-12)
+    assert lsq.scaled_condition(R) == pytest.approx(lsq.scaled_condition(Aw), rel=1e-10)
+    assert np.allclose(np.triu(R), R)

@@ -1,0 +1,76 @@
+"""The outlier loop's refits (downdated OLS, warm-started exact) against fits from scratch."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.identification import estimate
+from analysis.identification.estimate import (
+    _refit_without,
+    _studentized_matrix,
+    fit,
+    flag_outliers,
+    outlier_threshold,
+)
+from analysis.identification.measurements import TestArrays
+from analysis.identification.noise import NoiseModel
+
+from ._sim import simulate
+
+NOISE = NoiseModel()
+
+
+def _without(tests: TestArrays, drop) -> TestArrays:
+    keep = tests.measured.copy()
+    for i, c in drop:
+        keep[i, c] = False
+    return TestArrays(tests.pose, tests.q, tests.w, np.where(keep, tests.d, np.nan), keep,
+                      tests.line)
+
+
+@pytest.fixture(scope="module")
+def glitched(kr240, zone_poses, w_eff):
+    """12 poses, seeded noise, three gross errors (0.8-1 mm) on translation components."""
+    tests = simulate(kr240, zone_poses, w_eff, kr240.nominal_stiffness, NOISE, seed=5)
+    for (i, c), e in zip([(4, 1), (7, 0), (10, 2)], [1e-3, -8e-4, 1e-3], strict=True):
+        tests.d[i, c] += e
+    return tests
+
+
+@pytest.mark.parametrize("method", ["ols", "exact"])
+def test_refit_without_equals_fit_from_scratch(kr240, glitched, method):
+    joints = tuple(range(6))
+    first = fit(kr240, glitched, joints, NOISE, method)
+    A0 = first.A.copy()
+    drop = [(4, 1), (7, 0)]
+    prev, tests = first, glitched
+    for n, (i, c) in enumerate(drop):
+        rest = _without(glitched, drop[:n + 1])
+        prev = _refit_without(kr240, rest, joints, NOISE, method, prev, i, c,
+                              float(glitched.d[i, c]), owned=prev is not first)
+        tests = rest
+    ref = fit(kr240, tests, joints, NOISE, method)
+    tol = 1e-9 if method == "ols" else 1e-6  # exact: Gauss-Newton stopping tolerance
+    np.testing.assert_allclose(prev.x, ref.x, rtol=tol)
+    np.testing.assert_allclose(prev.bread, ref.bread, rtol=1e-6 if method == "exact" else 1e-8)
+    np.testing.assert_allclose(prev.predicted, ref.predicted, rtol=tol, atol=1e-12)
+    np.testing.assert_allclose(prev.A, ref.A, rtol=1e-6, atol=1e-15)
+    t, t_ref = (_studentized_matrix(tests, f, 1.0) for f in (prev, ref))
+    np.testing.assert_allclose(t, t_ref, rtol=1e-5, atol=1e-6)  # |t| ~ 1
+    # the first fit's arrays are not edited by the downdates
+    np.testing.assert_array_equal(first.A, A0)
+
+
+@pytest.mark.parametrize("method", ["ols", "exact"])
+def test_flag_outliers_finds_the_three_glitches(kr240, glitched, method, monkeypatch):
+    joints = tuple(range(6))
+    first = fit(kr240, glitched, joints, NOISE, method)
+    thr = outlier_threshold(int(glitched.measured.sum()))
+    flags = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
+    assert {tuple(map(int, ij)) for ij in np.argwhere(flags)} == {(4, 1), (7, 0), (10, 2)}
+    # the same flags with every refit from scratch
+    monkeypatch.setattr(estimate, "_refit_without", lambda robot, rest, joints, noise, method,
+                        *_, **__: fit(robot, rest, joints, noise, method))
+    ref = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
+    np.testing.assert_array_equal(flags, ref)
