@@ -12,69 +12,17 @@ import io
 import json
 import re
 import struct
-from html.parser import HTMLParser
 
 import numpy as np
 import pytest
 from pypdf import PdfReader
+from report_html import ReportPage
 from report_runs import TRUE_K
 
 from analysis.report.build import SECTION_TITLES
 from analysis.report.figures import HEIGHT, WIDTH
 from analysis.report.formatting import interval_kNm, k_kNm
 from campaign.cli import main
-
-
-class _Doc(HTMLParser):
-    """Tables (title = preceding h3), images and any external references of a page."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.tables: dict[str, list[list[str]]] = {}
-        self.images: list[str] = []
-        self.external: list[str] = []
-        self.h2: list[str] = []
-        self.text: list[str] = []
-        self._tag: list[str] = []
-        self._title = ""
-        self._cell: list[str] | None = None
-        self._row: list[str] | None = None
-
-    def handle_starttag(self, tag, attrs):
-        attrs = dict(attrs)
-        self._tag.append(tag)
-        if tag == "script":
-            self.external.append("script")
-        if tag in ("link",) or (tag in ("img", "iframe") and not
-                                 str(attrs.get("src", "")).startswith("data:")):
-            self.external.append(f"{tag} {attrs}")
-        if tag == "img":
-            self.images.append(attrs["src"])
-        if tag == "table":
-            self.tables[self._title] = []
-        if tag == "tr":
-            self._row = []
-        if tag in ("td", "th"):
-            self._cell = []
-
-    def handle_endtag(self, tag):
-        if self._tag:
-            self._tag.pop()
-        if tag in ("td", "th") and self._row is not None:
-            self._row.append("".join(self._cell or []).strip())
-            self._cell = None
-        if tag == "tr" and self._row is not None:
-            self.tables[self._title].append(self._row)
-            self._row = None
-
-    def handle_data(self, data):
-        self.text.append(data)
-        if self._cell is not None:
-            self._cell.append(data)
-        if self._tag and self._tag[-1] == "h3":
-            self._title = data.strip()
-        if self._tag and self._tag[-1] == "h2":
-            self.h2.append(data.strip())
 
 
 def _analyze(args):
@@ -85,7 +33,7 @@ def _analyze(args):
 def complete(complete_run):
     out = complete_run / "analysis"
     assert _analyze([str(complete_run), "--pose", "0,30,-190,10,40,20"]) == 0
-    doc = _Doc()
+    doc = ReportPage()
     doc.feed((out / "report.html").read_text(encoding="utf-8"))
     pdf = PdfReader(out / "report.pdf")
     pages = [p.extract_text() for p in pdf.pages]

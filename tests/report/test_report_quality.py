@@ -7,63 +7,19 @@ with poppler's pdftoppm when it is on PATH (skipped otherwise).
 
 from __future__ import annotations
 
-import base64
 import hashlib
 import io
 import re
 import shutil
 import subprocess
-from html.parser import HTMLParser
 
 import numpy as np
 import pytest
 from pypdf import PdfReader
+from report_html import ReportPage
 from report_runs import write_csv
 
 from campaign.cli import main
-
-
-class _Page(HTMLParser):
-    """Visible text, table titles -> rows, and the figures' (alt, PNG bytes)."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.text: list[str] = []
-        self.tables: dict[str, list[list[str]]] = {}
-        self.figures: list[tuple[str, bytes]] = []
-        self._title, self._h3 = "", False
-        self._row: list[str] | None = None
-        self._cell: list[str] | None = None
-
-    def handle_starttag(self, tag, attrs):
-        a = dict(attrs)
-        if tag == "h3":
-            self._h3, self._title = True, ""
-        if tag == "table":
-            self.tables[self._title] = []
-        if tag == "tr":
-            self._row = []
-        if tag in ("td", "th"):
-            self._cell = []
-        if tag == "img":
-            self.figures.append((a["alt"], base64.b64decode(a["src"].split(",", 1)[1])))
-
-    def handle_endtag(self, tag):
-        if tag == "h3":
-            self._h3 = False
-        if tag in ("td", "th") and self._row is not None:
-            self._row.append("".join(self._cell or []).strip())
-            self._cell = None
-        if tag == "tr" and self._row is not None:
-            self.tables[self._title].append(self._row)
-            self._row = None
-
-    def handle_data(self, data):
-        self.text.append(data)
-        if self._h3:
-            self._title += data.strip()
-        if self._cell is not None:
-            self._cell.append(data)
 
 
 def _flat(text: str) -> str:
@@ -74,7 +30,7 @@ def _flat(text: str) -> str:
 def run_report(complete_run, tmp_path_factory):
     out = tmp_path_factory.mktemp("quality") / "analysis"
     assert main(["analyze", str(complete_run), "--trials", "10", "--out", str(out)]) == 0
-    page = _Page()
+    page = ReportPage()
     page.feed((out / "report.html").read_text(encoding="utf-8"))
     pages = [p.extract_text() for p in PdfReader(out / "report.pdf").pages]
     return {"out": out, "page": page, "html_text": _flat(" ".join(page.text)),
@@ -88,7 +44,7 @@ def csv_report(rows, tmp_path_factory):
     out = tmp / "out"
     assert main(["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--out", str(out),
                  "--trials", "10", "--force-sigma-N", "0.5", "--moment-sigma-Nm", "0.05"]) == 0
-    page = _Page()
+    page = ReportPage()
     page.feed((out / "report.html").read_text(encoding="utf-8"))
     return {"csv": csv, "page": page, "html_text": _flat(" ".join(page.text))}
 
