@@ -14,22 +14,12 @@ import numpy as np
 from analysis.identification.gauss_newton import gauss_newton
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw
+from tests.report import report_runs
 
-TRUE_K = np.array([1409800.0, 400760.0, 935280.0, 360000.0, 370000.0, 380000.0])
-POSES_DEG = np.array([
-    [0, 40, -200, 45, 45, 45],
-    [20, 80, -220, 30, 60, -30],
-    [0, 10, 15, 45, 45, 45],
-    [-20, 120, 15, 60, 30, 10],
-    [10, 60, -180, -40, 50, 80],
-], dtype=float)
-WRENCHES = np.array([
-    [0, 2200, 2200, 200, 200, 0],
-    [0, -2200, 2200, -200, 200, 0],
-    [2200, 0, 2200, 200, -200, 0],
-    [0, 2200, -2200, 200, 200, 0],
-    [0, 2200, 2200, 200, 200, 0],
-], dtype=float)
+# the demo design: the same five poses and load cases as the report tests' simulated runs
+TRUE_K = report_runs.TRUE_K
+POSES_DEG = report_runs.POSES_DEG
+WRENCHES = np.array([report_runs.WRENCH[name] for name in report_runs.LOADS], dtype=float)
 REPEATS = 3
 NOISE = NoiseModel(translation_sigma_override=30e-6 * np.sqrt(1.5),
                    rotation_sigma_override=20e-6 * np.sqrt(1.5),
