@@ -92,6 +92,7 @@ def solve_deflection_masked(
     tol: float = 1e-15,
     max_iter: int = 50,
     max_deflection: float = 1.0,
+    dq0: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Like :func:`solve_deflection_compliance`, batched without raising.
 
@@ -100,10 +101,28 @@ def solve_deflection_masked(
     deflection below ``max_deflection`` (rad) and a nonsingular Jacobian.
     Used where some of many campaigns may hold absurd estimates (Monte-Carlo).
     The solver is :func:`analysis.kinetostatics.equilibrium.newton_deflection`.
+
+    ``dq0`` (..., n): a starting guess (the deflection at nearby compliances, or the
+    first-order one); the same converged solution with fewer Newton steps. Poses
+    where Newton from ``dq0`` fails are solved again from zero, so a guess never
+    loses a solution the cold start finds.
     """
-    dq, bad, last = newton_deflection(robot, q, x, w, tol, max_iter,
+    dq, bad, last = newton_deflection(robot, q, x, w, tol, max_iter, dq0=dq0,
                                       max_deflection=max_deflection)
-    return dq, ~bad & (last <= max(tol, 1e-12))
+    ok = ~bad & (last <= max(tol, 1e-12))
+    if dq0 is not None and not np.all(ok):
+        n = q.shape[-1]
+        retry = ~np.reshape(ok, -1)
+        x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
+        w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
+        d2, b2, l2 = newton_deflection(robot, q.reshape(-1, n)[retry], x.reshape(-1, n)[retry],
+                                       w.reshape(-1, 6)[retry], tol, max_iter,
+                                       max_deflection=max_deflection)
+        dq, ok = dq.reshape(-1, n).copy(), np.reshape(ok, -1).copy()
+        dq[retry] = d2
+        ok[retry] = ~b2 & (l2 <= max(tol, 1e-12))
+        dq, ok = dq.reshape(q.shape), ok.reshape(q.shape[:-1])
+    return dq, ok
 
 
 def model_displacement(
@@ -128,15 +147,31 @@ def model_displacement_masked(
     robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """:func:`model_displacement` plus ``ok`` (...) bool; values are 0 where not ok."""
+    screw, D, ok, _ = model_displacement_state(robot, q, x, w, with_jacobian)
+    return screw, D, ok
+
+
+def model_displacement_state(
+    robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True,
+    dq0: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
+    """:func:`model_displacement_masked` plus the joint deflection dq (..., n) (rad).
+
+    Newton starts from ``dq0`` (e.g. the deflection of the previous Gauss-Newton
+    iterate), else from the first-order deflection ``x * J(q)^T w`` (one Newton step
+    fewer than from zero: the unloaded chain state is needed for the screw anyway).
+    """
     q = np.asarray(q, dtype=float)
     x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
-    dq, ok = solve_deflection_masked(robot, q, x, w)
     s0 = chain_state(robot, q)
+    if dq0 is None:
+        dq0 = x * np.einsum("...ji,...j->...i", jacobian_from_state(s0), w)
+    dq, ok = solve_deflection_masked(robot, q, x, w, dq0=np.where(np.isfinite(dq0), dq0, 0.0))
     s1 = chain_state(robot, q + dq)
     screw = np.where(ok[..., None], pose_difference(s0.tip, s1.tip), 0.0)
     if not with_jacobian:
-        return screw, None, ok
+        return screw, None, ok, dq
     J1 = jacobian_from_state(s1)
     tau = np.einsum("...ji,...j->...i", J1, w)
     n = q.shape[-1]
@@ -145,4 +180,4 @@ def model_displacement_masked(
     ddq = np.linalg.solve(M, tau[..., None, :] * np.eye(n))  # (..., n, n): d dq_i / d x_j
     D = J1.copy()
     D[..., 3:, :] = so3_left_jacobian_inverse(screw[..., 3:]) @ J1[..., 3:, :]
-    return screw, np.where(ok[..., None, None], D @ ddq, 0.0), ok
+    return screw, np.where(ok[..., None, None], D @ ddq, 0.0), ok, dq

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification.exact_fit import model_displacement_masked
+from analysis.identification.exact_fit import model_displacement_state
 from analysis.identification.lsq import qr_solve, stack_matrix, stack_vector, whitening
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.model.kinematics import jacobian
@@ -45,20 +45,25 @@ class GaussNewtonFit:
 EVAL_BLOCK = 8192
 
 
-def _model_in_blocks(robot, q, x, w, with_jacobian):
-    """:func:`model_displacement_masked` for one campaign (q (m, 6)) in blocks of tests."""
+def _model_in_blocks(robot, q, x, w, with_jacobian, dq0=None):
+    """:func:`model_displacement_state` for one campaign (q (m, 6)) in blocks of tests.
+
+    ``dq0`` (..., m, 6): Newton's starting deflections (the previous iterate's), or None.
+    Returns f, F (or None), ok, dq.
+    """
     if q.ndim != 2 or q.shape[0] <= EVAL_BLOCK:
-        return model_displacement_masked(robot, q, x, w, with_jacobian)
+        return model_displacement_state(robot, q, x, w, with_jacobian, dq0)
     m = q.shape[0]
-    f, ok = np.empty((m, 6)), np.empty(m, dtype=bool)
+    f, ok, dq = np.empty((m, 6)), np.empty(m, dtype=bool), np.empty(q.shape)
     F = np.empty((m, 6, q.shape[-1])) if with_jacobian else None
     for s in range(0, m, EVAL_BLOCK):
         sl = slice(s, s + EVAL_BLOCK)
-        fb, Fb, okb = model_displacement_masked(robot, q[sl], x, w[sl], with_jacobian)
-        f[sl], ok[sl] = fb, okb
+        fb, Fb, okb, dqb = model_displacement_state(robot, q[sl], x, w[sl], with_jacobian,
+                                                    None if dq0 is None else dq0[sl])
+        f[sl], ok[sl], dq[sl] = fb, okb, dqb
         if with_jacobian:
             F[sl] = Fb
-    return f, F, ok
+    return f, F, ok, dq
 
 
 def _defined(Aw: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -135,11 +140,14 @@ def gauss_newton(
         out[..., cols] = xp
         return out
 
-    def evaluate(xp, with_jacobian=True):
-        f, F, ok = _model_in_blocks(robot, q, full(xp)[..., None, :], w, with_jacobian)
+    def evaluate(xp, with_jacobian=True, dq0=None):
+        # Newton warm-started at the deflections of the current iterate: the same
+        # converged equilibrium (to its 1e-15 rad tolerance) in ~2 steps instead of ~4
+        f, F, ok, dq = _model_in_blocks(robot, q, full(xp)[..., None, :], w, with_jacobian,
+                                        dq0)
         if F is not None:
             F = F[..., cols] * measured[..., None]
-        return f, F, np.all(ok, axis=-1)
+        return f, F, np.all(ok, axis=-1), dq
 
     def whitened(Linv, f):
         return np.einsum("...ij,...j->...i", Linv, np.where(measured, dz - f, 0.0))
@@ -147,7 +155,7 @@ def gauss_newton(
     x = np.array(x0, dtype=float)
     valid = np.all(np.isfinite(x), axis=-1)
     x = np.where(valid[..., None], x, 0.0)
-    f, F, ok = evaluate(x)
+    f, F, ok, dq = evaluate(x)
     valid &= ok
     converged = np.zeros(batch, dtype=bool)
     iterations = 0
@@ -162,29 +170,30 @@ def gauss_newton(
         cost0 = np.sum(r**2, axis=(-2, -1))
         t = np.ones(batch)
         accepted = np.zeros(batch, dtype=bool)
-        x_new, f_new = x.copy(), f.copy()
+        x_new, f_new, dq_new = x.copy(), f.copy(), dq.copy()
         F_full = None
         for halving in range(12):
             x_try = x + t[..., None] * step
             # the full step is usually accepted: its model Jacobian then serves the next
             # iteration (one equilibrium solve per iteration instead of two)
-            f_try, F_try, good = evaluate(x_try, with_jacobian=halving == 0)
+            f_try, F_try, good, dq_try = evaluate(x_try, with_jacobian=halving == 0, dq0=dq)
             if halving == 0:
                 F_full = F_try
             ok = ~accepted & good & (np.sum(whitened(Linv, f_try) ** 2, axis=(-2, -1))
                                      <= cost0 * (1 + 1e-8))
             x_new = np.where(ok[..., None], x_try, x_new)
             f_new = np.where(ok[..., None, None], f_try, f_new)
+            dq_new = np.where(ok[..., None, None], dq_try, dq_new)
             accepted |= ok
             if np.all(accepted):
                 break
             t = np.where(accepted, t, 0.5 * t)
         moved = np.max(np.abs(np.where(accepted[..., None], t[..., None] * step, 0.0)), axis=-1)
-        x = x_new
+        x, dq = x_new, dq_new
         if F_full is not None and np.all(accepted & (t == 1.0)):
             f, F = f_new, F_full
         else:
-            f, F, _ = evaluate(x)
+            f, F, _, dq = evaluate(x, dq0=dq)
         del F_full
         # a step no halving can make descend means the cost is at its floor
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted

@@ -104,33 +104,58 @@ def block_diag_apply(G: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 
 
-#: rows per block of the tall (TSQR) path and tests per block of the blockwise statistics
-ROW_BLOCK = 48_000
+#: rows per block of the tall (TSQR) path and tests per block of the blockwise statistics;
+#: a block of 6000 x 7 doubles (0.3 MB) stays in cache during its Householder QR
+#: (measured: 0.07 s for 6e5 x 7 rows against 0.22 s in blocks of 48000)
+ROW_BLOCK = 6_000
 TEST_BLOCK = 8_000
 #: stacked systems with more rows than this are factorised blockwise (no Q, no A^+)
-TALL_ROWS = 4 * ROW_BLOCK
+TALL_ROWS = 192_000
 
 
-def tall_r(A: np.ndarray, d: np.ndarray | None = None, block: int = ROW_BLOCK,
+class TallR:
+    """Triangular factor of a tall matrix fed by blocks of rows (TSQR).
+
+    ``add(rows)`` reduces each :data:`ROW_BLOCK` rows to their R by Householder QR;
+    the stacked R factors are reduced again (every 64 blocks and at ``r()``): the R
+    of the whole matrix (up to the signs of its rows) with O(p^2) memory, instead of
+    the r x p factor Q. The one place the blockwise factorisations of this package
+    accumulate their rows.
+    """
+
+    def __init__(self, block: int | None = None) -> None:
+        self.block = ROW_BLOCK if block is None else block
+        self.Rs: list[np.ndarray] = []
+
+    def add(self, rows: np.ndarray) -> None:
+        """Append rows (r, q) of the matrix."""
+        q = rows.shape[-1]
+        for s in range(0, rows.shape[0], self.block):
+            self.Rs.append(np.linalg.qr(rows[s:s + self.block], mode="r")[:q])
+            if len(self.Rs) > 64:
+                self.Rs = [np.linalg.qr(np.vstack(self.Rs), mode="r")[:q]]
+
+    def r(self) -> np.ndarray:
+        """R (q, q) of all the rows added (q = their number of columns)."""
+        q = self.Rs[0].shape[-1]
+        return np.linalg.qr(np.vstack(self.Rs), mode="r")[:q]
+
+
+def tall_r(A: np.ndarray, d: np.ndarray | None = None, block: int | None = None,
            scale: np.ndarray | None = None) -> np.ndarray:
     """Triangular factor of [A | d] (r, p) -> (p(+1), p(+1)) by blocks of rows (TSQR).
 
-    Each block of rows is reduced to its R by Householder QR and the stacked R
-    factors are reduced again: the R of the whole matrix (up to the signs of
-    its rows) with O(p^2) memory per block, instead of the r x p factor Q.
-    ``scale`` (p,): factorise [A / scale | d] instead (divided block by block: no scaled
-    copy of A).
+    See :class:`TallR`. ``scale`` (p,): factorise [A / scale | d] instead (divided
+    block by block: no scaled copy of A).
     """
-    p = A.shape[-1] + (0 if d is None else 1)
-    Rs = []
-    for s in range(0, A.shape[0], block):
-        blk = A[s:s + block] if scale is None else A[s:s + block] / scale
+    acc = TallR(block)
+    step = acc.block * 8
+    for s in range(0, A.shape[0], step):
+        blk = A[s:s + step] if scale is None else A[s:s + step] / scale
         if d is not None:
-            blk = np.column_stack([blk, d[s:s + block]])
-        Rs.append(np.linalg.qr(blk, mode="r")[:p])
-        if len(Rs) > 64:
-            Rs = [np.linalg.qr(np.vstack(Rs), mode="r")[:p]]
-    return np.linalg.qr(np.vstack(Rs), mode="r")[:p]
+            blk = np.column_stack([blk, d[s:s + step]])
+        acc.add(blk)
+    return acc.r()
 
 
 def whitened_r(Linv: np.ndarray, A: np.ndarray, block: int = TEST_BLOCK) -> np.ndarray:
@@ -141,13 +166,10 @@ def whitened_r(Linv: np.ndarray, A: np.ndarray, block: int = TEST_BLOCK) -> np.n
     R equals that of Linv A) without forming it.
     """
     p = A.shape[-1]
-    Rs = []
+    acc = TallR()
     for s in range(0, A.shape[0], block):
-        Rs.append(np.linalg.qr((Linv[s:s + block] @ A[s:s + block]).reshape(-1, p),
-                               mode="r")[:p])
-        if len(Rs) > 64:
-            Rs = [np.linalg.qr(np.vstack(Rs), mode="r")[:p]]
-    return np.linalg.qr(np.vstack(Rs), mode="r")[:p]
+        acc.add((Linv[s:s + block] @ A[s:s + block]).reshape(-1, p))
+    return acc.r()
 
 
 def tall_solve(A: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
