@@ -133,7 +133,8 @@ def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
 
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
-                  scale: float, threshold: float) -> np.ndarray:
+                  scale: float, threshold: float, t_first: np.ndarray | None = None
+                  ) -> np.ndarray:
     """(m, 6) bool: residuals beyond ``threshold``, found one at a time.
 
     A gross error pulls the fit towards itself and inflates the residuals of
@@ -141,10 +142,11 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
     pose), so only the largest |t| is tested; if beyond ``threshold`` it is set
     aside, the rest is refitted and tested again (a sequential, Grubbs-like
     procedure), at most :data:`MAX_OUTLIERS` times or while equations remain.
+    ``t_first``: the (m, 6) studentized residuals of ``first`` if the caller has them.
     """
     flags = np.zeros(tests.measured.shape, dtype=bool)
     current = first
-    t = _studentized_matrix(tests, first, scale)
+    t = _studentized_matrix(tests, first, scale) if t_first is None else t_first
     budget = min(MAX_OUTLIERS, int(tests.measured.sum()) - len(joints) - 1)
     for _ in range(max(budget, 0) + 1):
         candidate = np.where(tests.measured & ~flags & np.isfinite(t), np.abs(t), -np.inf)
@@ -203,15 +205,14 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
     return fit(robot, rest, joints, noise, method)
 
 
-def _residual_table(tests, result_fit, var_r, scale, flags) -> pd.DataFrame:
+def _residual_table(tests, result_fit, t, flags) -> pd.DataFrame:
     """One row per test and measured component, tests in order, components in order.
 
-    ``var_r`` (m, 6) residual variances.
+    ``t`` (m, 6) studentized residuals.
     """
     meas = tests.measured
     sigma = np.sqrt(np.diagonal(result_fit.cov, axis1=-2, axis2=-1))
     resid = np.where(meas, tests.d - result_fit.predicted, np.nan)
-    t = studentized(resid, var_r * scale)
     i, c = np.nonzero(meas)  # row-major: by test, then component
     # text columns as categoricals: 6e6 rows of Python strings would take ~1 GB
     codes, labels = pd.factorize(np.asarray(tests.pose).astype(str))
@@ -303,7 +304,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     ols = fit_linear(robot, tests, joints, noise, weighted=False)
     linear = {"ols": ols}
     if method != "ols":
-        linear["wls"] = fit_linear(robot, tests, joints, noise, weighted=True)
+        # WLS's weights start at the OLS estimate: passed, not solved again
+        linear["wls"] = fit_linear(robot, tests, joints, noise, weighted=True, start=ols.x)
     if method == "exact":
         chosen = fit_exact(robot, tests, joints, noise, start=ols.x)
     else:
@@ -360,11 +362,12 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                             "reaches 0, the data do not bound k from above")
 
     threshold = outlier_threshold(n_eq, outlier_level)
+    t = studentized(np.where(tests.measured, tests.d - chosen.predicted, np.nan), var_r * scale)
     if rob is None:
-        flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold)
+        flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t)
     else:
         flags = tests.measured & ~kept
-    residuals = _residual_table(tests, chosen, var_r, scale, flags)
+    residuals = _residual_table(tests, chosen, t, flags)
     if rob is not None:
         residuals["weight"] = rob.weights[tests.measured]
         warnings.append(rob.summary())

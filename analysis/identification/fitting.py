@@ -164,9 +164,11 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
     weights at instead of the OLS estimate.
     """
     J, A = _design(robot, tests, joints)
-    x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, None, weighted=False)
+    if weighted and start is not None:
+        x = np.asarray(start, dtype=float)  # no OLS solve: the weights start at ``start``
+    else:
+        x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, None, weighted=False)
     if weighted:
-        x = x if start is None else np.asarray(start, dtype=float)
         for _ in range(2):
             cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w, weights)
             x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)

@@ -234,9 +234,57 @@ class IdentificationResult:
             "robust": self.robust,
             "warnings": self.warnings,
             **residual_summary(self.residuals),
-            "validation": None if self.validation is None else _records(self.validation),
+            **validation_summary(self.validation),
         }
         return out
+
+
+#: results.json lists every held-out pose up to this many; beyond, the worst ones by
+#: RMS error / sigma and a summary (every pose stays in validation.csv)
+VALIDATION_LISTED = 200
+
+
+def worst_poses(validation: pd.DataFrame, listed: int = VALIDATION_LISTED) -> pd.DataFrame:
+    """The ``listed`` rows of ``validation`` of largest RMS error / sigma (NaN, i.e. folds
+    that could not be fitted, first), largest first; all rows in order when there are
+    no more than ``listed``."""
+    if len(validation) <= listed:
+        return validation
+    key = validation["rms_normalized"].to_numpy(dtype=float)
+    key = np.where(np.isfinite(key), key, np.inf)
+    return validation.iloc[np.argsort(-key, kind="stable")[:listed]]
+
+
+def validation_summary(validation: pd.DataFrame | None, listed: int = VALIDATION_LISTED) -> dict:
+    """results.json entries for the leave-one-pose-out table: ``validation`` (rows; all of
+    them up to ``listed`` poses, else the worst ``listed``), ``validation_listed`` (which)
+    and ``validation_summary`` (pose count, folds not fitted, median and maximum RMS
+    error / sigma, pooled RMS errors)."""
+    if validation is None:
+        return {"validation": None, "validation_listed": None, "validation_summary": None}
+    norm = validation["rms_normalized"].to_numpy(dtype=float)
+    n = validation["n_tests"].to_numpy(dtype=float)
+    fitted = np.isfinite(norm)
+
+    def pooled(col):  # RMS over the tests of the fitted folds (weights: tests per pose)
+        v = validation[col].to_numpy(dtype=float)
+        ok = fitted & np.isfinite(v)
+        return float(np.sqrt(np.sum(n[ok] * v[ok] ** 2) / np.sum(n[ok]))) if ok.any() else None
+
+    summary = {
+        "n_poses": int(len(validation)),
+        "folds_not_fitted": int((~fitted).sum()),
+        "rms_normalized_median": float(np.median(norm[fitted])) if fitted.any() else None,
+        "rms_normalized_max": float(np.max(norm[fitted])) if fitted.any() else None,
+        "rms_translation_m_pooled": pooled("rms_translation_m"),
+        "rms_rotation_rad_pooled": pooled("rms_rotation_rad"),
+    }
+    rows = worst_poses(validation, listed)
+    which = (f"all {len(validation)} held-out poses" if len(rows) == len(validation) else
+             f"the {listed} of {len(validation)} held-out poses with the largest RMS error / "
+             "sigma (folds not fitted first); every pose is in validation.csv")
+    return {"validation": _records(rows), "validation_listed": which,
+            "validation_summary": summary}
 
 
 #: results.json lists every residual up to this many rows; beyond, the largest

@@ -222,8 +222,11 @@ def validation_blocks(result: IdentificationResult) -> list:
     if result.validation is None:
         return [Paragraph("Held-out validation needs 3 distinct poses or more: not done.",
                           "note")]
+    from analysis.identification.result import validation_summary, worst_poses
+
+    shown = worst_poses(result.validation)
     rows = []
-    for _, r in result.validation.iterrows():
+    for _, r in shown.iterrows():
         rows.append([str(r["held_out_pose"]), str(r["n_tests"]),
                      fixed(1e6 * r["rms_translation_m"], 1), fixed(1e6 * r["rms_rotation_rad"], 1),
                      fixed(r["rms_normalized"], 2), str(r["note"]) or "-"])
@@ -232,7 +235,9 @@ def validation_blocks(result: IdentificationResult) -> list:
         ["held-out pose", "tests", f"RMS error translation ({MICRO}m)",
          f"RMS error rotation ({MICRO}rad)", "RMS error / sigma (1)", "note"],
         rows, caption="Each pose is predicted from a fit without it; an RMS error / sigma "
-        "near 1 means the model predicts unseen poses to within the measurement noise.",
+        "near 1 means the model predicts unseen poses to within the measurement noise."
+        + ("" if len(shown) == len(result.validation) else
+           f" Shown: {validation_summary(result.validation)['validation_listed']}."),
         widths=[1, 0.6, 1.5, 1.5, 1.3, 2]),
     ]
 
