@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.kinetostatics.equilibrium import EquilibriumError, newton_deflection
-from analysis.kinetostatics.stiffness import complementary_stiffness_from_state
+from analysis.kinetostatics.stiffness import complementary_stiffness_from_jacobian
 from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
 from analysis.model.robot_model import RobotModel
 
@@ -93,6 +93,7 @@ def solve_deflection_masked(
     max_iter: int = 50,
     max_deflection: float = 1.0,
     dq0: np.ndarray | None = None,
+    keep: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Like :func:`solve_deflection_compliance`, batched without raising.
 
@@ -106,11 +107,15 @@ def solve_deflection_masked(
     first-order one); the same converged solution with fewer Newton steps. Poses
     where Newton from ``dq0`` fails are solved again from zero, so a guess never
     loses a solution the cold start finds.
+
+    ``keep``: see :func:`newton_deflection` (left empty when some pose was solved again).
     """
     dq, bad, last = newton_deflection(robot, q, x, w, tol, max_iter, dq0=dq0,
-                                      max_deflection=max_deflection)
+                                      max_deflection=max_deflection, keep=keep)
     ok = ~bad & (last <= max(tol, 1e-12))
     if dq0 is not None and not np.all(ok):
+        if keep is not None:
+            keep.clear()
         n = q.shape[-1]
         retry = ~np.reshape(ok, -1)
         x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
@@ -167,15 +172,25 @@ def model_displacement_state(
     s0 = chain_state(robot, q)
     if dq0 is None:
         dq0 = x * np.einsum("...ji,...j->...i", jacobian_from_state(s0), w)
-    dq, ok = solve_deflection_masked(robot, q, x, w, dq0=np.where(np.isfinite(dq0), dq0, 0.0))
-    s1 = chain_state(robot, q + dq)
+    keep: dict = {}
+    dq, ok = solve_deflection_masked(robot, q, x, w, dq0=np.where(np.isfinite(dq0), dq0, 0.0),
+                                     keep=keep)
+    n = q.shape[-1]
+    if keep:
+        # Newton's last evaluated iterate: converged like dq (they differ by the last
+        # step, <= 1e-15 rad), and its state, J and I - X K_C are already computed
+        dq, s1, J1, M = keep["dq"], keep["state"], keep["J"], keep["dF"]
+        dq = np.where(ok[..., None], dq, 0.0)
+    else:
+        s1 = chain_state(robot, q + dq)
+        J1 = jacobian_from_state(s1)
+        M = None
     screw = np.where(ok[..., None], pose_difference(s0.tip, s1.tip), 0.0)
     if not with_jacobian:
         return screw, None, ok, dq
-    J1 = jacobian_from_state(s1)
     tau = np.einsum("...ji,...j->...i", J1, w)
-    n = q.shape[-1]
-    M = np.eye(n) - x[..., :, None] * complementary_stiffness_from_state(s1, w)
+    if M is None:
+        M = np.eye(n) - x[..., :, None] * complementary_stiffness_from_jacobian(J1, w)
     M = np.where(ok[..., None, None], M, np.eye(n))
     ddq = np.linalg.solve(M, tau[..., None, :] * np.eye(n))  # (..., n, n): d dq_i / d x_j
     D = J1.copy()

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.kinetostatics.stiffness import complementary_stiffness_from_state
+from analysis.kinetostatics.stiffness import complementary_stiffness_from_jacobian
 from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
 from analysis.model.robot_model import RobotModel
 
@@ -36,6 +36,7 @@ def newton_deflection(
     max_iter: int = 50,
     dq0: np.ndarray | None = None,
     max_deflection: float = np.inf,
+    keep: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The one Newton solver of the equilibrium, batched, in joint compliances; never raises.
 
@@ -60,6 +61,12 @@ def newton_deflection(
     failed : (...) bool, singular Newton matrix, non-finite or too large deflection.
     last_step : (...) last max |step| of each pose (rad), divided by max |dq| when that
         exceeds 1 rad; inf where failed.
+
+    ``keep``: a dict to receive the last iterate the Newton matrix was evaluated at,
+    ``dq`` (..., n), with its ``state`` (:class:`ChainState` at q + dq), ``J`` (..., 6, n)
+    and ``dF`` (..., n, n) = I - X K_C there (I where failed). That iterate is as
+    converged as the returned dq (they differ by the last step, at most ``tol``), and
+    a caller that needs the state, J or K_C at the solution saves recomputing them.
     """
     q = np.asarray(q, dtype=float)
     x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
@@ -71,13 +78,16 @@ def newton_deflection(
     eye = np.eye(n)
     for _ in range(max_iter):
         state = chain_state(robot, q + dq)
-        tau = np.einsum("...ji,...j->...i", jacobian_from_state(state), w)
+        J = jacobian_from_state(state)
+        tau = np.einsum("...ji,...j->...i", J, w)
         F = np.where(bad[..., None], 0.0, dq - x * tau)
-        dF = eye - x[..., :, None] * complementary_stiffness_from_state(state, w)
+        dF = eye - x[..., :, None] * complementary_stiffness_from_jacobian(J, w)
         singular = ~np.isfinite(dF).all(axis=(-2, -1))
         singular |= np.abs(np.linalg.det(np.where(singular[..., None, None], eye, dF))) < 1e-12
         bad |= singular
         dF = np.where(bad[..., None, None], eye, dF)
+        if keep is not None:
+            keep.update(dq=dq, state=state, J=J, dF=dF)
         step = np.linalg.solve(dF, F[..., None])[..., 0]
         dq = dq - step
         bad |= ~np.isfinite(dq).all(axis=-1) | (np.max(np.abs(dq), axis=-1) > max_deflection)
