@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.exact_fit import model_displacement, model_displacement_masked
+from analysis.identification.exact_fit import model_displacement, model_displacement_state
 from analysis.identification.fitting import (
     COND_LIMIT,
     check_identifiable,
@@ -107,7 +107,7 @@ def leave_one_pose_out(
             rw = np.einsum("mij,mj->mi", full.Linv,
                            np.where(tests.measured, tests.d - full.predicted, 0.0))
             table = _downdate_batched(robot, tests, group, names, joints, noise, Aw, rw,
-                                      full.x, method)
+                                      full.x, method, dq0=full.deflection)
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
@@ -149,8 +149,8 @@ def leave_one_pose_out(
     return pd.DataFrame(rows)
 
 
-def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
-                      ) -> pd.DataFrame:
+def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
+                      dq0=None) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
 
     ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the (whitened) design and right-hand
@@ -158,7 +158,8 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     fold estimate is the exact least-squares refit); for exact the whitened
     Jacobian and residual at the full-data estimate ``x0`` (one Gauss-Newton
     step per fold). Memory is linear in the number of tests (the factor is
-    built blockwise, :func:`analysis.identification.lsq.tall_r`).
+    built blockwise, :func:`analysis.identification.lsq.tall_r`). ``dq0`` (m, 6): the
+    full-data fit's joint deflections (rad), Newton's start for the held-out tests.
     """
     from scipy.linalg import solve_triangular
 
@@ -223,7 +224,8 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         xt = x[f]  # the held-out estimate used for each test
         J = jacobian(robot, q)
         if method == "exact":
-            pred, _, good = model_displacement_masked(robot, q, xt, w, with_jacobian=False)
+            pred, _, good, _ = model_displacement_state(
+                robot, q, xt, w, with_jacobian=False, dq0=None if dq0 is None else dq0[sl])
             failed |= np.bincount(f, ~good, P) > 0
         else:
             pred = np.einsum("mrj,mj->mr", design_block(J, w), xt)

@@ -193,7 +193,7 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None) -> F
             "data or use --method wls", where="--method")
     # the linearised estimator at the solution: bread = (F^T W F)^-1 = gn.cov_x
     return Fit(x=gn.x, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations,
-               bread=gn.cov_x, Linv=whitening(gn.cov, tests.measured))
+               bread=gn.cov_x, Linv=whitening(gn.cov, tests.measured), deflection=gn.dq)
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:

@@ -27,7 +27,9 @@ class GaussNewtonFit:
     f (..., m, 6) model displacement (m, rad); cov (..., m, 6, 6) residual
     covariance per test; cov_x (..., p, p) covariance of x from the noise
     model, (F^T Sigma^-1 F)^-1; iterations; converged (...) bool; valid (...)
-    bool: the model could be evaluated (x and cov_x are NaN where not)."""
+    bool: the model could be evaluated (x and cov_x are NaN where not); dq (..., m, 6)
+    the joint deflections of the equilibrium at x (rad), Newton's warm start for
+    later solves at nearby compliances."""
 
     x: np.ndarray
     F: np.ndarray
@@ -37,6 +39,7 @@ class GaussNewtonFit:
     iterations: int
     converged: np.ndarray
     valid: np.ndarray
+    dq: np.ndarray | None = None
 
 
 #: tests per block when one campaign's model is evaluated: the equilibrium's working
@@ -206,4 +209,4 @@ def gauss_newton(
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)
     return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,
-                          converged=converged & valid, valid=valid)
+                          converged=converged & valid, valid=valid, dq=dq)

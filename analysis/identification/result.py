@@ -56,7 +56,8 @@ class Fit:
     factored form, G = bread A^T W with W = Linv^T Linv per test (identity
     when ``Linv`` is None, OLS) and bread (p, p) = (A^T W A)^-1: memory
     linear in the number of tests (:mod:`analysis.identification.lsq` computes
-    its covariance and residual variances blockwise).
+    its covariance and residual variances blockwise). ``deflection`` (m, 6): the
+    exact fit's joint deflections at x (rad), None for the linear fits.
     """
 
     x: np.ndarray
@@ -66,6 +67,7 @@ class Fit:
     iterations: int
     bread: np.ndarray
     Linv: np.ndarray | None = None
+    deflection: np.ndarray | None = None
 
     @property
     def estimator(self) -> FactoredEstimator:
