@@ -88,8 +88,11 @@ def leave_one_pose_out(
         except InputError:
             batched = False
         else:
-            J = jacobian(robot, tests.q)
-            A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
+            if full_fit is not None and full_fit.Linv is None:
+                A = full_fit.A  # the OLS fit's design: the same array (no second copy)
+            else:
+                J = jacobian(robot, tests.q)
+                A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
             return _downdate_batched(robot, tests, group, names, joints, noise, A,
                                      np.where(tests.measured, tests.d, 0.0),
                                      np.zeros(len(joints)), method)
@@ -103,11 +106,10 @@ def leave_one_pose_out(
             start = None
         if start is not None and len(names) > max_exact_refits:
             # one Gauss-Newton step per fold from the full-data estimate (module docstring)
-            Aw = full.Linv @ full.A
             rw = np.einsum("mij,mj->mi", full.Linv,
                            np.where(tests.measured, tests.d - full.predicted, 0.0))
-            table = _downdate_batched(robot, tests, group, names, joints, noise, Aw, rw,
-                                      full.x, method, dq0=full.deflection)
+            table = _downdate_batched(robot, tests, group, names, joints, noise, full.A, rw,
+                                      full.x, method, dq0=full.deflection, Linv=full.Linv)
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
@@ -150,7 +152,7 @@ def leave_one_pose_out(
 
 
 def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
-                      dq0=None) -> pd.DataFrame:
+                      dq0=None, Linv=None) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
 
     ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the (whitened) design and right-hand
@@ -160,23 +162,34 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     step per fold). Memory is linear in the number of tests (the factor is
     built blockwise, :func:`analysis.identification.lsq.tall_r`). ``dq0`` (m, 6): the
     full-data fit's joint deflections (rad), Newton's start for the held-out tests.
+    ``Linv`` (m, 6, 6): when given, the design is ``Linv @ Aw``, whitened block by block
+    (no (m, 6, p) copy).
     """
     from scipy.linalg import solve_triangular
 
-    from analysis.identification.lsq import TEST_BLOCK, column_scale, tall_r
+    from analysis.identification.lsq import TEST_BLOCK, TallR
 
     cols = list(joints)
     m, p = Aw.shape[0], Aw.shape[-1]
     P = len(labels)  # fold: the pose group of each test, as in the reference path
-    scale = column_scale(Aw.reshape(-1, p))
-    Rc = tall_r(Aw.reshape(-1, p) / scale, rw.reshape(-1))
+
+    def design(sl):  # (b, 6, p) rows of the (whitened) design
+        return Aw[sl] if Linv is None else Linv[sl] @ Aw[sl]
+
+    blocks = [slice(s, s + TEST_BLOCK) for s in range(0, m, TEST_BLOCK)]
+    scale = np.sqrt(sum(np.sum(design(sl).reshape(-1, p) ** 2, axis=0) for sl in blocks))
+    scale = np.where(scale > 0, scale, 1.0)
+    acc = TallR()
+    for sl in blocks:
+        acc.add(np.column_stack([design(sl).reshape(-1, p) / scale, rw[sl].reshape(-1)]))
+    Rc = acc.r()
     R, c = Rc[:p, :p], Rc[:p, p]
     S = np.zeros((P, p, p))
     t = np.zeros((P, p))
-    for s in range(0, m, TEST_BLOCK):
-        sl = slice(s, s + TEST_BLOCK)
-        b = Aw[sl].shape[0]
-        U = solve_triangular(R, (Aw[sl].reshape(-1, p) / scale).T, trans="T").T.reshape(b, 6, p)
+    for sl in blocks:
+        Ab = design(sl)
+        b = Ab.shape[0]
+        U = solve_triangular(R, (Ab.reshape(-1, p) / scale).T, trans="T").T.reshape(b, 6, p)
         np.add.at(S, fold[sl], np.einsum("mri,mrj->mij", U, U))
         np.add.at(t, fold[sl], np.einsum("mri,mr->mi", U, rw[sl]))
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -59,11 +59,11 @@ from analysis.identification.fitting import (  # noqa: F401 (re-exported: the pu
 )
 from analysis.identification.lsq import (
     TEST_BLOCK,
+    TallR,
     residual_variance_blocks,
     sandwich,
     scaled_condition,
     stack_matrix,
-    whitened_r,
     whitening,
 )
 from analysis.identification.measurements import COMPONENTS, TestArrays, to_arrays
@@ -99,6 +99,11 @@ def outlier_threshold(n_residuals: int, level: float = OUTLIER_FAMILY_LEVEL) -> 
     n = max(int(n_residuals), 1)
     per_residual = -np.expm1(np.log1p(-level) / n)  # 1 - (1 - level)^(1/n), accurately
     return float(-special.ndtri(per_residual / 2.0))
+
+
+def _blocks(m: int, block: int = TEST_BLOCK):
+    """Slices of ``block`` consecutive tests covering 0..m."""
+    return [slice(s, s + block) for s in range(0, m, block)]
 
 
 def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...] | None:
@@ -301,18 +306,17 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         warnings.append("translational-only variant: wrist joints 4-6 taken as rigid; their "
                         "compliance, if any, is absorbed by k1..k3")
 
-    ols = fit_linear(robot, tests, joints, noise, weighted=False)
-    linear = {"ols": ols}
+    # only the estimates of the linear fits are kept, and each fit is dropped before the
+    # next is made: their per-test arrays are ~1 kB per test
+    chosen = fit_linear(robot, tests, joints, noise, weighted=False)
+    linear_x = {"ols": chosen.x}
     if method != "ols":
         # WLS's weights start at the OLS estimate: passed, not solved again
-        linear["wls"] = fit_linear(robot, tests, joints, noise, weighted=True, start=ols.x)
+        chosen = fit_linear(robot, tests, joints, noise, weighted=True, start=linear_x["ols"])
+        linear_x["wls"] = chosen.x
     if method == "exact":
-        chosen = fit_exact(robot, tests, joints, noise, start=ols.x)
-    else:
-        chosen = linear[method]
-    # only the estimates of the linear fits are kept (their per-test arrays are ~1 kB/test)
-    linear_x = {k: v.x for k, v in linear.items()}
-    del linear, ols
+        chosen = None
+        chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"])
     rob = None
     kept = tests.measured
     if robust != "none":
@@ -326,11 +330,14 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     dof = int(kept.sum()) - p
     cov_x = sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv)
     var_r = residual_variance_blocks(chosen.A, chosen.cov, chosen.bread, cov_x, chosen.Linv)
-    # the fit's own whitening when it used the same components (saves an (m, 6, 6) array)
-    Linv = chosen.Linv if rob is None and chosen.Linv is not None else whitening(chosen.cov,
-                                                                                 kept)
+    # the fit's own whitening when it used the same components, else made block by block
+    # (an (m, 6, 6) array is 0.3 GB at 1e6 tests)
+    own = chosen.Linv if rob is None and chosen.Linv is not None else None
     resid = np.where(kept, tests.d - chosen.predicted, 0.0)
-    chi2_red, p_value = chi2_summary(np.einsum("mij,mj->mi", Linv, resid), dof)
+    chi2_red, p_value = chi2_summary(np.concatenate([
+        np.einsum("mij,mj->mi", own[sl] if own is not None else
+                  whitening(chosen.cov[sl], kept[sl]), resid[sl])
+        for sl in _blocks(tests.m)]), dof)
     from analysis.identification.noise_check import noise_ratio_notes
 
     warnings += noise_ratio_notes(resid, chosen.cov, kept, noise, len(joints))
@@ -383,7 +390,14 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             f"{len(flagged)} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
             f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
     # R of the whitened system: its scaled condition without the (6m, p) Linv A
-    Aw = whitened_r(Linv, chosen.A) if tests.m > TEST_BLOCK else stack_matrix(Linv @ chosen.A)
+    if tests.m > TEST_BLOCK:
+        acc = TallR()
+        for sl in _blocks(tests.m):
+            Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
+            acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
+        Aw = acc.r()
+    else:
+        Aw = stack_matrix((own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
     result = IdentificationResult.build(
         robot=robot.name, method=method, joints=joints, x=chosen.x, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import InputError
+from analysis.identification import lsq
 from analysis.identification.gauss_newton import covariances_per_test, gauss_newton
 from analysis.identification.linear_model import design_block
 from analysis.identification.lsq import (
@@ -19,6 +20,7 @@ from analysis.identification.lsq import (
     stack_matrix,
     stack_vector,
     weakest_column,
+    whitened_lstsq,
     whitening,
 )
 from analysis.identification.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
@@ -141,13 +143,13 @@ def _linear_estimator(A, d, measured, cov, weighted: bool):
     G = bread A^T Linv^T Linv (bread A^T for OLS), see :class:`Fit`.
     """
     dz = np.where(measured, d, 0.0)
-    if weighted:
-        Linv = whitening(cov, measured)
-        x, bread, _ = qr_solve(stack_matrix(Linv @ A), stack_vector(np.einsum(
-            "...ij,...j->...i", Linv, dz)), with_pinv=False)
+    Linv = whitening(cov, measured) if weighted else None
+    if A.shape[0] * 6 > lsq.TALL_ROWS:
+        x, bread = whitened_lstsq(A, dz, Linv)  # blockwise: no stacked (6m, p) copy
         return x, bread, Linv
-    x, bread, _ = qr_solve(stack_matrix(A), stack_vector(dz), with_pinv=False)
-    return x, bread, None
+    Aw, dw = (A, dz) if Linv is None else (Linv @ A, np.einsum("...ij,...j->...i", Linv, dz))
+    x, bread, _ = qr_solve(stack_matrix(Aw), stack_vector(dw), with_pinv=False)
+    return x, bread, Linv
 
 
 def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
@@ -193,7 +195,7 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None) -> F
             "data or use --method wls", where="--method")
     # the linearised estimator at the solution: bread = (F^T W F)^-1 = gn.cov_x
     return Fit(x=gn.x, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations,
-               bread=gn.cov_x, Linv=whitening(gn.cov, tests.measured), deflection=gn.dq)
+               bread=gn.cov_x, Linv=gn.Linv, deflection=gn.dq)
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:

@@ -14,8 +14,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from analysis.identification import lsq
 from analysis.identification.exact_fit import model_displacement_state
-from analysis.identification.lsq import qr_solve, stack_matrix, stack_vector, whitening
+from analysis.identification.lsq import (
+    qr_solve,
+    stack_matrix,
+    stack_vector,
+    whitened_lstsq,
+    whitening,
+)
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
@@ -29,7 +36,8 @@ class GaussNewtonFit:
     model, (F^T Sigma^-1 F)^-1; iterations; converged (...) bool; valid (...)
     bool: the model could be evaluated (x and cov_x are NaN where not); dq (..., m, 6)
     the joint deflections of the equilibrium at x (rad), Newton's warm start for
-    later solves at nearby compliances."""
+    later solves at nearby compliances; Linv (..., m, 6, 6) the whitening of cov
+    (:func:`analysis.identification.lsq.whitening`)."""
 
     x: np.ndarray
     F: np.ndarray
@@ -40,6 +48,7 @@ class GaussNewtonFit:
     converged: np.ndarray
     valid: np.ndarray
     dq: np.ndarray | None = None
+    Linv: np.ndarray | None = None
 
 
 #: tests per block when one campaign's model is evaluated: the equilibrium's working
@@ -155,6 +164,17 @@ def gauss_newton(
     def whitened(Linv, f):
         return np.einsum("...ij,...j->...i", Linv, np.where(measured, dz - f, 0.0))
 
+    def solve(Linv, F, f, r):
+        """Gauss-Newton step and (F^T W F)^-1 of the whitened linearised system."""
+        if F.ndim == 3 and F.shape[0] * 6 > lsq.TALL_ROWS and np.all(valid):
+            # one large campaign: blockwise, without the stacked (6m, p) Linv F
+            return whitened_lstsq(F, np.where(measured, dz - f, 0.0), Linv)
+        if r is None:
+            r = whitened(Linv, f)
+        Aw = _defined(stack_matrix(Linv @ F), valid)
+        step, cov_unit, _ = qr_solve(Aw, stack_vector(r), with_pinv=False)
+        return step, cov_unit
+
     x = np.array(x0, dtype=float)
     valid = np.all(np.isfinite(x), axis=-1)
     x = np.where(valid[..., None], x, 0.0)
@@ -167,8 +187,8 @@ def gauss_newton(
             Linv = whitening(covariances_per_test(noise, J, full(x), measured, w, weights),
                               measured)
         r = whitened(Linv, f)
-        Aw = _defined(stack_matrix(Linv @ F), valid)
-        step, _, _ = qr_solve(Aw, stack_vector(r), with_pinv=False)
+        step, _ = solve(Linv, F, f, r)
+        del F  # the next model Jacobian comes with the step's evaluation (memory)
         step = np.where(valid[..., None] & np.isfinite(step), step, 0.0)
         cost0 = np.sum(r**2, axis=(-2, -1))
         t = np.ones(batch)
@@ -204,9 +224,8 @@ def gauss_newton(
             break
     cov = covariances_per_test(noise, J, full(x), measured, w, weights)
     Linv = whitening(cov, measured)
-    Aw = _defined(stack_matrix(Linv @ F), valid)
-    _, cov_x, _ = qr_solve(Aw, stack_vector(whitened(Linv, f)), with_pinv=False)
+    _, cov_x = solve(Linv, F, f, None)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)
     return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,
-                          converged=converged & valid, valid=valid, dq=dq)
+                          converged=converged & valid, valid=valid, dq=dq, Linv=Linv)

@@ -209,6 +209,43 @@ def tall_solve(A: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x, cov_unit
 
 
+def whitened_lstsq(A: np.ndarray, r: np.ndarray, Linv: np.ndarray | None = None,
+                   block: int = TEST_BLOCK) -> tuple[np.ndarray, np.ndarray]:
+    """x, (A^T W A)^-1 of the least squares ``Linv A x ~ Linv r`` for one campaign.
+
+    ``A`` (m, 6, p) per-test design (zero rows where not measured), ``r`` (m, 6)
+    right-hand side (0 where not measured), ``Linv`` (m, 6, 6) per-test whitening
+    (None: unweighted), W = Linv^T Linv. The one place the fits of this package form
+    their (whitened) systems. The stacked (6m, p) whitened system is never held: its
+    column norms, then the TSQR of the column-scaled [Linv A | Linv r], are built
+    test block by test block (:class:`TallR`); the estimate is that of :func:`qr_solve`
+    on the stacked system, to rounding.
+    """
+    m, p = A.shape[0], A.shape[-1]
+
+    def rows(s):
+        Ab, rb = A[s:s + block], r[s:s + block]
+        if Linv is not None:
+            Lb = Linv[s:s + block]
+            Ab, rb = Lb @ Ab, np.einsum("mij,mj->mi", Lb, rb)
+        return Ab.reshape(-1, p), rb.reshape(-1)
+
+    sq = np.zeros(p)
+    for s in range(0, m, block):
+        sq += np.sum(rows(s)[0] ** 2, axis=0)
+    norms = np.sqrt(sq)
+    scale = np.where(norms > 0, norms, 1.0)
+    acc = TallR()
+    for s in range(0, m, block):
+        Ab, rb = rows(s)
+        acc.add(np.column_stack([Ab / scale, rb]))
+    R = acc.r()
+    Rinv = np.linalg.inv(R[:p, :p])
+    x = (Rinv @ R[:p, p]) / scale
+    cov_unit = (Rinv @ Rinv.T) / (scale[:, None] * scale[None, :])
+    return x, cov_unit
+
+
 def sandwich(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
              Linv: np.ndarray | None = None, block: int = TEST_BLOCK) -> np.ndarray:
     """Covariance (p, p) of x = G d, G = bread A^T W, from per-test blocks.
