@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from analysis.kinetostatics.small_linalg import solve_dominant, to_entry_major
 from analysis.kinetostatics.stiffness import complementary_stiffness_from_jacobian
 from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
 from analysis.model.robot_model import RobotModel
@@ -82,13 +83,13 @@ def newton_deflection(
         tau = np.einsum("...ji,...j->...i", J, w)
         F = np.where(bad[..., None], 0.0, dq - x * tau)
         dF = eye - x[..., :, None] * complementary_stiffness_from_jacobian(J, w)
-        singular = ~np.isfinite(dF).all(axis=(-2, -1))
-        singular |= np.abs(np.linalg.det(np.where(singular[..., None, None], eye, dF))) < 1e-12
-        bad |= singular
+        bad |= ~np.isfinite(dF).all(axis=(-2, -1))
+        dF = np.where(bad[..., None, None], eye, dF)
+        bad |= _singular(dF)
         dF = np.where(bad[..., None, None], eye, dF)
         if keep is not None:
             keep.update(dq=dq, state=state, J=J, dF=dF)
-        step = np.linalg.solve(dF, F[..., None])[..., 0]
+        step = _solve(dF, F)
         dq = dq - step
         bad |= ~np.isfinite(dq).all(axis=-1) | (np.max(np.abs(dq), axis=-1) > max_deflection)
         dq = np.where(bad[..., None], 0.0, dq)
@@ -99,6 +100,38 @@ def newton_deflection(
         if np.all(bad | (last <= tol)):
             break
     return dq, bad, last
+
+
+def _singular(dF: np.ndarray) -> np.ndarray:
+    """(...) bool: |det dF| < 1e-12 (the Newton matrix is singular to working precision).
+
+    I - X K_C is strictly diagonally dominant at ordinary loads, and then
+    |det| >= prod_i (|a_ii| - sum_j!=i |a_ij|) (Ostrowski): the determinant is computed
+    only where that bound does not already exceed the threshold.
+    """
+    diag = np.abs(np.diagonal(dF, axis1=-2, axis2=-1))
+    margin = 2.0 * diag - np.abs(dF).sum(axis=-1)
+    check = ~(np.all(margin > 0, axis=-1) & (np.prod(np.maximum(margin, 0.0), axis=-1)
+                                              >= 1e-12))
+    out = np.zeros(dF.shape[:-2], dtype=bool)
+    if np.any(check):
+        out[check] = np.abs(np.linalg.det(dF[check])) < 1e-12
+    return out
+
+
+def _solve(dF: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """dF^-1 F for batches of n x n matrices (..., n, n) and vectors (..., n).
+
+    Elimination over the whole batch at once where dF is diagonally dominant
+    (:func:`analysis.kinetostatics.small_linalg.solve_dominant`; stable without
+    pivoting), LAPACK with partial pivoting elsewhere.
+    """
+    n = dF.shape[-1]
+    flat = dF.reshape(-1, n, n)
+    if flat.shape[0] == 0:
+        return np.zeros(F.shape)
+    x = solve_dominant(to_entry_major(flat), np.ascontiguousarray(F.reshape(-1, n).T))
+    return x.T.reshape(F.shape)
 
 
 def solve_deflection(
