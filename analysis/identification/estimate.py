@@ -66,10 +66,15 @@ from analysis.identification.lsq import (
     stack_matrix,
     whitening,
 )
-from analysis.identification.measurements import COMPONENTS, TestArrays, to_arrays
+from analysis.identification.measurements import TestArrays, to_arrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.poses import count_poses, pose_tolerance
-from analysis.identification.result import Fit, IdentificationResult
+from analysis.identification.result import (
+    RESIDUALS_LISTED,
+    Fit,
+    IdentificationResult,
+    ResidualRows,
+)
 from analysis.identification.robust import ROBUST_METHODS, robust_fit
 from analysis.identification.uncertainty import (
     chi2_summary,
@@ -215,21 +220,14 @@ def _residual_table(tests, result_fit, t, flags) -> pd.DataFrame:
 
     ``t`` (m, 6) studentized residuals.
     """
-    meas = tests.measured
     sigma = np.sqrt(np.diagonal(result_fit.cov, axis1=-2, axis2=-1))
-    resid = np.where(meas, tests.d - result_fit.predicted, np.nan)
-    i, c = np.nonzero(meas)  # row-major: by test, then component
-    # text columns as categoricals: 6e6 rows of Python strings would take ~1 GB
-    codes, labels = pd.factorize(np.asarray(tests.pose).astype(str))
-    return pd.DataFrame({
-        "test": i.astype(np.int64), "line": tests.line[i].astype(np.int64),
-        "pose": pd.Categorical.from_codes(codes[i], categories=labels),
-        "component": pd.Categorical.from_codes(c, categories=COMPONENTS),
-        "unit": pd.Categorical.from_codes((c >= 3).astype(np.int8), categories=["m", "rad"]),
-        "measured": tests.d[i, c], "predicted": result_fit.predicted[i, c],
-        "residual": resid[i, c], "sigma": sigma[i, c], "studentized": t[i, c],
-        "outlier": flags[i, c].astype(bool),
-    })
+    return ResidualRows(tests, result_fit.predicted, sigma, t, flags).frame()
+
+
+#: residual tables of more rows than this are held in memory only for the tests with the
+#: largest |studentized| residuals (:class:`ResidualRows`; results.json lists 1000 rows and
+#: the report 200 tests); the whole table is written to residuals.csv block by block
+RESIDUAL_ROWS_HELD = 100_000
 
 
 def identify(
@@ -374,20 +372,26 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t)
     else:
         flags = tests.measured & ~kept
-    residuals = _residual_table(tests, chosen, t, flags)
+    rows = ResidualRows(tests, chosen.predicted,
+                        np.sqrt(np.diagonal(chosen.cov, axis1=-2, axis2=-1)), t, flags,
+                        None if rob is None else rob.weights)
+    if n_eq > RESIDUAL_ROWS_HELD:
+        residuals = rows.frame(rows.worst_tests(RESIDUALS_LISTED))
+    else:
+        residuals, rows = rows.frame(), None
     if rob is not None:
-        residuals["weight"] = rob.weights[tests.measured]
         warnings.append(rob.summary())
     flagged = residuals[residuals["outlier"]]
-    if len(flagged) and rob is None:
+    n_flagged = int((flags & tests.measured).sum())
+    if n_flagged and rob is None:
         where = ", ".join(
             f"test {r.test + 1} line {r.line} (pose {r.pose}) {r.component} "
             f"t = {r.studentized:.1f}"
             for r in flagged.reindex(flagged["studentized"].abs().sort_values(
                 ascending=False).index).head(5).itertuples())
-        more = f" and {len(flagged) - 5} more" if len(flagged) > 5 else ""
+        more = f" and {n_flagged - 5} more" if n_flagged > 5 else ""
         warnings.append(
-            f"{len(flagged)} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
+            f"{n_flagged} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
             f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
     # R of the whitened system: its scaled condition without the (6m, p) Linv A
     if tests.m > TEST_BLOCK:
@@ -407,6 +411,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         linear=linear_x, iterations=chosen.iterations,
         noise=noise, warnings=warnings,
     )
+    result.residual_rows = rows
     if rob is not None:
         result.robust = rob.describe()
     if validate:

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.measurements import TestArrays
+from analysis.identification.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 
 CI_METHOD = (
@@ -82,6 +82,90 @@ class Fit:
         return self.bread @ WA.reshape(-1, WA.shape[-1]).T
 
 
+@dataclass(frozen=True)
+class ResidualRows:
+    """The residual table held as per-test arrays, made into rows a block of tests at a time.
+
+    ``tests`` the tests analysed; ``predicted``, ``sigma`` (model sigma of each
+    component), ``t`` (studentized residual) (m, 6); ``flags`` (m, 6) bool, outliers;
+    ``weights`` (m, 6) robust weights or None. A 1e6-test campaign has 6e6 rows (~0.4 GB
+    as a DataFrame): its full table is only ever made in blocks, for residuals.csv.
+    """
+
+    tests: TestArrays
+    predicted: np.ndarray
+    sigma: np.ndarray
+    t: np.ndarray
+    flags: np.ndarray
+    weights: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        # pose labels as category codes, once (every block of rows uses them)
+        codes, labels = pd.factorize(np.asarray(self.tests.pose).astype(str))
+        object.__setattr__(self, "_pose_codes", (codes, labels))
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.tests.measured.sum())
+
+    @property
+    def n_tests(self) -> int:
+        """Tests with at least one measured component (one row or more)."""
+        return int(self.tests.measured.any(axis=1).sum())
+
+    def frame(self, which: np.ndarray | slice = slice(None)) -> pd.DataFrame:
+        """Rows of the tests ``which`` (sorted indices or a slice): one per test and
+        measured component, tests in order, components in order."""
+        tests = self.tests
+        idx = np.arange(tests.m)[which]
+        meas = tests.measured[idx]
+        k, c = np.nonzero(meas)  # row-major: by test, then component
+        i = idx[k]
+        # text columns as categoricals: millions of Python strings would take ~1 GB
+        codes, labels = self._pose_codes
+        resid = tests.d[i, c] - self.predicted[i, c]
+        out = pd.DataFrame({
+            "test": i.astype(np.int64), "line": tests.line[i].astype(np.int64),
+            "pose": pd.Categorical.from_codes(codes[i], categories=labels),
+            "component": pd.Categorical.from_codes(c, categories=COMPONENTS),
+            "unit": pd.Categorical.from_codes((c >= 3).astype(np.int8), categories=["m", "rad"]),
+            "measured": tests.d[i, c], "predicted": self.predicted[i, c],
+            "residual": resid, "sigma": self.sigma[i, c], "studentized": self.t[i, c],
+            "outlier": self.flags[i, c].astype(bool),
+        })
+        if self.weights is not None:
+            out["weight"] = self.weights[i, c]
+        return out
+
+    def frames(self, block: int = 80_000):
+        """The whole table as DataFrames of ``block`` tests each, in order."""
+        for s in range(0, self.tests.m, block):
+            yield self.frame(slice(s, s + block))
+
+    def key(self) -> np.ndarray:
+        """(m, 6) ranking of the rows: |studentized| (-1 if not finite), outliers first."""
+        t = np.abs(self.t)
+        key = np.where(np.isfinite(t), t, -1.0) + np.where(self.flags, np.inf, 0.0)
+        return np.where(self.tests.measured, key, -np.inf)
+
+    def worst_tests(self, rows: int) -> np.ndarray:
+        """Sorted indices of the tests holding the ``rows`` highest-ranked rows (outliers
+        first, then largest |studentized|), and of those holding the ``rows`` largest
+        |studentized| outliers."""
+        key = self.key().reshape(-1)
+        n = min(rows, key.size)
+        top = np.argpartition(-key, n - 1)[:n] if n else np.zeros(0, int)
+        t = np.where(self.flags & self.tests.measured, np.abs(np.nan_to_num(self.t)), -1.0)
+        t = t.reshape(-1)
+        top_out = np.argpartition(-t, n - 1)[:n] if n else np.zeros(0, int)
+        top_out = top_out[t[top_out] >= 0]
+        return np.unique(np.concatenate([top, top_out]) // 6)
+
+    def histogram(self) -> dict:
+        """results.json ``residual_histogram`` of every row."""
+        return _histogram(self.t[self.tests.measured])
+
+
 @dataclass
 class IdentificationResult:
     """Identified joint stiffness with its uncertainty and diagnostics (SI units).
@@ -115,6 +199,10 @@ class IdentificationResult:
         their source, method, ...), filled by the caller; results.json ``assumptions``.
     misfit_accepted : refusals of :mod:`analysis.identification.plausibility`
         overridden by the user (``--accept-misfit``); empty when none.
+    residual_rows : None when ``residuals`` holds every row; for large campaigns
+        (:data:`analysis.identification.estimate.RESIDUAL_ROWS_HELD`) ``residuals`` holds
+        only the rows of the tests with the largest |studentized| residuals (outliers
+        first) and this holds the whole table as arrays (residuals.csv, histogram).
     robust : None for the Gaussian fit, else the robust fit's summary
         (:meth:`analysis.identification.robust.RobustFit.describe`: method, constant,
         iterations, down-weighted rows); results.json ``robust``.
@@ -149,6 +237,7 @@ class IdentificationResult:
     assumptions: dict = field(default_factory=dict)
     misfit_accepted: list[str] = field(default_factory=list)
     robust: dict | None = None
+    residual_rows: ResidualRows | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -235,7 +324,7 @@ class IdentificationResult:
             "noise": self.noise.describe(),
             "robust": self.robust,
             "warnings": self.warnings,
-            **residual_summary(self.residuals),
+            **residual_summary(self.residuals, rows=self.residual_rows),
             **validation_summary(self.validation),
         }
         return out
@@ -296,27 +385,36 @@ RESIDUALS_LISTED = 1000
 HISTOGRAM_EDGES = np.array([-np.inf, -6, -5, -4, -3, -2, -1, 0, 1, 2, 3, 4, 5, 6, np.inf])
 
 
-def residual_summary(residuals: pd.DataFrame, listed: int = RESIDUALS_LISTED) -> dict:
+def _histogram(t: np.ndarray) -> dict:
+    finite = np.isfinite(t)
+    counts, _ = np.histogram(t[finite], HISTOGRAM_EDGES)
+    edges = [None if not math.isfinite(e) else float(e) for e in HISTOGRAM_EDGES]
+    return {"studentized_edges": edges, "counts": counts.tolist(),
+            "not_finite": int((~finite).sum())}
+
+
+def residual_summary(residuals: pd.DataFrame, listed: int = RESIDUALS_LISTED,
+                     rows: ResidualRows | None = None) -> dict:
     """results.json entries for the residual table: ``residuals`` (rows), what they are,
     and a histogram of the studentized residuals.
 
     Up to ``listed`` rows every row is listed in table order; beyond, the
     ``listed`` rows of largest |studentized| (outliers first), largest first.
+    ``rows``: the whole table when ``residuals`` holds only the rows of the worst tests
+    (:class:`ResidualRows`); the histogram and the row count are then of every row.
     """
     t = residuals["studentized"].to_numpy(dtype=float)
     finite = np.isfinite(t)
-    counts, _ = np.histogram(t[finite], HISTOGRAM_EDGES)
-    edges = [None if not math.isfinite(e) else float(e) for e in HISTOGRAM_EDGES]
-    out = {"residual_histogram": {"studentized_edges": edges, "counts": counts.tolist(),
-                                  "not_finite": int((~finite).sum())}}
-    if len(residuals) <= listed:
+    total = len(residuals) if rows is None else rows.n_rows
+    out = {"residual_histogram": _histogram(t) if rows is None else rows.histogram()}
+    if total <= listed:
         out["residuals_listed"] = f"all {len(residuals)} rows"
         out["residuals"] = _records(residuals)
         return out
     key = np.where(finite, np.abs(t), -1.0) + np.where(
         residuals["outlier"].to_numpy(dtype=bool), np.inf, 0.0)
     top = np.argsort(-key, kind="stable")[:listed]
-    out["residuals_listed"] = (f"the {listed} of {len(residuals)} rows with the largest "
+    out["residuals_listed"] = (f"the {listed} of {total} rows with the largest "
                                "|studentized| (outliers first); every row is in residuals.csv")
     out["residuals"] = _records(residuals.iloc[top])
     return out
@@ -339,27 +437,34 @@ def _records(frame: pd.DataFrame) -> list[dict]:
     return out
 
 
-def write_table(frame: pd.DataFrame, path: Path) -> None:
-    """CSV of ``frame``: floats in shortest round-trip form, empty cells for NaN.
+def write_table(frame, path: Path) -> None:
+    """CSV of ``frame`` (a DataFrame, or an iterable of DataFrames with the same columns,
+    written one after the other): floats in shortest round-trip form, empty cells for NaN.
 
     Tables of 1e5 rows or more go through the Arrow CSV writer, ~10x faster
     than pandas' (measured: 0.9 s against 9 s of CPU for 1e6 rows); it writes
     the same numbers and header, but quotes text cells and writes booleans as
     true/false (pandas.read_csv reads both files to equal frames).
     """
-    if len(frame) < 100_000:
-        frame.to_csv(path, index=False)
-        return
+    if isinstance(frame, pd.DataFrame):
+        if len(frame) < 100_000:
+            frame.to_csv(path, index=False)
+            return
+        frames = (frame.iloc[s:s + 500_000] for s in range(0, len(frame), 500_000))
+    else:
+        frames = frame
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
     writer = None
     try:
-        for s in range(0, len(frame), 500_000):  # blocks bound the memory of the copy
-            block = frame.iloc[s:s + 500_000]
-            block = block.astype({c: str for c in block.columns
-                                  if isinstance(block[c].dtype, pd.CategoricalDtype)})
+        for block in frames:  # blocks bound the memory of the copy
             table = pa.Table.from_pandas(block, preserve_index=False)
+            # categoricals arrive as dictionary arrays: decoded to text by Arrow (no Python
+            # strings; same file as decoding them in pandas first)
+            table = pa.Table.from_arrays(
+                [c.cast(pa.string()) if pa.types.is_dictionary(c.type) else c
+                 for c in table.columns], names=table.column_names)
             if writer is None:
                 writer = pacsv.CSVWriter(str(path), table.schema)
             writer.write_table(table)
@@ -380,7 +485,8 @@ def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str
         raise InputError(f"cannot create the output directory: {err}", where=str(out)) from err
     paths = {"results": out / "results.json", "residuals": out / "residuals.csv"}
     paths["results"].write_text(json.dumps(result.to_dict(), indent=2) + "\n")
-    write_table(result.residuals, paths["residuals"])
+    write_table(result.residuals if result.residual_rows is None else
+                result.residual_rows.frames(), paths["residuals"])
     if result.validation is not None:
         paths["validation"] = out / "validation.csv"
         result.validation.to_csv(paths["validation"], index=False)

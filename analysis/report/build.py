@@ -157,7 +157,9 @@ def residual_table(result: IdentificationResult) -> Table:
     import pandas as pd
 
     res = all_res = result.residuals
-    n_tests = int(all_res["test"].nunique())
+    full = result.residual_rows  # None when result.residuals holds every row
+    n_tests = int(all_res["test"].nunique()) if full is None else full.n_tests
+    n_rows = len(all_res) if full is None else full.n_rows
     if n_tests > REPORT_TESTS_LISTED:
         t = np.abs(all_res["studentized"].to_numpy(dtype=float))
         key = np.where(np.isfinite(t), t, -1.0) + np.where(
@@ -182,13 +184,13 @@ def residual_table(result: IdentificationResult) -> Table:
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
     mark = (f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} (Sidak, "
-            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {len(all_res)} residuals)"
+            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {n_rows} residuals)"
             if result.robust is None else
             f"* down-weighted below {result.robust['reported_below_weight']:g} by the "
             f"{result.robust['method']} fit (see the robust fitting table)")
     return Table("Residuals (measured - model) per test and component", cols, rows, marked,
                  caption=f"{mark}; highlighted rows hold one. 'line': row of the input table."
-                 + ("" if res is all_res else
+                 + ("" if res is all_res and full is None else
                     f" Listed: the {REPORT_TESTS_LISTED} of {n_tests} tests with the largest "
                     "|studentized| residuals (outliers first); every test is in "
                     "residuals.csv."),
@@ -415,7 +417,9 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         figures.stiffness_bars(result.k, result.ci, inp.nominal, inp.nominal_label,
                                result.confidence)])
     resid_sec = Section(SECTION_TITLES[2], [
-        residual_table(result), figures.residual_plot(result.residuals, result.outlier_threshold),
+        residual_table(result), figures.residual_plot(
+            result.residuals, result.outlier_threshold,
+            None if result.residual_rows is None else result.residual_rows.n_tests),
         *robust_blocks(result), *validation_blocks(result)])
     defl_sec = Section(SECTION_TITLES[3], [
         Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "

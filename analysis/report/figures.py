@@ -174,8 +174,12 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals, {what}.")
 
 
-def residual_plot(residuals: pd.DataFrame, threshold: float) -> Figure:
-    """Studentized residual per test and component; outliers (|t| > threshold) in red."""
+def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None = None
+                  ) -> Figure:
+    """Studentized residual per test and component; outliers (|t| > threshold) in red.
+
+    ``n_tests``: the campaign's number of tests when ``residuals`` holds only the rows of
+    the tests with the largest residuals (the caption then says so)."""
     fig, ax = _new(legend_below=True)
     tests = residuals["test"].to_numpy()
     for comp, marker in COMPONENT_MARKERS.items():
@@ -198,8 +202,12 @@ def residual_plot(residuals: pd.DataFrame, threshold: float) -> Figure:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))
     ax.set_title("Residuals per test and component", fontsize=9)
+    shown = ("" if n_tests is None else
+             f" Shown: the {residuals['test'].nunique()} of {n_tests} tests holding the "
+             "largest |studentized| residuals (outliers first); every test is in "
+             "residuals.csv.")
     return _png(fig, "residuals", f"Studentized residuals; dashed lines at \u00b1{threshold:.2f}; "
-                "circled in red: outliers.")
+                "circled in red: outliers." + shown)
 
 
 def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: str,

@@ -52,7 +52,8 @@ def test_report_table_lists_the_worst_tests(monkeypatch):
 
     res = _residuals(50, seed=2)
     worst_test = int(res.loc[res["studentized"].abs().idxmax(), "test"])
-    result = SimpleNamespace(residuals=res, outlier_threshold=3.5, robust=None)
+    result = SimpleNamespace(residuals=res, outlier_threshold=3.5, robust=None,
+                             residual_rows=None)
     monkeypatch.setattr(build, "REPORT_TESTS_LISTED", 2)
     table = build.residual_table(result)
     listed = sorted(int(r[0]) - 1 for r in table.rows)
