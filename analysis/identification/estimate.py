@@ -293,9 +293,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     if not joints or joints[0] < 0 or joints[-1] > 5:
         raise InputError(f"expected 0-based joint indices 0..5, got {joints}", where="joints")
     check_tests(robot, tests, joints, noise)
-    _, A_lin = _design(robot, tests, joints)
-    cond = check_identifiable(A_lin, joints, cond_limit)
-    del A_lin  # the fits build their own; at 1e6 tests each (m, 6, p) array is ~0.3 GB
+    design = _design(robot, tests, joints)
+    cond = check_identifiable(design[1], joints, cond_limit)
     warnings: list[str] = []
     if not tests.has_rotations and any(j >= 3 for j in joints):
         warnings.append("no rotation measured: wrist joints are identified from translations "
@@ -306,10 +305,12 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
 
     # only the estimates of the linear fits are kept, and each fit is dropped before the
     # next is made: their per-test arrays are ~1 kB per test
-    chosen = fit_linear(robot, tests, joints, noise, weighted=False)
+    chosen = fit_linear(robot, tests, joints, noise, weighted=False, design=design)
+    del design  # the OLS fit holds A; at 1e6 tests each (m, 6, p) array is ~0.3 GB
     linear_x = {"ols": chosen.x}
     if method != "ols":
         # WLS's weights start at the OLS estimate: passed, not solved again
+        chosen = None
         chosen = fit_linear(robot, tests, joints, noise, weighted=True, start=linear_x["ols"])
         linear_x["wls"] = chosen.x
     if method == "exact":

@@ -101,8 +101,16 @@ def _jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
 
 
 def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]):
+    """J (m, 6, 6) and the design A (m, 6, p) of ``joints`` (zero rows where not measured).
+
+    A is filled block by block: no (m, 6, 6) temporaries beside J.
+    """
     J = _jacobian(robot, tests.q)
-    A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
+    cols = list(joints)
+    A = np.empty((tests.m, 6, len(cols)))
+    for s in range(0, tests.m, lsq.TEST_BLOCK):
+        sl = slice(s, s + lsq.TEST_BLOCK)
+        A[sl] = design_block(J[sl], tests.w[sl])[..., cols] * tests.measured[sl, :, None]
     return J, A
 
 
@@ -158,14 +166,16 @@ def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
     return x
 
 
-def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=None) -> Fit:
+def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=None,
+               design=None) -> Fit:
     """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18).
 
     WLS only: ``weights`` (m, 6) robust weights (:func:`_covariances`; ``cov`` of the
     result is then the weighted one), ``start`` (p,) compliances to evaluate the first
-    weights at instead of the OLS estimate.
+    weights at instead of the OLS estimate. ``design``: (J, A) of :func:`_design` for
+    these tests and joints, if the caller has them.
     """
-    J, A = _design(robot, tests, joints)
+    J, A = _design(robot, tests, joints) if design is None else design
     if weighted and start is not None:
         x = np.asarray(start, dtype=float)  # no OLS solve: the weights start at ``start``
     else:

@@ -57,24 +57,31 @@ class GaussNewtonFit:
 EVAL_BLOCK = 8192
 
 
-def _model_in_blocks(robot, q, x, w, with_jacobian, dq0=None):
+def _model_in_blocks(robot, q, x, w, with_jacobian, dq0=None, cols=None, measured=None):
     """:func:`model_displacement_state` for one campaign (q (m, 6)) in blocks of tests.
 
     ``dq0`` (..., m, 6): Newton's starting deflections (the previous iterate's), or None.
-    Returns f, F (or None), ok, dq.
+    Returns f, F (or None), ok, dq; F (..., m, 6, len(cols)) holds the columns ``cols``
+    (default all) with zero rows where not ``measured`` (default all measured), made
+    block by block.
     """
+    def select(F, sl=slice(None)):
+        F = F if cols is None else F[..., cols]
+        return F if measured is None else F * measured[sl][..., None]
+
     if q.ndim != 2 or q.shape[0] <= EVAL_BLOCK:
-        return model_displacement_state(robot, q, x, w, with_jacobian, dq0)
+        f, F, ok, dq = model_displacement_state(robot, q, x, w, with_jacobian, dq0)
+        return f, None if F is None else select(F), ok, dq
     m = q.shape[0]
     f, ok, dq = np.empty((m, 6)), np.empty(m, dtype=bool), np.empty(q.shape)
-    F = np.empty((m, 6, q.shape[-1])) if with_jacobian else None
+    F = np.empty((m, 6, q.shape[-1] if cols is None else len(cols))) if with_jacobian else None
     for s in range(0, m, EVAL_BLOCK):
         sl = slice(s, s + EVAL_BLOCK)
         fb, Fb, okb, dqb = model_displacement_state(robot, q[sl], x, w[sl], with_jacobian,
                                                     None if dq0 is None else dq0[sl])
         f[sl], ok[sl], dq[sl] = fb, okb, dqb
         if with_jacobian:
-            F[sl] = Fb
+            F[sl] = select(Fb, sl)
     return f, F, ok, dq
 
 
@@ -156,9 +163,7 @@ def gauss_newton(
         # Newton warm-started at the deflections of the current iterate: the same
         # converged equilibrium (to its 1e-15 rad tolerance) in ~2 steps instead of ~4
         f, F, ok, dq = _model_in_blocks(robot, q, full(xp)[..., None, :], w, with_jacobian,
-                                        dq0)
-        if F is not None:
-            F = F[..., cols] * measured[..., None]
+                                        dq0, cols, measured)
         return f, F, np.all(ok, axis=-1), dq
 
     def whitened(Linv, f):
