@@ -171,7 +171,7 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
                           tests.line)
         try:
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
-                                     float(tests.d[i, c]), owned=current is not first)
+                                     float(tests.d[i, c]))
             t = _studentized_matrix(rest, current, scale)
         except InputError:
             break
@@ -184,11 +184,13 @@ DOWNDATE_MAX_LEVERAGE = 0.5
 
 
 def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fit,
-                   i: int, c: int, d_ic: float, owned: bool) -> Fit:
+                   i: int, c: int, d_ic: float) -> Fit:
     """The fit of ``method`` to ``rest``: ``prev``'s data without component (i, c).
 
-    ``d_ic``: the removed measurement; ``owned``: prev.A may be edited in place (it is
-    a downdated fit's private copy, not the caller's).
+    ``d_ic``: the removed measurement. A downdated OLS fit shares ``prev.A`` (rows of the
+    removed components included, see below; ``predicted`` there is A x of those rows):
+    its estimate, bread, covariance and the studentized residuals of ``rest`` are those
+    of the refit.
 
     OLS: rank-1 downdate of prev's (A^T A)^-1 (Sherman-Morrison) instead of a new
     QR of the whole design: ``bread' = bread + g g^T / (1 - h)``, ``g = bread a``,
@@ -204,11 +206,12 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
         if 0.0 <= h <= DOWNDATE_MAX_LEVERAGE:
             bread = prev.bread + np.outer(g, g) / (1.0 - h)
             x = prev.x - (bread @ a) * (d_ic - a @ prev.x)
-            A = prev.A if owned else prev.A.copy()  # the first fit's A is the caller's
-            A[i, c] = 0.0
             J = _jacobian(robot, rest.q)
             cov = _covariances(noise, J, _full(x, joints), rest.measured, rest.w)
-            return Fit(x=x, A=A, cov=cov, predicted=np.einsum("mrp,p->mr", A, x),
+            # A keeps the removed rows (no 0.3 GB copy at 1e6 tests): cov has zero rows and
+            # columns there, so they add nothing to the sandwich or the residual variances,
+            # and their residuals are NaN in ``rest``; x and bread are the downdated ones
+            return Fit(x=x, A=prev.A, cov=cov, predicted=np.einsum("mrp,p->mr", prev.A, x),
                        iterations=0, bread=bread, Linv=None)
     if method == "exact":
         return fit_exact(robot, rest, joints, noise, start=prev.x)

@@ -96,7 +96,11 @@ def _jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
     key = (id(robot), q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest())
     if _J_CACHE.get("key") != key or _J_CACHE.get("robot") is not robot:
         _J_CACHE.clear()
-        _J_CACHE.update(key=key, robot=robot, J=jacobian(robot, q))
+        # in blocks of tests: the chain state of 1e6 poses at once is ~2.6 GB of temporaries
+        J = np.empty((*q.shape[:-1], 6, q.shape[-1]))
+        for s in range(0, q.shape[0], lsq.TEST_BLOCK):
+            J[s:s + lsq.TEST_BLOCK] = jacobian(robot, q[s:s + lsq.TEST_BLOCK])
+        _J_CACHE.update(key=key, robot=robot, J=J)
     return _J_CACHE["J"]
 
 
