@@ -106,8 +106,9 @@ def outlier_threshold(n_residuals: int, level: float = OUTLIER_FAMILY_LEVEL) -> 
     return float(-special.ndtri(per_residual / 2.0))
 
 
-def _blocks(m: int, block: int = TEST_BLOCK):
-    """Slices of ``block`` consecutive tests covering 0..m."""
+def _blocks(m: int, block: int | None = None):
+    """Slices of ``block`` (default :data:`TEST_BLOCK`) consecutive tests covering 0..m."""
+    block = TEST_BLOCK if block is None else block
     return [slice(s, s + block) for s in range(0, m, block)]
 
 
