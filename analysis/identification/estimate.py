@@ -57,6 +57,7 @@ from analysis.identification.fitting import (  # noqa: F401 (re-exported: the pu
     fit_exact,
     fit_linear,
 )
+from analysis.identification.gauss_newton import EVAL_BLOCK
 from analysis.identification.lsq import (
     TEST_BLOCK,
     TallR,
@@ -172,7 +173,7 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
                           tests.line)
         try:
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
-                                     float(tests.d[i, c]))
+                                     float(tests.d[i, c]), reuse=current is not first)
             t = _studentized_matrix(rest, current, scale)
         except InputError:
             break
@@ -185,13 +186,14 @@ DOWNDATE_MAX_LEVERAGE = 0.5
 
 
 def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fit,
-                   i: int, c: int, d_ic: float) -> Fit:
+                   i: int, c: int, d_ic: float, reuse: bool = False) -> Fit:
     """The fit of ``method`` to ``rest``: ``prev``'s data without component (i, c).
 
     ``d_ic``: the removed measurement. A downdated OLS fit shares ``prev.A`` (rows of the
     removed components included, see below; ``predicted`` there is A x of those rows):
     its estimate, bread, covariance and the studentized residuals of ``rest`` are those
-    of the refit.
+    of the refit. ``reuse``: prev's covariance array may be overwritten (prev is a
+    refit of the caller's own, not needed afterwards).
 
     OLS: rank-1 downdate of prev's (A^T A)^-1 (Sherman-Morrison) instead of a new
     QR of the whole design: ``bread' = bread + g g^T / (1 - h)``, ``g = bread a``,
@@ -208,7 +210,9 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
             bread = prev.bread + np.outer(g, g) / (1.0 - h)
             x = prev.x - (bread @ a) * (d_ic - a @ prev.x)
             J = _jacobian(robot, rest.q)
-            cov = _covariances(noise, J, _full(x, joints), rest.measured, rest.w)
+            cov = _covariances(noise, J, _full(x, joints), rest.measured, rest.w,
+                               out=prev.cov if reuse and prev.cov.shape[0] > EVAL_BLOCK
+                               else None)
             # A keeps the removed rows (no 0.3 GB copy at 1e6 tests): cov has zero rows and
             # columns there, so they add nothing to the sandwich or the residual variances,
             # and their residuals are NaN in ``rest``; x and bread are the downdated ones

@@ -145,8 +145,9 @@ def check_identifiable(
 
 
 def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
-                 w: np.ndarray | None = None, weights: np.ndarray | None = None) -> np.ndarray:
-    return covariances_per_test(noise, J, x_full, measured, w, weights)
+                 w: np.ndarray | None = None, weights: np.ndarray | None = None,
+                 out: np.ndarray | None = None) -> np.ndarray:
+    return covariances_per_test(noise, J, x_full, measured, w, weights, out)
 
 
 def _linear_estimator(A, d, measured, cov, weighted: bool):

@@ -92,7 +92,8 @@ def _defined(Aw: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))
 
 
-def covariances_per_test(noise, J, x_full, measured, w=None, weights=None) -> np.ndarray:
+def covariances_per_test(noise, J, x_full, measured, w=None, weights=None,
+                         out: np.ndarray | None = None) -> np.ndarray:
     """Residual covariance per test (..., m, 6, 6) at compliances x_full (..., 6).
 
     ``w`` (..., m, 6): the measured wrenches, for wrench noise proportional to the reading.
@@ -103,7 +104,8 @@ def covariances_per_test(noise, J, x_full, measured, w=None, weights=None) -> np
     (the (m, 6, 6) temporaries of 1e6 tests do not fit in cache).
     """
     if J.ndim == 3 and J.shape[0] > EVAL_BLOCK:
-        out = np.empty(J.shape[:-1] + (6,))
+        # ``out``: an array to overwrite (one campaign), e.g. a covariance no longer needed
+        out = np.empty(J.shape[:-1] + (6,)) if out is None else out
         for s in range(0, J.shape[0], EVAL_BLOCK):
             sl = slice(s, s + EVAL_BLOCK)
             out[sl] = covariances_per_test(noise, J[sl], x_full, measured[sl],
