@@ -76,6 +76,15 @@ def whitening(cov: np.ndarray, measured: np.ndarray | None = None) -> np.ndarray
     Components not ``measured`` (bool (..., 6)) are decoupled and their rows
     of L^-1 zeroed, so they drop out of a whitened system.
     """
+    cov = np.asarray(cov, dtype=float)
+    if cov.ndim == 3 and cov.shape[0] > TEST_BLOCK:
+        # one large campaign: block by block into one output (whole-array temporaries of
+        # 1e6 tests are ~6 x 0.3 GB, and their page faults cost more than the arithmetic)
+        out = np.empty(cov.shape)
+        for s in range(0, cov.shape[0], TEST_BLOCK):
+            out[s:s + TEST_BLOCK] = whitening(cov[s:s + TEST_BLOCK], None if measured is None
+                                              else measured[s:s + TEST_BLOCK])
+        return out
     cov = np.array(cov, dtype=float)
     if measured is not None:
         keep = measured[..., :, None] & measured[..., None, :]
