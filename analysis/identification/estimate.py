@@ -314,13 +314,15 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     # only the estimates of the linear fits are kept, and each fit is dropped before the
     # next is made: their per-test arrays are ~1 kB per test
     chosen = fit_linear(robot, tests, joints, noise, weighted=False, design=design)
-    del design  # the OLS fit holds A; at 1e6 tests each (m, 6, p) array is ~0.3 GB
     linear_x = {"ols": chosen.x}
     if method != "ols":
-        # WLS's weights start at the OLS estimate: passed, not solved again
+        # WLS's weights start at the OLS estimate (passed, not solved again) and it has the
+        # same design; the OLS fit's covariances are let go first (0.3 GB at 1e6 tests)
         chosen = None
-        chosen = fit_linear(robot, tests, joints, noise, weighted=True, start=linear_x["ols"])
+        chosen = fit_linear(robot, tests, joints, noise, weighted=True, start=linear_x["ols"],
+                            design=design)
         linear_x["wls"] = chosen.x
+    del design
     if method == "exact":
         chosen = None
         chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"])
