@@ -57,7 +57,8 @@ class GaussNewtonFit:
 EVAL_BLOCK = 8192
 
 
-def _model_in_blocks(robot, q, x, w, with_jacobian, dq0=None, cols=None, measured=None):
+def _model_in_blocks(robot, q, x, w, with_jacobian, dq0=None, cols=None, measured=None,
+                     out=None):
     """:func:`model_displacement_state` for one campaign (q (m, 6)) in blocks of tests.
 
     ``dq0`` (..., m, 6): Newton's starting deflections (the previous iterate's), or None.
@@ -74,7 +75,10 @@ def _model_in_blocks(robot, q, x, w, with_jacobian, dq0=None, cols=None, measure
         return f, None if F is None else select(F), ok, dq
     m = q.shape[0]
     f, ok, dq = np.empty((m, 6)), np.empty(m, dtype=bool), np.empty(q.shape)
-    F = np.empty((m, 6, q.shape[-1] if cols is None else len(cols))) if with_jacobian else None
+    shape = (m, 6, q.shape[-1] if cols is None else len(cols))
+    # ``out``: a model Jacobian no longer needed, overwritten (its page faults are saved)
+    F = (out if out is not None and out.shape == shape else np.empty(shape)) \
+        if with_jacobian else None
     for s in range(0, m, EVAL_BLOCK):
         sl = slice(s, s + EVAL_BLOCK)
         fb, Fb, okb, dqb = model_displacement_state(robot, q[sl], x, w[sl], with_jacobian,
@@ -161,11 +165,11 @@ def gauss_newton(
         out[..., cols] = xp
         return out
 
-    def evaluate(xp, with_jacobian=True, dq0=None):
+    def evaluate(xp, with_jacobian=True, dq0=None, out=None):
         # Newton warm-started at the deflections of the current iterate: the same
         # converged equilibrium (to its 1e-15 rad tolerance) in ~2 steps instead of ~4
         f, F, ok, dq = _model_in_blocks(robot, q, full(xp)[..., None, :], w, with_jacobian,
-                                        dq0, cols, measured)
+                                        dq0, cols, measured, out)
         return f, F, np.all(ok, axis=-1), dq
 
     def whitened(Linv, f):
@@ -187,15 +191,21 @@ def gauss_newton(
     x = np.where(valid[..., None], x, 0.0)
     f, F, ok, dq = evaluate(x)
     valid &= ok
+    one_campaign = F.ndim == 3 and F.shape[0] > EVAL_BLOCK
+    Linv = cov_buf = None
     converged = np.zeros(batch, dtype=bool)
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
         if iterations <= reweight_iterations:
-            Linv = whitening(covariances_per_test(noise, J, full(x), measured, w, weights),
-                              measured)
+            # the previous iteration's covariance and whitening arrays are overwritten
+            cov_buf = covariances_per_test(noise, J, full(x), measured, w, weights,
+                                           out=cov_buf)
+            Linv = whitening(cov_buf, measured, out=Linv)
         r = whitened(Linv, f)
         step, _ = solve(Linv, F, f, r)
-        del F  # the next model Jacobian comes with the step's evaluation (memory)
+        # the next model Jacobian comes with the step's evaluation, into F's array
+        F_buf = F if one_campaign else None
+        del F
         step = np.where(valid[..., None] & np.isfinite(step), step, 0.0)
         cost0 = np.sum(r**2, axis=(-2, -1))
         t = np.ones(batch)
@@ -206,7 +216,9 @@ def gauss_newton(
             x_try = x + t[..., None] * step
             # the full step is usually accepted: its model Jacobian then serves the next
             # iteration (one equilibrium solve per iteration instead of two)
-            f_try, F_try, good, dq_try = evaluate(x_try, with_jacobian=halving == 0, dq0=dq)
+            f_try, F_try, good, dq_try = evaluate(x_try, with_jacobian=halving == 0, dq0=dq,
+                                                  out=F_buf)
+            F_buf = None
             if halving == 0:
                 F_full = F_try
             ok = ~accepted & good & (np.sum(whitened(Linv, f_try) ** 2, axis=(-2, -1))
@@ -229,8 +241,8 @@ def gauss_newton(
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
         if np.all(converged | ~valid):
             break
-    cov = covariances_per_test(noise, J, full(x), measured, w, weights)
-    Linv = whitening(cov, measured)
+    cov = covariances_per_test(noise, J, full(x), measured, w, weights, out=cov_buf)
+    Linv = whitening(cov, measured, out=Linv)
     _, cov_x = solve(Linv, F, f, None)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)

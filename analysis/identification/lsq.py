@@ -70,7 +70,8 @@ def qr_solve(A: np.ndarray, d: np.ndarray, with_pinv: bool = True
     return x, cov_unit, pinv
 
 
-def whitening(cov: np.ndarray, measured: np.ndarray | None = None) -> np.ndarray:
+def whitening(cov: np.ndarray, measured: np.ndarray | None = None,
+              out: np.ndarray | None = None) -> np.ndarray:
     """Inverse Cholesky factors L^-1 (..., 6, 6) of per-test covariances (..., 6, 6).
 
     Components not ``measured`` (bool (..., 6)) are decoupled and their rows
@@ -80,7 +81,8 @@ def whitening(cov: np.ndarray, measured: np.ndarray | None = None) -> np.ndarray
     if cov.ndim == 3 and cov.shape[0] > TEST_BLOCK:
         # one large campaign: block by block into one output (whole-array temporaries of
         # 1e6 tests are ~6 x 0.3 GB, and their page faults cost more than the arithmetic)
-        out = np.empty(cov.shape)
+        # ``out``: an array of cov's shape to overwrite (e.g. a whitening no longer needed)
+        out = np.empty(cov.shape) if out is None or out.shape != cov.shape else out
         for s in range(0, cov.shape[0], TEST_BLOCK):
             out[s:s + TEST_BLOCK] = whitening(cov[s:s + TEST_BLOCK], None if measured is None
                                               else measured[s:s + TEST_BLOCK])
