@@ -162,6 +162,7 @@ def main() -> None:
                 k = np.array(res["joint_stiffness_Nm_per_rad"], float)
                 r["n_poses"] = res["n_poses"]
                 r["residuals_listed"] = res.get("residuals_listed")
+                r["validation_listed"] = res.get("validation_listed")
                 r["results_json_MB"] = (out / "results.json").stat().st_size / 2**20
                 if method == "ols":
                     x_ref, se_ref = reference_ols(csv, dense_se=n <= 10_000)
