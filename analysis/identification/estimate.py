@@ -319,13 +319,17 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         # WLS's weights start at the OLS estimate (passed, not solved again) and it has the
         # same design; the OLS fit's covariances are let go first (0.3 GB at 1e6 tests)
         chosen = None
+        first: dict = {}
         chosen = fit_linear(robot, tests, joints, noise, weighted=True, start=linear_x["ols"],
-                            design=design)
+                            design=design, first_whitening=first if method == "exact" else None)
         linear_x["wls"] = chosen.x
     del design
     if method == "exact":
         chosen = None
-        chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"])
+        # the first Gauss-Newton weights are WLS's first ones (both at the OLS estimate)
+        chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"],
+                           first_whitening=first)
+        del first
         from analysis.identification.fitting import _J_CACHE
 
         # J is needed again only by outlier refits (recomputed then): 0.3 GB at 1e6 tests

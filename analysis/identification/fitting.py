@@ -172,13 +172,15 @@ def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
 
 
 def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=None,
-               design=None) -> Fit:
+               design=None, first_whitening: dict | None = None) -> Fit:
     """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18).
 
     WLS only: ``weights`` (m, 6) robust weights (:func:`_covariances`; ``cov`` of the
     result is then the weighted one), ``start`` (p,) compliances to evaluate the first
     weights at instead of the OLS estimate. ``design``: (J, A) of :func:`_design` for
-    these tests and joints, if the caller has them.
+    these tests and joints, if the caller has them. ``first_whitening``: a dict that
+    receives ``x`` and ``Linv``, the compliances and the whitening of the first WLS
+    pass (the exact fit started at the same x needs the same whitening first).
     """
     J, A = _design(robot, tests, joints) if design is None else design
     if weighted and start is not None:
@@ -186,23 +188,33 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
     else:
         x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, None, weighted=False)
     if weighted:
-        for _ in range(2):
+        for n in range(2):
             cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w, weights)
+            x0 = x
             x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
+            if n == 0 and first_whitening is not None:
+                first_whitening.update(x=np.array(x0, dtype=float), Linv=Linv)
     else:
         cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
     pred = np.einsum("mrp,p->mr", A, x)
     return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv)
 
 
-def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None) -> Fit:
+def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
+              first_whitening: dict | None = None) -> Fit:
     """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,).
 
     ``weights`` (m, 6): robust weights (:func:`_covariances`); ``cov`` of the result is
-    then the weighted one.
+    then the weighted one. ``first_whitening``: {x, Linv} of :func:`fit_linear`'s first
+    WLS pass; used as the first iteration's whitening when x equals ``start`` (the same
+    array Gauss-Newton would compute: computed once).
     """
+    Linv0 = None
+    if (first_whitening and weights is None
+            and np.array_equal(first_whitening["x"], np.asarray(start, dtype=float))):
+        Linv0 = first_whitening["Linv"]
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
-                      weights=weights, J=_jacobian(robot, tests.q))
+                      weights=weights, J=_jacobian(robot, tests.q), Linv0=Linv0)
     if not gn.valid:
         raise InputError(
             "the exact fit cannot start: the equilibrium has no solution at the linear "

@@ -138,6 +138,7 @@ def gauss_newton(
     reweight_iterations: int = 3,
     weights: np.ndarray | None = None,
     J: np.ndarray | None = None,
+    Linv0: np.ndarray | None = None,
 ) -> GaussNewtonFit:
     """Fit compliances of ``joints`` (others rigid) to finite displacements.
 
@@ -154,6 +155,9 @@ def gauss_newton(
     weights : (..., m, 6) robust weights > 0 where measured, or None (all 1); see
         :func:`covariances_per_test`. The returned ``cov`` and ``cov_x`` are the weighted ones.
     J : (..., m, 6, 6) the Jacobian at q, if the caller has it (computed otherwise).
+    Linv0 : the whitening of the covariances at x0 (:func:`covariances_per_test` then
+        :func:`analysis.identification.lsq.whitening`), if the caller has it: the first
+        iteration's weights (it is overwritten by the later ones).
     """
     cols = list(joints)
     dz = np.where(measured, d, 0.0)
@@ -196,7 +200,9 @@ def gauss_newton(
     converged = np.zeros(batch, dtype=bool)
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
-        if iterations <= reweight_iterations:
+        if iterations == 1 and Linv0 is not None and reweight_iterations >= 1:
+            Linv = Linv0  # the caller's whitening at x0, the same array
+        elif iterations <= reweight_iterations:
             # the previous iteration's covariance and whitening arrays are overwritten
             cov_buf = covariances_per_test(noise, J, full(x), measured, w, weights,
                                            out=cov_buf)
