@@ -158,18 +158,22 @@ def model_displacement_masked(
 
 def model_displacement_state(
     robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True,
-    dq0: np.ndarray | None = None,
+    dq0: np.ndarray | None = None, unloaded: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
     """:func:`model_displacement_masked` plus the joint deflection dq (..., n) (rad).
 
     Newton starts from ``dq0`` (e.g. the deflection of the previous Gauss-Newton
     iterate), else from the first-order deflection ``x * J(q)^T w`` (one Newton step
     fewer than from zero: the unloaded chain state is needed for the screw anyway).
+    ``unloaded``: a dict that receives ``state``, the chain state at q (a caller that
+    also needs J(q) saves recomputing it).
     """
     q = np.asarray(q, dtype=float)
     x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
     s0 = chain_state(robot, q)
+    if unloaded is not None:
+        unloaded["state"] = s0
     if dq0 is None:
         dq0 = x * np.einsum("...ji,...j->...i", jacobian_from_state(s0), w)
     keep: dict = {}
