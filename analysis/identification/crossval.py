@@ -190,12 +190,15 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         Ab = design(sl)
         b = Ab.shape[0]
         U = solve_triangular(R, (Ab.reshape(-1, p) / scale).T, trans="T").T.reshape(b, 6, p)
-        # per-fold sums by bincount, one entry at a time (numpy's add.at is ~10x slower)
+        # per-fold sums by bincount over the folds present in the block, one entry at a
+        # time (numpy's add.at is ~10x slower)
+        folds, local = np.unique(fold[sl], return_inverse=True)
+        k = len(folds)
         UU = np.einsum("mri,mrj->mij", U, U).reshape(b, -1)
         Ur = np.einsum("mri,mr->mi", U, rw[sl])
-        S += np.stack([np.bincount(fold[sl], UU[:, e], P) for e in range(p * p)],
-                      axis=-1).reshape(P, p, p)
-        t += np.stack([np.bincount(fold[sl], Ur[:, e], P) for e in range(p)], axis=-1)
+        S[folds] += np.stack([np.bincount(local, UU[:, e], k) for e in range(p * p)],
+                             axis=-1).reshape(k, p, p)
+        t[folds] += np.stack([np.bincount(local, Ur[:, e], k) for e in range(p)], axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         lev = np.linalg.eigvalsh(S)[:, -1]  # largest leverage of each pose block
     ok = lev < 1.0 - 1e-10

@@ -165,17 +165,22 @@ def model_displacement_state(
     Newton starts from ``dq0`` (e.g. the deflection of the previous Gauss-Newton
     iterate), else from the first-order deflection ``x * J(q)^T w`` (one Newton step
     fewer than from zero: the unloaded chain state is needed for the screw anyway).
-    ``unloaded``: a dict that receives ``state``, the chain state at q (a caller that
-    also needs J(q) saves recomputing it).
+    ``unloaded``: a dict that receives ``state`` and ``tip``, the chain state at q and
+    its tool pose (a caller that also needs J(q) saves recomputing it); when it already
+    holds ``tip`` (the same q) and ``dq0`` is given, the unloaded chain is not recomputed.
     """
     q = np.asarray(q, dtype=float)
     x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
-    s0 = chain_state(robot, q)
-    if unloaded is not None:
-        unloaded["state"] = s0
-    if dq0 is None:
-        dq0 = x * np.einsum("...ji,...j->...i", jacobian_from_state(s0), w)
+    if unloaded is not None and "tip" in unloaded and dq0 is not None:
+        tip0 = unloaded["tip"]
+    else:
+        s0 = chain_state(robot, q)
+        tip0 = s0.tip
+        if unloaded is not None:
+            unloaded.update(state=s0, tip=tip0)
+        if dq0 is None:
+            dq0 = x * np.einsum("...ji,...j->...i", jacobian_from_state(s0), w)
     keep: dict = {}
     dq, ok = solve_deflection_masked(robot, q, x, w, dq0=np.where(np.isfinite(dq0), dq0, 0.0),
                                      keep=keep)
@@ -189,7 +194,7 @@ def model_displacement_state(
         s1 = chain_state(robot, q + dq)
         J1 = jacobian_from_state(s1)
         M = None
-    screw = np.where(ok[..., None], pose_difference(s0.tip, s1.tip), 0.0)
+    screw = np.where(ok[..., None], pose_difference(tip0, s1.tip), 0.0)
     if not with_jacobian:
         return screw, None, ok, dq
     tau = np.einsum("...ji,...j->...i", J1, w)
