@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.kinetostatics.equilibrium import EquilibriumError, newton_deflection
+from analysis.kinetostatics.small_linalg import solve_dominant_columns
 from analysis.kinetostatics.stiffness import complementary_stiffness_from_jacobian
 from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
 from analysis.model.robot_model import RobotModel
@@ -201,7 +202,8 @@ def model_displacement_state(
     if M is None:
         M = np.eye(n) - x[..., :, None] * complementary_stiffness_from_jacobian(J1, w)
     M = np.where(ok[..., None, None], M, np.eye(n))
-    ddq = np.linalg.solve(M, tau[..., None, :] * np.eye(n))  # (..., n, n): d dq_i / d x_j
+    # (..., n, n): d dq_i / d x_j; M = I - X K_C is diagonally dominant at ordinary loads
+    ddq = solve_dominant_columns(M, tau[..., None, :] * np.eye(n))
     D = J1.copy()
     D[..., 3:, :] = so3_left_jacobian_inverse(screw[..., 3:]) @ J1[..., 3:, :]
     return screw, np.where(ok[..., None, None], D @ ddq, 0.0), ok, dq
