@@ -221,6 +221,9 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
                    "(scale 1: the noise figures are taken as known)"),
         "joints": ("all six, or 1-3 when no rotation is measured" if joints is None
                    else ", ".join(str(j + 1) for j in joints) + " (others rigid)"),
+        "wrench_errors_in_variables": (
+            "the regressor is built from the measured wrench; its noise's attenuation bias "
+            "(relative size ~(sigma_w/|w|)^2) is corrected with the F/T noise figures above"),
         "poses": (f"tests whose joint angles agree to within "
                   f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
                   "encoder sigmas) are at one pose"),
@@ -242,6 +245,7 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg ({n['source']})",
         f"  method: {a['method']}; covariance {a['covariance']}; joints {a['joints']}",
         f"  robust fitting: {a['robust']}",
+        f"  wrench errors in variables: {a['wrench_errors_in_variables']}",
         f"  poses: {a['poses']}",
     ):
         console.print(line, markup=False, highlight=False)
