@@ -23,6 +23,7 @@ from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
     ToolPoint,
+    file_tool_point,
     parse_floats,
     robot_and_tool,
     tool_option,
@@ -131,6 +132,8 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
             tuple(t.xyz_mm), tuple(t.rpy_deg), f"protocol [tool] ({Path(protocol.path).name})"))
         robot = protocol_robot(protocol, (np.asarray(tool.xyz_mm) * 1e-3,
                                           np.radians(tool.rpy_deg)))
+        if tool.is_flange:  # the robot file's own [tool] (e.g. a model.toml), if any
+            tool = file_tool_point(robot) or tool
         noise, noise_source = noise_from_protocol(protocol), protocol_noise_source(protocol)
         robot_source = f"protocol {Path(protocol.path).name} [campaign] robot"
     else:
