@@ -111,6 +111,38 @@ def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
     )
 
 
+def _tool_problem(result, model, table, noise, method: str, tool) -> list[str]:
+    """The tool-point F-test (:mod:`analysis.identification.tool_check`) as a refusal, if any.
+
+    Stored in ``assumptions.tool_point.check``; refused at P < 1e-3 when P was assumed
+    (no tool point given anywhere), at P < 1e-6 when one was given; a warning below 0.01.
+    """
+    from analysis.identification import tool_check
+    from analysis.identification.measurements import to_arrays
+
+    n = len(table)
+    rows = table.iloc[tool_check._subset(n)] if n > tool_check.MAX_TESTS else table
+    check = tool_check.tool_point_check(model, to_arrays(rows), result.joints,
+                                        result.x, noise, method)
+    if check is None:
+        return []
+    result.assumptions.setdefault("tool_point", {})["check"] = check.describe()
+    assumed = tool.source.startswith("none given")
+    limit = tool_check.P_ASSUMED if assumed else tool_check.P_GIVEN
+    if check.p_value < limit:
+        k = ", ".join("-" if not np.isfinite(v) else f"{v:.4g}" for v in check.k_moved)
+        if assumed:
+            return [f"a missing tool point: no tool point was given, P was taken at the flange "
+                    f"centre, and {check.text()}; with P there k would be about [{k}] N m/rad. "
+                    "Give --tool-xyz-mm/--tool-rpy-deg (--tool-xyz-mm 0,0,0 if P really is "
+                    "the flange centre)"]
+        return [f"wrong tool point? {check.text()}; with P there k would be about [{k}] N m/rad. "
+                f"Check the tool point ({tool.source})"]
+    if check.p_value < tool_check.P_WARN:
+        result.warnings.append(f"tool point: {check.text()} (not significant enough to refuse)")
+    return []
+
+
 def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
     """(table, robot, noise, info, extras) of a run directory.
 
@@ -425,6 +457,7 @@ def register(app: typer.Typer) -> None:
                 "and wrench were measured at a tool point, give --tool-xyz-mm/--tool-rpy-deg "
                 "(a tool error need not show in the chi-square, it shows in k)"))
         refused = problems(result, model.nominal_stiffness)
+        refused += _tool_problem(result, model, table, noise, method, extras["tool"])
         if refused and not accept_misfit:
             raise InputError(
                 "refused, the data do not support this stiffness: " + " | ".join(refused)
