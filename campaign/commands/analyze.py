@@ -396,7 +396,8 @@ def register(app: typer.Typer) -> None:
         tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         accept_misfit: bool = typer.Option(
             False, "--accept-misfit", help="Write the result even when the checks refuse it "
-            "(misfit, too good to be true, k > 10 x from nominal); results.json and the "
+            "(misfit, too good to be true, k > 10 x from nominal, negative k, a tool point the "
+            "residuals contradict); results.json and the "
             "report then say so."),
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
                                      "(the keys of results.json, SI units) instead of "
@@ -410,7 +411,8 @@ def register(app: typer.Typer) -> None:
         measured component of one test row. The tool point comes from the protocol
         (the sidecar; else the flange centre) unless --tool-xyz-mm/--tool-rpy-deg
         give it. A result the data do not support (misfit, too good, k more than
-        10 x from the model's nominal) is refused unless --accept-misfit.
+        10 x from the model's nominal, a negative k, a tool point the residuals
+        contradict) is refused unless --accept-misfit.
         """
         from analysis.identification.estimate import analyze_table, parse_joints
         from analysis.identification.measurements import to_arrays
