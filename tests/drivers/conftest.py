@@ -61,8 +61,9 @@ def scripted_geocom():
 
     Call it with ``reply(rpc, trid) -> bytes``: for each request line (empty
     lines are skipped, as instruments skip the driver's leading LF) it sends
-    what ``reply`` returns: bytes, or a tuple of bytes sent one write each. Returns the ``socket://`` address; the
-    listening socket is closed at the end of the test.
+    what ``reply`` returns: bytes, or a tuple of bytes sent one write each.
+    Returns the ``socket://`` address; the listening socket is closed at the
+    end of the test.
     """
     import socket
     import threading
