@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -142,28 +143,31 @@ def _large_import(f: Fig) -> tuple[str, str, str, str]:
     sizes = sorted((f.get("large") or {}), key=int)
     runs, checks = [], []
     for n in sizes:
-        row = f.get("large")[n]
-        parts = []
-        for method in sorted(row):
-            r = Fig(row[method])
+        row = f.get("large")[n]  # {method: figures}, in the benchmark's order
+        parts, checked = [], []
+        for method, figures in row.items():
+            r = Fig(figures)
             parts.append(f"{method} {r['cpu_s']} s CPU / {r['peak_rss_MB']} MB")
             if r.get("x_rel_diff_vs_lstsq") is not None:
-                checks.append(f"N={num(int(n))}: OLS compliances vs `np.linalg.lstsq` on the "
-                              f"dense design {r['x_rel_diff_vs_lstsq']}")
+                checked.append(f"OLS compliances vs `np.linalg.lstsq` on the dense design "
+                               f"{r['x_rel_diff_vs_lstsq']}")
             if r.get("se_rel_diff_vs_dense_sandwich") is not None:
-                checks.append(f"OLS standard errors vs the dense G Sigma G^T "
-                              f"{r['se_rel_diff_vs_dense_sandwich']}")
+                checked.append(f"OLS standard errors vs the dense G Sigma G^T "
+                               f"{r['se_rel_diff_vs_dense_sandwich']}")
             if r.get("max_abs_k_error_in_se") is not None:
-                checks.append(f"exact k within {r['max_abs_k_error_in_se']} standard errors "
-                              "of the truth")
+                checked.append(f"{method} k within {r['max_abs_k_error_in_se']} standard "
+                               "errors of the truth")
         poses = Fig(next(iter(row.values()), {}))["n_poses"]
         runs.append(f"N={num(int(n))} ({poses} poses): " + ", ".join(parts))
-    small = ", ".join(
-        f"{m} {f[f'small.analyze_1000_tests_validation_{m}.cpu_s']} s"
-        for m in ("ols", "exact") if f.get(f"small.analyze_1000_tests_validation_{m}"))
-    figure = "; ".join(runs)
-    if small:
-        figure += f"; 1000 tests with validation: {small} CPU"
+        if checked:
+            checks.append(f"N={num(int(n))}: " + ", ".join(checked))
+    small = {}  # {tests: [method s]} from keys analyze_<tests>_tests_validation_<method>
+    for key, r in (f.get("small") or {}).items():
+        m = re.fullmatch(r"analyze_(\d+)_tests_validation_(\w+)", key)
+        if m and isinstance(r, dict):
+            small.setdefault(int(m[1]), []).append(f"{m[2]} {num(r.get('cpu_s'))} s")
+    figure = "; ".join(runs + [f"{num(n)} tests with validation: {', '.join(v)} CPU"
+                               for n, v in small.items()])
     figure += f"; demo analysis with its report: {f['small.demo_analyze_with_report.cpu_s']} s CPU"
     baseline = (f"demo analysis: `{f['baseline']}` "
                 f"{f['small.import_numpy_pandas_pyplot_pinocchio.cpu_s']} s CPU; large imports: "
@@ -171,7 +175,7 @@ def _large_import(f: Fig) -> tuple[str, str, str, str]:
                 + ("; ".join(checks) or "none recorded") + f". Timed: {f['timing']}")
     return ("`campaign analyze --measurements FILE --robot kr240-2 --no-report "
             "--accept-misfit` with leave-one-pose-out validation on N simulated KR240-2 "
-            "tests, ols and exact; 1000 tests with validation; the demo run's analysis "
+            "tests, ols and exact; a small file with validation; the demo run's analysis "
             "with its report", figure, baseline,
             f"demo {f['small.demo_analyze_over_imports']}x the imports (CPU)")
 

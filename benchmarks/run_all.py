@@ -53,7 +53,7 @@ QUICK: dict[str, list[str]] = {
     "identification": ["--trials", "10000", "--loop", "500", "--study-trials", "100000",
                        "--repeat", "1"],
     "large_import": ["--sizes", "2000", "--repeat", "1"],
-    "planner": ["--baseline-candidates", "300", "--sizes", "2000", "10000", "--repeat", "1"],
+    "planner": ["--baseline-candidates", "1000", "--sizes", "2000", "10000", "--repeat", "1"],
     "fake_campaign": ["--scales", "200", "400", "800", "--repeat", "2"],
     "compensate": ["--points", "1000", "--sample", "50"],
     "place": ["--placements", "4", "--sample", "50", "--repeat", "2"],
