@@ -447,11 +447,10 @@ def assumption_blocks(result: IdentificationResult) -> list:
                      f"{sig(n['rotation_sigma_urad'], 3)} \u00b5rad, force "
                      f"{sig(n['force_sigma_N'], 3)} N, moment {sig(n['moment_sigma_Nm'], 3)} N m "
                      f"({n['source']})"])
-    for key in ("method", "robust", "covariance", "joints", "wrench_errors_in_variables",
-                "poses"):
+    for key in ("method", "robust", "covariance", "joints", "poses"):
         # the default Gaussian fit needs no row of its own: the method row says it
         if key in a and not (key == "robust" and str(a[key]).startswith("none")):
-            rows.append([key.replace("_", " "), str(a[key])])
+            rows.append([key, str(a[key])])
     return [Table("Assumptions", ["item", "value"], rows, widths=[1, 3.2])]
 
 

@@ -263,9 +263,8 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
                    "(scale 1: the noise figures are taken as known)"),
         "joints": ("all six, or 1-3 when no rotation is measured" if joints is None
                    else ", ".join(str(j + 1) for j in joints) + " (others rigid)"),
-        "wrench_errors_in_variables": (
-            "the regressor is built from the measured wrench; its noise's attenuation bias "
-            "(relative size ~(sigma_w/|w|)^2) is corrected with the F/T noise figures above"),
+        "wrench_errors_in_variables": ("bias of the F/T noise in the regressor, "
+                                       "~(sigma_w/|w|)^2, corrected with the figures above"),
         "poses": (f"tests whose joint angles agree to within "
                   f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
                   "encoder sigmas) are at one pose"),

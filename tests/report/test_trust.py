@@ -224,6 +224,12 @@ def test_wrench_given_as_the_sensors_reaction_is_refused(ur_run, tmp_path, capsy
     csv.write_text("\n".join(flipped) + "\n")
     args = ["analyze", "--measurements", str(csv), "--robot", "ur10e", "--tool-xyz-mm",
             "0,0,120", "--out", str(tmp_path / "o"), "--no-report"]
+    # the copied CSV has no sidecar: the default F/T figures (15.6 N, 2.5 N m) against these
+    # 60-100 N loads would attenuate the compliances by more than a first-order
+    # errors-in-variables correction can take, and are refused as such
+    assert main(args) == 2
+    assert "too small against the force/torque sensor noise" in capsys.readouterr().err
+    args += ["--force-sigma-N", "0.1", "--moment-sigma-Nm", "0.005"]  # the run's sensor
     assert main(args) == 2
     err = capsys.readouterr().err
     assert "negative stiffness" in err and "(1) the sign of the wrench" in err
