@@ -176,7 +176,9 @@ def _wrench_eiv(noise, J, tests, joints, x, bread, Linv):
             f"({noise.force_sigma:.3g} N, {noise.moment_sigma:.3g} N m): its errors in the "
             f"regressor attenuate the compliances by up to {100 * rho:.2g} % (limit "
             f"{100 * EIV_LIMIT:g} %), beyond a first-order correction; load the robot well "
-            "above the sensor noise, or check the F/T noise figures", where="wrench")
+            "above the sensor noise, or check the F/T noise figures (the protocol's, the "
+            "sidecar's, or --force-sigma-N/--moment-sigma-Nm; these are per test row)",
+            where="wrench")
     x_c, bread_c = corrected(x, bread, S)
     return x_c, bread_c, x_c - x
 
