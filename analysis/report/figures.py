@@ -71,6 +71,12 @@ POSES_TOP = 0.87  # room between the title and the axes for the label of a pose 
 POSE_TITLE_PAD = 16.0  # points: the title above such a label
 
 
+def _title(ax, text: str, fontsize: float, pad: float = 6.0) -> None:
+    """Title at a fixed height above the axes (``y`` given): matplotlib's automatic title
+    placement measures every tick label of the axes again on each draw."""
+    ax.set_title(text, fontsize=fontsize, pad=pad, y=1.0)
+
+
 def _new(legend_below: bool = False, colorbar: bool = False, poses: bool = False):
     fig = MplFigure(figsize=SIZE_IN, dpi=DPI)
     margins = dict(MARGINS)
@@ -110,7 +116,7 @@ def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[st
     draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
-    ax.set_title(f"Dexterity map, {fixed_text}", fontsize=9, pad=POSE_TITLE_PAD)
+    _title(ax, f"Dexterity map, {fixed_text}", fontsize=9, pad=POSE_TITLE_PAD)
     _legend_below(ax)
     return _png(fig, "poses_kappa_map", f"Tested poses {_pose_list(labels)} on the "
                 f"1/\u03ba_F map ({fixed_text}{_rule(rule)}; the poses' own \u03b8\u2081, "
@@ -166,7 +172,7 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     ax.set_xlim(0.5, 6.5)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title("Identified joint stiffness" + (f", relative to the {nominal_label}"
+    _title(ax, "Identified joint stiffness" + (f", relative to the {nominal_label}"
                                                   if relative else ""), fontsize=9)
     short = nominal_label.split(" (")[0]
     what = (f"as k / {short} \u2212 1 in % (the {nominal_label} is the 0 line)" if relative
@@ -197,7 +203,7 @@ def residual_plot(residuals: pd.DataFrame, threshold: float) -> Figure:
     ax.set_ylabel("studentized residual (1)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))
-    ax.set_title("Residuals per test and component", fontsize=9)
+    _title(ax, "Residuals per test and component", fontsize=9)
     return _png(fig, "residuals", f"Studentized residuals; dashed lines at \u00b1{threshold:.2f}; "
                 "circled in red: outliers.")
 
@@ -217,7 +223,7 @@ def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: 
     draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
-    ax.set_title(f"Predicted deflection under {wrench_text}", fontsize=8, pad=POSE_TITLE_PAD)
+    _title(ax, f"Predicted deflection under {wrench_text}", fontsize=8, pad=POSE_TITLE_PAD)
     _legend_below(ax)
     return _png(fig, "deflection_joint_map", "Norm of the predicted translational deflection "
                 f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}"
@@ -240,7 +246,7 @@ def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:
     ax.set_ylabel("height of P (m)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
-    ax.set_title(f"Predicted deflection over the workspace, under {wrench_text}", fontsize=8)
+    _title(ax, f"Predicted deflection over the workspace, under {wrench_text}", fontsize=8)
     return _png(fig, "deflection_cartesian_map", "The deflection map drawn at the positions of "
                 "P in the arm's plane (same poses as the joint-space map).")
 
@@ -255,14 +261,38 @@ def robustness_curve(table: pd.DataFrame, n_campaign: int, se_rel: dict[int, flo
             ax.plot([n_campaign], [100 * se_rel[j]], "*", ms=10, color=line.get_color())
     ax.axvline(n_campaign, color="k", ls=":", lw=1)
     ax.set_yscale("log")
-    from matplotlib.ticker import MaxNLocator
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+
+    # plain numbers (0.1, 1, 10) rather than the default 10^x labels, which go through the
+    # mathtext parser (its first use costs about a quarter of a second); within less than
+    # a decade the 2 and 5 minor ticks are labelled too, so two labels at least are shown
+    ax.yaxis.set_major_formatter(FuncFormatter(_plain))
+    values = 100 * table["relative_std"].to_numpy(dtype=float)
+    values = values[np.isfinite(values) & (values > 0)]
+    few = values.size == 0 or np.floor(np.log10(values.max())) == np.floor(
+        np.log10(values.min()))
+    ax.yaxis.set_minor_formatter(FuncFormatter(_plain_25 if few else _none))
 
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # a number of tests
     ax.set_xlabel("number of tests drawn from this campaign's design")
     ax.set_ylabel("relative std of k (%)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, ncol=2)
-    ax.set_title("Robustness of the identification to measurement noise", fontsize=9)
+    _title(ax, "Robustness of the identification to measurement noise", fontsize=9)
     return _png(fig, "robustness", "Monte-Carlo spread of the identified k against the "
                 "number of tests; dotted line: this campaign's number of tests; stars: the "
                 "standard errors reported for this campaign.")
+
+
+def _plain(value: float, _pos=None) -> str:
+    return f"{value:g}"
+
+
+def _plain_25(value: float, _pos=None) -> str:
+    """Label of a minor log tick at 2 or 5 times a power of ten, else none."""
+    mantissa = value / 10 ** np.floor(np.log10(value)) if value > 0 else 0.0
+    return f"{value:g}" if np.isclose(mantissa, 2) or np.isclose(mantissa, 5) else ""
+
+
+def _none(_value: float, _pos=None) -> str:
+    return ""
