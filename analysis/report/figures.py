@@ -87,7 +87,25 @@ def _new(legend_below: bool = False, colorbar: bool = False, poses: bool = False
     if poses:
         margins["top"] = POSES_TOP
     fig.subplots_adjust(**margins)
-    return fig, fig.subplots()
+    ax = fig.subplots()
+    _fixed_xlabel(fig, ax)
+    return fig, ax
+
+
+def _fixed_xlabel(fig, ax) -> None:
+    """The x label at a fixed distance under the axes: below the tick marks, one line of
+    tick labels and the label pad, where matplotlib would put it after measuring every tick
+    label of the axis once more on each draw (tick labels at the bottom are one line high)."""
+    from matplotlib import rcParams
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.transforms import ScaledTranslation
+
+    tick_label_pt = FontProperties(size=rcParams["xtick.labelsize"]).get_size_in_points()
+    below_pt = (rcParams["xtick.major.size"] + rcParams["xtick.major.pad"] + tick_label_pt
+                + rcParams["axes.labelpad"])
+    ax.xaxis.set_label_coords(
+        0.5, 0.0, transform=ax.transAxes + ScaledTranslation(0.0, -below_pt / 72,
+                                                             fig.dpi_scale_trans))
 
 
 def _colorbar(fig, ax, mappable, label: str) -> None:
