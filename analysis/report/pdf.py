@@ -87,16 +87,17 @@ def _table_height(t: Table) -> float:
     return 7 + 2.5 * ROW_HEIGHT + ROW_HEIGHT * len(t.rows) + 4 * caption_lines
 
 
-def _lines(doc: _Doc, cells: list[str], widths: list[float]) -> list[int]:
-    """Lines each cell takes in the current font: one when the text fits (one width
-    measurement), else fpdf's own line breaking (a dry run of multi_cell)."""
+def _lines(doc: _Doc, cells: list[str], widths: list[float]) -> list[list[str]]:
+    """Each cell's text as the lines it takes in the current font: itself when it fits
+    (one width measurement), else as fpdf's line breaking splits it (a dry run of
+    multi_cell)."""
     out = []
     for text, w in zip(cells, widths, strict=True):
         if doc.get_string_width(text) <= w - 2 * PAD - 0.01:
-            out.append(1)
+            out.append([text])
         else:
-            out.append(len(doc.multi_cell(w, LINE_HEIGHT, text, padding=(0, PAD),
-                                          dry_run=True, output="LINES")))
+            out.append(doc.multi_cell(w, LINE_HEIGHT, text, padding=(0, PAD), dry_run=True,
+                                      output="LINES"))
     return out
 
 
@@ -104,9 +105,9 @@ def _row(doc: _Doc, cells: list[str], widths: list[float], align: list[str],
          fill: bool) -> None:
     """One framed table row at the current y, every cell as high as the row's tallest and
     its text centred vertically: a one-line cell is one ``cell``, a wrapped one a frame and
-    a ``multi_cell``. Starts a new page (repeating the header) when the row does not fit."""
+    one ``cell`` per line. Starts a new page (repeating the header) when the row does not fit."""
     lines = _lines(doc, cells, widths)
-    h = max(lines) * LINE_HEIGHT + 2 * PAD
+    h = max(map(len, lines)) * LINE_HEIGHT + 2 * PAD
     if doc.get_y() + h > doc.page_break_trigger and doc.table_header is not None:
         doc.add_page()
         header, doc.table_header = doc.table_header, None
@@ -114,15 +115,17 @@ def _row(doc: _Doc, cells: list[str], widths: list[float], align: list[str],
         doc.table_header = header
     x0, y0 = doc.l_margin, doc.get_y()
     x = x0
-    for text, w, a, n in zip(cells, widths, align, lines, strict=True):
+    for cell_lines, w, a in zip(lines, widths, align, strict=True):
         doc.set_xy(x, y0)
-        if n == 1:
-            doc.cell(w, h, text, border=1, align=a, fill=fill)
-        else:
+        if len(cell_lines) == 1:
+            doc.cell(w, h, cell_lines[0], border=1, align=a, fill=fill)
+        else:  # the frame, then the lines as broken above, centred vertically
             doc.rect(x, y0, w, h, style="DF" if fill else "D")
-            doc.set_xy(x, y0 + (h - n * LINE_HEIGHT) / 2)
-            doc.multi_cell(w, LINE_HEIGHT, text, align=a, padding=(0, PAD),
-                           new_x="RIGHT", new_y="TOP")
+            y = y0 + (h - len(cell_lines) * LINE_HEIGHT) / 2
+            for text in cell_lines:
+                doc.set_xy(x, y)
+                doc.cell(w, LINE_HEIGHT, text, align=a)
+                y += LINE_HEIGHT
         x += w
     doc.set_xy(x0, y0 + h)
 
