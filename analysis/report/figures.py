@@ -18,7 +18,7 @@ from matplotlib.figure import Figure as MplFigure
 from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
-DPI = 150
+DPI = 125  # px per inch: 800 x 500 px, 135 px per inch at the PDF's 150 mm width
 WIDTH, HEIGHT = int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI)
 COMPONENT_MARKERS = {"dx": "o", "dy": "s", "dz": "^", "rx": "v", "ry": "D", "rz": "P"}
 
