@@ -107,7 +107,7 @@ def leave_one_pose_out(
             rw = np.einsum("mij,mj->mi", full.Linv,
                            np.where(tests.measured, tests.d - full.predicted, 0.0))
             table = _downdate_batched(robot, tests, group, names, joints, noise, Aw, rw,
-                                      full.x, method)
+                                      full.x, method, Linv=full.Linv)
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
@@ -149,8 +149,8 @@ def leave_one_pose_out(
     return pd.DataFrame(rows)
 
 
-def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
-                      ) -> pd.DataFrame:
+def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
+                      Linv=None) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
 
     ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the (whitened) design and right-hand
@@ -158,7 +158,10 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     fold estimate is the exact least-squares refit); for exact the whitened
     Jacobian and residual at the full-data estimate ``x0`` (one Gauss-Newton
     step per fold). Memory is linear in the number of tests (the factor is
-    built blockwise, :func:`analysis.identification.lsq.tall_r`).
+    built blockwise, :func:`analysis.identification.lsq.tall_r`). Each fold's estimate
+    is then corrected for the wrench noise in the regressor like the fits
+    (:mod:`analysis.identification.eiv`), with the fold's S and (A^T W A)^-1 (``Linv``:
+    the whitening of ``Aw``, None for ols).
     """
     from scipy.linalg import solve_triangular
 
@@ -212,6 +215,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     z = np.zeros((P, p))
     z[ok] = np.linalg.solve(np.eye(p) - S[ok], (c - t[ok])[..., None])[..., 0]
     x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
+    x_p[ok] = _fold_eiv(robot, tests, fold, P, joints, noise, Linv, R, scale, S, x_p, ok)
     x = np.zeros((P, 6))
     x[:, cols] = x_p
     # held-out prediction errors, summed per fold (test blocks bound the memory)
@@ -249,3 +253,23 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         "rms_translation_m": rms[0], "rms_rotation_rad": rms[1], "rms_normalized": rms[2],
         "note": notes,
     })
+
+
+def _fold_eiv(robot, tests, fold, P, joints, noise, Linv, R, scale, lev, x_p, ok):
+    """The folds' estimates x_p[ok] (n_ok, p) corrected for the wrench errors in variables.
+
+    Fold h's normal matrix is ``D R^T (I - lev_h) R D`` (D = diag(scale)) and its S the
+    full S less the held-out tests' part.
+    """
+    from analysis.identification.eiv import corrected, wrench_eiv_matrix
+    from analysis.identification.fitting import _jacobian
+
+    J = _jacobian(robot, tests.q)[..., list(joints)]
+    held = wrench_eiv_matrix(J, noise.wrench_sigma_at(tests.w) ** 2, Linv, tests.measured,
+                             group=fold, n_groups=P)
+    p = R.shape[0]
+    Rinv = np.linalg.inv(R)
+    bread = (Rinv @ np.linalg.solve(np.eye(p) - lev[ok], np.broadcast_to(
+        Rinv.T, (int(ok.sum()), p, p)))) / (scale[:, None] * scale[None, :])
+    x_c, _ = corrected(x_p[ok], bread, held.sum(axis=0) - held[ok])
+    return x_c

@@ -195,9 +195,24 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
             A = prev.A if owned else prev.A.copy()  # the first fit's A is the caller's
             A[i, c] = 0.0
             J = _jacobian(robot, rest.q)
+            if prev.eiv_shift is not None:
+                # the removed row's part of S leaves too: (N - S + dS)^-1, as a p x p update
+                from analysis.identification.eiv import corrected, wrench_eiv_matrix
+
+                row = np.zeros((1, 6), dtype=bool)
+                row[0, c] = True
+                dS = wrench_eiv_matrix(J[i:i + 1][..., list(joints)],
+                                       noise.wrench_sigma_at(rest.w[i:i + 1]) ** 2,
+                                       measured=row)
+                x_new, bread = corrected(x, bread, -dS)
+                # approximate (the rest's uncorrected x is not formed): these fits only
+                # serve the outlier test, which does not report the shift
+                shift = prev.eiv_shift + x_new - x
+                x = x_new
             cov = _covariances(noise, J, _full(x, joints), rest.measured, rest.w)
             return Fit(x=x, A=A, cov=cov, predicted=np.einsum("mrp,p->mr", A, x),
-                       iterations=0, bread=bread, Linv=None)
+                       iterations=0, bread=bread, Linv=None,
+                       eiv_shift=None if prev.eiv_shift is None else shift)
     if method == "exact":
         return fit_exact(robot, rest, joints, noise, start=prev.x)
     return fit(robot, rest, joints, noise, method)
@@ -337,6 +352,12 @@ def identify(
             robot, tests, joints, chosen.x, chosen.estimator, chosen.predicted), se_x)
         ci = stiffness_interval(chosen.x, se_x + widen / crit, crit)
         warnings.append(note)
+    eiv = None
+    if chosen.eiv_shift is not None:
+        from analysis.identification.eiv import shift_summary
+
+        eiv = shift_summary(joints, chosen.x, chosen.eiv_shift, se_x, noise)
+        warnings.append(eiv["note"])
     if np.isfinite(p_value) and p_value < 1e-3:
         warnings.append(f"reduced chi-square {chi2_red:.3g} (p = {p_value:.2g}): residuals do "
                         "not match the noise model; check the noise figures or use "
@@ -377,6 +398,7 @@ def identify(
         linear=linear_x, iterations=chosen.iterations,
         noise=noise, warnings=warnings,
     )
+    result.wrench_eiv = eiv
     if rob is not None:
         result.robust = rob.describe()
     if validate:

@@ -56,7 +56,9 @@ class Fit:
     factored form, G = bread A^T W with W = Linv^T Linv per test (identity
     when ``Linv`` is None, OLS) and bread (p, p) = (A^T W A)^-1: memory
     linear in the number of tests (:mod:`analysis.identification.lsq` computes
-    its covariance and residual variances blockwise).
+    its covariance and residual variances blockwise). ``eiv_shift`` (p,): how far the
+    wrench errors-in-variables correction moved x (:mod:`analysis.identification.eiv`;
+    None when not applied); ``bread`` is then the corrected (A^T W A - S)^-1.
     """
 
     x: np.ndarray
@@ -66,6 +68,7 @@ class Fit:
     iterations: int
     bread: np.ndarray
     Linv: np.ndarray | None = None
+    eiv_shift: np.ndarray | None = None
 
     @property
     def estimator(self) -> FactoredEstimator:
@@ -116,6 +119,9 @@ class IdentificationResult:
     robust : None for the Gaussian fit, else the robust fit's summary
         (:meth:`analysis.identification.robust.RobustFit.describe`: method, constant,
         iterations, down-weighted rows); results.json ``robust``.
+    wrench_eiv : the correction for the wrench noise in the regressor
+        (:func:`analysis.identification.eiv.shift_summary`), None when not applied;
+        results.json ``wrench_errors_in_variables``.
     """
 
     robot: str
@@ -147,6 +153,7 @@ class IdentificationResult:
     assumptions: dict = field(default_factory=dict)
     misfit_accepted: list[str] = field(default_factory=list)
     robust: dict | None = None
+    wrench_eiv: dict | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -232,6 +239,7 @@ class IdentificationResult:
             },
             "noise": self.noise.describe(),
             "robust": self.robust,
+            "wrench_errors_in_variables": self.wrench_eiv,
             "warnings": self.warnings,
             **residual_summary(self.residuals),
             "validation": None if self.validation is None else _records(self.validation),
