@@ -8,6 +8,7 @@ and, unless ``--no-report``, ``report.html`` and ``report.pdf``.
 
 from __future__ import annotations
 
+import atexit
 import gc
 import json
 from contextlib import contextmanager
@@ -345,6 +346,12 @@ def _frozen_heap():
     gc.freeze()
     try:
         yield
+        # Every output is written and closed: at interpreter exit, the objects alive then
+        # are left to the operating system instead of being walked by the final collection
+        # and torn down one by one (about 0.4 s for this process). The other exit handlers
+        # still run and stdout/stderr are still flushed; __del__ is never promised at exit.
+        atexit.unregister(gc.freeze)
+        atexit.register(gc.freeze)
     finally:
         gc.unfreeze()
 
