@@ -97,6 +97,10 @@ def main() -> None:
         "max_abs_residual_s": round(float(np.max(np.abs(resid))), 3),
         "cpu_s_per_run_range": [round(float(data[:, 3].min()), 3),
                                 round(float(data[:, 3].max()), 3)],
+        "runs": len(rows),
+        "baseline": "none: the model's two terms (overhead, lab time / scale)",
+        "timing": "wall time (time.perf_counter) of each whole campaign in this process, "
+                  "scales interleaved within each repeat",
     }))
 
 

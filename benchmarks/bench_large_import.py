@@ -205,6 +205,12 @@ def main() -> None:
               f"{base['cpu_s']:.2f} s; ratio {r['cpu_s'] / base['cpu_s']:.1f} (best of "
               f"{args.repeat} each)", flush=True)
     print(json.dumps({"benchmark": "large_import", "machine_note": "2 shared cores",
+                      "baseline": 'python -c "import numpy, pandas, matplotlib.pyplot, '
+                                  'pinocchio"',
+                      "timing": "CPU (user + sys) and peak RSS of each command's process "
+                                "(os.wait4), started from a small launcher process; the "
+                                f"large imports one run each, the small analyses and the "
+                                f"imports best of {args.repeat}",
                       **figures}))
 
 

@@ -160,7 +160,15 @@ def main() -> None:
                       "search_step_evaluations_per_s": f["search_step_per_s"],
                       "offset_tool_batched_evaluations_per_s": offset["batched_per_s"],
                       "offset_tool_batched_cpu_evaluations_per_s": offset["batched_cpu_per_s"],
-                      "load_average": load, "outputs_agree": bool(agree)}))
+                      "load_average": load, "outputs_agree": bool(agree),
+                      "sample": args.sample, "placements": args.placements,
+                      "baseline": "per-point loop: the same IK on one pose, Pinocchio FK and "
+                                  "frame Jacobian",
+                      "timing": f"wall time (time.perf_counter) and CPU time "
+                                f"(time.process_time), best of {args.repeat} runs (the "
+                                f"general batched route and the loop best of "
+                                f"{max(1, args.repeat // 2)}), BLAS threads at their "
+                                "default; the loop on a random sample"}))
     if not agree:
         raise SystemExit("outputs disagree")
 

@@ -136,8 +136,12 @@ def main() -> None:
         "ratio_cpu": round(us["loop_cpu"] / us["batched_cpu"], 2),
         "ratio_wall": round(us["loop_wall"] / us["batched_wall"], 2),
         "batched_cpu_us_per_candidate_at": {str(n): round(v, 2) for n, v in sizes.items()},
-        "same_design": True,
+        "same_design": True, "load_cases": len(protocol.load_cases),
+        "design_tests": protocol.campaign.tests,
         "baseline": "same algorithm; per-candidate evaluation and information; same greedy",
+        "timing": f"CPU time (time.process_time) and wall time, best of {args.repeat} runs "
+                  "per side, interleaved, on the same candidates; single-threaded "
+                  "(BLAS pinned to 1 thread); the larger sizes batched only",
     }))
 
 

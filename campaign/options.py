@@ -113,7 +113,23 @@ def robot_and_tool(robot: str, tip: str | None, tool_xyz_mm: str | None = None,
 
     model = load_robot(robot, tip)
     tool = tool_option(tool_xyz_mm, tool_rpy_deg, default_tool)
-    return (model if tool.is_flange else apply_tool(model, tool)), tool
+    if tool.is_flange:
+        return model, file_tool_point(model) or tool
+    return apply_tool(model, tool), tool
+
+
+def file_tool_point(robot: RobotModel) -> ToolPoint | None:
+    """The robot file's own ``[tool]`` as a :class:`ToolPoint`, or None when P is the flange."""
+    import pinocchio as pin
+
+    from analysis.model.robots import tool_in_flange
+
+    t = tool_in_flange(robot)
+    if t is None or np.allclose(t, np.eye(4), atol=1e-12):
+        return None
+    xyz = tuple(float(v) for v in np.round(t[:3, 3] * 1e3, 9) + 0.0)
+    rpy = tuple(float(v) for v in np.round(np.degrees(pin.rpy.matrixToRpy(t[:3, :3])), 9) + 0.0)
+    return ToolPoint(xyz, rpy, f"tool of the robot file {robot.source_file or robot.name}")
 
 
 def robot_option(robot: str, tip: str | None, tool_xyz_mm: str | None = None,

@@ -81,7 +81,9 @@ def format_motion_list(targets: np.ndarray, labels: Sequence[str] | None = None,
     lines.append(head)
     for i, row in enumerate(q):
         label = labels[i] if labels is not None else str(i + 1)
-        lines.append(f"{label:<5} " + " ".join(f"{v:>10.3f}" for v in np.rad2deg(row)))
+        # rounded first, then + 0.0: a target of -1e-9 deg reads 0.000, not -0.000
+        shown = np.round(np.rad2deg(row), 3) + 0.0
+        lines.append(f"{label:<5} " + " ".join(f"{v:>10.3f}" for v in shown))
     return "\n".join(lines)
 
 

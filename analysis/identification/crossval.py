@@ -163,7 +163,9 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     built blockwise, :func:`analysis.identification.lsq.tall_r`). ``dq0`` (m, 6): the
     full-data fit's joint deflections (rad), Newton's start for the held-out tests.
     ``Linv`` (m, 6, 6): when given, the design is ``Linv @ Aw``, whitened block by block
-    (no (m, 6, p) copy).
+    (no (m, 6, p) copy). Each fold's estimate is then corrected for the wrench noise in
+    the regressor like the fits (:mod:`analysis.identification.eiv`), with the fold's S
+    and (A^T W A)^-1 (``Linv`` None for ols).
     """
     from scipy.linalg import solve_triangular
 
@@ -233,6 +235,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     z = np.zeros((P, p))
     z[ok] = np.linalg.solve(np.eye(p) - S[ok], (c - t[ok])[..., None])[..., 0]
     x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
+    x_p[ok] = _fold_eiv(robot, tests, fold, P, joints, noise, Linv, R, scale, S, x_p, ok)
     x = np.zeros((P, 6))
     x[:, cols] = x_p
     # held-out prediction errors, summed per fold (test blocks bound the memory)
@@ -274,3 +277,23 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         "rms_translation_m": rms[0], "rms_rotation_rad": rms[1], "rms_normalized": rms[2],
         "note": notes,
     })
+
+
+def _fold_eiv(robot, tests, fold, P, joints, noise, Linv, R, scale, lev, x_p, ok):
+    """The folds' estimates x_p[ok] (n_ok, p) corrected for the wrench errors in variables.
+
+    Fold h's normal matrix is ``D R^T (I - lev_h) R D`` (D = diag(scale)) and its S the
+    full S less the held-out tests' part.
+    """
+    from analysis.identification.eiv import corrected, wrench_eiv_matrix
+    from analysis.identification.fitting import _jacobian
+
+    J = _jacobian(robot, tests.q)[..., list(joints)]
+    held = wrench_eiv_matrix(J, noise.wrench_sigma_at(tests.w) ** 2, Linv, tests.measured,
+                             group=fold, n_groups=P)
+    p = R.shape[0]
+    Rinv = np.linalg.inv(R)
+    bread = (Rinv @ np.linalg.solve(np.eye(p) - lev[ok], np.broadcast_to(
+        Rinv.T, (int(ok.sum()), p, p)))) / (scale[:, None] * scale[None, :])
+    x_c, _ = corrected(x_p[ok], bread, held.sum(axis=0) - held[ok])
+    return x_c

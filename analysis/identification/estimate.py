@@ -210,6 +210,21 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
             bread = prev.bread + np.outer(g, g) / (1.0 - h)
             x = prev.x - (bread @ a) * (d_ic - a @ prev.x)
             J = _jacobian(robot, rest.q)
+            shift = None
+            if prev.eiv_shift is not None:
+                # the removed row's part of S leaves too: (N - S + dS)^-1, as a p x p update
+                from analysis.identification.eiv import corrected, wrench_eiv_matrix
+
+                row = np.zeros((1, 6), dtype=bool)
+                row[0, c] = True
+                dS = wrench_eiv_matrix(J[i:i + 1][..., list(joints)],
+                                       noise.wrench_sigma_at(rest.w[i:i + 1]) ** 2,
+                                       measured=row)
+                x_new, bread = corrected(x, bread, -dS)
+                # approximate (the rest's uncorrected x is not formed): these fits only
+                # serve the outlier test, which does not report the shift
+                shift = prev.eiv_shift + x_new - x
+                x = x_new
             cov = _covariances(noise, J, _full(x, joints), rest.measured, rest.w,
                                out=prev.cov if reuse and prev.cov.shape[0] > EVAL_BLOCK
                                else None)
@@ -217,7 +232,8 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
             # columns there, so they add nothing to the sandwich or the residual variances,
             # and their residuals are NaN in ``rest``; x and bread are the downdated ones
             return Fit(x=x, A=prev.A, cov=cov, predicted=np.einsum("mrp,p->mr", prev.A, x),
-                       iterations=0, bread=bread, Linv=None)
+                       iterations=0, bread=bread, Linv=None,
+                       eiv_shift=None if prev.eiv_shift is None else shift)
     if method == "exact":
         return fit_exact(robot, rest, joints, noise, start=prev.x)
     return fit(robot, rest, joints, noise, method)
@@ -316,12 +332,13 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     chosen = fit_linear(robot, tests, joints, noise, weighted=False, design=design)
     linear_x = {"ols": chosen.x}
     if method != "ols":
-        # WLS's weights start at the OLS estimate (passed, not solved again) and it has the
-        # same design; the OLS fit's covariances are let go first (0.3 GB at 1e6 tests)
+        # WLS has the same design; its weights start at the uncorrected OLS estimate (it
+        # solves that itself: the OLS fit's x is the errors-in-variables corrected one). The
+        # OLS fit's covariances are let go first (0.3 GB at 1e6 tests)
         chosen = None
         first: dict = {}
-        chosen = fit_linear(robot, tests, joints, noise, weighted=True, start=linear_x["ols"],
-                            design=design, first_whitening=first if method == "exact" else None)
+        chosen = fit_linear(robot, tests, joints, noise, weighted=True, design=design,
+                            first_whitening=first if method == "exact" else None)
         linear_x["wls"] = chosen.x
     del design
     if method == "exact":
@@ -376,6 +393,12 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             robot, tests, joints, chosen.x, chosen.estimator, chosen.predicted), se_x)
         ci = stiffness_interval(chosen.x, se_x + widen / crit, crit)
         warnings.append(note)
+    eiv = None
+    if chosen.eiv_shift is not None:
+        from analysis.identification.eiv import shift_summary
+
+        eiv = shift_summary(joints, chosen.x, chosen.eiv_shift, se_x, noise)
+        warnings.append(eiv["note"])
     if np.isfinite(p_value) and p_value < 1e-3:
         warnings.append(f"reduced chi-square {chi2_red:.3g} (p = {p_value:.2g}): residuals do "
                         "not match the noise model; check the noise figures or use "
@@ -431,6 +454,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         noise=noise, warnings=warnings,
     )
     result.residual_rows = rows
+    result.wrench_eiv = eiv
     if rob is not None:
         result.robust = rob.describe()
     if validate:

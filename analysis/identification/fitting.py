@@ -12,6 +12,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification import lsq
+from analysis.identification.eiv import corrected, wrench_eiv_matrix
 from analysis.identification.gauss_newton import covariances_per_test, gauss_newton
 from analysis.identification.linear_model import design_block
 from analysis.identification.lsq import (
@@ -31,6 +32,9 @@ from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
 COND_LIMIT = 1e6
+#: refuse when the wrench noise attenuates some compliance by more than this fraction
+#: (:mod:`analysis.identification.eiv`; ~(sigma_w/|w|)^2: loads under ~5x the F/T noise)
+EIV_LIMIT = 0.05
 
 
 def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
@@ -171,16 +175,41 @@ def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
     return x
 
 
+def _wrench_eiv(noise, J, tests, joints, x, bread, Linv):
+    """(x_c, bread_c, shift): the fit corrected for the wrench's errors in variables.
+
+    :mod:`analysis.identification.eiv`: ``(N - S) x_c = N x`` with S from each test's
+    wrench covariance (:meth:`NoiseModel.wrench_sigma_at`) and the fit's weights.
+    """
+    S = wrench_eiv_matrix(J[..., list(joints)], noise.wrench_sigma_at(tests.w) ** 2, Linv,
+                          tests.measured)
+    # relative attenuation: the eigenvalues of bread S (similar to a symmetric PSD matrix)
+    rho = float(np.max(np.abs(np.linalg.eigvals(bread @ S))))
+    if not rho <= EIV_LIMIT:
+        raise InputError(
+            f"the loads are too small against the force/torque sensor noise "
+            f"({noise.force_sigma:.3g} N, {noise.moment_sigma:.3g} N m): its errors in the "
+            f"regressor attenuate the compliances by up to {100 * rho:.2g} % (limit "
+            f"{100 * EIV_LIMIT:g} %), beyond a first-order correction; load the robot well "
+            "above the sensor noise, or check the F/T noise figures (the protocol's, the "
+            "sidecar's, or --force-sigma-N/--moment-sigma-Nm; these are per test row)",
+            where="wrench")
+    x_c, bread_c = corrected(x, bread, S)
+    return x_c, bread_c, x_c - x
+
+
 def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=None,
-               design=None, first_whitening: dict | None = None) -> Fit:
+               eiv: bool = True, design=None, first_whitening: dict | None = None) -> Fit:
     """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18).
 
     WLS only: ``weights`` (m, 6) robust weights (:func:`_covariances`; ``cov`` of the
     result is then the weighted one), ``start`` (p,) compliances to evaluate the first
-    weights at instead of the OLS estimate. ``design``: (J, A) of :func:`_design` for
-    these tests and joints, if the caller has them. ``first_whitening``: a dict that
-    receives ``x`` and ``Linv``, the compliances and the whitening of the first WLS
-    pass (the exact fit started at the same x needs the same whitening first).
+    weights at instead of the OLS estimate. ``eiv``: correct the bias of the wrench
+    noise in the regressor (:mod:`analysis.identification.eiv`). ``design``: (J, A) of
+    :func:`_design` for these tests and joints, if the caller has them.
+    ``first_whitening``: a dict that receives ``x`` and ``Linv``, the compliances and
+    the whitening of the first WLS pass (an exact fit started at the same x needs the
+    same whitening first).
     """
     J, A = _design(robot, tests, joints) if design is None else design
     if weighted and start is not None:
@@ -194,35 +223,47 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
             x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
             if n == 0 and first_whitening is not None:
                 first_whitening.update(x=np.array(x0, dtype=float), Linv=Linv)
-    else:
+    shift = None
+    if eiv:
+        x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv)
+    if not weighted:  # at the final estimate (WLS: the weights it was fitted with)
         cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
     pred = np.einsum("mrp,p->mr", A, x)
-    return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv)
+    return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv,
+               eiv_shift=shift)
 
 
 def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
-              first_whitening: dict | None = None) -> Fit:
+              eiv: bool = True, first_whitening: dict | None = None) -> Fit:
     """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,).
 
     ``weights`` (m, 6): robust weights (:func:`_covariances`); ``cov`` of the result is
-    then the weighted one. ``first_whitening``: {x, Linv} of :func:`fit_linear`'s first
-    WLS pass; used as the first iteration's whitening when x equals ``start`` (the same
-    array Gauss-Newton would compute: computed once).
+    then the weighted one. ``eiv``: solve the estimating equation corrected for the
+    wrench noise in the regressor, ``F^T W (d - f(x)) + S x = 0``, by one Newton step
+    from the Gauss-Newton minimum (:mod:`analysis.identification.eiv`).
+    ``first_whitening``: {x, Linv} of :func:`fit_linear`'s first WLS pass; used as the
+    first iteration's whitening when its x equals ``start`` (the same array
+    Gauss-Newton would compute: computed once).
     """
     Linv0 = None
     if (first_whitening and weights is None
             and np.array_equal(first_whitening["x"], np.asarray(start, dtype=float))):
         Linv0 = first_whitening["Linv"]
+    J = _jacobian(robot, tests.q)
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
-                      weights=weights, J=_jacobian(robot, tests.q), Linv0=Linv0)
+                      weights=weights, J=J, Linv0=Linv0)
     if not gn.valid:
         raise InputError(
             "the exact fit cannot start: the equilibrium has no solution at the linear "
             "estimate of the compliances (some k far too small, or negative); check the "
             "data or use --method wls", where="--method")
     # the linearised estimator at the solution: bread = (F^T W F)^-1 = gn.cov_x
-    return Fit(x=gn.x, A=gn.F, cov=gn.cov, predicted=gn.f, iterations=gn.iterations,
-               bread=gn.cov_x, Linv=gn.Linv, deflection=gn.dq)
+    x, bread, f, Linv, shift = gn.x, gn.cov_x, gn.f, gn.Linv, None
+    if eiv:
+        x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv)
+        f = f + np.einsum("mrp,p->mr", gn.F, shift)  # first order: the shift is ~1e-4 of x
+    return Fit(x=x, A=gn.F, cov=gn.cov, predicted=f, iterations=gn.iterations,
+               bread=bread, Linv=Linv, eiv_shift=shift, deflection=gn.dq)
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:

@@ -33,11 +33,12 @@ _STIFF = {"N m/rad": 1.0, "kN m/rad": 1e3}
 
 def _tool_in_flange(robot: RobotModel) -> np.ndarray:
     """Transform (4, 4) of P in the flange frame (m): the robot file's tool and any added one."""
-    model = robot.model
-    if not model.existFrame("flange"):
+    from analysis.model.robots import tool_in_flange
+
+    tool = tool_in_flange(robot)
+    if tool is None:
         raise InputError("the robot has no flange frame (not built from a robot file)")
-    flange = model.frames[model.getFrameId("flange")].placement
-    return (flange.inverse() * model.frames[robot.tip_frame].placement).homogeneous
+    return tool
 
 
 def _rpy(rot: np.ndarray) -> np.ndarray:

@@ -14,6 +14,11 @@ Three checks, each a refusal unless the user accepts the result anyway
   than :data:`MAX_DOWN_WEIGHTED` of the components: that is not a few glitches
   but data the model does not explain, which down-weighting would hide from
   the chi-square;
+* **negative compliance**: an identified compliance x = 1/k is below zero by
+  more than its interval half-width (the whole interval is negative): no
+  joint pushes back, so the signs of the data disagree with the model, most
+  often the wrench given as the reaction the sensor feels instead of the load
+  applied to the robot;
 * **far from nominal**: an identified k differs from the robot model's nominal
   stiffness by more than :data:`NOMINAL_FACTOR` either way (only where the
   model has one): a unit error of the displacements or the wrench, or a
@@ -52,6 +57,12 @@ CAUSES_TOO_GOOD = (
     "noise figures far larger than the instruments' (--sigma-* options, protocol noise)",
     "data computed from a model rather than measured",
 )
+CAUSES_NEGATIVE = (
+    "the sign of the wrench (it must be the load applied to the robot at P, not the reaction "
+    "the F/T sensor feels: flip fx..mz if the sensor measures the reaction)",
+    "the sign of the displacements (loaded minus unloaded, not the reverse)",
+    "the tool point P or the frame of the wrench (base-frame components)",
+)
 CAUSES_NOMINAL = (
     "units (displacements in m instead of mm, forces in kN instead of N)",
     "the tool point P",
@@ -82,6 +93,20 @@ def chi2_lower_tail(result: IdentificationResult) -> float:
     return float(special.chdtr(result.dof, result.chi2_reduced * result.dof))
 
 
+def _negative_joints(result: IdentificationResult) -> list[str]:
+    """'x3 = -1.1e-06 +- 2e-08 rad/(N m)' for each joint whose compliance interval is below 0."""
+    from scipy import special  # norm.isf, without importing scipy.stats
+
+    crit = float(-special.ndtri((1.0 - result.confidence) / 2.0))
+    se = np.sqrt(np.clip(np.diag(result.cov_x), 0.0, None))
+    out = []
+    for idx, j in enumerate(result.joints):
+        x = float(result.x[j])
+        if x + crit * se[idx] < 0.0:
+            out.append(f"x{j + 1} = 1/k{j + 1} = {x:.3g} +- {crit * se[idx]:.2g} rad/(N m)")
+    return out
+
+
 def problems(result: IdentificationResult, nominal: np.ndarray | None,
              nominal_label: str = "nominal stiffness of the robot model") -> list[str]:
     """Messages of every failed check (empty when the result is believable)."""
@@ -106,6 +131,12 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
             f"too good to be true: the residuals are far smaller than the noise figures "
             f"({chi2}, P(chi2 <= observed) = {low:.2g} < {MISFIT_P:g}); likely causes: "
             f"{_causes(CAUSES_TOO_GOOD)}")
+    negative = _negative_joints(result)
+    if negative:
+        out.append(
+            f"negative stiffness: {'; '.join(negative)} (the whole {result.confidence:.0%} "
+            f"interval of the compliance is below zero); likely causes, most likely first: "
+            f"{_causes(CAUSES_NEGATIVE)}")
     if nominal is not None:
         nominal = np.asarray(nominal, dtype=float)
         far = []

@@ -57,7 +57,10 @@ class Fit:
     when ``Linv`` is None, OLS) and bread (p, p) = (A^T W A)^-1: memory
     linear in the number of tests (:mod:`analysis.identification.lsq` computes
     its covariance and residual variances blockwise). ``deflection`` (m, 6): the
-    exact fit's joint deflections at x (rad), None for the linear fits.
+    exact fit's joint deflections at x (rad), None for the linear fits. ``eiv_shift``
+    (p,): how far the wrench errors-in-variables correction moved x
+    (:mod:`analysis.identification.eiv`; None when not applied); ``bread`` is then the
+    corrected (A^T W A - S)^-1.
     """
 
     x: np.ndarray
@@ -68,6 +71,7 @@ class Fit:
     bread: np.ndarray
     Linv: np.ndarray | None = None
     deflection: np.ndarray | None = None
+    eiv_shift: np.ndarray | None = None
 
     @property
     def estimator(self) -> FactoredEstimator:
@@ -206,6 +210,9 @@ class IdentificationResult:
     robust : None for the Gaussian fit, else the robust fit's summary
         (:meth:`analysis.identification.robust.RobustFit.describe`: method, constant,
         iterations, down-weighted rows); results.json ``robust``.
+    wrench_eiv : the correction for the wrench noise in the regressor
+        (:func:`analysis.identification.eiv.shift_summary`), None when not applied;
+        results.json ``wrench_errors_in_variables``.
     """
 
     robot: str
@@ -238,6 +245,7 @@ class IdentificationResult:
     misfit_accepted: list[str] = field(default_factory=list)
     robust: dict | None = None
     residual_rows: ResidualRows | None = None
+    wrench_eiv: dict | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -323,6 +331,7 @@ class IdentificationResult:
             },
             "noise": self.noise.describe(),
             "robust": self.robust,
+            "wrench_errors_in_variables": self.wrench_eiv,
             "warnings": self.warnings,
             **residual_summary(self.residuals, rows=self.residual_rows),
             **validation_summary(self.validation),

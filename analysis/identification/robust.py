@@ -227,7 +227,7 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
     cov = _covariances(noise, J, _full(final.x, joints), tests.measured, tests.w)
     # G = final.bread A^T W_weighted, kept factored (memory linear in the tests)
     fit = Fit(x=final.x, A=A, cov=cov, predicted=pred, iterations=n_it, bread=final.bread,
-              Linv=final.Linv)
+              Linv=final.Linv, eiv_shift=final.eiv_shift)
     down = tuple(
         DownWeighted(test=int(i), line=int(tests.line[i]), pose=str(tests.pose[i]),
                      component=COMPONENTS[j], weight=float(weights[i, j]),

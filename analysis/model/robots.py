@@ -75,11 +75,43 @@ def load_robot(spec: str, tip: str | None = None) -> RobotModel:
     )
 
 
+def tool_in_flange(robot: RobotModel) -> np.ndarray | None:
+    """Transform (4, 4) of P in the flange frame (m), or None without a ``flange`` frame.
+
+    The robot file's ``[tool]`` and any tool added by :func:`with_tool`.
+    """
+    model = robot.model
+    if not model.existFrame("flange"):
+        return None
+    flange = model.frames[model.getFrameId("flange")].placement
+    return (flange.inverse() * model.frames[robot.tip_frame].placement).homogeneous
+
+
 def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel:
-    """Copy of ``robot`` whose point P is moved by the tool (xyz in m, rpy in rad, flange frame)."""
+    """Copy of ``robot`` whose point P is moved by the tool (xyz in m, rpy in rad, flange frame).
+
+    Refused when P is already away from the flange (a robot file with its own
+    ``[tool]``, e.g. a ``model.toml`` written by ``campaign analyze``): both
+    tools are given in the flange frame, and composing them would put P at
+    neither.
+    """
     if not np.any(xyz) and not np.any(rpy):
         return robot
     tool = pin.SE3(pin.rpy.rpyToMatrix(*map(float, rpy)), np.asarray(xyz, dtype=float))
+    present = tool_in_flange(robot)
+    if present is not None and np.allclose(present, tool.homogeneous, atol=1e-9):
+        return robot  # the same tool point given again: P is already there
+    if present is not None and not np.allclose(present, np.eye(4), atol=1e-12):
+        had_xyz = np.round(present[:3, 3] * 1e3, 6) + 0.0
+        had_rpy = np.round(np.degrees(pin.rpy.matrixToRpy(present[:3, :3])), 6) + 0.0
+        raise InputError(
+            f"the robot file already places P with its [tool] (xyz {had_xyz.tolist()} mm, rpy "
+            f"{had_rpy.tolist()} deg from the flange); a second tool point (xyz "
+            f"{(np.round(np.asarray(xyz, float) * 1e3, 6) + 0.0).tolist()} mm, rpy "
+            f"{(np.round(np.degrees(np.asarray(rpy, float)), 6) + 0.0).tolist()} deg) would be "
+            "composed on it. Give the tool point once: drop the tool option or the protocol's "
+            "[tool], or write your tool into the robot file's [tool]",
+            where=robot.source_file or robot.name)
     model = pin.Model(robot.model)
     flange = model.frames[robot.tip_frame]
     frame = pin.Frame(

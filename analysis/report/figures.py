@@ -18,7 +18,7 @@ from matplotlib.figure import Figure as MplFigure
 from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
-DPI = 150
+DPI = 125  # px per inch: 800 x 500 px, 135 px per inch at the PDF's 150 mm width
 WIDTH, HEIGHT = int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI)
 COMPONENT_MARKERS = {"dx": "o", "dy": "s", "dz": "^", "rx": "v", "ry": "D", "rz": "P"}
 
@@ -50,14 +50,19 @@ def draw_poses(ax, t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str]) ->
 def _png(fig, name: str, caption: str) -> Figure:
     """The figure drawn once on an Agg canvas, as an RGB PNG (opaque white background:
     no alpha channel, which the PDF would otherwise split into a soft mask)."""
+    from matplotlib import rc_context
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
 
     canvas = FigureCanvasAgg(fig)
-    canvas.draw()
+    # glyphs without the font's hinting: at this resolution the text looks the same, and
+    # hinting is most of the cost of laying out and rasterizing each tick label
+    with rc_context({"text.hinting": "no_hinting"}):
+        canvas.draw()
     rgb = np.asarray(canvas.buffer_rgba())[..., :3]
     buf = io.BytesIO()
-    Image.fromarray(rgb).save(buf, format="PNG", dpi=(DPI, DPI), compress_level=6)
+    # zlib level 3: files 2 % larger than at the default 6, written in two thirds of the time
+    Image.fromarray(rgb).save(buf, format="PNG", dpi=(DPI, DPI), compress_level=3)
     return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption)
 
 
@@ -71,6 +76,12 @@ POSES_TOP = 0.87  # room between the title and the axes for the label of a pose 
 POSE_TITLE_PAD = 16.0  # points: the title above such a label
 
 
+def _title(ax, text: str, fontsize: float, pad: float = 6.0) -> None:
+    """Title at a fixed height above the axes (``y`` given): matplotlib's automatic title
+    placement measures every tick label of the axes again on each draw."""
+    ax.set_title(text, fontsize=fontsize, pad=pad, y=1.0)
+
+
 def _new(legend_below: bool = False, colorbar: bool = False, poses: bool = False):
     fig = MplFigure(figsize=SIZE_IN, dpi=DPI)
     margins = dict(MARGINS)
@@ -81,7 +92,25 @@ def _new(legend_below: bool = False, colorbar: bool = False, poses: bool = False
     if poses:
         margins["top"] = POSES_TOP
     fig.subplots_adjust(**margins)
-    return fig, fig.subplots()
+    ax = fig.subplots()
+    _fixed_xlabel(fig, ax)
+    return fig, ax
+
+
+def _fixed_xlabel(fig, ax) -> None:
+    """The x label at a fixed distance under the axes: below the tick marks, one line of
+    tick labels and the label pad, where matplotlib would put it after measuring every tick
+    label of the axis once more on each draw (tick labels at the bottom are one line high)."""
+    from matplotlib import rcParams
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.transforms import ScaledTranslation
+
+    tick_label_pt = FontProperties(size=rcParams["xtick.labelsize"]).get_size_in_points()
+    below_pt = (rcParams["xtick.major.size"] + rcParams["xtick.major.pad"] + tick_label_pt
+                + rcParams["axes.labelpad"])
+    ax.xaxis.set_label_coords(
+        0.5, 0.0, transform=ax.transAxes + ScaledTranslation(0.0, -below_pt / 72,
+                                                             fig.dpi_scale_trans))
 
 
 def _colorbar(fig, ax, mappable, label: str) -> None:
@@ -92,11 +121,18 @@ def _colorbar(fig, ax, mappable, label: str) -> None:
 
 
 def _grid(table: pd.DataFrame, column: str):
-    t2 = np.unique(table["theta2_deg"].to_numpy())
-    t3 = np.unique(table["theta3_deg"].to_numpy())
-    z = table.pivot_table(index="theta3_deg", columns="theta2_deg", values=column,
-                          dropna=False).to_numpy()
-    return t2, t3, z
+    """The map's axes (theta_2, theta_3 values, deg) and ``column`` on that grid (rows:
+    theta_3), NaN where the table has no row; repeated grid points are averaged."""
+    t2, i2 = np.unique(table["theta2_deg"].to_numpy(), return_inverse=True)
+    t3, i3 = np.unique(table["theta3_deg"].to_numpy(), return_inverse=True)
+    values = table[column].to_numpy(dtype=float)
+    ok = ~np.isnan(values)
+    total = np.zeros((len(t3), len(t2)))
+    count = np.zeros((len(t3), len(t2)))
+    np.add.at(total, (i3[ok], i2[ok]), values[ok])
+    np.add.at(count, (i3[ok], i2[ok]), 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return t2, t3, total / count
 
 
 def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[str],
@@ -110,7 +146,7 @@ def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[st
     draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
-    ax.set_title(f"Dexterity map, {fixed_text}", fontsize=9, pad=POSE_TITLE_PAD)
+    _title(ax, f"Dexterity map, {fixed_text}", fontsize=9, pad=POSE_TITLE_PAD)
     _legend_below(ax)
     return _png(fig, "poses_kappa_map", f"Tested poses {_pose_list(labels)} on the "
                 f"1/\u03ba_F map ({fixed_text}{_rule(rule)}; the poses' own \u03b8\u2081, "
@@ -166,7 +202,7 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     ax.set_xlim(0.5, 6.5)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title("Identified joint stiffness" + (f", relative to the {nominal_label}"
+    _title(ax, "Identified joint stiffness" + (f", relative to the {nominal_label}"
                                                   if relative else ""), fontsize=9)
     short = nominal_label.split(" (")[0]
     what = (f"as k / {short} \u2212 1 in % (the {nominal_label} is the 0 line)" if relative
@@ -201,7 +237,7 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
     ax.set_ylabel("studentized residual (1)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))
-    ax.set_title("Residuals per test and component", fontsize=9)
+    _title(ax, "Residuals per test and component", fontsize=9)
     shown = ("" if n_tests is None else
              f" Shown: the {residuals['test'].nunique()} of {n_tests} tests holding the "
              "largest |studentized| residuals (outliers first); every test is in "
@@ -225,7 +261,7 @@ def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: 
     draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
     ax.set_ylabel("\u03b8\u2083 (deg, model convention)")
-    ax.set_title(f"Predicted deflection under {wrench_text}", fontsize=8, pad=POSE_TITLE_PAD)
+    _title(ax, f"Predicted deflection under {wrench_text}", fontsize=8, pad=POSE_TITLE_PAD)
     _legend_below(ax)
     return _png(fig, "deflection_joint_map", "Norm of the predicted translational deflection "
                 f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}"
@@ -241,14 +277,16 @@ def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:
     z = table["deflection_mm"].to_numpy()
     ok = np.isfinite(z)
     vmax = np.percentile(z[ok], 99) if ok.any() else 1.0
+    # filled dots without an edge stroke (stroking each of thousands of dots doubles the
+    # drawing time); 3.2 pt across, the size of a 5 pt^2 dot with its 1 pt edge
     sc = ax.scatter(radial[ok], table["z_m"].to_numpy()[ok], c=np.clip(z[ok], None, vmax),
-                    s=5, cmap="viridis")
+                    s=3.2 ** 2, linewidths=0, cmap="viridis")
     _colorbar(fig, ax, sc, "|\u03b4p| (mm)")
     ax.set_xlabel("horizontal distance of P from axis 1 (m)")
     ax.set_ylabel("height of P (m)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
-    ax.set_title(f"Predicted deflection over the workspace, under {wrench_text}", fontsize=8)
+    _title(ax, f"Predicted deflection over the workspace, under {wrench_text}", fontsize=8)
     return _png(fig, "deflection_cartesian_map", "The deflection map drawn at the positions of "
                 "P in the arm's plane (same poses as the joint-space map).")
 
@@ -263,14 +301,38 @@ def robustness_curve(table: pd.DataFrame, n_campaign: int, se_rel: dict[int, flo
             ax.plot([n_campaign], [100 * se_rel[j]], "*", ms=10, color=line.get_color())
     ax.axvline(n_campaign, color="k", ls=":", lw=1)
     ax.set_yscale("log")
-    from matplotlib.ticker import MaxNLocator
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+
+    # plain numbers (0.1, 1, 10) rather than the default 10^x labels, which go through the
+    # mathtext parser (its first use costs about a quarter of a second); within less than
+    # a decade the 2 and 5 minor ticks are labelled too, so two labels at least are shown
+    ax.yaxis.set_major_formatter(FuncFormatter(_plain))
+    values = 100 * table["relative_std"].to_numpy(dtype=float)
+    values = values[np.isfinite(values) & (values > 0)]
+    few = values.size == 0 or np.floor(np.log10(values.max())) == np.floor(
+        np.log10(values.min()))
+    ax.yaxis.set_minor_formatter(FuncFormatter(_plain_25 if few else _none))
 
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # a number of tests
     ax.set_xlabel("number of tests drawn from this campaign's design")
     ax.set_ylabel("relative std of k (%)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, ncol=2)
-    ax.set_title("Robustness of the identification to measurement noise", fontsize=9)
+    _title(ax, "Robustness of the identification to measurement noise", fontsize=9)
     return _png(fig, "robustness", "Monte-Carlo spread of the identified k against the "
                 "number of tests; dotted line: this campaign's number of tests; stars: the "
                 "standard errors reported for this campaign.")
+
+
+def _plain(value: float, _pos=None) -> str:
+    return f"{value:g}"
+
+
+def _plain_25(value: float, _pos=None) -> str:
+    """Label of a minor log tick at 2 or 5 times a power of ten, else none."""
+    mantissa = value / 10 ** np.floor(np.log10(value)) if value > 0 else 0.0
+    return f"{value:g}" if np.isclose(mantissa, 2) or np.isclose(mantissa, 5) else ""
+
+
+def _none(_value: float, _pos=None) -> str:
+    return ""

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import matplotlib
 from fpdf import FPDF
-from fpdf.fonts import FontFace
 
 from analysis.report.model import Figure, Paragraph, Report, Table
 
@@ -30,6 +29,7 @@ class _Doc(FPDF):
     def __init__(self, title: str) -> None:
         super().__init__(orientation="P", unit="mm", format="A4")
         self.report_title = title
+        self.table_header = None  # draws the current table's header after a page break
         fonts = _font_dir()
         self.add_font("DejaVu", "", str(fonts / "DejaVuSans.ttf"))
         self.add_font("DejaVu", "B", str(fonts / "DejaVuSans-Bold.ttf"))
@@ -68,13 +68,17 @@ def _paragraph(doc: _Doc, p: Paragraph) -> None:
     doc.ln(2)
 
 
-def _widths(t: Table) -> list[float]:
-    if t.widths:
-        return list(t.widths)
-    return [max(len(c), *(len(r[i]) for r in t.rows), 3) for i, c in enumerate(t.columns)]
+def _widths(t: Table, total: float) -> list[float]:
+    """Column widths (mm) summing to ``total``: the table's relative widths, else by the
+    longest text of each column."""
+    rel = list(t.widths) if t.widths else [
+        max(len(c), *(len(r[i]) for r in t.rows), 3) for i, c in enumerate(t.columns)]
+    return [total * w / sum(rel) for w in rel]
 
 
-ROW_HEIGHT = 5.2  # mm, one line of a table row with its padding
+LINE_HEIGHT = 4.2  # mm, one line of text in a table cell
+PAD = 0.5  # mm, inside each table cell, all four sides
+ROW_HEIGHT = LINE_HEIGHT + 2 * PAD  # mm, one line of a table row with its padding
 
 
 def _table_height(t: Table) -> float:
@@ -83,7 +87,52 @@ def _table_height(t: Table) -> float:
     return 7 + 2.5 * ROW_HEIGHT + ROW_HEIGHT * len(t.rows) + 4 * caption_lines
 
 
+def _lines(doc: _Doc, cells: list[str], widths: list[float]) -> list[list[str]]:
+    """Each cell's text as the lines it takes in the current font: itself when it fits
+    (one width measurement), else as fpdf's line breaking splits it (a dry run of
+    multi_cell)."""
+    out = []
+    for text, w in zip(cells, widths, strict=True):
+        if doc.get_string_width(text) <= w - 2 * PAD - 0.01:
+            out.append([text])
+        else:
+            out.append(doc.multi_cell(w, LINE_HEIGHT, text, padding=(0, PAD), dry_run=True,
+                                      output="LINES"))
+    return out
+
+
+def _row(doc: _Doc, cells: list[str], widths: list[float], align: list[str],
+         fill: bool) -> None:
+    """One framed table row at the current y, every cell as high as the row's tallest and
+    its text centred vertically: a one-line cell is one ``cell``, a wrapped one a frame and
+    one ``cell`` per line. Starts a new page (repeating the header) when the row does not fit."""
+    lines = _lines(doc, cells, widths)
+    h = max(map(len, lines)) * LINE_HEIGHT + 2 * PAD
+    if doc.get_y() + h > doc.page_break_trigger and doc.table_header is not None:
+        doc.add_page()
+        header, doc.table_header = doc.table_header, None
+        header()
+        doc.table_header = header
+    x0, y0 = doc.l_margin, doc.get_y()
+    x = x0
+    for cell_lines, w, a in zip(lines, widths, align, strict=True):
+        doc.set_xy(x, y0)
+        if len(cell_lines) == 1:
+            doc.cell(w, h, cell_lines[0], border=1, align=a, fill=fill)
+        else:  # the frame, then the lines as broken above, centred vertically
+            doc.rect(x, y0, w, h, style="DF" if fill else "D")
+            y = y0 + (h - len(cell_lines) * LINE_HEIGHT) / 2
+            for text in cell_lines:
+                doc.set_xy(x, y)
+                doc.cell(w, LINE_HEIGHT, text, align=a)
+                y += LINE_HEIGHT
+        x += w
+    doc.set_xy(x0, y0 + h)
+
+
 def _table(doc: _Doc, t: Table) -> None:
+    """A framed table: bold header on a tinted row (repeated after a page break), marked
+    rows tinted, numeric columns right-aligned, long texts wrapped within their column."""
     need = _table_height(t)
     usable = doc.page_break_trigger - doc.t_margin - 20
     if _space_left(doc) < (need if need < usable else 25 + 4 * ROW_HEIGHT):
@@ -91,22 +140,25 @@ def _table(doc: _Doc, t: Table) -> None:
     doc.set_font("DejaVu", "B", 10)
     doc.multi_cell(0, 5.5, t.title, new_x="LMARGIN", new_y="NEXT")
     size = 7.5 if len(t.columns) > 7 else 8.5
-    doc.set_fill_color(255)
+    widths = _widths(t, doc.epw)
+    align = ["R" if a == "right" else "L" for a in t.alignment()]
+    body_font = "DejaVuMono" if t.mono else "DejaVu"
     doc.set_draw_color(150)
-    doc.set_font("DejaVuMono" if t.mono else "DejaVu", "", size)
-    head = FontFace(family="DejaVu", emphasis="BOLD", fill_color=HEAD, size_pt=size)
-    marked = FontFace(fill_color=MARK)
-    align = [a.upper() for a in t.alignment()]
-    with doc.table(col_widths=_widths(t), headings_style=head, line_height=4.2,
-                   text_align=align, first_row_as_headings=True, padding=0.5,
-                   width=doc.epw) as table:
-        row = table.row()
-        for c in t.columns:
-            row.cell(c)
-        for cells, mark in zip(t.rows, t.marked, strict=True):
-            row = table.row()
-            for c in cells:
-                row.cell(c, style=marked if mark else None)
+    margin, doc.c_margin = doc.c_margin, PAD  # the text's inset in one-line cells
+
+    def header() -> None:
+        doc.set_font("DejaVu", "B", size)
+        doc.set_fill_color(*HEAD)
+        _row(doc, t.columns, widths, align, fill=True)
+        doc.set_font(body_font, "", size)
+        doc.set_fill_color(*MARK)
+
+    header()
+    doc.table_header = header
+    for cells, mark in zip(t.rows, t.marked, strict=True):
+        _row(doc, cells, widths, align, fill=mark)
+    doc.table_header = None
+    doc.c_margin = margin
     if t.caption:
         doc.set_font("DejaVu", "", 7.5)
         doc.set_text_color(80)

@@ -8,7 +8,10 @@ and, unless ``--no-report``, ``report.html`` and ``report.pdf``.
 
 from __future__ import annotations
 
+import atexit
+import gc
 import json
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +26,7 @@ from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
     ToolPoint,
+    file_tool_point,
     parse_floats,
     robot_and_tool,
     tool_option,
@@ -110,6 +114,43 @@ def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
     )
 
 
+def _tool_problem(result, model, tests, noise, method: str, tool) -> list[str]:
+    """The tool-point F-test (:mod:`analysis.identification.tool_check`) as a refusal, if any.
+
+    Stored in ``assumptions.tool_point.check``; refused at P < 1e-3 when P was assumed
+    (no tool point given anywhere), at P < 1e-6 when one was given; a warning below 0.01.
+    """
+    from analysis.identification import tool_check
+
+    if len(result.joints) < 6:
+        # joints taken rigid leave a misfit of their own (the wrist absorbed by k1..k3), which
+        # the offset columns would partly explain: the test would accuse a right tool
+        result.assumptions.setdefault("tool_point", {})["check"] = {
+            "skipped": "not all six joints identified: the rigid joints' own misfit would "
+                       "show as a tool offset"}
+        return []
+    n = tests.m  # the tests analysed (TestArrays: the text table is let go by then)
+    rows = tests.subset(tool_check._subset(n)) if n > tool_check.MAX_TESTS else tests
+    check = tool_check.tool_point_check(model, rows, result.joints, result.x, noise, method)
+    if check is None:
+        return []
+    result.assumptions.setdefault("tool_point", {})["check"] = check.describe()
+    assumed = tool.source.startswith("none given")
+    limit = tool_check.P_ASSUMED if assumed else tool_check.P_GIVEN
+    if check.p_value < limit:
+        k = ", ".join("-" if not np.isfinite(v) else f"{v:.4g}" for v in check.k_moved)
+        if assumed:
+            return [f"a missing tool point: no tool point was given, P was taken at the flange "
+                    f"centre, and {check.text()}; with P there k would be about [{k}] N m/rad. "
+                    "Give --tool-xyz-mm/--tool-rpy-deg (--tool-xyz-mm 0,0,0 if P really is "
+                    "the flange centre)"]
+        return [f"wrong tool point? {check.text()}; with P there k would be about [{k}] N m/rad. "
+                f"Check the tool point ({tool.source})"]
+    if check.p_value < tool_check.P_WARN:
+        result.warnings.append(f"tool point: {check.text()} (not significant enough to refuse)")
+    return []
+
+
 def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
     """(table, robot, noise, info, extras) of a run directory.
 
@@ -131,6 +172,8 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
             tuple(t.xyz_mm), tuple(t.rpy_deg), f"protocol [tool] ({Path(protocol.path).name})"))
         robot = protocol_robot(protocol, (np.asarray(tool.xyz_mm) * 1e-3,
                                           np.radians(tool.rpy_deg)))
+        if tool.is_flange:  # the robot file's own [tool] (e.g. a model.toml), if any
+            tool = file_tool_point(robot) or tool
         noise, noise_source = noise_from_protocol(protocol), protocol_noise_source(protocol)
         robot_source = f"protocol {Path(protocol.path).name} [campaign] robot"
     else:
@@ -230,6 +273,8 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
                    "(scale 1: the noise figures are taken as known)"),
         "joints": ("all six, or 1-3 when no rotation is measured" if joints is None
                    else ", ".join(str(j + 1) for j in joints) + " (others rigid)"),
+        "wrench_errors_in_variables": ("bias of the F/T noise in the regressor, "
+                                       "~(sigma_w/|w|)^2, corrected with the figures above"),
         "poses": (f"tests whose joint angles agree to within "
                   f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
                   "encoder sigmas) are at one pose"),
@@ -251,6 +296,7 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg ({n['source']})",
         f"  method: {a['method']}; covariance {a['covariance']}; joints {a['joints']}",
         f"  robust fitting: {a['robust']}",
+        f"  wrench errors in variables: {a['wrench_errors_in_variables']}",
         f"  poses: {a['poses']}",
     ):
         console.print(line, markup=False, highlight=False)
@@ -298,6 +344,25 @@ def _map_fixed(protocol, n: int, q_poses: np.ndarray):
                             q_poses)
 
 
+@contextmanager
+def _frozen_heap():
+    """Leave the objects alive now (mostly those of the imported modules: numpy, pandas,
+    matplotlib, fpdf, about a million) out of the cyclic garbage collector's passes until
+    the block ends; objects made inside are collected as usual. Each full collection
+    would otherwise walk all of them again, about 0.1 s each and several per report."""
+    gc.freeze()
+    try:
+        yield
+        # Every output is written and closed: at interpreter exit, the objects alive then
+        # are left to the operating system instead of being walked by the final collection
+        # and torn down one by one (about 0.4 s for this process). The other exit handlers
+        # still run and stdout/stderr are still flushed; __del__ is never promised at exit.
+        atexit.unregister(gc.freeze)
+        atexit.register(gc.freeze)
+    finally:
+        gc.unfreeze()
+
+
 def _print(console: Console, result, paths: dict) -> None:
     from rich.markup import escape
 
@@ -320,6 +385,7 @@ def _print(console: Console, result, paths: dict) -> None:
 
 def register(app: typer.Typer) -> None:
     @app.command("analyze")
+    @_frozen_heap()
     def analyze(
         run_dir: Path = typer.Argument(None, help="Run directory written by campaign acquire."),
         measurements: Path = typer.Option(None, help="Tests CSV file (public import format)."),
@@ -370,7 +436,8 @@ def register(app: typer.Typer) -> None:
         tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
         accept_misfit: bool = typer.Option(
             False, "--accept-misfit", help="Write the result even when the checks refuse it "
-            "(misfit, too good to be true, k > 10 x from nominal); results.json and the "
+            "(misfit, too good to be true, k > 10 x from nominal, negative k, a tool point the "
+            "residuals contradict); results.json and the "
             "report then say so."),
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
                                      "(the keys of results.json, SI units) instead of "
@@ -384,13 +451,15 @@ def register(app: typer.Typer) -> None:
         measured component of one test row. The tool point comes from the protocol
         (the sidecar; else the flange centre) unless --tool-xyz-mm/--tool-rpy-deg
         give it. A result the data do not support (misfit, too good, k more than
-        10 x from the model's nominal) is refused unless --accept-misfit.
+        10 x from the model's nominal, a negative k, a tool point the residuals
+        contradict) is refused unless --accept-misfit.
         """
         from analysis.identification.estimate import identify, parse_joints
         from analysis.identification.measurements import to_arrays
         from analysis.identification.plausibility import problems
         from analysis.identification.result import write_results
 
+        gc.freeze()  # what was just imported joins the frozen objects (see _frozen_heap)
         method, covariance, robust = str(method), str(covariance), str(robust)
         translation_sigma_um = _alias(translation_sigma_um, old_translation,
                                       "--translation-sigma-um")
@@ -434,6 +503,7 @@ def register(app: typer.Typer) -> None:
                 "and wrench were measured at a tool point, give --tool-xyz-mm/--tool-rpy-deg "
                 "(a tool error need not show in the chi-square, it shows in k)"))
         refused = problems(result, model.nominal_stiffness)
+        refused += _tool_problem(result, model, tests, noise, method, extras["tool"])
         if refused and not accept_misfit:
             raise InputError(
                 "refused, the data do not support this stiffness: " + " | ".join(refused)
@@ -448,6 +518,8 @@ def register(app: typer.Typer) -> None:
             # the report makes figures: matplotlib is imported only here
             from analysis.report.build import ReportInputs, build_report
             from analysis.report.write import write_report
+
+            gc.freeze()
 
             if trials < 10:
                 raise InputError("need at least 10 trials", where="--trials")

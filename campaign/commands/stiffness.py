@@ -13,9 +13,8 @@ from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
     joint_angles_option,
-    robot_option,
+    robot_and_tool,
     stiffness_option,
-    tool_option,
     wrench_option,
 )
 
@@ -91,8 +90,7 @@ def register(app: typer.Typer) -> None:
         )
         from analysis.model.kinematics import chain_state, jacobian_from_state
 
-        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
-        tool = tool_option(tool_xyz_mm, tool_rpy_deg)
+        r, tool = robot_and_tool(robot, tip, tool_xyz_mm, tool_rpy_deg)
         qr = r.check_q(joint_angles_option(r, q, controller), where="--q")
         k = stiffness_option(r, joint_stiffness)
         w = wrench_option(wrench, WORST_CASE_WRENCH)

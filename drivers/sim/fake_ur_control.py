@@ -72,6 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drivers.errors import DriverError
+from drivers.sim.tcp import serve_then_close
 
 # runtime_state values (RTDE guide) and status bits (ur-rtde RobotStatus / SafetyStatus)
 STOPPED, PLAYING = 1, 2
@@ -401,16 +402,9 @@ class _LineServer(ABC):
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             conn.settimeout(0.2)
             self.conns.append(conn)
-            threading.Thread(target=self._serve_closing, args=(conn,), daemon=True).start()
+            threading.Thread(target=serve_then_close, args=(self.serve, conn),
+                             daemon=True).start()
         self.close()
-
-    def _serve_closing(self, conn: socket.socket) -> None:
-        try:
-            self.serve(conn)
-        except OSError:
-            pass
-        finally:
-            conn.close()
 
     def lines(self, conn: socket.socket):
         """Yield received lines (str, without line end) until the peer closes or we stop."""

@@ -4,9 +4,20 @@ from __future__ import annotations
 
 import socket
 from abc import abstractmethod
+from collections.abc import Callable
 
 from drivers.sim.base import FakeServer
 from drivers.sim.world import World
+
+
+def serve_then_close(serve: Callable[[socket.socket], None], conn: socket.socket) -> None:
+    """Run ``serve(conn)``; a client that resets or vanishes (OSError) ends it quietly."""
+    try:
+        serve(conn)
+    except OSError:
+        pass
+    finally:
+        conn.close()
 
 
 class TcpFake(FakeServer):
@@ -35,16 +46,8 @@ class TcpFake(FakeServer):
             # TCP_NODELAY, Nagle's algorithm and the client's delayed ACK add 40 ms to each
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._clients.append(conn)
-            self._spawn(lambda c=conn: self._serve_safely(c), "client")
+            self._spawn(lambda c=conn: serve_then_close(self.serve, c), "client")
         self.listener.close()
-
-    def _serve_safely(self, conn: socket.socket) -> None:
-        try:
-            self.serve(conn)
-        except OSError:
-            pass
-        finally:
-            conn.close()
 
     def recv_exact(self, conn: socket.socket, n: int) -> bytes | None:
         """Read ``n`` bytes, or None when the peer closed or the lab stops."""

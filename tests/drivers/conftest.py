@@ -53,3 +53,45 @@ def settle():
         time.sleep(world.tau * factor + 0.01)
 
     return wait
+
+
+@pytest.fixture
+def scripted_geocom():
+    """Start a one-client GeoCOM line server whose replies a test scripts.
+
+    Call it with ``reply(rpc, trid) -> bytes``: for each request line (empty
+    lines are skipped, as instruments skip the driver's leading LF) it sends
+    what ``reply`` returns: bytes, or a tuple of bytes sent one write each.
+    Returns the ``socket://`` address; the listening socket is closed at the
+    end of the test.
+    """
+    import socket
+    import threading
+
+    from drivers import geocom
+
+    servers = []
+
+    def start(reply) -> str:
+        srv = socket.socket()
+        srv.bind(("127.0.0.1", 0))
+        srv.listen(1)
+        servers.append(srv)
+
+        def serve():
+            conn, _ = srv.accept()
+            with conn, conn.makefile("rb") as f:
+                for line in f:
+                    if not line.strip():
+                        continue
+                    rpc, _, trid = geocom.decode_request(line)
+                    out = reply(rpc, trid)
+                    for chunk in out if isinstance(out, tuple) else (out,):
+                        conn.sendall(chunk)
+
+        threading.Thread(target=serve, daemon=True).start()
+        return f"socket://127.0.0.1:{srv.getsockname()[1]}"
+
+    yield start
+    for srv in servers:
+        srv.close()

@@ -89,6 +89,9 @@ def test_cap_motion_and_force_limit():
 def test_dry_run_listing_and_confirmation():
     text = safety.format_motion_list(np.deg2rad([[10, -90, 90, 0, 45, 0]]), speed=0.5)
     assert "28.6 deg/s" in text and "-90.000" in text and "45.000" in text
+    # a target a hair below zero (round-off of a conversion) is listed as 0.000, not -0.000
+    tiny = safety.format_motion_list(np.array([[-1e-12, -2e-6, 0, 0, 0, 0]]))
+    assert "-0.000" not in tiny and tiny.splitlines()[-1].split()[1:3] == ["0.000", "0.000"]
     said = []
     safety.require_confirmation(text, ask=lambda _: "yes", say=said.append)
     assert said == [text]

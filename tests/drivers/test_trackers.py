@@ -225,29 +225,14 @@ def test_geocom_ignores_a_late_reply_to_an_earlier_request(world):
         fake.stop()
 
 
-def test_geocom_skips_replies_with_another_transaction_id():
-    import socket
-    import threading
-
+def test_geocom_skips_replies_with_another_transaction_id(scripted_geocom):
     from drivers import geocom
 
-    srv = socket.socket()
-    srv.bind(("127.0.0.1", 0))
-    srv.listen(1)
+    def reply(rpc, trid):
+        stale = geocom.encode_reply(0, "9.0", "9.0", "9.0", trid=trid % 7 + 1)
+        good = geocom.encode_reply(0, "1.0", "2.0", "3.0", trid=trid)
+        return stale + good if rpc == geocom.RPC_GET_COORDINATE else good
 
-    def serve():
-        conn, _ = srv.accept()
-        with conn, conn.makefile("rb") as f:
-            for line in f:
-                if not line.strip():
-                    continue  # the driver's leading LF, ignored as instruments do
-                rpc, _, trid = geocom.decode_request(line)
-                stale = geocom.encode_reply(0, "9.0", "9.0", "9.0", trid=trid % 7 + 1)
-                good = geocom.encode_reply(0, "1.0", "2.0", "3.0", trid=trid)
-                conn.sendall(stale + good if rpc == geocom.RPC_GET_COORDINATE else good)
-
-    threading.Thread(target=serve, daemon=True).start()
-    with GeoComTracker(f"socket://127.0.0.1:{srv.getsockname()[1]}", timeout=1.0) as drv:
+    with GeoComTracker(scripted_geocom(reply), timeout=1.0) as drv:
         np.testing.assert_allclose(drv.measure_point().value, [1.0, 2.0, 3.0])
         assert drv.stale_replies == 1
-    srv.close()

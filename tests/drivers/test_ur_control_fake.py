@@ -197,7 +197,10 @@ while abs(rx.getActualQ()[0] - q0[0]) < 0.2 and time.monotonic() - t0 < 5:
 out["s_call"] = rx.getActualQ()[0] - q0[0]
 out["qd_call"] = rx.getActualQd()[0]
 ctrl.stopJ({dec})
-time.sleep(0.05)
+t0 = time.monotonic()  # braking takes 0.15 s of robot time; a loaded machine may lag
+while any(abs(v) > 0 for v in rx.getActualQd()) and time.monotonic() - t0 < 5:
+    time.sleep(0.005)
+time.sleep(0.02)
 out["q"] = rx.getActualQ()
 out["qd"] = rx.getActualQd()
 time.sleep(0.1)

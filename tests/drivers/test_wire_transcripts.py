@@ -484,33 +484,15 @@ def test_geocom_fake_transcripts(home_world):
 
 
 @pytest.mark.parametrize("noise", [b"\r\n", b"\n\r\n", b"%R1P,0,7:0,9.9", b"\x00garbage"])
-def test_geocom_driver_survives_stray_terminators_and_partial_lines(noise):
+def test_geocom_driver_survives_stray_terminators_and_partial_lines(noise, scripted_geocom):
     """The instrument sends a bare terminator, or a partial line, before the reply."""
-    import socket
-    import threading
-
     from drivers.geocom import GeoComTracker
 
-    srv = socket.socket()
-    srv.bind(("127.0.0.1", 0))
-    srv.listen(1)
+    def reply(rpc, trid):
+        good = geocom.encode_reply(0, "1.0", "2.0", "3.0", 0, trid=trid) \
+            if rpc == geocom.RPC_GET_COORDINATE else geocom.encode_reply(0, trid=trid)
+        return noise, good  # two writes: the stray bytes may arrive alone
 
-    def serve():
-        conn, _ = srv.accept()
-        with conn, conn.makefile("rb") as f:
-            for line in f:
-                if not line.strip():
-                    continue
-                rpc, _, trid = geocom.decode_request(line)
-                reply = geocom.encode_reply(0, "1.0", "2.0", "3.0", 0, trid=trid) \
-                    if rpc == geocom.RPC_GET_COORDINATE else geocom.encode_reply(0, trid=trid)
-                conn.sendall(noise)
-                conn.sendall(reply)
-
-    threading.Thread(target=serve, daemon=True).start()
-    try:
-        with GeoComTracker(f"socket://127.0.0.1:{srv.getsockname()[1]}", timeout=1.0) as drv:
-            for _ in range(2):
-                np.testing.assert_allclose(drv.measure_point().value, [1.0, 2.0, 3.0])
-    finally:
-        srv.close()
+    with GeoComTracker(scripted_geocom(reply), timeout=1.0) as drv:
+        for _ in range(2):
+            np.testing.assert_allclose(drv.measure_point().value, [1.0, 2.0, 3.0])

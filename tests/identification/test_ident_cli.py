@@ -70,7 +70,9 @@ def test_analyze_csv_bad_cell_exit_2(tmp_path, capsys):
 
 def test_analyze_noise_overrides_scale_the_intervals(tmp_path, kr240, zone_poses, w_eff):
     """Doubling every sigma on the command line doubles the standard errors (known-sigma
-    covariance, exact fit: se is proportional to the noise scale) and leaves k unchanged."""
+    covariance, exact fit: se is proportional to the noise scale) and leaves the fit
+    unchanged except for the wrench errors-in-variables correction, which grows as
+    sigma_w^2 relative to the (scale-free) normal matrix: four times the shift."""
     noise = NoiseModel()
     tests = simulate(kr240, zone_poses[:6], w_eff, kr240.nominal_stiffness, noise, seed=4)
     csv = tmp_path / "tests.csv"
@@ -88,8 +90,17 @@ def test_analyze_noise_overrides_scale_the_intervals(tmp_path, kr240, zone_poses
     assert main([*base, "--out", str(tmp_path / "b"), *doubled]) == 0
     a = json.loads((tmp_path / "a" / "results.json").read_text())
     b = json.loads((tmp_path / "b" / "results.json").read_text())
-    np.testing.assert_allclose(b["joint_stiffness_Nm_per_rad"], a["joint_stiffness_Nm_per_rad"],
+    # k = k_uncorrected / (1 - relative shift) (analysis.identification.eiv.shift_summary)
+    rel_a = np.array(a["wrench_errors_in_variables"]["relative_shift_of_k"])
+    rel_b = np.array(b["wrench_errors_in_variables"]["relative_shift_of_k"])
+    np.testing.assert_allclose((1 - rel_b) * b["joint_stiffness_Nm_per_rad"],
+                               (1 - rel_a) * np.array(a["joint_stiffness_Nm_per_rad"]),
                                rtol=1e-6)
+    assert np.all(np.abs(rel_a) > 1e-6)
+    # first order in S: 4x; the second-order term is ~4 |rel_a| relative
+    np.testing.assert_allclose(rel_b, 4 * rel_a, rtol=20 * np.max(np.abs(rel_a)))
+    # se_k = se_x / x^2 and se_x's bread (N - S)^-1 move with the shift, at its order
     np.testing.assert_allclose(b["standard_error_Nm_per_rad"],
-                               2 * np.array(a["standard_error_Nm_per_rad"]), rtol=1e-6)
+                               2 * np.array(a["standard_error_Nm_per_rad"]),
+                               rtol=4 * np.max(np.abs(rel_b)))
     assert main([*base, "--out", str(tmp_path / "c"), "--force-sigma-N", "-1"]) == 2

@@ -6,6 +6,8 @@ six zone poses it moves OLS by 1.2e-2 (relative, worst joint) at the paper's
 w_eff and by 1.2e-4 at w_eff / 100 (WLS: 3.3e-2 and 3.4e-4; the weights give
 the rotations, whose linearisation error is larger, more say). The exact
 fit is limited by the Gauss-Newton tolerance (1e-9 relative step).
+The wrench of these data is exact, and the noise model says so (``EXACT_WRENCH``):
+no errors-in-variables correction (:mod:`analysis.identification.eiv`) is made.
 """
 
 from __future__ import annotations
@@ -15,9 +17,12 @@ import pytest
 
 from analysis.identification.estimate import identify
 from analysis.identification.exact_fit import model_displacement, solve_deflection_compliance
+from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw, solve_deflection
 
 from ._sim import simulate
+
+EXACT_WRENCH = NoiseModel(force_sigma=0.0, moment_sigma=0.0)
 
 
 @pytest.mark.parametrize("method, tol", [("ols", 3e-4), ("wls", 7e-4), ("exact", 1e-8)])
@@ -25,7 +30,7 @@ def test_small_wrench_recovers_within_the_linearisation_error(kr240, zone_poses,
                                                               tol):
     k = kr240.nominal_stiffness
     res = identify(kr240, simulate(kr240, zone_poses[:6], w_eff / 100, k), method,
-                   validate=False)
+                   noise=EXACT_WRENCH, validate=False)
     err = np.abs(res.k / k - 1)
     assert err.max() < tol
     if method != "exact":  # the error is the model's, not the solver's: it is there
@@ -34,7 +39,8 @@ def test_small_wrench_recovers_within_the_linearisation_error(kr240, zone_poses,
 
 def test_exact_fit_at_the_paper_wrench_is_solver_limited(kr240, zone_poses, w_eff):
     k = kr240.nominal_stiffness
-    res = identify(kr240, simulate(kr240, zone_poses[:6], w_eff, k), "exact", validate=False)
+    res = identify(kr240, simulate(kr240, zone_poses[:6], w_eff, k), "exact", noise=EXACT_WRENCH,
+                   validate=False)
     assert np.abs(res.k / k - 1).max() < 1e-8
     assert res.iterations <= 6
     # the change against the linear fits is the linearisation bias: 1e-3 .. 5e-2
@@ -52,7 +58,7 @@ def test_translational_only_first_three_joints(kr240, zone_poses, w_eff):
     k_rigid_wrist = k.copy()
     k_rigid_wrist[3:] = 1e14
     tests = simulate(kr240, zone_poses, w_eff, k_rigid_wrist, rotations=False)
-    res = identify(kr240, tests, "exact", validate=False)
+    res = identify(kr240, tests, "exact", noise=EXACT_WRENCH, validate=False)
     assert res.joints == (0, 1, 2)
     assert np.abs(res.k[:3] / k[:3] - 1).max() < 1e-8
     assert np.all(np.isnan(res.k[3:]))
@@ -70,7 +76,7 @@ def test_joint_subset_others_rigid(kr240, zone_poses, w_eff):
     truth = k.copy()
     truth[5] = 1e14
     res = identify(kr240, simulate(kr240, zone_poses[:6], w_eff, truth), "exact",
-                   joints=(0, 1, 2, 3, 4), validate=False)
+                   joints=(0, 1, 2, 3, 4), noise=EXACT_WRENCH, validate=False)
     assert np.abs(res.k[:5] / k[:5] - 1).max() < 1e-8
     assert np.isnan(res.k[5]) and res.x[5] == 0.0
     assert res.to_dict()["ci95_Nm_per_rad"][5] is None
@@ -96,7 +102,7 @@ def test_compliance_form_matches_the_stiffness_form_equilibrium(kr240, zone_pose
 
 def test_validation_table_on_clean_data_predicts_to_solver_precision(kr240, zone_poses, w_eff):
     k = kr240.nominal_stiffness
-    res = identify(kr240, simulate(kr240, zone_poses[:5], w_eff, k), "exact")
+    res = identify(kr240, simulate(kr240, zone_poses[:5], w_eff, k), "exact", noise=EXACT_WRENCH)
     v = res.validation
     assert list(v["held_out_pose"]) == [f"P{i}" for i in range(1, 6)]
     assert v["rms_translation_m"].max() < 1e-10 and v["rms_rotation_rad"].max() < 1e-10

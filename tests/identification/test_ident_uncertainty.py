@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from analysis.identification.eiv import corrected, wrench_eiv_matrix
 from analysis.identification.estimate import identify
 from analysis.identification.gauss_newton import gauss_newton
 from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import qr_solve
+from analysis.identification.lsq import qr_solve, whitening
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.robustness import build_pool
@@ -94,8 +95,15 @@ def test_identify_reports_the_batched_covariance(kr240, random_designs):
     tests = TestArrays(np.array([f"P{i}" for i in range(5)]), qm[0], w[0], d[0],
                        np.ones((5, 6), bool), np.arange(5) + 2)
     res = identify(kr240, tests, "exact", noise=noise, validate=False)
-    np.testing.assert_allclose(res.x, gn.x[0], rtol=1e-7)
-    np.testing.assert_allclose(res.cov_x, gn.cov_x[0], rtol=1e-6)
+    # the batched Gauss-Newton without the wrench errors-in-variables correction: apply it
+    S = wrench_eiv_matrix(jacobian(kr240, tests.q), noise.wrench_sigma_at(tests.w) ** 2,
+                          whitening(gn.cov[0]))
+    x_c, bread_c = corrected(gn.x[0], gn.cov_x[0], S)
+    assert np.max(np.abs(x_c / gn.x[0] - 1)) > 1e-6  # the correction is there to see
+    np.testing.assert_allclose(res.x, x_c, rtol=1e-7)
+    # sandwich of the corrected estimator: bread_c (F^T W F) bread_c
+    np.testing.assert_allclose(res.cov_x, bread_c @ np.linalg.inv(gn.cov_x[0]) @ bread_c,
+                               rtol=1e-6)
     se_x = np.sqrt(np.diag(res.cov_x))
     np.testing.assert_allclose(res.se_k, se_x / res.x**2, rtol=1e-12)
     np.testing.assert_allclose(res.ci[:, 0], 1 / (res.x + 1.959963984540054 * se_x), rtol=1e-12)

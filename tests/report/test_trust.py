@@ -204,3 +204,44 @@ def test_extreme_numbers_are_a_one_line_error(tmp_path, rows, capsys):
     assert main(["analyze", "--measurements", str(csv), "--robot", "kr240-2",
                  "--out", str(tmp_path / "o")]) == 2
     assert "line 8, column dy_mm" in capsys.readouterr().err
+
+
+def test_wrench_given_as_the_sensors_reaction_is_refused(ur_run, tmp_path, capsys):
+    """The wrench with all six signs flipped (the reaction the F/T sensor feels): the fit is as
+    good as the right one (the model is linear in w) but every compliance comes out negative.
+    The UR10e has no nominal stiffness, so only the sign check stands between this and a
+    results.json."""
+    lines = (ur_run / "tests.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    cols = [head.index(c) for c in ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")]
+    flipped = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        for c in cols:
+            cells[c] = repr(-float(cells[c]))
+        flipped.append(",".join(cells))
+    csv = tmp_path / "reaction.csv"
+    csv.write_text("\n".join(flipped) + "\n")
+    args = ["analyze", "--measurements", str(csv), "--robot", "ur10e", "--tool-xyz-mm",
+            "0,0,120", "--out", str(tmp_path / "o"), "--no-report"]
+    # the copied CSV has no sidecar: the default F/T figures (15.6 N, 2.5 N m) against these
+    # 60-100 N loads would attenuate the compliances by more than a first-order
+    # errors-in-variables correction can take, and are refused as such
+    assert main(args) == 2
+    assert "too small against the force/torque sensor noise" in capsys.readouterr().err
+    args += ["--force-sigma-N", "0.1", "--moment-sigma-Nm", "0.005"]  # the run's sensor
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "negative stiffness" in err and "(1) the sign of the wrench" in err
+    assert err.count("rad/(N m)") >= 4, err  # the well-determined joints named
+    assert not (tmp_path / "o" / "results.json").exists()
+    # accepted anyway: the compliances are about the negatives of the right ones (the linear
+    # model is odd in w; K_C and the finite deflection are not, hence the 15 %)
+    assert main([*args, "--accept-misfit"]) == 0
+    res = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert any("negative stiffness" in p for p in res["misfit_accepted"]["problems"])
+    assert main(["analyze", str(ur_run), "--out", str(tmp_path / "run"), "--no-report"]) == 0
+    x_run = np.array(json.loads((tmp_path / "run" / "results.json").read_text())
+                     ["joint_compliance_rad_per_Nm"], dtype=float)
+    x_neg = np.array(res["joint_compliance_rad_per_Nm"], dtype=float)
+    assert np.all(x_neg < 0) and np.allclose(-x_neg, x_run, rtol=0.15)

@@ -119,6 +119,21 @@ def test_tool_of_the_run_is_composed_into_the_model(tmp_path):
     assert np.allclose(tool_pose(model, q), tool_pose(robot, q), atol=1e-12)
     assert np.allclose(pin_tool_pose(model, q[0]), tool_pose(robot, q[0]), atol=1e-12)
     assert "reference_poses" not in data
+    # that model carries the tool: a second tool point in the flange frame is refused (it would
+    # be composed on the first), the same one again is accepted, none reports the file's
+    xyz, rpy = "50,-20,300", "10,-20,30"
+    with pytest.raises(InputError, match=r"already places P with its \[tool\].*50\.0, -20\.0, 300"):
+        with_tool(model, np.array([0.0, 0.0, 0.1]), np.zeros(3))
+    assert with_tool(model, np.array([0.05, -0.02, 0.3]), np.radians([10.0, -20.0, 30.0])) is model
+    from campaign.options import robot_and_tool
+
+    same, tool = robot_and_tool(str(path), None, xyz, rpy)
+    assert np.allclose(tool_pose(same, q), tool_pose(robot, q), atol=1e-12)
+    _, tool = robot_and_tool(str(path), None)
+    assert np.allclose(tool.xyz_mm, [50, -20, 300]) and np.allclose(tool.rpy_deg, [10, -20, 30])
+    assert "tool of the robot file" in tool.source
+    assert main(["stiffness", "--robot", str(path), "--q", "15,50,-195,30,40,20",
+                 "--tool-xyz-mm", "0,0,100"]) == 2
 
 
 def test_bad_identification_table_is_refused_with_its_line(identified, tmp_path):

@@ -1,0 +1,143 @@
+"""The benchmarks' targets, checked against the figures of each benchmark's JSON line.
+
+One table, :data:`TARGETS`: each entry names the benchmark, the figure (a
+function of that benchmark's JSON object), the limit and where the target comes
+from. A figure the run did not measure (a quick run's smaller sizes, a key
+missing from the JSON) is "not measured", never "met": the entry's
+``requires`` says what run measures it.
+
+Used by ``run_all.py`` (exit status) and ``readme_table.py`` (the README table).
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable
+from dataclasses import dataclass
+
+ISSUE_13 = "issue 13"
+MET, MISSED, NOT_MEASURED = "met", "NOT MET", "not measured"
+
+_OPS: dict[str, Callable[[float, float], bool]] = {
+    "<=": operator.le, "<": operator.lt, ">=": operator.ge, ">": operator.gt}
+
+
+@dataclass(frozen=True)
+class Target:
+    """One target: ``value(figures) op limit``; ``value`` returns None when not measured."""
+
+    benchmark: str  #: the script's name without ``bench_`` and ``.py``
+    name: str  #: what is measured, with its unit
+    value: Callable[[dict], float | None]
+    op: str  #: one of <=, <, >=, >
+    limit: float
+    source: str  #: where the target comes from
+    requires: str  #: what a run needs to measure it
+
+    def check(self, figures: dict) -> tuple[str, float | None]:
+        """(status, value): MET, MISSED or NOT_MEASURED, and the figure compared."""
+        try:
+            v = self.value(figures)
+        except (KeyError, TypeError, ValueError, IndexError):
+            v = None
+        if v is None:
+            return NOT_MEASURED, None
+        return (MET if _OPS[self.op](float(v), self.limit) else MISSED), float(v)
+
+    def text(self) -> str:
+        """The target as written in the table, e.g. ``batched CPU/pose <= 2.5 us``."""
+        return f"{self.name} {self.op} {self.limit:g}"
+
+
+def _when(cond: Callable[[dict], bool], value: Callable[[dict], float]):
+    """``value(f)`` if ``cond(f)`` holds, else None (not measured by this run)."""
+    return lambda f: value(f) if cond(f) else None
+
+
+def _large(f: dict, method: str, key: str) -> float | None:
+    """A figure of the 1e6-test import of ``method`` (None if 1e6 was not run)."""
+    row = f.get("large", {}).get("1000000", {}).get(method)
+    return None if row is None else row[key]
+
+
+def _planner_at_1e5(f: dict) -> float | None:
+    at = f["batched_cpu_us_per_candidate_at"]
+    return at.get("100000")
+
+
+def _planner_growth(f: dict) -> float | None:
+    """Per-candidate CPU at the largest size over that at the smallest (1 = linear)."""
+    at = {int(n): v for n, v in f["batched_cpu_us_per_candidate_at"].items()}
+    at[int(f["baseline_candidates"])] = f["batched_cpu_us_per_candidate"]
+    if max(at) < 100_000:
+        return None
+    return at[max(at)] / at[min(at)]
+
+
+def _fake_campaign_design(f: dict) -> float:
+    """1 if every fit has more than two points, there are repeats and their spread is given."""
+    per_repeat = (len(f["lab_time_per_repeat_s"]) == f["repeat"]
+                  and len(f["overhead_per_repeat_s"]) == f["repeat"])
+    return float(len(f["scales"]) > 2 and f["repeat"] >= 2 and per_repeat)
+
+
+def _map_05(f: dict) -> bool:
+    """The run is the 0.5 deg map, single-threaded (what the maps targets are about)."""
+    return f.get("grid_step_deg") == 0.5 and f.get("threads") == 1
+
+TARGETS: tuple[Target, ...] = (
+    Target("maps", "batched kernel, us CPU/pose", _when(
+        _map_05, lambda f: f["batched_cpu_us_per_pose"]), "<=", 2.5,
+        f"{ISSUE_13}: single-threaded, 0.5 deg KR240-2 map", "the 0.5 deg map, threads=1"),
+    Target("maps", "loop / batched, CPU", _when(_map_05, lambda f: f["ratio_cpu"]), ">=", 35,
+           f"{ISSUE_13}: against the Hessian-based per-pose Pinocchio loop",
+           "the 0.5 deg map, threads=1"),
+    Target("planner", "us CPU/candidate at 1e5", _planner_at_1e5, "<=", 30,
+           ISSUE_13, "--sizes including 100000"),
+    Target("planner", "linearity: us/candidate at the largest size (>= 1e5) / at the smallest",
+           _planner_growth, "<=", 1.5,
+           f"{ISSUE_13} ('linear to 1e5 candidates'; read as: the per-candidate cost does "
+           "not grow by more than 50 %)", "--sizes up to 100000 or more"),
+    Target("identification", "robustness study, 1e6 trials, s CPU", _when(
+        lambda f: f["study_trials"] >= 1_000_000, lambda f: f["study_cpu_s"]), "<", 15,
+        ISSUE_13, "--study-trials 1000000"),
+    Target("large_import", "analyze 1000 tests with validation, ols, s CPU",
+           lambda f: f["small"]["analyze_1000_tests_validation_ols"]["cpu_s"], "<", 3,
+           ISSUE_13, "a run without --demo-only"),
+    Target("large_import", "analyze 1000 tests with validation, exact, s CPU",
+           lambda f: f["small"]["analyze_1000_tests_validation_exact"]["cpu_s"], "<", 3,
+           ISSUE_13, "a run without --demo-only"),
+    Target("large_import", "demo analysis with report / imports, CPU",
+           lambda f: f["small"]["demo_analyze_over_imports"], "<=", 3,
+           f"{ISSUE_13}: against `import numpy, pandas, matplotlib.pyplot, pinocchio`",
+           "any run"),
+    Target("large_import", "1e6-test import, ols, s CPU",
+           lambda f: _large(f, "ols", "cpu_s"), "<", 60, ISSUE_13, "--sizes including 1000000"),
+    Target("large_import", "1e6-test import, ols, peak RSS MB",
+           lambda f: _large(f, "ols", "peak_rss_MB"), "<=", 600,
+           f"{ISSUE_13} ('a few hundred MB', read as <= 600 MB)", "--sizes including 1000000"),
+    Target("large_import", "1e6-test import, exact, s CPU",
+           lambda f: _large(f, "exact", "cpu_s"), "<", 60, ISSUE_13,
+           "--sizes including 1000000"),
+    Target("large_import", "1e6-test import, exact, peak RSS MB",
+           lambda f: _large(f, "exact", "peak_rss_MB"), "<=", 600,
+           f"{ISSUE_13} ('a few hundred MB', read as <= 600 MB)", "--sizes including 1000000"),
+    Target("fake_campaign", "more than two scales per fit, repeats, spread reported (1 = yes)",
+           _fake_campaign_design, ">=", 1, ISSUE_13, "any run"),
+    Target("startup", "`campaign --help` / `import numpy, typer, rich`, CPU",
+           lambda f: f["help_ratio"], "<=", 2.0,
+           "bench_startup.py's start-up limit", "any run"),
+    Target("startup", "`campaign stiffness` / `import numpy, typer, rich, pinocchio`, CPU",
+           lambda f: f["stiffness_ratio"], "<=", 2.5,
+           "bench_startup.py's start-up limit", "any run"),
+)
+
+
+def targets_of(benchmark: str) -> list[Target]:
+    """The targets of one benchmark, in table order."""
+    return [t for t in TARGETS if t.benchmark == benchmark]
+
+
+def check_all(benchmark: str, figures: dict) -> list[tuple[Target, str, float | None]]:
+    """(target, status, value) for every target of ``benchmark``."""
+    return [(t, *t.check(figures)) for t in targets_of(benchmark)]
