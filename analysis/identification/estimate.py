@@ -347,10 +347,6 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"],
                            first_whitening=first)
         del first
-        from analysis.identification.fitting import _J_CACHE
-
-        # J is needed again only by outlier refits (recomputed then): 0.3 GB at 1e6 tests
-        _J_CACHE.clear()
     rob = None
     kept = tests.measured
     if robust != "none":
