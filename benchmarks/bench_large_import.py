@@ -95,8 +95,10 @@ def best(launcher: Launcher, args: list[str], repeat: int) -> dict:
 
 
 def reference_ols(csv: Path, dense_se: bool) -> tuple[np.ndarray, np.ndarray | None]:
-    """OLS compliances (6,) by numpy.linalg.lstsq on the dense stacked design; with
-    ``dense_se`` also their standard errors from the dense G Sigma G^T."""
+    """OLS compliances (6,) by numpy.linalg.lstsq on the dense stacked design, corrected for
+    the wrench errors-in-variables as the analysis does; with ``dense_se`` also their
+    standard errors from the dense G Sigma G^T (uncorrected: the correction changes them by
+    ~1e-4 relative)."""
     import pandas as pd
 
     from analysis.identification.linear_model import design_block
@@ -113,6 +115,19 @@ def reference_ols(csv: Path, dense_se: bool) -> tuple[np.ndarray, np.ndarray | N
     A = np.concatenate([design_block(jacobian(robot, q[s:s + 50_000]), w[s:s + 50_000])
                         for s in range(0, len(q), 50_000)])
     x = np.linalg.lstsq(A.reshape(-1, 6), d.reshape(-1), rcond=None)[0]
+    # the wrench errors-in-variables correction of the analysis, written out here from its
+    # formula (not the package's function): (A^T A - S) x_c = A^T d, with
+    # S = sum_tests (J^T J) o (J^T Sigma_w J) and Sigma_w diagonal (the default F/T figures)
+    nm = NoiseModel()
+    sw = np.array([nm.force_sigma] * 3 + [nm.moment_sigma] * 3) ** 2
+    S = np.zeros((6, 6))
+    for s in range(0, len(q), 50_000):
+        Jb = jacobian(robot, q[s:s + 50_000])
+        S += np.einsum("mrj,mrk,msj,s,msk->jk", Jb, Jb, Jb, sw, Jb, optimize=True)
+    Af = A.reshape(-1, 6)
+    N = Af.T @ Af
+    M = np.linalg.inv(np.eye(6) - np.linalg.solve(N, S))  # x_c = M x, cov_c = M cov M^T
+    x = M @ x
     if not dense_se:
         return x, None
     G = np.linalg.pinv(A.reshape(-1, 6))  # (6, 6m)
@@ -120,7 +135,7 @@ def reference_ols(csv: Path, dense_se: bool) -> tuple[np.ndarray, np.ndarray | N
     C = np.einsum("mij,j,mkj->mik", J, x, J)
     cov = residual_covariance(NoiseModel(), C)  # (m, 6, 6)
     GS = np.einsum("pmi,mij->pmj", G.reshape(6, -1, 6), cov).reshape(6, -1)
-    return x, np.sqrt(np.diag(GS @ G.T))
+    return x, np.sqrt(np.diag(M @ (GS @ G.T) @ M.T))
 
 
 def analyze_csv(csv: Path, out: Path, method: str, extra: tuple[str, ...] = ()) -> list[str]:
