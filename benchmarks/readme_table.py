@@ -149,8 +149,8 @@ def _large_import(f: Fig) -> tuple[str, str, str, str]:
             r = Fig(figures)
             parts.append(f"{method} {r['cpu_s']} s CPU / {r['peak_rss_MB']} MB")
             if r.get("x_rel_diff_vs_lstsq") is not None:
-                checked.append(f"OLS compliances vs `np.linalg.lstsq` on the dense design, with the "
-                               f"wrench errors-in-variables correction written out, "
+                checked.append(f"OLS compliances vs `np.linalg.lstsq` on the dense design, "
+                               f"with the wrench errors-in-variables correction written out, "
                                f"{r['x_rel_diff_vs_lstsq']}")
             if r.get("se_rel_diff_vs_dense_sandwich") is not None:
                 checked.append(f"OLS standard errors vs the dense G Sigma G^T "
