@@ -136,6 +136,27 @@ def covariances_per_test(noise, J, x_full, measured, w=None, weights=None,
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
 
 
+def whitening_per_test(noise, J, x_full, measured, w=None, weights=None,
+                       out: np.ndarray | None = None) -> np.ndarray:
+    """:func:`whitening` of :func:`covariances_per_test`, block by block for one campaign.
+
+    The same numbers as whitening the whole covariance array, without holding it
+    (one campaign of 1e6 tests: 0.3 GB, and its page faults). ``out``: a whitening
+    array no longer needed, overwritten.
+    """
+    if J.ndim != 3 or J.shape[0] <= EVAL_BLOCK:
+        return whitening(covariances_per_test(noise, J, x_full, measured, w, weights),
+                         measured)
+    out = np.empty(J.shape[:-1] + (6,)) if out is None or out.shape != J.shape[:-1] + (6,) \
+        else out
+    for s in range(0, J.shape[0], EVAL_BLOCK):
+        sl = slice(s, s + EVAL_BLOCK)
+        out[sl] = whitening(covariances_per_test(
+            noise, J[sl], x_full, measured[sl], None if w is None else w[sl],
+            None if weights is None else weights[sl]), measured[sl])
+    return out
+
+
 def gauss_newton(
     robot: RobotModel,
     q: np.ndarray,
@@ -210,17 +231,16 @@ def gauss_newton(
     f, F, ok, dq = evaluate(x)
     valid &= ok
     one_campaign = F.ndim == 3 and F.shape[0] > EVAL_BLOCK
-    Linv = cov_buf = None
+    Linv = None
     converged = np.zeros(batch, dtype=bool)
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
         if iterations == 1 and Linv0 is not None and reweight_iterations >= 1:
             Linv = Linv0  # the caller's whitening at x0, the same array
         elif iterations <= reweight_iterations:
-            # the previous iteration's covariance and whitening arrays are overwritten
-            cov_buf = covariances_per_test(noise, J, full(x), measured, w, weights,
-                                           out=cov_buf)
-            Linv = whitening(cov_buf, measured, out=Linv)
+            # the previous iteration's whitening array is overwritten; the covariances
+            # are made and whitened block by block (only the final ones are kept)
+            Linv = whitening_per_test(noise, J, full(x), measured, w, weights, out=Linv)
         r = whitened(Linv, f)
         step, _ = solve(Linv, F, f, r)
         # the next model Jacobian comes with the step's evaluation, into F's array
@@ -230,7 +250,9 @@ def gauss_newton(
         cost0 = np.sum(r**2, axis=(-2, -1))
         t = np.ones(batch)
         accepted = np.zeros(batch, dtype=bool)
-        x_new, f_new, dq_new = x.copy(), f.copy(), dq.copy()
+        # one campaign: the accepted trial's arrays are taken as they are (no (m, 6)
+        # copies: ``ok`` is one bool), else merged campaign by campaign
+        x_new, f_new, dq_new = (x, f, dq) if not batch else (x.copy(), f.copy(), dq.copy())
         F_full = None
         for halving in range(12):
             x_try = x + t[..., None] * step
@@ -243,9 +265,14 @@ def gauss_newton(
                 F_full = F_try
             ok = ~accepted & good & (np.sum(whitened(Linv, f_try) ** 2, axis=(-2, -1))
                                      <= cost0 * (1 + 1e-8))
-            x_new = np.where(ok[..., None], x_try, x_new)
-            f_new = np.where(ok[..., None, None], f_try, f_new)
-            dq_new = np.where(ok[..., None, None], dq_try, dq_new)
+            if not batch:
+                if ok:
+                    x_new, f_new, dq_new = x_try, f_try, dq_try
+            else:
+                x_new = np.where(ok[..., None], x_try, x_new)
+                f_new = np.where(ok[..., None, None], f_try, f_new)
+                dq_new = np.where(ok[..., None, None], dq_try, dq_new)
+            del f_try, dq_try
             accepted |= ok
             if np.all(accepted):
                 break
@@ -261,7 +288,8 @@ def gauss_newton(
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
         if np.all(converged | ~valid):
             break
-    cov = covariances_per_test(noise, J, full(x), measured, w, weights, out=cov_buf)
+    tips.clear()  # the unloaded tool poses (0.13 GB at 1e6 tests) before the last arrays
+    cov = covariances_per_test(noise, J, full(x), measured, w, weights)
     Linv = whitening(cov, measured, out=Linv)
     _, cov_x = solve(Linv, F, f, None)
     x = np.where(valid[..., None], x, np.nan)
