@@ -16,6 +16,7 @@ from analysis.identification.eiv import corrected, wrench_eiv_matrix
 from analysis.identification.gauss_newton import (
     covariances_per_test,
     gauss_newton,
+    per_test_covariance,
     whitening_per_test,
 )
 from analysis.identification.linear_model import design_block
@@ -158,6 +159,13 @@ def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
     return covariances_per_test(noise, J, x_full, measured, w, weights, out)
 
 
+def _fit_covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
+                     w: np.ndarray | None = None, weights: np.ndarray | None = None):
+    """A fit's ``cov``: :func:`_covariances`, or for one large campaign a
+    :class:`~analysis.identification.gauss_newton.PerTestCovariance` made when used."""
+    return per_test_covariance(noise, J, x_full, measured, w, weights)
+
+
 def _linear_estimator(A, d, measured, cov, weighted: bool, Linv=None):
     """x = G d for per-test blocks; returns x, bread (p, p), Linv (m, 6, 6) or None.
 
@@ -229,10 +237,11 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
             if n == 0:  # only the last pass's covariances are kept: whitened block by block
                 cov, Lw = None, whitening_per_test(noise, J, _full(x, joints), tests.measured,
                                                    tests.w, weights)
-            else:
-                Lw = None
-                cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w,
-                                   weights)
+            else:  # kept by the fit: made again block by block where used
+                cov = _fit_covariances(noise, J, _full(x, joints), tests.measured, tests.w,
+                                       weights)
+                Lw = None if isinstance(cov, np.ndarray) else whitening_per_test(
+                    noise, J, _full(x, joints), tests.measured, tests.w, weights)
             x0 = x
             x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True,
                                                Linv=Lw)
@@ -243,7 +252,7 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
     if eiv:
         x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv)
     if not weighted:  # at the final estimate (WLS: the weights it was fitted with)
-        cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
+        cov = _fit_covariances(noise, J, _full(x, joints), tests.measured, tests.w)
     pred = np.einsum("mrp,p->mr", A, x)
     return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv,
                eiv_shift=shift)

@@ -136,6 +136,51 @@ def covariances_per_test(noise, J, x_full, measured, w=None, weights=None,
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
 
 
+class PerTestCovariance:
+    """The residual covariance of each test (m, 6, 6) of one large campaign, made when sliced.
+
+    ``cov[s:e]`` is :func:`covariances_per_test` of those tests (the same numbers as a
+    slice of the whole array); the (m, 6, 6) array (0.3 GB at 1e6 tests) is never held.
+    The passes over it (:func:`analysis.identification.lsq.sandwich_and_residual_variance`,
+    the chi-square's whitening, :func:`~analysis.identification.lsq.per_test_diagonal`)
+    take it by blocks of consecutive tests. ``J`` (m, 6, 6) is the Jacobian at the tests'
+    joint angles, ``x_full`` (6,) the compliances the covariances are evaluated at.
+    """
+
+    ndim = 3
+
+    def __init__(self, noise, J, x_full, measured, w=None, weights=None) -> None:
+        self.noise, self.J, self.measured, self.w, self.weights = noise, J, measured, w, weights
+        self.x_full = np.array(x_full, dtype=float)
+        self.shape = J.shape[:-1] + (6,)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, sl):
+        if not isinstance(sl, slice):
+            return np.asarray(self)[sl]
+
+        def part(a):
+            return None if a is None else a[sl]
+
+        return covariances_per_test(self.noise, self.J[sl], self.x_full, self.measured[sl],
+                                    part(self.w), part(self.weights))
+
+    def __array__(self, dtype=None, copy=None):
+        out = covariances_per_test(self.noise, self.J, self.x_full, self.measured, self.w,
+                                   self.weights)
+        return out if dtype is None else out.astype(dtype)
+
+
+def per_test_covariance(noise, J, x_full, measured, w=None, weights=None):
+    """:func:`covariances_per_test` as an array, or for one campaign of more than
+    :data:`EVAL_BLOCK` tests a :class:`PerTestCovariance` (made block by block when used)."""
+    if J.ndim == 3 and J.shape[0] > EVAL_BLOCK:
+        return PerTestCovariance(noise, J, x_full, measured, w, weights)
+    return covariances_per_test(noise, J, x_full, measured, w, weights)
+
+
 def whitening_per_test(noise, J, x_full, measured, w=None, weights=None,
                        out: np.ndarray | None = None) -> np.ndarray:
     """:func:`whitening` of :func:`covariances_per_test`, block by block for one campaign.
@@ -289,8 +334,12 @@ def gauss_newton(
         if np.all(converged | ~valid):
             break
     tips.clear()  # the unloaded tool poses (0.13 GB at 1e6 tests) before the last arrays
-    cov = covariances_per_test(noise, J, full(x), measured, w, weights)
-    Linv = whitening(cov, measured, out=Linv)
+    if one_campaign:  # the covariances are made again block by block where needed
+        cov = PerTestCovariance(noise, J, full(x), measured, w, weights)
+        Linv = whitening_per_test(noise, J, full(x), measured, w, weights, out=Linv)
+    else:
+        cov = covariances_per_test(noise, J, full(x), measured, w, weights)
+        Linv = whitening(cov, measured, out=Linv)
     _, cov_x = solve(Linv, F, f, None)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)
