@@ -288,9 +288,9 @@ def _fold_eiv(robot, tests, fold, P, joints, noise, Linv, R, scale, lev, x_p, ok
     from analysis.identification.eiv import corrected, wrench_eiv_matrix
     from analysis.identification.fitting import _jacobian
 
-    J = _jacobian(robot, tests.q)[..., list(joints)]
+    J = _jacobian(robot, tests.q)
     held = wrench_eiv_matrix(J, noise.wrench_sigma_at(tests.w) ** 2, Linv, tests.measured,
-                             group=fold, n_groups=P)
+                             group=fold, n_groups=P, cols=list(joints))
     p = R.shape[0]
     Rinv = np.linalg.inv(R)
     bread = (Rinv @ np.linalg.solve(np.eye(p) - lev[ok], np.broadcast_to(

@@ -48,6 +48,7 @@ from analysis.identification.fitting import (  # noqa: F401 (re-exported: the pu
     COND_LIMIT,
     _covariances,
     _design,
+    _fit_covariances,
     _full,
     _jacobian,
     _linear_estimator,
@@ -57,12 +58,11 @@ from analysis.identification.fitting import (  # noqa: F401 (re-exported: the pu
     fit_exact,
     fit_linear,
 )
-from analysis.identification.gauss_newton import EVAL_BLOCK
 from analysis.identification.lsq import (
     TEST_BLOCK,
     TallR,
-    residual_variance_blocks,
-    sandwich,
+    per_test_diagonal,
+    sandwich_and_residual_variance,
     scaled_condition,
     stack_matrix,
     whitening,
@@ -138,8 +138,7 @@ MAX_OUTLIERS = 10
 
 def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
     """(m, 6) studentized residuals of fit ``f`` (NaN where not measured)."""
-    cov_x = sandwich(f.A, f.cov, f.bread, f.Linv)
-    var_r = residual_variance_blocks(f.A, f.cov, f.bread, cov_x, f.Linv)
+    _, var_r = sandwich_and_residual_variance(f.A, f.cov, f.bread, f.Linv)
     resid = np.where(tests.measured, tests.d - f.predicted, np.nan)
     return studentized(resid, var_r * scale)
 
@@ -173,7 +172,7 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
                           tests.line)
         try:
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
-                                     float(tests.d[i, c]), reuse=current is not first)
+                                     float(tests.d[i, c]))
             t = _studentized_matrix(rest, current, scale)
         except InputError:
             break
@@ -192,8 +191,8 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
     ``d_ic``: the removed measurement. A downdated OLS fit shares ``prev.A`` (rows of the
     removed components included, see below; ``predicted`` there is A x of those rows):
     its estimate, bread, covariance and the studentized residuals of ``rest`` are those
-    of the refit. ``reuse``: prev's covariance array may be overwritten (prev is a
-    refit of the caller's own, not needed afterwards).
+    of the refit; its covariances are made block by block where used in a large
+    campaign (:func:`_fit_covariances`). ``reuse``: kept for callers, not used.
 
     OLS: rank-1 downdate of prev's (A^T A)^-1 (Sherman-Morrison) instead of a new
     QR of the whole design: ``bread' = bread + g g^T / (1 - h)``, ``g = bread a``,
@@ -225,9 +224,7 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
                 # serve the outlier test, which does not report the shift
                 shift = prev.eiv_shift + x_new - x
                 x = x_new
-            cov = _covariances(noise, J, _full(x, joints), rest.measured, rest.w,
-                               out=prev.cov if reuse and prev.cov.shape[0] > EVAL_BLOCK
-                               else None)
+            cov = _fit_covariances(noise, J, _full(x, joints), rest.measured, rest.w)
             # A keeps the removed rows (no 0.3 GB copy at 1e6 tests): cov has zero rows and
             # columns there, so they add nothing to the sandwich or the residual variances,
             # and their residuals are NaN in ``rest``; x and bread are the downdated ones
@@ -244,7 +241,7 @@ def _residual_table(tests, result_fit, t, flags) -> pd.DataFrame:
 
     ``t`` (m, 6) studentized residuals.
     """
-    sigma = np.sqrt(np.diagonal(result_fit.cov, axis1=-2, axis2=-1))
+    sigma = np.sqrt(per_test_diagonal(result_fit.cov))
     return ResidualRows(tests, result_fit.predicted, sigma, t, flags).frame()
 
 
@@ -358,19 +355,31 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     n_eq = int(tests.measured.sum())
     # the goodness of fit is that of the components the fit rests on
     dof = int(kept.sum()) - p
-    cov_x = sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv)
-    var_r = residual_variance_blocks(chosen.A, chosen.cov, chosen.bread, cov_x, chosen.Linv)
+    cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
+                                                  chosen.Linv)
     # the fit's own whitening when it used the same components, else made block by block
-    # (an (m, 6, 6) array is 0.3 GB at 1e6 tests)
+    # (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of the
+    # whitened system, for its scaled condition without the (6m, p) Linv A
     own = chosen.Linv if rob is None and chosen.Linv is not None else None
     resid = np.where(kept, tests.d - chosen.predicted, 0.0)
-    chi2_red, p_value = chi2_summary(np.concatenate([
-        np.einsum("mij,mj->mi", own[sl] if own is not None else
-                  whitening(chosen.cov[sl], kept[sl]), resid[sl])
-        for sl in _blocks(tests.m)]), dof)
+    whitened_resid = np.empty(resid.shape)
+    acc = TallR() if tests.m > TEST_BLOCK else None
+    for sl in _blocks(tests.m):
+        Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
+        whitened_resid[sl] = np.einsum("mij,mj->mi", Lb, resid[sl])
+        if acc is not None:
+            acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
+    chi2_red, p_value = chi2_summary(whitened_resid, dof)
+    del whitened_resid
+    if acc is not None:
+        Aw = acc.r()
+    else:
+        Aw = stack_matrix((own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
+    del acc
     from analysis.identification.noise_check import noise_ratio_notes
 
-    warnings += noise_ratio_notes(resid, chosen.cov, kept, noise, len(joints))
+    sigma = np.sqrt(per_test_diagonal(chosen.cov))  # (m, 6) each component's sigma
+    warnings += noise_ratio_notes(resid, sigma, kept, noise, len(joints))
     scale = 1.0
     crit = critical_value(confidence)
     if covariance == "residual":
@@ -410,8 +419,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t)
     else:
         flags = tests.measured & ~kept
-    rows = ResidualRows(tests, chosen.predicted,
-                        np.sqrt(np.diagonal(chosen.cov, axis1=-2, axis2=-1)), t, flags,
+    rows = ResidualRows(tests, chosen.predicted, sigma, t, flags,
                         None if rob is None else rob.weights)
     if n_eq > RESIDUAL_ROWS_HELD:
         residuals = rows.frame(rows.worst_tests(RESIDUALS_LISTED))
@@ -431,15 +439,6 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         warnings.append(
             f"{n_flagged} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
             f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
-    # R of the whitened system: its scaled condition without the (6m, p) Linv A
-    if tests.m > TEST_BLOCK:
-        acc = TallR()
-        for sl in _blocks(tests.m):
-            Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
-            acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
-        Aw = acc.r()
-    else:
-        Aw = stack_matrix((own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
     result = IdentificationResult.build(
         robot=robot.name, method=method, joints=joints, x=chosen.x, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,
@@ -454,7 +453,13 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     if rob is not None:
         result.robust = rob.describe()
     if validate:
+        from dataclasses import replace
+
         from analysis.identification.crossval import leave_one_pose_out
+
+        # the validation does not use the fit's residual covariances: let them go first
+        # (0.3 GB at 1e6 tests)
+        chosen = replace(chosen, cov=None)
 
         # robust: validated on the components the robust fit kept (weight >= 0.5)
         valid_tests = tests if rob is None else TestArrays(

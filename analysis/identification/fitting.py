@@ -13,7 +13,12 @@ import numpy as np
 from analysis.errors import InputError
 from analysis.identification import lsq
 from analysis.identification.eiv import corrected, wrench_eiv_matrix
-from analysis.identification.gauss_newton import covariances_per_test, gauss_newton
+from analysis.identification.gauss_newton import (
+    covariances_per_test,
+    gauss_newton,
+    per_test_covariance,
+    whitening_per_test,
+)
 from analysis.identification.linear_model import design_block
 from analysis.identification.lsq import (
     qr_solve,
@@ -154,13 +159,24 @@ def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
     return covariances_per_test(noise, J, x_full, measured, w, weights, out)
 
 
-def _linear_estimator(A, d, measured, cov, weighted: bool):
+def _fit_covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
+                     w: np.ndarray | None = None, weights: np.ndarray | None = None):
+    """A fit's ``cov``: :func:`_covariances`, or for one large campaign a
+    :class:`~analysis.identification.gauss_newton.PerTestCovariance` made when used."""
+    return per_test_covariance(noise, J, x_full, measured, w, weights)
+
+
+def _linear_estimator(A, d, measured, cov, weighted: bool, Linv=None):
     """x = G d for per-test blocks; returns x, bread (p, p), Linv (m, 6, 6) or None.
 
-    G = bread A^T Linv^T Linv (bread A^T for OLS), see :class:`Fit`.
+    G = bread A^T Linv^T Linv (bread A^T for OLS), see :class:`Fit`. ``Linv``: the
+    whitening of ``cov`` if the caller has it (``cov`` is then not used).
     """
     dz = np.where(measured, d, 0.0)
-    Linv = whitening(cov, measured) if weighted else None
+    if weighted and Linv is None:
+        Linv = whitening(cov, measured)
+    elif not weighted:
+        Linv = None
     if A.shape[0] * 6 > lsq.TALL_ROWS:
         x, bread = whitened_lstsq(A, dz, Linv)  # blockwise: no stacked (6m, p) copy
         return x, bread, Linv
@@ -181,8 +197,8 @@ def _wrench_eiv(noise, J, tests, joints, x, bread, Linv):
     :mod:`analysis.identification.eiv`: ``(N - S) x_c = N x`` with S from each test's
     wrench covariance (:meth:`NoiseModel.wrench_sigma_at`) and the fit's weights.
     """
-    S = wrench_eiv_matrix(J[..., list(joints)], noise.wrench_sigma_at(tests.w) ** 2, Linv,
-                          tests.measured)
+    S = wrench_eiv_matrix(J, noise.wrench_sigma_at(tests.w) ** 2, Linv, tests.measured,
+                          cols=list(joints))
     # relative attenuation: the eigenvalues of bread S (similar to a symmetric PSD matrix)
     rho = float(np.max(np.abs(np.linalg.eigvals(bread @ S))))
     if not rho <= EIV_LIMIT:
@@ -218,16 +234,25 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
         x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, None, weighted=False)
     if weighted:
         for n in range(2):
-            cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w, weights)
+            if n == 0:  # only the last pass's covariances are kept: whitened block by block
+                cov, Lw = None, whitening_per_test(noise, J, _full(x, joints), tests.measured,
+                                                   tests.w, weights)
+            else:  # kept by the fit: made again block by block where used
+                cov = _fit_covariances(noise, J, _full(x, joints), tests.measured, tests.w,
+                                       weights)
+                Lw = None if isinstance(cov, np.ndarray) else whitening_per_test(
+                    noise, J, _full(x, joints), tests.measured, tests.w, weights)
             x0 = x
-            x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True)
+            x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True,
+                                               Linv=Lw)
+            del Lw
             if n == 0 and first_whitening is not None:
                 first_whitening.update(x=np.array(x0, dtype=float), Linv=Linv)
     shift = None
     if eiv:
         x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv)
     if not weighted:  # at the final estimate (WLS: the weights it was fitted with)
-        cov = _covariances(noise, J, _full(x, joints), tests.measured, tests.w)
+        cov = _fit_covariances(noise, J, _full(x, joints), tests.measured, tests.w)
     pred = np.einsum("mrp,p->mr", A, x)
     return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv,
                eiv_shift=shift)

@@ -136,6 +136,72 @@ def covariances_per_test(noise, J, x_full, measured, w=None, weights=None,
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
 
 
+class PerTestCovariance:
+    """The residual covariance of each test (m, 6, 6) of one large campaign, made when sliced.
+
+    ``cov[s:e]`` is :func:`covariances_per_test` of those tests (the same numbers as a
+    slice of the whole array); the (m, 6, 6) array (0.3 GB at 1e6 tests) is never held.
+    The passes over it (:func:`analysis.identification.lsq.sandwich_and_residual_variance`,
+    the chi-square's whitening, :func:`~analysis.identification.lsq.per_test_diagonal`)
+    take it by blocks of consecutive tests. ``J`` (m, 6, 6) is the Jacobian at the tests'
+    joint angles, ``x_full`` (6,) the compliances the covariances are evaluated at.
+    """
+
+    ndim = 3
+
+    def __init__(self, noise, J, x_full, measured, w=None, weights=None) -> None:
+        self.noise, self.J, self.measured, self.w, self.weights = noise, J, measured, w, weights
+        self.x_full = np.array(x_full, dtype=float)
+        self.shape = J.shape[:-1] + (6,)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, sl):
+        if not isinstance(sl, slice):
+            return np.asarray(self)[sl]
+
+        def part(a):
+            return None if a is None else a[sl]
+
+        return covariances_per_test(self.noise, self.J[sl], self.x_full, self.measured[sl],
+                                    part(self.w), part(self.weights))
+
+    def __array__(self, dtype=None, copy=None):
+        out = covariances_per_test(self.noise, self.J, self.x_full, self.measured, self.w,
+                                   self.weights)
+        return out if dtype is None else out.astype(dtype)
+
+
+def per_test_covariance(noise, J, x_full, measured, w=None, weights=None):
+    """:func:`covariances_per_test` as an array, or for one campaign of more than
+    :data:`EVAL_BLOCK` tests a :class:`PerTestCovariance` (made block by block when used)."""
+    if J.ndim == 3 and J.shape[0] > EVAL_BLOCK:
+        return PerTestCovariance(noise, J, x_full, measured, w, weights)
+    return covariances_per_test(noise, J, x_full, measured, w, weights)
+
+
+def whitening_per_test(noise, J, x_full, measured, w=None, weights=None,
+                       out: np.ndarray | None = None) -> np.ndarray:
+    """:func:`whitening` of :func:`covariances_per_test`, block by block for one campaign.
+
+    The same numbers as whitening the whole covariance array, without holding it
+    (one campaign of 1e6 tests: 0.3 GB, and its page faults). ``out``: a whitening
+    array no longer needed, overwritten.
+    """
+    if J.ndim != 3 or J.shape[0] <= EVAL_BLOCK:
+        return whitening(covariances_per_test(noise, J, x_full, measured, w, weights),
+                         measured)
+    out = np.empty(J.shape[:-1] + (6,)) if out is None or out.shape != J.shape[:-1] + (6,) \
+        else out
+    for s in range(0, J.shape[0], EVAL_BLOCK):
+        sl = slice(s, s + EVAL_BLOCK)
+        out[sl] = whitening(covariances_per_test(
+            noise, J[sl], x_full, measured[sl], None if w is None else w[sl],
+            None if weights is None else weights[sl]), measured[sl])
+    return out
+
+
 def gauss_newton(
     robot: RobotModel,
     q: np.ndarray,
@@ -210,17 +276,16 @@ def gauss_newton(
     f, F, ok, dq = evaluate(x)
     valid &= ok
     one_campaign = F.ndim == 3 and F.shape[0] > EVAL_BLOCK
-    Linv = cov_buf = None
+    Linv = None
     converged = np.zeros(batch, dtype=bool)
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
         if iterations == 1 and Linv0 is not None and reweight_iterations >= 1:
             Linv = Linv0  # the caller's whitening at x0, the same array
         elif iterations <= reweight_iterations:
-            # the previous iteration's covariance and whitening arrays are overwritten
-            cov_buf = covariances_per_test(noise, J, full(x), measured, w, weights,
-                                           out=cov_buf)
-            Linv = whitening(cov_buf, measured, out=Linv)
+            # the previous iteration's whitening array is overwritten; the covariances
+            # are made and whitened block by block (only the final ones are kept)
+            Linv = whitening_per_test(noise, J, full(x), measured, w, weights, out=Linv)
         r = whitened(Linv, f)
         step, _ = solve(Linv, F, f, r)
         # the next model Jacobian comes with the step's evaluation, into F's array
@@ -230,7 +295,9 @@ def gauss_newton(
         cost0 = np.sum(r**2, axis=(-2, -1))
         t = np.ones(batch)
         accepted = np.zeros(batch, dtype=bool)
-        x_new, f_new, dq_new = x.copy(), f.copy(), dq.copy()
+        # one campaign: the accepted trial's arrays are taken as they are (no (m, 6)
+        # copies: ``ok`` is one bool), else merged campaign by campaign
+        x_new, f_new, dq_new = (x, f, dq) if not batch else (x.copy(), f.copy(), dq.copy())
         F_full = None
         for halving in range(12):
             x_try = x + t[..., None] * step
@@ -243,9 +310,14 @@ def gauss_newton(
                 F_full = F_try
             ok = ~accepted & good & (np.sum(whitened(Linv, f_try) ** 2, axis=(-2, -1))
                                      <= cost0 * (1 + 1e-8))
-            x_new = np.where(ok[..., None], x_try, x_new)
-            f_new = np.where(ok[..., None, None], f_try, f_new)
-            dq_new = np.where(ok[..., None, None], dq_try, dq_new)
+            if not batch:
+                if ok:
+                    x_new, f_new, dq_new = x_try, f_try, dq_try
+            else:
+                x_new = np.where(ok[..., None], x_try, x_new)
+                f_new = np.where(ok[..., None, None], f_try, f_new)
+                dq_new = np.where(ok[..., None, None], dq_try, dq_new)
+            del f_try, dq_try
             accepted |= ok
             if np.all(accepted):
                 break
@@ -261,8 +333,13 @@ def gauss_newton(
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
         if np.all(converged | ~valid):
             break
-    cov = covariances_per_test(noise, J, full(x), measured, w, weights, out=cov_buf)
-    Linv = whitening(cov, measured, out=Linv)
+    tips.clear()  # the unloaded tool poses (0.13 GB at 1e6 tests) before the last arrays
+    if one_campaign:  # the covariances are made again block by block where needed
+        cov = PerTestCovariance(noise, J, full(x), measured, w, weights)
+        Linv = whitening_per_test(noise, J, full(x), measured, w, weights, out=Linv)
+    else:
+        cov = covariances_per_test(noise, J, full(x), measured, w, weights)
+        Linv = whitening(cov, measured, out=Linv)
     _, cov_x = solve(Linv, F, f, None)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)

@@ -304,3 +304,42 @@ def residual_variance_blocks(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
         out[s:s + block] = np.maximum(np.diagonal(Sb, axis1=-2, axis2=-1) - 2 * cross + quad,
                                       0.0)
     return out
+
+
+def sandwich_and_residual_variance(A: np.ndarray, cov, bread: np.ndarray,
+                                   Linv: np.ndarray | None = None, block: int = TEST_BLOCK
+                                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`sandwich`, :func:`residual_variance_blocks`) with one pass over ``cov``.
+
+    The same numbers as the two calls: the per-test part that needs Sigma_i,
+    ``diag(Sigma_i) - 2 diag(A_i G_i Sigma_i)``, is made in the pass that sums the
+    sandwich's meat; ``diag(A_i cov_x A_i^T)`` is added once cov_x is known (a pass over
+    A only). ``cov`` may be made block by block when sliced
+    (:class:`analysis.identification.gauss_newton.PerTestCovariance`): it is sliced once
+    per block of tests.
+    """
+    m, p = A.shape[0], A.shape[-1]
+    meat = np.zeros((p, p))
+    part = np.empty((m, 6))
+    for s in range(0, m, block):
+        Ab, Sb = A[s:s + block], cov[s:s + block]
+        WA = _weighted(A, Linv, s, block)
+        SWA = Sb @ WA
+        meat += WA.reshape(-1, p).T @ SWA.reshape(-1, p)
+        cross = np.sum((Ab.reshape(-1, p) @ bread).reshape(Ab.shape) * SWA, axis=-1)
+        part[s:s + block] = np.diagonal(Sb, axis1=-2, axis2=-1) - 2 * cross
+    cov_x = bread @ meat @ bread.T
+    for s in range(0, m, block):
+        Ab = A[s:s + block]
+        quad = np.sum((Ab.reshape(-1, p) @ cov_x).reshape(Ab.shape) * Ab, axis=-1)
+        part[s:s + block] = np.maximum(part[s:s + block] + quad, 0.0)
+    return cov_x, part
+
+
+def per_test_diagonal(cov, block: int = TEST_BLOCK) -> np.ndarray:
+    """diag of each test's 6 x 6 block, (m, 6), from ``cov`` (m, 6, 6) sliced by blocks."""
+    m = cov.shape[0]
+    out = np.empty((m, 6))
+    for s in range(0, m, block):
+        out[s:s + block] = np.diagonal(cov[s:s + block], axis1=-2, axis2=-1)
+    return out

@@ -24,7 +24,7 @@ MIN_RESIDUALS = 8
 
 def noise_ratio_notes(
     residual: np.ndarray,
-    cov: np.ndarray,
+    sigma: np.ndarray,
     measured: np.ndarray,
     noise: NoiseModel,
     n_params: int,
@@ -35,10 +35,11 @@ def noise_ratio_notes(
     Parameters
     ----------
     residual : (m, 6) measured minus predicted displacement (m, rad).
-    cov : (m, 6, 6) declared residual covariance of each test.
+    sigma : (m, 6) declared standard deviation of each residual component (m, rad): the
+        square root of the diagonal of each test's residual covariance.
     measured : (m, 6) bool. noise : the declared noise model. n_params : fitted parameters.
     """
-    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1))
+    sig = sigma
     n_eq = int(measured.sum())
     if n_eq <= n_params:
         return []

@@ -7,11 +7,14 @@ import pytest
 
 from analysis.identification import lsq
 from analysis.identification.estimate import fit
+from analysis.identification.fitting import _full
 from analysis.identification.lsq import (
     block_diag_apply,
+    per_test_diagonal,
     qr_solve,
     residual_variance_blocks,
     sandwich,
+    sandwich_and_residual_variance,
     scaled_condition,
     stack_matrix,
     stack_vector,
@@ -21,6 +24,7 @@ from analysis.identification.lsq import (
 )
 from analysis.identification.noise import NoiseModel
 from analysis.identification.uncertainty import residual_variance
+from analysis.model.kinematics import jacobian
 
 from ._sim import simulate
 
@@ -80,6 +84,22 @@ def test_sandwich_and_residual_variance_equal_the_hat_matrix_forms(kr240, zone_p
     np.testing.assert_allclose(cov_block, cov_dense, rtol=1e-10, atol=1e-12 * np.abs(
         cov_dense).max())
     np.testing.assert_allclose(var_block, var_dense, rtol=1e-9, atol=1e-12 * var_dense.max())
+    # one pass over Sigma: the same numbers as the two passes, from the covariances made
+    # block by block when sliced (PerTestCovariance), blocks of 3 tests
+    from analysis.identification.gauss_newton import PerTestCovariance
+
+    cov_fused, var_fused = sandwich_and_residual_variance(f.A, f.cov, f.bread, f.Linv, block=3)
+    np.testing.assert_array_equal(cov_fused, cov_block)
+    np.testing.assert_array_equal(var_fused, var_block)
+    if method == "ols":  # OLS evaluates its covariances at its final x
+        lazy = PerTestCovariance(NoiseModel(), jacobian(kr240, tests.q), _full(f.x, joints),
+                                 tests.measured, tests.w)
+        np.testing.assert_allclose(np.asarray(lazy), f.cov, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(per_test_diagonal(lazy, block=3),
+                                   np.diagonal(f.cov, axis1=-2, axis2=-1), rtol=1e-12, atol=0)
+        cov_lazy, var_lazy = sandwich_and_residual_variance(f.A, lazy, f.bread, f.Linv, block=3)
+        np.testing.assert_allclose(cov_lazy, cov_block, rtol=1e-12)
+        np.testing.assert_allclose(var_lazy, var_block, rtol=1e-12)
     # the blockwise operator equals the dense G (blocks of 4 tests)
     v = np.random.default_rng(5).normal(size=G.shape[1])
     est = f.estimator
