@@ -288,10 +288,18 @@ def gauss_newton(
             Linv = whitening_per_test(noise, J, full(x), measured, w, weights, out=Linv)
         r = whitened(Linv, f)
         step, _ = solve(Linv, F, f, r)
+        step = np.where(valid[..., None] & np.isfinite(step), step, 0.0)
+        if iterations > 1:
+            # a step below the tolerance is not taken: x is then within tol * max |x| of the
+            # minimum, and its model, Jacobian and deflections are already evaluated (one
+            # equilibrium solve saved, ~1/4 of the fit)
+            small = np.max(np.abs(step), axis=-1) <= tol * np.max(np.abs(x), axis=-1)
+            if np.all(small | ~valid):
+                converged = small
+                break
         # the next model Jacobian comes with the step's evaluation, into F's array
         F_buf = F if one_campaign else None
         del F
-        step = np.where(valid[..., None] & np.isfinite(step), step, 0.0)
         cost0 = np.sum(r**2, axis=(-2, -1))
         t = np.ones(batch)
         accepted = np.zeros(batch, dtype=bool)
