@@ -38,16 +38,7 @@ def diagonally_dominant(A: np.ndarray) -> np.ndarray:
 
 def _eliminate(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """x with A x = b, entry-major A (n, n, N) and b (n, N), no pivoting; A, b overwritten."""
-    n = A.shape[0]
-    for j in range(n - 1):
-        f = A[j + 1:, j] / A[j, j]  # (n-j-1, N) multipliers
-        A[j + 1:, j + 1:] -= f[:, None, :] * A[j, j + 1:][None, :, :]
-        b[j + 1:] -= f * b[j]
-    x = np.empty_like(b)
-    for i in range(n - 1, -1, -1):
-        s = b[i] - np.einsum("kn,kn->n", A[i, i + 1:], x[i + 1:]) if i < n - 1 else b[i]
-        x[i] = s / A[i, i]
-    return x
+    return _eliminate_columns(A, b[:, None, :])[:, 0, :]
 
 
 def _eliminate_columns(A: np.ndarray, B: np.ndarray) -> np.ndarray:
