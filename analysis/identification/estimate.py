@@ -132,6 +132,9 @@ def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...
     return tuple(sorted(out))
 
 
+#: the errors-in-variables correction is a warning when it moves some k by this many se
+EIV_WARN_SE = 0.1
+
 #: at most this many residuals are set aside one by one by :func:`flag_outliers`
 MAX_OUTLIERS = 10
 
@@ -403,7 +406,10 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         from analysis.identification.eiv import shift_summary
 
         eiv = shift_summary(joints, chosen.x, chosen.eiv_shift, se_x, noise)
-        warnings.append(eiv["note"])
+        # always in results.json and the printed assumptions; a warning only where it
+        # moves k by a tenth of its standard error or more (large campaigns)
+        if (eiv["max_abs_shift_in_se"] or 0.0) >= EIV_WARN_SE:
+            warnings.append(eiv["note"])
     if np.isfinite(p_value) and p_value < 1e-3:
         warnings.append(f"reduced chi-square {chi2_red:.3g} (p = {p_value:.2g}): residuals do "
                         "not match the noise model; check the noise figures or use "

@@ -160,3 +160,20 @@ def test_small_campaigns_are_moved_by_a_tiny_fraction_of_their_standard_error(
         assert np.max(np.abs(f.eiv_shift) / se) > 0  # applied all the same
     # the whitening used is that of the fit (the weights are W = Sigma^-1)
     np.testing.assert_allclose(f.Linv, whitening(f.cov, tests.measured))
+
+
+def test_the_correction_is_a_warning_only_where_it_moves_k(kr240, zone_poses, w_eff):
+    """Always in results.json; among the warnings only from 0.1 se on: a 15-test campaign
+    with the default F/T figures (~1e-2 se) has none, 400 tests with ten times the noise
+    (several se) have it."""
+    from analysis.identification.estimate import EIV_WARN_SE, identify
+
+    q = zone_poses[np.arange(15) % len(zone_poses)]
+    small = identify(kr240, simulate(kr240, q, w_eff, kr240.nominal_stiffness, NoiseModel(),
+                                     seed=3), validate=False)
+    assert small.wrench_eiv["max_abs_shift_in_se"] < EIV_WARN_SE
+    assert not any("errors-in-variables" in w for w in small.warnings)
+    loud = identify(kr240, _campaign(kr240, 400, LOUD_FT, seed=4), noise=LOUD_FT,
+                    validate=False)
+    assert loud.wrench_eiv["max_abs_shift_in_se"] > 1.0
+    assert any("errors-in-variables corrected" in w for w in loud.warnings)
