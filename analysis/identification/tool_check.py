@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.linear_model import design_block
+from analysis.identification.lsq import whitening
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.model.kinematics import jacobian, tool_pose
@@ -99,23 +100,22 @@ def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray
     augmented system leaves no degrees of freedom or the offset is not
     determined by the poses.
     """
-    idx = _subset(tests.m)
-    q, w, d, meas = tests.q[idx], tests.w[idx], tests.d[idx], tests.measured[idx]
+    sub = tests.subset(_subset(tests.m))
+    q, w, d, meas = sub.q, sub.w, sub.d, sub.measured
     cols = list(joints)
     x = np.asarray(x, dtype=float)
     J = jacobian(robot, q)
     A_lin = design_block(J, w)
+    base = np.einsum("mrj,j->mr", A_lin, x)  # the linear model's prediction
     if method == "exact":
         from analysis.identification.exact_fit import model_displacement
 
         pred, D = model_displacement(robot, q, x, w)
         A = D[..., cols]
     else:
-        pred = np.einsum("mrj,j->mr", A_lin, x)
-        A = A_lin[..., cols]
-    base = np.einsum("mrj,j->mr", A_lin, x)
+        pred, A = base, A_lin[..., cols]
     R = tool_pose(robot, q)[:, :3, :3]
-    B = np.empty((len(idx), 6, 3))
+    B = np.empty((sub.m, 6, 3))
     for i in range(3):
         p = R[:, :, i] * STEP  # P moved by STEP along tool axis i, in the base frame
         Jr = J.copy()
@@ -123,12 +123,10 @@ def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray
         Jr[:, :3, :] -= np.cross(p[:, None, :], np.swapaxes(J[:, 3:, :], 1, 2)).swapaxes(1, 2)
         B[:, :, i] = (np.einsum("mrj,j->mr", design_block(Jr, w), x) - base) / STEP
     C = np.einsum("mrj,j,msj->mrs", J, x, J)
-    S = residual_covariance(noise, C, w)
-    # whitening of the measured components: Cholesky of the inverse of their block of S
-    S = np.where(meas[:, :, None] & meas[:, None, :], S, np.eye(6))
-    Linv = np.linalg.inv(np.linalg.cholesky(S))
+    # the fits' own whitening: components not measured get zero rows of L^-1
+    Linv = whitening(residual_covariance(noise, C, w), meas)
     e = np.where(meas, d - pred, 0.0)
-    M = np.concatenate([A, B], axis=2) * meas[:, :, None]
+    M = np.concatenate([A, B], axis=2)
     Mw = (Linv @ M).reshape(-1, M.shape[-1])
     ew = np.einsum("mij,mj->mi", Linv, e).reshape(-1)
     n_eq, p = int(meas.sum()), len(cols)
@@ -156,4 +154,4 @@ def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray
     k_moved[cols] = np.where(x_new > 0, 1.0 / np.where(x_new > 0, x_new, 1.0), np.nan)
     return ToolCheck(offset_m=step[p:], se_m=np.sqrt(np.diag(cov)[p:]), f_value=float(f_value),
                      p_value=p_value, delta_chi2=delta, chi2=chi2_aug, dof=dof,
-                     n_tests=len(idx), k_moved=k_moved)
+                     n_tests=sub.m, k_moved=k_moved)
