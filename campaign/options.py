@@ -120,16 +120,14 @@ def robot_and_tool(robot: str, tip: str | None, tool_xyz_mm: str | None = None,
 
 def file_tool_point(robot: RobotModel) -> ToolPoint | None:
     """The robot file's own ``[tool]`` as a :class:`ToolPoint`, or None when P is the flange."""
-    import pinocchio as pin
-
-    from analysis.model.robots import tool_in_flange
+    from analysis.model.robots import tool_in_flange, tool_mm_deg
 
     t = tool_in_flange(robot)
     if t is None or np.allclose(t, np.eye(4), atol=1e-12):
         return None
-    xyz = tuple(float(v) for v in np.round(t[:3, 3] * 1e3, 9) + 0.0)
-    rpy = tuple(float(v) for v in np.round(np.degrees(pin.rpy.matrixToRpy(t[:3, :3])), 9) + 0.0)
-    return ToolPoint(xyz, rpy, f"tool of the robot file {robot.source_file or robot.name}")
+    xyz, rpy = tool_mm_deg(t)
+    return ToolPoint(tuple(xyz), tuple(rpy),
+                     f"tool of the robot file {robot.source_file or robot.name}")
 
 
 def robot_option(robot: str, tip: str | None, tool_xyz_mm: str | None = None,

@@ -87,6 +87,14 @@ def tool_in_flange(robot: RobotModel) -> np.ndarray | None:
     return (flange.inverse() * model.frames[robot.tip_frame].placement).homogeneous
 
 
+def tool_mm_deg(tool: np.ndarray, digits: int = 9) -> tuple[list[float], list[float]]:
+    """(xyz in mm, roll-pitch-yaw in deg) of a tool transform (4, 4) (m), rounded to ``digits``
+    (no -0.0): the units a tool point is written in ([tool], --tool-xyz-mm/--tool-rpy-deg)."""
+    xyz = np.round(tool[:3, 3] * 1e3, digits) + 0.0
+    rpy = np.round(np.degrees(pin.rpy.matrixToRpy(tool[:3, :3])), digits) + 0.0
+    return xyz.tolist(), rpy.tolist()
+
+
 def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel:
     """Copy of ``robot`` whose point P is moved by the tool (xyz in m, rpy in rad, flange frame).
 
@@ -102,15 +110,13 @@ def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel
     if present is not None and np.allclose(present, tool.homogeneous, atol=1e-9):
         return robot  # the same tool point given again: P is already there
     if present is not None and not np.allclose(present, np.eye(4), atol=1e-12):
-        had_xyz = np.round(present[:3, 3] * 1e3, 6) + 0.0
-        had_rpy = np.round(np.degrees(pin.rpy.matrixToRpy(present[:3, :3])), 6) + 0.0
+        had_xyz, had_rpy = tool_mm_deg(present, 6)
+        new_xyz, new_rpy = tool_mm_deg(tool.homogeneous, 6)
         raise InputError(
-            f"the robot file already places P with its [tool] (xyz {had_xyz.tolist()} mm, rpy "
-            f"{had_rpy.tolist()} deg from the flange); a second tool point (xyz "
-            f"{(np.round(np.asarray(xyz, float) * 1e3, 6) + 0.0).tolist()} mm, rpy "
-            f"{(np.round(np.degrees(np.asarray(rpy, float)), 6) + 0.0).tolist()} deg) would be "
-            "composed on it. Give the tool point once: drop the tool option or the protocol's "
-            "[tool], or write your tool into the robot file's [tool]",
+            f"the robot file already places P with its [tool] (xyz {had_xyz} mm, rpy "
+            f"{had_rpy} deg from the flange); a second tool point (xyz {new_xyz} mm, rpy "
+            f"{new_rpy} deg) would be composed on it. Give the tool point once: drop the tool "
+            "option or the protocol's [tool], or write your tool into the robot file's [tool]",
             where=robot.source_file or robot.name)
     model = pin.Model(robot.model)
     flange = model.frames[robot.tip_frame]
