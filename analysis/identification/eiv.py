@@ -72,15 +72,18 @@ def wrench_eiv_matrix(J: np.ndarray, wrench_cov: np.ndarray, Linv: np.ndarray | 
     amount by which the normal matrix built from measured wrenches exceeds the
     noise-free one on average (units of A^T W A).
     """
-    J = np.asarray(J, dtype=float)
+    if not hasattr(J, "_make"):  # a per-test J made when sliced stays as it is
+        J = np.asarray(J, dtype=float)
     cov = np.asarray(wrench_cov, dtype=float)
     m, p = J.shape[-3], J.shape[-1] if cols is None else len(cols)
     S = np.zeros((n_groups, p, p) if group is not None else J.shape[:-3] + (p, p))
     for s in range(0, m, block):
         sl = slice(s, s + block)
-        Jb = J[..., sl, :, :] if cols is None else J[..., sl, :, cols]
+        Jb = J[sl] if J.ndim == 3 else J[..., sl, :, :]
+        if cols is not None:
+            Jb = Jb[..., cols]
         if Linv is not None:
-            B = Linv[..., sl, :, :] @ Jb
+            B = (Linv[sl] if Linv.ndim == 3 else Linv[..., sl, :, :]) @ Jb
         elif measured is not None:
             B = Jb * measured[..., sl, :, None]
         else:

@@ -69,6 +69,7 @@ from analysis.identification.lsq import (
 )
 from analysis.identification.measurements import TestArrays, to_arrays
 from analysis.identification.noise import NoiseModel
+from analysis.identification.per_test import apply
 from analysis.identification.poses import count_poses, pose_tolerance
 from analysis.identification.result import (
     RESIDUALS_LISTED,
@@ -137,13 +138,26 @@ EIV_WARN_SE = 0.1
 
 #: at most this many residuals are set aside one by one by :func:`flag_outliers`
 MAX_OUTLIERS = 10
+#: campaigns of more measured components than this set aside every residual beyond the
+#: threshold at once in each round of :func:`flag_outliers`
+OUTLIERS_AT_ONCE_ABOVE = 100_000
+#: ... when the leverages of the residuals set aside together sum to at most this (else
+#: the largest alone): setting them aside then moves any other residual's t by at most
+#: about sqrt(this * h_j) |t|, far below the threshold's resolution
+AT_ONCE_MAX_LEVERAGE = 1e-3
 
 
 def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
     """(m, 6) studentized residuals of fit ``f`` (NaN where not measured)."""
     _, var_r = sandwich_and_residual_variance(f.A, f.cov, f.bread, f.Linv)
+    # in place: (m, 6) arrays are 48 MB each at 1e6 tests
+    var_r *= scale
     resid = np.where(tests.measured, tests.d - f.predicted, np.nan)
-    return studentized(resid, var_r * scale)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.sqrt(var_r, out=var_r)
+        np.divide(resid, var_r, out=resid)
+    resid[~(var_r > 0)] = np.nan
+    return resid
 
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
@@ -157,16 +171,36 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
     aside, the rest is refitted and tested again (a sequential, Grubbs-like
     procedure), at most :data:`MAX_OUTLIERS` times or while equations remain.
     ``t_first``: the (m, 6) studentized residuals of ``first`` if the caller has them.
+
+    Above :data:`OUTLIERS_AT_ONCE_ABOVE` measured components, each round sets aside
+    every residual beyond the threshold (largest |t| first, within the same budget)
+    and refits once, when their leverages sum to at most :data:`AT_ONCE_MAX_LEVERAGE`
+    (else the largest alone): a residual's leverage is then of order p / n, so setting
+    one aside barely moves the others' t, and a round per residual would cost a pass
+    over every test each. The rounds go on until the rest of the residuals are within
+    the threshold, as one at a time.
     """
     flags = np.zeros(tests.measured.shape, dtype=bool)
     current = first
     t = _studentized_matrix(tests, first, scale) if t_first is None else t_first
-    budget = min(MAX_OUTLIERS, int(tests.measured.sum()) - len(joints) - 1)
+    n_eq = int(tests.measured.sum())
+    budget = min(MAX_OUTLIERS, n_eq - len(joints) - 1)
+    at_once = n_eq > OUTLIERS_AT_ONCE_ABOVE
     for _ in range(max(budget, 0) + 1):
         candidate = np.where(tests.measured & ~flags & np.isfinite(t), np.abs(t), -np.inf)
-        i, c = np.unravel_index(int(np.argmax(candidate)), candidate.shape)
-        if not candidate[i, c] > threshold:
-            break
+        room = budget + 1 - int(flags.sum())
+        if at_once:
+            beyond = np.flatnonzero(candidate.reshape(-1) > threshold)
+            order = beyond[np.argsort(-candidate.reshape(-1)[beyond], kind="stable")][:room]
+            i, c = np.unravel_index(order, candidate.shape)
+            if not len(order):
+                break
+            if np.sum(_leverages(current, i, c)) > AT_ONCE_MAX_LEVERAGE:
+                i, c = i[:1], c[:1]  # influential: one at a time
+        else:
+            i, c = np.unravel_index(int(np.argmax(candidate)), candidate.shape)
+            if not candidate[i, c] > threshold:
+                break
         flags[i, c] = True
         if int(flags.sum()) > budget:
             break
@@ -175,11 +209,22 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
                           tests.line)
         try:
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
-                                     float(tests.d[i, c]))
+                                     tests.d[i, c])
+            t = None  # its 48 MB (1e6 tests) before the next
             t = _studentized_matrix(rest, current, scale)
         except InputError:
             break
     return flags
+
+
+def _leverages(f: Fit, i: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Leverage ``a^T bread a`` of the (whitened) rows (i, c) of fit ``f``'s system."""
+    out = np.empty(len(i))
+    for k, (ti, ci) in enumerate(zip(i.tolist(), c.tolist(), strict=True)):
+        a = np.asarray(f.A[ti], dtype=float)  # (6, p) the test's rows
+        a = (np.asarray(f.Linv[ti]) @ a)[ci] if f.Linv is not None else a[ci]
+        out[k] = float(a @ f.bread @ a)
+    return out
 
 
 #: a downdated OLS refit falls back to a full refit when the removed row's leverage
@@ -188,52 +233,58 @@ DOWNDATE_MAX_LEVERAGE = 0.5
 
 
 def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fit,
-                   i: int, c: int, d_ic: float, reuse: bool = False) -> Fit:
-    """The fit of ``method`` to ``rest``: ``prev``'s data without component (i, c).
+                   i, c, d_ic, reuse: bool = False) -> Fit:
+    """The fit of ``method`` to ``rest``: ``prev``'s data without component(s) (i, c).
 
-    ``d_ic``: the removed measurement. A downdated OLS fit shares ``prev.A`` (rows of the
+    ``i``, ``c``: a test and a component, or equal-length arrays of them; ``d_ic``: the
+    removed measurement(s). A downdated OLS fit shares ``prev.A`` (rows of the
     removed components included, see below; ``predicted`` there is A x of those rows):
     its estimate, bread, covariance and the studentized residuals of ``rest`` are those
     of the refit; its covariances are made block by block where used in a large
     campaign (:func:`_fit_covariances`). ``reuse``: kept for callers, not used.
 
-    OLS: rank-1 downdate of prev's (A^T A)^-1 (Sherman-Morrison) instead of a new
-    QR of the whole design: ``bread' = bread + g g^T / (1 - h)``, ``g = bread a``,
-    ``h = a^T g`` the leverage of the removed row a, ``x' = x - bread' a (d - a^T x)``;
-    the same least-squares solution, at O(p^2) instead of a pass over 6m rows (full
-    refit when h > :data:`DOWNDATE_MAX_LEVERAGE`). Exact: Gauss-Newton warm-started
-    at prev's estimate (same minimum, fewer iterations than from OLS). WLS: full refit.
+    OLS: rank-1 downdates of prev's (A^T A)^-1 (Sherman-Morrison), one per removed
+    row, instead of a new QR of the whole design: ``bread' = bread + g g^T / (1 - h)``,
+    ``g = bread a``, ``h = a^T g`` the leverage of the removed row a,
+    ``x' = x - bread' a (d - a^T x)``; the same least-squares solution, at O(p^2)
+    instead of a pass over 6m rows (full refit when some h > :data:`DOWNDATE_MAX_LEVERAGE`).
+    Exact: Gauss-Newton warm-started at prev's estimate (same minimum, fewer iterations
+    than from OLS). WLS: full refit.
     """
+    rows = list(zip(np.atleast_1d(i).tolist(), np.atleast_1d(c).tolist(),
+                    np.atleast_1d(d_ic).astype(float).tolist(), strict=True))
     if method == "ols" and prev.Linv is None:
-        a = prev.A[i, c].copy()
-        g = prev.bread @ a
-        h = float(a @ g)
-        if 0.0 <= h <= DOWNDATE_MAX_LEVERAGE:
-            bread = prev.bread + np.outer(g, g) / (1.0 - h)
-            x = prev.x - (bread @ a) * (d_ic - a @ prev.x)
-            J = _jacobian(robot, rest.q)
-            shift = None
-            if prev.eiv_shift is not None:
+        x, bread, shift = prev.x, prev.bread, prev.eiv_shift
+        J = _jacobian(robot, rest.q)
+        for ti, ci, di in rows:
+            a = np.array(prev.A[ti, ci], dtype=float)
+            g = bread @ a
+            h = float(a @ g)
+            if not 0.0 <= h <= DOWNDATE_MAX_LEVERAGE:
+                break
+            bread = bread + np.outer(g, g) / (1.0 - h)
+            x = x - (bread @ a) * (di - a @ x)
+            if shift is not None:
                 # the removed row's part of S leaves too: (N - S + dS)^-1, as a p x p update
                 from analysis.identification.eiv import corrected, wrench_eiv_matrix
 
                 row = np.zeros((1, 6), dtype=bool)
-                row[0, c] = True
-                dS = wrench_eiv_matrix(J[i:i + 1][..., list(joints)],
-                                       noise.wrench_sigma_at(rest.w[i:i + 1]) ** 2,
+                row[0, ci] = True
+                dS = wrench_eiv_matrix(J[ti:ti + 1][..., list(joints)],
+                                       noise.wrench_sigma_at(rest.w[ti:ti + 1]) ** 2,
                                        measured=row)
                 x_new, bread = corrected(x, bread, -dS)
                 # approximate (the rest's uncorrected x is not formed): these fits only
                 # serve the outlier test, which does not report the shift
-                shift = prev.eiv_shift + x_new - x
+                shift = shift + x_new - x
                 x = x_new
+        else:
             cov = _fit_covariances(noise, J, _full(x, joints), rest.measured, rest.w)
             # A keeps the removed rows (no 0.3 GB copy at 1e6 tests): cov has zero rows and
             # columns there, so they add nothing to the sandwich or the residual variances,
             # and their residuals are NaN in ``rest``; x and bread are the downdated ones
-            return Fit(x=x, A=prev.A, cov=cov, predicted=np.einsum("mrp,p->mr", prev.A, x),
-                       iterations=0, bread=bread, Linv=None,
-                       eiv_shift=None if prev.eiv_shift is None else shift)
+            return Fit(x=x, A=prev.A, cov=cov, predicted=apply(prev.A, x),
+                       iterations=0, bread=bread, Linv=None, eiv_shift=shift)
     if method == "exact":
         return fit_exact(robot, rest, joints, noise, start=prev.x)
     return fit(robot, rest, joints, noise, method)

@@ -31,6 +31,13 @@ from analysis.identification.lsq import (
 )
 from analysis.identification.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
 from analysis.identification.noise import NoiseModel
+from analysis.identification.per_test import (
+    LAZY_TESTS,
+    PerTestDesign,
+    PerTestJacobian,
+    apply,
+    is_lazy,
+)
 from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
 from analysis.identification.result import Fit
 from analysis.model.kinematics import jacobian
@@ -97,18 +104,26 @@ def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
 _J_CACHE: dict = {}
 
 
-def _jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
-    """J(q) (m, 6, 6), reused while the robot and the bytes of q are the same."""
+def _jacobian(robot: RobotModel, q: np.ndarray):
+    """J(q) (m, 6, 6), reused while the robot and the bytes of q are the same.
+
+    More than :data:`~analysis.identification.per_test.LAZY_TESTS` tests: a
+    :class:`~analysis.identification.per_test.PerTestJacobian`, made block by block
+    when sliced (0.3 GB not held at 1e6 tests).
+    """
     import hashlib
 
     q = np.ascontiguousarray(q, dtype=float)
     key = (id(robot), q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest())
     if _J_CACHE.get("key") != key or _J_CACHE.get("robot") is not robot:
         _J_CACHE.clear()
-        # in blocks of tests: the chain state of 1e6 poses at once is ~2.6 GB of temporaries
-        J = np.empty((*q.shape[:-1], 6, q.shape[-1]))
-        for s in range(0, q.shape[0], lsq.TEST_BLOCK):
-            J[s:s + lsq.TEST_BLOCK] = jacobian(robot, q[s:s + lsq.TEST_BLOCK])
+        if q.ndim == 2 and q.shape[0] > LAZY_TESTS:
+            J = PerTestJacobian(robot, q)
+        else:
+            # in blocks of tests: the chain state of many poses at once is ~2.6 kB per pose
+            J = np.empty((*q.shape[:-1], 6, q.shape[-1]))
+            for s in range(0, q.shape[0], lsq.TEST_BLOCK):
+                J[s:s + lsq.TEST_BLOCK] = jacobian(robot, q[s:s + lsq.TEST_BLOCK])
         _J_CACHE.update(key=key, robot=robot, J=J)
     return _J_CACHE["J"]
 
@@ -116,10 +131,13 @@ def _jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
 def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]):
     """J (m, 6, 6) and the design A (m, 6, p) of ``joints`` (zero rows where not measured).
 
-    A is filled block by block: no (m, 6, 6) temporaries beside J.
+    A is filled block by block: no (m, 6, 6) temporaries beside J. For a large campaign
+    both are made when sliced (:mod:`analysis.identification.per_test`).
     """
     J = _jacobian(robot, tests.q)
     cols = list(joints)
+    if is_lazy(J):
+        return J, PerTestDesign(J, tests.w, tests.measured, cols)
     A = np.empty((tests.m, 6, len(cols)))
     for s in range(0, tests.m, lsq.TEST_BLOCK):
         sl = slice(s, s + lsq.TEST_BLOCK)
@@ -131,7 +149,15 @@ def check_identifiable(
     A: np.ndarray, joints: tuple[int, ...], cond_limit: float = COND_LIMIT
 ) -> float:
     """Condition number of the column-scaled A (m, 6, p); refuse naming the weakest joint."""
-    stacked = stack_matrix(A)
+    if is_lazy(A) or A.shape[0] * 6 > lsq.TALL_ROWS:
+        # one pass: the R of the tall A has its column norms and singular values (Householder
+        # QR's backward error is column-wise, so scaling after it loses nothing)
+        acc = lsq.TallR()
+        for s in range(0, A.shape[0], lsq.TEST_BLOCK):
+            acc.add(A[s:s + lsq.TEST_BLOCK].reshape(-1, A.shape[-1]))
+        stacked = acc.r()
+    else:
+        stacked = stack_matrix(A)
     norms = np.linalg.norm(stacked, axis=0)
     if np.any(norms == 0):
         j = joints[int(np.flatnonzero(norms == 0)[0])]
@@ -253,7 +279,7 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
         x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv)
     if not weighted:  # at the final estimate (WLS: the weights it was fitted with)
         cov = _fit_covariances(noise, J, _full(x, joints), tests.measured, tests.w)
-    pred = np.einsum("mrp,p->mr", A, x)
+    pred = apply(A, x)
     return Fit(x=x, A=A, cov=cov, predicted=pred, iterations=0, bread=bread, Linv=Linv,
                eiv_shift=shift)
 

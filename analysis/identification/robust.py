@@ -172,7 +172,9 @@ def _model(robot, tests, joints, method, x_p, J, A_lin):
 
         f, F = model_displacement(robot, tests.q, _full(x_p, joints)[None, :], tests.w)
         return f, F[..., list(joints)] * tests.measured[..., None]
-    return np.einsum("mrp,p->mr", A_lin, x_p), A_lin
+    from analysis.identification.per_test import apply
+
+    return apply(A_lin, x_p), A_lin
 
 
 def _irls(robot, tests, joints, noise, method, weight_fn, c, x, weights, J, A_lin):

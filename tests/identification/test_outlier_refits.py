@@ -81,3 +81,36 @@ def test_flag_outliers_finds_the_three_glitches(kr240, glitched, method, monkeyp
                         *_, **__: fit(robot, rest, joints, noise, method))
     ref = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
     np.testing.assert_array_equal(flags, ref)
+
+
+@pytest.mark.parametrize("method", ["ols", "exact"])
+def test_outliers_set_aside_at_once_in_large_campaigns(kr240, glitched, method, monkeypatch):
+    """The large-campaign rule (every residual beyond the threshold per round, one refit)
+    keeps to one at a time where residuals are influential, and its one refit without
+    several rows equals a fit from scratch."""
+    joints = tuple(range(6))
+    first = fit(kr240, glitched, joints, NOISE, method)
+    thr = outlier_threshold(int(glitched.measured.sum()))
+    one = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
+    calls = []
+    real = estimate._refit_without
+    monkeypatch.setattr(estimate, "_refit_without",
+                        lambda *a, **k: calls.append(np.size(a[6])) or real(*a, **k))
+    monkeypatch.setattr(estimate, "OUTLIERS_AT_ONCE_ABOVE", 0)
+    many = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
+    np.testing.assert_array_equal(many, one)
+    # 12 tests: each residual's leverage is ~p / n = 0.08, and the glitches mask each
+    # other (exact: eight residuals beyond the threshold in the first fit): one at a time
+    assert calls == [1, 1, 1]
+    # without the leverage guard all those beyond would go in the first round
+    calls.clear()
+    monkeypatch.setattr(estimate, "AT_ONCE_MAX_LEVERAGE", np.inf)
+    blind = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
+    beyond = int(np.sum(np.abs(np.nan_to_num(_studentized_matrix(glitched, first, 1.0))) > thr))
+    assert calls[0] == beyond >= 3 and (blind >= one).all()
+    drop = [(4, 1), (7, 0), (10, 2)]
+    i, c = (np.array(v) for v in zip(*drop, strict=True))
+    rest = _without(glitched, drop)
+    together = real(kr240, rest, joints, NOISE, method, first, i, c, glitched.d[i, c])
+    ref = fit(kr240, rest, joints, NOISE, method)
+    np.testing.assert_allclose(together.x, ref.x, rtol=1e-9 if method == "ols" else 1e-6)

@@ -5,7 +5,8 @@ with the default sizes, where it is small enough for the dense paths (one QR of 
 stacked system, one block of model evaluations, the whole residual table in memory),
 and with the block sizes shrunk so that every large-campaign path runs (whitened
 systems by blockwise TSQR, model and Jacobians in blocks of 101 and 97 tests, TSQR
-blocks of 50 rows, residual table held as arrays and written to residuals.csv block by
+blocks of 50 rows, J and the design made block by block when sliced instead of
+held, residual table held as arrays and written to residuals.csv block by
 block). Both are backward-stable factorisations of the same systems, so they agree to
 rounding: 1e-9 relative here (Gauss-Newton stops at 1e-9 of x; measured ~1e-13).
 """
@@ -18,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification import estimate, gauss_newton, lsq
+from analysis.identification import estimate, fitting, gauss_newton, lsq
 from analysis.identification.estimate import identify
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
@@ -51,6 +52,9 @@ def _streamed(monkeypatch):
     monkeypatch.setattr(estimate, "TEST_BLOCK", 97)
     monkeypatch.setattr(estimate, "RESIDUAL_ROWS_HELD", 100)
     monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
+    # J, the design and the model Jacobian are made when sliced instead of held
+    monkeypatch.setattr(fitting, "LAZY_TESTS", 300)
+    fitting._J_CACHE.clear()
 
 
 @pytest.mark.parametrize("method", ["ols", "exact"])
@@ -59,6 +63,9 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
     ref = identify(kr240, campaign, method, noise=NOISE)
     write_results(ref, tmp_path / "ref")
     _streamed(monkeypatch)
+    from analysis.identification.per_test import PerTestJacobian
+
+    assert isinstance(fitting._jacobian(kr240, campaign.q), PerTestJacobian)
     res = identify(kr240, campaign, method, noise=NOISE)
     write_results(res, tmp_path / "res")
     assert ref.residual_rows is None and res.residual_rows is not None

@@ -1,0 +1,118 @@
+"""Per-test arrays of one large campaign, made a block of tests at a time when sliced.
+
+An identification passes several times over arrays with one 6 x n block per test:
+the Jacobian J(q) (m, 6, 6), the design A (m, 6, p) of the linear model, the
+whitening of the residual covariances. At 1e6 tests each is 0.3 GB. Above
+:data:`LAZY_TESTS` tests they are not held: these objects stand in for them, and
+``obj[s:e]`` computes the rows of tests s..e-1 (the same numbers as a slice of the
+full array). Every pass of :mod:`analysis.identification.lsq` and of the fits
+already walks the tests in blocks, so they take either. Recomputing J costs about
+1.3 us per test and pass; holding it would cost 288 bytes per test.
+
+The last block made is kept, because one pass often slices the same block twice
+(a design and the covariance made from the same J).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: campaigns of more tests than this hold no (m, 6, n) per-test arrays (29 MB each at
+#: this size; 0.3 GB at 1e6 tests)
+LAZY_TESTS = 100_000
+
+
+class PerTestBlocks:
+    """Base of the per-test arrays made when sliced: ``shape``, ``ndim``, ``len`` and
+    ``obj[key]`` like an ndarray for slices of tests, single tests and ``obj[i, c]``."""
+
+    shape: tuple[int, ...]
+
+    @property
+    def ndim(self) -> int:
+        return len(self.shape)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def _make(self, start: int, stop: int) -> np.ndarray:  # pragma: no cover (abstract)
+        raise NotImplementedError
+
+    def _block(self, start: int, stop: int) -> np.ndarray:
+        last = getattr(self, "_last", None)
+        if last is not None and last[0] == (start, stop):
+            return last[1]
+        out = self._make(start, stop)
+        self._last = ((start, stop), out)
+        return out
+
+    def __getitem__(self, key):
+        rest: tuple = ()
+        if isinstance(key, tuple):
+            key, rest = key[0], key[1:]
+        if isinstance(key, (int, np.integer)):
+            i = int(key) + (self.shape[0] if key < 0 else 0)
+            if not 0 <= i < self.shape[0]:
+                raise IndexError(f"test {key} out of range ({self.shape[0]} tests)")
+            out = self._block(i, i + 1)[0]
+        elif isinstance(key, slice) and key.step in (None, 1):
+            start, stop, _ = key.indices(self.shape[0])
+            out = self._block(start, max(start, stop))
+        else:
+            raise TypeError(f"{type(self).__name__} takes a slice of tests or one test, "
+                            f"not {key!r}")
+        return out[rest] if rest else out
+
+    def __array__(self, dtype=None, copy=None):
+        """The whole array (small campaigns and tests only: it is what is not held)."""
+        from analysis.identification.lsq import TEST_BLOCK
+
+        out = np.empty(self.shape)
+        for s in range(0, self.shape[0], TEST_BLOCK):
+            out[s:s + TEST_BLOCK] = self[s:s + TEST_BLOCK]
+        return out if dtype is None else out.astype(dtype)
+
+
+class PerTestJacobian(PerTestBlocks):
+    """J(q) (m, 6, n) of the tests' joint angles ``q`` (m, n) (rad): m/rad, rad/rad."""
+
+    def __init__(self, robot, q: np.ndarray) -> None:
+        self.robot, self.q = robot, q
+        self.shape = (q.shape[0], 6, q.shape[-1])
+
+    def _make(self, start, stop):
+        from analysis.model.kinematics import jacobian
+
+        return jacobian(self.robot, self.q[start:stop])
+
+
+class PerTestDesign(PerTestBlocks):
+    """The linear model's design A (m, 6, p) of the joints ``cols``, zero rows where not
+    ``measured``: ``design_block(J, w)`` (:mod:`analysis.identification.linear_model`)."""
+
+    def __init__(self, J, w: np.ndarray, measured: np.ndarray, cols: list[int]) -> None:
+        self.J, self.w, self.measured, self.cols = J, w, measured, list(cols)
+        self.shape = (w.shape[0], 6, len(self.cols))
+
+    def _make(self, start, stop):
+        from analysis.identification.linear_model import design_block
+
+        sl = slice(start, stop)
+        return design_block(self.J[sl], self.w[sl])[..., self.cols] * self.measured[sl, :, None]
+
+
+def is_lazy(a) -> bool:
+    """True for a per-test array made when sliced."""
+    return isinstance(a, PerTestBlocks)
+
+
+def apply(A, x: np.ndarray, block: int | None = None) -> np.ndarray:
+    """A x per test: (m, 6) from A (m, 6, p) (array or made when sliced) and x (p,)."""
+    from analysis.identification.lsq import TEST_BLOCK
+
+    block = TEST_BLOCK if block is None else block
+    m = A.shape[0]
+    out = np.empty((m, A.shape[1]))
+    for s in range(0, m, block):
+        out[s:s + block] = A[s:s + block] @ x
+    return out
