@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification import lsq
+from analysis.identification import lsq, per_test
 from analysis.identification.eiv import corrected, wrench_eiv_matrix
 from analysis.identification.gauss_newton import (
     covariances_per_test,
@@ -32,7 +32,6 @@ from analysis.identification.lsq import (
 from analysis.identification.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.per_test import (
-    LAZY_TESTS,
     PerTestDesign,
     PerTestJacobian,
     apply,
@@ -117,7 +116,7 @@ def _jacobian(robot: RobotModel, q: np.ndarray):
     key = (id(robot), q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest())
     if _J_CACHE.get("key") != key or _J_CACHE.get("robot") is not robot:
         _J_CACHE.clear()
-        if q.ndim == 2 and q.shape[0] > LAZY_TESTS:
+        if q.ndim == 2 and q.shape[0] > per_test.LAZY_TESTS:
             J = PerTestJacobian(robot, q)
         else:
             # in blocks of tests: the chain state of many poses at once is ~2.6 kB per pose

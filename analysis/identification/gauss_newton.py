@@ -24,6 +24,11 @@ from analysis.identification.lsq import (
     whitening,
 )
 from analysis.identification.noise import NoiseModel, residual_covariance
+from analysis.identification.per_test import (
+    PerTestBlocks,
+    PerTestModelJacobian,
+    PerTestWhitening,
+)
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
@@ -37,7 +42,8 @@ class GaussNewtonFit:
     bool: the model could be evaluated (x and cov_x are NaN where not); dq (..., m, 6)
     the joint deflections of the equilibrium at x (rad), Newton's warm start for
     later solves at nearby compliances; Linv (..., m, 6, 6) the whitening of cov
-    (:func:`analysis.identification.lsq.whitening`)."""
+    (:func:`analysis.identification.lsq.whitening`); R (p + 1, p + 1) the triangular factor
+    of the final whitened system [Linv F | Linv r] of one streamed campaign, else None."""
 
     x: np.ndarray
     F: np.ndarray
@@ -49,6 +55,7 @@ class GaussNewtonFit:
     valid: np.ndarray
     dq: np.ndarray | None = None
     Linv: np.ndarray | None = None
+    R: np.ndarray | None = None
 
 
 #: tests per block when one campaign's model is evaluated: the equilibrium's working
@@ -136,7 +143,7 @@ def covariances_per_test(noise, J, x_full, measured, w=None, weights=None,
     return np.where(measured[..., :, None] & measured[..., None, :], cov, 0.0)
 
 
-class PerTestCovariance:
+class PerTestCovariance(PerTestBlocks):
     """The residual covariance of each test (m, 6, 6) of one large campaign, made when sliced.
 
     ``cov[s:e]`` is :func:`covariances_per_test` of those tests (the same numbers as a
@@ -147,30 +154,19 @@ class PerTestCovariance:
     joint angles, ``x_full`` (6,) the compliances the covariances are evaluated at.
     """
 
-    ndim = 3
-
     def __init__(self, noise, J, x_full, measured, w=None, weights=None) -> None:
         self.noise, self.J, self.measured, self.w, self.weights = noise, J, measured, w, weights
         self.x_full = np.array(x_full, dtype=float)
         self.shape = J.shape[:-1] + (6,)
 
-    def __len__(self) -> int:
-        return self.shape[0]
-
-    def __getitem__(self, sl):
-        if not isinstance(sl, slice):
-            return np.asarray(self)[sl]
+    def _make(self, start, stop):
+        sl = slice(start, stop)
 
         def part(a):
             return None if a is None else a[sl]
 
         return covariances_per_test(self.noise, self.J[sl], self.x_full, self.measured[sl],
                                     part(self.w), part(self.weights))
-
-    def __array__(self, dtype=None, copy=None):
-        out = covariances_per_test(self.noise, self.J, self.x_full, self.measured, self.w,
-                                   self.weights)
-        return out if dtype is None else out.astype(dtype)
 
 
 def per_test_covariance(noise, J, x_full, measured, w=None, weights=None):
@@ -202,6 +198,193 @@ def whitening_per_test(noise, J, x_full, measured, w=None, weights=None,
     return out
 
 
+class _HeldSystems:
+    """The linearised systems of :func:`gauss_newton` from held arrays: F (..., m, 6, p)
+    and the whitening (..., m, 6, 6) of every test (small campaigns, batches of them)."""
+
+    streamed = False
+
+    def __init__(self, ctx) -> None:
+        self.c = ctx
+        self.Linv = None
+
+    def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None):
+        """The model at x (f, F, ok, dq) and, when ``cost``, the cost under the current
+        weights; ``system_at`` is not used (the weights are made by :meth:`weigh`)."""
+        c = self.c
+        f, F, ok, dq = _model_in_blocks(c.robot, c.q, c.full(x)[..., None, :], c.w,
+                                        with_jacobian, dq0, c.cols, c.measured, out, c.tips)
+        value = np.sum(c.whitened(self.Linv, f) ** 2, axis=(-2, -1)) if cost else None
+        return _State(f=f, F=F, ok=np.all(ok, axis=-1), dq=dq, cost=value)
+
+    def weigh(self, x, Linv0=None) -> None:
+        """The weights at compliances x (the caller's ``Linv0`` if given)."""
+        c = self.c
+        # the previous iteration's whitening array is overwritten; the covariances are made
+        # and whitened block by block (only the final ones are kept)
+        self.Linv = Linv0 if Linv0 is not None else whitening_per_test(
+            c.noise, c.J, c.full(x), c.measured, c.w, c.weights, out=self.Linv)
+
+    def solve(self, state, valid):
+        """Gauss-Newton step, (F^T W F)^-1 and the cost sum r^T W r at ``state``."""
+        c = self.c
+        F, f, Linv = state.F, state.f, self.Linv
+        r = c.whitened(Linv, f)
+        if F.ndim == 3 and F.shape[0] * 6 > lsq.TALL_ROWS and np.all(valid):
+            # one large campaign: blockwise, without the stacked (6m, p) Linv F
+            step, cov_unit = whitened_lstsq(F, np.where(c.measured, c.dz - f, 0.0), Linv)
+        else:
+            Aw = _defined(stack_matrix(Linv @ F), valid)
+            step, cov_unit, _ = qr_solve(Aw, stack_vector(r), with_pinv=False)
+        return step, cov_unit, np.sum(r**2, axis=(-2, -1))
+
+    def final(self, x, state, valid):
+        """cov, Linv, cov_x and F at the solution x."""
+        c = self.c
+        one_campaign = state.F.ndim == 3 and state.F.shape[0] > EVAL_BLOCK
+        if one_campaign:  # the covariances are made again block by block where needed
+            cov = PerTestCovariance(c.noise, c.J, c.full(x), c.measured, c.w, c.weights)
+            self.Linv = whitening_per_test(c.noise, c.J, c.full(x), c.measured, c.w,
+                                           c.weights, out=self.Linv)
+        else:
+            cov = covariances_per_test(c.noise, c.J, c.full(x), c.measured, c.w, c.weights)
+            self.Linv = whitening(cov, c.measured, out=self.Linv)
+        _, cov_x, _ = self.solve(state, valid)
+        return cov, self.Linv, cov_x, state.F, None
+
+
+class _StreamedSystems:
+    """The linearised systems of :func:`gauss_newton` for one campaign of more than
+    :data:`~analysis.identification.per_test.LAZY_TESTS` tests, never held.
+
+    Each evaluation of the model is one pass over blocks of tests that also whitens
+    them (at ``system_at``) and accumulates the triangular factor R of the whitened
+    system ``[Linv F | Linv r]`` (:class:`~analysis.identification.lsq.TallR`): the next
+    step comes from R, and the cost r^T W r is the squared norm of R's last column. F
+    and the whitening (0.3 GB each at 1e6 tests) exist a block at a time; the same
+    numbers as :class:`_HeldSystems` to rounding.
+    """
+
+    streamed = True
+
+    def __init__(self, ctx) -> None:
+        self.c = ctx
+        self.wx = None
+
+    def _whitening(self, x, J, sl):
+        c = self.c
+        cov = covariances_per_test(c.noise, J, c.full(x), c.measured[sl], c.w[sl],
+                                   None if c.weights is None else c.weights[sl])
+        return whitening(cov, c.measured[sl])
+
+    def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, rows=None):
+        """The model at x; the cost under the current weights when ``cost``; with the
+        Jacobian, R of the system whitened at ``system_at``. ``rows``: a callable given
+        (slice, Linv block, F block, whitened residual block) of each block (the caller's
+        per-test sums of the same pass)."""
+        from analysis.identification.exact_fit import model_displacement_state
+        from analysis.model.kinematics import jacobian_from_state
+
+        c = self.c
+        m, p = c.q.shape[0], len(c.cols)
+        f, dq, ok = np.empty((m, 6)), np.empty(c.q.shape), True
+        value = 0.0
+        acc = lsq.TallR() if with_jacobian else None
+        xf = c.full(x)
+        same = system_at is not None and cost and np.array_equal(system_at, self.wx)
+        for s in range(0, m, EVAL_BLOCK):
+            sl = slice(s, s + EVAL_BLOCK)
+            unloaded: dict = {}  # J(q) comes from the unloaded chain the model computes
+            fb, Fb, okb, dqb = model_displacement_state(
+                c.robot, c.q[sl], xf, c.w[sl], with_jacobian,
+                None if dq0 is None else dq0[sl], unloaded=unloaded)
+            ok = ok and bool(np.all(okb))
+            f[sl], dq[sl] = fb, dqb
+            rb = np.where(c.measured[sl], c.dz[sl] - fb, 0.0)
+            Jb = jacobian_from_state(unloaded["state"])
+            Lc = None
+            if cost:
+                Lc = self._whitening(self.wx, Jb, sl)
+                value += float(np.sum(np.einsum("mij,mj->mi", Lc, rb) ** 2))
+            if with_jacobian:
+                Ls = Lc if same else self._whitening(system_at, Jb, sl)
+                Fb = Fb[..., c.cols] * c.measured[sl][..., None]
+                LF, Lr = Ls @ Fb, np.einsum("mij,mj->mi", Ls, rb)
+                acc.add(np.column_stack([LF.reshape(-1, p), Lr.reshape(-1)]))
+                if rows is not None:
+                    rows(sl, Ls, LF, Lr)
+        R = acc.r() if with_jacobian else None
+        return _State(f=f, F=None, ok=np.asarray(ok), dq=dq,
+                      cost=np.asarray(value) if cost else None, R=R,
+                      system_at=None if system_at is None else np.array(system_at))
+
+    def weigh(self, x, Linv0=None) -> None:
+        self.wx = np.array(x, dtype=float)
+
+    def solve(self, state, valid):
+        if not np.array_equal(state.system_at, self.wx):  # a logic error, not a data one
+            raise RuntimeError("the system was whitened at other weights than the step's")
+        return _from_r(state.R)
+
+    def final(self, x, state, valid):
+        c = self.c
+        xf = c.full(x)
+        cov = PerTestCovariance(c.noise, c.J, xf, c.measured, c.w, c.weights)
+        self.weigh(x)
+        last = self.evaluate(x, True, state.dq, False, x, rows=getattr(self, "rows", None))
+        _, cov_x, _ = _from_r(last.R)
+        F = PerTestModelJacobian(c.robot, c.q, c.w, c.measured, c.cols, xf, state.dq)
+        return cov, PerTestWhitening(cov, c.measured), cov_x, F, last.R
+
+
+def _from_r(R):
+    """(step, (A^T W A)^-1, r^T W r) from the R (p + 1, p + 1) of [Linv A | Linv r]."""
+    from scipy.linalg import solve_triangular
+
+    p = R.shape[0] - 1
+    Rinv = solve_triangular(R[:p, :p], np.eye(p))
+    return Rinv @ R[:p, p], Rinv @ Rinv.T, float(np.sum(R[:, p] ** 2))
+
+
+@dataclass
+class _State:
+    """The model evaluated at one x: f, F (held systems), ok, dq, cost under the current
+    weights, R of the whitened system and where it was whitened (streamed systems)."""
+
+    f: np.ndarray
+    F: np.ndarray | None
+    ok: np.ndarray
+    dq: np.ndarray
+    cost: np.ndarray | None = None
+    R: np.ndarray | None = None
+    system_at: np.ndarray | None = None
+
+
+@dataclass
+class _Context:
+    """What every evaluation of one :func:`gauss_newton` call shares."""
+
+    robot: RobotModel
+    q: np.ndarray
+    w: np.ndarray
+    dz: np.ndarray
+    measured: np.ndarray
+    cols: list
+    noise: NoiseModel
+    J: object
+    weights: np.ndarray | None
+    batch: tuple
+    tips: dict
+
+    def full(self, xp):
+        out = np.zeros((*self.batch, 6))
+        out[..., self.cols] = xp
+        return out
+
+    def whitened(self, Linv, f):
+        return np.einsum("...ij,...j->...i", Linv, np.where(self.measured, self.dz - f, 0.0))
+
+
 def gauss_newton(
     robot: RobotModel,
     q: np.ndarray,
@@ -217,6 +400,7 @@ def gauss_newton(
     weights: np.ndarray | None = None,
     J: np.ndarray | None = None,
     Linv0: np.ndarray | None = None,
+    rows=None,
 ) -> GaussNewtonFit:
     """Fit compliances of ``joints`` (others rigid) to finite displacements.
 
@@ -228,7 +412,7 @@ def gauss_newton(
     tol : stop when every step is below tol * max |x|. The model is solved
         to ~1e-15 rad, which makes the cost noisy at ~1e-10 relative: steps
         are accepted when the cost does not rise by more than 1e-8 relative.
-    reweight_iterations : the weights follow x for this many iterations,
+    reweight_iterations : the weights follow x for this many iterations (>= 1),
         then stay fixed so that the last iterations are plain Gauss-Newton.
     weights : (..., m, 6) robust weights > 0 where measured, or None (all 1); see
         :func:`covariances_per_test`. The returned ``cov`` and ``cov_x`` are the weighted ones.
@@ -236,58 +420,40 @@ def gauss_newton(
     Linv0 : the whitening of the covariances at x0 (:func:`covariances_per_test` then
         :func:`analysis.identification.lsq.whitening`), if the caller has it: the first
         iteration's weights (it is overwritten by the later ones).
+    rows : one campaign of more than :data:`~analysis.identification.per_test.LAZY_TESTS`
+        tests only: a callable given (slice, whitening, whitened F, whitened residual) of
+        each block of tests in the pass that makes the final system (at the solution and
+        its weights), for per-test sums a caller would otherwise make in a pass of its own.
+
+    One campaign of more than ``LAZY_TESTS`` tests is fitted without holding F or the
+    whitening (:class:`_StreamedSystems`); the result's ``F``, ``cov`` and ``Linv`` are
+    then made when sliced, and ``R`` is the triangular factor of the final whitened
+    system [Linv F | Linv r].
     """
+    from analysis.identification import per_test
+
     cols = list(joints)
     dz = np.where(measured, d, 0.0)
     J = jacobian(robot, q) if J is None else J
     batch = q.shape[:-2]
-
-    def full(xp):
-        out = np.zeros((*batch, 6))
-        out[..., cols] = xp
-        return out
-
-    tips: dict = {}  # unloaded tool poses per test, shared by the evaluations
-
-    def evaluate(xp, with_jacobian=True, dq0=None, out=None):
-        # Newton warm-started at the deflections of the current iterate: the same
-        # converged equilibrium (to its 1e-15 rad tolerance) in ~2 steps instead of ~4
-        f, F, ok, dq = _model_in_blocks(robot, q, full(xp)[..., None, :], w, with_jacobian,
-                                        dq0, cols, measured, out, tips)
-        return f, F, np.all(ok, axis=-1), dq
-
-    def whitened(Linv, f):
-        return np.einsum("...ij,...j->...i", Linv, np.where(measured, dz - f, 0.0))
-
-    def solve(Linv, F, f, r):
-        """Gauss-Newton step and (F^T W F)^-1 of the whitened linearised system."""
-        if F.ndim == 3 and F.shape[0] * 6 > lsq.TALL_ROWS and np.all(valid):
-            # one large campaign: blockwise, without the stacked (6m, p) Linv F
-            return whitened_lstsq(F, np.where(measured, dz - f, 0.0), Linv)
-        if r is None:
-            r = whitened(Linv, f)
-        Aw = _defined(stack_matrix(Linv @ F), valid)
-        step, cov_unit, _ = qr_solve(Aw, stack_vector(r), with_pinv=False)
-        return step, cov_unit
+    ctx = _Context(robot, q, w, dz, measured, cols, noise, J, weights, batch, {})
+    streamed = not batch and q.shape[0] > per_test.LAZY_TESTS
+    systems = _StreamedSystems(ctx) if streamed else _HeldSystems(ctx)
 
     x = np.array(x0, dtype=float)
     valid = np.all(np.isfinite(x), axis=-1)
     x = np.where(valid[..., None], x, 0.0)
-    f, F, ok, dq = evaluate(x)
-    valid &= ok
-    one_campaign = F.ndim == 3 and F.shape[0] > EVAL_BLOCK
-    Linv = None
+    wx = x  # the weights of the first iteration
+    state = systems.evaluate(x, True, None, False, wx)
+    valid &= state.ok
+    one_campaign = state.F is not None and state.F.ndim == 3 and state.F.shape[0] > EVAL_BLOCK
     converged = np.zeros(batch, dtype=bool)
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 (count kept after the loop)
-        if iterations == 1 and Linv0 is not None and reweight_iterations >= 1:
-            Linv = Linv0  # the caller's whitening at x0, the same array
-        elif iterations <= reweight_iterations:
-            # the previous iteration's whitening array is overwritten; the covariances
-            # are made and whitened block by block (only the final ones are kept)
-            Linv = whitening_per_test(noise, J, full(x), measured, w, weights, out=Linv)
-        r = whitened(Linv, f)
-        step, _ = solve(Linv, F, f, r)
+        if iterations <= reweight_iterations:
+            wx = x
+            systems.weigh(x, Linv0 if iterations == 1 else None)
+        step, _, cost0 = systems.solve(state, valid)
         step = np.where(valid[..., None] & np.isfinite(step), step, 0.0)
         if iterations > 1:
             # a step below the tolerance is not taken: x is then within tol * max |x| of the
@@ -297,59 +463,60 @@ def gauss_newton(
             if np.all(small | ~valid):
                 converged = small
                 break
+
+        follow = iterations + 1 <= reweight_iterations  # the next weights at the next x?
+
         # the next model Jacobian comes with the step's evaluation, into F's array
-        F_buf = F if one_campaign else None
-        del F
-        cost0 = np.sum(r**2, axis=(-2, -1))
+        F_buf = state.F if one_campaign else None
+        dq = state.dq
         t = np.ones(batch)
         accepted = np.zeros(batch, dtype=bool)
-        # one campaign: the accepted trial's arrays are taken as they are (no (m, 6)
-        # copies: ``ok`` is one bool), else merged campaign by campaign
-        x_new, f_new, dq_new = (x, f, dq) if not batch else (x.copy(), f.copy(), dq.copy())
-        F_full = None
+        # one campaign: the accepted trial is taken as it is (no (m, 6) copies: ``ok`` is
+        # one bool), else merged campaign by campaign
+        x_new, f_new, dq_new = (x, state.f, dq) if not batch else (
+            x.copy(), state.f.copy(), dq.copy())
+        state = None
+        full = None
         for halving in range(12):
             x_try = x + t[..., None] * step
             # the full step is usually accepted: its model Jacobian then serves the next
             # iteration (one equilibrium solve per iteration instead of two)
-            f_try, F_try, good, dq_try = evaluate(x_try, with_jacobian=halving == 0, dq0=dq,
-                                                  out=F_buf)
+            trial = systems.evaluate(x_try, halving == 0, dq, True, x_try if follow else wx,
+                                     out=F_buf)
             F_buf = None
             if halving == 0:
-                F_full = F_try
-            ok = ~accepted & good & (np.sum(whitened(Linv, f_try) ** 2, axis=(-2, -1))
-                                     <= cost0 * (1 + 1e-8))
+                full = trial
+            ok = ~accepted & trial.ok & (trial.cost <= cost0 * (1 + 1e-8))
             if not batch:
                 if ok:
-                    x_new, f_new, dq_new = x_try, f_try, dq_try
+                    x_new, f_new, dq_new = x_try, trial.f, trial.dq
             else:
                 x_new = np.where(ok[..., None], x_try, x_new)
-                f_new = np.where(ok[..., None, None], f_try, f_new)
-                dq_new = np.where(ok[..., None, None], dq_try, dq_new)
-            del f_try, dq_try
+                f_new = np.where(ok[..., None, None], trial.f, f_new)
+                dq_new = np.where(ok[..., None, None], trial.dq, dq_new)
+            del trial
             accepted |= ok
             if np.all(accepted):
                 break
             t = np.where(accepted, t, 0.5 * t)
         moved = np.max(np.abs(np.where(accepted[..., None], t[..., None] * step, 0.0)), axis=-1)
         x, dq = x_new, dq_new
-        if F_full is not None and np.all(accepted & (t == 1.0)):
-            f, F = f_new, F_full
+        if full is not None and np.all(accepted & (t == 1.0)):
+            state = full
+            state.f, state.dq = f_new, dq
         else:
-            f, F, _, dq = evaluate(x, dq0=dq)
-        del F_full
+            state = systems.evaluate(x, True, dq, False, x if follow else wx)
+        del full
         # a step no halving can make descend means the cost is at its floor
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
         if np.all(converged | ~valid):
             break
-    tips.clear()  # the unloaded tool poses (0.13 GB at 1e6 tests) before the last arrays
-    if one_campaign:  # the covariances are made again block by block where needed
-        cov = PerTestCovariance(noise, J, full(x), measured, w, weights)
-        Linv = whitening_per_test(noise, J, full(x), measured, w, weights, out=Linv)
-    else:
-        cov = covariances_per_test(noise, J, full(x), measured, w, weights)
-        Linv = whitening(cov, measured, out=Linv)
-    _, cov_x = solve(Linv, F, f, None)
+    ctx.tips.clear()  # the unloaded tool poses (0.13 GB at 1e6 tests) before the last arrays
+    if streamed:
+        systems.rows = rows
+    cov, Linv, cov_x, F, R = systems.final(x, state, valid)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)
-    return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,
-                          converged=converged & valid, valid=valid, dq=dq, Linv=Linv)
+    return GaussNewtonFit(x=x, F=F, f=state.f, cov=cov, cov_x=cov_x, iterations=iterations,
+                          converged=converged & valid, valid=valid, dq=state.dq, Linv=Linv,
+                          R=R)

@@ -116,3 +116,37 @@ def apply(A, x: np.ndarray, block: int | None = None) -> np.ndarray:
     for s in range(0, m, block):
         out[s:s + block] = A[s:s + block] @ x
     return out
+
+
+class PerTestWhitening(PerTestBlocks):
+    """The whitening L^-1 (m, 6, 6) of per-test covariances ``cov`` (array or made when
+    sliced), rows of unmeasured components zero (:func:`analysis.identification.lsq.whitening`)."""
+
+    def __init__(self, cov, measured: np.ndarray) -> None:
+        self.cov, self.measured = cov, measured
+        self.shape = (measured.shape[0], 6, 6)
+
+    def _make(self, start, stop):
+        from analysis.identification.lsq import whitening
+
+        return whitening(self.cov[start:stop], self.measured[start:stop])
+
+
+class PerTestModelJacobian(PerTestBlocks):
+    """The exact model's Jacobian F (m, 6, p) with respect to the compliances of the joints
+    ``cols`` at ``x_full`` (6,) (rad/(N m)), zero rows where not ``measured``: the
+    equilibrium solved again from the deflections ``dq`` (m, 6) (rad) at x_full, which
+    it converges from in one Newton step (:mod:`analysis.identification.exact_fit`)."""
+
+    def __init__(self, robot, q, w, measured, cols, x_full, dq) -> None:
+        self.robot, self.q, self.w, self.measured = robot, q, w, measured
+        self.cols, self.x_full, self.dq = list(cols), np.array(x_full, dtype=float), dq
+        self.shape = (q.shape[0], 6, len(self.cols))
+
+    def _make(self, start, stop):
+        from analysis.identification.exact_fit import model_displacement_state
+
+        sl = slice(start, stop)
+        _, F, ok, _ = model_displacement_state(self.robot, self.q[sl], self.x_full, self.w[sl],
+                                               True, self.dq[sl])
+        return F[..., self.cols] * self.measured[sl, :, None]

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification import estimate, fitting, gauss_newton, lsq
+from analysis.identification import estimate, fitting, gauss_newton, lsq, per_test
 from analysis.identification.estimate import identify
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
@@ -53,7 +53,7 @@ def _streamed(monkeypatch):
     monkeypatch.setattr(estimate, "RESIDUAL_ROWS_HELD", 100)
     monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
     # J, the design and the model Jacobian are made when sliced instead of held
-    monkeypatch.setattr(fitting, "LAZY_TESTS", 300)
+    monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
     fitting._J_CACHE.clear()
 
 
