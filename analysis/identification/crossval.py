@@ -106,10 +106,10 @@ def leave_one_pose_out(
             start = None
         if start is not None and len(names) > max_exact_refits:
             # one Gauss-Newton step per fold from the full-data estimate (module docstring)
-            rw = np.einsum("mij,mj->mi", full.Linv,
-                           np.where(tests.measured, tests.d - full.predicted, 0.0))
-            table = _downdate_batched(robot, tests, group, names, joints, noise, full.A, rw,
-                                      full.x, method, dq0=full.deflection, Linv=full.Linv)
+            table = _downdate_batched(robot, tests, group, names, joints, noise, full.A,
+                                      np.where(tests.measured, tests.d - full.predicted, 0.0),
+                                      full.x, method, dq0=full.deflection, Linv=full.Linv,
+                                      system=_system_of(full))
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
@@ -151,24 +151,46 @@ def leave_one_pose_out(
     return pd.DataFrame(rows)
 
 
+def _system_of(fit):
+    """(R, c, scale) of a fit's column-scaled whitened system [Linv A / scale | Linv r] at
+    its estimate, from its own factor ``fit.R`` (a streamed fit), or None.
+
+    ``fit.R`` is the R of the unscaled system at x - eiv_shift: scaling columns scales
+    R's columns (Householder QR's backward error is column-wise), and moving x by the
+    shift moves Q^T Linv r by -R shift.
+    """
+    if getattr(fit, "R", None) is None:
+        return None
+    p = fit.R.shape[0] - 1
+    R, c = fit.R[:p, :p], fit.R[:p, p]
+    if fit.eiv_shift is not None:
+        c = c - R @ fit.eiv_shift
+    scale = np.linalg.norm(R, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    return R / scale, c, scale
+
+
 def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
-                      dq0=None, Linv=None) -> pd.DataFrame:
+                      dq0=None, Linv=None, system=None) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
 
-    ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the (whitened) design and right-hand
-    side: for ols the design and the measured displacements (``x0`` = 0, the
-    fold estimate is the exact least-squares refit); for exact the whitened
-    Jacobian and residual at the full-data estimate ``x0`` (one Gauss-Newton
-    step per fold). Memory is linear in the number of tests (the factor is
-    built blockwise, :func:`analysis.identification.lsq.tall_r`). ``dq0`` (m, 6): the
+    ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the design and right-hand side: for ols the
+    design and the measured displacements (``x0`` = 0, the fold estimate is the exact
+    least-squares refit); for exact the Jacobian and residual at the full-data estimate
+    ``x0`` (one Gauss-Newton step per fold), both whitened by ``Linv`` (m, 6, 6) block by
+    block (no (m, 6, p) copy). Memory is linear in the number of tests (the factor is
+    built blockwise, :func:`analysis.identification.lsq.tall_r`; ``Aw`` and ``Linv`` may
+    be made when sliced, :mod:`analysis.identification.per_test`). ``dq0`` (m, 6): the
     full-data fit's joint deflections (rad), Newton's start for the held-out tests.
-    ``Linv`` (m, 6, 6): when given, the design is ``Linv @ Aw``, whitened block by block
-    (no (m, 6, p) copy). Each fold's estimate is then corrected for the wrench noise in
-    the regressor like the fits (:mod:`analysis.identification.eiv`), with the fold's S
-    and (A^T W A)^-1 (``Linv`` None for ols).
+    ``system``: (R, c, scale) of the column-scaled whitened system if the caller has it
+    (:func:`_system_of`: two passes saved). Each fold's estimate is then corrected for the
+    wrench noise in the regressor like the fits (:mod:`analysis.identification.eiv`), with
+    the fold's S and (A^T W A)^-1 (``Linv`` None for ols).
     """
     from scipy.linalg import solve_triangular
 
+    from analysis.identification.eiv import wrench_eiv_matrix
+    from analysis.identification.fitting import _jacobian
     from analysis.identification.lsq import TEST_BLOCK, TallR
 
     cols = list(joints)
@@ -178,16 +200,26 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     def design(sl):  # (b, 6, p) rows of the (whitened) design
         return Aw[sl] if Linv is None else Linv[sl] @ Aw[sl]
 
+    def rhs(sl):  # (b, 6) the (whitened) right-hand side
+        return rw[sl] if Linv is None else np.einsum("mij,mj->mi", Linv[sl], rw[sl])
+
     blocks = [slice(s, s + TEST_BLOCK) for s in range(0, m, TEST_BLOCK)]
-    scale = np.sqrt(sum(np.sum(design(sl).reshape(-1, p) ** 2, axis=0) for sl in blocks))
-    scale = np.where(scale > 0, scale, 1.0)
-    acc = TallR()
-    for sl in blocks:
-        acc.add(np.column_stack([design(sl).reshape(-1, p) / scale, rw[sl].reshape(-1)]))
-    Rc = acc.r()
-    R, c = Rc[:p, :p], Rc[:p, p]
+    if system is None:
+        scale = np.sqrt(sum(np.sum(design(sl).reshape(-1, p) ** 2, axis=0) for sl in blocks))
+        scale = np.where(scale > 0, scale, 1.0)
+        acc = TallR()
+        for sl in blocks:
+            acc.add(np.column_stack([design(sl).reshape(-1, p) / scale, rhs(sl).reshape(-1)]))
+        Rc = acc.r()
+        R, c = Rc[:p, :p], Rc[:p, p]
+    else:
+        R, c, scale = system
     S = np.zeros((P, p, p))
     t = np.zeros((P, p))
+    # the held-out tests' part of the wrench errors-in-variables S, per fold (same pass)
+    J = _jacobian(robot, tests.q)
+    sig2 = noise.wrench_sigma_at(tests.w) ** 2
+    held = np.zeros((P, p, p))
     for sl in blocks:
         Ab = design(sl)
         b = Ab.shape[0]
@@ -197,10 +229,13 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         folds, local = np.unique(fold[sl], return_inverse=True)
         k = len(folds)
         UU = np.einsum("mri,mrj->mij", U, U).reshape(b, -1)
-        Ur = np.einsum("mri,mr->mi", U, rw[sl])
+        Ur = np.einsum("mri,mr->mi", U, rhs(sl))
         S[folds] += np.stack([np.bincount(local, UU[:, e], k) for e in range(p * p)],
                              axis=-1).reshape(k, p, p)
         t[folds] += np.stack([np.bincount(local, Ur[:, e], k) for e in range(p)], axis=-1)
+        held[folds] += wrench_eiv_matrix(J[sl], sig2[sl], None if Linv is None else Linv[sl],
+                                         tests.measured[sl], group=local, n_groups=k,
+                                         cols=cols)
     with np.errstate(divide="ignore", invalid="ignore"):
         lev = np.linalg.eigvalsh(S)[:, -1]  # largest leverage of each pose block
     ok = lev < 1.0 - 1e-10
@@ -235,7 +270,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     z = np.zeros((P, p))
     z[ok] = np.linalg.solve(np.eye(p) - S[ok], (c - t[ok])[..., None])[..., 0]
     x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
-    x_p[ok] = _fold_eiv(robot, tests, fold, P, joints, noise, Linv, R, scale, S, x_p, ok)
+    x_p[ok] = _fold_eiv(held, R, scale, S, x_p, ok)
     x = np.zeros((P, 6))
     x[:, cols] = x_p
     # held-out prediction errors, summed per fold (test blocks bound the memory)
@@ -279,18 +314,14 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     })
 
 
-def _fold_eiv(robot, tests, fold, P, joints, noise, Linv, R, scale, lev, x_p, ok):
+def _fold_eiv(held, R, scale, lev, x_p, ok):
     """The folds' estimates x_p[ok] (n_ok, p) corrected for the wrench errors in variables.
 
     Fold h's normal matrix is ``D R^T (I - lev_h) R D`` (D = diag(scale)) and its S the
-    full S less the held-out tests' part.
+    full S less the held-out tests' part ``held`` (P, p, p).
     """
-    from analysis.identification.eiv import corrected, wrench_eiv_matrix
-    from analysis.identification.fitting import _jacobian
+    from analysis.identification.eiv import corrected
 
-    J = _jacobian(robot, tests.q)
-    held = wrench_eiv_matrix(J, noise.wrench_sigma_at(tests.w) ** 2, Linv, tests.measured,
-                             group=fold, n_groups=P, cols=list(joints))
     p = R.shape[0]
     Rinv = np.linalg.inv(R)
     bread = (Rinv @ np.linalg.solve(np.eye(p) - lev[ok], np.broadcast_to(

@@ -44,6 +44,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
+from analysis.identification import per_test
 from analysis.identification.fitting import (  # noqa: F401 (re-exported: the public entry points stay)
     COND_LIMIT,
     _covariances,
@@ -382,12 +383,14 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     # next is made: their per-test arrays are ~1 kB per test
     chosen = fit_linear(robot, tests, joints, noise, weighted=False, design=design)
     linear_x = {"ols": chosen.x}
-    if method != "ols":
+    first: dict = {}
+    # a streamed exact fit starts from OLS and makes its own weights: WLS would be two
+    # passes over every test for a comparison only (results.json lists ols alone then)
+    if method == "wls" or (method == "exact" and tests.m <= per_test.LAZY_TESTS):
         # WLS has the same design; its weights start at the uncorrected OLS estimate (it
         # solves that itself: the OLS fit's x is the errors-in-variables corrected one). The
         # OLS fit's covariances are let go first (0.3 GB at 1e6 tests)
         chosen = None
-        first: dict = {}
         chosen = fit_linear(robot, tests, joints, noise, weighted=True, design=design,
                             first_whitening=first if method == "exact" else None)
         linear_x["wls"] = chosen.x
@@ -396,8 +399,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         chosen = None
         # the first Gauss-Newton weights are WLS's first ones (both at the OLS estimate)
         chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"],
-                           first_whitening=first)
-        del first
+                           first_whitening=first or None)
+    del first
     rob = None
     kept = tests.measured
     if robust != "none":
@@ -409,15 +412,22 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     n_eq = int(tests.measured.sum())
     # the goodness of fit is that of the components the fit rests on
     dof = int(kept.sum()) - p
+    # a streamed fit whitened by its own covariances has the meat A^T W Sigma W A =
+    # A^T W A = R^T R of its final system: one pass over its (recomputed) blocks
+    streamed = chosen.R is not None and rob is None
+    meat = None
+    if streamed:
+        Rp = chosen.R[:p, :p]
+        meat = Rp.T @ Rp
     cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
-                                                  chosen.Linv)
+                                                  chosen.Linv, meat=meat)
     # the fit's own whitening when it used the same components, else made block by block
     # (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of the
     # whitened system, for its scaled condition without the (6m, p) Linv A
     own = chosen.Linv if rob is None and chosen.Linv is not None else None
     resid = np.where(kept, tests.d - chosen.predicted, 0.0)
     whitened_resid = np.empty(resid.shape)
-    acc = TallR() if tests.m > TEST_BLOCK else None
+    acc = TallR() if tests.m > TEST_BLOCK and not streamed else None
     for sl in _blocks(tests.m):
         Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
         whitened_resid[sl] = np.einsum("mij,mj->mi", Lb, resid[sl])
@@ -425,7 +435,9 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
     chi2_red, p_value = chi2_summary(whitened_resid, dof)
     del whitened_resid
-    if acc is not None:
+    if streamed:
+        Aw = chosen.R[:p, :p]  # the whitened system's R (same singular values)
+    elif acc is not None:
         Aw = acc.r()
     else:
         Aw = stack_matrix((own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)

@@ -311,9 +311,9 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     x, bread, f, Linv, shift = gn.x, gn.cov_x, gn.f, gn.Linv, None
     if eiv:
         x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv)
-        f = f + np.einsum("mrp,p->mr", gn.F, shift)  # first order: the shift is ~1e-4 of x
+        f = f + apply(gn.F, shift)  # first order: the shift is ~1e-4 of x
     return Fit(x=x, A=gn.F, cov=gn.cov, predicted=f, iterations=gn.iterations,
-               bread=bread, Linv=Linv, eiv_shift=shift, deflection=gn.dq)
+               bread=bread, Linv=Linv, eiv_shift=shift, deflection=gn.dq, R=gn.R)
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:

@@ -188,6 +188,9 @@ def whitening_per_test(noise, J, x_full, measured, w=None, weights=None,
     if J.ndim != 3 or J.shape[0] <= EVAL_BLOCK:
         return whitening(covariances_per_test(noise, J, x_full, measured, w, weights),
                          measured)
+    if isinstance(J, PerTestBlocks):  # a large campaign: made when sliced, like J
+        return PerTestWhitening(PerTestCovariance(noise, J, x_full, measured, w, weights),
+                                measured)
     out = np.empty(J.shape[:-1] + (6,)) if out is None or out.shape != J.shape[:-1] + (6,) \
         else out
     for s in range(0, J.shape[0], EVAL_BLOCK):

@@ -226,32 +226,26 @@ def whitened_lstsq(A: np.ndarray, r: np.ndarray, Linv: np.ndarray | None = None,
 
     ``A`` (m, 6, p) per-test design (zero rows where not measured), ``r`` (m, 6)
     right-hand side (0 where not measured), ``Linv`` (m, 6, 6) per-test whitening
-    (None: unweighted), W = Linv^T Linv. The one place the fits of this package form
-    their (whitened) systems. The stacked (6m, p) whitened system is never held: its
-    column norms, then the TSQR of the column-scaled [Linv A | Linv r], are built
-    test block by test block (:class:`TallR`); the estimate is that of :func:`qr_solve`
-    on the stacked system, to rounding.
+    (None: unweighted), W = Linv^T Linv; ``A`` and ``Linv`` may be made when sliced
+    (:mod:`analysis.identification.per_test`). The one place the fits of this package form
+    their (whitened) systems. The stacked (6m, p) whitened system is never held: the
+    TSQR of [Linv A | Linv r] is built test block by test block in one pass
+    (:class:`TallR`), and its R column-scaled afterwards (Householder QR's backward error
+    is column-wise, so scaling before or after it gives the estimate of :func:`qr_solve`
+    on the stacked system, to rounding).
     """
     m, p = A.shape[0], A.shape[-1]
-
-    def rows(s):
+    acc = TallR()
+    for s in range(0, m, block):
         Ab, rb = A[s:s + block], r[s:s + block]
         if Linv is not None:
             Lb = Linv[s:s + block]
             Ab, rb = Lb @ Ab, np.einsum("mij,mj->mi", Lb, rb)
-        return Ab.reshape(-1, p), rb.reshape(-1)
-
-    sq = np.zeros(p)
-    for s in range(0, m, block):
-        sq += np.sum(rows(s)[0] ** 2, axis=0)
-    norms = np.sqrt(sq)
-    scale = np.where(norms > 0, norms, 1.0)
-    acc = TallR()
-    for s in range(0, m, block):
-        Ab, rb = rows(s)
-        acc.add(np.column_stack([Ab / scale, rb]))
+        acc.add(np.column_stack([Ab.reshape(-1, p), rb.reshape(-1)]))
     R = acc.r()
-    Rinv = np.linalg.inv(R[:p, :p])
+    norms = np.linalg.norm(R[:, :p], axis=0)
+    scale = np.where(norms > 0, norms, 1.0)
+    Rinv = np.linalg.inv(R[:p, :p] / scale)
     x = (Rinv @ R[:p, p]) / scale
     cov_unit = (Rinv @ Rinv.T) / (scale[:, None] * scale[None, :])
     return x, cov_unit
@@ -307,7 +301,8 @@ def residual_variance_blocks(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
 
 
 def sandwich_and_residual_variance(A: np.ndarray, cov, bread: np.ndarray,
-                                   Linv: np.ndarray | None = None, block: int = TEST_BLOCK
+                                   Linv: np.ndarray | None = None, block: int = TEST_BLOCK,
+                                   meat: np.ndarray | None = None
                                    ) -> tuple[np.ndarray, np.ndarray]:
     """(:func:`sandwich`, :func:`residual_variance_blocks`) with one pass over ``cov``.
 
@@ -317,8 +312,23 @@ def sandwich_and_residual_variance(A: np.ndarray, cov, bread: np.ndarray,
     A only). ``cov`` may be made block by block when sliced
     (:class:`analysis.identification.gauss_newton.PerTestCovariance`): it is sliced once
     per block of tests.
+
+    ``meat`` (p, p): sum A^T W Sigma W A if the caller knows it (a fit whitened by its
+    own covariances: A^T W A, from its system's R); the variances then take one pass.
     """
     m, p = A.shape[0], A.shape[-1]
+    if meat is not None:
+        cov_x = bread @ meat @ bread.T
+        part = np.empty((m, 6))
+        for s in range(0, m, block):
+            Ab, Sb = A[s:s + block], cov[s:s + block]
+            SWA = Sb @ _weighted(A, Linv, s, block)
+            flat = Ab.reshape(-1, p)
+            cross = np.sum((flat @ bread).reshape(Ab.shape) * SWA, axis=-1)
+            quad = np.sum((flat @ cov_x).reshape(Ab.shape) * Ab, axis=-1)
+            part[s:s + block] = np.maximum(np.diagonal(Sb, axis1=-2, axis2=-1) - 2 * cross
+                                           + quad, 0.0)
+        return cov_x, part
     meat = np.zeros((p, p))
     part = np.empty((m, 6))
     for s in range(0, m, block):

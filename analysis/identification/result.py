@@ -60,7 +60,10 @@ class Fit:
     exact fit's joint deflections at x (rad), None for the linear fits. ``eiv_shift``
     (p,): how far the wrench errors-in-variables correction moved x
     (:mod:`analysis.identification.eiv`; None when not applied); ``bread`` is then the
-    corrected (A^T W A - S)^-1.
+    corrected (A^T W A - S)^-1. ``R`` (p + 1, p + 1): for a fit of one large campaign
+    whose A and Linv are made when sliced (:mod:`analysis.identification.per_test`), the
+    triangular factor of its final whitened system [Linv A | Linv r] at x - eiv_shift,
+    else None.
     """
 
     x: np.ndarray
@@ -72,6 +75,7 @@ class Fit:
     Linv: np.ndarray | None = None
     deflection: np.ndarray | None = None
     eiv_shift: np.ndarray | None = None
+    R: np.ndarray | None = None
 
     @property
     def estimator(self) -> FactoredEstimator:
