@@ -67,6 +67,8 @@ def leave_one_pose_out(
     batched: bool = True,
     max_exact_refits: int | None = None,
     full_fit=None,
+    group: np.ndarray | None = None,
+    fold_sums=None,
 ) -> pd.DataFrame | None:
     """Table of held-out prediction errors, or None with fewer than 3 distinct poses.
 
@@ -74,11 +76,15 @@ def leave_one_pose_out(
     ``max_exact_refits`` (default :data:`EXACT_REFITS_MAX`): with more poses than
     this, exact folds take one Gauss-Newton step from the full-data estimate.
     ``full_fit``: the :class:`analysis.identification.result.Fit` of ``method`` on all
-    the tests, if the caller has it (saves refitting the full data).
+    the tests, if the caller has it (saves refitting the full data). ``group``: the
+    tests' pose groups (:func:`~analysis.identification.poses.pose_groups`) if the caller
+    has them. ``fold_sums``: the per-pose sums of a streamed exact ``full_fit``
+    (:class:`~analysis.identification.fitting.FinalPassSums`, made in its final pass).
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
-    group = pose_groups(tests.q, pose_tolerance(noise))
+    if group is None:
+        group = pose_groups(tests.q, pose_tolerance(noise))
     names = group_names(tests.pose, group)
     if len(names) < 3:
         return None
@@ -109,7 +115,9 @@ def leave_one_pose_out(
             table = _downdate_batched(robot, tests, group, names, joints, noise, full.A,
                                       np.where(tests.measured, tests.d - full.predicted, 0.0),
                                       full.x, method, dq0=full.deflection, Linv=full.Linv,
-                                      system=_system_of(full))
+                                      system=_system_of(full),
+                                      sums=fold_sums if getattr(fold_sums, "fold", None)
+                                      is not None else None, shift=full.eiv_shift)
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
@@ -171,7 +179,8 @@ def _system_of(fit):
 
 
 def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
-                      dq0=None, Linv=None, system=None) -> pd.DataFrame:
+                      dq0=None, Linv=None, system=None, sums=None, shift=None
+                      ) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
 
     ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the design and right-hand side: for ols the
@@ -183,7 +192,10 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     be made when sliced, :mod:`analysis.identification.per_test`). ``dq0`` (m, 6): the
     full-data fit's joint deflections (rad), Newton's start for the held-out tests.
     ``system``: (R, c, scale) of the column-scaled whitened system if the caller has it
-    (:func:`_system_of`: two passes saved). Each fold's estimate is then corrected for the
+    (:func:`_system_of`: two passes saved), and ``sums`` the per-fold sums of the
+    whitened system at x0 - ``shift`` (:class:`~analysis.identification.fitting.FinalPassSums`:
+    no pass over the tests for the folds' estimates; with ``system``). Each fold's
+    estimate is then corrected for the
     wrench noise in the regressor like the fits (:mod:`analysis.identification.eiv`), with
     the fold's S and (A^T W A)^-1 (``Linv`` None for ols).
     """
@@ -217,9 +229,20 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     S = np.zeros((P, p, p))
     t = np.zeros((P, p))
     # the held-out tests' part of the wrench errors-in-variables S, per fold (same pass)
-    J = _jacobian(robot, tests.q)
-    sig2 = noise.wrench_sigma_at(tests.w) ** 2
     held = np.zeros((P, p, p))
+    if sums is not None:
+        # U = (Linv A / scale) R^-1 summed per fold from the sums of (Linv A)^T (Linv A)
+        # and (Linv A)^T Linv r at x0 - shift; r moves by -A shift to x0
+        Rinv = np.linalg.inv(R)
+        inv_s = 1.0 / scale
+        gram = sums.gram * inv_s[:, None] * inv_s[None, :]
+        S = Rinv.T @ gram @ Rinv
+        score = sums.score if shift is None else sums.score - sums.gram @ shift
+        t = (score * inv_s) @ Rinv
+        held = sums.held
+        blocks = []
+    J = _jacobian(robot, tests.q) if blocks else None
+    sig2 = noise.wrench_sigma_at(tests.w) ** 2 if blocks else None
     for sl in blocks:
         Ab = design(sl)
         b = Ab.shape[0]

@@ -71,7 +71,7 @@ from analysis.identification.lsq import (
 from analysis.identification.measurements import TestArrays, to_arrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.per_test import apply
-from analysis.identification.poses import count_poses, pose_tolerance
+from analysis.identification.poses import pose_tolerance
 from analysis.identification.result import (
     RESIDUALS_LISTED,
     Fit,
@@ -368,7 +368,10 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     joints = tuple(sorted({int(j) for j in joints}))
     if not joints or joints[0] < 0 or joints[-1] > 5:
         raise InputError(f"expected 0-based joint indices 0..5, got {joints}", where="joints")
-    check_tests(robot, tests, joints, noise)
+    from analysis.identification.poses import pose_groups
+
+    group = pose_groups(tests.q, pose_tolerance(noise))  # once: 1-2 s at 1e6 tests
+    check_tests(robot, tests, joints, noise, group=group)
     design = _design(robot, tests, joints)
     cond = check_identifiable(design[1], joints, cond_limit)
     warnings: list[str] = []
@@ -395,11 +398,21 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                             first_whitening=first if method == "exact" else None)
         linear_x["wls"] = chosen.x
     del design
+    sums = None
     if method == "exact":
         chosen = None
+        if tests.m > per_test.LAZY_TESTS and robust == "none":
+            # streamed: the errors-in-variables S and the validation's per-pose sums are
+            # made in the pass that forms the final system (no passes of their own)
+            from analysis.identification.fitting import FinalPassSums
+
+            folds = int(group.max(initial=-1)) + 1
+            sums = FinalPassSums(tests, joints, noise, group if validate and folds >= 3
+                                 else None, folds)
         # the first Gauss-Newton weights are WLS's first ones (both at the OLS estimate)
         chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"],
-                           first_whitening=first or None)
+                           first_whitening=first or None, sums=sums,
+                           defer_shift=sums is not None)
     del first
     rob = None
     kept = tests.measured
@@ -415,37 +428,55 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     # a streamed fit whitened by its own covariances has the meat A^T W Sigma W A =
     # A^T W A = R^T R of its final system: one pass over its (recomputed) blocks
     streamed = chosen.R is not None and rob is None
-    meat = None
     if streamed:
-        Rp = chosen.R[:p, :p]
-        meat = Rp.T @ Rp
-    cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
-                                                  chosen.Linv, meat=meat)
+        # one pass over the recomputed blocks: the variances (meat A^T W A = R^T R, and
+        # Sigma W A = A, of a fit whitened by its own covariances), each component's
+        # sigma, and the prediction moved by the errors-in-variables shift
+        Rp, c0 = chosen.R[:p, :p], chosen.R[:p, p]
+        sigma = np.empty(tests.measured.shape)
+        move = None
+        if not chosen.predicted_shifted:
+            move = (chosen.predicted, chosen.eiv_shift)
+        cov_x, var_r = sandwich_and_residual_variance(
+            chosen.A, chosen.cov, chosen.bread, chosen.Linv, meat=Rp.T @ Rp,
+            own_weights=True, diagonal_out=sigma, move=move)
+        chosen.predicted_shifted = True
+        np.sqrt(sigma, out=sigma)
+        # chi-square from R: |Linv (r - F shift)|^2 = |c0 - Rp shift|^2 + R[p, p]^2
+        shift = np.zeros(p) if chosen.eiv_shift is None else chosen.eiv_shift
+        chi2_red, p_value = chi2_summary(float(np.sum((c0 - Rp @ shift) ** 2)
+                                               + chosen.R[p, p] ** 2), dof)
+        Aw = Rp  # the whitened system's R (same singular values)
+        resid = np.where(kept, tests.d - chosen.predicted, 0.0)
+    else:
+        cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
+                                                      chosen.Linv)
+        sigma = None
     # the fit's own whitening when it used the same components, else made block by block
     # (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of the
     # whitened system, for its scaled condition without the (6m, p) Linv A
     own = chosen.Linv if rob is None and chosen.Linv is not None else None
-    resid = np.where(kept, tests.d - chosen.predicted, 0.0)
-    whitened_resid = np.empty(resid.shape)
     acc = TallR() if tests.m > TEST_BLOCK and not streamed else None
-    for sl in _blocks(tests.m):
-        Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
-        whitened_resid[sl] = np.einsum("mij,mj->mi", Lb, resid[sl])
-        if acc is not None:
-            acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
-    chi2_red, p_value = chi2_summary(whitened_resid, dof)
-    del whitened_resid
-    if streamed:
-        Aw = chosen.R[:p, :p]  # the whitened system's R (same singular values)
-    elif acc is not None:
-        Aw = acc.r()
-    else:
-        Aw = stack_matrix((own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
+    if not streamed:
+        resid = np.where(kept, tests.d - chosen.predicted, 0.0)
+        whitened_resid = np.empty(resid.shape)
+        for sl in _blocks(tests.m):
+            Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
+            whitened_resid[sl] = np.einsum("mij,mj->mi", Lb, resid[sl])
+            if acc is not None:
+                acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
+        chi2_red, p_value = chi2_summary(whitened_resid, dof)
+        del whitened_resid
+    if not streamed:
+        Aw = acc.r() if acc is not None else stack_matrix(
+            (own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
     del acc
     from analysis.identification.noise_check import noise_ratio_notes
 
-    sigma = np.sqrt(per_test_diagonal(chosen.cov))  # (m, 6) each component's sigma
+    if sigma is None:
+        sigma = np.sqrt(per_test_diagonal(chosen.cov))  # (m, 6) each component's sigma
     warnings += noise_ratio_notes(resid, sigma, kept, noise, len(joints))
+    resid = None  # 48 MB at 1e6 tests
     scale = 1.0
     crit = critical_value(confidence)
     if covariance == "residual":
@@ -513,7 +544,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         confidence=confidence, covariance=covariance, condition_number=cond,
         condition_number_weighted=float(scaled_condition(Aw)), tests=tests, n_equations=n_eq,
         dof=dof, chi2_reduced=chi2_red, p_value=p_value, residuals=residuals,
-        n_poses=count_poses(tests.q, pose_tolerance(noise)), outlier_threshold=threshold,
+        n_poses=int(group.max(initial=-1)) + 1, outlier_threshold=threshold,
         linear=linear_x, iterations=chosen.iterations,
         noise=noise, warnings=warnings,
     )
@@ -534,7 +565,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         valid_tests = tests if rob is None else TestArrays(
             tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
         result.validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
-                                               full_fit=chosen if rob is None else None)
+                                               full_fit=chosen if rob is None else None,
+                                               group=group, fold_sums=sums)
     from analysis.identification.fitting import _J_CACHE
 
     _J_CACHE.clear()  # J is not needed after the identification (0.3 GB at 1e6 tests)

@@ -49,11 +49,12 @@ EIV_LIMIT = 0.05
 
 
 def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
-                noise: NoiseModel | None = None) -> None:
+                noise: NoiseModel | None = None, group: np.ndarray | None = None) -> None:
     """Refuse data that cannot identify ``joints``; messages name the line, column or joint.
 
     Poses are told apart by :mod:`analysis.identification.poses` (joint angles
-    equal to within the encoder noise of ``noise``).
+    equal to within the encoder noise of ``noise``); ``group``: the tests' pose groups
+    (:func:`~analysis.identification.poses.pose_groups`) if the caller has them.
     """
     if robot.n != 6:
         raise InputError(f"{robot.name} has {robot.n} joints; the test format has 6")
@@ -88,7 +89,8 @@ def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
             f"compliances: fewer equations than unknowns; add tests"
         )
     tol = pose_tolerance(noise)
-    if count_poses(tests.q, tol) < 2:
+    n_poses = count_poses(tests.q, tol) if group is None else int(group.max(initial=-1)) + 1
+    if n_poses < 2:
         raise InputError(
             f"all {tests.m} tests (lines {tests.line[0]}..{tests.line[-1]}, columns "
             f"{Q_COLS[0]}..{Q_COLS[-1]}) are at one pose (joint angles equal to within "
@@ -216,14 +218,16 @@ def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
     return x
 
 
-def _wrench_eiv(noise, J, tests, joints, x, bread, Linv):
+def _wrench_eiv(noise, J, tests, joints, x, bread, Linv, S=None):
     """(x_c, bread_c, shift): the fit corrected for the wrench's errors in variables.
 
     :mod:`analysis.identification.eiv`: ``(N - S) x_c = N x`` with S from each test's
-    wrench covariance (:meth:`NoiseModel.wrench_sigma_at`) and the fit's weights.
+    wrench covariance (:meth:`NoiseModel.wrench_sigma_at`) and the fit's weights (``S``
+    if the caller has it).
     """
-    S = wrench_eiv_matrix(J, noise.wrench_sigma_at(tests.w) ** 2, Linv, tests.measured,
-                          cols=list(joints))
+    if S is None:
+        S = wrench_eiv_matrix(J, noise.wrench_sigma_at(tests.w) ** 2, Linv, tests.measured,
+                              cols=list(joints))
     # relative attenuation: the eigenvalues of bread S (similar to a symmetric PSD matrix)
     rho = float(np.max(np.abs(np.linalg.eigvals(bread @ S))))
     if not rho <= EIV_LIMIT:
@@ -284,7 +288,8 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
 
 
 def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
-              eiv: bool = True, first_whitening: dict | None = None) -> Fit:
+              eiv: bool = True, first_whitening: dict | None = None, sums=None,
+              defer_shift: bool = False) -> Fit:
     """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,).
 
     ``weights`` (m, 6): robust weights (:func:`_covariances`); ``cov`` of the result is
@@ -294,6 +299,11 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     ``first_whitening``: {x, Linv} of :func:`fit_linear`'s first WLS pass; used as the
     first iteration's whitening when its x equals ``start`` (the same array
     Gauss-Newton would compute: computed once).
+
+    One large (streamed) campaign: ``sums`` a :class:`FinalPassSums` filled in the pass
+    that forms the final system (the errors-in-variables S comes from it);
+    ``defer_shift``: ``predicted`` is left at the uncorrected estimate, for the caller to
+    move by F eiv_shift in a pass of its own (``predicted_shifted`` False).
     """
     Linv0 = None
     if (first_whitening and weights is None
@@ -301,7 +311,7 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
         Linv0 = first_whitening["Linv"]
     J = _jacobian(robot, tests.q)
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
-                      weights=weights, J=J, Linv0=Linv0)
+                      weights=weights, J=J, Linv0=Linv0, rows=sums)
     if not gn.valid:
         raise InputError(
             "the exact fit cannot start: the equilibrium has no solution at the linear "
@@ -309,11 +319,62 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
             "data or use --method wls", where="--method")
     # the linearised estimator at the solution: bread = (F^T W F)^-1 = gn.cov_x
     x, bread, f, Linv, shift = gn.x, gn.cov_x, gn.f, gn.Linv, None
+    shifted = True
     if eiv:
-        x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv)
-        f = f + apply(gn.F, shift)  # first order: the shift is ~1e-4 of x
+        S = sums.S if sums is not None and gn.R is not None else None
+        x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv, S)
+        if defer_shift and gn.R is not None:
+            shifted = False
+        else:
+            f = f + apply(gn.F, shift)  # first order: the shift is ~1e-4 of x
     return Fit(x=x, A=gn.F, cov=gn.cov, predicted=f, iterations=gn.iterations,
-               bread=bread, Linv=Linv, eiv_shift=shift, deflection=gn.dq, R=gn.R)
+               bread=bread, Linv=Linv, eiv_shift=shift, deflection=gn.dq, R=gn.R,
+               predicted_shifted=shifted)
+
+
+class FinalPassSums:
+    """Sums over the tests made in the pass that forms a streamed fit's final system.
+
+    Called by :func:`~analysis.identification.gauss_newton.gauss_newton` with each block
+    of tests (slice, J (b, 6, 6), whitening Linv (b, 6, 6), whitened model Jacobian
+    Linv F (b, 6, p) and residual Linv r (b, 6)) at the solution and its weights. Holds
+    the wrench errors-in-variables ``S`` (p, p) (:mod:`analysis.identification.eiv`) and,
+    with the tests' folds ``fold`` (m,) ints < ``n_folds`` (pose groups), per fold:
+    ``gram`` (P, p, p) = sum (Linv F)^T (Linv F), ``score`` (P, p) = sum (Linv F)^T Linv r
+    and ``held`` (P, p, p) its part of S -- what leave-one-pose-out needs
+    (:mod:`analysis.identification.crossval`), without a pass of its own.
+    """
+
+    def __init__(self, tests: TestArrays, joints, noise: NoiseModel,
+                 fold: np.ndarray | None = None, n_folds: int = 0) -> None:
+        p = len(joints)
+        self.tests, self.cols, self.noise = tests, list(joints), noise
+        self.fold, self.n_folds = fold, n_folds
+        self.S = np.zeros((p, p))
+        if fold is not None:
+            self.gram = np.zeros((n_folds, p, p))
+            self.score = np.zeros((n_folds, p))
+            self.held = np.zeros((n_folds, p, p))
+
+    def __call__(self, sl, J, Linv, LF, Lr) -> None:
+        t = self.tests
+        sig2 = self.noise.wrench_sigma_at(t.w[sl]) ** 2
+        if self.fold is None:
+            self.S += wrench_eiv_matrix(J, sig2, Linv, t.measured[sl], cols=self.cols)
+            return
+        folds, local = np.unique(self.fold[sl], return_inverse=True)
+        k, p = len(folds), LF.shape[-1]
+        held = wrench_eiv_matrix(J, sig2, Linv, t.measured[sl], group=local, n_groups=k,
+                                 cols=self.cols)
+        self.held[folds] += held
+        self.S += held.sum(axis=0)
+        # per-fold sums by bincount, one entry at a time (numpy's add.at is ~10x slower)
+        FF = np.einsum("mri,mrj->mij", LF, LF).reshape(LF.shape[0], -1)
+        Fr = np.einsum("mri,mr->mi", LF, Lr)
+        self.gram[folds] += np.stack([np.bincount(local, FF[:, e], k) for e in range(p * p)],
+                                     axis=-1).reshape(k, p, p)
+        self.score[folds] += np.stack([np.bincount(local, Fr[:, e], k) for e in range(p)],
+                                      axis=-1)
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:

@@ -283,8 +283,8 @@ class _StreamedSystems:
     def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, rows=None):
         """The model at x; the cost under the current weights when ``cost``; with the
         Jacobian, R of the system whitened at ``system_at``. ``rows``: a callable given
-        (slice, Linv block, F block, whitened residual block) of each block (the caller's
-        per-test sums of the same pass)."""
+        (slice, J block, Linv block, whitened F block, whitened residual block) of each
+        block (the caller's per-test sums of the same pass)."""
         from analysis.identification.exact_fit import model_displacement_state
         from analysis.model.kinematics import jacobian_from_state
 
@@ -315,7 +315,7 @@ class _StreamedSystems:
                 LF, Lr = Ls @ Fb, np.einsum("mij,mj->mi", Ls, rb)
                 acc.add(np.column_stack([LF.reshape(-1, p), Lr.reshape(-1)]))
                 if rows is not None:
-                    rows(sl, Ls, LF, Lr)
+                    rows(sl, Jb, Ls, LF, Lr)
         R = acc.r() if with_jacobian else None
         return _State(f=f, F=None, ok=np.asarray(ok), dq=dq,
                       cost=np.asarray(value) if cost else None, R=R,
@@ -424,8 +424,8 @@ def gauss_newton(
         :func:`analysis.identification.lsq.whitening`), if the caller has it: the first
         iteration's weights (it is overwritten by the later ones).
     rows : one campaign of more than :data:`~analysis.identification.per_test.LAZY_TESTS`
-        tests only: a callable given (slice, whitening, whitened F, whitened residual) of
-        each block of tests in the pass that makes the final system (at the solution and
+        tests only: a callable given (slice, J, whitening, whitened F, whitened residual)
+        of each block of tests in the pass that makes the final system (at the solution and
         its weights), for per-test sums a caller would otherwise make in a pass of its own.
 
     One campaign of more than ``LAZY_TESTS`` tests is fitted without holding F or the

@@ -63,7 +63,8 @@ class Fit:
     corrected (A^T W A - S)^-1. ``R`` (p + 1, p + 1): for a fit of one large campaign
     whose A and Linv are made when sliced (:mod:`analysis.identification.per_test`), the
     triangular factor of its final whitened system [Linv A | Linv r] at x - eiv_shift,
-    else None.
+    else None. ``predicted_shifted`` False: ``predicted`` is still at x - eiv_shift (the
+    caller moves it by A eiv_shift, :func:`analysis.identification.fitting.fit_exact`).
     """
 
     x: np.ndarray
@@ -76,6 +77,7 @@ class Fit:
     deflection: np.ndarray | None = None
     eiv_shift: np.ndarray | None = None
     R: np.ndarray | None = None
+    predicted_shifted: bool = True
 
     @property
     def estimator(self) -> FactoredEstimator:

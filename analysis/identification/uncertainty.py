@@ -67,9 +67,11 @@ def studentized(residual: np.ndarray, variance: np.ndarray) -> np.ndarray:
         return np.where(variance > 0, residual / np.sqrt(variance), np.nan)
 
 
-def chi2_summary(whitened_residual: np.ndarray, dof: int) -> tuple[float, float]:
-    """(reduced chi-square, p-value of the chi-square test) for whitened residuals."""
-    chi2 = float(np.sum(whitened_residual**2))
+def chi2_summary(whitened_residual: np.ndarray | float, dof: int) -> tuple[float, float]:
+    """(reduced chi-square, p-value of the chi-square test) for whitened residuals, or
+    for their sum of squares given as a float."""
+    chi2 = float(whitened_residual) if np.ndim(whitened_residual) == 0 else float(
+        np.sum(whitened_residual**2))
     if dof <= 0:
         return float("nan"), float("nan")
     return chi2 / dof, float(special.chdtrc(dof, chi2))
