@@ -347,7 +347,12 @@ def _fold_eiv(held, R, scale, lev, x_p, ok):
 
     p = R.shape[0]
     Rinv = np.linalg.inv(R)
-    bread = (Rinv @ np.linalg.solve(np.eye(p) - lev[ok], np.broadcast_to(
-        Rinv.T, (int(ok.sum()), p, p)))) / (scale[:, None] * scale[None, :])
-    x_c, _ = corrected(x_p[ok], bread, held.sum(axis=0) - held[ok])
+    total = held.sum(axis=0)
+    folds = np.flatnonzero(ok)
+    x_c = np.empty((len(folds), p))
+    for s in range(0, len(folds), 8192):  # (folds, p, p) temporaries: 1e5 poses = 29 MB each
+        h = folds[s:s + 8192]
+        bread = (Rinv @ np.linalg.solve(np.eye(p) - lev[h], np.broadcast_to(
+            Rinv.T, (len(h), p, p)))) / (scale[:, None] * scale[None, :])
+        x_c[s:s + 8192], _ = corrected(x_p[h], bread, total - held[h])
     return x_c

@@ -83,7 +83,6 @@ from analysis.identification.uncertainty import (
     chi2_summary,
     critical_value,
     stiffness_interval,
-    studentized,
 )
 from analysis.model.robot_model import RobotModel
 
@@ -151,14 +150,21 @@ AT_ONCE_MAX_LEVERAGE = 1e-3
 def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
     """(m, 6) studentized residuals of fit ``f`` (NaN where not measured)."""
     _, var_r = sandwich_and_residual_variance(f.A, f.cov, f.bread, f.Linv)
-    # in place: (m, 6) arrays are 48 MB each at 1e6 tests
-    var_r *= scale
-    resid = np.where(tests.measured, tests.d - f.predicted, np.nan)
+    return _studentize(tests, f.predicted, var_r, scale)
+
+
+def _studentize(tests: TestArrays, predicted: np.ndarray, var_r: np.ndarray,
+                scale: float) -> np.ndarray:
+    """(m, 6) residuals / sqrt(scale var_r), NaN where not measured or var_r is 0, written
+    into ``var_r``'s array ((m, 6) arrays are 48 MB each at 1e6 tests)."""
+    resid = np.subtract(tests.d, predicted)
     with np.errstate(divide="ignore", invalid="ignore"):
+        var_r *= scale
+        bad = ~(var_r > 0) | ~tests.measured
         np.sqrt(var_r, out=var_r)
-        np.divide(resid, var_r, out=resid)
-    resid[~(var_r > 0)] = np.nan
-    return resid
+        np.divide(resid, var_r, out=var_r)
+    var_r[bad] = np.nan
+    return var_r
 
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
@@ -421,6 +427,22 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         chosen = rob.fit
         kept = rob.kept(tests.measured)
 
+    # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
+    # start for the held-out tests) are let go before the per-test statistics are made
+    validation = None
+    if validate:
+        from analysis.identification.crossval import leave_one_pose_out
+
+        # robust: validated on the components the robust fit kept (weight >= 0.5)
+        valid_tests = tests if rob is None else TestArrays(
+            tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
+        validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
+                                        full_fit=chosen if rob is None else None,
+                                        group=group, fold_sums=sums)
+    sums = None
+    if chosen.R is not None:
+        chosen.deflection = None  # 48 MB at 1e6 tests, not used beyond the validation
+
     p = len(joints)
     n_eq = int(tests.measured.sum())
     # the goodness of fit is that of the components the fit rests on
@@ -514,7 +536,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                             "reaches 0, the data do not bound k from above")
 
     threshold = outlier_threshold(n_eq, outlier_level)
-    t = studentized(np.where(tests.measured, tests.d - chosen.predicted, np.nan), var_r * scale)
+    t = _studentize(tests, chosen.predicted, var_r, scale)  # in var_r's array
+    var_r = None
     if rob is None:
         flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t)
     else:
@@ -552,21 +575,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     result.wrench_eiv = eiv
     if rob is not None:
         result.robust = rob.describe()
-    if validate:
-        from dataclasses import replace
-
-        from analysis.identification.crossval import leave_one_pose_out
-
-        # the validation does not use the fit's residual covariances: let them go first
-        # (0.3 GB at 1e6 tests)
-        chosen = replace(chosen, cov=None)
-
-        # robust: validated on the components the robust fit kept (weight >= 0.5)
-        valid_tests = tests if rob is None else TestArrays(
-            tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
-        result.validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
-                                               full_fit=chosen if rob is None else None,
-                                               group=group, fold_sums=sums)
+    result.validation = validation
     from analysis.identification.fitting import _J_CACHE
 
     _J_CACHE.clear()  # J is not needed after the identification (0.3 GB at 1e6 tests)

@@ -280,17 +280,20 @@ class _StreamedSystems:
                                    None if c.weights is None else c.weights[sl])
         return whitening(cov, c.measured[sl])
 
-    def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, rows=None):
+    def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, rows=None,
+                 keep=True):
         """The model at x; the cost under the current weights when ``cost``; with the
         Jacobian, R of the system whitened at ``system_at``. ``rows``: a callable given
         (slice, J block, Linv block, whitened F block, whitened residual block) of each
-        block (the caller's per-test sums of the same pass)."""
+        block (the caller's per-test sums of the same pass). ``keep`` False: f and dq are
+        not kept (None)."""
         from analysis.identification.exact_fit import model_displacement_state
         from analysis.model.kinematics import jacobian_from_state
 
         c = self.c
         m, p = c.q.shape[0], len(c.cols)
-        f, dq, ok = np.empty((m, 6)), np.empty(c.q.shape), True
+        f, dq = (np.empty((m, 6)), np.empty(c.q.shape)) if keep else (None, None)
+        ok = True
         value = 0.0
         acc = lsq.TallR() if with_jacobian else None
         xf = c.full(x)
@@ -302,7 +305,8 @@ class _StreamedSystems:
                 c.robot, c.q[sl], xf, c.w[sl], with_jacobian,
                 None if dq0 is None else dq0[sl], unloaded=unloaded)
             ok = ok and bool(np.all(okb))
-            f[sl], dq[sl] = fb, dqb
+            if keep:
+                f[sl], dq[sl] = fb, dqb
             rb = np.where(c.measured[sl], c.dz[sl] - fb, 0.0)
             Jb = jacobian_from_state(unloaded["state"])
             Lc = None
@@ -334,7 +338,8 @@ class _StreamedSystems:
         xf = c.full(x)
         cov = PerTestCovariance(c.noise, c.J, xf, c.measured, c.w, c.weights)
         self.weigh(x)
-        last = self.evaluate(x, True, state.dq, False, x, rows=getattr(self, "rows", None))
+        last = self.evaluate(x, True, state.dq, False, x, rows=getattr(self, "rows", None),
+                             keep=False)
         _, cov_x, _ = _from_r(last.R)
         F = PerTestModelJacobian(c.robot, c.q, c.w, c.measured, c.cols, xf, state.dq)
         return cov, PerTestWhitening(cov, c.measured), cov_x, F, last.R

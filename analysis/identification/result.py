@@ -154,26 +154,40 @@ class ResidualRows:
 
     def key(self) -> np.ndarray:
         """(m, 6) ranking of the rows: |studentized| (-1 if not finite), outliers first."""
-        t = np.abs(self.t)
-        key = np.where(np.isfinite(t), t, -1.0) + np.where(self.flags, np.inf, 0.0)
-        return np.where(self.tests.measured, key, -np.inf)
+        key = np.abs(self.t)  # one (m, 6) array, edited in place
+        key[~np.isfinite(key)] = -1.0
+        key[self.flags] = np.inf
+        key[~self.tests.measured] = -np.inf
+        return key
 
     def worst_tests(self, rows: int) -> np.ndarray:
         """Sorted indices of the tests holding the ``rows`` highest-ranked rows (outliers
         first, then largest |studentized|), and of those holding the ``rows`` largest
         |studentized| outliers."""
-        key = self.key().reshape(-1)
-        n = min(rows, key.size)
-        top = np.argpartition(-key, n - 1)[:n] if n else np.zeros(0, int)
-        t = np.where(self.flags & self.tests.measured, np.abs(np.nan_to_num(self.t)), -1.0)
-        t = t.reshape(-1)
-        top_out = np.argpartition(-t, n - 1)[:n] if n else np.zeros(0, int)
-        top_out = top_out[t[top_out] >= 0]
+        top = _largest(self.key().reshape(-1), rows)
+        out = np.flatnonzero((self.flags & self.tests.measured).reshape(-1))
+        t = np.abs(np.nan_to_num(self.t.reshape(-1)[out]))
+        top_out = out[_largest(t, rows)]
         return np.unique(np.concatenate([top, top_out]) // 6)
 
     def histogram(self) -> dict:
         """results.json ``residual_histogram`` of every row."""
         return _histogram(self.t[self.tests.measured])
+
+
+def _largest(values: np.ndarray, n: int, block: int = 1 << 18) -> np.ndarray:
+    """Indices of the ``n`` largest of ``values`` (1-D), in no particular order, found
+    block by block (an index array of every value would be 8 bytes per value)."""
+    n = min(n, values.size)
+    if n <= 0:
+        return np.zeros(0, dtype=np.int64)
+    keep = np.zeros(0, dtype=np.int64)
+    for s in range(0, values.size, block):
+        idx = np.concatenate([keep, np.arange(s, min(s + block, values.size))])
+        if idx.size > n:
+            idx = idx[np.argpartition(values[idx], idx.size - n)[idx.size - n:]]
+        keep = idx
+    return keep
 
 
 @dataclass

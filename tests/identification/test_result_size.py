@@ -61,3 +61,15 @@ def test_report_table_lists_the_worst_tests(monkeypatch):
     assert "the 2 of 50 tests" in table.caption
     monkeypatch.setattr(build, "REPORT_TESTS_LISTED", 200)
     assert len(build.residual_table(result).rows) == 50
+
+
+def test_largest_by_blocks_equals_a_full_sort():
+    from analysis.identification.result import _largest
+
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=10_007)
+    values[[5, 900, 7000]] = np.inf  # outliers rank first
+    for n in (0, 1, 3, 50, 10_007, 20_000):
+        got = np.sort(_largest(values, n, block=997))
+        want = np.sort(np.argsort(values)[::-1][:n])
+        np.testing.assert_array_equal(got, want)
