@@ -351,13 +351,15 @@ class FinalPassSums:
         self.tests, self.cols, self.noise = tests, list(joints), noise
         self.fold, self.n_folds = fold, n_folds
         self.S = np.zeros((p, p))
-        if fold is not None:
-            self.gram = np.zeros((n_folds, p, p))
-            self.score = np.zeros((n_folds, p))
-            self.held = np.zeros((n_folds, p, p))
+        self.gram = self.score = self.held = None  # made at the first block (62 MB at 1e5
+        # poses, not held through the iterations)
 
     def __call__(self, sl, J, Linv, LF, Lr) -> None:
         t = self.tests
+        if self.fold is not None and self.gram is None:
+            P, p = self.n_folds, len(self.cols)
+            self.gram, self.score, self.held = (np.zeros((P, p, p)), np.zeros((P, p)),
+                                                np.zeros((P, p, p)))
         sig2 = self.noise.wrench_sigma_at(t.w[sl]) ** 2
         if self.fold is None:
             self.S += wrench_eiv_matrix(J, sig2, Linv, t.measured[sl], cols=self.cols)

@@ -253,7 +253,7 @@ class _HeldSystems:
             cov = covariances_per_test(c.noise, c.J, c.full(x), c.measured, c.w, c.weights)
             self.Linv = whitening(cov, c.measured, out=self.Linv)
         _, cov_x, _ = self.solve(state, valid)
-        return cov, self.Linv, cov_x, state.F, None
+        return cov, self.Linv, cov_x, state.F, None, state.f, state.dq
 
 
 class _StreamedSystems:
@@ -281,18 +281,20 @@ class _StreamedSystems:
         return whitening(cov, c.measured[sl])
 
     def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, rows=None,
-                 keep=True):
+                 keep_f=False, dq_out=None):
         """The model at x; the cost under the current weights when ``cost``; with the
         Jacobian, R of the system whitened at ``system_at``. ``rows``: a callable given
         (slice, J block, Linv block, whitened F block, whitened residual block) of each
-        block (the caller's per-test sums of the same pass). ``keep`` False: f and dq are
-        not kept (None)."""
+        block (the caller's per-test sums of the same pass). The model values f are kept
+        only with ``keep_f`` (the iterations need the deflections alone, their warm
+        start); ``dq_out``: an array to write the deflections into (may be ``dq0``)."""
         from analysis.identification.exact_fit import model_displacement_state
         from analysis.model.kinematics import jacobian_from_state
 
         c = self.c
         m, p = c.q.shape[0], len(c.cols)
-        f, dq = (np.empty((m, 6)), np.empty(c.q.shape)) if keep else (None, None)
+        f = np.empty((m, 6)) if keep_f else None
+        dq = np.empty(c.q.shape) if dq_out is None else dq_out
         ok = True
         value = 0.0
         acc = lsq.TallR() if with_jacobian else None
@@ -305,8 +307,9 @@ class _StreamedSystems:
                 c.robot, c.q[sl], xf, c.w[sl], with_jacobian,
                 None if dq0 is None else dq0[sl], unloaded=unloaded)
             ok = ok and bool(np.all(okb))
-            if keep:
-                f[sl], dq[sl] = fb, dqb
+            dq[sl] = dqb
+            if keep_f:
+                f[sl] = fb
             rb = np.where(c.measured[sl], c.dz[sl] - fb, 0.0)
             Jb = jacobian_from_state(unloaded["state"])
             Lc = None
@@ -338,11 +341,13 @@ class _StreamedSystems:
         xf = c.full(x)
         cov = PerTestCovariance(c.noise, c.J, xf, c.measured, c.w, c.weights)
         self.weigh(x)
+        # the model values at the solution come from this pass (the iterations kept only
+        # the deflections), which also writes the deflections in place
         last = self.evaluate(x, True, state.dq, False, x, rows=getattr(self, "rows", None),
-                             keep=False)
+                             keep_f=True, dq_out=state.dq)
         _, cov_x, _ = _from_r(last.R)
-        F = PerTestModelJacobian(c.robot, c.q, c.w, c.measured, c.cols, xf, state.dq)
-        return cov, PerTestWhitening(cov, c.measured), cov_x, F, last.R
+        F = PerTestModelJacobian(c.robot, c.q, c.w, c.measured, c.cols, xf, last.dq)
+        return cov, PerTestWhitening(cov, c.measured), cov_x, F, last.R, last.f, last.dq
 
 
 def _from_r(R):
@@ -522,9 +527,8 @@ def gauss_newton(
     ctx.tips.clear()  # the unloaded tool poses (0.13 GB at 1e6 tests) before the last arrays
     if streamed:
         systems.rows = rows
-    cov, Linv, cov_x, F, R = systems.final(x, state, valid)
+    cov, Linv, cov_x, F, R, f, dq = systems.final(x, state, valid)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)
-    return GaussNewtonFit(x=x, F=F, f=state.f, cov=cov, cov_x=cov_x, iterations=iterations,
-                          converged=converged & valid, valid=valid, dq=state.dq, Linv=Linv,
-                          R=R)
+    return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,
+                          converged=converged & valid, valid=valid, dq=dq, Linv=Linv, R=R)
