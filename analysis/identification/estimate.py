@@ -156,15 +156,23 @@ def _studentized_matrix(tests: TestArrays, f: Fit, scale: float) -> np.ndarray:
 def _studentize(tests: TestArrays, predicted: np.ndarray, var_r: np.ndarray,
                 scale: float) -> np.ndarray:
     """(m, 6) residuals / sqrt(scale var_r), NaN where not measured or var_r is 0, written
-    into ``var_r``'s array ((m, 6) arrays are 48 MB each at 1e6 tests)."""
-    resid = np.subtract(tests.d, predicted)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        var_r *= scale
-        bad = ~(var_r > 0) | ~tests.measured
-        np.sqrt(var_r, out=var_r)
-        np.divide(resid, var_r, out=var_r)
-    var_r[bad] = np.nan
+    into ``var_r``'s array block by block ((m, 6) arrays are 48 MB each at 1e6 tests)."""
+    for sl in _blocks(tests.m, 1 << 16):
+        v = var_r[sl]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bad = ~(v > 0) | ~tests.measured[sl]
+            v[...] = (tests.d[sl] - predicted[sl]) / np.sqrt(v * scale)
+        v[bad] = np.nan
     return var_r
+
+
+def _beyond(t: np.ndarray, mask: np.ndarray, threshold: float) -> np.ndarray:
+    """Flat indices of the components with ``mask`` and |t| > threshold, block by block."""
+    flat_t, flat_m = t.reshape(-1), mask.reshape(-1)
+    step = 1 << 18
+    return np.concatenate([s + np.flatnonzero(flat_m[s:s + step]
+                                              & (np.abs(flat_t[s:s + step]) > threshold))
+                           for s in range(0, flat_t.size, step)] or [np.zeros(0, int)])
 
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
@@ -194,17 +202,18 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
     budget = min(MAX_OUTLIERS, n_eq - len(joints) - 1)
     at_once = n_eq > OUTLIERS_AT_ONCE_ABOVE
     for _ in range(max(budget, 0) + 1):
-        candidate = np.where(tests.measured & ~flags & np.isfinite(t), np.abs(t), -np.inf)
         room = budget + 1 - int(flags.sum())
         if at_once:
-            beyond = np.flatnonzero(candidate.reshape(-1) > threshold)
-            order = beyond[np.argsort(-candidate.reshape(-1)[beyond], kind="stable")][:room]
-            i, c = np.unravel_index(order, candidate.shape)
+            beyond = _beyond(t, tests.measured & ~flags, threshold)
+            size = np.abs(t.reshape(-1)[beyond])
+            order = beyond[np.argsort(-size, kind="stable")][:room]
+            i, c = np.unravel_index(order, t.shape)
             if not len(order):
                 break
             if np.sum(_leverages(current, i, c)) > AT_ONCE_MAX_LEVERAGE:
                 i, c = i[:1], c[:1]  # influential: one at a time
         else:
+            candidate = np.where(tests.measured & ~flags & np.isfinite(t), np.abs(t), -np.inf)
             i, c = np.unravel_index(int(np.argmax(candidate)), candidate.shape)
             if not candidate[i, c] > threshold:
                 break
@@ -212,8 +221,8 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
         if int(flags.sum()) > budget:
             break
         keep = tests.measured & ~flags
-        rest = TestArrays(tests.pose, tests.q, tests.w, np.where(keep, tests.d, np.nan), keep,
-                          tests.line)
+        # d as it is: components not ``measured`` are not read (no 48 MB copy at 1e6 tests)
+        rest = TestArrays(tests.pose, tests.q, tests.w, tests.d, keep, tests.line)
         try:
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
                                      tests.d[i, c])
