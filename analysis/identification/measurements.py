@@ -225,9 +225,10 @@ def _read_arrow(path: Path) -> TestArrays | None:
             column_types={key["pose"]: pa.string(), **{key[c]: pa.float64() for c in numeric}},
             null_values=_NA_TEXT, strings_can_be_null=False),
     }
-    cap = _count_lines(path)
-    # the final arrays, filled block by block; pages beyond the rows read are never touched
-    q, w, d = (np.empty((cap, N_JOINTS)) for _ in range(3))
+    cap = _count_lines(path) - 1  # the rows, unless blank lines or line breaks in cells
+    # the final arrays, filled block by block; column-major, as the table route makes them
+    # (the fits' sums then add in the same order: the same results to the last bit)
+    q, w, d = (np.empty((cap, N_JOINTS), order="F") for _ in range(3))
     target = [(block, k) for block in (q, w, d) for k in range(N_JOINTS)]
     codes = np.empty(cap, dtype=np.int32)
     labels: dict[str, int] = {}
@@ -256,7 +257,9 @@ def _read_arrow(path: Path) -> TestArrays | None:
         return None
     if m == 0:
         return None  # header only: read_csv says so
-    q, w, d, codes = q[:m], w[:m], d[:m], codes[:m]
+    if m < cap:  # blank lines: the arrays of the rows read
+        q, w, d = (np.asfortranarray(a[:m]) for a in (q, w, d))
+    codes = codes[:m]
     where = str(path)
     bad = [labels[t] for t in ("", "nan", "None") if t in labels]
     if bad:
