@@ -159,9 +159,9 @@ def read_test_arrays(path: str | Path) -> TestArrays:
 
     The same tests, checks and messages as ``to_arrays(read_csv(path))``, with a
     fraction of the memory: the file is streamed by Arrow's CSV reader in blocks
-    of ~1 MB into the final arrays, so nothing but those arrays stays (a
-    1e6-test file: ~0.2 GB, against ~0.6 GB at the peak of the table route). Equal pose
-    labels share one string object. A file Arrow cannot take as plain numbers (a
+    of 256 kB into the final arrays, so nothing but those arrays stays (a 1e6-test
+    file: ~0.2 GB above the imports at the peak, against ~0.55 GB for the table
+    route). Equal pose labels share one string object. A file Arrow cannot take as plain numbers (a
     non-numeric cell, spaces around a number, a row of the wrong length, ...) goes
     through :func:`read_csv`, whose text path finds and names the cell.
     """
@@ -225,7 +225,7 @@ def _read_arrow(path: Path) -> TestArrays | None:
             column_types={key["pose"]: pa.string(), **{key[c]: pa.float64() for c in numeric}},
             null_values=_NA_TEXT, strings_can_be_null=False),
     }
-    cap = _count_lines(path) - 1  # the rows, unless blank lines or line breaks in cells
+    cap = max(_count_lines(path) - 1, 0)  # the rows, unless blank lines or breaks in cells
     # the final arrays, filled block by block; column-major, as the table route makes them
     # (the fits' sums then add in the same order: the same results to the last bit)
     q, w, d = (np.empty((cap, N_JOINTS), order="F") for _ in range(3))

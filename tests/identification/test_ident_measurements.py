@@ -146,6 +146,8 @@ def _same_tests(a, b) -> None:
     for name in ("q", "w", "d", "measured", "line"):
         x, y = getattr(a, name), getattr(b, name)
         assert x.dtype == y.dtype and x.shape == y.shape, name
+        # the same memory order too: the fits' sums then add alike, to the last bit
+        assert x.flags.f_contiguous == y.flags.f_contiguous, name
         assert np.ascontiguousarray(x).tobytes() == np.ascontiguousarray(y).tobytes(), name
     assert a.pose.dtype == b.pose.dtype == object
     assert a.pose.tolist() == b.pose.tolist()
