@@ -4,8 +4,9 @@ pandas writes each float as numpy's shortest round-trip text (``str(np.float64)`
 ``0.001``, ``1e-05``, ``2.0``, ``1e+16``, NaN as an empty cell), ``True``/``False``,
 integers and text cells as they are, quoting (``"``) only a cell that holds a comma,
 a quote or a line break. That text is made here a block of rows at a time by
-Arrow's kernels, ~5x faster than pandas: Arrow's float-to-text cast gives the same
-shortest digits but lays them out differently for some magnitudes (``1e-7`` for
+Arrow's kernels, with ~6x less CPU than pandas (6e6 residual rows: ~7 s against
+46 s). Arrow's float-to-text cast gives the same shortest digits but lays them
+out differently for some magnitudes (``1e-7`` for
 ``1e-07``, ``0.00001`` for ``1e-05``, ``1`` for ``1.0``, ``1e+10`` for
 ``10000000000.0``); those cells are rewritten with string kernels, the rare ones
 (1e10 <= |x| < 1e16) by numpy itself. Text cells go through Python's csv module once
