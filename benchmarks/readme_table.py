@@ -32,8 +32,8 @@ START = "<!-- bench-table:start -->"
 END = "<!-- bench-table:end -->"
 
 #: row order of the table; benchmarks not listed here follow, in name order
-ORDER = ("maps", "identification", "large_import", "planner", "compensate", "place",
-         "fake_campaign", "startup")
+ORDER = ("maps", "identification", "large_import", "csv_io", "planner", "compensate",
+         "place", "fake_campaign", "startup")
 
 
 def read_records(path: Path) -> list[dict]:
@@ -242,6 +242,27 @@ def _startup(f: Fig) -> tuple[str, str, str, str]:
             f"{f['help_ratio']}x / {f['stiffness_ratio']}x CPU")
 
 
+def _csv_io(f: Fig) -> tuple[str, str, str, str]:
+    sizes = sorted((f.get("read") or {}), key=int)
+    read = [f"N={num(int(n))}: {f[f'read.{n}.arrow.cpu_s']} s CPU / "
+            f"{f[f'read.{n}.arrow.peak_rss_MB']} MB peak (imports alone "
+            f"{f[f'read.{n}.imports.cpu_s']} s / {f[f'read.{n}.imports.peak_rss_MB']} MB)"
+            for n in sizes]
+    base = [f"N={num(int(n))}: {f[f'read.{n}.table.cpu_s']} s / "
+            f"{f[f'read.{n}.table.peak_rss_MB']} MB, same arrays {f[f'read.{n}.same_arrays']}"
+            for n in sizes]
+    ratio = [f"N={num(int(n))}: {f[f'read.{n}.ratio_peak_above_imports']}x less memory above "
+             f"the imports, {f[f'read.{n}.ratio_cpu_read']}x CPU" for n in sizes]
+    return ("tests CSV read into the arrays (`read_test_arrays`); residuals.csv of "
+            f"{f['write.tests']} tests ({f['write.rows']} rows, {f['write.file_MB']} MB) "
+            "written by `table_csv`",
+            "; ".join(read) + f"; write {f['write.table_csv_cpu_s']} s CPU",
+            "read: `to_arrays(read_csv(...))` " + "; ".join(base) + "; write: pandas "
+            f"`to_csv` {f['write.pandas_cpu_s']} s CPU, same bytes {f['write.same_bytes']}. "
+            f"Timed: {f['timing']}",
+            "; ".join(ratio) + f"; write {f['write.ratio_cpu']}x CPU")
+
+
 def _generic(f: Fig) -> tuple[str, str, str, str]:
     return ("(no description in readme_table.py)", json.dumps(f.figures), "?", "?")
 
@@ -249,7 +270,7 @@ def _generic(f: Fig) -> tuple[str, str, str, str]:
 ROWS: dict[str, Callable[[Fig], tuple[str, str, str, str]]] = {
     "maps": _maps, "identification": _identification, "large_import": _large_import,
     "planner": _planner, "compensate": _compensate, "place": _place,
-    "fake_campaign": _fake_campaign, "startup": _startup,
+    "fake_campaign": _fake_campaign, "startup": _startup, "csv_io": _csv_io,
 }
 
 

@@ -110,9 +110,17 @@ class ResidualRows:
     weights: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        # pose labels as category codes, once (every block of rows uses them)
-        codes, labels = pd.factorize(np.asarray(self.tests.pose).astype(str))
-        object.__setattr__(self, "_pose_codes", (codes, labels))
+        # pose labels as category codes and the categoricals' dtypes, once (every block of
+        # rows uses them; a dtype made per block would check 1e5 categories each time)
+        pose = np.asarray(self.tests.pose, dtype=object)
+        codes, labels = pd.factorize(pose, use_na_sentinel=False)  # shared str objects: fast
+        labels = [str(t) for t in labels]
+        if len(set(labels)) < len(labels):  # labels that are equal only as text
+            codes, labels = pd.factorize(pose.astype(str))
+        dtypes = {"pose": pd.CategoricalDtype(labels),
+                  "component": pd.CategoricalDtype(COMPONENTS),
+                  "unit": pd.CategoricalDtype(["m", "rad"])}
+        object.__setattr__(self, "_pose_codes", (codes, dtypes))
 
     @property
     def n_rows(self) -> int:
@@ -123,29 +131,50 @@ class ResidualRows:
         """Tests with at least one measured component (one row or more)."""
         return int(self.tests.measured.any(axis=1).sum())
 
-    def frame(self, which: np.ndarray | slice = slice(None)) -> pd.DataFrame:
-        """Rows of the tests ``which`` (sorted indices or a slice): one per test and
-        measured component, tests in order, components in order."""
+    #: the columns of the table, in order
+    COLUMNS = ("test", "line", "pose", "component", "unit", "measured", "predicted",
+               "residual", "sigma", "studentized", "outlier")
+
+    @property
+    def names(self) -> list[str]:
+        """The table's column names (``weight`` last for a robust fit)."""
+        return [*self.COLUMNS, *(["weight"] if self.weights is not None else [])]
+
+    def columns(self, which: np.ndarray | slice = slice(None)) -> dict:
+        """Columns (arrays; text as categoricals) of the rows of the tests ``which`` (sorted
+        indices or a slice): one per test and measured component, tests in order,
+        components in order."""
         tests = self.tests
         idx = np.arange(tests.m)[which]
         meas = tests.measured[idx]
         k, c = np.nonzero(meas)  # row-major: by test, then component
         i = idx[k]
         # text columns as categoricals: millions of Python strings would take ~1 GB
-        codes, labels = self._pose_codes
-        resid = tests.d[i, c] - self.predicted[i, c]
-        out = pd.DataFrame({
+        codes, dtypes = self._pose_codes
+        measured = tests.d[i, c]
+        predicted = self.predicted[i, c]
+        out = {
             "test": i.astype(np.int64), "line": tests.line[i].astype(np.int64),
-            "pose": pd.Categorical.from_codes(codes[i], categories=labels),
-            "component": pd.Categorical.from_codes(c, categories=COMPONENTS),
-            "unit": pd.Categorical.from_codes((c >= 3).astype(np.int8), categories=["m", "rad"]),
-            "measured": tests.d[i, c], "predicted": self.predicted[i, c],
-            "residual": resid, "sigma": self.sigma[i, c], "studentized": self.t[i, c],
-            "outlier": self.flags[i, c].astype(bool),
-        })
+            "pose": pd.Categorical.from_codes(codes[i], dtype=dtypes["pose"]),
+            "component": pd.Categorical.from_codes(c, dtype=dtypes["component"]),
+            "unit": pd.Categorical.from_codes((c >= 3).astype(np.int8), dtype=dtypes["unit"]),
+            "measured": measured, "predicted": predicted,
+            "residual": measured - predicted, "sigma": self.sigma[i, c],
+            "studentized": self.t[i, c], "outlier": self.flags[i, c].astype(bool),
+        }
         if self.weights is not None:
             out["weight"] = self.weights[i, c]
         return out
+
+    def frame(self, which: np.ndarray | slice = slice(None)) -> pd.DataFrame:
+        """:meth:`columns` as a DataFrame."""
+        return pd.DataFrame(self.columns(which))
+
+    def blocks(self, block: int = 10_000):
+        """The whole table as :meth:`columns` of ``block`` tests each, in order (blocks of
+        ~60000 rows keep the writer's memory to ~50 MB)."""
+        for s in range(0, self.tests.m, block):
+            yield self.columns(slice(s, s + block))
 
     def frames(self, block: int = 80_000):
         """The whole table as DataFrames of ``block`` tests each, in order."""
@@ -466,40 +495,18 @@ def _records(frame: pd.DataFrame) -> list[dict]:
     return out
 
 
-def write_table(frame, path: Path) -> None:
-    """CSV of ``frame`` (a DataFrame, or an iterable of DataFrames with the same columns,
-    written one after the other): floats in shortest round-trip form, empty cells for NaN.
+def write_table(table, path: Path) -> None:
+    """CSV of ``table`` (a DataFrame or a :class:`ResidualRows`): the bytes of pandas'
+    ``to_csv(index=False)`` of the whole table (floats in numpy's shortest round-trip
+    text, empty cells for NaN, True/False), written a block of rows at a time by
+    :mod:`analysis.identification.table_csv` (a 1e6-test residual table, 6e6 rows,
+    never exists as one DataFrame)."""
+    from analysis.identification.table_csv import write_blocks, write_frame
 
-    Tables of 1e5 rows or more go through the Arrow CSV writer, ~10x faster
-    than pandas' (measured: 0.9 s against 9 s of CPU for 1e6 rows); it writes
-    the same numbers and header, but quotes text cells and writes booleans as
-    true/false (pandas.read_csv reads both files to equal frames).
-    """
-    if isinstance(frame, pd.DataFrame):
-        if len(frame) < 100_000:
-            frame.to_csv(path, index=False)
-            return
-        frames = (frame.iloc[s:s + 500_000] for s in range(0, len(frame), 500_000))
+    if isinstance(table, ResidualRows):
+        write_blocks(path, table.names, table.blocks())
     else:
-        frames = frame
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
-    writer = None
-    try:
-        for block in frames:  # blocks bound the memory of the copy
-            table = pa.Table.from_pandas(block, preserve_index=False)
-            # categoricals arrive as dictionary arrays: decoded to text by Arrow (no Python
-            # strings; same file as decoding them in pandas first)
-            table = pa.Table.from_arrays(
-                [c.cast(pa.string()) if pa.types.is_dictionary(c.type) else c
-                 for c in table.columns], names=table.column_names)
-            if writer is None:
-                writer = pacsv.CSVWriter(str(path), table.schema)
-            writer.write_table(table)
-    finally:
-        if writer is not None:
-            writer.close()
+        write_frame(table, path)
 
 
 def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str, Path]:
@@ -514,9 +521,9 @@ def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str
         raise InputError(f"cannot create the output directory: {err}", where=str(out)) from err
     paths = {"results": out / "results.json", "residuals": out / "residuals.csv"}
     paths["results"].write_text(json.dumps(result.to_dict(), indent=2) + "\n")
-    write_table(result.residuals if result.residual_rows is None else
-                result.residual_rows.frames(), paths["residuals"])
+    write_table(result.residuals if result.residual_rows is None else result.residual_rows,
+                paths["residuals"])
     if result.validation is not None:
         paths["validation"] = out / "validation.csv"
-        result.validation.to_csv(paths["validation"], index=False)
+        write_table(result.validation, paths["validation"])
     return paths

@@ -211,8 +211,10 @@ def _sha256(path: Path) -> str:
 
 def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str | None,
               tool_rpy: str | None):
-    """(table, robot, noise, info, extras) of a tests CSV file and its sidecar, if any."""
-    from analysis.identification.measurements import read_csv
+    """(tests, robot, noise, info, extras) of a tests CSV file and its sidecar, if any;
+    tests as :class:`TestArrays` (read straight into arrays: a 1e6-row file never
+    becomes a table)."""
+    from analysis.identification.measurements import read_test_arrays
     from analysis.report.summary import CampaignInfo
     from campaign.tests_meta import read_sidecar
 
@@ -231,7 +233,7 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     else:
         raise InputError("--measurements needs --robot (built-in name, robot file or URDF); "
                          "no sidecar names it", where="--robot")
-    table = read_csv(path)
+    tests = read_test_arrays(path)
     robot, tool = robot_and_tool(robot_spec, tip, tool_xyz, tool_rpy,
                                  meta.tool if meta else None)
     noise, noise_source = NoiseModel(), "defaults of analysis/identification/noise.py " \
@@ -241,8 +243,8 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     info = CampaignInfo(source="csv", location=str(path), robot=robot.name, tool=tool.text(),
                         protocol_file="-", protocol_sha256="-",
                         measurements_sha256=_sha256(path),
-                        n_rows=len(table), n_ok=len(table), notes=notes)
-    return table, robot, noise, info, {"protocol": None, "true_k": None, "tool": tool,
+                        n_rows=tests.m, n_ok=tests.m, notes=notes)
+    return tests, robot, noise, info, {"protocol": None, "true_k": None, "tool": tool,
                                        "noise_source": noise_source,
                                        "robot_source": robot_source}
 
@@ -472,7 +474,7 @@ def register(app: typer.Typer) -> None:
         contradict) is refused unless --accept-misfit.
         """
         from analysis.identification.estimate import identify, parse_joints
-        from analysis.identification.measurements import to_arrays
+        from analysis.identification.measurements import TestArrays, to_arrays
         from analysis.identification.plausibility import problems
         from analysis.identification.result import write_results
 
@@ -508,8 +510,9 @@ def register(app: typer.Typer) -> None:
         console = Console(stderr=as_json)
         _print_assumptions(console, assumptions)
         with stage(f"identification ({method}) and validation"):
-            # the arrays once; the text table is let go (~0.5 GB for a 1e6-row import)
-            tests = to_arrays(table)
+            # the arrays once (a CSV file is read into them directly); the table of a run
+            # is let go
+            tests = table if isinstance(table, TestArrays) else to_arrays(table)
             del table
             _release_freed_heap()
             result = identify(model, tests, method=method, joints=joint_list,
