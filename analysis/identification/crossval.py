@@ -50,6 +50,8 @@ from analysis.model.robot_model import RobotModel
 #: many distinct poses; beyond, each fold takes one Gauss-Newton step from the full-data
 #: estimate (a full refit per pose costs ~P times the fit: hours for 1e4 poses)
 EXACT_REFITS_MAX = 50
+#: folds per chunk of the per-fold p x p algebra (bounds its temporaries)
+FOLD_CHUNK = 8192
 ONE_STEP_NOTE = ("one Gauss-Newton step from the full-data estimate (more than "
                  f"{EXACT_REFITS_MAX} poses)")
 
@@ -112,12 +114,14 @@ def leave_one_pose_out(
             start = None
         if start is not None and len(names) > max_exact_refits:
             # one Gauss-Newton step per fold from the full-data estimate (module docstring)
+            sums = fold_sums if getattr(fold_sums, "gram", None) is not None else None
+            # the residuals are only read when the folds are summed here (48 MB at 1e6)
+            resid = None if sums is not None else np.where(
+                tests.measured, tests.d - full.predicted, 0.0)
             table = _downdate_batched(robot, tests, group, names, joints, noise, full.A,
-                                      np.where(tests.measured, tests.d - full.predicted, 0.0),
-                                      full.x, method, dq0=full.deflection, Linv=full.Linv,
-                                      system=_system_of(full),
-                                      sums=fold_sums if getattr(fold_sums, "fold", None)
-                                      is not None else None, shift=full.eiv_shift)
+                                      resid, full.x, method, dq0=full.deflection,
+                                      Linv=full.Linv, system=_system_of(full), sums=sums,
+                                      shift=full.eiv_shift)
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
@@ -233,13 +237,14 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     if sums is not None:
         # U = (Linv A / scale) R^-1 summed per fold from the sums of (Linv A)^T (Linv A)
         # and (Linv A)^T Linv r at x0 - shift; r moves by -A shift to x0
-        Rinv = np.linalg.inv(R)
-        inv_s = 1.0 / scale
-        gram = sums.gram * inv_s[:, None] * inv_s[None, :]
-        S = Rinv.T @ gram @ Rinv
+        Rinv = np.linalg.inv(R) * (1.0 / scale)[:, None]  # D^-1 R^-1
         score = sums.score if shift is None else sums.score - sums.gram @ shift
-        t = (score * inv_s) @ Rinv
+        t = score @ Rinv
+        S = np.empty(sums.gram.shape)
+        for s in range(0, P, FOLD_CHUNK):  # (P, p, p) temporaries: chunks of folds
+            S[s:s + FOLD_CHUNK] = Rinv.T @ sums.gram[s:s + FOLD_CHUNK] @ Rinv
         held = sums.held
+        sums.gram = sums.score = None  # what the folds needed of them is in S and t
         blocks = []
     J = _jacobian(robot, tests.q) if blocks else None
     sig2 = noise.wrench_sigma_at(tests.w) ** 2 if blocks else None
@@ -263,15 +268,17 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         lev = np.linalg.eigvalsh(S)[:, -1]  # largest leverage of each pose block
     ok = lev < 1.0 - 1e-10
     # Training-set condition of the column-scaled A without forming it: its Gram matrix
-    # is R^T (I - S_h) R = M_h^T M_h with M_h = chol(I - S_h)^T R (p x p).
+    # is R^T (I - S_h) R = M_h^T M_h with M_h = chol(I - S_h)^T R (p x p); in chunks of
+    # folds ((P, p, p) temporaries are 29 MB each at 1e5 poses)
     cond = np.full(P, np.inf)
-    if ok.any():
-        Lh = np.linalg.cholesky(np.eye(p) - S[ok])
-        M = np.swapaxes(Lh, -1, -2) @ R
+    good = np.flatnonzero(ok)
+    for s in range(0, len(good), FOLD_CHUNK):
+        h = good[s:s + FOLD_CHUNK]
+        M = np.swapaxes(np.linalg.cholesky(np.eye(p) - S[h]), -1, -2) @ R
         norms = np.linalg.norm(M, axis=-2)
         sv = np.linalg.svd(M / np.where(norms > 0, norms, 1.0)[:, None, :], compute_uv=False)
         with np.errstate(divide="ignore"):
-            cond[ok] = np.where(np.all(norms > 0, axis=-1), sv[:, 0] / sv[:, -1], np.inf)
+            cond[h] = np.where(np.all(norms > 0, axis=-1), sv[:, 0] / sv[:, -1], np.inf)
     # Per-fold refusals of the reference path that depend on the training subset.
     n_eq = int(tests.measured.sum()) - np.bincount(fold, tests.measured.sum(axis=1), P)
     # folds are whole pose groups, so every training set keeps P - 1 >= 2 distinct poses
@@ -350,9 +357,9 @@ def _fold_eiv(held, R, scale, lev, x_p, ok):
     total = held.sum(axis=0)
     folds = np.flatnonzero(ok)
     x_c = np.empty((len(folds), p))
-    for s in range(0, len(folds), 8192):  # (folds, p, p) temporaries: 1e5 poses = 29 MB each
-        h = folds[s:s + 8192]
+    for s in range(0, len(folds), FOLD_CHUNK):  # (folds, p, p) temporaries: chunks
+        h = folds[s:s + FOLD_CHUNK]
         bread = (Rinv @ np.linalg.solve(np.eye(p) - lev[h], np.broadcast_to(
             Rinv.T, (len(h), p, p)))) / (scale[:, None] * scale[None, :])
-        x_c[s:s + 8192], _ = corrected(x_p[h], bread, total - held[h])
+        x_c[s:s + FOLD_CHUNK], _ = corrected(x_p[h], bread, total - held[h])
     return x_c

@@ -114,8 +114,11 @@ def _jacobian(robot: RobotModel, q: np.ndarray):
     """
     import hashlib
 
-    q = np.ascontiguousarray(q, dtype=float)
-    key = (id(robot), q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest())
+    q = np.asarray(q, dtype=float)
+    digest = hashlib.blake2b(digest_size=16)
+    for s in range(0, q.shape[0], 1 << 16):  # by blocks: no copy of a large q
+        digest.update(np.ascontiguousarray(q[s:s + (1 << 16)]).tobytes())
+    key = (id(robot), q.shape, digest.digest())
     if _J_CACHE.get("key") != key or _J_CACHE.get("robot") is not robot:
         _J_CACHE.clear()
         if q.ndim == 2 and q.shape[0] > per_test.LAZY_TESTS:

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification import estimate, fitting, gauss_newton, lsq, per_test
+from analysis.identification import crossval, estimate, fitting, gauss_newton, lsq, per_test
 from analysis.identification.estimate import identify
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
@@ -54,6 +54,7 @@ def _streamed(monkeypatch):
     monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
     # J, the design and the model Jacobian are made when sliced instead of held
     monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
+    monkeypatch.setattr(crossval, "FOLD_CHUNK", 7)  # the folds' algebra in chunks
     fitting._J_CACHE.clear()
 
 
