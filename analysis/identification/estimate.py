@@ -478,7 +478,6 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         chi2_red, p_value = chi2_summary(float(np.sum((c0 - Rp @ shift) ** 2)
                                                + chosen.R[p, p] ** 2), dof)
         Aw = Rp  # the whitened system's R (same singular values)
-        resid = np.where(kept, tests.d - chosen.predicted, 0.0)
     else:
         cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
                                                       chosen.Linv)
@@ -489,15 +488,14 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     own = chosen.Linv if rob is None and chosen.Linv is not None else None
     acc = TallR() if tests.m > TEST_BLOCK and not streamed else None
     if not streamed:
-        resid = np.where(kept, tests.d - chosen.predicted, 0.0)
-        whitened_resid = np.empty(resid.shape)
+        chi2 = 0.0  # summed block by block: no (m, 6) residual arrays
         for sl in _blocks(tests.m):
             Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
-            whitened_resid[sl] = np.einsum("mij,mj->mi", Lb, resid[sl])
+            rb = np.where(kept[sl], tests.d[sl] - chosen.predicted[sl], 0.0)
+            chi2 += float(np.sum(np.einsum("mij,mj->mi", Lb, rb) ** 2))
             if acc is not None:
                 acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
-        chi2_red, p_value = chi2_summary(whitened_resid, dof)
-        del whitened_resid
+        chi2_red, p_value = chi2_summary(chi2, dof)
     if not streamed:
         Aw = acc.r() if acc is not None else stack_matrix(
             (own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
@@ -506,8 +504,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
 
     if sigma is None:
         sigma = np.sqrt(per_test_diagonal(chosen.cov))  # (m, 6) each component's sigma
-    warnings += noise_ratio_notes(resid, sigma, kept, noise, len(joints))
-    resid = None  # 48 MB at 1e6 tests
+    warnings += noise_ratio_notes((tests.d, chosen.predicted), sigma, kept, noise,
+                                  len(joints))
     scale = 1.0
     crit = critical_value(confidence)
     if covariance == "residual":

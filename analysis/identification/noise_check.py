@@ -23,23 +23,31 @@ MIN_RESIDUALS = 8
 
 
 def noise_ratio_notes(
-    residual: np.ndarray,
+    residual,
     sigma: np.ndarray,
     measured: np.ndarray,
     noise: NoiseModel,
     n_params: int,
     factor: float = FACTOR,
+    block: int = 1 << 16,
 ) -> list[str]:
     """Messages for component groups whose residuals disagree with the declared noise.
 
     Parameters
     ----------
-    residual : (m, 6) measured minus predicted displacement (m, rad).
+    residual : (m, 6) measured minus predicted displacement (m, rad), or the pair
+        (measured, predicted) of (m, 6) arrays it is the difference of (taken block by
+        block: no (m, 6) copy).
     sigma : (m, 6) declared standard deviation of each residual component (m, rad): the
         square root of the diagonal of each test's residual covariance.
     measured : (m, 6) bool. noise : the declared noise model. n_params : fitted parameters.
     """
-    sig = sigma
+    def resid(sl, cols):
+        if isinstance(residual, tuple):
+            return residual[0][sl, cols] - residual[1][sl, cols]
+        return residual[sl, cols]
+
+    m = measured.shape[0]
     n_eq = int(measured.sum())
     if n_eq <= n_params:
         return []
@@ -47,21 +55,26 @@ def noise_ratio_notes(
     notes = []
     for name, cols, disp in (("translation", slice(0, 3), noise.translation_sigma),
                              ("rotation", slice(3, 6), noise.rotation_sigma)):
-        mask = measured[:, cols]
-        if mask.sum() < MIN_RESIDUALS:
+        count = int(measured[:, cols].sum())
+        if count < MIN_RESIDUALS:
             continue
-        z = (residual[:, cols] / sig[:, cols])[mask]
-        s = float(np.sqrt(np.mean(z**2) / keep))
-        if 1.0 / factor <= s <= factor:
+        sq = 0.0
+        for s in range(0, m, block):
+            sl = slice(s, s + block)
+            z = (resid(sl, cols) / sigma[sl, cols])[measured[sl, cols]]
+            sq += float(np.sum(z**2))
+        ratio = float(np.sqrt(sq / count / keep))
+        if 1.0 / factor <= ratio <= factor:
             continue
         # which declared term dominates this group's sigma
-        ft_share = float(np.median(1.0 - (disp / sig[:, cols][mask]) ** 2))
+        mask = measured[:, cols]
+        ft_share = float(np.median(1.0 - (disp / sigma[:, cols][mask]) ** 2))
         source = ("the F/T noise (it dominates the declared sigma through the compliance)"
                   if ft_share > 0.5 else
                   f"the {'tracker' if name == 'translation' else 'rotation (tracker fit or probe)'}"
                   " noise")
-        way = "too small" if s > factor else "too large"
-        notes.append(f"{name} residuals are {s:.2g} times the declared noise: {source} looks "
+        way = "too small" if ratio > factor else "too large"
+        notes.append(f"{name} residuals are {ratio:.2g} times the declared noise: {source} looks "
                      f"{way} by about that factor (check the instrument figures or the "
                      "--sigma-* options)")
     return notes
