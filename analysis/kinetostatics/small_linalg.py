@@ -67,24 +67,35 @@ def solve_dominant_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
     """
     n, k = M.shape[-1], B.shape[-1]
     flat = M.reshape(-1, n, n)
-    E = to_entry_major(flat)
-    if flat.shape[0] == 0 or not diagonally_dominant(E).all():
+    if flat.shape[0] == 0:
         return np.linalg.solve(M, B)
-    # private copies: the elimination overwrites both (to_entry_major may return a view)
-    Bem = np.array(np.moveaxis(np.broadcast_to(B, M.shape[:-2] + (n, k)).reshape(-1, n, k),
-                               0, -1), order="C")
-    X = _eliminate_columns(np.array(E, order="C"), Bem)
+    Bem = np.moveaxis(np.broadcast_to(B, M.shape[:-2] + (n, k)).reshape(-1, n, k), 0, -1)
+    X = solve_dominant_columns_em(to_entry_major(flat), Bem)
     return np.moveaxis(X, -1, 0).reshape(*M.shape[:-2], n, k)
 
 
-def solve_dominant(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+def solve_dominant_columns_em(M: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """:func:`solve_dominant_columns` entry-major: M (n, n, N), B (n, k, N) -> X (n, k, N).
+
+    Inputs are not modified.
+    """
+    if M.shape[-1] and diagonally_dominant(M).all():
+        # private copies: the elimination overwrites both
+        return _eliminate_columns(np.array(M, order="C"), np.array(B, order="C"))
+    X = np.linalg.solve(np.moveaxis(M, -1, 0), np.moveaxis(B, -1, 0))
+    return np.ascontiguousarray(np.moveaxis(X, 0, -1))
+
+
+def solve_dominant(A: np.ndarray, b: np.ndarray, dominant: np.ndarray | None = None
+                   ) -> np.ndarray:
     """x (n, N) with A x = b for entry-major A (n, n, N), b (n, N).
 
     Diagonally dominant matrices are solved by elimination without pivoting;
     the others (if any) by ``numpy.linalg.solve`` with partial pivoting.
+    ``dominant`` (N,) bool: :func:`diagonally_dominant` of A when the caller has it.
     Inputs are not modified.
     """
-    ok = diagonally_dominant(A)
+    ok = diagonally_dominant(A) if dominant is None else dominant
     if ok.all():
         return _eliminate(A.copy(), b.copy())
     x = np.empty_like(b)

@@ -57,12 +57,24 @@ def complementary_stiffness_em(E: np.ndarray, w: np.ndarray) -> np.ndarray:
     m = w[3:].reshape(f.shape)
     vf = _cross0(v, f)
     a = vf + _cross0(om, m)
-    # lower[k, i] = omega_k . a_i (used for k <= i); upper[k, i] = vf_k . omega_i (k > i)
-    lower = sum(om[c][:, None] * a[c][None] for c in range(3))
-    upper = sum(vf[c][:, None] * om[c][None] for c in range(3))
+    # K[i, k] = a_i . omega_k for k <= i and omega_i . vf_k for k > i: row by row, each
+    # entry computed once, written in place (contiguous rows, no (n, n, N) temporaries)
     n = E.shape[1]
-    tri = np.triu(np.ones((n, n), dtype=bool))[:, :, None]
-    return np.swapaxes(np.where(tri, lower, upper), 0, 1)  # K_C[i, k] = d[k, i]
+    K = np.empty((n, n) + E.shape[2:])
+    tmp = np.empty((n,) + E.shape[2:])
+    for i in range(n):
+        _dot_into(K[i, :i + 1], tmp[:i + 1], om[:, :i + 1], a[:, i])
+        if i < n - 1:
+            _dot_into(K[i, i + 1:], tmp[i + 1:], vf[:, i + 1:], om[:, i])
+    return K
+
+
+def _dot_into(out: np.ndarray, tmp: np.ndarray, vs: np.ndarray, u: np.ndarray) -> None:
+    """out[j] = u . vs[:, j] for vectors vs (3, k, N) and u (3, N), into ``out`` (k, N)."""
+    np.multiply(vs[0], u[0], out=out)
+    for c in (1, 2):
+        np.multiply(vs[c], u[c], out=tmp)
+        out += tmp
 
 
 def _cross0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
