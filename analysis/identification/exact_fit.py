@@ -23,14 +23,14 @@ from analysis.kinetostatics.equilibrium import (
     entry_major_rows,
     newton_deflection_em,
 )
-from analysis.kinetostatics.small_linalg import solve_dominant_columns_em
+from analysis.kinetostatics.small_linalg import diagonally_dominant, lu_em, lu_solve_right_em
 from analysis.kinetostatics.stiffness import complementary_stiffness_em
 from analysis.model.kinematics import (
     ChainState,
     chain_state_em,
     jacobian_em,
     joint_cos_sin,
-    pose_difference,
+    pose_difference_em,
 )
 from analysis.model.robot_model import RobotModel
 
@@ -253,30 +253,41 @@ def _model_block(robot, q, x, w, with_jacobian, dq0, tip0, base, state0):
     dq, ok = _solve_em(robot, q, x, w, 1e-15, 50, 1.0, dq0, keep, base, state0)
     if keep:
         # Newton's last evaluated iterate: converged like dq (they differ by the last
-        # step, <= 1e-15 rad), and its state, J, J^T w and I - X K_C are already computed
-        dq, s1, J1, tau, M = keep["dq"], keep["state"], keep["J"], keep["tau"], keep["dF"]
+        # step, <= 1e-15 rad), and its state, J, J^T w, I - X K_C and the LU factors of
+        # the latter are already computed
+        dq, s1, J1, tau, M, LU = (keep[k] for k in ("dq", "state", "J", "tau", "dF", "lu"))
         dq = np.where(ok, dq, 0.0)
     else:
         s1 = chain_state_em(robot, q, joint_cos_sin(q, dq, base))
         J1 = jacobian_em(s1)
         tau = np.einsum("rin,rn->in", J1, w)
-        M = None
-    screw = np.where(ok[:, None], pose_difference(tip0, s1.tip()), 0.0)
+        M = LU = None
+    screw = pose_difference_em(np.moveaxis(tip0[:, :3, :3], 0, -1), tip0[:, :3, 3].T,
+                               s1.rot, s1.pos)
+    if not ok.all():
+        screw[~ok] = 0.0
     if not with_jacobian:
         return screw, ok, dq.T, None
-    if M is None:
-        M = -x[:, None] * complementary_stiffness_em(J1, w)
-        M[np.arange(n), np.arange(n)] += 1.0  # I - X K_C, rounded as 1 - x K
-    if not ok.all():
-        M = np.where(ok, M, np.eye(n)[:, :, None])
-    # (n, n, N): d dq_i / d x_j; M = I - X K_C is diagonally dominant at ordinary loads
-    B = np.zeros((n, n, q.shape[1]))
-    B[np.arange(n), np.arange(n)] = tau
-    ddq = solve_dominant_columns_em(M, B)
+    # D = d screw / d dq = [J_v; J_l^-1 J_w], (6, n, N)
     Dd = J1.copy()
     Jl = _so3_left_jacobian_inverse_em(np.ascontiguousarray(screw[:, 3:].T))
     Dd[3:] = _matmul_em(Jl, J1[3:])
-    out = _matmul_em(Dd, ddq)
+    if LU is None:
+        if M is None:
+            M = -x[:, None] * complementary_stiffness_em(J1, w)
+            M[np.arange(n), np.arange(n)] += 1.0  # I - X K_C, rounded as 1 - x K
+        if not ok.all():
+            M = np.where(ok, M, np.eye(n)[:, :, None])
+        if diagonally_dominant(M).all():  # I - X K_C at ordinary loads
+            LU = lu_em(M.copy())
+    # D (I - X K_C)^-1 diag(tau): d dq / dx = (I - X K_C)^-1 diag(tau)
+    if LU is not None:
+        G = lu_solve_right_em(LU, Dd)
+    else:  # not diagonally dominant: LAPACK with partial pivoting
+        G = np.moveaxis(np.swapaxes(np.linalg.solve(
+            np.swapaxes(np.moveaxis(M, -1, 0), -1, -2),
+            np.swapaxes(np.moveaxis(Dd, -1, 0), -1, -2)), -1, -2), 0, -1)
+    out = G * tau[None]
     if not ok.all():
         out[:, :, ~ok] = 0.0
     return screw, ok, dq.T, np.moveaxis(out, -1, 0)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.kinetostatics.small_linalg import solve_dominant
+from analysis.kinetostatics.small_linalg import lu_em, lu_solve_em, solve_dominant
 from analysis.kinetostatics.stiffness import complementary_stiffness_em
 from analysis.model.kinematics import (
     ChainStateEM,
@@ -125,7 +125,9 @@ def newton_deflection_em(
     q (n, N) (rad); x (n, 1) or (n, N); w (6, 1) or (6, N); dq0 (n, N) or None.
     Returns dq (n, N), failed (N,), last_step (N,). ``keep`` receives entry-major
     ``dq`` (n, N), ``state`` (:class:`ChainStateEM`), ``J`` (6, n, N), ``tau`` (n, N)
-    = J^T w and ``dF`` (n, n, N), each pose's at the last iterate evaluated for it.
+    = J^T w and ``dF`` (n, n, N), each pose's at the last iterate evaluated for it, and
+    ``lu``, the :func:`analysis.kinetostatics.small_linalg.lu_em` factors of dF (None when
+    some dF was not diagonally dominant and went to LAPACK).
     ``cos_sin``: (cos q, sin q) when the caller has them; ``state0``: the chain state at q
     (used when ``dq0`` is None: the first iterate, dq = 0, is q itself).
 
@@ -163,9 +165,13 @@ def newton_deflection_em(
             dF[:, :, sing] = np.eye(n)[:, :, None]
         if bad_a.any():
             F[:, bad_a] = 0.0
+        if (dominant | bad_a).all():  # the usual case: LU without pivoting, kept
+            LU = lu_em(dF.copy())
+            step = lu_solve_em(LU, F[:, None, :])[:, 0]
+        else:
+            LU, step = None, solve_dominant(dF, F, dominant | bad_a)
         if kept is not None:
-            kept.record(act, N, dq=da, state=state, J=J, tau=tau, dF=dF)
-        step = solve_dominant(dF, F, dominant | bad_a)
+            kept.record(act, N, dq=da, state=state, J=J, tau=tau, dF=dF, lu=LU)
         da = da - step
         size = np.max(np.abs(da), axis=0, initial=0.0)
         bad_a |= ~np.isfinite(da).all(axis=0) | (size > max_deflection)
@@ -209,7 +215,9 @@ class _Kept:
             self.arrays = {k: _copy(v) for k, v in self.arrays.items()}
             self.owned = True
         for k, v in arrays.items():
-            if k == "state":
+            if v is None or self.arrays[k] is None:
+                self.arrays[k] = None
+            elif k == "state":
                 for f in ("origins", "axes", "rot", "pos"):
                     getattr(self.arrays[k], f)[..., act] = getattr(v, f)
             else:
@@ -217,6 +225,8 @@ class _Kept:
 
 
 def _copy(v):
+    if v is None:
+        return None
     if isinstance(v, ChainStateEM):
         return ChainStateEM(v.origins.copy(), v.axes.copy(), v.rot.copy(), v.pos.copy())
     return v.copy()

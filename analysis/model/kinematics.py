@@ -297,6 +297,30 @@ def pose_difference(t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
     ``[p_to - p_from (m); rotvec(R_to R_from^T) (rad)]``: the small rotation
     vector is expressed in the base frame, as the paper's delta_X.
     """
-    dp = t_to[..., :3, 3] - t_from[..., :3, 3]
-    dr = rotation_vector(t_to[..., :3, :3] @ np.swapaxes(t_from[..., :3, :3], -1, -2))
-    return np.concatenate([dp, dr], axis=-1)
+    t_from, t_to = np.broadcast_arrays(np.asarray(t_from, dtype=float),
+                                       np.asarray(t_to, dtype=float))
+    batch = t_to.shape[:-2]
+
+    def em(t):  # (3, 3, N) rotation and (3, N) position views
+        flat = t.reshape(-1, 4, 4)
+        return np.moveaxis(flat[:, :3, :3], 0, -1), flat[:, :3, 3].T
+
+    return pose_difference_em(*em(t_from), *em(t_to)).reshape(*batch, 6)
+
+
+def pose_difference_em(rot_from: np.ndarray, pos_from: np.ndarray, rot_to: np.ndarray,
+                       pos_to: np.ndarray) -> np.ndarray:
+    """:func:`pose_difference` of N pose pairs given entry-major: rotations (3, 3, N),
+    positions (3, N) (m); returns (N, 6)."""
+    out = np.empty((pos_to.shape[-1], 6))
+    out[:, :3] = (pos_to - pos_from).T
+    rel = np.empty((3, 3) + pos_to.shape[1:])  # R_to R_from^T
+    tmp = np.empty(pos_to.shape[1:])
+    for i in range(3):
+        for j in range(3):
+            np.multiply(rot_to[i, 0], rot_from[j, 0], out=rel[i, j])
+            for k in (1, 2):
+                np.multiply(rot_to[i, k], rot_from[j, k], out=tmp)
+                rel[i, j] += tmp
+    out[:, 3:] = rotation_vector(np.moveaxis(rel, -1, 0))
+    return out
