@@ -153,17 +153,11 @@ def newton_deflection_em(
         tau = np.einsum("rin,rn->in", J, wa)
         F = da - xa * tau
         dF = complementary_stiffness_em(J, wa)
-        dF *= xa[:, None]
-        np.negative(dF, out=dF)
+        np.multiply(dF, -xa[:, None], out=dF)
         dF[diag] += 1.0  # I - X K_C, rounded as 1 - x K
-        bad_a = ~np.isfinite(dF).all(axis=(0, 1))
+        dominant, bad_a = _dominance(dF)  # bad: non-finite or singular
         if bad_a.any():
             dF[:, :, bad_a] = np.eye(n)[:, :, None]
-        dominant, sing = _dominance(dF)
-        bad_a |= sing
-        if sing.any():
-            dF[:, :, sing] = np.eye(n)[:, :, None]
-        if bad_a.any():
             F[:, bad_a] = 0.0
         if (dominant | bad_a).all():  # the usual case: LU without pivoting, kept
             LU = lu_em(dF.copy())
@@ -255,23 +249,24 @@ def _concat_states(parts: list) -> ChainStateEM:
 
 
 def _dominance(dF: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Entry-major dF (n, n, N) -> (strictly row diagonally dominant, singular), (N,) bool.
+    """Entry-major dF (n, n, N) -> (strictly row diagonally dominant, bad), (N,) bool.
 
-    Singular: |det dF| < 1e-12 (the Newton matrix is singular to working precision).
-    I - X K_C is strictly diagonally dominant at ordinary loads, and then
-    |det| >= prod_i (|a_ii| - sum_j!=i |a_ij|) (Ostrowski): the determinant is computed
-    only where that bound does not already exceed the threshold.
+    Bad: some entry is not finite, or |det dF| < 1e-12 (the Newton matrix is singular to
+    working precision). I - X K_C is strictly diagonally dominant at ordinary loads, and
+    then |det| >= prod_i (|a_ii| - sum_j!=i |a_ij|) (Ostrowski): the determinant is
+    computed only where that bound does not already exceed the threshold. A non-finite
+    entry makes its row's margin non-finite (inf or nan), so the margins tell both.
     """
     n = dF.shape[0]
     A = np.abs(dF)
-    d = A[np.arange(n), np.arange(n)]
-    margin = 2.0 * d - A.sum(axis=1)  # (n, N)
+    margin = 2.0 * A[np.arange(n), np.arange(n)] - A.sum(axis=1)  # (n, N)
+    finite = np.isfinite(margin).all(axis=0)
     dominant = np.all(margin > 0, axis=0)
-    check = ~(dominant & (np.prod(np.maximum(margin, 0.0), axis=0) >= 1e-12))
-    sing = np.zeros(dF.shape[-1], dtype=bool)
+    check = finite & ~(dominant & (np.prod(np.maximum(margin, 0.0), axis=0) >= 1e-12))
+    bad = ~finite
     if np.any(check):
-        sing[check] = np.abs(np.linalg.det(np.moveaxis(dF[:, :, check], -1, 0))) < 1e-12
-    return dominant, sing
+        bad[check] = np.abs(np.linalg.det(np.moveaxis(dF[:, :, check], -1, 0))) < 1e-12
+    return dominant, bad
 
 
 def solve_deflection(
