@@ -251,11 +251,13 @@ def _model_block(robot, q, x, w, with_jacobian, dq0, tip0, base, state0):
     n = q.shape[0]
     keep: dict = {}
     dq, ok = _solve_em(robot, q, x, w, 1e-15, 50, 1.0, dq0, keep, base, state0)
+    last_step = None
     if keep:
-        # Newton's last evaluated iterate: converged like dq (they differ by the last
-        # step, <= 1e-15 rad), and its state, J, J^T w, I - X K_C and the LU factors of
-        # the latter are already computed
-        dq, s1, J1, tau, M, LU = (keep[k] for k in ("dq", "state", "J", "tau", "dF", "lu"))
+        # Newton's last evaluated iterate dq_k: its state, J, J^T w, I - X K_C and the LU
+        # factors of the latter are already computed; the returned dq is dq_k minus the
+        # last step (<= 1e-15 rad), which the screw follows to first order below
+        dqk, s1, J1, tau, M, LU = (keep[k] for k in ("dq", "state", "J", "tau", "dF", "lu"))
+        last_step = np.where(ok, dq - dqk, 0.0)
         dq = np.where(ok, dq, 0.0)
     else:
         s1 = chain_state_em(robot, q, joint_cos_sin(q, dq, base))
@@ -264,14 +266,16 @@ def _model_block(robot, q, x, w, with_jacobian, dq0, tip0, base, state0):
         M = LU = None
     screw = pose_difference_em(np.moveaxis(tip0[:, :3, :3], 0, -1), tip0[:, :3, 3].T,
                                s1.rot, s1.pos)
-    if not ok.all():
-        screw[~ok] = 0.0
-    if not with_jacobian:
-        return screw, ok, dq.T, None
     # D = d screw / d dq = [J_v; J_l^-1 J_w], (6, n, N)
     Dd = J1.copy()
     Jl = _so3_left_jacobian_inverse_em(np.ascontiguousarray(screw[:, 3:].T))
     Dd[3:] = _matmul_em(Jl, J1[3:])
+    if last_step is not None:  # screw(dq) = screw(dq_k) + D (dq - dq_k) + O(step^2)
+        screw += np.einsum("rin,in->nr", Dd, last_step)
+    if not ok.all():
+        screw[~ok] = 0.0
+    if not with_jacobian:
+        return screw, ok, dq.T, None
     if LU is None:
         if M is None:
             M = -x[:, None] * complementary_stiffness_em(J1, w)
