@@ -42,9 +42,10 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
-#: entries of a constant rotation below this are taken as 0 (cos(pi/2) = 6e-17 in robot
-#: files): the change of the model is below the rounding of the arithmetic, and a signed
-#: permutation then composes with a frame by reordering its columns (no arithmetic)
+#: entries of a constant rotation below this, and of a constant translation below this
+#: many metres, are taken as 0 (cos(pi/2) = 6e-17 in robot files): the change of the
+#: model is below the rounding of the arithmetic, a signed permutation then composes with
+#: a frame by reordering its columns, and a zero term costs no operation
 _SNAP = 1e-15
 
 
@@ -91,8 +92,8 @@ def _normal_chain(chain: Chain) -> _NormalChain:
     out = _NormalChain(
         chain,
         np.array([_snap(Q[i].T @ P[i, :3, :3] @ Q[i + 1]) for i in range(chain.n)]),
-        np.array([Q[i].T @ P[i, :3, 3] for i in range(chain.n)]),
-        _snap(Q[-1].T @ chain.tip[:3, :3]), Q[-1].T @ chain.tip[:3, 3])
+        np.array([_snap(Q[i].T @ P[i, :3, 3]) for i in range(chain.n)]),
+        _snap(Q[-1].T @ chain.tip[:3, :3]), _snap(Q[-1].T @ chain.tip[:3, 3]))
     _NORMAL[id(chain)] = out
     return out
 
@@ -236,7 +237,10 @@ def jacobian_from_state(state: ChainState) -> np.ndarray:
 
 def jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
     """Kinematic Jacobian J (..., 6, n) of P, rows [linear; angular], base axes."""
-    return jacobian_from_state(chain_state(robot, q))
+    q = np.asarray(q, dtype=float)
+    n = robot.chain.n
+    E = jacobian_em(chain_state_em(robot, q.reshape(-1, n).T))
+    return np.ascontiguousarray(np.moveaxis(E, -1, 0)).reshape(*q.shape[:-1], 6, n)
 
 
 def pin_tool_pose(robot: RobotModel, q: np.ndarray) -> np.ndarray:
