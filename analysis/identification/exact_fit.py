@@ -27,6 +27,7 @@ from analysis.kinetostatics.small_linalg import diagonally_dominant, lu_em, lu_s
 from analysis.kinetostatics.stiffness import complementary_stiffness_em
 from analysis.model.kinematics import (
     ChainState,
+    ChainStateEM,
     chain_state_em,
     jacobian_em,
     joint_cos_sin,
@@ -141,17 +142,30 @@ def solve_deflection_masked(
 def _solve_em(robot, q, x, w, tol, max_iter, max_deflection, dq0, keep=None, cos_sin=None,
               state0=None):
     """:func:`solve_deflection_masked` of one block, entry-major (q (n, N)); ``keep``
-    (see :func:`newton_deflection_em`) is left empty when some pose was solved again."""
+    (see :func:`newton_deflection_em`) is left empty when some pose was solved again.
+
+    Newton starts from ``dq0``, then poses where it failed start again from zero; without
+    ``dq0`` but with ``state0`` (the chain state at q), from zero first (its first step
+    made with state0), then from the first-order deflection ``x * J(q)^T w``: at loads
+    close to buckling one start can overshoot where the other converges (where both
+    converge, they reach the same deflection).
+    """
     dq, bad, last = newton_deflection_em(robot, q, x, w, tol, max_iter, dq0, max_deflection,
                                          keep, cos_sin, state0)
     ok = ~bad & (last <= max(tol, 1e-12))
-    if dq0 is not None and not np.all(ok):
+    if (dq0 is not None or state0 is not None) and not np.all(ok):
         if keep is not None:
             keep.clear()
         retry = ~ok
+        xr, wr = _cols(x, retry), _cols(w, retry)
+        start = None
+        if dq0 is None:
+            sub = ChainStateEM(*(getattr(state0, f)[..., retry]
+                                 for f in ("origins", "axes", "rot", "pos")))
+            start = xr * np.einsum("rin,rn->in", jacobian_em(sub), wr)
+            start = np.where(np.isfinite(start), start, 0.0)
         base = None if cos_sin is None else (cos_sin[0][:, retry], cos_sin[1][:, retry])
-        d2, b2, l2 = newton_deflection_em(robot, q[:, retry], _cols(x, retry),
-                                          _cols(w, retry), tol, max_iter, None,
+        d2, b2, l2 = newton_deflection_em(robot, q[:, retry], xr, wr, tol, max_iter, start,
                                           max_deflection, cos_sin=base)
         dq[:, retry] = d2
         ok[retry] = ~b2 & (l2 <= max(tol, 1e-12))

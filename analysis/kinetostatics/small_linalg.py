@@ -95,11 +95,12 @@ def lu_solve_right_em(LU: np.ndarray, D: np.ndarray) -> np.ndarray:
     n = LU.shape[0]
     G = np.array(np.moveaxis(D, 1, 0), order="C")  # (n, p, N): column j of D is G[j]
     tmp = np.empty(G.shape[1:])
+    inv = 1.0 / LU[np.arange(n), np.arange(n)]  # one division per pivot, not per row of D
     for j in range(n):
         for i in range(j):
             np.multiply(G[i], LU[i, j], out=tmp)
             G[j] -= tmp
-        G[j] /= LU[j, j]
+        G[j] *= inv[j]
     for j in range(n - 2, -1, -1):
         for i in range(j + 1, n):
             np.multiply(G[i], LU[i, j], out=tmp)

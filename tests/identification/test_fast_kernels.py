@@ -222,3 +222,25 @@ def test_exact_model_equals_an_independent_composition(kr240, zone_poses, w_eff)
     np.testing.assert_allclose(dq3[keep], dq[keep], rtol=0, atol=2e-17)
     np.testing.assert_allclose(f3[keep], f[keep], rtol=0, atol=2e-15)
     np.testing.assert_allclose(F3[keep], F[keep], rtol=1e-12, atol=1e-12 * np.abs(F).max())
+
+
+def test_cold_start_keeps_every_solution_either_start_finds(kr240):
+    """Loads near buckling (deflections up to ~1 rad): Newton from zero overshoots at some
+    poses where it converges from the first-order deflection, and the reverse; the exact
+    model (from zero, then from x J(q)^T w) solves exactly the poses either start solves,
+    to the same deflection."""
+    from analysis.identification.exact_fit import model_displacement_state
+    from analysis.model.kinematics import jacobian
+
+    rng = np.random.default_rng(1)
+    q = rng.uniform(kr240.lower, kr240.upper, (400, 6)) * 0.6
+    w = rng.normal(size=(400, 6)) * np.r_[[3000.0] * 3, [300.0] * 3] * 25
+    x = 1 / np.asarray(kr240.nominal_stiffness)
+    d1 = x * np.einsum("nji,nj->ni", jacobian(kr240, q), w)
+    dz, bz, lz = newton_deflection(kr240, q, x, w, 1e-15, max_deflection=1.0)
+    d1s, b1, l1 = newton_deflection(kr240, q, x, w, 1e-15, dq0=d1, max_deflection=1.0)
+    okz, ok1 = ~bz & (lz <= 1e-15), ~b1 & (l1 <= 1e-15)
+    assert (ok1 & ~okz).sum() > 10 and 0 < (~ok1).sum()  # the two starts differ here
+    _, _, ok, dq = model_displacement_state(kr240, q, x, w, False)
+    np.testing.assert_array_equal(ok, okz | ok1)
+    np.testing.assert_allclose(dq[ok1], d1s[ok1], rtol=0, atol=1e-14)
