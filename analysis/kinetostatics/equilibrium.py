@@ -140,7 +140,7 @@ def newton_deflection_em(
     bad = np.zeros(N, dtype=bool)
     last = np.full(N, np.inf)
     base = joint_cos_sin(q) if cos_sin is None else cos_sin
-    kept = _Kept() if keep is not None else None
+    kept = _Kept(state0) if keep is not None else None
     act = None  # indices of the poses still iterating; None: all of them
     qa, xa, wa, ca, sa, da = q, x, w, base[0], base[1], dq
     diag = (np.arange(n), np.arange(n))
@@ -195,19 +195,25 @@ def newton_deflection_em(
 
 
 class _Kept:
-    """The last iterate evaluated for each pose and its state, J, J^T w and Newton matrix."""
+    """The last iterate evaluated for each pose and its state, J, J^T w and Newton matrix.
 
-    def __init__(self) -> None:
+    The arrays of an iteration over every pose are kept as they are (each iteration makes
+    new ones); later iterations over fewer poses write into them, after copying the
+    caller's ``shared`` state if it is among them.
+    """
+
+    def __init__(self, shared: ChainStateEM | None = None) -> None:
         self.arrays: dict = {}
-        self.owned = False
+        self.shared = shared
 
     def record(self, act, N, **arrays) -> None:
         if act is None:  # every pose: the arrays themselves
-            self.arrays, self.owned = arrays, False
+            self.arrays = arrays
             return
-        if not self.owned:  # first partial update: private copies (the state may be shared)
-            self.arrays = {k: _copy(v) for k, v in self.arrays.items()}
-            self.owned = True
+        state = self.arrays.get("state")
+        if state is not None and state is self.shared:
+            self.arrays["state"] = ChainStateEM(*(getattr(state, f).copy()
+                                                  for f in ("origins", "axes", "rot", "pos")))
         for k, v in arrays.items():
             if v is None or self.arrays[k] is None:
                 self.arrays[k] = None
@@ -216,14 +222,6 @@ class _Kept:
                     getattr(self.arrays[k], f)[..., act] = getattr(v, f)
             else:
                 self.arrays[k][..., act] = v
-
-
-def _copy(v):
-    if v is None:
-        return None
-    if isinstance(v, ChainStateEM):
-        return ChainStateEM(v.origins.copy(), v.axes.copy(), v.rot.copy(), v.pos.copy())
-    return v.copy()
 
 
 def entry_major_rows(a: np.ndarray, batch: tuple, k: int) -> np.ndarray:

@@ -200,8 +200,9 @@ def chain_state_em(robot: RobotModel, q: np.ndarray,
     rot = np.empty((3, 3, N))
     for j in range(3):
         rot[:, j] = _combine(G, nc.tip_rot[:, j])
-    tip_pos = np.broadcast_to(pos + _combine(G, nc.tip_pos), (3, N))
-    return ChainStateEM(origins, axes, rot, np.ascontiguousarray(tip_pos))
+    tip_pos = np.empty((3, N))
+    tip_pos[...] = pos + _combine(G, nc.tip_pos)  # (3, 1) only for a chain of no joint
+    return ChainStateEM(origins, axes, rot, tip_pos)
 
 
 def jacobian_em(state: ChainStateEM) -> np.ndarray:
