@@ -92,7 +92,7 @@ def newton_deflection(
     d0 = None if dq0 is None else entry_major_rows(dq0, batch, n)
     dq, bad, last = np.empty((n, N)), np.empty(N, dtype=bool), np.empty(N)
     parts: list = []
-    for s in range(0, N, CHUNK):
+    for s in range(0, max(N, 1), CHUNK):  # one (empty) block for an empty batch
         sl = slice(s, s + CHUNK)
         part: dict | None = {} if keep is not None else None
         dq[:, sl], bad[sl], last[sl] = newton_deflection_em(
