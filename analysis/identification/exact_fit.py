@@ -280,12 +280,16 @@ def _model_block(robot, q, x, w, with_jacobian, dq0, tip0, base, state0):
         M = LU = None
     screw = pose_difference_em(np.moveaxis(tip0[:, :3, :3], 0, -1), tip0[:, :3, 3].T,
                                s1.rot, s1.pos)
-    # D = d screw / d dq = [J_v; J_l^-1 J_w], (6, n, N)
-    Dd = J1.copy()
-    Jl = _so3_left_jacobian_inverse_em(np.ascontiguousarray(screw[:, 3:].T))
-    Dd[3:] = _matmul_em(Jl, J1[3:])
-    if last_step is not None:  # screw(dq) = screw(dq_k) + D (dq - dq_k) + O(step^2)
-        screw += np.einsum("rin,in->nr", Dd, last_step)
+    Dd = None
+    if with_jacobian:  # D = d screw / d dq = [J_v; J_l^-1 J_w], (6, n, N)
+        Dd = J1.copy()
+        Jl = _so3_left_jacobian_inverse_em(np.ascontiguousarray(screw[:, 3:].T))
+        Dd[3:] = _matmul_em(Jl, J1[3:])
+    if last_step is not None:
+        # screw(dq) = screw(dq_k) + D (dq - dq_k) + O(step^2); without the model Jacobian
+        # J stands for D: J_l^-1 = I + O(|phi|) changes a correction of <= 1e-15 rad by
+        # |phi|/2 of it
+        screw += np.einsum("rin,in->nr", J1 if Dd is None else Dd, last_step)
     if not ok.all():
         screw[~ok] = 0.0
     if not with_jacobian:
