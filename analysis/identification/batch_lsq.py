@@ -75,16 +75,48 @@ def _mgs_block(A, d, with_rinv):
     return xs / scale, Rinv, scale
 
 
-def cholesky(S: np.ndarray) -> np.ndarray:
-    """Lower Cholesky factor (k, k, ...) of symmetric positive definite S (k, k, ...)."""
+def cholesky(S: np.ndarray, check: bool = False) -> np.ndarray:
+    """Lower Cholesky factor (k, k, ...) of symmetric positive definite S (k, k, ...).
+
+    Column by column over the whole batch (each update one vectorised operation on the
+    rows below the diagonal). ``check``: raise ``numpy.linalg.LinAlgError`` when a pivot
+    is <= 0 (S not positive definite), as ``numpy.linalg.cholesky`` does (NaN pivots
+    propagate without raising, as there); otherwise such a factor holds NaN.
+    """
     k = S.shape[0]
-    L = np.zeros_like(S)
+    L = np.zeros(S.shape)
     for j in range(k):
-        diag = S[j, j] - np.einsum("i...,i...->...", L[j, :j], L[j, :j])
-        L[j, j] = np.sqrt(diag)
-        for i in range(j + 1, k):
-            L[i, j] = (S[i, j] - np.einsum("m...,m...->...", L[i, :j], L[j, :j])) / L[j, j]
+        c = np.array(S[j:, j], dtype=float)  # column j from the diagonal down
+        for m in range(j):
+            c -= L[j:, m] * L[j, m]
+        if check and np.any(c[0] <= 0.0):
+            raise np.linalg.LinAlgError("Matrix is not positive definite")
+        L[j, j] = np.sqrt(c[0])
+        # times the reciprocal of the pivot (as LAPACK's potf2): cheaper than k divisions
+        np.multiply(c[1:], 1.0 / L[j, j], out=L[j + 1:, j])
     return L
+
+
+def lower_inverse(L: np.ndarray) -> np.ndarray:
+    """Inverse (k, k, ...) of lower-triangular L (k, k, ...), batch on the trailing axes.
+
+    Row by row, ``X[i, j] = -sum_{m=j}^{i-1} L[i, m] X[m, j] / L[i, i]`` for all j < i at
+    once (only the structurally nonzero terms, summed in increasing m).
+    """
+    k = L.shape[0]
+    X = np.zeros(L.shape)
+    inv = 1.0 / np.diagonal(L, axis1=0, axis2=1)  # (..., k)
+    inv = np.moveaxis(inv, -1, 0)
+    for i in range(k):
+        X[i, i] = inv[i]
+        if i:
+            acc = np.zeros((i,) + L.shape[2:])
+            tmp = np.empty(acc.shape)
+            for m in range(i):
+                np.multiply(X[m, :m + 1], L[i, m], out=tmp[:m + 1])
+                acc[:m + 1] += tmp[:m + 1]
+            np.multiply(acc, -inv[i], out=X[i, :i])
+    return X
 
 
 def forward_substitute(L: np.ndarray, B: np.ndarray) -> np.ndarray:

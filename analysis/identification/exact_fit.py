@@ -17,23 +17,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.kinetostatics.equilibrium import EquilibriumError, newton_deflection
-from analysis.kinetostatics.small_linalg import solve_dominant_columns
-from analysis.kinetostatics.stiffness import complementary_stiffness_from_jacobian
-from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
+from analysis.kinetostatics.equilibrium import (
+    CHUNK,
+    EquilibriumError,
+    entry_major_rows,
+    newton_deflection_em,
+)
+from analysis.kinetostatics.small_linalg import diagonally_dominant, lu_em, lu_solve_right_em
+from analysis.kinetostatics.stiffness import complementary_stiffness_em
+from analysis.model.kinematics import (
+    ChainState,
+    ChainStateEM,
+    chain_state_em,
+    jacobian_em,
+    joint_cos_sin,
+    pose_difference_em,
+)
 from analysis.model.robot_model import RobotModel
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    z = np.zeros(v.shape[:-1])
-    return np.stack(
-        [
-            np.stack([z, -v[..., 2], v[..., 1]], -1),
-            np.stack([v[..., 2], z, -v[..., 0]], -1),
-            np.stack([-v[..., 1], v[..., 0], z], -1),
-        ],
-        -2,
-    )
 
 
 def so3_left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
@@ -43,16 +43,32 @@ def so3_left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
     left, exp(omega) exp(phi); series form below 1e-4 rad.
     """
     phi = np.asarray(phi, dtype=float)
-    th = np.linalg.norm(phi, axis=-1)
-    K = _skew(phi)
+    em = _so3_left_jacobian_inverse_em(np.moveaxis(phi.reshape(-1, 3), 0, -1))
+    return np.moveaxis(em, -1, 0).reshape(*phi.shape, 3)
+
+
+def _so3_left_jacobian_inverse_em(phi: np.ndarray) -> np.ndarray:
+    """J_l^-1 (3, 3, N) of rotation vectors phi (3, N), entry-major.
+
+    ``I - K/2 + c(theta) K^2`` with K = [phi]x, K^2 = phi phi^T - theta^2 I and
+    ``c = 1/theta^2 - (1 + cos theta) / (2 theta sin theta)`` (1/12 + theta^2/720 below
+    1e-4 rad).
+    """
+    t2 = np.einsum("in,in->n", phi, phi)
+    th = np.sqrt(t2)
     small = th < 1e-4
     ths = np.where(small, 1.0, th)
-    coef = np.where(
-        small,
-        1.0 / 12.0 + th**2 / 720.0,
-        1.0 / ths**2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)),
-    )
-    return np.eye(3) - 0.5 * K + coef[..., None, None] * (K @ K)
+    coef = np.where(small, 1.0 / 12.0 + t2 / 720.0,
+                    1.0 / ths**2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)))
+    out = np.empty((3, 3) + phi.shape[1:])
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        out[i, i] = 1.0 - coef * (phi[j] * phi[j] + phi[k] * phi[k])
+        # K[i, j] = -phi_k, K[j, i] = phi_k for the cyclic (i, j, k)
+        pp = coef * (phi[i] * phi[j])
+        out[i, j] = pp + 0.5 * phi[k]
+        out[j, i] = pp - 0.5 * phi[k]
+    return out
 
 
 def solve_deflection_compliance(
@@ -94,7 +110,6 @@ def solve_deflection_masked(
     max_iter: int = 50,
     max_deflection: float = 1.0,
     dq0: np.ndarray | None = None,
-    keep: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Like :func:`solve_deflection_compliance`, batched without raising.
 
@@ -108,27 +123,58 @@ def solve_deflection_masked(
     first-order one); the same converged solution with fewer Newton steps. Poses
     where Newton from ``dq0`` fails are solved again from zero, so a guess never
     loses a solution the cold start finds.
-
-    ``keep``: see :func:`newton_deflection` (left empty when some pose was solved again).
     """
-    dq, bad, last = newton_deflection(robot, q, x, w, tol, max_iter, dq0=dq0,
-                                      max_deflection=max_deflection, keep=keep)
+    q = np.asarray(q, dtype=float)
+    batch, n = q.shape[:-1], q.shape[-1]
+    qe = np.ascontiguousarray(q.reshape(-1, n).T)
+    xe, we = entry_major_rows(x, batch, n), entry_major_rows(w, batch, 6)
+    d0 = None if dq0 is None else entry_major_rows(dq0, batch, n)
+    N = qe.shape[1]
+    dq, ok = np.empty((n, N)), np.empty(N, dtype=bool)
+    for s in range(0, N, CHUNK):
+        sl = slice(s, s + CHUNK)
+        dq[:, sl], ok[sl] = _solve_em(robot, qe[:, sl], _cols(xe, sl), _cols(we, sl), tol,
+                                      max_iter, max_deflection,
+                                      None if d0 is None else d0[:, sl])
+    return dq.T.reshape(q.shape), ok.reshape(batch)
+
+
+def _solve_em(robot, q, x, w, tol, max_iter, max_deflection, dq0, keep=None, cos_sin=None,
+              state0=None):
+    """:func:`solve_deflection_masked` of one block, entry-major (q (n, N)); ``keep``
+    (see :func:`newton_deflection_em`) is left empty when some pose was solved again.
+
+    Newton starts from ``dq0``, then poses where it failed start again from zero; without
+    ``dq0`` but with ``state0`` (the chain state at q), from zero first (its first step
+    made with state0), then from the first-order deflection ``x * J(q)^T w``: at loads
+    close to buckling one start can overshoot where the other converges (where both
+    converge, they reach the same deflection).
+    """
+    dq, bad, last = newton_deflection_em(robot, q, x, w, tol, max_iter, dq0, max_deflection,
+                                         keep, cos_sin, state0)
     ok = ~bad & (last <= max(tol, 1e-12))
-    if dq0 is not None and not np.all(ok):
+    if (dq0 is not None or state0 is not None) and not np.all(ok):
         if keep is not None:
             keep.clear()
-        n = q.shape[-1]
-        retry = ~np.reshape(ok, -1)
-        x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
-        w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
-        d2, b2, l2 = newton_deflection(robot, q.reshape(-1, n)[retry], x.reshape(-1, n)[retry],
-                                       w.reshape(-1, 6)[retry], tol, max_iter,
-                                       max_deflection=max_deflection)
-        dq, ok = dq.reshape(-1, n).copy(), np.reshape(ok, -1).copy()
-        dq[retry] = d2
+        retry = ~ok
+        xr, wr = _cols(x, retry), _cols(w, retry)
+        start = None
+        if dq0 is None:
+            sub = ChainStateEM(*(getattr(state0, f)[..., retry]
+                                 for f in ("origins", "axes", "rot", "pos")))
+            start = xr * np.einsum("rin,rn->in", jacobian_em(sub), wr)
+            start = np.where(np.isfinite(start), start, 0.0)
+        base = None if cos_sin is None else (cos_sin[0][:, retry], cos_sin[1][:, retry])
+        d2, b2, l2 = newton_deflection_em(robot, q[:, retry], xr, wr, tol, max_iter, start,
+                                          max_deflection, cos_sin=base)
+        dq[:, retry] = d2
         ok[retry] = ~b2 & (l2 <= max(tol, 1e-12))
-        dq, ok = dq.reshape(q.shape), ok.reshape(q.shape[:-1])
     return dq, ok
+
+
+def _cols(a: np.ndarray, sel) -> np.ndarray:
+    """Columns ``sel`` of an entry-major (k, N) array; a (k, 1) column is shared."""
+    return a if a.shape[-1] == 1 else a[:, sel]
 
 
 def model_displacement(
@@ -164,46 +210,114 @@ def model_displacement_state(
     """:func:`model_displacement_masked` plus the joint deflection dq (..., n) (rad).
 
     Newton starts from ``dq0`` (e.g. the deflection of the previous Gauss-Newton
-    iterate), else from the first-order deflection ``x * J(q)^T w`` (one Newton step
-    fewer than from zero: the unloaded chain state is needed for the screw anyway).
+    iterate), else from zero, its first step made with the unloaded chain state (needed
+    for the screw anyway): that step, ``(I - X K_C(q))^-1 X J(q)^T w``, errs by O(dq^3)
+    where the first-order ``X J(q)^T w`` errs by O(dq^2), so most poses converge one
+    Newton evaluation earlier.
     ``unloaded``: a dict that receives ``state`` and ``tip``, the chain state at q and
     its tool pose (a caller that also needs J(q) saves recomputing it); when it already
     holds ``tip`` (the same q) and ``dq0`` is given, the unloaded chain is not recomputed.
+    Computed entry-major in blocks of :data:`analysis.kinetostatics.equilibrium.CHUNK`
+    poses (cache-sized).
     """
     q = np.asarray(q, dtype=float)
-    x = np.broadcast_to(np.asarray(x, dtype=float), q.shape)
-    w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
-    if unloaded is not None and "tip" in unloaded and dq0 is not None:
-        tip0 = unloaded["tip"]
-    else:
-        s0 = chain_state(robot, q)
-        tip0 = s0.tip
-        if unloaded is not None:
-            unloaded.update(state=s0, tip=tip0)
-        if dq0 is None:
-            dq0 = x * np.einsum("...ji,...j->...i", jacobian_from_state(s0), w)
+    batch, n = q.shape[:-1], q.shape[-1]
+    qe = np.ascontiguousarray(q.reshape(-1, n).T)
+    N = qe.shape[1]
+    xe, we = entry_major_rows(x, batch, n), entry_major_rows(w, batch, 6)
+    d0 = None if dq0 is None else entry_major_rows(dq0, batch, n)
+    reuse = unloaded is not None and "tip" in unloaded and dq0 is not None
+    tip0 = np.reshape(unloaded["tip"], (N, 4, 4)) if reuse else np.empty((N, 4, 4))
+    keep_state = unloaded is not None and not reuse
+    if keep_state:
+        origins, axes = np.empty((N, n, 3)), np.empty((N, n, 3))
+    screw, ok, dq = np.empty((N, 6)), np.empty(N, dtype=bool), np.empty((N, n))
+    D = np.empty((N, 6, n)) if with_jacobian else None
+    for s in range(0, N, CHUNK):
+        sl = slice(s, s + CHUNK)
+        base = joint_cos_sin(qe[:, sl])
+        s0 = None
+        if not reuse:
+            s0 = chain_state_em(robot, qe[:, sl], base)
+            tip0[sl] = s0.tip()
+            if keep_state:
+                origins[sl], axes[sl] = s0.origins.T, s0.axes.T
+        d0s = None if d0 is None else d0[:, sl]
+        screw[sl], ok[sl], dq[sl], Db = _model_block(
+            robot, qe[:, sl], _cols(xe, sl), _cols(we, sl), with_jacobian,
+            None if d0s is None else np.where(np.isfinite(d0s), d0s, 0.0), tip0[sl], base, s0)
+        if with_jacobian:
+            D[sl] = Db
+    if keep_state:
+        unloaded.update(state=ChainState(origins.reshape(*batch, n, 3),
+                                         axes.reshape(*batch, n, 3),
+                                         tip0.reshape(*batch, 4, 4)),
+                        tip=tip0.reshape(*batch, 4, 4))
+    return (screw.reshape(*batch, 6), None if D is None else D.reshape(*batch, 6, n),
+            ok.reshape(batch), dq.reshape(q.shape))
+
+
+def _model_block(robot, q, x, w, with_jacobian, dq0, tip0, base, state0):
+    """Screw (N, 6), ok (N,), dq (N, n) and the derivative (N, 6, n) or None of one block
+    of :func:`model_displacement_state`: q, x, dq0 (n, N) (None: from zero), w (6, N),
+    tip0 (N, 4, 4) the unloaded tool poses, base (cos q, sin q), state0 the unloaded
+    chain state (or None)."""
+    n = q.shape[0]
     keep: dict = {}
-    dq, ok = solve_deflection_masked(robot, q, x, w, dq0=np.where(np.isfinite(dq0), dq0, 0.0),
-                                     keep=keep)
-    n = q.shape[-1]
+    dq, ok = _solve_em(robot, q, x, w, 1e-15, 50, 1.0, dq0, keep, base, state0)
+    last_step = None
     if keep:
-        # Newton's last evaluated iterate: converged like dq (they differ by the last
-        # step, <= 1e-15 rad), and its state, J and I - X K_C are already computed
-        dq, s1, J1, M = keep["dq"], keep["state"], keep["J"], keep["dF"]
-        dq = np.where(ok[..., None], dq, 0.0)
+        # Newton's last evaluated iterate dq_k: its state, J, J^T w, I - X K_C and the LU
+        # factors of the latter are already computed; the returned dq is dq_k minus the
+        # last step (<= 1e-15 rad), which the screw follows to first order below
+        dqk, s1, J1, tau, M, LU = (keep[k] for k in ("dq", "state", "J", "tau", "dF", "lu"))
+        last_step = np.where(ok, dq - dqk, 0.0)
+        dq = np.where(ok, dq, 0.0)
     else:
-        s1 = chain_state(robot, q + dq)
-        J1 = jacobian_from_state(s1)
-        M = None
-    screw = np.where(ok[..., None], pose_difference(tip0, s1.tip), 0.0)
+        s1 = chain_state_em(robot, q, joint_cos_sin(q, dq, base))
+        J1 = jacobian_em(s1)
+        tau = np.einsum("rin,rn->in", J1, w)
+        M = LU = None
+    screw = pose_difference_em(np.moveaxis(tip0[:, :3, :3], 0, -1), tip0[:, :3, 3].T,
+                               s1.rot, s1.pos)
+    Dd = None
+    if with_jacobian:  # D = d screw / d dq = [J_v; J_l^-1 J_w], (6, n, N)
+        Dd = J1.copy()
+        Jl = _so3_left_jacobian_inverse_em(np.ascontiguousarray(screw[:, 3:].T))
+        Dd[3:] = _matmul_em(Jl, J1[3:])
+    if last_step is not None:
+        # screw(dq) = screw(dq_k) + D (dq - dq_k) + O(step^2); without the model Jacobian
+        # J stands for D: J_l^-1 = I + O(|phi|) changes a correction of <= 1e-15 rad by
+        # |phi|/2 of it
+        screw += np.einsum("rin,in->nr", J1 if Dd is None else Dd, last_step)
+    if not ok.all():
+        screw[~ok] = 0.0
     if not with_jacobian:
-        return screw, None, ok, dq
-    tau = np.einsum("...ji,...j->...i", J1, w)
-    if M is None:
-        M = np.eye(n) - x[..., :, None] * complementary_stiffness_from_jacobian(J1, w)
-    M = np.where(ok[..., None, None], M, np.eye(n))
-    # (..., n, n): d dq_i / d x_j; M = I - X K_C is diagonally dominant at ordinary loads
-    ddq = solve_dominant_columns(M, tau[..., None, :] * np.eye(n))
-    D = J1.copy()
-    D[..., 3:, :] = so3_left_jacobian_inverse(screw[..., 3:]) @ J1[..., 3:, :]
-    return screw, np.where(ok[..., None, None], D @ ddq, 0.0), ok, dq
+        return screw, ok, dq.T, None
+    if LU is None:
+        if M is None:
+            M = -x[:, None] * complementary_stiffness_em(J1, w)
+            M[np.arange(n), np.arange(n)] += 1.0  # I - X K_C, rounded as 1 - x K
+        if not ok.all():
+            M = np.where(ok, M, np.eye(n)[:, :, None])
+        if diagonally_dominant(M).all():  # I - X K_C at ordinary loads
+            LU = lu_em(M.copy())
+    # D (I - X K_C)^-1 diag(tau): d dq / dx = (I - X K_C)^-1 diag(tau)
+    if LU is not None:
+        G = lu_solve_right_em(LU, Dd)
+    else:  # not diagonally dominant: LAPACK with partial pivoting
+        G = np.moveaxis(np.swapaxes(np.linalg.solve(
+            np.swapaxes(np.moveaxis(M, -1, 0), -1, -2),
+            np.swapaxes(np.moveaxis(Dd, -1, 0), -1, -2)), -1, -2), 0, -1)
+    out = G * tau[None]
+    if not ok.all():
+        out[:, :, ~ok] = 0.0
+    return screw, ok, dq.T, np.moveaxis(out, -1, 0)
+
+
+def _matmul_em(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """A B for entry-major A (p, k, N) and B (k, r, N) -> (p, r, N)."""
+    out = A[:, 0, None] * B[0][None]
+    for j in range(1, A.shape[1]):
+        out += A[:, j, None] * B[j][None]
+    return out

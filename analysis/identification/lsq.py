@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from analysis.identification import batch_lsq
+
 
 def column_scale(A: np.ndarray) -> np.ndarray:
     """Euclidean norm of each column of A (..., r, p); 1 where a column is zero."""
@@ -75,7 +77,11 @@ def whitening(cov: np.ndarray, measured: np.ndarray | None = None,
     """Inverse Cholesky factors L^-1 (..., 6, 6) of per-test covariances (..., 6, 6).
 
     Components not ``measured`` (bool (..., 6)) are decoupled and their rows
-    of L^-1 zeroed, so they drop out of a whitened system.
+    of L^-1 zeroed, so they drop out of a whitened system. Raises
+    ``numpy.linalg.LinAlgError`` when a (decoupled) covariance is not positive definite,
+    as ``numpy.linalg.cholesky``. Entry-major Cholesky factorisation and triangular
+    inverse over blocks of :data:`WHITEN_BLOCK` tests
+    (:mod:`analysis.identification.batch_lsq`): no LAPACK call per 6 x 6 matrix.
     """
     cov = np.asarray(cov, dtype=float)
     if cov.ndim == 3 and cov.shape[0] > TEST_BLOCK:
@@ -87,37 +93,35 @@ def whitening(cov: np.ndarray, measured: np.ndarray | None = None,
             out[s:s + TEST_BLOCK] = whitening(cov[s:s + TEST_BLOCK], None if measured is None
                                               else measured[s:s + TEST_BLOCK])
         return out
-    cov = np.array(cov, dtype=float)
-    if measured is not None:
-        keep = measured[..., :, None] & measured[..., None, :]
-        eye = np.broadcast_to(np.eye(6, dtype=bool), keep.shape)
-        cov = np.where(keep, cov, np.where(eye, 1.0, 0.0))
-    Linv = lower_inverse(np.linalg.cholesky(cov))
-    if measured is not None:
-        Linv = Linv * measured[..., :, None]
-    return Linv
+    n = cov.shape[-1]
+    flat = cov.reshape(-1, n, n)
+    meas = None if measured is None else np.broadcast_to(measured, cov.shape[:-1]).reshape(-1, n)
+    res = np.empty(flat.shape)
+    eye = np.eye(n)[:, :, None]
+    for s in range(0, flat.shape[0], WHITEN_BLOCK):
+        S = np.moveaxis(flat[s:s + WHITEN_BLOCK], 0, -1)  # (n, n, N) view, read column-wise
+        mt = None if meas is None or meas[s:s + WHITEN_BLOCK].all() \
+            else meas[s:s + WHITEN_BLOCK].T
+        if mt is not None:  # unmeasured components: identity rows and columns
+            S = np.where(mt[:, None] & mt[None], S, eye)
+        X = batch_lsq.lower_inverse(batch_lsq.cholesky(S, check=True))
+        if mt is not None:
+            X *= mt[:, None]
+        res[s:s + WHITEN_BLOCK] = np.moveaxis(X, -1, 0)
+    return res.reshape(cov.shape)
 
 
 def lower_inverse(L: np.ndarray) -> np.ndarray:
     """Inverse (..., n, n) of lower-triangular matrices L (..., n, n), batched.
 
     Forward substitution entry by entry over the whole batch at once
-    (``Linv[i, j] = -sum_k L[i, k] Linv[k, j] / L[i, i]``, entry-major arrays):
-    ~5x less CPU than an LU factorisation per 6 x 6 matrix (numpy.linalg.inv),
-    backward stable like it.
+    (``Linv[i, j] = -sum_k L[i, k] Linv[k, j] / L[i, i]``, entry-major arrays,
+    :func:`analysis.identification.batch_lsq.lower_inverse`): ~5x less CPU than an LU
+    factorisation per 6 x 6 matrix (numpy.linalg.inv), backward stable like it.
     """
     n = L.shape[-1]
-    E = np.ascontiguousarray(np.moveaxis(L.reshape(-1, n, n), 0, -1))  # (n, n, N)
-    inv_d = 1.0 / np.diagonal(E, axis1=0, axis2=1).T  # (n, N)
-    out = np.zeros_like(E)
-    for j in range(n):
-        out[j, j] = inv_d[j]
-        for i in range(j + 1, n):
-            acc = E[i, j] * out[j, j]
-            for k in range(j + 1, i):
-                acc += E[i, k] * out[k, j]
-            out[i, j] = -acc * inv_d[i]
-    return np.moveaxis(out, -1, 0).reshape(L.shape)
+    E = np.moveaxis(L.reshape(-1, n, n), 0, -1)  # (n, n, N) view
+    return np.moveaxis(batch_lsq.lower_inverse(E), -1, 0).reshape(L.shape)
 
 
 def stack_matrix(blocks: np.ndarray) -> np.ndarray:
@@ -142,6 +146,9 @@ def block_diag_apply(G: np.ndarray, cov: np.ndarray) -> np.ndarray:
 #: (measured: 0.07 s for 6e5 x 7 rows against 0.22 s in blocks of 48000)
 ROW_BLOCK = 6_000
 TEST_BLOCK = 8_000
+#: tests per block of :func:`whitening`: its working set (~10 arrays of 36 x 4096
+#: doubles) stays in cache
+WHITEN_BLOCK = 4_096
 #: stacked systems with more rows than this are factorised blockwise (no Q, no A^+)
 TALL_ROWS = 192_000
 

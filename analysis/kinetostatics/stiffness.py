@@ -55,20 +55,35 @@ def complementary_stiffness_em(E: np.ndarray, w: np.ndarray) -> np.ndarray:
     w = np.asarray(w, dtype=float)
     f = w[:3].reshape(3, 1, -1) if w.ndim > 1 else w[:3].reshape(3, 1, 1)
     m = w[3:].reshape(f.shape)
-    vf = _cross0(v, f)
-    a = vf + _cross0(om, m)
-    # lower[k, i] = omega_k . a_i (used for k <= i); upper[k, i] = vf_k . omega_i (k > i)
-    lower = sum(om[c][:, None] * a[c][None] for c in range(3))
-    upper = sum(vf[c][:, None] * om[c][None] for c in range(3))
+    # vf_i = v_i x f and a_i = vf_i + omega_i x m (3, n, N), written in place
     n = E.shape[1]
-    tri = np.triu(np.ones((n, n), dtype=bool))[:, :, None]
-    return np.swapaxes(np.where(tri, lower, upper), 0, 1)  # K_C[i, k] = d[k, i]
+    vf = np.empty((3, n) + E.shape[2:])
+    a = np.empty(vf.shape)
+    t = np.empty(vf.shape[1:])
+    for c in range(3):
+        c1, c2 = (c + 1) % 3, (c + 2) % 3
+        np.multiply(v[c1], f[c2], out=vf[c])
+        vf[c] -= np.multiply(v[c2], f[c1], out=t)
+        np.multiply(om[c1], m[c2], out=a[c])
+        a[c] -= np.multiply(om[c2], m[c1], out=t)
+        a[c] += vf[c]
+    # K[i, k] = a_i . omega_k for k <= i and omega_i . vf_k for k > i: row by row, each
+    # entry computed once, written in place (contiguous rows, no (n, n, N) temporaries)
+    K = np.empty((n, n) + E.shape[2:])
+    tmp = np.empty((n,) + E.shape[2:])
+    for i in range(n):
+        _dot_into(K[i, :i + 1], tmp[:i + 1], om[:, :i + 1], a[:, i])
+        if i < n - 1:
+            _dot_into(K[i, i + 1:], tmp[i + 1:], vf[:, i + 1:], om[:, i])
+    return K
 
 
-def _cross0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product over the first axis (entry-major vectors)."""
-    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
+def _dot_into(out: np.ndarray, tmp: np.ndarray, vs: np.ndarray, u: np.ndarray) -> None:
+    """out[j] = u . vs[:, j] for vectors vs (3, k, N) and u (3, N), into ``out`` (k, N)."""
+    np.multiply(vs[0], u[0], out=out)
+    for c in (1, 2):
+        np.multiply(vs[c], u[c], out=tmp)
+        out += tmp
 
 
 def complementary_stiffness(robot: RobotModel, q: np.ndarray, w: np.ndarray) -> np.ndarray:

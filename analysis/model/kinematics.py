@@ -19,16 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from analysis.model.robot_model import RobotModel
-
-
-def _rotations(axes: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Rodrigues: rotation matrices (..., 3, 3) about unit ``axes`` (3,) by ``q`` (...)."""
-    k = np.array(
-        [[0.0, -axes[2], axes[1]], [axes[2], 0.0, -axes[0]], [-axes[1], axes[0], 0.0]]
-    )
-    s, c = np.sin(q)[..., None, None], np.cos(q)[..., None, None]
-    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+from analysis.model.robot_model import Chain, RobotModel
 
 
 @dataclass(frozen=True)
@@ -51,50 +42,186 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
-def _rotate_frame(rot: np.ndarray, axis: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """rot @ R(axis, q) for batches: column operations when the axis is x, y or z."""
-    for k in range(3):
-        if axis[k] == 1.0 and np.count_nonzero(axis) == 1:
-            i, j = (k + 1) % 3, (k + 2) % 3
-            c, s = np.cos(q)[..., None], np.sin(q)[..., None]
-            out = rot.copy()
-            out[..., :, i] = c * rot[..., :, i] + s * rot[..., :, j]
-            out[..., :, j] = -s * rot[..., :, i] + c * rot[..., :, j]
-            return out
-    return rot @ _rotations(axis, q)
+#: entries of a constant rotation below this, and of a constant translation below this
+#: many metres, are taken as 0 (cos(pi/2) = 6e-17 in robot files): the change of the
+#: model is below the rounding of the arithmetic, a signed permutation then composes with
+#: a frame by reordering its columns, and a zero term costs no operation
+_SNAP = 1e-15
 
 
-def _compose(rot: np.ndarray, fixed: np.ndarray) -> np.ndarray:
-    """rot (..., 3, 3) @ fixed (3, 3) as one matrix product over the whole batch."""
-    return (rot.reshape(-1, 3) @ fixed).reshape(rot.shape)
+@dataclass(frozen=True)
+class _NormalChain:
+    """The chain rewritten with every joint axis along z (entry-major kinematics).
+
+    Joint i's frame is turned by a constant rotation Q_i with Q_i e_z = its axis, so
+    ``G_i = G_(i-1) L_i Rz(q_i)`` with ``L_i = Q_(i-1)^T P_i Q_i`` (P_i the placement);
+    G_i has the origin of joint i's frame and the joint angles are unchanged.
+    rot (n, 3, 3), pos (n, 3): the L_i (m); tip_rot (3, 3), tip_pos (3,): P in G_n (m).
+    """
+
+    chain: Chain
+    rot: np.ndarray
+    pos: np.ndarray
+    tip_rot: np.ndarray
+    tip_pos: np.ndarray
 
 
-def _apply(rot: np.ndarray, vec: np.ndarray) -> np.ndarray:
-    """rot (..., 3, 3) @ vec (3,) as one matrix-vector product over the whole batch."""
-    return (rot.reshape(-1, 3) @ vec).reshape(rot.shape[:-1])
+def _axis_frame(a: np.ndarray) -> np.ndarray:
+    """A rotation Q with Q e_z = a (the identity when a is e_z)."""
+    if np.array_equal(a, [0.0, 0.0, 1.0]):
+        return np.eye(3)
+    e = np.eye(3)[int(np.argmin(np.abs(a)))]
+    u = np.cross(e, a)
+    u /= np.linalg.norm(u)
+    return np.column_stack([u, np.cross(a, u), a])
+
+
+def _snap(m: np.ndarray) -> np.ndarray:
+    return np.where(np.abs(m) < _SNAP, 0.0, m)
+
+
+_NORMAL: dict[int, _NormalChain] = {}
+
+
+def _normal_chain(chain: Chain) -> _NormalChain:
+    hit = _NORMAL.get(id(chain))
+    if hit is not None and hit.chain is chain:
+        return hit
+    Q = [np.eye(3)] + [_axis_frame(np.asarray(a, dtype=float)) for a in chain.axes]
+    P = chain.placements
+    out = _NormalChain(
+        chain,
+        np.array([_snap(Q[i].T @ P[i, :3, :3] @ Q[i + 1]) for i in range(chain.n)]),
+        np.array([_snap(Q[i].T @ P[i, :3, 3]) for i in range(chain.n)]),
+        _snap(Q[-1].T @ chain.tip[:3, :3]), _snap(Q[-1].T @ chain.tip[:3, 3]))
+    _NORMAL[id(chain)] = out
+    return out
+
+
+def _combine(cols: list, coef: np.ndarray):
+    """sum_k coef[k] cols[k] for constant coefficients: zero terms skipped, +-1 not multiplied.
+
+    0.0 when every coefficient is zero.
+    """
+    acc = None
+    for a, col in zip(coef, cols, strict=True):
+        if a == 0.0:
+            continue
+        term = col if a == 1.0 else (-col if a == -1.0 else a * col)
+        acc = term if acc is None else acc + term
+    return 0.0 if acc is None else acc
+
+
+@dataclass(frozen=True)
+class ChainStateEM:
+    """:class:`ChainState` of N poses, entry-major (the pose index last and contiguous).
+
+    ``origins`` (3, n, N) joint origins (m); ``axes`` (3, n, N) joint axes;
+    ``rot`` (3, 3, N) orientation and ``pos`` (3, N) position (m) of P.
+    """
+
+    origins: np.ndarray
+    axes: np.ndarray
+    rot: np.ndarray
+    pos: np.ndarray
+
+    def tip(self) -> np.ndarray:
+        """Pose of P (N, 4, 4)."""
+        N = self.pos.shape[-1]
+        tip = np.zeros((N, 4, 4))
+        tip[:, :3, :3] = np.moveaxis(self.rot, -1, 0)
+        tip[:, :3, 3] = self.pos.T
+        tip[:, 3, 3] = 1.0
+        return tip
+
+    def batch_first(self, batch: tuple) -> ChainState:
+        """The same state as a :class:`ChainState` over the leading axes ``batch``."""
+        n = self.axes.shape[1]
+        return ChainState(
+            np.ascontiguousarray(self.origins.T).reshape(*batch, n, 3),
+            np.ascontiguousarray(self.axes.T).reshape(*batch, n, 3),
+            self.tip().reshape(*batch, 4, 4))
+
+
+#: |dq| (rad) up to which :func:`joint_cos_sin` uses the series (truncation < 1e-18 relative)
+SERIES_ANGLE = 0.1
+
+
+def joint_cos_sin(q: np.ndarray, dq: np.ndarray | None = None,
+                  base: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin of the joint angles q + dq (rad), any shape.
+
+    ``base``: (cos q, sin q), already computed. With it and every |dq| <=
+    :data:`SERIES_ANGLE`, the angle-sum formulas with Taylor series of cos dq - 1 and
+    sin dq (a few multiply-adds instead of two transcendental calls, which cost most
+    of a forward kinematics pass) give cos(q + dq) to a few ulps: the deflected angles
+    of a Newton solve cost no new cos/sin.
+    """
+    if dq is None:
+        return (np.cos(q), np.sin(q)) if base is None else base
+    if base is None or not np.all(np.abs(dq) <= SERIES_ANGLE):
+        a = q + dq
+        return np.cos(a), np.sin(a)
+    c0, s0 = base
+    d2 = dq * dq
+    # sin d = d (1 - d^2/6 + ... + d^8/9!), cos d - 1 = d^2 (-1/2 + ... + d^8/10!)
+    sd = dq + dq * d2 * (-1 / 6 + d2 * (1 / 120 + d2 * (-1 / 5040 + d2 * (1 / 362880))))
+    cm = d2 * (-1 / 2 + d2 * (1 / 24 + d2 * (-1 / 720 + d2 * (1 / 40320
+                                                             - d2 / 3628800))))
+    return c0 + (c0 * cm - s0 * sd), s0 + (s0 * cm + c0 * sd)
+
+
+def chain_state_em(robot: RobotModel, q: np.ndarray,
+                   cos_sin: tuple[np.ndarray, np.ndarray] | None = None) -> ChainStateEM:
+    """Forward kinematics of N poses, entry-major: q (n, N) joint angles (rad).
+
+    ``cos_sin``: (cos q, sin q) (n, N) when the caller has them (:func:`joint_cos_sin`);
+    then q is not read. The one forward-kinematics kernel: frames are kept as three
+    column vectors (3, N) and each joint turns two of them (planar rotation), so a
+    pose costs a few dozen vectorised operations over the whole batch and no
+    (N, 3, 3) matrix products.
+    """
+    nc = _normal_chain(robot.chain)
+    cos, sin = joint_cos_sin(np.asarray(q, dtype=float)) if cos_sin is None else cos_sin
+    n, N = cos.shape
+    origins = np.empty((3, n, N))
+    axes = np.empty((3, n, N))
+    # columns of the base frame G_0 = I, broadcast against the (3, N) columns that follow
+    G = list(np.eye(3)[:, :, None])
+    pos = np.zeros((3, 1))
+    for i in range(n):
+        pos = pos + _combine(G, nc.pos[i])
+        A = [_combine(G, nc.rot[i][:, j]) for j in range(3)]  # G_(i-1) L_i
+        origins[:, i] = pos
+        axes[:, i] = A[2]
+        c, s = cos[i], sin[i]
+        G = [c * A[0] + s * A[1], c * A[1] - s * A[0], A[2]]
+    rot = np.empty((3, 3, N))
+    for j in range(3):
+        rot[:, j] = _combine(G, nc.tip_rot[:, j])
+    tip_pos = np.empty((3, N))
+    tip_pos[...] = pos + _combine(G, nc.tip_pos)  # (3, 1) only for a chain of no joint
+    return ChainStateEM(origins, axes, rot, tip_pos)
+
+
+def jacobian_em(state: ChainStateEM) -> np.ndarray:
+    """J (6, n, N) entry-major from a :class:`ChainStateEM`: column i = [w_i x (p - o_i); w_i]."""
+    z = state.axes
+    d = state.pos[:, None, :] - state.origins
+    E = np.empty((6,) + z.shape[1:])
+    E[0] = z[1] * d[2] - z[2] * d[1]
+    E[1] = z[2] * d[0] - z[0] * d[2]
+    E[2] = z[0] * d[1] - z[1] * d[0]
+    E[3:] = z
+    return E
 
 
 def chain_state(robot: RobotModel, q: np.ndarray) -> ChainState:
     """Joint origins and axes and the tool pose, batched over the leading axes of q."""
-    chain = robot.chain
     q = np.asarray(q, dtype=float)
-    batch = q.shape[:-1]
-    rot = np.broadcast_to(np.eye(3), (*batch, 3, 3)).copy()
-    pos = np.zeros((*batch, 3))
-    origins = np.empty((*batch, chain.n, 3))
-    axes = np.empty((*batch, chain.n, 3))
-    for i in range(chain.n):
-        place = chain.placements[i]
-        pos = pos + _apply(rot, place[:3, 3])
-        rot = _compose(rot, place[:3, :3])
-        origins[..., i, :] = pos
-        axes[..., i, :] = _apply(rot, chain.axes[i])
-        rot = _rotate_frame(rot, chain.axes[i], q[..., i])
-    tip = np.zeros((*batch, 4, 4))
-    tip[..., :3, :3] = _compose(rot, chain.tip[:3, :3])
-    tip[..., :3, 3] = pos + _apply(rot, chain.tip[:3, 3])
-    tip[..., 3, 3] = 1.0
-    return ChainState(origins, axes, tip)
+    n = robot.chain.n
+    return chain_state_em(robot, q.reshape(-1, n).T).batch_first(q.shape[:-1])
 
 
 def tool_pose(robot: RobotModel, q: np.ndarray) -> np.ndarray:
@@ -111,7 +238,10 @@ def jacobian_from_state(state: ChainState) -> np.ndarray:
 
 def jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
     """Kinematic Jacobian J (..., 6, n) of P, rows [linear; angular], base axes."""
-    return jacobian_from_state(chain_state(robot, q))
+    q = np.asarray(q, dtype=float)
+    n = robot.chain.n
+    E = jacobian_em(chain_state_em(robot, q.reshape(-1, n).T))
+    return np.ascontiguousarray(np.moveaxis(E, -1, 0)).reshape(*q.shape[:-1], 6, n)
 
 
 def pin_tool_pose(robot: RobotModel, q: np.ndarray) -> np.ndarray:
@@ -172,6 +302,30 @@ def pose_difference(t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
     ``[p_to - p_from (m); rotvec(R_to R_from^T) (rad)]``: the small rotation
     vector is expressed in the base frame, as the paper's delta_X.
     """
-    dp = t_to[..., :3, 3] - t_from[..., :3, 3]
-    dr = rotation_vector(t_to[..., :3, :3] @ np.swapaxes(t_from[..., :3, :3], -1, -2))
-    return np.concatenate([dp, dr], axis=-1)
+    t_from, t_to = np.broadcast_arrays(np.asarray(t_from, dtype=float),
+                                       np.asarray(t_to, dtype=float))
+    batch = t_to.shape[:-2]
+
+    def em(t):  # (3, 3, N) rotation and (3, N) position views
+        flat = t.reshape(-1, 4, 4)
+        return np.moveaxis(flat[:, :3, :3], 0, -1), flat[:, :3, 3].T
+
+    return pose_difference_em(*em(t_from), *em(t_to)).reshape(*batch, 6)
+
+
+def pose_difference_em(rot_from: np.ndarray, pos_from: np.ndarray, rot_to: np.ndarray,
+                       pos_to: np.ndarray) -> np.ndarray:
+    """:func:`pose_difference` of N pose pairs given entry-major: rotations (3, 3, N),
+    positions (3, N) (m); returns (N, 6)."""
+    out = np.empty((pos_to.shape[-1], 6))
+    out[:, :3] = (pos_to - pos_from).T
+    rel = np.empty((3, 3) + pos_to.shape[1:])  # R_to R_from^T
+    tmp = np.empty(pos_to.shape[1:])
+    for i in range(3):
+        for j in range(3):
+            np.multiply(rot_to[i, 0], rot_from[j, 0], out=rel[i, j])
+            for k in (1, 2):
+                np.multiply(rot_to[i, k], rot_from[j, k], out=tmp)
+                rel[i, j] += tmp
+    out[:, 3:] = rotation_vector(np.moveaxis(rel, -1, 0))
+    return out

@@ -95,7 +95,11 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
         campaign.measured.sum())
     for col in a.columns:
         if a[col].dtype == float:
-            np.testing.assert_allclose(b[col], a[col], rtol=1e-7, atol=1e-15, err_msg=col)
+            # absolute floor relative to the column's scale: x agrees to ~1e-14, so a
+            # studentized residual near 0 moves by ~1e-11 (measured) between the paths
+            np.testing.assert_allclose(b[col], a[col], rtol=1e-7,
+                                       atol=1e-10 * np.abs(a[col]).max() + 1e-15,
+                                       err_msg=col)
         else:
             assert (a[col].astype(str) == b[col].astype(str)).all(), col
     # validation: same folds, same figures (one Gauss-Newton step per fold for exact)

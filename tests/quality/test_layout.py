@@ -42,8 +42,9 @@ def test_one_newton_loop():
     for path in (ROOT / "analysis").rglob("*.py"):
         text = path.read_text()
         newton = ("complementary_stiffness_from_state(state, w)" in text
-                  or "complementary_stiffness_from_jacobian(J, w)" in text)
-        if newton and "for _ in range" in text:
+                  or "complementary_stiffness_from_jacobian(J, w)" in text
+                  or "complementary_stiffness_em(J, w" in text)
+        if newton and ("for _ in range" in text or "in range(max_iter)" in text):
             hits.append(path.relative_to(ROOT).as_posix())
     assert hits == ["analysis/kinetostatics/equilibrium.py"]
 
