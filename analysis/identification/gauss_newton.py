@@ -211,10 +211,12 @@ class _HeldSystems:
         self.c = ctx
         self.Linv = None
 
-    def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None):
+    def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, dq_scale=None):
         """The model at x (f, F, ok, dq) and, when ``cost``, the cost under the current
         weights; ``system_at`` is not used (the weights are made by :meth:`weigh`)."""
         c = self.c
+        if dq0 is not None and dq_scale is not None:
+            dq0 = dq0 * dq_scale[..., None, :]
         f, F, ok, dq = _model_in_blocks(c.robot, c.q, c.full(x)[..., None, :], c.w,
                                         with_jacobian, dq0, c.cols, c.measured, out, c.tips)
         value = np.sum(c.whitened(self.Linv, f) ** 2, axis=(-2, -1)) if cost else None
@@ -280,7 +282,8 @@ class _StreamedSystems:
                                    None if c.weights is None else c.weights[sl])
         return whitening(cov, c.measured[sl])
 
-    def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, rows=None,
+    def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, dq_scale=None,
+                 rows=None,
                  keep_f=False, dq_out=None):
         """The model at x; the cost under the current weights when ``cost``; with the
         Jacobian, R of the system whitened at ``system_at``. ``rows``: a callable given
@@ -305,7 +308,8 @@ class _StreamedSystems:
             unloaded: dict = {}  # J(q) comes from the unloaded chain the model computes
             fb, Fb, okb, dqb = model_displacement_state(
                 c.robot, c.q[sl], xf, c.w[sl], with_jacobian,
-                None if dq0 is None else dq0[sl], unloaded=unloaded)
+                None if dq0 is None else dq0[sl] if dq_scale is None else
+                dq0[sl] * dq_scale, unloaded=unloaded)
             ok = ok and bool(np.all(okb))
             dq[sl] = dqb
             if keep_f:
@@ -494,7 +498,14 @@ def gauss_newton(
             x_try = x + t[..., None] * step
             # the full step is usually accepted: its model Jacobian then serves the next
             # iteration (one equilibrium solve per iteration instead of two)
+            # Newton starts from the deflections at x scaled joint by joint to x_try (the
+            # first-order deflection is proportional to the compliance): ~2.2 Newton
+            # evaluations per test instead of 3 for a step of 10 %
+            with np.errstate(divide="ignore", invalid="ignore"):
+                xf, xt = ctx.full(x), ctx.full(x_try)
+                dq_scale = np.where((xf != 0) & np.isfinite(xt / xf), xt / xf, 1.0)
             trial = systems.evaluate(x_try, halving == 0, dq, True, x_try if follow else wx,
+                                     dq_scale=dq_scale,
                                      out=F_buf)
             F_buf = None
             if halving == 0:

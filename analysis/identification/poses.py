@@ -44,11 +44,14 @@ def pose_groups(q: np.ndarray, tol: float) -> np.ndarray:
     """
     import hashlib
 
-    q = np.ascontiguousarray(np.atleast_2d(np.asarray(q, dtype=float)))
+    q = np.atleast_2d(np.asarray(q, dtype=float))
     m = q.shape[0]
     if m == 0:
         return np.zeros(0, dtype=int)
-    key = (q.shape, float(tol), hashlib.blake2b(q.tobytes(), digest_size=16).digest())
+    digest = hashlib.blake2b(digest_size=16)
+    for s in range(0, m, 1 << 16):  # by blocks: no copy of a large (e.g. column-major) q
+        digest.update(np.ascontiguousarray(q[s:s + (1 << 16)]).tobytes())
+    key = (q.shape, float(tol), digest.digest())
     if _LAST.get("key") != key:
         _LAST.clear()
         _LAST.update(key=key, group=_pose_groups(q, tol))
