@@ -451,6 +451,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     sums = None
     if chosen.R is not None:
         chosen.deflection = None  # 48 MB at 1e6 tests, not used beyond the validation
+    if tests.m > per_test.LAZY_TESTS:
+        per_test.release_freed_heap()  # the blocks' freed pages, before the statistics
 
     p = len(joints)
     n_eq = int(tests.measured.sum())

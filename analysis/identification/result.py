@@ -181,23 +181,38 @@ class ResidualRows:
         for s in range(0, self.tests.m, block):
             yield self.frame(slice(s, s + block))
 
-    def key(self) -> np.ndarray:
-        """(m, 6) ranking of the rows: |studentized| (-1 if not finite), outliers first."""
-        key = np.abs(self.t)  # one (m, 6) array, edited in place
+    def key(self, rows=slice(None)) -> np.ndarray:
+        """(m, 6) ranking of the rows (of the tests ``rows``): |studentized| (-1 if not
+        finite), outliers first."""
+        key = np.abs(self.t[rows])  # one array, edited in place
         key[~np.isfinite(key)] = -1.0
-        key[self.flags] = np.inf
-        key[~self.tests.measured] = -np.inf
+        key[self.flags[rows]] = np.inf
+        key[~self.tests.measured[rows]] = -np.inf
         return key
 
-    def worst_tests(self, rows: int) -> np.ndarray:
+    def worst_tests(self, rows: int, block: int = 1 << 16) -> np.ndarray:
         """Sorted indices of the tests holding the ``rows`` highest-ranked rows (outliers
         first, then largest |studentized|), and of those holding the ``rows`` largest
-        |studentized| outliers."""
-        top = _largest(self.key().reshape(-1), rows)
+        |studentized| outliers. The ranking is made a block of tests at a time."""
+        top = np.zeros(0, dtype=np.int64)
+        for s in range(0, self.tests.m, block):
+            key = self.key(slice(s, s + block)).reshape(-1)
+            cand = np.concatenate([top, 6 * s + np.arange(key.size)])
+            values = np.concatenate([self._flat_key(top), key])
+            top = cand[_largest(values, rows)]
         out = np.flatnonzero((self.flags & self.tests.measured).reshape(-1))
         t = np.abs(np.nan_to_num(self.t.reshape(-1)[out]))
         top_out = out[_largest(t, rows)]
         return np.unique(np.concatenate([top, top_out]) // 6)
+
+    def _flat_key(self, flat: np.ndarray) -> np.ndarray:
+        """The ranking key of the rows at flat indices ``flat`` (test * 6 + component)."""
+        i, c = np.divmod(flat, 6)
+        key = np.abs(self.t[i, c])
+        key[~np.isfinite(key)] = -1.0
+        key[self.flags[i, c]] = np.inf
+        key[~self.tests.measured[i, c]] = -np.inf
+        return key
 
     def histogram(self) -> dict:
         """results.json ``residual_histogram`` of every row."""

@@ -285,20 +285,12 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
 
 
 def _release_freed_heap() -> None:
-    """Give the C heap's free pages back to the system (glibc ``malloc_trim``).
+    """:func:`analysis.identification.per_test.release_freed_heap` (the text table's cells
+    are many small allocations: freed, they stay in the process, ~0.15 GB after a
+    1e6-row import, under the arrays the fits then allocate)."""
+    from analysis.identification.per_test import release_freed_heap
 
-    The text table's cells are many small allocations: freed, they stay in the
-    process (~0.15 GB after a 1e6-row import) under the arrays the fits then allocate.
-    A no-op where the C library has no malloc_trim.
-    """
-    import ctypes
-    import ctypes.util
-
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        libc.malloc_trim(0)
-    except (OSError, AttributeError):
-        pass
+    release_freed_heap()
 
 
 def _print_assumptions(console: Console, a: dict) -> None:

@@ -73,3 +73,26 @@ def test_largest_by_blocks_equals_a_full_sort():
         got = np.sort(_largest(values, n, block=997))
         want = np.sort(np.argsort(values)[::-1][:n])
         np.testing.assert_array_equal(got, want)
+
+
+def test_worst_tests_by_blocks_equal_one_block():
+    from analysis.identification.measurements import TestArrays
+    from analysis.identification.result import ResidualRows
+
+    rng = np.random.default_rng(5)
+    m = 500
+    measured = rng.random((m, 6)) > 0.1
+    flags = np.zeros((m, 6), bool)
+    flags[[3, 77, 401], [0, 4, 2]] = True
+    measured |= flags
+    t = np.where(measured, rng.normal(size=(m, 6)), np.nan)
+    tests = TestArrays(pose=np.array([f"P{i // 5}" for i in range(m)], dtype=object),
+                       q=np.zeros((m, 6)), w=np.ones((m, 6)), d=np.zeros((m, 6)),
+                       measured=measured, line=np.arange(m) + 2)
+    rows = ResidualRows(tests, np.zeros((m, 6)), np.ones((m, 6)), t, flags)
+    for n in (3, 10, 100, 3000):  # at least the three outliers (tied at the top)
+        whole = rows.worst_tests(n, block=10**6)
+        np.testing.assert_array_equal(rows.worst_tests(n, block=7), whole)
+        key = rows.key().reshape(-1)
+        want = np.argsort(key)[::-1][:n] // 6
+        assert set(want) <= set(whole) and {3, 77, 401} <= set(whole)
