@@ -474,6 +474,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             chosen.A, chosen.cov, chosen.bread, chosen.Linv, meat=Rp.T @ Rp,
             own_weights=True, diagonal_out=sigma, move=move)
         chosen.predicted_shifted = True
+        chosen.A.dq = None  # later rows (outliers' leverages) start cold: 48 MB let go
         np.sqrt(sigma, out=sigma)
         # chi-square from R: |Linv (r - F shift)|^2 = |c0 - Rp shift|^2 + R[p, p]^2
         shift = np.zeros(p) if chosen.eiv_shift is None else chosen.eiv_shift

@@ -154,7 +154,8 @@ class PerTestModelJacobian(PerTestBlocks):
     """The exact model's Jacobian F (m, 6, p) with respect to the compliances of the joints
     ``cols`` at ``x_full`` (6,) (rad/(N m)), zero rows where not ``measured``: the
     equilibrium solved again from the deflections ``dq`` (m, 6) (rad) at x_full, which
-    it converges from in one Newton step (:mod:`analysis.identification.exact_fit`)."""
+    it converges from in one Newton step (:mod:`analysis.identification.exact_fit`), or
+    from its cold start once ``dq`` is set to None."""
 
     def __init__(self, robot, q, w, measured, cols, x_full, dq) -> None:
         self.robot, self.q, self.w, self.measured = robot, q, w, measured
@@ -165,6 +166,7 @@ class PerTestModelJacobian(PerTestBlocks):
         from analysis.identification.exact_fit import model_displacement_state
 
         sl = slice(start, stop)
+        # without the deflections (let go after the last full pass) Newton starts cold
         _, F, ok, _ = model_displacement_state(self.robot, self.q[sl], self.x_full, self.w[sl],
-                                               True, self.dq[sl])
+                                               True, None if self.dq is None else self.dq[sl])
         return F[..., self.cols] * self.measured[sl, :, None]
