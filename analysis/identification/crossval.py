@@ -101,8 +101,7 @@ def leave_one_pose_out(
             else:
                 J = jacobian(robot, tests.q)
                 A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
-            return _downdate_batched(robot, tests, group, names, joints, noise, A,
-                                     np.where(tests.measured, tests.d, 0.0),
+            return _downdate_batched(robot, tests, group, names, joints, noise, A, tests.d,
                                      np.zeros(len(joints)), method)
     start = None
     if batched and method == "exact":
@@ -116,8 +115,7 @@ def leave_one_pose_out(
             # one Gauss-Newton step per fold from the full-data estimate (module docstring)
             sums = fold_sums if getattr(fold_sums, "gram", None) is not None else None
             # the residuals are only read when the folds are summed here (48 MB at 1e6)
-            resid = None if sums is not None else np.where(
-                tests.measured, tests.d - full.predicted, 0.0)
+            resid = None if sums is not None else tests.d - full.predicted
             table = _downdate_batched(robot, tests, group, names, joints, noise, full.A,
                                       resid, full.x, method, dq0=full.deflection,
                                       Linv=full.Linv, system=_system_of(full), sums=sums,
@@ -216,8 +214,9 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     def design(sl):  # (b, 6, p) rows of the (whitened) design
         return Aw[sl] if Linv is None else Linv[sl] @ Aw[sl]
 
-    def rhs(sl):  # (b, 6) the (whitened) right-hand side
-        return rw[sl] if Linv is None else np.einsum("mij,mj->mi", Linv[sl], rw[sl])
+    def rhs(sl):  # (b, 6) the (whitened) right-hand side, 0 where not measured
+        r = np.where(tests.measured[sl], rw[sl], 0.0)
+        return r if Linv is None else np.einsum("mij,mj->mi", Linv[sl], r)
 
     blocks = [slice(s, s + TEST_BLOCK) for s in range(0, m, TEST_BLOCK)]
     if system is None:
@@ -264,8 +263,10 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         held[folds] += wrench_eiv_matrix(J[sl], sig2[sl], None if Linv is None else Linv[sl],
                                          tests.measured[sl], group=local, n_groups=k,
                                          cols=cols)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lev = np.linalg.eigvalsh(S)[:, -1]  # largest leverage of each pose block
+    lev = np.empty(P)  # largest leverage of each pose block
+    for s in range(0, P, FOLD_CHUNK):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lev[s:s + FOLD_CHUNK] = np.linalg.eigvalsh(S[s:s + FOLD_CHUNK])[:, -1]
     ok = lev < 1.0 - 1e-10
     # Training-set condition of the column-scaled A without forming it: its Gram matrix
     # is R^T (I - S_h) R = M_h^T M_h with M_h = chol(I - S_h)^T R (p x p); in chunks of
@@ -298,7 +299,10 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         if not ok[h]:
             notes[h] = "the other poses cannot identify the compliances (leverage 1)"
     z = np.zeros((P, p))
-    z[ok] = np.linalg.solve(np.eye(p) - S[ok], (c - t[ok])[..., None])[..., 0]
+    good = np.flatnonzero(ok)
+    for s in range(0, len(good), FOLD_CHUNK):
+        h = good[s:s + FOLD_CHUNK]
+        z[h] = np.linalg.solve(np.eye(p) - S[h], (c - t[h])[..., None])[..., 0]
     x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
     x_p[ok] = _fold_eiv(held, R, scale, S, x_p, ok)
     x = np.zeros((P, 6))

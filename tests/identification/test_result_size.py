@@ -96,3 +96,5 @@ def test_worst_tests_by_blocks_equal_one_block():
         key = rows.key().reshape(-1)
         want = np.argsort(key)[::-1][:n] // 6
         assert set(want) <= set(whole) and {3, 77, 401} <= set(whole)
+    assert rows.histogram(block=7) == rows.histogram(block=10**6)
+    assert sum(rows.histogram()["counts"]) + rows.histogram()["not_finite"] == measured.sum()
