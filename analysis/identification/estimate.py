@@ -70,7 +70,7 @@ from analysis.identification.lsq import (
 )
 from analysis.identification.measurements import TestArrays, to_arrays
 from analysis.identification.noise import NoiseModel
-from analysis.identification.per_test import apply
+from analysis.identification.per_test import PerTestSigma, apply
 from analysis.identification.poses import pose_tolerance
 from analysis.identification.result import (
     RESIDUALS_LISTED,
@@ -466,16 +466,14 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         # Sigma W A = A, of a fit whitened by its own covariances), each component's
         # sigma, and the prediction moved by the errors-in-variables shift
         Rp, c0 = chosen.R[:p, :p], chosen.R[:p, p]
-        sigma = np.empty(tests.measured.shape)
         move = None
         if not chosen.predicted_shifted:
             move = (chosen.predicted, chosen.eiv_shift)
         cov_x, var_r = sandwich_and_residual_variance(
             chosen.A, chosen.cov, chosen.bread, chosen.Linv, meat=Rp.T @ Rp,
-            own_weights=True, diagonal_out=sigma, move=move)
+            own_weights=True, move=move)
         chosen.predicted_shifted = True
         chosen.A.dq = None  # later rows (outliers' leverages) start cold: 48 MB let go
-        np.sqrt(sigma, out=sigma)
         # chi-square from R: |Linv (r - F shift)|^2 = |c0 - Rp shift|^2 + R[p, p]^2
         shift = np.zeros(p) if chosen.eiv_shift is None else chosen.eiv_shift
         chi2_red, p_value = chi2_summary(float(np.sum((c0 - Rp @ shift) ** 2)
@@ -484,7 +482,6 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     else:
         cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
                                                       chosen.Linv)
-        sigma = None
     # the fit's own whitening when it used the same components, else made block by block
     # (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of the
     # whitened system, for its scaled condition without the (6m, p) Linv A
@@ -505,8 +502,9 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     del acc
     from analysis.identification.noise_check import noise_ratio_notes
 
-    if sigma is None:
-        sigma = np.sqrt(per_test_diagonal(chosen.cov))  # (m, 6) each component's sigma
+    # (m, 6) each component's sigma; for a large campaign made where used (48 MB at 1e6)
+    sigma = PerTestSigma(chosen.cov) if per_test.is_lazy(chosen.cov) else np.sqrt(
+        per_test_diagonal(chosen.cov))
     warnings += noise_ratio_notes((tests.d, chosen.predicted), sigma, kept, noise,
                                   len(joints))
     scale = 1.0

@@ -160,12 +160,16 @@ class PerTestCovariance(PerTestBlocks):
         self.shape = J.shape[:-1] + (6,)
 
     def _make(self, start, stop):
-        sl = slice(start, stop)
+        return self.take(slice(start, stop))
 
+    def take(self, rows) -> np.ndarray:
+        """The covariances of the tests ``rows`` (a slice or integer indices)."""
         def part(a):
-            return None if a is None else a[sl]
+            return None if a is None else a[rows]
 
-        return covariances_per_test(self.noise, self.J[sl], self.x_full, self.measured[sl],
+        J = self.J[rows] if isinstance(rows, slice) or not hasattr(self.J, "take") \
+            else self.J.take(rows)
+        return covariances_per_test(self.noise, J, self.x_full, self.measured[rows],
                                     part(self.w), part(self.weights))
 
 

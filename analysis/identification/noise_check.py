@@ -39,7 +39,8 @@ def noise_ratio_notes(
         (measured, predicted) of (m, 6) arrays it is the difference of (taken block by
         block: no (m, 6) copy).
     sigma : (m, 6) declared standard deviation of each residual component (m, rad): the
-        square root of the diagonal of each test's residual covariance.
+        square root of the diagonal of each test's residual covariance (an array, or
+        made when sliced, :class:`~analysis.identification.per_test.PerTestSigma`).
     measured : (m, 6) bool. noise : the declared noise model. n_params : fitted parameters.
     """
     def resid(sl, cols):
@@ -61,14 +62,16 @@ def noise_ratio_notes(
         sq = 0.0
         for s in range(0, m, block):
             sl = slice(s, s + block)
-            z = (resid(sl, cols) / sigma[sl, cols])[measured[sl, cols]]
+            z = (resid(sl, cols) / sigma[sl][:, cols])[measured[sl, cols]]
             sq += float(np.sum(z**2))
         ratio = float(np.sqrt(sq / count / keep))
         if 1.0 / factor <= ratio <= factor:
             continue
         # which declared term dominates this group's sigma
         mask = measured[:, cols]
-        ft_share = float(np.median(1.0 - (disp / sigma[:, cols][mask]) ** 2))
+        sig = np.concatenate([sigma[s:s + block][:, cols][mask[s:s + block]]
+                              for s in range(0, m, block)])
+        ft_share = float(np.median(1.0 - (disp / sig) ** 2))
         source = ("the F/T noise (it dominates the declared sigma through the compliance)"
                   if ft_share > 0.5 else
                   f"the {'tracker' if name == 'translation' else 'rotation (tracker fit or probe)'}"

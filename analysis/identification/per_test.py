@@ -81,9 +81,13 @@ class PerTestJacobian(PerTestBlocks):
         self.shape = (q.shape[0], 6, q.shape[-1])
 
     def _make(self, start, stop):
+        return self.take(slice(start, stop))
+
+    def take(self, rows) -> np.ndarray:
+        """J of the tests ``rows`` (a slice or integer indices)."""
         from analysis.model.kinematics import jacobian
 
-        return jacobian(self.robot, self.q[start:stop])
+        return jacobian(self.robot, self.q[rows])
 
 
 class PerTestDesign(PerTestBlocks):
@@ -99,6 +103,24 @@ class PerTestDesign(PerTestBlocks):
 
         sl = slice(start, stop)
         return design_block(self.J[sl], self.w[sl])[..., self.cols] * self.measured[sl, :, None]
+
+
+class PerTestSigma(PerTestBlocks):
+    """The standard deviation of each residual component (m, 6) (m, rad): the square root of
+    the diagonal of per-test covariances ``cov`` (an array, or made when sliced with a
+    ``take`` of integer rows, :class:`~analysis.identification.gauss_newton.PerTestCovariance`)."""
+
+    def __init__(self, cov) -> None:
+        self.cov = cov
+        self.shape = (cov.shape[0], 6)
+
+    def _make(self, start, stop):
+        return self.take(slice(start, stop))
+
+    def take(self, rows) -> np.ndarray:
+        """The sigmas (k, 6) of the tests ``rows`` (a slice or sorted integer indices)."""
+        cov = self.cov[rows] if isinstance(rows, slice) else self.cov.take(rows)
+        return np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1))
 
 
 def release_freed_heap() -> None:

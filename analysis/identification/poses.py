@@ -167,7 +167,12 @@ def group_names(labels: np.ndarray, group: np.ndarray) -> list[str]:
     """Name of each pose group: its labels joined with '+', in order of appearance."""
     import pandas as pd
 
-    codes, uniques = pd.factorize(np.asarray(labels).astype(str))
+    labels = np.asarray(labels, dtype=object)
+    # equal labels usually share one str object (the CSV reader's), which factorizes
+    # without a text copy of every label; labels equal only as text fall back to one
+    codes, uniques = pd.factorize(labels, use_na_sentinel=False)
+    if len({str(u) for u in uniques}) < len(uniques):
+        codes, uniques = pd.factorize(labels.astype(str))
     n_groups = int(group.max(initial=-1)) + 1
     # first appearance of each (group, label) pair, then the pairs by group and appearance
     pair = group.astype(np.int64) * max(len(uniques), 1) + codes

@@ -97,6 +97,8 @@ class ResidualRows:
     """The residual table held as per-test arrays, made into rows a block of tests at a time.
 
     ``tests`` the tests analysed; ``predicted``, ``sigma`` (model sigma of each
+    component, or a :class:`~analysis.identification.per_test.PerTestSigma` made for the
+    tests written; else
     component), ``t`` (studentized residual) (m, 6); ``flags`` (m, 6) bool, outliers;
     ``weights`` (m, 6) robust weights or None. A 1e6-test campaign has 6e6 rows (~0.4 GB
     as a DataFrame): its full table is only ever made in blocks, for residuals.csv.
@@ -159,7 +161,9 @@ class ResidualRows:
             "component": pd.Categorical.from_codes(c, dtype=dtypes["component"]),
             "unit": pd.Categorical.from_codes((c >= 3).astype(np.int8), dtype=dtypes["unit"]),
             "measured": measured, "predicted": predicted,
-            "residual": measured - predicted, "sigma": self.sigma[i, c],
+            "residual": measured - predicted, "sigma": (
+                self.sigma[i, c] if isinstance(self.sigma, np.ndarray)
+                else self.sigma.take(idx)[k, c]),  # made for these tests
             "studentized": self.t[i, c], "outlier": self.flags[i, c].astype(bool),
         }
         if self.weights is not None:

@@ -110,8 +110,14 @@ def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray
     if method == "exact":
         from analysis.identification.exact_fit import model_displacement
 
-        pred, D = model_displacement(robot, q, x, w)
-        A = D[..., cols]
+        from analysis.identification.gauss_newton import EVAL_BLOCK
+
+        # in blocks: the equilibrium's working arrays of 2e4 tests at once are ~0.1 GB
+        pred, A = np.empty((sub.m, 6)), np.empty((sub.m, 6, len(cols)))
+        for s in range(0, sub.m, EVAL_BLOCK):
+            sl = slice(s, s + EVAL_BLOCK)
+            pred[sl], D = model_displacement(robot, q[sl], x, w[sl])
+            A[sl] = D[..., cols]
     else:
         pred, A = base, A_lin[..., cols]
     R = tool_pose(robot, q)[:, :3, :3]

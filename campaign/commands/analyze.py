@@ -523,6 +523,7 @@ def register(app: typer.Typer) -> None:
                 + "; to keep the result anyway rerun with --accept-misfit (results.json and "
                 "the report then say so)", where=str(run_dir or measurements))
         result.misfit_accepted = refused
+        _release_freed_heap()  # the identification's freed pages, before the writer's
         paths = write_results(result, out)
         from analysis.identification.model_export import export_model  # model.toml, K_X
 
