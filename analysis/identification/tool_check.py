@@ -109,7 +109,6 @@ def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray
     base = np.einsum("mrj,j->mr", A_lin, x)  # the linear model's prediction
     if method == "exact":
         from analysis.identification.exact_fit import model_displacement
-
         from analysis.identification.gauss_newton import EVAL_BLOCK
 
         # in blocks: the equilibrium's working arrays of 2e4 tests at once are ~0.1 GB
