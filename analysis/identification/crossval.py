@@ -235,15 +235,17 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     held = np.zeros((P, p, p))
     if sums is not None:
         # U = (Linv A / scale) R^-1 summed per fold from the sums of (Linv A)^T (Linv A)
-        # and (Linv A)^T Linv r at x0 - shift; r moves by -A shift to x0
+        # and (Linv A)^T Linv r at x0 - shift (r moves by -A shift to x0), packed as upper
+        # triangles; S is made chunk by chunk of folds where used, never held whole
         Rinv = np.linalg.inv(R) * (1.0 / scale)[:, None]  # D^-1 R^-1
-        score = sums.score if shift is None else sums.score - sums.gram @ shift
-        t = score @ Rinv
-        S = np.empty(sums.gram.shape)
-        for s in range(0, P, FOLD_CHUNK):  # (P, p, p) temporaries: chunks of folds
-            S[s:s + FOLD_CHUNK] = Rinv.T @ sums.gram[s:s + FOLD_CHUNK] @ Rinv
-        held = sums.held
-        sums.gram = sums.score = None  # what the folds needed of them is in S and t
+        gram = PackedSym(sums.gram, p)
+        t = np.empty((P, p))
+        for s in range(0, P, FOLD_CHUNK):
+            h = np.arange(s, min(s + FOLD_CHUNK, P))
+            score = sums.score[h] if shift is None else sums.score[h] - gram.chunk(h) @ shift
+            t[h] = score @ Rinv
+        S = _Congruent(gram, Rinv)
+        held = PackedSym(sums.held, p)
         blocks = []
     J = _jacobian(robot, tests.q) if blocks else None
     sig2 = noise.wrench_sigma_at(tests.w) ** 2 if blocks else None
@@ -266,7 +268,8 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     lev = np.empty(P)  # largest leverage of each pose block
     for s in range(0, P, FOLD_CHUNK):
         with np.errstate(divide="ignore", invalid="ignore"):
-            lev[s:s + FOLD_CHUNK] = np.linalg.eigvalsh(S[s:s + FOLD_CHUNK])[:, -1]
+            lev[s:s + FOLD_CHUNK] = np.linalg.eigvalsh(
+                S[np.arange(s, min(s + FOLD_CHUNK, P))])[:, -1]
     ok = lev < 1.0 - 1e-10
     # Training-set condition of the column-scaled A without forming it: its Gram matrix
     # is R^T (I - S_h) R = M_h^T M_h with M_h = chol(I - S_h)^T R (p x p); in chunks of
@@ -348,6 +351,42 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     })
 
 
+class PackedSym:
+    """Symmetric p x p matrices per fold stored as their upper triangles (P, p (p + 1) / 2):
+    ``obj[h]`` / :meth:`chunk` the full matrices of folds ``h``, :meth:`total` their sum."""
+
+    def __init__(self, packed: np.ndarray, p: int) -> None:
+        self.packed, self.p = packed, p
+        self.iu = np.triu_indices(p)
+
+    def chunk(self, h) -> np.ndarray:
+        out = np.empty((len(h), self.p, self.p))
+        vals = self.packed[h]
+        out[:, self.iu[0], self.iu[1]] = vals
+        out[:, self.iu[1], self.iu[0]] = vals
+        return out
+
+    __getitem__ = chunk
+
+    def total(self) -> np.ndarray:
+        """The sum over every fold (p, p)."""
+        out = np.empty((self.p, self.p))
+        vals = self.packed.sum(axis=0)
+        out[self.iu[0], self.iu[1]] = vals
+        out[self.iu[1], self.iu[0]] = vals
+        return out
+
+
+class _Congruent:
+    """B^T G_h B for folds h, from per-fold G (:class:`PackedSym`), made when indexed."""
+
+    def __init__(self, G: PackedSym, B: np.ndarray) -> None:
+        self.G, self.B = G, B
+
+    def __getitem__(self, h) -> np.ndarray:
+        return self.B.T @ self.G.chunk(h) @ self.B
+
+
 def _fold_eiv(held, R, scale, lev, x_p, ok):
     """The folds' estimates x_p[ok] (n_ok, p) corrected for the wrench errors in variables.
 
@@ -358,7 +397,7 @@ def _fold_eiv(held, R, scale, lev, x_p, ok):
 
     p = R.shape[0]
     Rinv = np.linalg.inv(R)
-    total = held.sum(axis=0)
+    total = held.total() if isinstance(held, PackedSym) else held.sum(axis=0)
     folds = np.flatnonzero(ok)
     x_c = np.empty((len(folds), p))
     for s in range(0, len(folds), FOLD_CHUNK):  # (folds, p, p) temporaries: chunks

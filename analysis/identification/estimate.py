@@ -436,6 +436,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         chosen = rob.fit
         kept = rob.kept(tests.measured)
 
+    if tests.m > per_test.LAZY_TESTS:
+        per_test.release_freed_heap()  # the fit's freed pages, before the validation
     # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
     # start for the held-out tests) are let go before the per-test statistics are made
     validation = None

@@ -343,8 +343,9 @@ class FinalPassSums:
     Linv F (b, 6, p) and residual Linv r (b, 6)) at the solution and its weights. Holds
     the wrench errors-in-variables ``S`` (p, p) (:mod:`analysis.identification.eiv`) and,
     with the tests' folds ``fold`` (m,) ints < ``n_folds`` (pose groups), per fold:
-    ``gram`` (P, p, p) = sum (Linv F)^T (Linv F), ``score`` (P, p) = sum (Linv F)^T Linv r
-    and ``held`` (P, p, p) its part of S -- what leave-one-pose-out needs
+    ``gram`` = sum (Linv F)^T (Linv F), ``score`` (P, p) = sum (Linv F)^T Linv r and
+    ``held`` its part of S, the symmetric ones as upper triangles (P, p (p + 1) / 2)
+    (:class:`analysis.identification.crossval.PackedSym`) -- what leave-one-pose-out needs
     (:mod:`analysis.identification.crossval`), without a pass of its own.
     """
 
@@ -361,8 +362,9 @@ class FinalPassSums:
         t = self.tests
         if self.fold is not None and self.gram is None:
             P, p = self.n_folds, len(self.cols)
-            self.gram, self.score, self.held = (np.zeros((P, p, p)), np.zeros((P, p)),
-                                                np.zeros((P, p, p)))
+            n = p * (p + 1) // 2
+            self.gram, self.score, self.held = np.zeros((P, n)), np.zeros((P, p)), \
+                np.zeros((P, n))
         sig2 = self.noise.wrench_sigma_at(t.w[sl]) ** 2
         if self.fold is None:
             self.S += wrench_eiv_matrix(J, sig2, Linv, t.measured[sl], cols=self.cols)
@@ -371,13 +373,14 @@ class FinalPassSums:
         k, p = len(folds), LF.shape[-1]
         held = wrench_eiv_matrix(J, sig2, Linv, t.measured[sl], group=local, n_groups=k,
                                  cols=self.cols)
-        self.held[folds] += held
+        iu = np.triu_indices(p)
+        self.held[folds] += held[:, iu[0], iu[1]]
         self.S += held.sum(axis=0)
         # per-fold sums by bincount, one entry at a time (numpy's add.at is ~10x slower)
-        FF = np.einsum("mri,mrj->mij", LF, LF).reshape(LF.shape[0], -1)
+        FF = np.einsum("mri,mrj->mij", LF, LF)[:, iu[0], iu[1]]
         Fr = np.einsum("mri,mr->mi", LF, Lr)
-        self.gram[folds] += np.stack([np.bincount(local, FF[:, e], k) for e in range(p * p)],
-                                     axis=-1).reshape(k, p, p)
+        self.gram[folds] += np.stack([np.bincount(local, FF[:, e], k)
+                                      for e in range(len(iu[0]))], axis=-1)
         self.score[folds] += np.stack([np.bincount(local, Fr[:, e], k) for e in range(p)],
                                       axis=-1)
 

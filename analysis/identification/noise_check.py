@@ -29,7 +29,7 @@ def noise_ratio_notes(
     noise: NoiseModel,
     n_params: int,
     factor: float = FACTOR,
-    block: int = 1 << 16,
+    block: int = 8192,
 ) -> list[str]:
     """Messages for component groups whose residuals disagree with the declared noise.
 

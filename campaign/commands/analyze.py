@@ -516,6 +516,7 @@ def register(app: typer.Typer) -> None:
                 "and wrench were measured at a tool point, give --tool-xyz-mm/--tool-rpy-deg "
                 "(a tool error need not show in the chi-square, it shows in k)"))
         refused = problems(result, model.nominal_stiffness)
+        _release_freed_heap()  # the identification's freed pages, before the checks
         refused += _tool_problem(result, model, tests, noise, method, extras["tool"])
         if refused and not accept_misfit:
             raise InputError(
