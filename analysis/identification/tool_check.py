@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import whitening
+from analysis.identification.lsq import TallR, whitening
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.model.kinematics import jacobian, tool_pose
@@ -90,33 +90,24 @@ def _subset(m: int) -> np.ndarray:
     return np.unique(np.linspace(0, m - 1, MAX_TESTS).round().astype(np.int64))
 
 
-def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray,
-                     noise: NoiseModel, method: str) -> ToolCheck | None:
-    """F-test of a tool offset on the residuals of a fit (see the module docstring).
+#: tests per block of the augmented system (its per-test arrays stay small)
+BLOCK = 4096
 
-    ``x`` (6,) joint compliances of the fit (rad/(N m), 0 for joints taken rigid);
-    ``method`` "exact" uses the equilibrium model for residuals and compliance
-    columns, "ols"/"wls" the linear model (each fit's own model). None when the
-    augmented system leaves no degrees of freedom or the offset is not
-    determined by the poses.
-    """
-    sub = tests.subset(_subset(tests.m))
+
+def _whitened_rows(robot, sub: TestArrays, cols, x, noise, method) -> np.ndarray:
+    """Rows [L^-1 A | L^-1 B | L^-1 e] (6 b, p + 4) of the tests ``sub``: the compliance
+    columns A of ``method``'s model, the tool offset's columns B (finite differences of
+    STEP along the tool axes), the residuals e, whitened by the fits' own covariances
+    (components not measured get zero rows)."""
     q, w, d, meas = sub.q, sub.w, sub.d, sub.measured
-    cols = list(joints)
-    x = np.asarray(x, dtype=float)
     J = jacobian(robot, q)
     A_lin = design_block(J, w)
     base = np.einsum("mrj,j->mr", A_lin, x)  # the linear model's prediction
     if method == "exact":
         from analysis.identification.exact_fit import model_displacement
-        from analysis.identification.gauss_newton import EVAL_BLOCK
 
-        # in blocks: the equilibrium's working arrays of 2e4 tests at once are ~0.1 GB
-        pred, A = np.empty((sub.m, 6)), np.empty((sub.m, 6, len(cols)))
-        for s in range(0, sub.m, EVAL_BLOCK):
-            sl = slice(s, s + EVAL_BLOCK)
-            pred[sl], D = model_displacement(robot, q[sl], x, w[sl])
-            A[sl] = D[..., cols]
+        pred, D = model_displacement(robot, q, x, w)
+        A = D[..., cols]
     else:
         pred, A = base, A_lin[..., cols]
     R = tool_pose(robot, q)[:, :3, :3]
@@ -128,25 +119,49 @@ def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray
         Jr[:, :3, :] -= np.cross(p[:, None, :], np.swapaxes(J[:, 3:, :], 1, 2)).swapaxes(1, 2)
         B[:, :, i] = (np.einsum("mrj,j->mr", design_block(Jr, w), x) - base) / STEP
     C = np.einsum("mrj,j,msj->mrs", J, x, J)
-    # the fits' own whitening: components not measured get zero rows of L^-1
     Linv = whitening(residual_covariance(noise, C, w), meas)
     e = np.where(meas, d - pred, 0.0)
     M = np.concatenate([A, B], axis=2)
-    Mw = (Linv @ M).reshape(-1, M.shape[-1])
-    ew = np.einsum("mij,mj->mi", Linv, e).reshape(-1)
-    n_eq, p = int(meas.sum()), len(cols)
+    return np.column_stack([(Linv @ M).reshape(-1, M.shape[-1]),
+                            np.einsum("mij,mj->mi", Linv, e).reshape(-1)])
+
+
+def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray,
+                     noise: NoiseModel, method: str) -> ToolCheck | None:
+    """F-test of a tool offset on the residuals of a fit (see the module docstring).
+
+    ``x`` (6,) joint compliances of the fit (rad/(N m), 0 for joints taken rigid);
+    ``method`` "exact" uses the equilibrium model for residuals and compliance
+    columns, "ols"/"wls" the linear model (each fit's own model). None when the
+    augmented system leaves no degrees of freedom or the offset is not
+    determined by the poses.
+    """
+    sub = tests.subset(_subset(tests.m))
+    cols = list(joints)
+    p = len(cols)
+    x = np.asarray(x, dtype=float)
+    # the whitened augmented system [L^-1 M | L^-1 e] (M = [A | B]) reduced block by block
+    # to its triangular factor (TSQR): both least squares below come from it
+    n_eq = int(sub.measured.sum())
     dof = n_eq - p - 3
     if dof <= 0:
         return None
-    scale = np.linalg.norm(Mw, axis=0)
+    acc = TallR()
+    for s in range(0, sub.m, BLOCK):
+        part = sub.subset(slice(s, s + BLOCK))
+        acc.add(_whitened_rows(robot, part, cols, x, noise, method))
+    R = acc.r()  # (p + 4, p + 4): 6 m >= n_eq > p + 3 rows
+    scale = np.linalg.norm(R[:, :p + 3], axis=0)
     scale[scale == 0] = 1.0
-    Q, Rm = np.linalg.qr(Mw / scale)
+    Rm = R[:p + 3, :p + 3] / scale
     if np.linalg.cond(Rm) > 1e10:
         return None
-    step = np.linalg.solve(Rm, Q.T @ ew) / scale
-    chi2_aug = float(np.sum((ew - Mw @ step) ** 2))
-    Qa, Ra = np.linalg.qr(Mw[:, :p] / scale[:p])
-    chi2_x = float(np.sum((ew - Qa @ (Qa.T @ ew)) ** 2))
+    step = np.linalg.solve(Rm, R[:p + 3, p + 3]) / scale
+    chi2_aug = float(R[p + 3, p + 3] ** 2)
+    # compliances alone: the same system without the offset's columns (a column subset of
+    # R is Q^T times that subset of the system, so its triangular factor gives the residual)
+    Ra = np.linalg.qr(R[:, [*range(p), p + 3]], mode="r")
+    chi2_x = float(Ra[p, p] ** 2)
     delta = max(chi2_x - chi2_aug, 0.0)
     f_value = (delta / 3.0) / (chi2_aug / dof) if chi2_aug > 0 else float("inf")
     from scipy import special  # F survival function, without importing scipy.stats
