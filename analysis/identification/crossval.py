@@ -229,10 +229,8 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         R, c = Rc[:p, :p], Rc[:p, p]
     else:
         R, c, scale = system
-    S = np.zeros((P, p, p))
     t = np.zeros((P, p))
     # the held-out tests' part of the wrench errors-in-variables S, per fold (same pass)
-    held = np.zeros((P, p, p))
     if sums is not None:
         # U = (Linv A / scale) R^-1 summed per fold from the sums of (Linv A)^T (Linv A)
         # and (Linv A)^T Linv r at x0 - shift (r moves by -A shift to x0), packed as upper
@@ -249,6 +247,10 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         blocks = []
     J = _jacobian(robot, tests.q) if blocks else None
     sig2 = noise.wrench_sigma_at(tests.w) ** 2 if blocks else None
+    iu = np.triu_indices(p)
+    if blocks:  # the symmetric per-fold sums as upper triangles
+        S, held = PackedSym(np.zeros((P, len(iu[0]))), p), PackedSym(
+            np.zeros((P, len(iu[0]))), p)
     for sl in blocks:
         Ab = design(sl)
         b = Ab.shape[0]
@@ -257,14 +259,14 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         # time (numpy's add.at is ~10x slower)
         folds, local = np.unique(fold[sl], return_inverse=True)
         k = len(folds)
-        UU = np.einsum("mri,mrj->mij", U, U).reshape(b, -1)
+        UU = np.einsum("mri,mrj->mij", U, U)[:, iu[0], iu[1]]
         Ur = np.einsum("mri,mr->mi", U, rhs(sl))
-        S[folds] += np.stack([np.bincount(local, UU[:, e], k) for e in range(p * p)],
-                             axis=-1).reshape(k, p, p)
+        S.packed[folds] += np.stack([np.bincount(local, UU[:, e], k)
+                                     for e in range(len(iu[0]))], axis=-1)
         t[folds] += np.stack([np.bincount(local, Ur[:, e], k) for e in range(p)], axis=-1)
-        held[folds] += wrench_eiv_matrix(J[sl], sig2[sl], None if Linv is None else Linv[sl],
-                                         tests.measured[sl], group=local, n_groups=k,
-                                         cols=cols)
+        held.packed[folds] += wrench_eiv_matrix(
+            J[sl], sig2[sl], None if Linv is None else Linv[sl], tests.measured[sl],
+            group=local, n_groups=k, cols=cols)[:, iu[0], iu[1]]
     lev = np.empty(P)  # largest leverage of each pose block
     for s in range(0, P, FOLD_CHUNK):
         with np.errstate(divide="ignore", invalid="ignore"):
