@@ -59,9 +59,10 @@ class GaussNewtonFit:
 
 
 #: tests per block when one campaign's model is evaluated: the equilibrium's working
-#: arrays then stay in cache (measured 12.6 us/test in blocks of 4e3-1.6e4 tests, 41 us/test
-#: as one block of 1e5)
-EVAL_BLOCK = 8192
+#: arrays then stay in cache (measured on 1e5 KR240-2 tests, warm start with the model
+#: Jacobian: 2.0-2.2 us/test in blocks of 4096, 2.7-3.4 in blocks of 8192; 41 us/test as
+#: one block of 1e5 before the entry-major kernels)
+EVAL_BLOCK = 4096
 
 
 def _model_in_blocks(robot, q, x, w, with_jacobian, dq0=None, cols=None, measured=None,
