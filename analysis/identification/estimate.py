@@ -468,13 +468,22 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         # Sigma W A = A, of a fit whitened by its own covariances), each component's
         # sigma, and the prediction moved by the errors-in-variables shift
         Rp, c0 = chosen.R[:p, :p], chosen.R[:p, p]
-        move = None
-        if not chosen.predicted_shifted:
-            move = (chosen.predicted, chosen.eiv_shift)
+        predicted = chosen.predicted
+        fill = predicted is None  # the model's values come with A's blocks
+        if fill:
+            predicted = np.empty(tests.measured.shape)
+        move = None if chosen.predicted_shifted else chosen.eiv_shift
+
+        def visit(sl, Ab):
+            if fill:
+                predicted[sl] = chosen.A.values(sl)
+            if move is not None:
+                predicted[sl] += Ab @ move
+
         cov_x, var_r = sandwich_and_residual_variance(
             chosen.A, chosen.cov, chosen.bread, chosen.Linv, meat=Rp.T @ Rp,
-            own_weights=True, move=move)
-        chosen.predicted_shifted = True
+            own_weights=True, visit=visit)
+        chosen.predicted, chosen.predicted_shifted = predicted, True
         chosen.A.dq = None  # later rows (outliers' leverages) start cold: 48 MB let go
         # chi-square from R: |Linv (r - F shift)|^2 = |c0 - Rp shift|^2 + R[p, p]^2
         shift = np.zeros(p) if chosen.eiv_shift is None else chosen.eiv_shift

@@ -305,8 +305,9 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
 
     One large (streamed) campaign: ``sums`` a :class:`FinalPassSums` filled in the pass
     that forms the final system (the errors-in-variables S comes from it);
-    ``defer_shift``: ``predicted`` is left at the uncorrected estimate, for the caller to
-    move by F eiv_shift in a pass of its own (``predicted_shifted`` False).
+    ``defer_shift``: ``predicted`` is left None, for the caller to make from ``A`` (the
+    model Jacobian, whose blocks come with the model's values) and move by A eiv_shift in
+    a pass of its own (``predicted_shifted`` False).
     """
     Linv0 = None
     if (first_whitening and weights is None
@@ -314,7 +315,7 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
         Linv0 = first_whitening["Linv"]
     J = _jacobian(robot, tests.q)
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
-                      weights=weights, J=J, Linv0=Linv0, rows=sums)
+                      weights=weights, J=J, Linv0=Linv0, rows=sums, values=not defer_shift)
     if not gn.valid:
         raise InputError(
             "the exact fit cannot start: the equilibrium has no solution at the linear "

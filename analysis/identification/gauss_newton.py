@@ -353,7 +353,7 @@ class _StreamedSystems:
         # the model values at the solution come from this pass (the iterations kept only
         # the deflections), which also writes the deflections in place
         last = self.evaluate(x, True, state.dq, False, x, rows=getattr(self, "rows", None),
-                             keep_f=True, dq_out=state.dq)
+                             keep_f=getattr(self, "values", True), dq_out=state.dq)
         _, cov_x, _ = _from_r(last.R)
         F = PerTestModelJacobian(c.robot, c.q, c.w, c.measured, c.cols, xf, last.dq)
         return cov, PerTestWhitening(cov, c.measured), cov_x, F, last.R, last.f, last.dq
@@ -423,6 +423,7 @@ def gauss_newton(
     J: np.ndarray | None = None,
     Linv0: np.ndarray | None = None,
     rows=None,
+    values: bool = True,
 ) -> GaussNewtonFit:
     """Fit compliances of ``joints`` (others rigid) to finite displacements.
 
@@ -446,6 +447,9 @@ def gauss_newton(
         tests only: a callable given (slice, J, whitening, whitened F, whitened residual)
         of each block of tests in the pass that makes the final system (at the solution and
         its weights), for per-test sums a caller would otherwise make in a pass of its own.
+    values : one streamed campaign only: False leaves ``f`` None (48 MB at 1e6 tests not
+        held; the caller takes the values from the result's ``F``, which makes them with
+        each block, :meth:`~analysis.identification.per_test.PerTestModelJacobian.values`).
 
     One campaign of more than ``LAZY_TESTS`` tests is fitted without holding F or the
     whitening (:class:`_StreamedSystems`); the result's ``F``, ``cov`` and ``Linv`` are
@@ -542,7 +546,7 @@ def gauss_newton(
             break
     ctx.tips.clear()  # the unloaded tool poses (0.13 GB at 1e6 tests) before the last arrays
     if streamed:
-        systems.rows = rows
+        systems.rows, systems.values = rows, values
     cov, Linv, cov_x, F, R, f, dq = systems.final(x, state, valid)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)

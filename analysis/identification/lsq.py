@@ -310,7 +310,7 @@ def residual_variance_blocks(A: np.ndarray, cov: np.ndarray, bread: np.ndarray,
 def sandwich_and_residual_variance(A: np.ndarray, cov, bread: np.ndarray,
                                    Linv: np.ndarray | None = None, block: int = TEST_BLOCK,
                                    meat: np.ndarray | None = None, own_weights: bool = False,
-                                   move=None
+                                   visit=None
                                    ) -> tuple[np.ndarray, np.ndarray]:
     """(:func:`sandwich`, :func:`residual_variance_blocks`) with one pass over ``cov``.
 
@@ -325,8 +325,8 @@ def sandwich_and_residual_variance(A: np.ndarray, cov, bread: np.ndarray,
     own covariances: A^T W A, from its system's R); the variances then take one pass,
     which can also: take Sigma W A = A (``own_weights``: W is the whitening of ``cov``,
     so Sigma_i W_i = I on the measured components, and A is zero on the others: no
-    whitening is made); and add A v to ``predicted`` (m, 6) for ``move`` = (predicted, v)
-    (v (p,)).
+    whitening is made); and call ``visit(slice, A block)`` for each block of tests (the
+    caller's per-test work on the same blocks of A, made once).
     """
     m, p = A.shape[0], A.shape[-1]
     if meat is not None:
@@ -335,8 +335,8 @@ def sandwich_and_residual_variance(A: np.ndarray, cov, bread: np.ndarray,
         for s in range(0, m, block):
             Ab, Sb = A[s:s + block], cov[s:s + block]
             SWA = Ab if own_weights else Sb @ _weighted(A, Linv, s, block)
-            if move is not None:
-                move[0][s:s + block] += Ab @ move[1]
+            if visit is not None:
+                visit(slice(s, s + block), Ab)
             flat = Ab.reshape(-1, p)
             cross = np.sum((flat @ bread).reshape(Ab.shape) * SWA, axis=-1)
             quad = np.sum((flat @ cov_x).reshape(Ab.shape) * Ab, axis=-1)
