@@ -561,6 +561,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t)
     else:
         flags = tests.measured & ~kept
+    if tests.m > per_test.LAZY_TESTS:
+        per_test.release_freed_heap()  # the passes' freed pages, before the residual table
     rows = ResidualRows(tests, chosen.predicted, sigma, t, flags,
                         None if rob is None else rob.weights)
     if n_eq > RESIDUAL_ROWS_HELD:
