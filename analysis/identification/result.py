@@ -174,9 +174,9 @@ class ResidualRows:
         """:meth:`columns` as a DataFrame."""
         return pd.DataFrame(self.columns(which))
 
-    def blocks(self, block: int = 10_000):
+    def blocks(self, block: int = 5_000):
         """The whole table as :meth:`columns` of ``block`` tests each, in order (blocks of
-        ~60000 rows keep the writer's memory to ~50 MB)."""
+        ~30000 rows keep the writer's memory to ~25-50 MB)."""
         for s in range(0, self.tests.m, block):
             yield self.columns(slice(s, s + block))
 
