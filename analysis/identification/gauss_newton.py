@@ -168,7 +168,7 @@ class PerTestCovariance(PerTestBlocks):
         def part(a):
             return None if a is None else a[rows]
 
-        J = self.J[rows] if isinstance(rows, slice) or not hasattr(self.J, "take") \
+        J = self.J[rows] if isinstance(rows, slice) or not isinstance(self.J, PerTestBlocks) \
             else self.J.take(rows)
         return covariances_per_test(self.noise, J, self.x_full, self.measured[rows],
                                     part(self.w), part(self.weights))

@@ -135,3 +135,18 @@ def test_validation_beyond_the_listed_poses_is_summarised(kr240, campaign, monke
     pooled = np.sqrt(np.sum(v["n_tests"] * v["rms_translation_m"] ** 2) / v["n_tests"].sum())
     assert summary["rms_translation_m_pooled"] == pytest.approx(pooled, rel=1e-12)
     assert summary["folds_not_fitted"] == 0
+
+
+@pytest.mark.parametrize("method", ["ols", "exact"])
+def test_blockwise_covariances_with_a_held_jacobian(kr240, campaign, method, monkeypatch):
+    """Campaigns between one model block and the lazy size: J held, the covariances and
+    the residual sigmas made block by block (and for the rows of the residual table)."""
+    ref = identify(kr240, campaign, method, noise=NOISE)
+    monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
+    fitting._J_CACHE.clear()
+    res = identify(kr240, campaign, method, noise=NOISE)
+    assert not isinstance(fitting._jacobian(kr240, campaign.q), per_test.PerTestJacobian)
+    np.testing.assert_allclose(res.x, ref.x, rtol=1e-9)
+    for col in ("sigma", "studentized", "predicted"):
+        np.testing.assert_allclose(res.residuals[col], ref.residuals[col], rtol=1e-7,
+                                   atol=1e-10 * np.abs(ref.residuals[col]).max(), err_msg=col)
