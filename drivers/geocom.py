@@ -41,8 +41,8 @@ RC_NAMES = {1283: "TMC_NO_FULL_CORRECTION", 1284: "TMC_ACCURACY_GUARANTEE",
             8710: "AUT_NO_TARGET"}
 #: transaction ids used in turn (1..7)
 TRIDS = 7
-#: s, after which a timed-out request's id is reused although its reply never came: an
-#: instrument answers in order, so a reply not there by then was lost, not delayed
+#: s, after which a timed-out request's id is reused although its reply never came (taken
+#: as lost: the fake's late replies come 1.5 s late, an instrument's within its WaitTime)
 LATE_HORIZON_S = 30.0
 _REPLY = re.compile(r"^%R1P,(\d+),(\d+):(-?\d+)?((?:,[^,]*)*)$")
 

@@ -258,6 +258,25 @@ def test_geocom_never_reuses_the_id_of_a_request_whose_late_reply_may_come(scrip
     assert set(after) == set(range(1, 8))  # and free again once it came
 
 
+def test_geocom_refuses_when_every_id_may_still_get_a_late_reply(scripted_geocom):
+    from drivers import geocom
+
+    asked = []
+
+    def reply(rpc, trid):
+        asked.append(trid)
+        return b""  # never answers
+
+    with GeoComTracker(scripted_geocom(reply), timeout=0.05) as drv:
+        for _ in range(geocom.TRIDS):
+            with pytest.raises(DeviceTimeout, match="no reply"):
+                drv.measure_point()
+        with pytest.raises(DeviceTimeout, match="7 requests unanswered"):
+            drv.measure_point()
+    time.sleep(0.1)
+    assert sorted(asked) == list(range(1, 8))  # each id once; the 8th request never sent
+
+
 def test_geocom_skips_replies_with_another_transaction_id(scripted_geocom):
     from drivers import geocom
 
