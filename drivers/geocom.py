@@ -6,8 +6,10 @@ protocol", and RPC descriptions in the TMC chapter):
 * request ``%R1Q,<RPC>[,<TrId>]:<p1>,<p2>...`` + CR/LF; reply
   ``%R1P,0,<TrId>:<RC>,<v1>,<v2>...`` + CR/LF, where ``RC`` 0 means GRC_OK and
   the transaction id ``TrId`` echoes the request's. The driver numbers its
-  requests and ignores replies with another id, so a late reply to an earlier,
-  timed-out request is never taken for the current one.
+  requests 1..7 in turn and ignores replies with another id; the id of a request
+  that timed out is not reused until its late reply has come (and been dropped)
+  or ``LATE_HORIZON_S`` has passed, so a late reply to an earlier, timed-out
+  request is never taken for the current one, even 7 or 14 requests later.
 * RPC 2008 ``TMC_DoMeasure(Command, Mode)`` triggers a distance measurement
   (Command 1 = TMC_DEF_DIST, Mode 1 = TMC_AUTO_INC).
 * RPC 2082 ``TMC_GetCoordinate(WaitTime [ms], Mode)`` returns ``E, N, H`` (m),
@@ -37,6 +39,11 @@ RPC_GET_COORDINATE = 2082
 RC_NAMES = {1283: "TMC_NO_FULL_CORRECTION", 1284: "TMC_ACCURACY_GUARANTEE",
             1285: "TMC_ANGLE_OK (no distance: beam lost?)", 1292: "TMC_BUSY",
             8710: "AUT_NO_TARGET"}
+#: transaction ids used in turn (1..7)
+TRIDS = 7
+#: s, after which a timed-out request's id is reused although its reply never came (taken
+#: as lost: the fake's late replies come 1.5 s late, an instrument's within its WaitTime)
+LATE_HORIZON_S = 30.0
 _REPLY = re.compile(r"^%R1P,(\d+),(\d+):(-?\d+)?((?:,[^,]*)*)$")
 
 
@@ -111,6 +118,8 @@ class GeoComTracker(PoseTracker):
             raise ConnectionFailed(f"{address!r}: expected a serial port or socket://host:port")
         self._ser = None
         self._trid = 0
+        #: ids of timed-out requests whose late reply may still come -> when to reuse them
+        self._abandoned: dict[int, float] = {}
         self.stale_replies = 0
 
     def _connect(self) -> None:
@@ -132,7 +141,7 @@ class GeoComTracker(PoseTracker):
 
         if self._ser is None:
             raise ConnectionFailed("not connected")
-        self._trid = self._trid % 7 + 1  # ids 1..7 in turn
+        self._trid = self._next_trid()
         try:
             self._ser.reset_input_buffer()
             # the leading LF clears the instrument's receive buffer (manual, section 2.2:
@@ -142,6 +151,8 @@ class GeoComTracker(PoseTracker):
             line = b""
             while True:
                 if time.monotonic() > deadline:
+                    # its reply may still come: the id is not reused until then
+                    self._abandoned[self._trid] = time.monotonic() + LATE_HORIZON_S
                     raise DeviceTimeout(f"{self.address}: no reply to RPC {rpc}")
                 line += self._ser.read_until(b"\n", 512 - len(line))
                 if len(line) >= 512:
@@ -159,6 +170,7 @@ class GeoComTracker(PoseTracker):
                     if trid is None or trid == self._trid:
                         break
                     self.stale_replies += 1  # late answer to an earlier request
+                    self._abandoned.pop(trid, None)  # it came: its id is free again
                     line = b""
         except serial.SerialException as err:
             raise ConnectionFailed(f"{self.address}: {err}") from err
@@ -166,6 +178,18 @@ class GeoComTracker(PoseTracker):
         if rc != 0:
             raise DeviceFault(f"RPC {rpc} returned {rc} ({RC_NAMES.get(rc, 'see GeoCOM manual')})")
         return values
+
+    def _next_trid(self) -> int:
+        """The next id in turn (1..7) that no timed-out request may still answer to."""
+        now = time.monotonic()
+        self._abandoned = {t: until for t, until in self._abandoned.items() if until > now}
+        for step in range(1, TRIDS + 1):
+            trid = (self._trid + step - 1) % TRIDS + 1
+            if trid not in self._abandoned:
+                return trid
+        raise DeviceTimeout(f"{self.address}: {TRIDS} requests unanswered in the last "
+                            f"{LATE_HORIZON_S:.0f} s (ids 1-{TRIDS} may all still get late "
+                            "replies); check the instrument and its link")
 
     def _measure_point(self, target: str) -> Point:
         self.call(RPC_DO_MEASURE, 1, 1)

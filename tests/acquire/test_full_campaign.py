@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from analysis.identification.estimate import analyze_table
 from analysis.identification.noise import NoiseModel
@@ -70,8 +71,24 @@ def test_full_fake_campaign_recovers_the_true_stiffness(kr240_plan, tmp_path, ti
     result = analyze_table(run.ok, protocol_robot(protocol), noise=noise, validate=False)
     z = (result.k - TRUE_K) / result.se_k
     rel = np.abs(result.k - TRUE_K) / TRUE_K
-    print("k identified:", np.round(result.k), "z:", np.round(z, 2), f"time {elapsed:.1f} s")
-    assert np.all(np.abs(z) < 3.5), (result.k, result.se_k)
-    assert np.all(rel < 0.03)
-    assert rel[:3].max() < 0.01  # k1..k3 to better than 1 %
-    assert 0.5 < result.chi2_reduced < 2.0
+    se_rel = result.se_k / TRUE_K
+    dx = result.x - 1.0 / TRUE_K  # compliances, in which the model is fitted
+    d2 = float(dx @ np.linalg.solve(result.cov_x, dx))
+    print("k identified:", np.round(result.k), "z:", np.round(z, 2), f"d2 {d2:.2f}",
+          f"chi2_red {result.chi2_reduced:.3f}", f"time {elapsed:.1f} s")
+    # The lab's noise comes from one seeded generator, but its instruments' threads draw
+    # from it in an order set by thread timing: every run is a fresh draw. Each check on
+    # the draw below fails a correct identification with probability <= 1e-6 (at most
+    # 1e-5 together); the former |z| < 3.5 on 6 joints and |k6 - k6_true| < 3 % (3.0
+    # standard errors of k6) failed one correct run in about 200 (2.8e-3 + 2.7e-3).
+    # In 35 runs (10 of them next to 3 busy loops) z had an RMS of 0.95 and chi2_red a
+    # mean of 0.97 (SD 0.14; theory 1 and 0.15): the standard errors are honest.
+    assert d2 < stats.chi2.isf(1e-6, 6), (result.k, result.se_k)  # 38.3: a joint bias
+    assert np.all(np.abs(z) < 5.3), (result.k, result.se_k)  # 6 x 1.2e-7
+    # the design's precision (noise model and plan, not the draw): k1..k3 to 0.3 %, all to
+    # 1.2 % (1 sigma; seen 0.07-0.24 % and 0.5-1.01 %), hence k1..k3 within 1.6 % at 5.3 sigma
+    assert np.all(se_rel[:3] < 0.003) and np.all(se_rel < 0.012), se_rel
+    assert rel[:3].max() < 0.016 and np.all(rel < 0.064)  # 5.3 se: 1.2e-7 each
+    dof = result.dof
+    assert stats.chi2.ppf(1e-6, dof) / dof < result.chi2_reduced < \
+        stats.chi2.isf(1e-6, dof) / dof  # 0.43 .. 1.91 at 84 degrees of freedom

@@ -225,6 +225,58 @@ def test_geocom_ignores_a_late_reply_to_an_earlier_request(world):
         fake.stop()
 
 
+def test_geocom_never_reuses_the_id_of_a_request_whose_late_reply_may_come(scripted_geocom):
+    """With ids 1..7 in turn, the 14th call after a timed-out TMC_GetCoordinate is again a
+    TMC_GetCoordinate under the same id: its late reply, arriving just then, must not be
+    taken for that call's (the race the fake's 1.5 s "late" fault hits only by chance)."""
+    from drivers import geocom
+
+    state = {"calls": 0, "held": None, "trids_after": []}
+
+    def reply(rpc, trid):
+        state["calls"] += 1
+        if rpc == geocom.RPC_GET_COORDINATE and state["held"] is None:
+            state["held"] = (state["calls"],
+                             geocom.encode_reply(0, "9.0", "9.0", "9.0", trid=trid))
+            return b""  # no answer now: the driver times out
+        good = geocom.encode_reply(0, "1.0", "2.0", "3.0", trid=trid)
+        if state["held"] is not None:
+            state["trids_after"].append(trid)
+            if state["calls"] == state["held"][0] + 14:
+                return state["held"][1] + good  # the late reply comes first
+        return good
+
+    with GeoComTracker(scripted_geocom(reply), timeout=0.3) as drv:
+        with pytest.raises(DeviceTimeout):
+            drv.measure_point()
+        for _ in range(12):  # 24 calls: past the late reply, through every id again
+            np.testing.assert_allclose(drv.measure_point().value, [1.0, 2.0, 3.0])
+        assert drv.stale_replies == 1
+    late_id = int(state["held"][1].split(b",")[2].split(b":")[0])
+    before, after = state["trids_after"][:14], state["trids_after"][14:]
+    assert late_id not in before  # not reused while its reply may come
+    assert set(after) == set(range(1, 8))  # and free again once it came
+
+
+def test_geocom_refuses_when_every_id_may_still_get_a_late_reply(scripted_geocom):
+    from drivers import geocom
+
+    asked = []
+
+    def reply(rpc, trid):
+        asked.append(trid)
+        return b""  # never answers
+
+    with GeoComTracker(scripted_geocom(reply), timeout=0.05) as drv:
+        for _ in range(geocom.TRIDS):
+            with pytest.raises(DeviceTimeout, match="no reply"):
+                drv.measure_point()
+        with pytest.raises(DeviceTimeout, match="7 requests unanswered"):
+            drv.measure_point()
+    time.sleep(0.1)
+    assert sorted(asked) == list(range(1, 8))  # each id once; the 8th request never sent
+
+
 def test_geocom_skips_replies_with_another_transaction_id(scripted_geocom):
     from drivers import geocom
 
