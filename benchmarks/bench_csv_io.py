@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import subprocess
 import sys
 import tempfile
 import time
@@ -42,22 +41,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-#: a small process that starts the timed commands and returns their rusage and stdout
-LAUNCHER = r"""
-import json, os, subprocess, sys, tempfile
-for line in sys.stdin:
-    args = json.loads(line)
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen(args, stdout=out, stderr=err)
-        _, status, usage = os.wait4(proc.pid, 0)
-        out.seek(0)
-        err.seek(0)
-        print(json.dumps({"code": os.waitstatus_to_exitcode(status),
-                          "cpu_s": usage.ru_utime + usage.ru_stime,
-                          "peak_rss_MB": usage.ru_maxrss / 1024,
-                          "stdout": out.read().decode(errors="replace")[-2000:],
-                          "stderr": err.read().decode(errors="replace")[-2000:]}), flush=True)
-"""
+from _launcher import Launcher  # noqa: E402
 
 #: the timed reading process: argv mode (arrow, table, imports) and the CSV file
 READER = r"""
@@ -81,20 +65,6 @@ for s in range(0, tests.m, 100_000):
     digest.update("\n".join(tests.pose[s:s + 100_000].tolist()).encode())
 print(json.dumps({"m": tests.m, "sha256": digest.hexdigest()}))
 """
-
-
-class Launcher:
-    def __init__(self) -> None:
-        self.proc = subprocess.Popen([sys.executable, "-c", LAUNCHER], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, text=True)
-
-    def run(self, args: list[str]) -> dict:
-        self.proc.stdin.write(json.dumps([str(a) for a in args]) + "\n")
-        self.proc.stdin.flush()
-        out = json.loads(self.proc.stdout.readline())
-        if out["code"] != 0:
-            raise SystemExit(f"{' '.join(map(str, args))} failed: {out['stderr']}")
-        return out
 
 
 def residual_rows(csv: Path, n: int):

@@ -45,46 +45,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _launcher import Launcher  # noqa: E402
+
 BIN = Path(sys.executable).parent
 CAMPAIGN = [str(BIN / "campaign")] if (BIN / "campaign").exists() else [
     sys.executable, "-m", "campaign.cli"]
-
-
-#: a small process that starts the timed commands: a child forked from a large process
-#: reports that process's size as its own peak RSS (ru_maxrss counts the pages before exec)
-LAUNCHER = r"""
-import json, os, subprocess, sys, tempfile, time
-for line in sys.stdin:
-    args = json.loads(line)
-    with tempfile.TemporaryFile() as err:
-        t0 = time.perf_counter()
-        proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=err)
-        _, status, usage = os.wait4(proc.pid, 0)
-        wall = time.perf_counter() - t0
-        err.seek(0)
-        tail = err.read().decode(errors="replace")[-2000:]
-    print(json.dumps({"code": os.waitstatus_to_exitcode(status), "wall_s": wall,
-                      "cpu_s": usage.ru_utime + usage.ru_stime,
-                      "peak_rss_MB": usage.ru_maxrss / 1024, "stderr": tail}), flush=True)
-"""
-
-
-class Launcher:
-    """Runs commands from a small process; returns the rusage of each (os.wait4)."""
-
-    def __init__(self) -> None:
-        self.proc = subprocess.Popen([sys.executable, "-c", LAUNCHER], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, text=True)
-
-    def run(self, args: list[str]) -> dict:
-        """CPU (user + sys, s), peak RSS (MB) and wall time (s) of ``args``; exit on failure."""
-        self.proc.stdin.write(json.dumps([str(a) for a in args]) + "\n")
-        self.proc.stdin.flush()
-        out = json.loads(self.proc.stdout.readline())
-        if out["code"] != 0:
-            raise SystemExit(f"{' '.join(map(str, args))} failed ({out['code']}): "
-                             f"{out['stderr']}")
-        return {k: out[k] for k in ("cpu_s", "peak_rss_MB", "wall_s")}
 
 
 def best(launcher: Launcher, args: list[str], repeat: int) -> dict:
