@@ -163,16 +163,29 @@ def count_poses(q: np.ndarray, tol: float) -> int:
     return int(pose_groups(q, tol).max(initial=-1) + 1)
 
 
-def group_names(labels: np.ndarray, group: np.ndarray) -> list[str]:
-    """Name of each pose group: its labels joined with '+', in order of appearance."""
+def factorize_labels(labels, block: int = 1 << 16) -> tuple[np.ndarray, list[str]]:
+    """(codes (m,) int64, uniques): the labels' text numbered in order of first appearance.
+
+    Factorized a block at a time (the hash table of one call over 1e6 labels is sized for
+    1e6 entries, ~50 MB; a block's is sized for the block), each block's distinct labels
+    then numbered by their text, so labels equal only as text share a code.
+    """
     import pandas as pd
 
     labels = np.asarray(labels, dtype=object)
-    # equal labels usually share one str object (the CSV reader's), which factorizes
-    # without a text copy of every label; labels equal only as text fall back to one
-    codes, uniques = pd.factorize(labels, use_na_sentinel=False)
-    if len({str(u) for u in uniques}) < len(uniques):
-        codes, uniques = pd.factorize(labels.astype(str))
+    codes = np.empty(labels.shape[0], dtype=np.int64)
+    number: dict[str, int] = {}
+    for s in range(0, labels.shape[0], block):
+        local, uniques = pd.factorize(labels[s:s + block], use_na_sentinel=False)
+        glob = np.array([number.setdefault(str(u), len(number)) for u in uniques],
+                        dtype=np.int64)
+        codes[s:s + block] = glob[local]
+    return codes, list(number)
+
+
+def group_names(labels: np.ndarray, group: np.ndarray) -> list[str]:
+    """Name of each pose group: its labels joined with '+', in order of appearance."""
+    codes, uniques = factorize_labels(labels)
     n_groups = int(group.max(initial=-1)) + 1
     # first appearance of each (group, label) pair, then the pairs by group and appearance
     pair = group.astype(np.int64) * max(len(uniques), 1) + codes

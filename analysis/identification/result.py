@@ -114,11 +114,9 @@ class ResidualRows:
     def __post_init__(self) -> None:
         # pose labels as category codes and the categoricals' dtypes, once (every block of
         # rows uses them; a dtype made per block would check 1e5 categories each time)
-        pose = np.asarray(self.tests.pose, dtype=object)
-        codes, labels = pd.factorize(pose, use_na_sentinel=False)  # shared str objects: fast
-        labels = [str(t) for t in labels]
-        if len(set(labels)) < len(labels):  # labels that are equal only as text
-            codes, labels = pd.factorize(pose.astype(str))
+        from analysis.identification.poses import factorize_labels
+
+        codes, labels = factorize_labels(self.tests.pose)
         dtypes = {"pose": pd.CategoricalDtype(labels),
                   "component": pd.CategoricalDtype(COMPONENTS),
                   "unit": pd.CategoricalDtype(["m", "rad"])}

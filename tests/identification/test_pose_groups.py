@@ -65,3 +65,17 @@ def test_group_names_in_order_of_appearance():
     labels = np.array(["b", "a", "b", "c", "a", "d"])
     group = np.array([1, 0, 1, 0, 0, 2])
     assert group_names(labels, group) == ["a+c", "b", "d"]
+
+
+def test_factorize_labels_by_blocks_numbers_text_in_order_of_appearance():
+    import pandas as pd
+
+    from analysis.identification.poses import factorize_labels
+
+    rng = np.random.default_rng(2)
+    pool = np.array([f"P{i}" for i in range(50)] + [7, "7"], dtype=object)  # 7 and "7": one
+    labels = pool[rng.integers(0, len(pool), 1000)]
+    codes, uniques = factorize_labels(labels, block=37)
+    ref_codes, ref_uniques = pd.factorize(labels.astype(str))
+    np.testing.assert_array_equal(codes, ref_codes)
+    assert uniques == list(ref_uniques)
