@@ -81,7 +81,7 @@ def leave_one_pose_out(
     the tests, if the caller has it (saves refitting the full data). ``group``: the
     tests' pose groups (:func:`~analysis.identification.poses.pose_groups`) if the caller
     has them. ``fold_sums``: the per-pose sums of a streamed exact ``full_fit``
-    (:class:`~analysis.identification.fitting.FinalPassSums`, made in its final pass).
+    (:class:`FinalPassSums`, made in its final pass).
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
@@ -113,7 +113,7 @@ def leave_one_pose_out(
             start = None
         if start is not None and len(names) > max_exact_refits:
             # one Gauss-Newton step per fold from the full-data estimate (module docstring)
-            sums = fold_sums if getattr(fold_sums, "gram", None) is not None else None
+            sums = None if fold_sums is None else fold_sums.folds
             # the residuals are only read when the folds are summed here (48 MB at 1e6)
             resid = None if sums is not None else tests.d - full.predicted
             table = _downdate_batched(robot, tests, group, names, joints, noise, full.A,
@@ -195,7 +195,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     full-data fit's joint deflections (rad), Newton's start for the held-out tests.
     ``system``: (R, c, scale) of the column-scaled whitened system if the caller has it
     (:func:`_system_of`: two passes saved), and ``sums`` the per-fold sums of the
-    whitened system at x0 - ``shift`` (:class:`~analysis.identification.fitting.FinalPassSums`:
+    whitened system at x0 - ``shift`` (:class:`FoldSums` of a :class:`FinalPassSums`:
     no pass over the tests for the folds' estimates; with ``system``). Each fold's
     estimate is then corrected for the
     wrench noise in the regressor like the fits (:mod:`analysis.identification.eiv`), with
@@ -203,7 +203,6 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     """
     from scipy.linalg import solve_triangular
 
-    from analysis.identification.eiv import wrench_eiv_matrix
     from analysis.identification.fitting import _jacobian
     from analysis.identification.lsq import TEST_BLOCK, TallR
 
@@ -229,8 +228,6 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         R, c = Rc[:p, :p], Rc[:p, p]
     else:
         R, c, scale = system
-    t = np.zeros((P, p))
-    # the held-out tests' part of the wrench errors-in-variables S, per fold (same pass)
     if sums is not None:
         # U = (Linv A / scale) R^-1 summed per fold from the sums of (Linv A)^T (Linv A)
         # and (Linv A)^T Linv r at x0 - shift (r moves by -A shift to x0), packed as upper
@@ -244,29 +241,19 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
             t[h] = score @ Rinv
         S = _Congruent(gram, Rinv)
         held = PackedSym(sums.held, p)
-        blocks = []
-    J = _jacobian(robot, tests.q) if blocks else None
-    sig2 = noise.wrench_sigma_at(tests.w) ** 2 if blocks else None
-    iu = np.triu_indices(p)
-    if blocks:  # the symmetric per-fold sums as upper triangles
-        S, held = PackedSym(np.zeros((P, len(iu[0]))), p), PackedSym(
-            np.zeros((P, len(iu[0]))), p)
-    for sl in blocks:
-        Ab = design(sl)
-        b = Ab.shape[0]
-        U = solve_triangular(R, (Ab.reshape(-1, p) / scale).T, trans="T").T.reshape(b, 6, p)
-        # per-fold sums by bincount over the folds present in the block, one entry at a
-        # time (numpy's add.at is ~10x slower)
-        folds, local = np.unique(fold[sl], return_inverse=True)
-        k = len(folds)
-        UU = np.einsum("mri,mrj->mij", U, U)[:, iu[0], iu[1]]
-        Ur = np.einsum("mri,mr->mi", U, rhs(sl))
-        S.packed[folds] += np.stack([np.bincount(local, UU[:, e], k)
-                                     for e in range(len(iu[0]))], axis=-1)
-        t[folds] += np.stack([np.bincount(local, Ur[:, e], k) for e in range(p)], axis=-1)
-        held.packed[folds] += wrench_eiv_matrix(
-            J[sl], sig2[sl], None if Linv is None else Linv[sl], tests.measured[sl],
-            group=local, n_groups=k, cols=cols)[:, iu[0], iu[1]]
+    else:
+        # U = (Linv A / scale) R^-1 per test, summed per fold in one pass, with the folds'
+        # part of the wrench errors-in-variables S
+        J = _jacobian(robot, tests.q)
+        sig2 = noise.wrench_sigma_at(tests.w) ** 2
+        sums = FoldSums(P, cols)
+        for sl in blocks:
+            Ab = design(sl)
+            U = solve_triangular(R, (Ab.reshape(-1, p) / scale).T, trans="T").T.reshape(
+                Ab.shape)
+            sums.add(fold[sl], J[sl], None if Linv is None else Linv[sl],
+                     tests.measured[sl], sig2[sl], U, rhs(sl))
+        S, t, held = PackedSym(sums.gram, p), sums.score, PackedSym(sums.held, p)
     lev = np.empty(P)  # largest leverage of each pose block
     for s in range(0, P, FOLD_CHUNK):
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -313,7 +300,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     x = np.zeros((P, 6))
     x[:, cols] = x_p
     # held-out prediction errors, summed per fold (test blocks bound the memory)
-    sums = np.zeros((3, P))  # squared errors: translation, rotation, normalised
+    sq = np.zeros((3, P))  # squared errors: translation, rotation, normalised
     failed = np.zeros(P, dtype=bool)
     for s in range(0, m, TEST_BLOCK):
         sl = slice(s, s + TEST_BLOCK)
@@ -332,14 +319,14 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         err = np.where(meas, tests.d[sl] - pred, 0.0)
         C = (J * xt[:, None, :]) @ np.swapaxes(J, -1, -2)  # J diag(x) J^T
         sig = np.sqrt(np.diagonal(residual_covariance(noise, C, w), axis1=-2, axis2=-1))
-        sums[0] += np.bincount(f, np.sum(err[:, :3] ** 2, axis=1), P)
-        sums[1] += np.bincount(f, np.sum(err[:, 3:] ** 2, axis=1), P)
-        sums[2] += np.bincount(f, np.sum((err / sig) ** 2, axis=1), P)
+        sq[0] += np.bincount(f, np.sum(err[:, :3] ** 2, axis=1), P)
+        sq[1] += np.bincount(f, np.sum(err[:, 3:] ** 2, axis=1), P)
+        sq[2] += np.bincount(f, np.sum((err / sig) ** 2, axis=1), P)
     counts = np.stack([np.bincount(fold, tests.measured[:, :3].sum(axis=1), P),
                        np.bincount(fold, tests.measured[:, 3:].sum(axis=1), P),
                        np.bincount(fold, tests.measured.sum(axis=1), P)])
     with np.errstate(divide="ignore", invalid="ignore"):
-        rms = np.where(counts > 0, np.sqrt(sums / np.where(counts > 0, counts, 1)), np.nan)
+        rms = np.where(counts > 0, np.sqrt(sq / np.where(counts > 0, counts, 1)), np.nan)
     for h in np.flatnonzero(ok & failed):
         ok[h] = False
         notes[h] = ("the equilibrium has no solution at this fold's estimate for a held-out "
@@ -351,6 +338,73 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         "rms_translation_m": rms[0], "rms_rotation_rad": rms[1], "rms_normalized": rms[2],
         "note": notes,
     })
+
+
+class FoldSums:
+    """Sums per fold of the rows of a whitened system, ``Z`` (b, 6, p) and ``r`` (b, 6) a
+    block of tests at a time: ``gram`` = sum Z^T Z and ``held`` the folds' part of the
+    wrench errors-in-variables S (:mod:`analysis.identification.eiv`), both as upper
+    triangles (P, p (p + 1) / 2) (:class:`PackedSym`), and ``score`` (P, p) = sum Z^T r."""
+
+    def __init__(self, n_folds: int, cols: list[int]) -> None:
+        p = len(cols)
+        self.cols, self.iu = list(cols), np.triu_indices(p)
+        n = len(self.iu[0])
+        self.gram, self.score, self.held = (np.zeros((n_folds, n)), np.zeros((n_folds, p)),
+                                            np.zeros((n_folds, n)))
+
+    def add(self, fold, J, Linv, measured, wrench_var, Z, r) -> np.ndarray:
+        """Add the tests of one block: their folds (b,), J (b, 6, 6), whitening Linv
+        (b, 6, 6) or None (OLS), measured (b, 6), wrench variances (b, 6), Z and r.
+        Returns the block's S per fold present (k, p, p)."""
+        from analysis.identification.eiv import wrench_eiv_matrix
+
+        folds, local = np.unique(fold, return_inverse=True)
+        k, iu = len(folds), self.iu
+        held = wrench_eiv_matrix(J, wrench_var, Linv, measured, group=local, n_groups=k,
+                                 cols=self.cols)
+        self.held[folds] += held[:, iu[0], iu[1]]
+        # per-fold sums by bincount over the folds present in the block, one entry at a
+        # time (numpy's add.at is ~10x slower)
+        ZZ = np.einsum("mri,mrj->mij", Z, Z)[:, iu[0], iu[1]]
+        Zr = np.einsum("mri,mr->mi", Z, r)
+        self.gram[folds] += np.stack([np.bincount(local, ZZ[:, e], k)
+                                      for e in range(ZZ.shape[1])], axis=-1)
+        self.score[folds] += np.stack([np.bincount(local, Zr[:, e], k)
+                                       for e in range(Zr.shape[1])], axis=-1)
+        return held
+
+
+class FinalPassSums:
+    """Sums over the tests made in the pass that forms a streamed exact fit's final system.
+
+    Called by :func:`~analysis.identification.gauss_newton.gauss_newton` with each block
+    of tests (slice, J (b, 6, 6), whitening Linv (b, 6, 6), whitened model Jacobian
+    Linv F (b, 6, p) and residual Linv r (b, 6)) at the solution and its weights. Holds
+    the wrench errors-in-variables ``S`` (p, p) and, with the tests' folds ``fold`` (m,)
+    ints < ``n_folds`` (pose groups), ``folds``: the :class:`FoldSums` of Linv F and
+    Linv r -- what leave-one-pose-out needs, without a pass of its own.
+    """
+
+    def __init__(self, tests: TestArrays, joints, noise: NoiseModel,
+                 fold: np.ndarray | None = None, n_folds: int = 0) -> None:
+        self.tests, self.cols, self.noise = tests, list(joints), noise
+        self.fold, self.n_folds = fold, n_folds
+        self.S = np.zeros((len(self.cols), len(self.cols)))
+        self.folds = None  # made at the first block (not held through the iterations)
+
+    def __call__(self, sl, J, Linv, LF, Lr) -> None:
+        from analysis.identification.eiv import wrench_eiv_matrix
+
+        t = self.tests
+        sig2 = self.noise.wrench_sigma_at(t.w[sl]) ** 2
+        if self.fold is None:
+            self.S += wrench_eiv_matrix(J, sig2, Linv, t.measured[sl], cols=self.cols)
+            return
+        if self.folds is None:
+            self.folds = FoldSums(self.n_folds, self.cols)
+        self.S += self.folds.add(self.fold[sl], J, Linv, t.measured[sl], sig2, LF,
+                                 Lr).sum(axis=0)
 
 
 class PackedSym:

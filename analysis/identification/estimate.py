@@ -249,7 +249,7 @@ DOWNDATE_MAX_LEVERAGE = 0.5
 
 
 def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fit,
-                   i, c, d_ic, reuse: bool = False) -> Fit:
+                   i, c, d_ic) -> Fit:
     """The fit of ``method`` to ``rest``: ``prev``'s data without component(s) (i, c).
 
     ``i``, ``c``: a test and a component, or equal-length arrays of them; ``d_ic``: the
@@ -257,7 +257,7 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
     removed components included, see below; ``predicted`` there is A x of those rows):
     its estimate, bread, covariance and the studentized residuals of ``rest`` are those
     of the refit; its covariances are made block by block where used in a large
-    campaign (:func:`_fit_covariances`). ``reuse``: kept for callers, not used.
+    campaign (:func:`_fit_covariances`).
 
     OLS: rank-1 downdates of prev's (A^T A)^-1 (Sherman-Morrison), one per removed
     row, instead of a new QR of the whole design: ``bread' = bread + g g^T / (1 - h)``,
@@ -304,15 +304,6 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
     if method == "exact":
         return fit_exact(robot, rest, joints, noise, start=prev.x)
     return fit(robot, rest, joints, noise, method)
-
-
-def _residual_table(tests, result_fit, t, flags) -> pd.DataFrame:
-    """One row per test and measured component, tests in order, components in order.
-
-    ``t`` (m, 6) studentized residuals.
-    """
-    sigma = np.sqrt(per_test_diagonal(result_fit.cov))
-    return ResidualRows(tests, result_fit.predicted, sigma, t, flags).frame()
 
 
 #: residual tables of more rows than this are held in memory only for the tests with the
@@ -419,7 +410,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         if tests.m > per_test.LAZY_TESTS and robust == "none":
             # streamed: the errors-in-variables S and the validation's per-pose sums are
             # made in the pass that forms the final system (no passes of their own)
-            from analysis.identification.fitting import FinalPassSums
+            from analysis.identification.crossval import FinalPassSums
 
             folds = int(group.max(initial=-1)) + 1
             sums = FinalPassSums(tests, joints, noise, group if validate and folds >= 3
@@ -460,8 +451,6 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     n_eq = int(tests.measured.sum())
     # the goodness of fit is that of the components the fit rests on
     dof = int(kept.sum()) - p
-    # a streamed fit whitened by its own covariances has the meat A^T W Sigma W A =
-    # A^T W A = R^T R of its final system: one pass over its (recomputed) blocks
     streamed = chosen.R is not None and rob is None
     if streamed:
         # one pass over the recomputed blocks: the variances (meat A^T W A = R^T R, and
@@ -493,12 +482,11 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     else:
         cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
                                                       chosen.Linv)
-    # the fit's own whitening when it used the same components, else made block by block
-    # (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of the
-    # whitened system, for its scaled condition without the (6m, p) Linv A
-    own = chosen.Linv if rob is None and chosen.Linv is not None else None
-    acc = TallR() if tests.m > TEST_BLOCK and not streamed else None
-    if not streamed:
+        # the fit's own whitening when it used the same components, else made block by
+        # block (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of
+        # the whitened system, for its scaled condition without the (6m, p) Linv A
+        own = chosen.Linv if rob is None and chosen.Linv is not None else None
+        acc = TallR() if tests.m > TEST_BLOCK else None
         chi2 = 0.0  # summed block by block: no (m, 6) residual arrays
         for sl in _blocks(tests.m):
             Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
@@ -507,10 +495,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             if acc is not None:
                 acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
         chi2_red, p_value = chi2_summary(chi2, dof)
-    if not streamed:
         Aw = acc.r() if acc is not None else stack_matrix(
             (own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
-    del acc
     from analysis.identification.noise_check import noise_ratio_notes
 
     # (m, 6) each component's sigma; for a large campaign made where used (48 MB at 1e6)

@@ -303,7 +303,8 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     first iteration's whitening when its x equals ``start`` (the same array
     Gauss-Newton would compute: computed once).
 
-    One large (streamed) campaign: ``sums`` a :class:`FinalPassSums` filled in the pass
+    One large (streamed) campaign: ``sums`` a
+    :class:`~analysis.identification.crossval.FinalPassSums` filled in the pass
     that forms the final system (the errors-in-variables S comes from it);
     ``defer_shift``: ``predicted`` is left None, for the caller to make from ``A`` (the
     model Jacobian, whose blocks come with the model's values) and move by A eiv_shift in
@@ -335,55 +336,6 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
                bread=bread, Linv=Linv, eiv_shift=shift, deflection=gn.dq, R=gn.R,
                predicted_shifted=shifted)
 
-
-class FinalPassSums:
-    """Sums over the tests made in the pass that forms a streamed fit's final system.
-
-    Called by :func:`~analysis.identification.gauss_newton.gauss_newton` with each block
-    of tests (slice, J (b, 6, 6), whitening Linv (b, 6, 6), whitened model Jacobian
-    Linv F (b, 6, p) and residual Linv r (b, 6)) at the solution and its weights. Holds
-    the wrench errors-in-variables ``S`` (p, p) (:mod:`analysis.identification.eiv`) and,
-    with the tests' folds ``fold`` (m,) ints < ``n_folds`` (pose groups), per fold:
-    ``gram`` = sum (Linv F)^T (Linv F), ``score`` (P, p) = sum (Linv F)^T Linv r and
-    ``held`` its part of S, the symmetric ones as upper triangles (P, p (p + 1) / 2)
-    (:class:`analysis.identification.crossval.PackedSym`) -- what leave-one-pose-out needs
-    (:mod:`analysis.identification.crossval`), without a pass of its own.
-    """
-
-    def __init__(self, tests: TestArrays, joints, noise: NoiseModel,
-                 fold: np.ndarray | None = None, n_folds: int = 0) -> None:
-        p = len(joints)
-        self.tests, self.cols, self.noise = tests, list(joints), noise
-        self.fold, self.n_folds = fold, n_folds
-        self.S = np.zeros((p, p))
-        self.gram = self.score = self.held = None  # made at the first block (62 MB at 1e5
-        # poses, not held through the iterations)
-
-    def __call__(self, sl, J, Linv, LF, Lr) -> None:
-        t = self.tests
-        if self.fold is not None and self.gram is None:
-            P, p = self.n_folds, len(self.cols)
-            n = p * (p + 1) // 2
-            self.gram, self.score, self.held = np.zeros((P, n)), np.zeros((P, p)), \
-                np.zeros((P, n))
-        sig2 = self.noise.wrench_sigma_at(t.w[sl]) ** 2
-        if self.fold is None:
-            self.S += wrench_eiv_matrix(J, sig2, Linv, t.measured[sl], cols=self.cols)
-            return
-        folds, local = np.unique(self.fold[sl], return_inverse=True)
-        k, p = len(folds), LF.shape[-1]
-        held = wrench_eiv_matrix(J, sig2, Linv, t.measured[sl], group=local, n_groups=k,
-                                 cols=self.cols)
-        iu = np.triu_indices(p)
-        self.held[folds] += held[:, iu[0], iu[1]]
-        self.S += held.sum(axis=0)
-        # per-fold sums by bincount, one entry at a time (numpy's add.at is ~10x slower)
-        FF = np.einsum("mri,mrj->mij", LF, LF)[:, iu[0], iu[1]]
-        Fr = np.einsum("mri,mr->mi", LF, Lr)
-        self.gram[folds] += np.stack([np.bincount(local, FF[:, e], k)
-                                      for e in range(len(iu[0]))], axis=-1)
-        self.score[folds] += np.stack([np.bincount(local, Fr[:, e], k) for e in range(p)],
-                                      axis=-1)
 
 
 def fit(robot, tests, joints, noise, method) -> Fit:

@@ -200,9 +200,9 @@ def whitening_per_test(noise, J, x_full, measured, w=None, weights=None,
         else out
     for s in range(0, J.shape[0], EVAL_BLOCK):
         sl = slice(s, s + EVAL_BLOCK)
-        out[sl] = whitening(covariances_per_test(
-            noise, J[sl], x_full, measured[sl], None if w is None else w[sl],
-            None if weights is None else weights[sl]), measured[sl])
+        out[sl] = whitening_per_test(noise, J[sl], x_full, measured[sl],
+                                     None if w is None else w[sl],
+                                     None if weights is None else weights[sl])
     return out
 
 
@@ -283,9 +283,8 @@ class _StreamedSystems:
 
     def _whitening(self, x, J, sl):
         c = self.c
-        cov = covariances_per_test(c.noise, J, c.full(x), c.measured[sl], c.w[sl],
-                                   None if c.weights is None else c.weights[sl])
-        return whitening(cov, c.measured[sl])
+        return whitening_per_test(c.noise, J, c.full(x), c.measured[sl], c.w[sl],
+                                  None if c.weights is None else c.weights[sl])
 
     def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, dq_scale=None,
                  rows=None,

@@ -15,6 +15,8 @@ The last block made is kept, because one pass often slices the same block twice
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 
 #: campaigns of more tests than this hold no (m, 6, n) per-test arrays (29 MB each at
@@ -22,7 +24,7 @@ import numpy as np
 LAZY_TESTS = 100_000
 
 
-class PerTestBlocks:
+class PerTestBlocks(ABC):
     """Base of the per-test arrays made when sliced: ``shape``, ``ndim``, ``len`` and
     ``obj[key]`` like an ndarray for slices of tests, single tests and ``obj[i, c]``."""
 
@@ -35,8 +37,9 @@ class PerTestBlocks:
     def __len__(self) -> int:
         return self.shape[0]
 
-    def _make(self, start: int, stop: int) -> np.ndarray:  # pragma: no cover (abstract)
-        raise NotImplementedError
+    @abstractmethod
+    def _make(self, start: int, stop: int) -> np.ndarray:
+        """The rows of tests start..stop-1 (what each kind of array computes)."""
 
     def _block(self, start: int, stop: int) -> np.ndarray:
         last = getattr(self, "_last", None)
