@@ -27,6 +27,8 @@ BUILTIN: dict[str, str] = {
     # robots
     "ur": "drivers.ur:URRobot",
     "kuka-kvp": "drivers.kuka_kvp:KukaVarProxyRobot",
+    "fanuc-rmi": "drivers.fanuc_rmi:FanucRMIRobot",
+    "abb-rws": "drivers.abb_rws:ABBRWSRobot",
     "manual": "drivers.manual:ManualRobot",
     # loads
     "manual-load": "drivers.manual:ManualLoad",

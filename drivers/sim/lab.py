@@ -30,8 +30,22 @@ from drivers.sim.world import World
 
 
 def robot_fake_name(robot: str) -> str:
-    """Which robot fake serves ``robot``: ``ur`` for UR models, else ``kuka-kvp``."""
-    return "ur" if robot.strip().lower().startswith("ur") else "kuka-kvp"
+    """Which robot fake serves ``robot``: ``ur`` for UR models, ``fanuc-rmi`` for FANUC
+    and ``abb-rws`` for ABB models (by the model's name), else ``kuka-kvp``."""
+    key = robot.strip().lower()
+    if key.startswith("ur"):
+        return "ur"
+    try:
+        from analysis.model.robots import load_robot
+
+        name = load_robot(robot).name.lower()
+    except Exception:  # an unreadable robot fails later, where the world loads it
+        name = key
+    if "fanuc" in name:
+        return "fanuc-rmi"
+    if name.startswith("abb") or "irb" in name:
+        return "abb-rws"
+    return "kuka-kvp"
 
 
 class Lab:
@@ -81,6 +95,14 @@ class Lab:
             from drivers.sim.fake_kvp import FakeKukaVarProxy
 
             return FakeKukaVarProxy(self.world)
+        if name == "fanuc-rmi":
+            from drivers.sim.fake_rmi import FakeRMI
+
+            return FakeRMI(self.world)
+        if name == "abb-rws":
+            from drivers.sim.fake_rws import FakeRWS
+
+            return FakeRWS(self.world)
         raise ValueError(f"no fake for {name!r}")
 
     def start(self) -> dict[str, str]:
