@@ -29,6 +29,7 @@ BUILTIN: dict[str, str] = {
     "kuka-kvp": "drivers.kuka_kvp:KukaVarProxyRobot",
     "fanuc-rmi": "drivers.fanuc_rmi:FanucRMIRobot",
     "abb-rws": "drivers.abb_rws:ABBRWSRobot",
+    "abb-rws2": "drivers.abb_rws:ABBRWSRobot",  # the same; names the RobotWare 7 fake
     "manual": "drivers.manual:ManualRobot",
     # loads
     "manual-load": "drivers.manual:ManualLoad",

@@ -99,10 +99,10 @@ class Lab:
             from drivers.sim.fake_rmi import FakeRMI
 
             return FakeRMI(self.world)
-        if name == "abb-rws":
+        if name in ("abb-rws", "abb-rws2"):
             from drivers.sim.fake_rws import FakeRWS
 
-            return FakeRWS(self.world)
+            return FakeRWS(self.world, version=1 if name == "abb-rws" else 2)
         raise ValueError(f"no fake for {name!r}")
 
     def start(self) -> dict[str, str]:
@@ -118,13 +118,17 @@ class Lab:
                 if name == "ur":
                     self._start_ur()
                     continue
-            fake = self._make(name)
-            if fake is None:
-                continue
-            fake.start()
-            self.fakes.append(fake)
-            self.addresses[fake.driver] = fake.url
+                if name == "abb-rws":  # an ABB arm: IRC5 (RobotWare 6) and OmniCore (7)
+                    self._add(self._make("abb-rws2"))
+            self._add(self._make(name))
         return self.addresses
+
+    def _add(self, fake: FakeServer | None) -> None:
+        if fake is None:
+            return
+        fake.start()
+        self.fakes.append(fake)
+        self.addresses[fake.driver] = fake.url
 
     def _start_ur(self) -> None:
         root = str(Path(__file__).resolve().parents[2])
