@@ -3,7 +3,8 @@
 The controller runs ``drivers/rapid/StiffLoop.mod`` (see ``drivers/rapid/README.md``):
 it waits for ``stiff_go``, moves ``MoveAbsJ`` to ``stiff_target`` in ``stiff_time``
 seconds with a fine point, then clears ``stiff_go``. This driver reads the joints at
-``/rw/motionsystem/mechunits/ROB_1/jointtarget``, checks the RAPID execution state,
+``/rw/motionsystem/mechunits/ROB_1/jointtarget``, checks the controller state (motors
+on) and the RAPID execution state,
 requests mastership, writes the three RAPID variables, releases mastership, polls
 ``stiff_go``, and stops RAPID on abort or timeout. Requests go through ``requests``
 (Digest authentication for RWS 1.0, Basic for 2.0, one session keeping the
@@ -175,6 +176,11 @@ class ABBRWSRobot(RobotController):
         state = self._state(self.dialect.execution(), "rap-execution")
         return rws.state_value(state, "ctrlexecstate", "rap-execution")
 
+    def controller_state(self) -> str:
+        """``motoron``, ``motoroff``, ``guardstop``, ``emergencystop``, ..."""
+        state = self._state(self.dialect.ctrlstate(), "pnl-ctrlstate")
+        return rws.state_value(state, "ctrlstate", "pnl-ctrlstate")
+
     def _write_motion(self, q_deg: np.ndarray, seconds: float) -> None:
         self._request("POST", self.dialect.mastership("request"))
         try:
@@ -196,6 +202,10 @@ class ABBRWSRobot(RobotController):
         return None  # depends on the active tool and work object; the analysis uses joints
 
     def _move_joints(self, q: np.ndarray, speed: float, acceleration: float) -> None:
+        ctrl = self.controller_state()
+        if ctrl != "motoron":
+            raise DeviceFault(f"{self.base}: controller state {ctrl!r}: the motors must be "
+                              "on (motoron) before moving")
         if self.execution_state() != "running":
             raise DeviceFault(f"{self.base}: RAPID is stopped: start StiffLoop's main "
                               "(drivers/rapid/README.md) before moving")

@@ -1,17 +1,20 @@
 """FANUC R-30iB Plus robot through the Remote Motion Interface (RMI, option R912).
 
-Wire format in :mod:`drivers.rmi`. ``connect()`` asks port 16001 for the session port
-(``FRC_Connect``), opens it, reads ``FRC_GetStatus`` (an RMI program left running is
-aborted first), then ``FRC_Initialize`` starts the controller's RMI program and the
-instruction sequence at ``NextSequenceID``. A motion is one ``FRC_JointMotionJRep``
-(joint representation, ``SpeedType`` ``Percent`` of the joint speed maxima,
-``TermType`` ``FINE``) whose answer arrives when the robot stands at the target; the
-driver waits for it (``motion_timeout``), aborts on timeout, and checks the angles
-read back with ``FRC_ReadJointAngles``. :meth:`stop` is ``FRC_Abort``. Every non-zero
-``ErrorID`` becomes a :class:`DeviceFault` naming the RMIT code and the controller's
-text (``FRC_ReadError``). After a late or missing answer the session is closed (a
-late packet is never taken as the answer to the next request) and the next call
-opens a new one.
+Wire format in :mod:`drivers.rmi`. ``connect()`` asks port 16001 for the session
+port (``FRC_Connect``), opens it, reads ``FRC_GetStatus`` (an RMI program left running
+is aborted first), clears a pending error (``FRC_Reset``), then ``FRC_Initialize``
+starts the controller's RMI program and the instruction sequence at
+``NextSequenceID``. A motion is one ``FRC_JointMotionJRep`` (joint representation,
+``SpeedType`` ``Percent`` of the joint speed maxima, ``TermType`` ``FINE``) whose
+answer arrives when the robot stands at the target; the driver waits for it
+(``motion_timeout``), aborts on timeout, and checks the angles read back with
+``FRC_ReadJointAngles``. :meth:`stop` is ``FRC_Abort``. ``read_tool_pose`` is
+``FRC_ReadCartesianPosition`` (the active UTOOL in the active UFRAME; not used by the
+analysis, which works from joint angles). Every non-zero ``ErrorID`` becomes a
+:class:`DeviceFault` naming the RMIT code and the controller's text
+(``FRC_ReadError``). After a late or missing answer the session is closed (a late
+packet is never taken as the answer to the next request) and the next call opens a
+new one.
 
 Joint angles are in rad in the API and degrees on the wire, both in the controller's
 convention (J3 relative to the horizontal on most FANUC arms: the robot model's
@@ -127,6 +130,7 @@ class FanucRMIRobot(RobotController):
             status = self.command("FRC_GetStatus")
             if status.get("RMIMotionStatus"):  # an RMI program left running: end it
                 self.command("FRC_Abort")
+            self.command("FRC_Reset")  # clear a pending controller error
             self.command("FRC_Initialize", GroupMask=1 << (self.group - 1))
             self._seq = int(self.command("FRC_GetStatus").get("NextSequenceID", 1))
         except BaseException:
@@ -222,7 +226,12 @@ class FanucRMIRobot(RobotController):
         return rmi.joint_angles(self.command("FRC_ReadJointAngles", Group=self.group))
 
     def _read_tool_pose(self) -> Pose | None:
-        return None  # depends on the active UFRAME/UTOOL; the analysis uses joint angles
+        """The controller's position of the active UTOOL in the active UFRAME (m)."""
+        reply = self.command("FRC_ReadCartesianPosition", Group=self.group)
+        config = reply.get("Configuration") or {}
+        return Pose(value=rmi.position_matrix(reply),
+                    frame=f"uframe {config.get('UFrameNumber', '?')}",
+                    child=f"utool {config.get('UToolNumber', '?')}", source=self.address)
 
     def _move_joints(self, q: np.ndarray, speed: float, acceleration: float) -> None:
         percent = int(np.clip(np.ceil(100 * speed / self.max_speed), 1, 100))

@@ -114,3 +114,22 @@ def joint_object(q: np.ndarray) -> dict[str, float]:
     out = {f"J{i + 1}": round(float(v), 4) for i, v in enumerate(deg)}
     out.update({f"J{i}": 0.0 for i in range(len(deg) + 1, 10)})
     return out
+
+
+def position_matrix(packet: dict[str, Any]) -> np.ndarray:
+    """4x4 pose (m) of a ``Position`` object: X, Y, Z in mm, W, P, R in degrees.
+
+    FANUC's W, P, R turn about the fixed x, y, z axes in that order:
+    R = Rz(R) Ry(P) Rx(W).
+    """
+    from scipy.spatial.transform import Rotation
+
+    pos = packet.get("Position")
+    try:
+        x, y, z, w, p, r = (float(pos[k]) for k in ("X", "Y", "Z", "W", "P", "R"))
+    except (KeyError, TypeError, ValueError) as err:
+        raise ProtocolError(f"RMI Position lacks X, Y, Z, W, P, R numbers: {pos!r}") from err
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", [w, p, r], degrees=True).as_matrix()
+    T[:3, 3] = np.array([x, y, z]) * 1e-3
+    return T

@@ -103,6 +103,7 @@ def test_transcript_connect_read_move_close(abb, world):
     expected = ([("GET", res(d.execution()), 401)] if d.version == 1 else []) + [
         ("GET", res(d.execution()), 200),                      # connect
         ("GET", res(d.jointtarget()), 200),                    # read_joints
+        ("GET", res(d.ctrlstate()), 200),                      # motors must be on
         ("GET", res(d.execution()), 200),                      # RAPID must run
         ("GET", res(d.jointtarget()), 200),                    # start of the step
         ("POST", res(d.mastership("request")), 204),
@@ -129,6 +130,10 @@ def test_faults(abb, world):
                        r" \(controller code -1073445865\)"):
         drv.move_joints(q, 0.5, 1.0)
     fake.mastership_holder = None
+    fake.ctrlstate = "guardstop"
+    with pytest.raises(DeviceFault, match="controller state 'guardstop'"):
+        drv.move_joints(q, 0.5, 1.0)
+    fake.ctrlstate = "motoron"
     fake.exec_state = "stopped"
     with pytest.raises(DeviceFault, match="RAPID is stopped"):
         drv.move_joints(q, 0.5, 1.0)

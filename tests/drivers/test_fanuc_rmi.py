@@ -58,6 +58,9 @@ def test_transcript_connect_read_move_close(fanuc):
     target = q0 + np.radians([2.0, -1.0, 3.0, 0.0, 4.0, -5.0])
     reached = drv.move_joints(target, 0.5, 1.0).value
     np.testing.assert_allclose(reached, target, atol=np.radians(1e-4))
+    pose = drv.read_tool_pose()
+    np.testing.assert_allclose(pose.value, world.nominal_tool_pose(), atol=2e-6)
+    assert (pose.frame, pose.child) == ("uframe 0", "utool 1")
     drv.close()
     deg = {f"J{i + 1}": round(float(v), 4) for i, v in enumerate(np.degrees(target))}
     deg.update(J7=0.0, J8=0.0, J9=0.0)
@@ -67,6 +70,8 @@ def test_transcript_connect_read_move_close(fanuc):
     expected = [
         ("request", {"Command": "FRC_GetStatus"}),
         ("answer", {**status, "RMIMotionStatus": 0, "ProgramStatus": 0, "NextSequenceID": 1}),
+        ("request", {"Command": "FRC_Reset"}),
+        ("answer", {"Command": "FRC_Reset", "ErrorID": 0}),
         ("request", {"Command": "FRC_Initialize", "GroupMask": 1}),
         ("answer", {"Command": "FRC_Initialize", "ErrorID": 0, "GroupMask": 1}),
         ("request", {"Command": "FRC_GetStatus"}),
@@ -80,6 +85,9 @@ def test_transcript_connect_read_move_close(fanuc):
         *[("request", {"Command": "FRC_ReadJointAngles", "Group": 1}),
           ("answer", {"Command": "FRC_ReadJointAngles", "ErrorID": 0, "JointAngle": deg,
                       "Group": 1})] * 2,  # the driver's check at the target, then the role's
+        ("request", {"Command": "FRC_ReadCartesianPosition", "Group": 1}),
+        ("answer", {"Command": "FRC_ReadCartesianPosition", "ErrorID": 0,
+                    **fake._cartesian(), "Group": 1}),
         ("request", {"Communication": "FRC_Disconnect"}),
         ("answer", {"Communication": "FRC_Disconnect", "ErrorID": 0}),
     ]
