@@ -105,7 +105,10 @@ class ABBRWSRobot(RobotController):
 
     def _request(self, method: str, resource: tuple[str, dict[str, str]],
                  data: dict[str, str] | None = None, expect=(200, 201, 204)) -> Any:
+        import warnings
+
         import requests
+        import urllib3
 
         if self._session is None:
             raise ConnectionFailed(f"{self.base}: not connected")
@@ -117,16 +120,12 @@ class ABBRWSRobot(RobotController):
         elif data is not None or method == "POST":
             headers["Content-Type"] = rws.FORM_V2
         url = self.base + quote(path, safe="/")
-        if self.insecure:
-            import warnings
-
-            import urllib3
-
-            warnings.simplefilter("ignore", urllib3.exceptions.InsecureRequestWarning)
         try:
-            reply = self._session.request(method, url, params=params, data=data or {},
-                                          headers=headers, timeout=self.timeout,
-                                          verify=self._session.verify)
+            with warnings.catch_warnings():  # insecure=1 was asked for: no warning per call
+                warnings.simplefilter("ignore", urllib3.exceptions.InsecureRequestWarning)
+                reply = self._session.request(method, url, params=params, data=data or {},
+                                              headers=headers, timeout=self.timeout,
+                                              verify=self._session.verify)
         except requests.exceptions.SSLError as err:
             raise ConnectionFailed(f"{self.base}: TLS certificate refused ({err}); add "
                                    "insecure=1 for a self-signed one, or ca=FILE") from err

@@ -31,7 +31,14 @@ import numpy as np
 
 from drivers import rmi
 from drivers.address import parse_address
-from drivers.errors import ConnectionFailed, DeviceFault, DeviceTimeout, DriverError, ProtocolError
+from drivers.errors import (
+    AddressError,
+    ConnectionFailed,
+    DeviceFault,
+    DeviceTimeout,
+    DriverError,
+    ProtocolError,
+)
 from drivers.readings import Pose
 from drivers.roles import RobotController
 
@@ -100,7 +107,7 @@ class FanucRMIRobot(RobotController):
         super().__init__(address, timeout=timeout)
         addr = parse_address(address).with_default_port(rmi.HANDSHAKE_PORT)
         if addr.scheme != "rmi":
-            raise ConnectionFailed(f"{address!r}: expected rmi://controller[:16001]")
+            raise AddressError(f"{address!r}: expected rmi://controller[:16001]")
         self.host, self.port = addr.host, int(addr.port or rmi.HANDSHAKE_PORT)
         self.max_speed = addr.float_option("max_speed", 1.5)
         self.motion_timeout = addr.float_option("motion_timeout", 120.0)

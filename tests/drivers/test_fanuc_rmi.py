@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from drivers import rmi
-from drivers.errors import ConnectionFailed, DeviceFault, DeviceTimeout, ProtocolError
+from drivers.errors import (
+    AddressError,
+    ConnectionFailed,
+    DeviceFault,
+    DeviceTimeout,
+    ProtocolError,
+)
 from drivers.fanuc_rmi import FanucRMIRobot
 from drivers.sim.fake_rmi import FakeRMI
 from drivers.sim.settings import LabSettings
@@ -47,6 +53,13 @@ def test_codec_bytes():
             rmi.decode(bad)
     with pytest.raises(ProtocolError, match="J1..J6"):
         rmi.joint_angles({"JointAngle": {"J1": 0}})
+    with pytest.raises(AddressError, match="rmi://"):
+        FanucRMIRobot("socket://1.2.3.4:16001")
+    T = rmi.position_matrix({"Position": {"X": 1000, "Y": -20, "Z": 5, "W": 90, "P": 0,
+                                          "R": 90}})
+    np.testing.assert_allclose(T[:3, 3], [1.0, -0.02, 0.005])
+    # W about x first, then R about the fixed z: x -> y, y -> z, z -> x
+    np.testing.assert_allclose(T[:3, :3], [[0, 0, 1], [1, 0, 0], [0, 1, 0]], atol=1e-12)
 
 
 def test_transcript_connect_read_move_close(fanuc):

@@ -150,6 +150,9 @@ def test_lab_robot_option_starts_the_brand_fake(robot, driver, scheme):
     try:
         assert addresses[driver].startswith(scheme), addresses
         assert "kuka-kvp" not in addresses
+        if driver == "abb-rws":  # an ABB arm: a RobotWare 6 and a RobotWare 7 controller
+            assert addresses["abb-rws2"].startswith("rws2://Admin:robotics@127.0.0.1:")
+            assert addresses["abb-rws2"].endswith("?insecure=1")
         with open_driver(driver, addresses[driver]) as drv:
             q = drv.read_joints().value
         with LabClient(addresses["control"]) as client:
