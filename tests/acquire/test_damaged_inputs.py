@@ -285,8 +285,8 @@ def test_creation_killed_midway_leaves_nothing_to_resume_and_the_name_free(tmp_p
     assert len(stale) == 1 and (stale[0] / "plan.csv").is_file()
     run = RunDir.create(out, {"fake": True}, "protocol.toml", "x = 1\n", "test\n")
     run.close()
-    assert sorted(p.name for p in out.iterdir()) == [
-        ".lock", "events.jsonl", "metadata.json", "plan.csv", "protocol.toml", "samples.jsonl",
+    assert sorted(p.name for p in out.iterdir()) == [  # .lock removed at close
+        "events.jsonl", "metadata.json", "plan.csv", "protocol.toml", "samples.jsonl",
         "tests.csv"]
     assert not list(tmp_path.glob(".run.creating-*"))  # the stale one was removed
 
