@@ -62,15 +62,18 @@ def check_output_dir(out: Path | str, force: bool, where: str = "--out",
     """Check (without creating anything) that ``out`` may be used as an output directory.
 
     Refused: a symbolic link, an existing non-directory, a non-empty directory
-    unless ``force`` (the message then says ``--force`` would ``replaces``).
+    unless ``force`` (the message then says ``--force`` would ``replaces``), and
+    with ``force`` a directory holding a symbolic link.
     """
     out = Path(out)
     refuse_link(out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a directory", where=str(out))
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise InputError(f"output directory exists and is not empty; choose another or add "
-                         f"--force to {replaces}", where=f"{where} {out}")
+    if out.is_dir() and any(out.iterdir()):
+        if not force:
+            raise InputError(f"output directory exists and is not empty; choose another or "
+                             f"add --force to {replaces}", where=f"{where} {out}")
+        refuse_links_in(out)
     return out
 
 
