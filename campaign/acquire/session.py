@@ -284,7 +284,8 @@ def _run_session(run: RunDir, inst: Any, robot: Any, tests: list, protocol: Prot
         # the measurements are all in tests.csv and samples.jsonl: said in the final
         # line (even with --quiet) and in metadata.json, and the command exits with 1
         counts["exported"] = 0
-        note = (f"the Parquet exports could not be written ({err}); every measurement is "
+        why = err.strerror if isinstance(err, OSError) and err.strerror else err
+        note = (f"the Parquet exports could not be written ({why}); every measurement is "
                 "in tests.csv and samples.jsonl, and campaign analyze writes the exports "
                 "when there is room")
         reason = f"{reason}; {note}" if reason else note
