@@ -143,30 +143,30 @@ def replaced_dir(out: Path | str, force: bool, where: str = "--out") -> Iterator
     the body fails, the new directory is removed and ``out`` is left as it was.
     """
     out = check_output_dir(out, force, where, replaces="replace its contents")
-    make_dir(out.parent)
-    try:
-        new = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=out.parent))
-        os.chmod(new, 0o755)
-    except OSError as err:
-        raise InputError(f"cannot create the output directory: {err.strerror or err}",
-                         where=str(out)) from None
-    try:
-        yield new
-        refuse_link(out)  # planted while the body ran
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-            os.rename(out, old)  # onto an empty directory: POSIX replaces it
-            try:
+    with created_dir(out.parent):  # parents this call creates go too if the body fails
+        try:
+            new = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=out.parent))
+            os.chmod(new, 0o755)
+        except OSError as err:
+            raise InputError(f"cannot create the output directory: {err.strerror or err}",
+                             where=str(out)) from None
+        try:
+            yield new
+            refuse_link(out)  # planted while the body ran
+            if out.exists():
+                old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+                os.rename(out, old)  # onto an empty directory: POSIX replaces it
+                try:
+                    os.rename(new, out)
+                except OSError:
+                    os.rename(old, out)  # put the earlier output back
+                    raise
+                shutil.rmtree(old, ignore_errors=True)
+            else:
                 os.rename(new, out)
-            except OSError:
-                os.rename(old, out)  # put the earlier output back
-                raise
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.rename(new, out)
-    except BaseException:
-        shutil.rmtree(new, ignore_errors=True)
-        raise
+        except BaseException:
+            shutil.rmtree(new, ignore_errors=True)
+            raise
 
 
 def save_figure(fig, path: Path | str, **kwargs) -> Path:

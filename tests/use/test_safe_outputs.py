@@ -293,3 +293,11 @@ def test_demo_refuses_a_link_as_its_directory(tmp_path, capsys, outside):
     refused(capsys, ["demo", "--out", str(tmp_path / "demo"), "--quiet"], outside)
     (tmp_path / "dangling").symlink_to(outside / "missing")
     refused(capsys, ["demo", "--out", str(tmp_path / "dangling"), "--quiet"], outside)
+
+
+def test_a_failed_analysis_removes_the_parents_it_created(tmp_path):
+    out = tmp_path / "a" / "b" / "analysis"
+    with pytest.raises(RuntimeError), replaced_dir(out, False) as new:
+        write_text(new / "results.json", "{}\n")
+        raise RuntimeError("the report failed")
+    assert list(tmp_path.iterdir()) == []
