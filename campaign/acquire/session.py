@@ -191,7 +191,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         done = run.finished() if run is not None else set()
         if run is not None and all((t.test_id, r) in done for t in tests
                                    for r in range(1, t.repeats + 1)):
-            return _nothing_to_resume(run, reporter, say)
+            return _nothing_to_resume(run, reporter)
         rule = _settle_rule(protocol, 1.0, opts.settle_scale)  # robot time, for the estimate
         say(dry_run_text(tests, robot, protocol, done,
                          settle_s=(rule.window - 1) * rule.interval))
@@ -296,28 +296,35 @@ def _run_session(run: RunDir, inst: Any, robot: Any, tests: list, protocol: Prot
     return status, reason
 
 
-def _nothing_to_resume(run: RunDir, reporter: Reporter, say: Callable[[str], None]
-                       ) -> Outcome:
+def _nothing_to_resume(run: RunDir, reporter: Reporter) -> Outcome:
     """``--resume`` of a run whose planned tests are all in tests.csv: nothing is started.
 
-    The status becomes ``complete`` if a session ended before saying so, and missing
-    Parquet exports are written; no instrument is connected, nothing moves.
+    Missing Parquet exports are written, and the status becomes ``complete`` if a
+    session ended before saying so (or ``parquet_exported`` true once the exports are
+    there); no instrument is connected, nothing moves.
     """
+    meta = run.metadata
+    exported, why = True, ""
     try:
-        if run.metadata.get("status") != "complete":
-            run.set_status("complete", "", ended_utc=utc())
-        missing = [n for n in ("tests.parquet", "samples.parquet")
-                   if not (run.path / n).is_file()]
-        if missing:
+        if not all((run.path / n).is_file() for n in ("tests.parquet", "samples.parquet")):
             try:
                 export_parquet(run.path)
             except (OSError, ValueError) as err:
-                say(f"warning: could not write {', '.join(missing)} ({err})")
+                exported = False
+                why = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
+        if meta.get("status") != "complete" or (exported and meta.get("parquet_exported")
+                                                is False):
+            extra: dict[str, Any] = {"parquet_exported": exported}
+            if meta.get("status") != "complete":
+                extra["ended_utc"] = utc()
+            run.set_status("complete", "", **extra)
         statuses = read_tests(run.path)["status"].astype(str)
     finally:
         run.close()
     ok, failed = int((statuses == "ok").sum()), int((statuses != "ok").sum())
     reason = (f"nothing to resume: all {ok + failed} planned measurements are in tests.csv; "
               "nothing connected, nothing moved")
+    if not exported:
+        reason += f"; the Parquet exports are still missing ({why})"
     reporter.finish("complete", reason, {"run_dir": str(run.path), "ok": ok, "failed": failed})
-    return Outcome("complete", reason, run.path, ok, failed)
+    return Outcome("complete", reason, run.path, ok, failed, exported=exported)

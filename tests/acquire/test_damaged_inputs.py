@@ -568,5 +568,8 @@ def test_a_full_disk_at_the_parquet_export_leaves_no_temporary_and_says_so(kr240
     # space is back: a resume writes the exports without starting anything
     code = main(["acquire", "--resume", str(out), "--fake", "--yes", "--quiet"])
     assert code == 0 and "nothing to resume" in capsys.readouterr().err
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["status"] == "complete" and meta["parquet_exported"] is True
+    assert meta["reason"] == ""
     assert len(pd.read_parquet(out / "samples.parquet")) == sum(
         1 for _ in (out / "samples.jsonl").open())
