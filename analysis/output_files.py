@@ -15,6 +15,7 @@ removed when the write fails (disk full, permissions).
 
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
 import tempfile
@@ -141,16 +142,21 @@ def replaced_dir(out: Path | str, force: bool, where: str = "--out") -> Iterator
     ``out`` once the body succeeds (the old ``out``, if any, is moved aside and
     removed), so nothing of an earlier output remains beside the new files; if
     the body fails, the new directory is removed and ``out`` is left as it was.
+    The new directory is locked (``flock``) while the body runs: one left by a
+    process killed meanwhile is removed by the next call, one in use is not.
     """
     out = check_output_dir(out, force, where, replaces="replace its contents")
     with created_dir(out.parent):  # parents this call creates go too if the body fails
+        _remove_stale(out)
         try:
             new = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=out.parent))
             os.chmod(new, 0o755)
+            lock = os.open(new, os.O_RDONLY | os.O_DIRECTORY)
         except OSError as err:
             raise InputError(f"cannot create the output directory: {err.strerror or err}",
                              where=str(out)) from None
         try:
+            fcntl.flock(lock, fcntl.LOCK_EX)
             yield new
             refuse_link(out)  # planted while the body ran
             if out.exists():
@@ -167,6 +173,25 @@ def replaced_dir(out: Path | str, force: bool, where: str = "--out") -> Iterator
         except BaseException:
             shutil.rmtree(new, ignore_errors=True)
             raise
+        finally:
+            os.close(lock)
+
+
+def _remove_stale(out: Path) -> None:
+    """Remove ``.NAME.new-*`` directories beside ``out`` whose writer is gone (lock free)."""
+    for old in out.parent.glob(f".{out.name}.new-*"):
+        try:
+            fd = os.open(old, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            continue  # another process is writing it
+        else:
+            shutil.rmtree(old, ignore_errors=True)
+        finally:
+            os.close(fd)
 
 
 def save_figure(fig, path: Path | str, **kwargs) -> Path:

@@ -301,3 +301,21 @@ def test_a_failed_analysis_removes_the_parents_it_created(tmp_path):
         write_text(new / "results.json", "{}\n")
         raise RuntimeError("the report failed")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_new_directory_left_by_a_killed_analysis_is_removed_unless_in_use(tmp_path):
+    import fcntl
+
+    out = tmp_path / "analysis"
+    stale, busy = tmp_path / ".analysis.new-killed", tmp_path / ".analysis.new-busy"
+    for d in (stale, busy):
+        d.mkdir()
+        (d / "results.json").write_text("{}\n")
+    fd = os.open(busy, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX)  # another analysis still writing it
+    try:
+        with replaced_dir(out, False) as new:
+            write_text(new / "results.json", "{}\n")
+    finally:
+        os.close(fd)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".analysis.new-busy", "analysis"]
