@@ -465,6 +465,7 @@ def register(app: typer.Typer) -> None:
         10 x from the model's nominal, a negative k, a tool point the residuals
         contradict) is refused unless --accept-misfit.
         """
+        from analysis.identification.data_fingerprint import fingerprint
         from analysis.identification.estimate import identify, parse_joints
         from analysis.identification.measurements import TestArrays, to_arrays
         from analysis.identification.plausibility import problems
@@ -510,6 +511,7 @@ def register(app: typer.Typer) -> None:
             result = identify(model, tests, method=method, joints=joint_list,
                               noise=noise, covariance=covariance, robust=robust)
         result.assumptions = assumptions
+        result.tests_data = fingerprint(tests)
         if measurements is not None and extras["tool"].source.startswith("none given"):
             result.warnings.insert(0, (
                 "no tool point given: P assumed at the flange centre; if the displacements "
