@@ -150,3 +150,21 @@ def test_campaigns_sharing_their_tests_are_refused(identified, tmp_path, capsys)
     assert "identical stiffness and covariance" in capsys.readouterr().err
     assert main(["compare", str(identified), str(other)]) == 0
     assert "B's results.json has no tests_data" in capsys.readouterr().out
+
+
+def test_a_run_and_its_tests_csv_imported_again_are_refused(tmp_path, capsys):
+    """campaign analyze RUN and analyze --measurements RUN/tests.csv read the same tests
+    through two readers: refused as one campaign."""
+    from tests.report.report_runs import simulated_rows, write_run
+
+    run = write_run(tmp_path / "run", simulated_rows(seed=4))
+    assert main(["analyze", str(run), "--no-report"]) == 0
+    assert main(["analyze", "--measurements", str(run / "tests.csv"), "--robot", "kr240-2",
+                 "--out", str(tmp_path / "imported"), "--no-report",
+                 "--translation-sigma-um", "36.742", "--rotation-sigma-urad", "24.495"]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(run), str(tmp_path / "imported")]) == 2
+    assert "same tests" in capsys.readouterr().err
+    other = write_run(tmp_path / "other", simulated_rows(seed=5))
+    assert main(["analyze", str(other), "--no-report"]) == 0
+    assert main(["compare", str(run), str(other)]) == 0
