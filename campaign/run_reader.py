@@ -259,10 +259,11 @@ def _to_si(frame: pd.DataFrame, where: str) -> pd.DataFrame:
 LINES_LISTED = 5
 
 
-def _damaged_samples(path: Path) -> list[int]:
-    """Line numbers (1-based) of ``samples.jsonl`` that are not a JSON object (a line cut
-    short by a crash, a disk error, an edit); blank lines are not counted."""
-    bad = []
+def _damaged_samples(path: Path) -> tuple[list[int], bool]:
+    """(line numbers (1-based) of ``samples.jsonl`` that are not a JSON object (a line cut
+    short by a crash, a disk error, an edit; blank lines are not counted), True when the
+    last of them is the file's unfinished last line (no end of line))."""
+    bad, line = [], b"\n"
     with open(path, "rb") as fh:
         for i, line in enumerate(fh, start=1):
             if not line.strip():
@@ -273,24 +274,30 @@ def _damaged_samples(path: Path) -> list[int]:
                 record = None
             if not isinstance(record, dict):
                 bad.append(i)
-    return bad
+    return bad, bool(bad) and bad[-1] == i and not line.endswith(b"\n")
 
 
-def _check_samples(run: Path, notes: list[str]) -> list[int]:
-    """Damaged lines of the run's ``samples.jsonl`` (a WARNING note when any)."""
+def _check_samples(run: Path, partial: bool, notes: list[str]) -> list[int]:
+    """Damaged lines of the run's ``samples.jsonl``: a WARNING note when any, but a plain
+    note for the unfinished last line of a run that stopped (as for tests.csv)."""
     path = run / "samples.jsonl"
     if not path.is_file():
         return []
     try:
-        bad = _damaged_samples(path)
+        bad, cut_last = _damaged_samples(path)
     except OSError as err:
         notes.append(f"WARNING: {path.name}: cannot read ({err.strerror or err}): the raw "
                      "readings were not checked")
         return []
-    if bad:
-        listed = ", ".join(str(i) for i in bad[:LINES_LISTED]) + (
-            f" and {len(bad) - LINES_LISTED} more" if len(bad) > LINES_LISTED else "")
-        notes.append(f"WARNING: {path.name}: {len(bad)} damaged line(s) (not a JSON object: "
+    loud = bad
+    if partial and cut_last:
+        notes.append(f"{path.name} line {bad[-1]} was being written when the run stopped: "
+                     "dropped")
+        loud = bad[:-1]
+    if loud:
+        listed = ", ".join(str(i) for i in loud[:LINES_LISTED]) + (
+            f" and {len(loud) - LINES_LISTED} more" if len(loud) > LINES_LISTED else "")
+        notes.append(f"WARNING: {path.name}: {len(loud)} damaged line(s) (not a JSON object: "
                      f"line {listed}), skipped; the raw readings on them are lost (the "
                      "analysis uses tests.csv, which is not affected)")
     return bad
@@ -379,7 +386,7 @@ def read_run(path: str | Path, export: bool = True) -> Run:
         if hashlib.sha256((run / "plan.csv").read_bytes()).hexdigest() != plan_sha:
             notes.append("WARNING: plan.csv does not match plan_sha256 of metadata.json: the "
                          "copy was changed after the run started (not used by the analysis)")
-    damaged = _check_samples(run, notes)
+    damaged = _check_samples(run, status != "complete", notes)
     if export:
         _export_parquet(run, frame, notes, damaged)
     events = _read_events(run / "events.jsonl", notes)

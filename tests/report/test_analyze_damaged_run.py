@@ -59,3 +59,19 @@ def test_an_intact_run_has_no_such_warning(complete_run, tmp_path, capsys):
     assert "WARNING" not in err
     res = json.loads((tmp_path / "o" / "results.json").read_text())
     assert not any("protocol copy" in w or "samples.jsonl" in w for w in res["warnings"])
+
+
+def test_the_unfinished_last_samples_line_of_a_stopped_run_is_a_note(tmp_path, rows, capsys):
+    """kill -9 mid-write leaves a partial last line: dropped with a note, as in tests.csv;
+    in a complete run the same line is damage (a WARNING)."""
+    for status, loud in (("aborted", False), ("complete", True)):
+        run = write_run(tmp_path / status, rows, status=status)
+        (run / "samples.jsonl").write_text("\n".join(_samples(3)) + '\n{"t_utc": "2026-')
+        capsys.readouterr()
+        assert main(["analyze", str(run), "--no-report"]) == 0
+        err = capsys.readouterr().err
+        res = json.loads((run / "analysis" / "results.json").read_text())
+        assert ("WARNING: samples.jsonl: 1 damaged line(s) (not a JSON object: line 4)"
+                in err) is loud
+        assert any("samples.jsonl" in w for w in res["warnings"]) is loud
+        assert len(pd.read_parquet(run / "samples.parquet")) == 3
