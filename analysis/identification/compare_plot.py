@@ -17,14 +17,15 @@ PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 def check_plot_path(path: Path, option: str = "--plot") -> Path:
     """Refuses a plot path that cannot be written, before anything is computed."""
     path = Path(path)
-    if path.suffix.lower() not in PLOT_SUFFIXES:
-        raise InputError(f"{path}: expected a file name ending in "
-                         f"{', '.join(PLOT_SUFFIXES)}", where=option)
     if path.is_symlink():
         raise InputError(f"{path} is a symbolic link: refused (write to a plain file)",
                          where=option)
     if path.is_dir():
-        raise InputError(f"{path} is a directory: give a file name", where=option)
+        raise InputError(f"{path} is a directory: give a file name such as "
+                         f"{path / 'compare.png'}", where=option)
+    if path.suffix.lower() not in PLOT_SUFFIXES:
+        raise InputError(f"{path}: expected a file name ending in "
+                         f"{', '.join(PLOT_SUFFIXES)}", where=option)
     parent = path.parent
     if parent.is_symlink() or not parent.is_dir():
         raise InputError(f"the directory {parent} does not exist" if not parent.exists()

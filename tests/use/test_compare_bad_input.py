@@ -98,7 +98,7 @@ CASES = [
     ("tests-data-damaged", _set("tests_data", {"sha256": 5}), [], "results.json",
      "tests_data: expected sha256"),
     ("plot-missing-dir", None, ["--plot", "TMP/nowhere/c.png"], "--plot", "does not exist"),
-    ("plot-onto-dir", None, ["--plot", "TMP"], "--plot", "expected a file name ending"),
+    ("plot-onto-dir", None, ["--plot", "TMP"], "--plot", "is a directory: give a file name"),
     ("plot-onto-dir-png", None, ["--plot", "TMP/d.png"], "--plot", "is a directory"),
     ("plot-suffix", None, ["--plot", "TMP/c.txt"], "--plot", "expected a file name ending"),
     ("plot-symlink", None, ["--plot", "TMP/link.png"], "--plot", "symbolic link"),
