@@ -168,3 +168,34 @@ def test_a_run_and_its_tests_csv_imported_again_are_refused(tmp_path, capsys):
     other = write_run(tmp_path / "other", simulated_rows(seed=5))
     assert main(["analyze", str(other), "--no-report"]) == 0
     assert main(["compare", str(run), str(other)]) == 0
+
+
+def test_a_row_where_the_interval_and_the_z_test_part_is_marked():
+    """k from 1 to 2 N m/rad (x 1 -> 0.5) with se of x 0.1 and 0.2: z = 0.5/sqrt(0.05) =
+    2.236 on the compliances, while the delta-method interval of k_B - k_A = 1 has a
+    standard error hypot(0.1, 0.8) = 0.806 (ratio 1.24): at z_c = 2 the verdict is
+    "changed" and the interval holds 0, a borderline row said as such."""
+    from scipy.stats import norm
+
+    from analysis.identification.compare import Campaign, compare
+
+    def campaign(name, k, se_x):
+        kk = np.full(6, np.nan)
+        kk[0] = k
+        x = np.where(np.isfinite(kk), 1 / kk, np.nan)
+        cov = np.zeros((6, 6))
+        cov[0, 0] = se_x ** 2
+        return Campaign(name, "arm", kk, x, cov, (0,),
+                        tests_data={"sha256": name, "row_digests": [name]})
+
+    alpha = 2 * norm.sf(2.0)
+    out = compare(campaign("a", 1.0, 0.1), campaign("b", 2.0, 0.2), alpha)
+    row = out["joints"][0]
+    assert np.isclose(out["critical_z"], 2.0, rtol=1e-12)
+    assert np.isclose(row["z"], 0.5 / np.sqrt(0.05), rtol=1e-12) and row["verdict"] == "changed"
+    half = 2.0 * np.hypot(0.1, 0.8)
+    assert np.allclose(row["interval_difference_Nm_per_rad"], [1 - half, 1 + half], rtol=1e-12)
+    assert "borderline" in row["note"]
+    # far from the border: no note
+    out = compare(campaign("a", 1.0, 0.01), campaign("b", 1.1, 0.01), alpha)
+    assert "note" not in out["joints"][0] and out["joints"][0]["z"] > 0
