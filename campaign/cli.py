@@ -33,7 +33,7 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
                 "disk before the next motion."),
     "analyze": ("analyze", "Identify joint stiffness from a run or a CSV file; write "
                 "results.json and the report."),
-    "compare": ("compare", "Per joint: k_B - k_A with its 95 % interval, z score and verdict."),
+    "compare": ("compare", "Per joint: k_B - k_A with its interval, z score and verdict."),
     "compensate": ("compensate", "Predict the deflection of P along a path and compute the "
                    "compensated joints."),
     "demo": ("demo", "Plan, acquire on the simulated lab and analyse the KR240-2 campaign "

@@ -231,6 +231,11 @@ def load_plan(directory: str | Path) -> tuple[Protocol, pd.DataFrame, str]:
     from analysis.file_errors import read_utf8
 
     directory = Path(directory)
+    if not directory.is_dir():
+        raise InputError("the plan directory does not exist (write one with campaign plan)"
+                         if not directory.exists() else
+                         "not a directory: --plan takes the directory campaign plan wrote",
+                         where=str(directory))
     copies = sorted(p for p in directory.glob("protocol.*")
                     if p.suffix in (".toml", ".yaml", ".yml"))
     if not copies:

@@ -284,6 +284,10 @@ class IdentificationResult:
     wrench_eiv : the correction for the wrench noise in the regressor
         (:func:`analysis.identification.eiv.shift_summary`), None when not applied;
         results.json ``wrench_errors_in_variables``.
+    tests_data : fingerprint of the tests analysed
+        (:func:`analysis.identification.data_fingerprint.fingerprint`), filled by the
+        caller; results.json ``tests_data`` (``campaign compare`` refuses campaigns that
+        share tests).
     """
 
     robot: str
@@ -317,6 +321,7 @@ class IdentificationResult:
     robust: dict | None = None
     residual_rows: ResidualRows | None = None
     wrench_eiv: dict | None = None
+    tests_data: dict | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -404,6 +409,7 @@ class IdentificationResult:
             "robust": self.robust,
             "wrench_errors_in_variables": self.wrench_eiv,
             "warnings": self.warnings,
+            "tests_data": self.tests_data,
             **residual_summary(self.residuals, rows=self.residual_rows),
             **validation_summary(self.validation),
         }

@@ -162,9 +162,6 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
     from campaign.tests_meta import read_sidecar
 
     run = read_run(run_dir)
-    for note in run.notes:  # the loud ones also go to the terminal
-        if note.startswith("WARNING"):
-            typer.echo(note, err=True)
     protocol = load_protocol(run.protocol_path) if run.protocol_path else None
     if protocol is not None:
         t = protocol.tool
@@ -188,8 +185,15 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
         if meta is not None and meta.noise is not None:
             noise, noise_source = meta.noise, meta.noise_source
         robot_source = "run metadata robot.key"
-        run.notes.append(f"no protocol copy in the run: robot from the metadata, tool "
-                         f"{tool.source}, noise from {noise_source}")
+        deleted = (" (metadata.json records its protocol_sha256: it was deleted)"
+                   if run.metadata.get("protocol_sha256") else "")
+        run.notes.append(f"WARNING: no protocol copy in the run{deleted}: robot from the "
+                         f"metadata robot.key {key!r}, tool {tool.source}, noise from "
+                         f"{noise_source}; restore the protocol copy to analyse with its "
+                         "figures")
+    for note in run.notes:  # the loud ones also go to the terminal
+        if note.startswith("WARNING"):
+            typer.echo(note, err=True)
     info = _run_info(run, robot.name, protocol, tool)
     true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
     extras = {"protocol": protocol, "true_k": None if true_k is None else np.asarray(true_k,
@@ -374,7 +378,9 @@ def _frozen_heap():
         gc.unfreeze()
 
 
-def _print(console: Console, result, paths: dict) -> None:
+def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
+    """The result's table, warnings (but the first ``printed``, on the terminal already)
+    and files."""
     from rich.markup import escape
 
     from analysis.report.formatting import interval_kNm, k_kNm
@@ -386,7 +392,7 @@ def _print(console: Console, result, paths: dict) -> None:
         table.add_row(f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
                       if np.isfinite(result.k[j]) else "-")
     console.print(table)
-    for w in result.warnings:
+    for w in result.warnings[printed:]:
         console.print(f"[yellow]warning:[/yellow] {escape(w)}")
     for w in result.misfit_accepted:
         console.print(f"[red]ACCEPTED WITH --accept-misfit:[/red] {escape(w)}")
@@ -469,6 +475,7 @@ def register(app: typer.Typer) -> None:
         contradict) is refused unless --accept-misfit. A non-empty output directory
         (an earlier analysis) is refused unless --force, which replaces it as a whole.
         """
+        from analysis.identification.data_fingerprint import fingerprint
         from analysis.identification.estimate import identify, parse_joints
         from analysis.identification.measurements import TestArrays, to_arrays
         from analysis.identification.plausibility import problems
@@ -519,6 +526,10 @@ def register(app: typer.Typer) -> None:
             result = identify(model, tests, method=method, joints=joint_list,
                               noise=noise, covariance=covariance, robust=robust)
         result.assumptions = assumptions
+        # what the run's reader warned about (a damaged run) stays with the result
+        early = [n.removeprefix("WARNING: ") for n in info.notes if n.startswith("WARNING")]
+        result.warnings[:0] = early
+        result.tests_data = fingerprint(tests)
         if measurements is not None and extras["tool"].source.startswith("none given"):
             result.warnings.insert(0, (
                 "no tool point given: P assumed at the flange centre; if the displacements "
@@ -542,12 +553,12 @@ def register(app: typer.Typer) -> None:
         paths = {k: out / Path(p).relative_to(new) for k, p in paths.items()}
         if as_json:
             summary = json.loads((out / "analysis.json").read_text())
-            for w in result.warnings:  # still on the terminal, beside the JSON on stdout
-                typer.echo(f"warning: {w}", err=True)
+            for w in result.warnings[len(early):]:  # still on the terminal, beside the JSON
+                typer.echo(f"warning: {w}", err=True)  # (the run's were printed on reading)
             print_json({**json.loads((out / "results.json").read_text()),
                         "files": {k: str(v) for k, v in paths.items()}, **summary})
             return
-        _print(console, result, paths)
+        _print(console, result, paths, printed=len(early))
 
 
 def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: int,
