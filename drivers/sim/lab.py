@@ -63,12 +63,7 @@ class Lab:
         if name == "ati-netcan":
             from drivers.sim.fake_netcan import FakeNetCAN
 
-            try:
-                return FakeNetCAN(self.world, interface=self.settings.can_interface)
-            except Exception as err:  # python-can backends raise assorted errors
-                self.notes.append(f"ati-netcan fake not started ({self.settings.can_interface}: "
-                                  f"{err}); use can_interface='virtual' in-process")
-                return None
+            return FakeNetCAN(self.world, interface=self.settings.can_interface)
         if name == "emscon":
             from drivers.sim.fake_emscon import FakeEmscon
 
