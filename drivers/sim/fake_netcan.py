@@ -78,7 +78,7 @@ class FakeNetCAN(FakeServer):
     def _sg(self) -> np.ndarray:
         if self._last_sg is not None and self.world.faults.active(self.device, "frozen"):
             return self._last_sg
-        w = self.world.sensor_wrench()
+        w = self.world.sensor_wrench(self.device)
         counts = w * np.array([self.cpf] * 3 + [self.cpt] * 3)
         sg = np.clip(np.round(np.linalg.solve(self.matrix, counts)), -32767, 32767)
         self._last_sg = sg

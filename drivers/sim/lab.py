@@ -115,6 +115,16 @@ class Lab:
             return
         self.addresses["ur"] = line.split("=", 1)[1]
 
+    def window_guard(self, driver: str):
+        """The context a client of fake ``driver`` enters when it opens an averaging window
+        (:meth:`drivers.sim.base.FakeServer.window`), or None when no such fake runs."""
+        return next((fake.window for fake in self.fakes if fake.driver == driver), None)
+
+    def mark(self, *context: object) -> None:
+        """Tell the simulation what the client does now (test, repeat, attempt, phase):
+        the noise of each reading is drawn from (seed, instrument, context, sample)."""
+        self.world.noise_streams.mark(*context)
+
     def wait(self) -> None:
         """Block until a ``shutdown`` control command (or :meth:`stop`)."""
         while not self._done.wait(0.5):
