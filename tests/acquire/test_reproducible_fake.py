@@ -116,3 +116,20 @@ def test_settling_is_exactly_over_after_six_time_constants():
     before = world._deflection(t0 + 5 * world.tau)
     # exponential settling before: 1 - e^-5 of the step reached
     np.testing.assert_allclose(before, target * (1 - np.exp(-5)), rtol=1e-12)
+
+
+def test_control_channel_mark_sets_the_context_of_the_noise():
+    from drivers.sim.control import handle_command
+
+    world = World(LabSettings(seed=9, time_scale=1e6, can_interface="virtual"))
+    assert handle_command(world, {"cmd": "mark", "context": [2, 1, 1, "loaded"]}, {})["ok"]
+    first = [world.tracker_point(source="geocom") for _ in range(3)]
+    world.tracker_point(source="emscon")  # another instrument's draw changes nothing
+    assert handle_command(world, {"cmd": "mark", "context": [2, 1, 1, "loaded"]}, {})["ok"]
+    again = [world.tracker_point(source="geocom") for _ in range(3)]
+    assert all(np.array_equal(a, b) for a, b in zip(first, again, strict=True))
+    assert handle_command(world, {"cmd": "mark", "context": [2, 1, 2, "loaded"]}, {})["ok"]
+    assert not np.array_equal(world.tracker_point(source="geocom"), first[0])
+    for bad in ([-1], "loaded", [1.5], [True]):
+        reply = handle_command(world, {"cmd": "mark", "context": bad}, {})
+        assert not reply["ok"] and "context" in reply["error"], reply
