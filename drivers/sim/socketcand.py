@@ -100,8 +100,6 @@ class CanHub:
         self.clients: list[_Client] = []
         self._lock = threading.Lock()
         self.stopping = threading.Event()
-        #: while set, the node neither hears nor answers (a disconnected sensor)
-        self.silent = False
 
     def serve(self) -> None:
         """Accept clients until :meth:`close` (run in a thread)."""
@@ -200,8 +198,6 @@ class CanHub:
                 return
             arbitration_id, extended, data = frame
             self.broadcast(arbitration_id, data, sender=client, extended=extended)
-            if self.silent:
-                return
             for reply_id, reply in self.node(arbitration_id, extended, data):
                 self.broadcast(reply_id, reply)
         else:
