@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -257,14 +258,18 @@ def _to_si(frame: pd.DataFrame, where: str) -> pd.DataFrame:
 
 def _export_parquet(run: Path, tests: pd.DataFrame, notes: list[str]) -> None:
     """Write ``tests.parquet`` and ``samples.parquet`` when missing (docs/run_format.md)."""
+    from analysis.output_files import replacing
+
     try:
-        if not (run / "tests.parquet").exists():
-            tests.drop(columns=["flag_list"]).to_parquet(run / "tests.parquet", index=False)
+        if not os.path.lexists(run / "tests.parquet"):
+            with replacing(run / "tests.parquet") as tmp:
+                tests.drop(columns=["flag_list"]).to_parquet(tmp, index=False)
         samples = run / "samples.jsonl"
-        if samples.is_file() and not (run / "samples.parquet").exists():
+        if samples.is_file() and not os.path.lexists(run / "samples.parquet"):
             table = pd.read_json(samples, lines=True)
             if len(table):
-                table.to_parquet(run / "samples.parquet", index=False)
+                with replacing(run / "samples.parquet") as tmp:
+                    table.to_parquet(tmp, index=False)
     except (OSError, ValueError, ImportError) as err:
         notes.append(f"could not write the Parquet exports into the run: {err}")
 

@@ -186,6 +186,8 @@ def plot_comparison(result: dict, path: Path) -> Path:
                  fontsize=10)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
     return path

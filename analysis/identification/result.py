@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.errors import InputError
 from analysis.identification.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 
@@ -537,13 +536,11 @@ def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str
 
     Returns the paths written, by name.
     """
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError(f"cannot create the output directory: {err}", where=str(out)) from err
+    from analysis.output_files import make_dir, write_text
+
+    out = make_dir(out_dir)
     paths = {"results": out / "results.json", "residuals": out / "residuals.csv"}
-    paths["results"].write_text(json.dumps(result.to_dict(), indent=2) + "\n")
+    write_text(paths["results"], json.dumps(result.to_dict(), indent=2) + "\n")
     write_table(result.residuals if result.residual_rows is None else result.residual_rows,
                 paths["residuals"])
     if result.validation is not None:
