@@ -5,7 +5,7 @@ connect, initialize, read the joints, move and abort:
 
 * handshake: ``FRC_Connect`` is answered with ``PortNumber`` (the session listener) and
   the connection is closed by the client; a second ``FRC_Connect`` while a session is
-  open gets RMIT-026 (*Robot is Already Connected*);
+  open (or announced less than 2 s ago) gets RMIT-026 (*Robot is Already Connected*);
 * commands ``FRC_Initialize`` (RMIT-008 when the pendant is enabled, RMIT-015 when RMI
   already runs), ``FRC_Abort``, ``FRC_Pause``/``FRC_Continue``, ``FRC_Reset``,
   ``FRC_GetStatus``, ``FRC_ReadError``, ``FRC_ReadJointAngles``,
@@ -75,7 +75,9 @@ class FakeRMI(TcpFake):
         self.errors: dict[str, int] = {}
         self.transcript: list[tuple[str, dict[str, Any]]] = []
         self._lock = threading.RLock()
-        self._active = threading.Event()
+        self._active = threading.Event()  # a session was announced
+        self._session_open = threading.Event()
+        self._handshake_t = 0.0
         self._initialized = False
         self._paused = False
         self._next_seq = 1
@@ -111,16 +113,22 @@ class FakeRMI(TcpFake):
                 conn.sendall(rmi.encode({**self._name_of(packet), "ErrorID": rmi.rmit(13)}))
                 continue
             deadline = time.monotonic() + 0.25  # a client that just closed its session
-            while self._active.is_set() and time.monotonic() < deadline:
+            while self._busy() and time.monotonic() < deadline:
                 time.sleep(0.01)
-            if self._active.is_set():
+            if self._busy():
                 conn.sendall(rmi.encode({"Communication": "FRC_Connect",
                                          "ErrorID": rmi.rmit(26)}))
                 continue
             self._active.set()
+            self._handshake_t = time.monotonic()
             conn.sendall(rmi.encode({"Communication": "FRC_Connect", "ErrorID": 0,
                                      "PortNumber": self.session.port, "MajorVersion": 1,
                                      "MinorVersion": 0}))
+
+    def _busy(self) -> bool:
+        """A session is open, or was announced less than 2 s ago and not yet opened."""
+        return self._session_open.is_set() or (
+            self._active.is_set() and time.monotonic() - self._handshake_t < 2.0)
 
     @staticmethod
     def _name_of(packet: dict[str, Any]) -> dict[str, Any]:
@@ -133,6 +141,7 @@ class FakeRMI(TcpFake):
     # --- session port -----------------------------------------------------
     def serve_session(self, port: _SessionPort, conn: socket.socket) -> None:
         send_lock = threading.Lock()
+        self._session_open.set()
 
         def send(packet: dict[str, Any]) -> None:
             if port.fault("drop"):
@@ -173,6 +182,7 @@ class FakeRMI(TcpFake):
                 for t in self._pending:
                     t.cancel()
                 self._pending.clear()
+            self._session_open.clear()
             self._active.clear()
 
     def _error(self, reply: dict[str, Any], error_id: int) -> dict[str, Any]:
