@@ -20,8 +20,9 @@ connect, initialize, read the joints, move and abort:
   closes it.
 
 Joint angles are the world's (controller convention, so J3 is the coupled one for a
-FANUC model); Cartesian positions are the nominal tool pose in the robot model's base
-frame (mm, W-P-R in degrees: R = Rz(R) Ry(P) Rx(W)). Tests arm controller errors with
+FANUC model); Cartesian positions are the nominal tool pose in FANUC's world frame
+(UFRAME 0: the model's base frame raised to the height of J2's axis, as ROS-Industrial's
+``base`` frame; mm, W-P-R in degrees: R = Rz(R) Ry(P) Rx(W)). Tests arm controller errors with
 :attr:`FakeRMI.errors` (command or instruction name -> ErrorID, once) and the pendant
 with :attr:`FakeRMI.tp_enabled`; the lab's faults ``drop``, ``late``, ``garbage`` and
 ``disconnect`` act on the session's answers.
@@ -88,6 +89,7 @@ class FakeRMI(TcpFake):
         self._motion: tuple[np.ndarray, np.ndarray, float, float] | None = None
         self._t0 = time.monotonic()
         self._last_reply = b""
+        self.world_height = self._world_height()
 
     def start(self) -> None:
         self.session.start()
@@ -326,13 +328,23 @@ class FakeRMI(TcpFake):
             self._motion = None
         self._initialized = False
 
+    def _world_height(self) -> float:
+        """Height (m) of FANUC's world frame above the model's base: J2's axis at zero."""
+        from analysis.model.kinematics import chain_state
+
+        robot = self.world.robot
+        if robot.n < 2:
+            return 0.0
+        return float(chain_state(robot, np.zeros(robot.n)).origins[1][2])
+
     def _time_tag(self) -> int:
         return int((time.monotonic() - self._t0) * 1000) & 0x7FFFFFFF
 
     def _cartesian(self) -> dict[str, Any]:
         from scipy.spatial.transform import Rotation
 
-        T = self.world.nominal_tool_pose()
+        T = self.world.nominal_tool_pose().copy()
+        T[2, 3] -= self.world_height
         w, p, r = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
         x, y, z = T[:3, 3] * 1e3
         q = np.degrees(self.world.joint_angles())

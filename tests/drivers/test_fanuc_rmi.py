@@ -72,7 +72,9 @@ def test_transcript_connect_read_move_close(fanuc):
     reached = drv.move_joints(target, 0.5, 1.0).value
     np.testing.assert_allclose(reached, target, atol=np.radians(1e-4))
     pose = drv.read_tool_pose()
-    np.testing.assert_allclose(pose.value, world.nominal_tool_pose(), atol=2e-6)
+    expect = world.nominal_tool_pose()
+    expect[2, 3] -= 0.670  # FANUC's world frame: at J2's height (ROS-Industrial's "base")
+    np.testing.assert_allclose(pose.value, expect, atol=2e-6)
     assert (pose.frame, pose.child) == ("uframe 0", "utool 1")
     drv.close()
     deg = {f"J{i + 1}": round(float(v), 4) for i, v in enumerate(np.degrees(target))}
@@ -240,6 +242,7 @@ def test_standard_rmi_client_library_on_the_fake(fanuc, tmp_path, capsys):
     after = client.read_joint_coordinates(output_path=str(tmp_path / "j.jsonl"))
     q_wire = np.radians([after["JointAngle"][f"J{i}"] for i in range(1, 7)])
     ref = urdf_tool0(R2000IC_URDF, fanuc_urdf_angles(q_wire))
+    ref[2, 3] -= 0.670  # the URDF's base_link-base joint: FANUC's world frame
     np.testing.assert_allclose([cart["Position"][k] for k in "XYZ"], ref[:3, 3] * 1e3,
                                atol=2e-3)
     assert client.abort()["ErrorID"] == 0
