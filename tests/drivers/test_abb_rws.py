@@ -196,6 +196,11 @@ def test_rws2_certificate_and_content_types(world, tmp_path):
         assert form.status_code == 406  # form body without ;v=2.0
         assert requests.get(base + "/rw/panel/opmode", verify=str(ca),
                             headers={"Accept": rws.HAL_JSON}).status_code == 401
+        page = requests.get(base + "/rw/panel/opmode", auth=auth, verify=str(ca),
+                            headers={"Accept": "application/xhtml+xml;v=2.0"})
+        assert page.headers["Content-Type"] == "application/xhtml+xml;v=2.0"
+        assert '<li class="pnl-opmode" title="opmode"><span class="opmode">AUTO</span>' \
+            in page.text
     finally:
         fake.stop()
 
