@@ -1,4 +1,8 @@
-"""The report's plots, as PNG bytes of a fixed size (:data:`WIDTH` x :data:`HEIGHT` px).
+"""The report's plots, as PNG bytes drawn at 300 px per inch (:data:`DPI`), shown at
+:data:`WIDTH` x :data:`HEIGHT` CSS px (6.4 x 4 in; 325 px per inch at the PDF's 150 mm).
+
+Texts inside the figures use mathtext for symbols (θ₂, κ_F as $\\kappa_F$): no
+literal underscore is drawn.
 
 Each function takes data in SI (angles in rad where arrays of poses are
 given) and labels its axes in the report's units (deg, kN m/rad, mm).
@@ -18,8 +22,10 @@ from matplotlib.figure import Figure as MplFigure
 from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
-DPI = 125  # px per inch: 800 x 500 px, 135 px per inch at the PDF's 150 mm width
-WIDTH, HEIGHT = int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI)
+DPI = 300  # px per inch of the PNG: 1920 x 1200 px, 325 px per inch at the PDF's 150 mm
+DISPLAY_DPI = 125  # CSS px per inch in the HTML: shown at 800 x 500
+WIDTH, HEIGHT = int(SIZE_IN[0] * DISPLAY_DPI), int(SIZE_IN[1] * DISPLAY_DPI)
+PIXELS = (int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI))
 COMPONENT_MARKERS = {"dx": "o", "dy": "s", "dz": "^", "rx": "v", "ry": "D", "rz": "P"}
 
 
@@ -63,7 +69,12 @@ def _png(fig, name: str, caption: str) -> Figure:
     buf = io.BytesIO()
     # zlib level 3: files 2 % larger than at the default 6, written in two thirds of the time
     Image.fromarray(rgb).save(buf, format="PNG", dpi=(DPI, DPI), compress_level=3)
-    return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption)
+    from matplotlib.text import Text
+
+    texts = [t.get_text() for t in fig.findobj(match=Text) if t.get_visible()
+             and t.get_text().strip()]
+    return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption,
+                  texts=texts)
 
 
 #: fixed margins (fractions of the canvas) for the report's one layout: title above,
@@ -141,7 +152,7 @@ def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[st
     fig, ax = _new(legend_below=True, colorbar=True, poses=True)
     t2, t3, z = _grid(table, "inv_kappa_F")
     cs = ax.contourf(t2, t3, z, levels=20, cmap="gray")
-    _colorbar(fig, ax, cs, "1/\u03ba_F of J_N")
+    _colorbar(fig, ax, cs, r"$1/\kappa_F$ of $J_N$")
     deg = np.degrees(q_tests)
     draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
@@ -210,12 +221,14 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals, {what}.")
 
 
-def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None = None
-                  ) -> Figure:
-    """Studentized residual per test and component; outliers (|t| > threshold) in red.
+def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None = None,
+                  flagged: int | None = None, beyond: int | None = None) -> Figure:
+    """Studentized residual per test and component; the flagged outliers circled in red,
+    residuals beyond the threshold the procedure did not set aside marked with a cross.
 
     ``n_tests``: the campaign's number of tests when ``residuals`` holds only the rows of
-    the tests with the largest residuals (the caption then says so)."""
+    the tests with the largest residuals (the caption then says so). ``flagged``,
+    ``beyond``: counts over the whole campaign (default: those of ``residuals``)."""
     fig, ax = _new(legend_below=True)
     tests = residuals["test"].to_numpy()
     for comp, marker in COMPONENT_MARKERS.items():
@@ -224,9 +237,15 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
             ax.plot(tests[sel] + 1, residuals.loc[sel, "studentized"], marker, ms=5,
                     mfc="none", label=comp, linestyle="none")
     out = residuals["outlier"].to_numpy(dtype=bool)
+    t_all = residuals["studentized"].to_numpy(dtype=float)
+    over = np.isfinite(t_all) & (np.abs(t_all) > threshold)
     if out.any():
-        ax.plot(tests[out] + 1, residuals.loc[out, "studentized"], "o", ms=11, mfc="none",
-                mec="red", mew=1.5, label="outlier")
+        ax.plot(tests[out] + 1, t_all[out], "o", ms=11, mfc="none",
+                mec="red", mew=1.5, label="flagged outlier")
+    rest = over & ~out
+    if rest.any():
+        ax.plot(tests[rest] + 1, t_all[rest], "x", ms=9, color="darkorange", mew=1.5,
+                label="beyond, not set aside")
     for s in (-threshold, threshold):
         ax.axhline(s, color="red", ls="--", lw=1, zorder=3)
     ax.axhline(0, color="k", lw=0.8)
@@ -234,7 +253,7 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
     extent = max(float(np.nanmax(np.abs(residuals["studentized"]), initial=0.0)), threshold)
     ax.set_ylim(-1.15 * extent, 1.15 * extent)
     ax.set_xlabel("test (row of the identification, 1-based)")
-    ax.set_ylabel("studentized residual (1)")
+    ax.set_ylabel("studentized residual")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))
     _title(ax, "Residuals per test and component", fontsize=9)
@@ -242,8 +261,18 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
              f" Shown: the {residuals['test'].nunique()} of {n_tests} tests holding the "
              "largest |studentized| residuals (outliers first); every test is in "
              "residuals.csv.")
-    return _png(fig, "residuals", f"Studentized residuals; dashed lines at \u00b1{threshold:.2f}; "
-                "circled in red: outliers." + shown)
+    from analysis.identification.estimate import MAX_OUTLIERS
+
+    n_flag = int(out.sum()) if flagged is None else flagged
+    n_over = int(over.sum()) if beyond is None else beyond
+    how = (f"{n_over} residual(s) of the fit beyond the dashed lines at \u00b1{threshold:.2f}; "
+           f"{n_flag} flagged as outliers (circled in red)")
+    if n_over != n_flag:
+        how += (f". The outlier test sets aside the largest |t| and refits, one at a time, "
+                f"at most {MAX_OUTLIERS + 1} residuals: after the refits some residuals "
+                "beyond the line in this first fit fall inside it, or the budget is spent; "
+                "crosses: beyond the line, not set aside")
+    return _png(fig, "residuals", f"Studentized residuals of the fit; {how}." + shown)
 
 
 def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: str,

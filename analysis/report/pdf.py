@@ -1,4 +1,5 @@
-"""The report as a PDF made with fpdf2 (A4 portrait, each section on a new page).
+"""The report as a PDF made with fpdf2 (A4 portrait, flowing: a section starts a new page
+only when its heading and first lines would not fit; bookmarks for sections and tables).
 
 Fonts: the DejaVu TrueType fonts shipped with matplotlib (Unicode: deg, +-,
 Greek letters), embedded in the file.
@@ -16,7 +17,10 @@ from analysis.report.model import Figure, Paragraph, Report, Table
 
 MARGIN = 15.0  # mm
 FIGURE_WIDTH = 150.0  # mm
-FILL = {"warning": (255, 243, 205), "note": (238, 243, 251)}
+FILL = {"warning": (255, 243, 205), "note": (238, 243, 251), "verdict": (230, 244, 234),
+        "refusal": (253, 226, 225)}
+SIM_BAND = 9.0  # mm, height of the SIMULATED DATA band at the top of each page
+KEEP_WITH_HEADING = 45.0  # mm: a heading needs this much room below it, else a new page
 MARK = (253, 226, 225)
 HEAD = (232, 236, 244)
 
@@ -26,24 +30,42 @@ def _font_dir() -> Path:
 
 
 class _Doc(FPDF):
-    def __init__(self, title: str) -> None:
+    def __init__(self, title: str, simulated: bool = False, trace: str = "") -> None:
         super().__init__(orientation="P", unit="mm", format="A4")
         self.report_title = title
+        self.simulated = simulated
+        self.trace = trace
         self.table_header = None  # draws the current table's header after a page break
         fonts = _font_dir()
         self.add_font("DejaVu", "", str(fonts / "DejaVuSans.ttf"))
         self.add_font("DejaVu", "B", str(fonts / "DejaVuSans-Bold.ttf"))
         self.add_font("DejaVuMono", "", str(fonts / "DejaVuSansMono.ttf"))
-        self.set_margins(MARGIN, MARGIN, MARGIN)
-        self.set_auto_page_break(True, margin=MARGIN + 5)
+        self.set_margins(MARGIN, MARGIN + (SIM_BAND if simulated else 0.0), MARGIN)
+        self.set_auto_page_break(True, margin=MARGIN + 8)
         self.set_title(title)
         self.set_creator("stiffness-campaign")
 
+    def header(self) -> None:
+        if not self.simulated:
+            return
+        from analysis.report.html import SIMULATED_TEXT
+
+        self.set_fill_color(204, 0, 0)
+        self.set_text_color(255)
+        self.set_font("DejaVu", "B", 9)
+        self.set_xy(MARGIN, 5)
+        self.cell(self.w - 2 * MARGIN, SIM_BAND - 2, SIMULATED_TEXT, align="C", fill=True)
+        self.set_text_color(0)
+        self.set_xy(MARGIN, self.t_margin)
+
     def footer(self) -> None:
-        self.set_y(-MARGIN)
-        self.set_font("DejaVu", "", 8)
+        self.set_y(-MARGIN - 3)
+        self.set_font("DejaVu", "", 7)
         self.set_text_color(110)
-        self.cell(0, 5, f"{self.report_title}  \u2014  page {self.page_no()} of {{nb}}",
+        self.set_draw_color(180)
+        self.line(MARGIN, self.get_y(), self.w - MARGIN, self.get_y())
+        self.cell(0, 4, self.trace, align="C", new_x="LMARGIN", new_y="NEXT")
+        self.cell(0, 4, f"{self.report_title}  \u2014  page {self.page_no()} of {{nb}}",
                   align="C")
         self.set_text_color(0)
 
@@ -54,17 +76,22 @@ def _space_left(doc: FPDF) -> float:
 
 def _paragraph(doc: _Doc, p: Paragraph) -> None:
     if p.kind == "heading":
-        if _space_left(doc) < 30:
+        if _space_left(doc) < KEEP_WITH_HEADING:
             doc.add_page()
+        doc.start_section(p.text, level=1)
         doc.set_font("DejaVu", "B", 11)
         doc.multi_cell(0, 6, p.text, new_x="LMARGIN", new_y="NEXT")
         doc.ln(1)
         return
-    doc.set_font("DejaVu", "", 9)
+    bold = p.kind in ("facts", "verdict", "refusal")
+    doc.set_font("DejaVu", "B" if bold else "", 9.5 if bold else 9)
     fill = p.kind in FILL
     if fill:
         doc.set_fill_color(*FILL[p.kind])
+    if p.kind == "refusal":
+        doc.set_text_color(176, 0, 0)
     doc.multi_cell(0, 4.6, p.text, fill=fill, new_x="LMARGIN", new_y="NEXT", padding=1.2)
+    doc.set_text_color(0)
     doc.ln(2)
 
 
@@ -102,12 +129,12 @@ def _lines(doc: _Doc, cells: list[str], widths: list[float]) -> list[list[str]]:
 
 
 def _row(doc: _Doc, cells: list[str], widths: list[float], align: list[str],
-         fill: bool) -> None:
+         fill: bool, min_height: float = 0.0) -> None:
     """One framed table row at the current y, every cell as high as the row's tallest and
     its text centred vertically: a one-line cell is one ``cell``, a wrapped one a frame and
     one ``cell`` per line. Starts a new page (repeating the header) when the row does not fit."""
     lines = _lines(doc, cells, widths)
-    h = max(map(len, lines)) * LINE_HEIGHT + 2 * PAD
+    h = max(max(map(len, lines)) * LINE_HEIGHT + 2 * PAD, min_height)
     if doc.get_y() + h > doc.page_break_trigger and doc.table_header is not None:
         doc.add_page()
         header, doc.table_header = doc.table_header, None
@@ -137,6 +164,7 @@ def _table(doc: _Doc, t: Table) -> None:
     usable = doc.page_break_trigger - doc.t_margin - 20
     if _space_left(doc) < (need if need < usable else 25 + 4 * ROW_HEIGHT):
         doc.add_page()
+    doc.start_section(t.title, level=1)
     doc.set_font("DejaVu", "B", 10)
     doc.multi_cell(0, 5.5, t.title, new_x="LMARGIN", new_y="NEXT")
     size = 7.5 if len(t.columns) > 7 else 8.5
@@ -156,7 +184,7 @@ def _table(doc: _Doc, t: Table) -> None:
     header()
     doc.table_header = header
     for cells, mark in zip(t.rows, t.marked, strict=True):
-        _row(doc, cells, widths, align, fill=mark)
+        _row(doc, cells, widths, align, fill=mark, min_height=10.0 if t.tall else 0.0)
     doc.table_header = None
     doc.c_margin = margin
     if t.caption:
@@ -182,21 +210,28 @@ def _figure(doc: _Doc, f: Figure) -> None:
 
 
 def render_pdf(report: Report) -> bytes:
-    """The report as PDF bytes."""
-    doc = _Doc(report.title)
+    """The report as PDF bytes: page 1 opens with the title and the result block; every
+    page carries the report ID, date and software in its footer (and the SIMULATED DATA
+    band at its top when the data are simulated)."""
+    from analysis.report.html import trace_text
+
+    doc = _Doc(report.title, report.simulated, trace_text(report))
+    doc.add_page()
+    doc.set_font("DejaVu", "B", 17)
+    doc.multi_cell(0, 8, report.title, new_x="LMARGIN", new_y="NEXT")
+    doc.set_font("DejaVu", "", 9)
+    doc.set_text_color(100)
+    doc.multi_cell(0, 5, report.subtitle, new_x="LMARGIN", new_y="NEXT")
+    doc.set_text_color(0)
+    doc.ln(2)
     for i, section in enumerate(report.sections):
-        doc.add_page()
-        if i == 0:
-            doc.set_font("DejaVu", "B", 17)
-            doc.multi_cell(0, 8, report.title, new_x="LMARGIN", new_y="NEXT")
-            doc.set_font("DejaVu", "", 9)
-            doc.set_text_color(100)
-            doc.multi_cell(0, 5, report.subtitle, new_x="LMARGIN", new_y="NEXT")
-            doc.set_text_color(0)
-            doc.ln(3)
+        if i and _space_left(doc) < KEEP_WITH_HEADING:
+            doc.add_page()
+        heading = f"{i + 1}. {section.title}"
+        doc.start_section(heading, level=0)
         doc.set_font("DejaVu", "B", 14)
         doc.set_draw_color(51, 102, 204)
-        doc.cell(0, 8, f"{i + 1}. {section.title}", border="B", new_x="LMARGIN", new_y="NEXT")
+        doc.cell(0, 8, heading, border="B", new_x="LMARGIN", new_y="NEXT")
         doc.ln(3)
         for block in section.blocks:
             if isinstance(block, Paragraph):
@@ -205,4 +240,5 @@ def render_pdf(report: Report) -> bytes:
                 _table(doc, block)
             else:
                 _figure(doc, block)
+        doc.ln(3)
     return bytes(doc.output())

@@ -66,7 +66,7 @@ def test_labels_read_as_a_user_expects(run_report):
     assert "Pose pose" not in text and "pose pose" not in text
     assert "(0 %)" not in text
     assert "K_X^-1" not in text and "J^-T" not in text  # formulas not in ASCII
-    table = run_report["page"].tables["Identified joint stiffness"]
+    table = run_report["page"].tables["Stiffness with standard errors and reference values"]
     assert table[0][6] == "k/nominal - 1 (%)"
     # where the nominal values come from: the robot file's [sources] stiffness
     assert "Nominal values: Dumas et al. 2011 Table 2" in text
