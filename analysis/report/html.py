@@ -30,7 +30,7 @@ nav ol { columns: 2; }
            font-weight: bold; }
 .refusal { background: #fde2e1; border-left: 4px solid #c00; color: #b00; padding: 0.5em 0.8em;
            font-weight: bold; }
-.simulated { position: sticky; top: 0; z-index: 10; background: #c00; color: #fff;
+.lab-banner { position: sticky; top: 0; z-index: 10; background: #c00; color: #fff;
              font-weight: bold; text-align: center; padding: 0.35em 0.5em;
              letter-spacing: 0.05em; margin: 0 -1em; }
 .trace { color: #555; font-size: 0.8em; margin: 0.2em 0; }
@@ -39,7 +39,7 @@ table.tall td { height: 2.4em; }
   table { font-size: 0.78em; } }
 @media print {
   body { max-width: none; margin: 0; padding: 0; font-size: 10pt; }
-  .simulated { position: fixed; top: 0; left: 0; right: 0; margin: 0; }
+  .lab-banner { position: fixed; top: 0; left: 0; right: 0; margin: 0; }
   body.sim { padding-top: 2.2em; }
   nav { display: none; }
   h2, h3 { break-after: avoid; page-break-after: avoid; }
@@ -143,7 +143,7 @@ def render_html(report: Report) -> str:
     sections = [_section(s) for s in report.sections]
     nav_html = f"<nav><h3>Contents</h3><ol>{nav}</ol></nav>"
     body = "\n".join(sections[:1] + [nav_html] + sections[1:])
-    sim = (f'<div class="simulated" role="note">{escape(SIMULATED_TEXT)}</div>'
+    sim = (f'<div class="lab-banner" role="note">{escape(SIMULATED_TEXT)}</div>'
            if report.simulated else "")
     trace = escape(trace_text(report))
     body_class = ' class="sim"' if report.simulated else ""

@@ -130,8 +130,9 @@ def summary_table(info: CampaignInfo) -> Table:
     ]
     for role, text in info.instruments.items():
         rows.append([f"instrument: {role}", text])
-    rows.append(["simulated lab", "yes: SIMULATED DATA, not a measurement of a real robot"
-                 if info.simulated else "no"])
+    if info.simulated:  # said only when true: a real run's report never says "simulated"
+        rows.append(["data", "SIMULATED DATA from the simulated lab (metadata fake), not a "
+                     "measurement of a real robot"])
     if info.software:
         rows.append(["software (acquisition)",
                      ", ".join(f"{k} {v}" for k, v in info.software.items())])
