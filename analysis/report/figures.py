@@ -39,18 +39,106 @@ POSE_STYLE = {"marker": "o", "mfc": "white", "mec": "black", "mew": 1.5, "ms": 8
 LABEL_BOX = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85}
 
 
+#: label offsets tried around a pose, in points from its centre (nearest first); the far
+#: ones get a leader line back to the pose
+NEAR_OFFSETS = [(6, 5), (6, -5), (-6, 5), (-6, -5), (0, 9), (0, -9)]
+FAR_RADII = (16.0, 26.0, 38.0, 52.0)
+#: poses closer than this (points on the map) are listed as nearly coinciding
+COINCIDE_PT = 6.0
+
+
+def _candidates():
+    """(dx, dy, ha, va, leader) label placements, nearest first."""
+    out = []
+    for dx, dy in NEAR_OFFSETS:
+        out.append((dx, dy, "left" if dx > 0 else "right" if dx < 0 else "center",
+                    "bottom" if dy > 0 else "top", False))
+    for r in FAR_RADII:
+        for ang in np.radians(np.arange(30, 390, 30)):
+            dx, dy = r * np.cos(ang), r * np.sin(ang)
+            out.append((dx, dy, "left" if dx > 1 else "right" if dx < -1 else "center",
+                        "bottom" if dy > 1 else "top" if dy < -1 else "center", True))
+    return out
+
+
+def _box(x, y, dx, dy, ha, va, w, h, s):
+    """Pixel box of a label of w x h points anchored (ha, va) at (x, y) + (dx, dy) pt."""
+    x0 = x + dx * s - {"left": 0.0, "center": w / 2, "right": w}[ha] * s
+    y0 = y + dy * s - {"bottom": 0.0, "center": h / 2, "top": h}[va] * s
+    return (x0, y0, x0 + w * s, y0 + h * s)
+
+
+def _overlaps(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
 def draw_poses(ax, t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str]) -> None:
     """Tested poses as white dots with a black edge, each numbered with its plan label.
 
     Markers and labels are not clipped (a pose on a joint limit sits on the
     axes' edge) and the labels sit on a white box (readable on any colour map).
+    Each label takes the nearest place where it covers no other label and no pose
+    marker (a leader line back to its pose when it had to move away); the
+    labels are kept on ``ax.figure.pose_labels`` for the overlap check.
     """
     ax.plot(t2_deg, t3_deg, clip_on=False, zorder=5, label="tested poses (plan labels)",
             **POSE_STYLE)
-    for a, b, text in zip(t2_deg, t3_deg, labels, strict=True):
-        ax.annotate(text, (a, b), xytext=(6, 5), textcoords="offset points", fontsize=8,
-                    fontweight="bold", color="black", bbox=LABEL_BOX, zorder=6,
-                    annotation_clip=False)
+    fig = ax.figure
+    ax.autoscale_view()
+    xy = ax.transData.transform(np.column_stack([t2_deg, t3_deg]))
+    s = fig.dpi / 72.0  # px per point
+    W, H = fig.bbox.width, fig.bbox.height
+    radius = POSE_STYLE["ms"] / 2 + 1
+    markers = [(x - radius * s, y - radius * s, x + radius * s, y + radius * s) for x, y in xy]
+    placed: list = []
+    texts = []
+    for (x, y), text in zip(xy, labels, strict=True):
+        w, h = 0.62 * 8 * len(text) + 4, 8 * 1.2 + 3  # points, with the white box
+        choice = None
+        for dx, dy, ha, va, leader in _candidates():
+            box = _box(x, y, dx, dy, ha, va, w, h, s)
+            inside = box[0] >= 0 and box[1] >= 0 and box[2] <= W and box[3] <= H
+            if inside and not any(_overlaps(box, o) for o in placed + markers):
+                choice = (dx, dy, ha, va, leader, box)
+                break
+        if choice is None:  # crowded beyond every place tried: the nearest one
+            dx, dy, ha, va, leader = _candidates()[0]
+            choice = (dx, dy, ha, va, leader, _box(x, y, dx, dy, ha, va, w, h, s))
+        dx, dy, ha, va, leader, box = choice
+        placed.append(box)
+        texts.append(ax.annotate(
+            text, ax.transData.inverted().transform((x, y)), xytext=(dx, dy),
+            textcoords="offset points", fontsize=8, fontweight="bold", color="black",
+            ha=ha, va=va, bbox=LABEL_BOX, zorder=6, annotation_clip=False,
+            arrowprops={"arrowstyle": "-", "lw": 0.8, "color": "black", "shrinkA": 0,
+                        "shrinkB": radius} if leader else None))
+    fig.pose_labels = getattr(fig, "pose_labels", []) + texts
+
+
+def coinciding(t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str],
+               tol_deg: float) -> list[list[str]]:
+    """Groups of poses whose (theta_2, theta_3) lie within ``tol_deg`` of each other."""
+    groups: list[list[int]] = []
+    for i in range(len(labels)):
+        for g in groups:
+            if any(np.hypot(t2_deg[i] - t2_deg[j], t3_deg[i] - t3_deg[j]) <= tol_deg
+                   for j in g):
+                g.append(i)
+                break
+        else:
+            groups.append([i])
+    return [[labels[i] for i in g] for g in groups if len(g) > 1]
+
+
+def _coincide_text(deg: np.ndarray, labels: list[str], ax) -> str:
+    """Caption words for poses that nearly coincide on the map ('' if none)."""
+    x0, x1 = ax.get_xlim()
+    tol = COINCIDE_PT / 72.0 * abs(x1 - x0) / (ax.get_position().width * SIZE_IN[0])
+    groups = coinciding(deg[:, 1], deg[:, 2], labels, tol)
+    if not groups:
+        return ""
+    return (" Nearly coinciding on this map (within " + f"{tol:.2g} deg; labels set apart "
+            "with leader lines): " + "; ".join(", ".join(g) for g in groups) + ".")
 
 
 def _png(fig, name: str, caption: str) -> Figure:
@@ -73,8 +161,11 @@ def _png(fig, name: str, caption: str) -> Figure:
 
     texts = [t.get_text() for t in fig.findobj(match=Text) if t.get_visible()
              and t.get_text().strip()]
+    renderer = canvas.get_renderer()
+    boxes = [tuple(float(v) for v in t.get_window_extent(renderer).extents)
+             for t in getattr(fig, "pose_labels", [])]
     return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption,
-                  texts=texts)
+                  texts=texts, label_boxes=boxes)
 
 
 #: fixed margins (fractions of the canvas) for the report's one layout: title above,
@@ -161,7 +252,7 @@ def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[st
     _legend_below(ax)
     return _png(fig, "poses_kappa_map", f"Tested poses {_pose_list(labels)} on the "
                 f"1/\u03ba_F map ({fixed_text}{_rule(rule)}; the poses' own \u03b8\u2081, "
-                "\u03b8\u2084..\u03b8\u2086 may differ).")
+                "\u03b8\u2084..\u03b8\u2086 may differ)." + _coincide_text(deg, labels, ax))
 
 
 def _rule(rule: str) -> str:
@@ -295,7 +386,7 @@ def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: 
     return _png(fig, "deflection_joint_map", "Norm of the predicted translational deflection "
                 f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}"
                 f"{_rule(rule)}, with the tested poses {_pose_list(labels)}; colour scale "
-                "clipped at the 99th percentile.")
+                "clipped at the 99th percentile." + _coincide_text(deg, labels, ax))
 
 
 def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:

@@ -77,6 +77,8 @@ class Figure:
     height: int
     caption: str
     texts: list[str] = field(default_factory=list)  # every text drawn in the figure
+    label_boxes: list[tuple[float, float, float, float]] = field(default_factory=list)
+    # pixel boxes (x0, y0, x1, y1) of the pose labels, for the overlap check
 
 
 Block = Paragraph | Table | Figure

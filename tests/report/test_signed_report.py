@@ -295,3 +295,34 @@ def test_instrument_keys_are_validated(tmp_path):
         "[instruments.pose]\n", '[instruments.pose]\ncalibration_date = "14 March"\n', 1))
     with pytest.raises(InputError, match="calibration_date"):
         load_protocol(bad)
+
+
+def _boxes_overlap(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+@pytest.mark.parametrize("which", ["kappa", "deflection"])
+def test_pose_labels_never_overlap_and_near_poses_are_listed(which):
+    """Poses 4 and 5 0.2 deg apart (the demo's), three more near each other: every label is
+    drawn where it overlaps no other, and the caption lists the coinciding poses."""
+    from analysis.report import figures
+
+    t2, t3 = np.meshgrid(np.linspace(-40, 140, 30), np.linspace(-220, 60, 30))
+    table = pd.DataFrame({"theta2_deg": t2.ravel(), "theta3_deg": t3.ravel(),
+                          "inv_kappa_F": np.abs(np.sin(np.radians(t3.ravel()))),
+                          "deflection_mm": 1 + np.abs(np.cos(np.radians(t2.ravel())))})
+    deg = np.array([[0, 40, -200], [0, 60, -100], [0, 41, -198], [0, 90, 10], [0, 90.2, 10.1],
+                    [0, 139, 59]])
+    q = np.radians(np.column_stack([deg, np.zeros((6, 3))]))
+    labels = ["1", "2", "3", "4", "5", "6"]
+    if which == "kappa":
+        fig = figures.poses_on_kappa_map(table, q, labels, "\u03b81 = 0 deg")
+    else:
+        fig = figures.deflection_joint_map(table, q, "f = (0, 0, 1) N", "\u03b81 = 0 deg",
+                                           labels)
+    boxes = fig.label_boxes
+    assert len(boxes) == 6
+    for i in range(6):
+        for j in range(i + 1, 6):
+            assert not _boxes_overlap(boxes[i], boxes[j]), (labels[i], labels[j])
+    assert "Nearly coinciding on this map" in fig.caption and "4, 5" in fig.caption
