@@ -279,12 +279,13 @@ def validation_blocks(result: IdentificationResult) -> list:
 
 
 KX_ROWS = ["fx (N)", "fy (N)", "fz (N)", "mx (N m)", "my (N m)", "mz (N m)"]
-KX_COLS = ["x (/mm)", "y (/mm)", "z (/mm)", "rx (/mrad)", "ry (/mrad)", "rz (/mrad)"]
+KX_COLS = ["\u03b4x (per mm)", "\u03b4y (per mm)", "\u03b4z (per mm)", "\u03b4rx (per mrad)",
+           "\u03b4ry (per mrad)", "\u03b4rz (per mrad)"]
 
 
-def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> Table:
-    """K_X (with K_C) in engineering units, its diagonal with standard errors and the
-    principal stiffnesses.
+def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> list[Table]:
+    """K_X (with K_C) in engineering units with its diagonal and standard errors, and the
+    table of the principal stiffnesses (translation in N/mm, rotation in N m/mrad).
 
     Every column is per mm (translation) or per mrad (rotation) of P, every row
     a force (N) or a moment (N m), so each SI entry is scaled by 1e-3: the
@@ -299,18 +300,23 @@ def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> Table:
     rows = []
     for i in range(6):
         se = "" if se_diag is None else f" {PM} {sig(1e-3 * se_diag[i], 2)}"
-        rows.append([KX_ROWS[i], *[eng(v) for v in M[i]], eng(diag[i]) + se,
-                     eng(principal[i])])
-    return Table(f"K_X at {pose_title(label, start=False)}, with K_C",
-                 ["", *KX_COLS, f"diagonal {PM} se", "principal"], rows,
-                 caption="Row: force (N) or moment (N m) at P; column: translation (mm) or "
-                 "rotation (mrad) of P, base frame; so the translational block reads in N/mm "
-                 "and the rotational one in N m/mrad. Principal: the stiffness P shows under a "
-                 "pure force (top three, N/mm) or a pure moment (bottom three, N m/mrad) along "
-                 "the principal directions, largest first (inverse eigenvalues of the blocks "
-                 "of K_X\u207b\u00b9). Standard errors from the covariance of the identified "
-                 "compliances.",
-                 widths=[0.8, 0.9, 0.9, 0.9, 0.9, 0.9, 0.9, 1.2, 0.9], mono=True)
+        rows.append([KX_ROWS[i], *[eng(v) for v in M[i]], eng(diag[i]) + se])
+    where = pose_title(label, start=False)
+    kx = Table(f"K_X at {where}, with K_C",
+               ["", *KX_COLS, f"diagonal {PM} se"], rows,
+               caption="Row: force (N) or moment (N m) at P; column: translation (mm) or "
+               "rotation (mrad) of P, base frame; so the translational block reads in N/mm "
+               "and the rotational one in N m/mrad. Standard errors from the covariance of "
+               "the identified compliances.",
+               widths=[0.8, 0.9, 0.9, 0.9, 0.9, 0.9, 0.9, 1.3], mono=True)
+    principal_table = Table(
+        f"Principal stiffnesses at {where}", ["load", "largest", "middle", "smallest"],
+        [["pure force (N/mm)", *[eng(v) for v in principal[:3]]],
+         ["pure moment (N m/mrad)", *[eng(v) for v in principal[3:]]]],
+        caption="The stiffness P shows under a pure force or a pure moment along the "
+        "principal directions (inverse eigenvalues of the translational and rotational "
+        "blocks of K_X\u207b\u00b9), largest first.", widths=[1.6, 1, 1, 1], mono=True)
+    return [kx, principal_table]
 
 
 def kc_effect_table(poses: list) -> Table:
@@ -355,7 +361,7 @@ def kx_blocks(inp: ReportInputs, k_pred: np.ndarray,
             f"with K_C: \u03b4p = ({', '.join(eng(v, 3) for v in dp)}) mm, |\u03b4p| = "
             f"{eng(float(np.linalg.norm(dp)), 3)} mm; \u03b4\u03c6 = "
             f"({', '.join(eng(v, 3) for v in dr)}) mrad."))
-        blocks.append(kx_engineering(ps, label, _kx_se_diag(inp, q, k_pred, result)))
+        blocks.extend(kx_engineering(ps, label, _kx_se_diag(inp, q, k_pred, result)))
     if computed:
         blocks.append(kc_effect_table(computed))
     return blocks
@@ -396,21 +402,39 @@ def robustness_blocks(result: IdentificationResult, inp: ReportInputs,
     table = design_robustness(inp.robot, q, w, k_ref, inp.noise, result.joints, tests=ns,
                               trials=inp.trials)
     se_rel = {j + 1: result.se_k[j] / result.k[j] for j in result.joints}
-    fig = figures.robustness_curve(table, result.n_tests, se_rel)
-    rows = []
+    nz = inp.noise
+    noise_text = (f"wls, {inp.trials} trials; noise {sig(1e6 * nz.translation_sigma, 3)} "
+                  f"\u00b5m, {sig(1e6 * nz.rotation_sigma, 3)} \u00b5rad, "
+                  f"{sig(nz.force_sigma, 3)} N, {sig(nz.moment_sigma, 3)} N m")
+    fig = figures.robustness_curve(table, result.n_tests, se_rel, noise_text)
+    rows, std_rows = [], []
     for j in sorted(table["joint"].unique()):
-        s = table[table["joint"] == j].set_index("n_tests")["relative_std"]
-        rows.append([f"k{j}", *[fixed(100 * s[n], 2) for n in ns]])
+        s = table[table["joint"] == j].set_index("n_tests")
+        rows.append([f"k{j}", *[sig(100 * s.loc[n, "robust_sigma"], 2)
+                                if s.loc[n, "identifiable"] else "n.i." for n in ns]])
+        std_rows.append([f"k{j}", *[sig(100 * s.loc[n, "relative_std"], 2)
+                                    if s.loc[n, "identifiable"] else "n.i." for n in ns]])
     return [
-        Paragraph(f"The campaign's {m} distinct pose/load pairs, each repeated n // {m} "
-                  f"times plus n mod {m} of them at random (n < {m}: n of them at random); "
-                  f"{inp.trials} trials per point; truth = the identified k; noise = the "
-                  "identification's noise model; batched least squares on the linear model "
-                  "weighted by the displacement sigmas. At n = this campaign's size the "
-                  "curve should meet its reported standard errors (stars)."),
+        Paragraph(f"The campaign's {m} distinct pose/load pairs, each repeated "
+                  f"\u230an/{m}\u230b times plus (n mod {m}) of them at random (n < {m}: n "
+                  f"of them at random); {inp.trials} trials per point; truth = the "
+                  "identified k; noise = the identification's noise model (translation "
+                  f"{sig(1e6 * nz.translation_sigma, 3)} \u00b5m, rotation "
+                  f"{sig(1e6 * nz.rotation_sigma, 3)} \u00b5rad, force "
+                  f"{sig(nz.force_sigma, 3)} N, moment {sig(nz.moment_sigma, 3)} N m per "
+                  "component); batched weighted least squares on the linear model. At n = "
+                  "this campaign's size the curve should meet its reported standard errors "
+                  "(stars)."),
         fig,
-        Table("Relative standard deviation of k (%) against the number of tests",
-              ["joint", *[f"n = {n}" for n in ns]], rows),
+        Table("Spread of k (IQR / 1.349, % of k) against the number of tests",
+              ["joint", *[f"n = {n}" for n in ns]], rows,
+              caption="Interquartile range of k / k_ref over 1.349 (the standard deviation "
+              "of a normal spread). n.i.: not identifiable at that number of tests (more "
+              "than 10 % of the trials give no positive k, or the spread exceeds 100 %)."),
+        Table("Standard deviation of k (% of k), where identifiable",
+              ["joint", *[f"n = {n}" for n in ns]], std_rows,
+              caption="The plain standard deviation over the trials (with the median and "
+              "IQR above: a few wild draws inflate it at small n)."),
     ]
 
 

@@ -116,8 +116,8 @@ def test_html_residuals_validation_and_kx(complete):
     assert [r[0] for r in val[1:]] == ["P1", "P2", "P3", "P4", "P5"]
     assert all(0.2 < float(r[4]) < 3 for r in val[1:])
     kx = doc.tables["K_X at pose 1 (command line), with K_C"]
-    assert kx[0][1:7] == ["x (/mm)", "y (/mm)", "z (/mm)", "rx (/mrad)", "ry (/mrad)",
-                          "rz (/mrad)"]
+    assert kx[0][1:7] == ["\u03b4x (per mm)", "\u03b4y (per mm)", "\u03b4z (per mm)",
+                          "\u03b4rx (per mrad)", "\u03b4ry (per mrad)", "\u03b4rz (per mrad)"]
     m = np.array([[float(v) for v in r[1:7]] for r in kx[1:]])
     # independent: K_X of eq. 6 at the --pose with the identified k, scaled to N/mm, N m/mrad
     from report_runs import PROTOCOL
@@ -133,8 +133,15 @@ def test_html_residuals_validation_and_kx(complete):
     k = np.array(res["joint_stiffness_Nm_per_rad"])
     K = 1e-3 * cartesian_stiffness(jacobian(robot, q), k, complementary_stiffness(robot, q, w))
     np.testing.assert_allclose(m, K, rtol=1e-3, atol=1e-3 * np.abs(K).max())
-    principal = np.array([float(r[8]) for r in kx[1:]])
-    assert np.all(np.diff(principal[:3]) <= 0) and np.all(np.diff(principal[3:]) <= 0)
+    table = doc.tables["Principal stiffnesses at pose 1 (command line)"]
+    assert [r[0] for r in table[1:]] == ["pure force (N/mm)", "pure moment (N m/mrad)"]
+    principal = np.array([[float(v) for v in r[1:]] for r in table[1:]])
+    assert np.all(np.diff(principal, axis=1) <= 0)  # largest first
+    # independent: inverse eigenvalues of the blocks of K_X^-1
+    C = np.linalg.inv(K)
+    for row, sl in zip(principal, (slice(0, 3), slice(3, 6)), strict=True):
+        np.testing.assert_allclose(row, np.sort(1 / np.linalg.eigvalsh(C[sl, sl]))[::-1],
+                                   rtol=2e-3)
     # no SI e-notation and no round-off residue in the engineering table
     assert not any("e" in c for r in kx[1:] for c in r[1:])
     effect = doc.tables["Effect of K_C (the load's geometric stiffness)"]

@@ -77,7 +77,8 @@ def test_labels_read_as_a_user_expects(run_report):
 def test_kx_in_engineering_units_with_the_kc_effect(run_report):
     tables = run_report["page"].tables
     kx = [t for title, t in tables.items() if title.startswith("K_X at ")]
-    assert kx and all(t[0][1] == "x (/mm)" and t[0][4] == "rx (/mrad)" for t in kx)
+    assert kx and all(t[0][1] == "\u03b4x (per mm)" and t[0][4] == "\u03b4rx (per mrad)"
+                      for t in kx)
     assert "Effect of K_C (the load's geometric stiffness)" in tables
     assert not any("(SI)" in title for title in tables)  # no near-identical SI pair
 
