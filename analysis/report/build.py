@@ -335,12 +335,12 @@ def kc_effect_table(poses: list) -> Table:
                      fixed(100 * rel[0], 2), fixed(100 * rel[1], 2)])
     return Table(
         "Effect of K_C (the load's geometric stiffness)",
-        ["pose", "|\u03b4p| with K_C (mm)", "|\u03b4p| without (mm)",
-         "|\u03b4p_with - \u03b4p_without| (mm)", "of |\u03b4p| (%)",
-         "\u0394K_X translation (%)", "\u0394K_X rotation (%)"], rows,
-        caption="\u0394K_X: Frobenius norm of K_X(with K_C) - K_X(without) over that of "
-        "K_X(without), per diagonal block. A few % or less: K_C can be neglected at "
-        "this load.", widths=[1.6, 1, 1, 1.3, 0.9, 1.1, 1.1])
+        ["pose", "|\u03b4p|, load's stiffness included (mm)", "|\u03b4p|, neglected (mm)",
+         "|difference| (mm)", "of |\u03b4p| (%)",
+         "change, translational block (%)", "change, rotational block (%)"], rows,
+        caption="Change of a block: Frobenius norm of K_X(with K_C) - K_X(without) over "
+        "that of K_X(without), per diagonal block of K_X. A few % or less: K_C can be "
+        "neglected at this load.", widths=[1.6, 1, 1, 1.3, 0.9, 1.1, 1.1])
 
 
 def kx_blocks(inp: ReportInputs, k_pred: np.ndarray,

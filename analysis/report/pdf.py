@@ -8,6 +8,7 @@ Greek letters), embedded in the file.
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import matplotlib
@@ -74,6 +75,66 @@ def _space_left(doc: FPDF) -> float:
     return doc.page_break_trigger - doc.get_y()
 
 
+#: the report's formula notation: plain text -> (base, subscript) segments (the PDF draws the
+#: subscript lowered and smaller: no literal underscore on the page)
+NOTATION = {
+    "\u03b4p_without": ("\u03b4p", "without"), "\u03b4p_with": ("\u03b4p", "with"),
+    "K_X": ("K", "X"), "K_C": ("K", "C"), "K_\u03b8": ("K", "\u03b8"), "J_N": ("J", "N"),
+    "\u03ba_F": ("\u03ba", "F"), "k_ref": ("k", "ref"),
+}
+_NOTATION_RE = re.compile("|".join(re.escape(k) for k in NOTATION))
+
+
+def _segments(text: str) -> list[tuple[str, bool]]:
+    """``text`` as (piece, subscript) segments."""
+    out, pos = [], 0
+    for m in _NOTATION_RE.finditer(text):
+        base, sub = NOTATION[m.group(0)]
+        out += [(text[pos:m.start()] + base, False), (sub, True)]
+        pos = m.end()
+    out.append((text[pos:], False))
+    return [(t, s) for t, s in out if t]
+
+
+def has_notation(text: str) -> bool:
+    return bool(_NOTATION_RE.search(text))
+
+
+def _write_rich(doc: FPDF, text: str, h: float, pad: float = 0.0) -> None:
+    """Flowing text with the notation's subscripts, from the left margin (+ ``pad``)."""
+    margin = doc.l_margin, doc.r_margin
+    doc.set_left_margin(margin[0] + pad)
+    doc.set_right_margin(margin[1] + pad)
+    doc.set_x(doc.l_margin)
+    for piece, sub in _segments(text):
+        doc.char_vpos = "SUB" if sub else "LINE"
+        doc.write(h, piece)
+    doc.char_vpos = "LINE"
+    doc.ln(h)
+    doc.set_left_margin(margin[0])
+    doc.set_right_margin(margin[1])
+    doc.set_x(margin[0])
+
+
+def _text(doc: FPDF, text: str, h: float, fill: bool = False, pad: float = 0.0) -> None:
+    """A left-aligned paragraph: one multi_cell, or flowing segments when it holds the
+    formula notation (with its tinted box measured first when ``fill``)."""
+    if not has_notation(text):
+        doc.multi_cell(0, h, text, fill=fill, new_x="LMARGIN", new_y="NEXT", padding=pad,
+                       align="L")
+        return
+    if fill:
+        y0 = doc.get_y()
+        with doc.offset_rendering() as dummy:
+            dummy.set_y(y0 + pad)
+            _write_rich(dummy, text, h, pad)
+        if not dummy.page_break_triggered:
+            doc.rect(doc.l_margin, y0, doc.epw, dummy.get_y() - y0 + pad, style="F")
+    doc.set_y(doc.get_y() + pad)
+    _write_rich(doc, text, h, pad)
+    doc.set_y(doc.get_y() + pad)
+
+
 def _paragraph(doc: _Doc, p: Paragraph) -> None:
     if p.kind == "heading":
         if _space_left(doc) < KEEP_WITH_HEADING:
@@ -90,7 +151,7 @@ def _paragraph(doc: _Doc, p: Paragraph) -> None:
         doc.set_fill_color(*FILL[p.kind])
     if p.kind == "refusal":
         doc.set_text_color(176, 0, 0)
-    doc.multi_cell(0, 4.6, p.text, fill=fill, new_x="LMARGIN", new_y="NEXT", padding=1.2)
+    _text(doc, p.text, 4.6, fill=fill, pad=1.2)
     doc.set_text_color(0)
     doc.ln(2)
 
@@ -104,7 +165,8 @@ def _widths(t: Table, total: float) -> list[float]:
 
 
 LINE_HEIGHT = 4.2  # mm, one line of text in a table cell
-PAD = 0.5  # mm, inside each table cell, all four sides
+PAD = 0.5  # mm, inside each table cell, above and below the text
+INSET = 1.1  # mm, left and right of the text in each cell (a text column beside numbers)
 ROW_HEIGHT = LINE_HEIGHT + 2 * PAD  # mm, one line of a table row with its padding
 
 
@@ -120,10 +182,10 @@ def _lines(doc: _Doc, cells: list[str], widths: list[float]) -> list[list[str]]:
     multi_cell)."""
     out = []
     for text, w in zip(cells, widths, strict=True):
-        if doc.get_string_width(text) <= w - 2 * PAD - 0.01:
+        if doc.get_string_width(text) <= w - 2 * INSET - 0.01:
             out.append([text])
         else:
-            out.append(doc.multi_cell(w, LINE_HEIGHT, text, padding=(0, PAD), dry_run=True,
+            out.append(doc.multi_cell(w, LINE_HEIGHT, text, padding=(0, INSET), dry_run=True,
                                       output="LINES"))
     return out
 
@@ -164,15 +226,15 @@ def _table(doc: _Doc, t: Table) -> None:
     usable = doc.page_break_trigger - doc.t_margin - 20
     if _space_left(doc) < (need if need < usable else 25 + 4 * ROW_HEIGHT):
         doc.add_page()
-    doc.start_section(t.title, level=1)
+    doc.start_section(t.title.replace("_", ""), level=1)
     doc.set_font("DejaVu", "B", 10)
-    doc.multi_cell(0, 5.5, t.title, new_x="LMARGIN", new_y="NEXT")
+    _text(doc, t.title, 5.5)
     size = 7.5 if len(t.columns) > 7 else 8.5
     widths = _widths(t, doc.epw)
     align = ["R" if a == "right" else "L" for a in t.alignment()]
     body_font = "DejaVuMono" if t.mono else "DejaVu"
     doc.set_draw_color(150)
-    margin, doc.c_margin = doc.c_margin, PAD  # the text's inset in one-line cells
+    margin, doc.c_margin = doc.c_margin, INSET  # the text's inset in one-line cells
 
     def header() -> None:
         doc.set_font("DejaVu", "B", size)
@@ -190,7 +252,7 @@ def _table(doc: _Doc, t: Table) -> None:
     if t.caption:
         doc.set_font("DejaVu", "", 7.5)
         doc.set_text_color(80)
-        doc.multi_cell(0, 3.8, t.caption, new_x="LMARGIN", new_y="NEXT")
+        _text(doc, t.caption, 3.8)
         doc.set_text_color(0)
     doc.ln(3)
 
@@ -204,7 +266,7 @@ def _figure(doc: _Doc, f: Figure) -> None:
     doc.set_y(doc.get_y() + h + 1)
     doc.set_font("DejaVu", "", 7.5)
     doc.set_text_color(80)
-    doc.multi_cell(0, 3.8, f.caption, new_x="LMARGIN", new_y="NEXT")
+    _text(doc, f.caption, 3.8)
     doc.set_text_color(0)
     doc.ln(3)
 
@@ -228,10 +290,14 @@ def render_pdf(report: Report) -> bytes:
         if i and _space_left(doc) < KEEP_WITH_HEADING:
             doc.add_page()
         heading = f"{i + 1}. {section.title}"
-        doc.start_section(heading, level=0)
+        doc.start_section(heading.replace("_", ""), level=0)
         doc.set_font("DejaVu", "B", 14)
         doc.set_draw_color(51, 102, 204)
-        doc.cell(0, 8, heading, border="B", new_x="LMARGIN", new_y="NEXT")
+        if has_notation(heading):
+            _text(doc, heading, 8)
+            doc.line(doc.l_margin, doc.get_y(), doc.w - doc.r_margin, doc.get_y())
+        else:
+            doc.cell(0, 8, heading, border="B", new_x="LMARGIN", new_y="NEXT")
         doc.ln(3)
         for block in section.blocks:
             if isinstance(block, Paragraph):

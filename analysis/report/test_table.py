@@ -152,7 +152,7 @@ def tests_table(robot, tests: TestArrays, result, cases: list[LoadCase], noise,
         "('-': none). Residual: norm of measured - predicted translation and rotation of P, "
         f"under the {nominal_short} stiffness (nonlinear equilibrium) and under the "
         "identified one." + listed,
-        widths=[0.5, 0.5, 0.6, 1.5, 1.2, 1.2, 0.9, 0.9, 0.8, 1.3, 1.3])
+        widths=[0.5, 0.55, 0.7, 1.5, 1.2, 1.2, 0.9, 0.9, 0.8, 1.3, 1.3])
     if pred_nom is None:
         return table, None
     before = rms_pair(res_nom)
