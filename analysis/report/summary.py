@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib.metadata
 from dataclasses import dataclass, field
 
-from analysis.report.formatting import fixed
+from analysis.report.formatting import fixed, utc_text
 from analysis.report.model import Paragraph, Table
 
 VERSIONED = ("robot-stiffness-campaign", "numpy", "scipy", "pandas", "pin", "matplotlib", "fpdf2")
@@ -114,7 +114,7 @@ def summary_table(info: CampaignInfo) -> Table:
         ["robot", info.robot],
         ["tool", info.tool],
         ["status", info.status + (f" ({info.reason})" if info.reason else "")],
-        ["started / ended (UTC)", f"{info.started_utc} / {info.ended_utc}"],
+        ["started / ended", f"{utc_text(info.started_utc)} / {utc_text(info.ended_utc)}"],
         ["operator", info.operator],
         *([["protocol", info.protocol_file], ["protocol SHA-256", info.protocol_sha256]]
           if info.source == "run" or info.protocol_sha256 not in ("", "-") else

@@ -326,3 +326,12 @@ def test_pose_labels_never_overlap_and_near_poses_are_listed(which):
         for j in range(i + 1, 6):
             assert not _boxes_overlap(boxes[i], boxes[j]), (labels[i], labels[j])
     assert "Nearly coinciding on this map" in fig.caption and "4, 5" in fig.caption
+
+
+def test_time_stamps_are_shown_to_the_second():
+    from analysis.report.formatting import utc_text
+
+    assert utc_text("2026-11-20T09:58:00.123456+00:00") == "2026-11-20 09:58:00 UTC"
+    assert utc_text("2026-11-20T10:58:00Z") == "2026-11-20 10:58:00 UTC"
+    assert utc_text("2026-11-20T11:58:00+01:00") == "2026-11-20 10:58:00 UTC"
+    assert utc_text(None) == "-" and utc_text("unknown") == "unknown"
