@@ -76,28 +76,41 @@ def draw_poses(ax, t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str]) ->
     """Tested poses as white dots with a black edge, each numbered with its plan label.
 
     Markers and labels are not clipped (a pose on a joint limit sits on the
-    axes' edge) and the labels sit on a white box (readable on any colour map).
-    Each label takes the nearest place where it covers no other label and no pose
-    marker (a leader line back to its pose when it had to move away); the
-    labels are kept on ``ax.figure.pose_labels`` for the overlap check.
+    axes' edge) and the labels sit on a white box (readable on any colour map),
+    placed by :func:`place_labels`.
     """
     ax.plot(t2_deg, t3_deg, clip_on=False, zorder=5, label="tested poses (plan labels)",
             **POSE_STYLE)
+    place_labels(ax, t2_deg, t3_deg, labels, POSE_STYLE["ms"] / 2 + 1)
+
+
+def place_labels(ax, x_data: np.ndarray, y_data: np.ndarray, labels: list[str],
+                 marker_radius_pt: float, fontsize: float = 8.0) -> list:
+    """Number poses so that no label covers another label or a pose marker.
+
+    Each label takes the nearest of :func:`_candidates` that stays inside the axes and
+    overlaps nothing placed before (a leader line back to its pose when it had to move
+    away). Call it once the figure's layout is final (the placement is in pixels). The
+    labels are returned and kept on ``ax.figure.pose_labels`` for the overlap check.
+    """
     fig = ax.figure
     ax.autoscale_view()
-    xy = ax.transData.transform(np.column_stack([t2_deg, t3_deg]))
+    xy = ax.transData.transform(np.column_stack([x_data, y_data]))
     s = fig.dpi / 72.0  # px per point
-    W, H = fig.bbox.width, fig.bbox.height
-    radius = POSE_STYLE["ms"] / 2 + 1
-    markers = [(x - radius * s, y - radius * s, x + radius * s, y + radius * s) for x, y in xy]
+    frame = ax.get_window_extent()
+    pad = 2 * s
+    limits = (frame.x0 - pad, frame.y0 - pad, frame.x1 + pad, frame.y1 + pad)
+    r = marker_radius_pt
+    markers = [(x - r * s, y - r * s, x + r * s, y + r * s) for x, y in xy]
     placed: list = []
     texts = []
     for (x, y), text in zip(xy, labels, strict=True):
-        w, h = 0.62 * 8 * len(text) + 4, 8 * 1.2 + 3  # points, with the white box
+        w, h = 0.62 * fontsize * len(text) + 4, fontsize * 1.2 + 3  # points, with the box
         choice = None
         for dx, dy, ha, va, leader in _candidates():
             box = _box(x, y, dx, dy, ha, va, w, h, s)
-            inside = box[0] >= 0 and box[1] >= 0 and box[2] <= W and box[3] <= H
+            inside = (box[0] >= limits[0] and box[1] >= limits[1] and box[2] <= limits[2]
+                      and box[3] <= limits[3])
             if inside and not any(_overlaps(box, o) for o in placed + markers):
                 choice = (dx, dy, ha, va, leader, box)
                 break
@@ -108,11 +121,12 @@ def draw_poses(ax, t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str]) ->
         placed.append(box)
         texts.append(ax.annotate(
             text, ax.transData.inverted().transform((x, y)), xytext=(dx, dy),
-            textcoords="offset points", fontsize=8, fontweight="bold", color="black",
+            textcoords="offset points", fontsize=fontsize, fontweight="bold", color="black",
             ha=ha, va=va, bbox=LABEL_BOX, zorder=6, annotation_clip=False,
             arrowprops={"arrowstyle": "-", "lw": 0.8, "color": "black", "shrinkA": 0,
-                        "shrinkB": radius} if leader else None))
+                        "shrinkB": r} if leader else None))
     fig.pose_labels = getattr(fig, "pose_labels", []) + texts
+    return texts
 
 
 def coinciding(t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str],
