@@ -224,7 +224,12 @@ def _table(doc: _Doc, t: Table) -> None:
     rows tinted, numeric columns right-aligned, long texts wrapped within their column."""
     need = _table_height(t)
     usable = doc.page_break_trigger - doc.t_margin - 20
-    if _space_left(doc) < (need if need < usable else 25 + 4 * ROW_HEIGHT):
+    space = _space_left(doc)
+    # rows of one line that would fit here: a split leaving one or two rows alone on the
+    # next page starts the table there instead
+    fit = int((space - 7 - 2.5 * ROW_HEIGHT) // ROW_HEIGHT)
+    widow = need > space and 0 < len(t.rows) - fit <= 2
+    if widow or space < (need if need < usable else 25 + 4 * ROW_HEIGHT):
         doc.add_page()
     doc.start_section(t.title.replace("_", ""), level=1)
     doc.set_font("DejaVu", "B", 10)

@@ -335,3 +335,20 @@ def test_time_stamps_are_shown_to_the_second():
     assert utc_text("2026-11-20T10:58:00Z") == "2026-11-20 10:58:00 UTC"
     assert utc_text("2026-11-20T11:58:00+01:00") == "2026-11-20 10:58:00 UTC"
     assert utc_text(None) == "-" and utc_text("unknown") == "unknown"
+
+
+def test_robustness_rows_not_identifiable_are_marked():
+    from analysis.identification.robustness import identifiable_rows
+
+    summary = pd.DataFrame({
+        "trials": [200, 200, 200], "trials_rejected": [0, 30, 0],
+        "iqr_Nm_per_rad": [10e3, 10e3, 600e3], "k_true_Nm_per_rad": [400e3] * 3})
+    # fine; 15 % of the trials rejected; a spread (IQR / 1.349 = 445 kN m/rad) above k
+    assert identifiable_rows(summary).tolist() == [True, False, False]
+
+
+def test_map_labels_have_no_literal_underscore():
+    from analysis.kinetostatics.map_plots import LABELS
+
+    for text in LABELS.values():
+        assert "_" not in re.sub(r"\$[^$]*\$", "", text), text
