@@ -352,3 +352,28 @@ def test_map_labels_have_no_literal_underscore():
 
     for text in LABELS.values():
         assert "_" not in re.sub(r"\$[^$]*\$", "", text), text
+
+
+def test_compare_writes_a_report_naming_both_runs(sim, real, tmp_path, capsys):
+    out = tmp_path / "cmp"
+    assert main(["compare", str(sim["out"]), str(real["out"]), "--report", str(out),
+                 "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    page = ReportPage()
+    page.feed((out / "report.html").read_text(encoding="utf-8"))
+    text = re.sub(r"\s+", " ", " ".join(page.text))
+    runs = {r[0]: r for r in page.tables["Runs compared"][1:]}
+    assert runs["A"][4] == sim["results"]["report_id"]
+    assert runs["B"][4] == real["results"]["report_id"]
+    assert runs["A"][3] == "2026-11-20 09:58:00 UTC"
+    assert ("No evidence of change" in text) or ("Changed: " in text)
+    rows = page.tables["Difference per joint"][1:]
+    assert len(rows) == len(res["joints"]) == 6
+    for row, r in zip(rows, res["joints"], strict=True):
+        lo, hi = (float(v) for v in row[4].strip("[]").split(","))
+        # the interval at the verdict's level excludes 0 exactly when the verdict is changed
+        assert (lo > 0 or hi < 0) == (r["verdict"] == "changed") == (row[6] == "changed")
+        half = res["critical_z"] * np.hypot(r["se_A_Nm_per_rad"], r["se_B_Nm_per_rad"]) / 1e3
+        assert hi - lo == pytest.approx(2 * half, rel=2e-3)
+    pages = [p.extract_text() for p in PdfReader(out / "report.pdf").pages]
+    assert all("SIMULATED DATA" in p for p in pages)  # A came from the simulated lab
