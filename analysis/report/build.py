@@ -347,7 +347,8 @@ def kx_blocks(inp: ReportInputs, k_pred: np.ndarray,
               result: IdentificationResult | None = None) -> list:
     blocks: list = [Paragraph(
         "K_X = J\u207b\u1d40 (K_\u03b8 \u2212 K_C) J\u207b\u00b9 (eq. 6), at P in the base "
-        f"frame, under the user wrench {wrench_text(inp.wrench)}; K_C is the "
+        f"frame, under the user wrench {wrench_text(inp.wrench)} ({inp.wrench_source}); "
+        "K_C is the "
         "complementary stiffness the load adds through the change of J (eq. 12 drops it).")]
     computed = []
     for label, q in inp.poses:

@@ -377,3 +377,13 @@ def test_compare_writes_a_report_naming_both_runs(sim, real, tmp_path, capsys):
         assert hi - lo == pytest.approx(2 * half, rel=2e-3)
     pages = [p.extract_text() for p in PdfReader(out / "report.pdf").pages]
     assert all("SIMULATED DATA" in p for p in pages)  # A came from the simulated lab
+
+
+def test_a_failed_row_makes_the_verdict_a_warning(complete_run, tmp_path):
+    out = tmp_path / "out"
+    assert main(["analyze", str(complete_run), "--trials", "10", "--out", str(out)]) == 0
+    first = re.sub(r"\s+", " ", PdfReader(out / "report.pdf").pages[0].extract_text())
+    assert "Warnings: 1 failed test row(s): see Data quality" in first
+    assert "Consistent with the noise model" not in first
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert '<p class="warning">Warnings: 1 failed test row(s)' in html
