@@ -276,6 +276,18 @@ def _figure(doc: _Doc, f: Figure) -> None:
     doc.ln(3)
 
 
+def _block_height(doc: _Doc, block) -> float:
+    """Rough height (mm) a block needs on its page to start there: a table that fits on a
+    page whole, else its first rows; a figure with its caption; a few lines of text."""
+    usable = doc.page_break_trigger - doc.t_margin - 20
+    if isinstance(block, Table):
+        need = _table_height(block)
+        return need if need < usable else 25 + 4 * ROW_HEIGHT
+    if isinstance(block, Figure):
+        return FIGURE_WIDTH * block.height / block.width + 12
+    return 15.0
+
+
 def render_pdf(report: Report) -> bytes:
     """The report as PDF bytes: page 1 opens with the title and the result block; every
     page carries the report ID, date and software in its footer (and the SIMULATED DATA
@@ -292,7 +304,9 @@ def render_pdf(report: Report) -> bytes:
     doc.set_text_color(0)
     doc.ln(2)
     for i, section in enumerate(report.sections):
-        if i and _space_left(doc) < KEEP_WITH_HEADING:
+        # the heading stays with its first block (a table kept whole, a figure)
+        first = _block_height(doc, section.blocks[0]) if section.blocks else 0.0
+        if i and _space_left(doc) < max(KEEP_WITH_HEADING, 12 + first):
             doc.add_page()
         heading = f"{i + 1}. {section.title}"
         doc.start_section(heading.replace("_", ""), level=0)
