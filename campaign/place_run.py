@@ -151,7 +151,7 @@ def build_problem(o: PlaceOptions, console: Console):
     k = stiffness_option(robot, o.joint_stiffness)
     part = read_part_path(o.path)
     assumptions = []
-    if o.wrench:
+    if o.wrench is not None:
         wrench = np.tile(parse_floats(o.wrench, "--wrench", 6), (part.n, 1))
         assumptions.append("process wrench: --wrench, constant, tool frame at P")
     elif part.wrench is not None:

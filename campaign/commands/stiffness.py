@@ -133,7 +133,7 @@ def register(app: typer.Typer) -> None:
                 "deflection": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation vector)",
             },
         }
-        cov_x = None if joint_stiffness else r.compliance_covariance
+        cov_x = None if joint_stiffness is not None else r.compliance_covariance
         if cov_x is not None:
             result["uncertainty"] = _intervals(r, qr, k, w, J, cov_x)
         if as_json:
