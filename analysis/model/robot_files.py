@@ -42,7 +42,9 @@ File format (every number in the units the file declares)::
     [identification]                  # optional: written by `campaign analyze` (model.toml)
     quantity = "compliance"           # the covariance is of x = 1/k, not of k
     covariance_unit = "(rad/(N m))^2"
-    covariance = [[...], ...]         # 6 x 6, zero rows/columns for joints_nominal
+    covariance = [[...], ...]         # 6 x 6, symmetric, positive semi-definite (the
+                                      # correlation matrix's eigenvalues >= -1e-9);
+                                      # zero rows/columns for joints_nominal
     joints_identified = [1, 2, 3, 4, 5, 6]
     joints_nominal = []               # joints whose stiffness is the nominal one
     method = "exact"                  # estimator of campaign analyze
@@ -130,6 +132,41 @@ class ReferencePose(_Strict):
     source: str
 
 
+#: Tolerance of the positive semi-definiteness check of a covariance: the smallest
+#: eigenvalue of its correlation matrix (unit diagonal, so the check does not depend
+#: on the joints' very different compliance scales) must be >= -PSD_TOLERANCE. A
+#: covariance written by ``campaign analyze`` (17 significant digits) is PSD to ~1e-15.
+PSD_TOLERANCE = 1e-9
+
+
+def covariance_psd_problem(cov: np.ndarray) -> str | None:
+    """Why the symmetric ``cov`` (n, n) with a non-negative diagonal is not a covariance
+    (not positive semi-definite within :data:`PSD_TOLERANCE`), or None when it is one.
+
+    A joint with zero variance must have zero covariances (its correlation is
+    undefined, and any non-zero entry makes the matrix indefinite); the others are
+    checked through the eigenvalues of their correlation matrix.
+    """
+    var = np.diag(cov)
+    zero = var == 0
+    for j in np.flatnonzero(zero):
+        if np.any(cov[j] != 0):
+            return (f"covariance is not positive semi-definite: joint {j + 1} has zero "
+                    "variance but a non-zero covariance with another joint")
+    keep = np.flatnonzero(~zero)
+    if keep.size == 0:
+        return None
+    s = np.sqrt(var[keep])
+    corr = cov[np.ix_(keep, keep)] / np.outer(s, s)
+    smallest = float(np.linalg.eigvalsh(corr)[0])
+    if smallest < -PSD_TOLERANCE:
+        worst = float(np.linalg.eigvalsh(cov)[0])
+        return (f"covariance is not positive semi-definite: its smallest eigenvalue is "
+                f"{worst:.3g} (rad/(N m))^2 (correlation matrix: {smallest:.3g}, tolerance "
+                f"-{PSD_TOLERANCE:g}); intervals from it would be meaningless")
+    return None
+
+
 class IdentificationSpec(_Strict):
     """``[identification]``: where an identified stiffness comes from and its covariance."""
 
@@ -149,16 +186,26 @@ class IdentificationSpec(_Strict):
     software: str = ""
     notes: list[str] = []
 
-    @model_validator(mode="after")
-    def _shape(self) -> IdentificationSpec:
-        n = len(self.covariance)
-        if n == 0 or any(len(row) != n for row in self.covariance):
+    @field_validator("covariance")
+    @classmethod
+    def _covariance(cls, value: list[list[float]]) -> list[list[float]]:
+        n = len(value)
+        if n == 0 or any(len(row) != n for row in value):
             raise ValueError("covariance must be a square matrix (one row per joint)")
-        cov = np.array(self.covariance, dtype=float)
+        cov = np.array(value, dtype=float)
         if not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
             raise ValueError("covariance must be symmetric")
         if np.any(np.diag(cov) < 0):
             raise ValueError("covariance has a negative variance on its diagonal")
+        problem = covariance_psd_problem(cov)
+        if problem:
+            raise ValueError(problem)
+        return value
+
+    @model_validator(mode="after")
+    def _shape(self) -> IdentificationSpec:
+        n = len(self.covariance)
+        cov = np.array(self.covariance, dtype=float)
         for name, joints in (("joints_identified", self.joints_identified),
                              ("joints_nominal", self.joints_nominal)):
             if any(not 1 <= j <= n for j in joints) or len(set(joints)) != len(joints):
