@@ -344,7 +344,39 @@ def load_robot_file(path: str | Path, key: str = "") -> RobotModel:
         spec = RobotFile.model_validate(data)
     except ValidationError as err:
         raise input_error_from_validation(err, str(path), text) from None
-    return robot_from_spec(spec, source_file=str(path), key=key or path.stem)
+    robot = robot_from_spec(spec, source_file=str(path), key=key or path.stem)
+    _check_reach(spec, robot, str(path), text)
+    return robot
+
+
+#: Chain lengths (m, :attr:`RobotModel.chain_length`) plausible for an industrial arm:
+#: from a small desktop arm (~0.2 m) to the largest floor-mounted arms (~5 m), with a
+#: margin. Lengths typed in mm under ``length_unit = "m"`` give ~1000 m, lengths in m
+#: under ``"mm"`` ~0.003 m: both far outside.
+REACH_RANGE_M = (0.05, 10.0)
+
+
+def _check_reach(spec: RobotFile, robot: RobotModel, path: str, text: str) -> None:
+    """Refuse a robot file whose reach is implausible, naming the likely unit mix-up."""
+    from analysis.file_errors import toml_line, yaml_line
+
+    reach = robot.chain_length
+    lo, hi = REACH_RANGE_M
+    if lo <= reach <= hi:
+        return
+    lengths = [(abs(getattr(j, f)), f"joints[{i}].{f}") for i, j in enumerate(spec.joints)
+               for f in ("a", "d", "r")]
+    lengths += [(abs(v), f"tool.xyz[{i}]") for i, v in enumerate(spec.tool.xyz)]
+    value, key = max(lengths)
+    finder = yaml_line if path.endswith((".yaml", ".yml")) else toml_line
+    line = finder(text, ("length_unit",))
+    where = f"{path}:{line}" if line else path
+    other = "mm" if spec.length_unit == "m" else "m"
+    raise InputError(
+        f"length_unit = \"{spec.length_unit}\": the chain's link lengths add up to "
+        f"{reach:.4g} m, implausible for an industrial arm (expected {lo:g}..{hi:g} m); "
+        f"{key} = {value:g}: are the lengths in {other}? (set length_unit = \"{other}\")",
+        where=where)
 
 
 def load_urdf(path: str | Path, tip: str, name: str | None = None) -> RobotModel:
