@@ -346,6 +346,7 @@ def load_robot_file(path: str | Path, key: str = "") -> RobotModel:
         raise input_error_from_validation(err, str(path), text) from None
     robot = robot_from_spec(spec, source_file=str(path), key=key or path.stem)
     _check_reach(spec, robot, str(path), text)
+    _check_stiffness(spec, robot, str(path), text)
     return robot
 
 
@@ -356,10 +357,42 @@ def load_robot_file(path: str | Path, key: str = "") -> RobotModel:
 REACH_RANGE_M = (0.05, 10.0)
 
 
-def _check_reach(spec: RobotFile, robot: RobotModel, path: str, text: str) -> None:
-    """Refuse a robot file whose reach is implausible, naming the likely unit mix-up."""
+#: Joint stiffness plausible for an industrial arm (N m/rad): from a small arm's wrist
+#: (PUMA 560 joint 5: 101 N m/rad) to far above the largest arms' base joints (~1e7).
+STIFFNESS_RANGE_NM_PER_RAD = (10.0, 1e9)
+
+
+def _line(path: str, text: str, loc: tuple) -> str:
     from analysis.file_errors import toml_line, yaml_line
 
+    finder = yaml_line if path.endswith((".yaml", ".yml")) else toml_line
+    line = finder(text, loc)
+    return f"{path}:{line}" if line else path
+
+
+def _check_stiffness(spec: RobotFile, robot: RobotModel, path: str, text: str) -> None:
+    """Refuse a nominal joint stiffness outside the plausible range, naming the unit."""
+    k = robot.nominal_stiffness
+    if k is None:
+        return
+    lo, hi = STIFFNESS_RANGE_NM_PER_RAD
+    bad = np.flatnonzero((k < lo) | (k > hi))
+    if bad.size == 0:
+        return
+    j = int(bad[0])
+    hint = ""
+    if k[j] > hi and spec.stiffness_unit == "kN m/rad":
+        hint = ': are the values in N m/rad? (set stiffness_unit = "N m/rad")'
+    elif k[j] < lo and spec.stiffness_unit == "N m/rad":
+        hint = ': are the values in kN m/rad? (set stiffness_unit = "kN m/rad")'
+    raise InputError(
+        f"joints[{j}].stiffness = {spec.joints[j].stiffness:g} {spec.stiffness_unit} is "
+        f"{k[j]:.4g} N m/rad, implausible for an industrial arm's joint (expected "
+        f"{lo:g}..{hi:g} N m/rad){hint}", where=_line(path, text, ("stiffness_unit",)))
+
+
+def _check_reach(spec: RobotFile, robot: RobotModel, path: str, text: str) -> None:
+    """Refuse a robot file whose reach is implausible, naming the likely unit mix-up."""
     reach = robot.chain_length
     lo, hi = REACH_RANGE_M
     if lo <= reach <= hi:
@@ -368,9 +401,7 @@ def _check_reach(spec: RobotFile, robot: RobotModel, path: str, text: str) -> No
                for f in ("a", "d", "r")]
     lengths += [(abs(v), f"tool.xyz[{i}]") for i, v in enumerate(spec.tool.xyz)]
     value, key = max(lengths)
-    finder = yaml_line if path.endswith((".yaml", ".yml")) else toml_line
-    line = finder(text, ("length_unit",))
-    where = f"{path}:{line}" if line else path
+    where = _line(path, text, ("length_unit",))
     other = "mm" if spec.length_unit == "m" else "m"
     raise InputError(
         f"length_unit = \"{spec.length_unit}\": the chain's link lengths add up to "

@@ -147,3 +147,18 @@ def test_robot_file_in_mm_under_metres_is_refused(tmp_path, capsys):
                          "implausible for an industrial arm (expected 0.05..10 m)",
                          watch=[tmp_path])
     assert "joints[3].r = 1.2: are the lengths in m? (set length_unit = \"m\")" in err
+
+
+def test_robot_file_stiffness_unit_mix_up_is_refused(tmp_path, capsys):
+    """N m/rad values under stiffness_unit = "kN m/rad": k1 = 1.41e9 N m/rad."""
+    from tests.refusal import assert_refused
+
+    text = open(load_robot("kr240-2").source_file).read()
+    bad = tmp_path / "arm.toml"
+    bad.write_text(text.replace('stiffness_unit = "N m/rad"', 'stiffness_unit = "kN m/rad"'))
+    line = text.splitlines().index('stiffness_unit = "N m/rad"') + 1
+    assert_refused(capsys, [*KR[:2], bad, "--q", "0,30,-170,45,45,45"],
+                   f"arm.toml:{line}: joints[0].stiffness = 1.4098e+06 kN m/rad is 1.41e+09 "
+                   "N m/rad, implausible for an industrial arm's joint (expected 10..1e+09 "
+                   'N m/rad): are the values in N m/rad? (set stiffness_unit = "N m/rad")',
+                   watch=[tmp_path])
