@@ -77,13 +77,12 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Search the workpiece placement and tool angles that minimise P's deflection."""
         args = dict(locals())
-        from campaign.cli_common import output_dir
+        from campaign.cli_common import output_dir, writing_into
         from campaign.place_run import PlaceOptions, run_place
 
-        args.pop("out"), args.pop("force")
-        if out.exists() or out.is_symlink():
-            output_dir(out, force)  # refuse a non-empty --out before the search
-        # a new --out is created when the results are written: a refusal leaves nothing
+        output_dir(args.pop("out"), args.pop("force"))
         args["out"] = out
         args["objective"], args["program"] = str(objective), str(program)
-        run_place(PlaceOptions(**args))
+        options = PlaceOptions(**args)
+        with writing_into(out):  # a refused search leaves no --out directory behind
+            run_place(options)
