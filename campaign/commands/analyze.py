@@ -336,7 +336,7 @@ def _poses(robot, protocol, pose_args: list[str], q_tests: np.ndarray, labels) -
 
 def _wrench(protocol, text: str | None, w_tests: np.ndarray,
             noise: NoiseModel) -> tuple[np.ndarray, str]:
-    if text:
+    if text is not None:
         return parse_floats(text, "--wrench", 6), "--wrench"
     if protocol is not None and protocol.report.wrench is not None:
         return np.asarray(protocol.report.wrench, float), "protocol [report] wrench"

@@ -90,7 +90,7 @@ def register(app: typer.Typer) -> None:
         if r.n != 6:
             raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
         k = stiffness_option(r, joint_stiffness)
-        cov = None if joint_stiffness else r.compliance_covariance
+        cov = None if joint_stiffness is not None else r.compliance_covariance
         w_const = None if wrench is None else parse_floats(wrench, "--wrench", 6)
         pin = read_path(path, r, controller, w_const, str(wrench_frame))
         pc = compensate_path(r, pin.q, k, pin.w, cov, pin.line, str(path), min_inv_kappa)

@@ -82,7 +82,7 @@ def register(app: typer.Typer) -> None:
             table = joint_space_map(r, grid, k, w, length)
         bound_cols = []
         if upper_bound:
-            if r.compliance_covariance is None or joint_stiffness:
+            if r.compliance_covariance is None or joint_stiffness is not None:
                 raise InputError("--deflection-upper-bound needs an identified model "
                                  "(model.toml from campaign analyze) and no --joint-stiffness",
                                  where="--deflection-upper-bound")
