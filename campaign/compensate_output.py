@@ -115,7 +115,9 @@ def plot(pc: PathCompensation, path: Path, title: str, measured=None) -> Path:
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.1 if measured is not None else 0.07, 1, 1))
-    fig.savefig(path, dpi=150)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path, dpi=150)
     plt.close(fig)
     return path
 

@@ -82,9 +82,10 @@ def draw_plan_map(plan, path: Path) -> None:
     fig.tight_layout()
     # numbered once the layout is final: each label where it hides no other and no pose
     # (a leader line when moved away), inside the axes (never on the title)
+    from analysis.output_files import save_figure
     from analysis.report.figures import place_labels
 
     place_labels(ax, cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG,
                  [str(i + 1) for i in range(len(chosen))], 7 / 2 + 1)
-    fig.savefig(path, metadata={"Software": None})
+    save_figure(fig, path, metadata={"Software": None})
     plt.close(fig)

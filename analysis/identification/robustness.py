@@ -491,5 +491,7 @@ def plot_study(summary: pd.DataFrame, path, title: str = "", subtitle: str = "")
     fig.suptitle((title or "Identified joint stiffness vs number of tests")
                  + (f"\n{subtitle}" if subtitle else ""), fontsize=10)
     fig.tight_layout(rect=(0, 0.05, 1, 1))
-    fig.savefig(path, dpi=150)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path, dpi=150)
     plt.close(fig)

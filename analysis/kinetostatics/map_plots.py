@@ -73,7 +73,9 @@ def plot_joint_map(
         ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path)
     plt.close(fig)
     return path
 
@@ -101,6 +103,8 @@ def plot_cartesian_map(table: pd.DataFrame, column: str, path: str | Path, title
     fig.suptitle(title, fontsize=8.5)
     fig.tight_layout(rect=(0, 0, 1, 0.97))
     path = Path(path)
-    fig.savefig(path)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path)
     plt.close(fig)
     return path

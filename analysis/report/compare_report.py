@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.report.formatting import fixed, k_kNm, percent, sig, utc_text
+from analysis.report.formatting import fixed, k_kNm, percent, utc_text
 from analysis.report.model import Figure, Paragraph, Report, Section, Table, Trace
 
 
@@ -51,11 +51,16 @@ def run_facts(label: str, results_path: str | Path) -> RunFacts:
 
 
 def level_intervals(result: dict) -> list[tuple[float, float]]:
-    """(lo, hi) of k_B - k_A (N m/rad) at the verdict's level: +- critical_z sqrt(se_A^2 +
-    se_B^2), the same normal approximation as the 95 % interval of the comparison."""
+    """(lo, hi) of k_B - k_A (N m/rad) at the verdict's level: the comparison's own
+    ``interval_difference_Nm_per_rad`` when it gives it, else +- critical_z sqrt(se_A^2 +
+    se_B^2)."""
     zc = float(result["critical_z"])
     out = []
     for r in result["joints"]:
+        if "interval_difference_Nm_per_rad" in r:
+            lo, hi = r["interval_difference_Nm_per_rad"]
+            out.append((float(lo), float(hi)))
+            continue
         half = zc * float(np.hypot(r["se_A_Nm_per_rad"], r["se_B_Nm_per_rad"]))
         out.append((r["difference_Nm_per_rad"] - half, r["difference_Nm_per_rad"] + half))
     return out
@@ -117,14 +122,16 @@ def build_compare_report(result: dict, a: RunFacts, b: RunFacts) -> Report:
     for r, (lo, hi) in zip(rows_j, iv, strict=True):
         rows.append([f"k{r['joint']}", k_kNm(r["k_A_Nm_per_rad"]), k_kNm(r["k_B_Nm_per_rad"]),
                      percent(r["relative_difference"]),
-                     f"[{sig(lo / 1e3, 4)}, {sig(hi / 1e3, 4)}]", fixed(r["z"], 2),
-                     r["verdict"]])
+                     f"[{fixed(lo / 1e3, 3)}, {fixed(hi / 1e3, 3)}]", fixed(r["z"], 2),
+                     r["verdict"] + (" (borderline)" if "note" in r else "")])
         marked.append(r["verdict"] == "changed")
     table = Table("Difference per joint", [
         "joint", "k_A (kN m/rad)", "k_B (kN m/rad)", "k_B/k_A - 1 (%)",
         f"k_B - k_A, {100 * level:.3g} % interval (kN m/rad)", "z", "verdict"], rows, marked,
-        caption=f"Interval at the verdict's level (1 - alpha/m = {100 * level:.3g} %): it "
-        "excludes 0 exactly when the verdict is 'changed'. " + result.get("method", ""),
+        caption=f"Interval at the verdict's level (1 - alpha/m = {100 * level:.4g} %): it "
+        "excludes 0 when the verdict is 'changed' (borderline: the interval, by the delta "
+        "method on k, and the z test, on the compliances, disagree). "
+        + "; ".join(result.get("notes", [])) + " " + result.get("method", ""),
         widths=[0.6, 1.1, 1.1, 1.0, 1.9, 0.6, 1.5])
     facts = Paragraph(f"Robot: {a.robot} \u00b7 A: {a.campaign or a.results}, measured "
                       f"{a.started} \u00b7 B: {b.campaign or b.results}, measured "

@@ -90,13 +90,17 @@ def register(app: typer.Typer) -> None:
         if r.n != 6:
             raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
         k = stiffness_option(r, joint_stiffness)
-        cov = None if joint_stiffness else r.compliance_covariance
+        cov = None if joint_stiffness is not None else r.compliance_covariance
         w_const = None if wrench is None else parse_floats(wrench, "--wrench", 6)
         pin = read_path(path, r, controller, w_const, str(wrench_frame))
         pc = compensate_path(r, pin.q, k, pin.w, cov, pin.line, str(path), min_inv_kappa)
         output_dir(out, force)
         table = co.output_table(pin.frame, pc, r, controller)
-        table.to_csv(out / "compensated.csv", index=False)
+        from analysis.output_files import make_dir, replacing, write_text
+
+        make_dir(out)
+        with replacing(out / "compensated.csv") as tmp:
+            table.to_csv(tmp, index=False)
         convention = "pendant" if controller else "model"
         assumptions = [
             f"robot {r.name} from {r.source_file or robot}",
@@ -134,7 +138,7 @@ def register(app: typer.Typer) -> None:
         # drawn after the verification: the measured errors go on the same plot
         files.insert(1, co.plot(pc, out / "deflection.png", f"{r.name}: deflection of P "
                                 f"along {path.name}", check))
-        (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n")
+        write_text(out / "summary.json", json.dumps(summ, indent=2) + "\n")
         files.append(out / "summary.json")
         for f in files:
             echo(f"wrote {f}")

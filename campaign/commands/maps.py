@@ -82,7 +82,7 @@ def register(app: typer.Typer) -> None:
             table = joint_space_map(r, grid, k, w, length)
         bound_cols = []
         if upper_bound:
-            if r.compliance_covariance is None or joint_stiffness:
+            if r.compliance_covariance is None or joint_stiffness is not None:
                 raise InputError("--deflection-upper-bound needs an identified model "
                                  "(model.toml from campaign analyze) and no --joint-stiffness",
                                  where="--deflection-upper-bound")
@@ -91,11 +91,15 @@ def register(app: typer.Typer) -> None:
             table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
                 r, grid.poses(), k, w, r.compliance_covariance).ravel()
             bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
+        from analysis.output_files import make_dir, replacing, write_text
+
+        make_dir(out)
         data = out / f"map_joint_space.{fmt}"
-        if fmt == "parquet":
-            table.to_parquet(data, index=False)
-        else:
-            table.to_csv(data, index=False)
+        with replacing(data) as tmp:
+            if fmt == "parquet":
+                table.to_parquet(tmp, index=False)
+            else:
+                table.to_csv(tmp, index=False)
         zones = [
             (z.name, tuple(np.degrees(z.ranges[1])), tuple(np.degrees(z.ranges[2])))
             for z in r.zones
@@ -134,7 +138,7 @@ def register(app: typer.Typer) -> None:
         if bound_cols:
             summary["max_deflection_upper95_mm"] = float(
                 table.loc[ok, "deflection_upper95_mm"].max())
-        (out / "map_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        write_text(out / "map_summary.json", json.dumps(summary, indent=2) + "\n")
         if as_json:
             print_json({**summary, "files": sorted(str(p) for p in out.iterdir())})
             return
