@@ -250,6 +250,7 @@ def validation_blocks(result: IdentificationResult) -> list:
     shown = worst_poses(result.validation)
     total = _column(shown, "total")  # the ratio to the total (noise + prediction) sigma
     flag = _column(shown, "flag", dtype=bool)
+    limit_col = _column(shown, "limit") if total else None
     rows, marked = [], []
     for _, r in shown.iterrows():
         ratio = r[total] if total else r["rms_normalized"]
@@ -258,6 +259,7 @@ def validation_blocks(result: IdentificationResult) -> list:
                      fixed(1e6 * r["rms_translation_m"], 1), fixed(1e6 * r["rms_rotation_rad"], 1),
                      fixed(r["rms_normalized"], 2),
                      *([fixed(r[total], 2)] if total else []),
+                     *([fixed(r[limit_col], 2)] if limit_col else []),
                      "beyond the limit" if bad else (str(r["note"] or "-"))])
         marked.append(bad)
     limit = ("flagged by the validation's own limit" if flag else
@@ -266,7 +268,8 @@ def validation_blocks(result: IdentificationResult) -> list:
         "Held-out validation (leave one pose out)",
         ["held-out pose", "tests", f"RMS error translation ({MICRO}m)",
          f"RMS error rotation ({MICRO}rad)", "RMS error / noise sigma",
-         *(["RMS error / total sigma"] if total else []), "note"],
+         *(["RMS error / total sigma"] if total else []),
+         *(["limit"] if limit_col else []), "note"],
         rows, marked, caption="Each pose is predicted from a fit without it; an RMS error / "
         "sigma near 1 means the model predicts unseen poses to within the measurement noise"
         + (" (total sigma: the noise and the prediction's own uncertainty)" if total else
@@ -274,7 +277,8 @@ def validation_blocks(result: IdentificationResult) -> list:
         + f"; {limit}."
         + ("" if len(shown) == len(result.validation) else
            f" Shown: {validation_summary(result.validation)['validation_listed']}."),
-        widths=[1, 0.6, 1.5, 1.5, 1.3, *([1.3] if total else []), 1.6]),
+        widths=[1, 0.6, 1.5, 1.5, 1.3, *([1.3] if total else []),
+                *([0.7] if limit_col else []), 1.6]),
     ]
 
 

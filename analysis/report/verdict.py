@@ -33,7 +33,18 @@ class HeldOut:
     flagged: list[str]
 
 
+#: the validation's columns of the total-uncertainty check, when it gives them
+#: (:mod:`analysis.identification.holdout_check`): ratio, per-pose limit, flag
+TOTAL_COLUMNS = ("rms_normalized_total", "limit_normalized_total", "beyond_limit")
+
+
 def _column(frame, *needles: str, dtype=None) -> str | None:
+    """The column named by the first of :data:`TOTAL_COLUMNS` that is ``needles[0]``'s
+    (exact name), else the first whose name holds every needle (and has ``dtype``)."""
+    exact = {"total": TOTAL_COLUMNS[0], "limit": TOTAL_COLUMNS[1], "flag": TOTAL_COLUMNS[2]}
+    name = exact.get(needles[0]) if len(needles) == 1 else None
+    if name is not None and name in frame.columns:
+        return name
     for c in frame.columns:
         name = str(c).lower()
         if all(n in name for n in needles) and (dtype is None or frame[c].dtype == dtype):
@@ -55,9 +66,16 @@ def held_out(result: IdentificationResult) -> HeldOut | None:
     ratio = v[col].to_numpy(dtype=float)
     flag_col = _column(v, "flag", dtype=bool)
     ok = np.isfinite(ratio)
+    limit_col = _column(v, "limit") if total else None
     if flag_col is not None:
         bad = v[flag_col].to_numpy(dtype=bool)
-        limit = "flagged by the validation"
+        limit = "flagged beyond its limit by the validation"
+        if limit_col is not None:
+            lim = v[limit_col].to_numpy(dtype=float)
+            if np.isfinite(lim).any():
+                limit = (f"limits {fixed(float(np.nanmin(lim)), 2)} to "
+                         f"{fixed(float(np.nanmax(lim)), 2)}, Sidak" if np.nanmin(lim)
+                         != np.nanmax(lim) else f"limit {fixed(float(lim[0]), 2)}, Sidak")
     else:
         bad = ok & (ratio > HELD_OUT_LIMIT)
         limit = f"limit {HELD_OUT_LIMIT:g}"

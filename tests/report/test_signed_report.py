@@ -390,3 +390,24 @@ def test_a_failed_row_makes_the_verdict_a_warning(complete_run, tmp_path):
     assert "Consistent with the noise model" not in first
     html = (out / "report.html").read_text(encoding="utf-8")
     assert '<p class="warning">Warnings: 1 failed test row(s)' in html
+
+
+def test_held_out_check_reads_the_total_uncertainty_columns_when_present():
+    """The validation's total-uncertainty ratio, limit and flag are presented as given."""
+    from types import SimpleNamespace
+
+    from analysis.report.verdict import held_out
+
+    v = pd.DataFrame({"held_out_pose": ["1", "2", "3"], "n_tests": [3, 3, 3],
+                      "rms_normalized": [0.9, 2.81, 1.1],
+                      "rms_normalized_total": [0.8, 1.4, 2.6],
+                      "limit_normalized_total": [1.9, 1.9, 1.9],
+                      "beyond_limit": [False, False, True]})
+    ho = held_out(SimpleNamespace(validation=v))
+    # pose 2 is not flagged (its prediction is uncertain), pose 3 is
+    assert ho.flagged == ["pose 3 (2.60)"]
+    assert "RMS error / total sigma (noise and prediction) median 1.40, max 2.60 (pose 3; " \
+        "limit 1.90, Sidak)" in ho.text
+    old = v[["held_out_pose", "n_tests", "rms_normalized"]]
+    ho = held_out(SimpleNamespace(validation=old))  # without them: the noise-only ratio
+    assert ho.flagged == ["pose 2 (2.81)"] and "limit 2" in ho.text
