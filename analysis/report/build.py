@@ -479,7 +479,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
                                        inp.nominal, short, inp.info.repeatability_mm)
     instruments = instrument_table(inp.info)
     summary = Section(SECTION_TITLES[0], [
-        *result_blocks(result, inp.nominal, inp.nominal_label, inp.info.robot,
+        *result_blocks(result, inp.nominal, inp.nominal_label, robot_text(inp.info),
                        inp.info.campaign, inp.info.started_utc, inp.info.report_id, run_notes),
         *[Paragraph(t, "refusal" if t.startswith("ACCEPTED") else "warning")
           for t in banner if not t.startswith("ACCEPTED")],
@@ -522,6 +522,14 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     subtitle = f"{inp.info.source}: {inp.info.location}"
     return Report(title, subtitle, sections, banner, simulated=inp.info.simulated,
                   trace=Trace(inp.info.report_id, utc_now_text(), software_text()))
+
+
+def robot_text(info: CampaignInfo) -> str:
+    """The robot's name with its serial when the protocol or the controller gives one."""
+    for rec in info.instrument_records:
+        if rec.get("role") == "robot" and rec.get("serial"):
+            return f"{info.robot} (serial {rec['serial']})"
+    return info.robot
 
 
 def pose_table(labels: list[str], q: np.ndarray) -> Table:

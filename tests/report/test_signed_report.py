@@ -50,6 +50,14 @@ def real(tmp_path_factory):
     rows[7]["dz_mm"] += 0.4  # a gross error of about 11 sigma on one component
     run = write_run(tmp_path_factory.mktemp("signed") / "real", rows, fake=False,
                     pose_keys=POSE_KEYS)
+    text = (run / "protocol.toml").read_text().replace(
+        "[instruments.robot]\n", '[instruments.robot]\nserial = "KR-4711"\n', 1)
+    (run / "protocol.toml").write_text(text)
+    meta = json.loads((run / "metadata.json").read_text())
+    import hashlib
+
+    meta["protocol_sha256"] = hashlib.sha256(text.encode()).hexdigest()
+    (run / "metadata.json").write_text(json.dumps(meta))
     assert main(["analyze", str(run), "--trials", "20", "--accept-misfit"]) == 0
     return {**_read(run / "analysis"), "run": run}
 
@@ -130,6 +138,7 @@ def test_traceability_hashes_and_instruments(real):
     assert inst["pose"][1:] == ["Leica AT960-MR", "LT-777 (device reports LT-123)",
                                 "2026-03-14", "2027-03-14",
                                 "CAL-2026-0412"]
+    assert "Robot: KUKA KR240-2 (serial KR-4711)" in real["pages"][0]
     approval = real["page"].tables["Approval"]
     assert [r[0] for r in approval[1:]] == ["analysed by", "checked by", "approved by"]
     assert all(c == "" for r in approval[1:] for c in r[1:])
