@@ -192,10 +192,23 @@ POSES_TOP = 0.87  # room between the title and the axes for the label of a pose 
 POSE_TITLE_PAD = 16.0  # points: the title above such a label
 
 
+SUBSCRIPT_DIGITS = str.maketrans("0123456789", "\u2080\u2081\u2082\u2083\u2084\u2085\u2086"
+                                 "\u2087\u2088\u2089")
+
+
+def _joint_subscripts(text: str) -> str:
+    """'θ1 = 0' -> 'θ₁ = 0': joint indices as subscripts in a figure's text."""
+    import re
+
+    return re.sub("\u03b8(\\d)", lambda m: "\u03b8" + m.group(1).translate(SUBSCRIPT_DIGITS),
+                  text)
+
+
 def _title(ax, text: str, fontsize: float, pad: float = 6.0) -> None:
     """Title at a fixed height above the axes (``y`` given): matplotlib's automatic title
-    placement measures every tick label of the axes again on each draw."""
-    ax.set_title(text, fontsize=fontsize, pad=pad, y=1.0)
+    placement measures every tick label of the axes again on each draw. Joint indices
+    (θ1) are drawn as subscripts (θ₁)."""
+    ax.set_title(_joint_subscripts(text), fontsize=fontsize, pad=pad, y=1.0)
 
 
 def _new(legend_below: bool = False, colorbar: bool = False, poses: bool = False):
