@@ -420,3 +420,27 @@ def test_held_out_check_reads_the_total_uncertainty_columns_when_present():
     old = v[["held_out_pose", "n_tests", "rms_normalized"]]
     ho = held_out(SimpleNamespace(validation=old))  # without them: the noise-only ratio
     assert ho.flagged == ["pose 2 (2.81)"] and "limit 2" in ho.text
+
+
+def test_a_long_campaign_lists_every_test_in_an_appendix(tmp_path):
+    """45 tests (three simulated runs' rows, imported as CSV): the table of tests moves to
+    an appendix at the end, still one row per test, load cases those of the file."""
+    from report_runs import write_csv
+
+    rows = simulated_rows(seed=3) + simulated_rows(seed=4) + simulated_rows(seed=5)
+    csv = write_csv(tmp_path / "tests.csv", rows)
+    out = tmp_path / "out"
+    assert main(["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--out",
+                 str(out), "--trials", "10", "--tool-xyz-mm", "0,0,0",
+                 "--translation-sigma-um", f"{1e6 * SIGMA[0]:.4f}",
+                 "--rotation-sigma-urad", f"{1e6 * SIGMA[3]:.4f}",
+                 "--force-sigma-N", "0.5", "--moment-sigma-Nm", "0.05"]) == 0
+    page = ReportPage()
+    page.feed((out / "report.html").read_text(encoding="utf-8"))
+    assert page.h2[-1] == "Appendix: tests"
+    table = page.tables["Tests: what was done and what each shows"][1:]
+    assert len(table) == 45
+    assert [int(r[1]) for r in table] == list(range(2, 47))  # CSV lines, header = 1
+    assert {r[3] for r in table} <= {f"load case {i} (as measured)" for i in range(1, 5)}
+    pages = [p.extract_text() for p in PdfReader(out / "report.pdf").pages]
+    assert "Appendix: tests" in pages[-1] or any("Appendix: tests" in p for p in pages[-3:])
