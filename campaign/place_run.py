@@ -563,7 +563,10 @@ def _programs(o, robot, details) -> str:
         kind = default_format(robot.name, robot.key) or "none"
     if kind == "none":
         return ""
+    wrench = (f"--wrench {o.wrench} (N, N m, tool frame)" if o.wrench is not None
+              else "the path file's wrench columns, if any (tool frame)")
     note = [f"campaign place: {robot.name}, path {o.path}, best placement",
+            f"process wrench: {wrench}",
             "joint targets in the controller convention; the path is not compensated"]
     files = write_program(kind, o.out, "place_path", robot.to_controller(details.q), note)
     label = {"krl": "KRL", "urscript": "URScript", "rapid": "RAPID", "fanuc-ls": "FANUC TP"}

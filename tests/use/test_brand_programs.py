@@ -136,6 +136,7 @@ def test_place_programs_round_trip(tmp_path, key, kind, name):
     np.testing.assert_allclose(q, q_ctrl, atol=TOL, rtol=0)
     remarks = " ".join(re.findall(r"! (.*?) ;", text)) if name.endswith(".LS") else text
     assert "the path is not compensated" in " ".join(remarks.split())
+    assert "process wrench: --wrench 400,250,-300,0,0,20" in " ".join(remarks.split())
 
 
 def test_writers_refuse_bad_names_and_targets(tmp_path):
