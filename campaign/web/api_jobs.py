@@ -1,0 +1,116 @@
+"""``/api/jobs``: one POST endpoint per job of :mod:`campaign.jobs`.
+
+Request bodies are the jobs' options records themselves (FastAPI reads the
+dataclasses), so the units are the records' SI units (radians, N, N m, m),
+not the degrees and millimetres the command line takes at its edge; a tool
+point is given as the protocol's ``[tool]`` table gives it (mm, deg), and the
+field names say so. Responses are the result records as JSON, the same
+documents the command's ``--json`` prints (NaN and infinities as null).
+
+Every path in a body is relative to the workspace (``request.app.state.workspace``):
+an absolute path, a ``..`` part, or a symbolic link that leads out of it is
+refused with 400 and one line. Bad input gets 400 (or 422 from the body's
+schema) with the same one-line message as the command line; a refused write
+(disk full, permissions) is 409 with the file named.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from fastapi import APIRouter, Depends, HTTPException, Request
+from fastapi.responses import JSONResponse
+
+from analysis.errors import InputError
+from campaign.cli_common import json_ready
+from campaign.jobs.robots import RobotsOptions
+from campaign.jobs.stiffness import StiffnessOptions
+
+router = APIRouter(prefix="/api/jobs", tags=["jobs"])
+
+
+def workspace(request: Request) -> Path:
+    """The workspace directory of the application (``app.state.workspace``), resolved."""
+    ws = getattr(request.app.state, "workspace", None)
+    if ws is None:
+        raise HTTPException(500, "the application has no workspace directory")
+    return Path(ws).resolve()
+
+
+def inside(ws: Path, rel: str | Path, field: str) -> Path:
+    """``rel`` (relative to the workspace) as an absolute path inside it; refuse the rest.
+
+    Refused with 400: an absolute path, a ``..`` part, and a path whose existing
+    part resolves (through symbolic links) outside the workspace.
+    """
+    text = str(rel)
+    parts = PurePosixPath(text.replace("\\", "/")).parts
+    if not text or text.startswith(("/", "\\")) or (parts and ":" in parts[0]):
+        raise HTTPException(400, f"{field}: {text!r} is not a path relative to the workspace")
+    if ".." in parts:
+        raise HTTPException(400, f"{field}: {text!r} has a '..' part; paths stay inside "
+                                 "the workspace")
+    path = ws.joinpath(*parts)
+    if not path.resolve().is_relative_to(ws):
+        raise HTTPException(400, f"{field}: {text!r} leads out of the workspace "
+                                 "(symbolic link)")
+    return path
+
+
+def _relative(ws: Path, doc: Any) -> Any:
+    """``doc`` with the workspace's absolute paths written relative to it."""
+    if isinstance(doc, dict):
+        return {k: _relative(ws, v) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [_relative(ws, v) for v in doc]
+    if isinstance(doc, str) and doc.startswith(str(ws) + "/"):
+        return doc[len(str(ws)) + 1:]
+    return doc
+
+
+def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
+    """Run ``job()``; its result record as JSON, or bad input as 400 with its one line."""
+    try:
+        result = job()
+    except InputError as err:
+        text = str(err) if ws is None else str(err).replace(f"{ws}/", "")
+        raise HTTPException(400, text) from None
+    except OSError as err:
+        where = f"{err.filename}: " if err.filename else ""
+        raise HTTPException(409, f"{where}{err.strerror or err}") from None
+    except Exception as err:
+        if type(err).__name__ == "EquilibriumError":
+            raise HTTPException(400, f"nonlinear equilibrium: {err}; reduce the wrench or "
+                                     "check the joint stiffness") from None
+        raise
+    doc = json_ready(result.to_json())
+    return JSONResponse(doc if ws is None else _relative(ws, doc))
+
+
+def robot_path(ws: Path, robot: str, field: str = "robot") -> str:
+    """A robot given by name stays a name; one given as a file is a workspace path."""
+    if Path(robot).suffix.lower() in (".urdf", ".toml", ".yaml", ".yml"):
+        return str(inside(ws, robot, field))
+    return robot  # a built-in name (an unknown one is refused by the job, naming the field)
+
+
+@router.post("/robots")
+def robots(options: RobotsOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """The built-in robot models (no name), or one model (SI units, radians)."""
+    from campaign.jobs.robots import run
+
+    if options.name is not None:
+        options = dataclasses.replace(options, name=robot_path(ws, options.name, "name"))
+    return call(ws, lambda: run(options))
+
+
+@router.post("/stiffness")
+def stiffness(options: StiffnessOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """J, K_C, K_X and the deflection at one pose (q in rad, k in N m/rad, wrench N, N m)."""
+    from campaign.jobs.stiffness import run
+
+    options = dataclasses.replace(options, robot=robot_path(ws, options.robot))
+    return call(ws, lambda: run(options))
