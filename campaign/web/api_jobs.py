@@ -26,6 +26,7 @@ from fastapi.responses import JSONResponse
 
 from analysis.errors import InputError
 from campaign.cli_common import json_ready
+from campaign.jobs.plan import PlanOptions
 from campaign.jobs.robots import RobotsOptions
 from campaign.jobs.stiffness import StiffnessOptions
 
@@ -113,4 +114,14 @@ def stiffness(options: StiffnessOptions, ws: Path = Depends(workspace)) -> JSONR
     from campaign.jobs.stiffness import run
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot))
+    return call(ws, lambda: run(options))
+
+
+@router.post("/plan")
+def plan(options: PlanOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """Plan the tests of a protocol file; writes the plan directory ``out`` (workspace paths)."""
+    from campaign.jobs.plan import run
+
+    options = dataclasses.replace(options, protocol=inside(ws, options.protocol, "protocol"),
+                                  out=inside(ws, options.out, "out"))
     return call(ws, lambda: run(options))
