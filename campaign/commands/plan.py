@@ -38,9 +38,9 @@ def plan(
     standard error of every joint stiffness beside that of a random zone design.
     """
     from campaign.jobs.plan import PlanOptions, run
-    from campaign.options import parse_floats
+    from campaign.options import numbers_option
 
-    wts = None if weights is None else parse_floats(weights, "--weights").tolist()
+    wts = numbers_option(weights, "--weights")
     result = run(PlanOptions(protocol, out, strategy, wts, seed, candidates, tests,
                              not no_figure, force), stage=stage)
     if as_json:

@@ -8,7 +8,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, parse_floats
+from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
 
 def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
@@ -43,21 +43,16 @@ def register(app: typer.Typer) -> None:
         from campaign.jobs.stiffness import StiffnessOptions, run
 
         res = run(StiffnessOptions(
-            robot=robot, q_rad=np.radians(parse_floats(q, "--q")).tolist(), tip=tip,
-            tool_xyz_mm=_floats(tool_xyz_mm, "--tool-xyz-mm"),
-            tool_rpy_deg=_floats(tool_rpy_deg, "--tool-rpy-deg"),
+            robot=robot, q_rad=np.radians(numbers_option(q, "--q")).tolist(), tip=tip,
+            tool_xyz_mm=numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
+            tool_rpy_deg=numbers_option(tool_rpy_deg, "--tool-rpy-deg"),
             controller_angles=controller,
-            joint_stiffness_Nm_per_rad=_floats(joint_stiffness, "--joint-stiffness"),
-            wrench_N_Nm=_floats(wrench, "--wrench"), ignore_limits=ignore_limits))
+            joint_stiffness_Nm_per_rad=numbers_option(joint_stiffness, "--joint-stiffness"),
+            wrench_N_Nm=numbers_option(wrench, "--wrench"), ignore_limits=ignore_limits))
         if as_json:
             typer.echo(json.dumps(res.to_json(), indent=2))
             return
         _present(res)
-
-
-def _floats(text: str | None, where: str) -> list[float] | None:
-    """An option's comma-separated numbers, as typed (None when not given)."""
-    return None if text is None else parse_floats(text, where).tolist()
 
 
 def _present(res) -> None:

@@ -20,6 +20,14 @@ from analysis.errors import InputError
 Stage = Callable[[str], AbstractContextManager]
 
 
+#: ``note(text)``: one line of progress the command line prints as it comes (an assumption).
+Note = Callable[[str], None]
+
+
+def no_note(text: str) -> None:
+    """The default note hook: nothing shown (the result record holds the same facts)."""
+
+
 @contextmanager
 def no_stage(text: str) -> Iterator[None]:
     """The default progress hook: nothing shown."""

@@ -26,6 +26,7 @@ from fastapi.responses import JSONResponse
 
 from analysis.errors import InputError
 from campaign.cli_common import json_ready
+from campaign.jobs.maps import MapsOptions
 from campaign.jobs.plan import PlanOptions
 from campaign.jobs.robots import RobotsOptions
 from campaign.jobs.stiffness import StiffnessOptions
@@ -123,5 +124,15 @@ def plan(options: PlanOptions, ws: Path = Depends(workspace)) -> JSONResponse:
     from campaign.jobs.plan import run
 
     options = dataclasses.replace(options, protocol=inside(ws, options.protocol, "protocol"),
+                                  out=inside(ws, options.out, "out"))
+    return call(ws, lambda: run(options))
+
+
+@router.post("/maps")
+def maps(options: MapsOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """The paper's Figs. 3 and 5 maps into ``out`` (grid step and fixed joints in rad)."""
+    from campaign.jobs.maps import run
+
+    options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   out=inside(ws, options.out, "out"))
     return call(ws, lambda: run(options))
