@@ -9,7 +9,10 @@ documents the command's ``--json`` prints (NaN and infinities as null).
 
 Every path in a body is relative to the workspace (``request.app.state.workspace``):
 an absolute path, a ``..`` part, or a symbolic link that leads out of it is
-refused with 400 and one line. Bad input gets 400 (or 422 from the body's
+refused with 400 and one line. The jobs get absolute paths, so the files they
+write name workspace files by absolute path where the command line would write
+the path as typed; the JSON answers give them relative to the workspace.
+Bad input gets 400 (or 422 from the body's
 schema) with the same one-line message as the command line; a refused write
 (disk full, permissions) is 409 with the file named.
 """
@@ -26,7 +29,10 @@ from fastapi.responses import JSONResponse
 
 from analysis.errors import InputError
 from campaign.cli_common import json_ready
+from campaign.jobs.compare import CompareOptions
+from campaign.jobs.compensate import CompensateOptions
 from campaign.jobs.maps import MapsOptions
+from campaign.jobs.place import PlaceOptions
 from campaign.jobs.plan import PlanOptions
 from campaign.jobs.robots import RobotsOptions
 from campaign.jobs.stiffness import StiffnessOptions
@@ -68,8 +74,8 @@ def _relative(ws: Path, doc: Any) -> Any:
         return {k: _relative(ws, v) for k, v in doc.items()}
     if isinstance(doc, list):
         return [_relative(ws, v) for v in doc]
-    if isinstance(doc, str) and doc.startswith(str(ws) + "/"):
-        return doc[len(str(ws)) + 1:]
+    if isinstance(doc, str):
+        return doc.replace(f"{ws}/", "")
     return doc
 
 
@@ -134,5 +140,42 @@ def maps(options: MapsOptions, ws: Path = Depends(workspace)) -> JSONResponse:
     from campaign.jobs.maps import run
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
+                                  out=inside(ws, options.out, "out"))
+    return call(ws, lambda: run(options))
+
+
+@router.post("/compare")
+def compare(options: CompareOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """k_B - k_A per joint with its interval, z score and verdict (campaign paths a and b)."""
+    from campaign.jobs.compare import run
+
+    options = dataclasses.replace(
+        options, a=inside(ws, options.a, "a"), b=inside(ws, options.b, "b"),
+        plot=None if options.plot is None else inside(ws, options.plot, "plot"),
+        report=None if options.report is None else inside(ws, options.report, "report"))
+    return call(ws, lambda: run(options))
+
+
+@router.post("/compensate")
+def compensate(options: CompensateOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """The deflection along a path, the compensated joints and the robot program in ``out``."""
+    from campaign.jobs.compensate import run
+
+    options = dataclasses.replace(
+        options, robot=robot_path(ws, options.robot), path=inside(ws, options.path, "path"),
+        out=inside(ws, options.out, "out"),
+        protocol=None if options.protocol is None else inside(ws, options.protocol,
+                                                               "protocol"))
+    return call(ws, lambda: run(options))
+
+
+@router.post("/place")
+def place(options: PlaceOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """The placement search (options in the command line's units: mm, deg, ``A..B`` ranges);
+    the answer is placement.json. ``workers`` 0 runs the search in the server's process."""
+    from campaign.jobs.place import run
+
+    options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
+                                  path=inside(ws, options.path, "path"),
                                   out=inside(ws, options.out, "out"))
     return call(ws, lambda: run(options))
