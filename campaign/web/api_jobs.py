@@ -35,6 +35,7 @@ from campaign.jobs.maps import MapsOptions
 from campaign.jobs.place import PlaceOptions
 from campaign.jobs.plan import PlanOptions
 from campaign.jobs.robots import RobotsOptions
+from campaign.jobs.robustness import RobustnessOptions
 from campaign.jobs.stiffness import StiffnessOptions
 
 router = APIRouter(prefix="/api/jobs", tags=["jobs"])
@@ -178,4 +179,15 @@ def place(options: PlaceOptions, ws: Path = Depends(workspace)) -> JSONResponse:
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   path=inside(ws, options.path, "path"),
                                   out=inside(ws, options.out, "out"))
+    return call(ws, lambda: run(options))
+
+
+@router.post("/robustness")
+def robustness(options: RobustnessOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """The Monte-Carlo spread of k against the number of tests (noise overrides in SI)."""
+    from campaign.jobs.robustness import run
+
+    options = dataclasses.replace(
+        options, robot=robot_path(ws, options.robot),
+        out=None if options.out is None else inside(ws, options.out, "out"))
     return call(ws, lambda: run(options))
