@@ -85,10 +85,17 @@ def robot_and_tool(robot: str, tip: str | None, tool_xyz_mm: Sequence[float] | N
     """
     from campaign.options import robot_and_tool as _parsed
 
+    return _parsed(robot, tip, *tool_texts(tool_xyz_mm, tool_rpy_deg), default_tool)
+
+
+def tool_texts(tool_xyz_mm: Sequence[float] | None,
+               tool_rpy_deg: Sequence[float] | None) -> tuple[str | None, str | None]:
+    """The tool's numbers as the texts :func:`campaign.options.tool_option` reads (exact:
+    ``repr`` of a float reads back the same float); counts checked here."""
+
     def text(values, where):
         if values is None:
             return None
         return ",".join(repr(float(v)) for v in floats(values, where, 3))
 
-    return _parsed(robot, tip, text(tool_xyz_mm, "--tool-xyz-mm"),
-                   text(tool_rpy_deg, "--tool-rpy-deg"), default_tool)
+    return text(tool_xyz_mm, "--tool-xyz-mm"), text(tool_rpy_deg, "--tool-rpy-deg")

@@ -29,6 +29,7 @@ from fastapi.responses import JSONResponse
 
 from analysis.errors import InputError
 from campaign.cli_common import json_ready
+from campaign.jobs.analyze import AnalyzeOptions
 from campaign.jobs.compare import CompareOptions
 from campaign.jobs.compensate import CompensateOptions
 from campaign.jobs.maps import MapsOptions
@@ -190,4 +191,21 @@ def robustness(options: RobustnessOptions, ws: Path = Depends(workspace)) -> JSO
     options = dataclasses.replace(
         options, robot=robot_path(ws, options.robot),
         out=None if options.out is None else inside(ws, options.out, "out"))
+    return call(ws, lambda: run(options))
+
+
+@router.post("/analyze")
+def analyze(options: AnalyzeOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """Identify k from a run directory or a tests CSV (noise overrides in SI, fractions for
+    the relative F/T noise); the answer is results.json with analysis.json and the files."""
+    from campaign.jobs.analyze import run
+
+    def opt(value, name):
+        return None if value is None else inside(ws, value, name)
+
+    options = dataclasses.replace(
+        options, run_dir=opt(options.run_dir, "run_dir"),
+        measurements=opt(options.measurements, "measurements"),
+        robot=None if options.robot is None else robot_path(ws, options.robot),
+        out=opt(options.out, "out"))
     return call(ws, lambda: run(options))
