@@ -29,6 +29,7 @@ from fastapi.responses import JSONResponse
 
 from analysis.errors import InputError
 from campaign.cli_common import json_ready
+from campaign.jobs.acquire import AcquireJobOptions
 from campaign.jobs.analyze import AnalyzeOptions
 from campaign.jobs.compare import CompareOptions
 from campaign.jobs.compensate import CompensateOptions
@@ -209,3 +210,27 @@ def analyze(options: AnalyzeOptions, ws: Path = Depends(workspace)) -> JSONRespo
         robot=None if options.robot is None else robot_path(ws, options.robot),
         out=opt(options.out, "out"))
     return call(ws, lambda: run(options))
+
+
+@router.post("/acquire")
+def acquire(options: AcquireJobOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """Run, resume or dry-run a campaign and answer when it ends (status, counts).
+
+    Without ``out`` a new run goes to ``runs/run-<UTC time>`` in the workspace. A real
+    robot moves only with ``assume_yes`` (nobody can be asked here); a long campaign is
+    better started as its own process (``python -m campaign.jobs.acquire``), which a
+    closed page does not stop."""
+    from campaign.jobs.acquire import default_run_dir, run
+
+    def opt(value, name):
+        return None if value is None else inside(ws, value, name)
+
+    out = options.out
+    if out is None and options.resume is None and options.plan is not None \
+            and not options.dry_run:
+        out = default_run_dir()
+    options = dataclasses.replace(
+        options, plan=opt(options.plan, "plan"), out=opt(out, "out"),
+        resume=opt(options.resume, "resume"), events_file=opt(options.events_file,
+                                                              "events_file"))
+    return call(ws, lambda: run(options, say=lambda s: None))
