@@ -64,6 +64,26 @@ def load_command(name: str, module: str) -> TyperCommand:
     if command is None:
         raise LookupError(f"campaign.commands.{module} does not register a command {name!r}; "
                           "fix LAZY_COMMANDS in campaign/cli.py")
+    return escape_help(command)
+
+
+def escape_help(command):
+    """``command`` with rich markup escaped in its help and its parameters' help, once.
+
+    typer renders help texts as rich markup, which would read the protocol's
+    ``[tool]`` or ``[fake_lab]`` as style tags and drop them from ``--help``; a
+    help text here is plain text, so every ``[`` is escaped. Returns ``command``.
+    """
+    from rich.markup import escape
+
+    if getattr(command, "_help_escaped", False):
+        return command
+    if command.help:
+        command.help = escape(command.help)
+    for param in command.params:
+        if getattr(param, "help", None):
+            param.help = escape(param.help)
+    command._help_escaped = True
     return command
 
 
@@ -83,7 +103,8 @@ class _LazyGroup(TyperGroup):
         for name, (module, help_line) in LAZY_COMMANDS.items():
             # a command registered eagerly under the same name wins
             self.commands.setdefault(name, _Placeholder(name, module, help_line))
-        self.commands = dict(sorted(self.commands.items()))
+        self.commands = {name: escape_help(command)
+                         for name, command in sorted(self.commands.items())}
 
     def resolve_command(self, ctx, args):
         placeholder = self.commands.get(args[0]) if args else None

@@ -17,6 +17,13 @@ from pathlib import Path
 
 from analysis.errors import InputError
 
+#: Panels of ``--help`` shared by the commands: options grouped in panels keep each
+#: panel's columns narrow, so option names stay whole and descriptions readable at 80
+#: columns (typer's ``rich_help_panel``).
+PANEL_ROBOT = "Robot, tool point and load"
+PANEL_NOISE = "Noise figures (per measured component of one test row)"
+PANEL_OUTPUT = "Output"
+
 
 class Method(StrEnum):
     """Estimator of the joint compliances (analysis.identification.estimate.METHODS)."""

@@ -21,7 +21,15 @@ from rich.table import Table as RichTable
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.cli_common import Covariance, Method, Robust, print_json, stage
+from campaign.cli_common import (
+    PANEL_NOISE,
+    PANEL_OUTPUT,
+    Covariance,
+    Method,
+    Robust,
+    print_json,
+    stage,
+)
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -38,6 +46,11 @@ from campaign.run_noise import noise_from_protocol, protocol_noise_source
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
 DEFAULT_TRIALS = 200
+
+#: panels of --help (campaign.cli_common)
+_INPUT = "Input and tool point"
+_FIT = "Estimation and checks"
+_REPORT = "Report"
 
 
 # kept importable from here (tests and older scripts import it from this module)
@@ -399,60 +412,76 @@ def register(app: typer.Typer) -> None:
     @_frozen_heap()
     def analyze(
         run_dir: Path = typer.Argument(None, help="Run directory written by campaign acquire."),
-        measurements: Path = typer.Option(None, help="Tests CSV file (public import format)."),
-        robot: str = typer.Option(None, help="Robot of --measurements: built-in, file or URDF."),
-        tip: str = typer.Option(None, help="Tool frame of a URDF."),
-        out: Path = typer.Option(None, help="Output directory (default RUN_DIR/analysis)."),
+        measurements: Path = typer.Option(None, help="Tests CSV file (public import format).",
+            rich_help_panel=_INPUT),
+        robot: str = typer.Option(None, help="Robot of --measurements: built-in, file or URDF.",
+            rich_help_panel=_INPUT),
+        tip: str = typer.Option(None, help="Tool frame of a URDF.", rich_help_panel=_INPUT),
+        out: Path = typer.Option(None, help="Output directory (default RUN_DIR/analysis).",
+            rich_help_panel=PANEL_OUTPUT),
         method: Method = typer.Option(DEFAULT_METHOD, help="Estimator: ols (the paper's "
                                       "linear least squares), wls (weighted), exact "
-                                      "(Gauss-Newton on the nonlinear equilibrium)."),
-        joints: str = typer.Option(None, help="Joints to identify, e.g. 1,2,3 (others rigid)."),
+                                      "(Gauss-Newton on the nonlinear equilibrium).",
+            rich_help_panel=_FIT),
+        joints: str = typer.Option(None, help="Joints to identify, e.g. 1,2,3 (others rigid).",
+            rich_help_panel=_FIT),
         robust: Robust = typer.Option(
             "none", help="Robust fit for campaigns with glitches: none (the Gaussian fit), "
             "huber (c = 1.345) or tukey (c = 4.685) IRLS on the whitened residuals; the "
-            "down-weighted rows are reported. Needs --method exact or wls."),
+            "down-weighted rows are reported. Needs --method exact or wls.", rich_help_panel=_FIT),
         covariance: Covariance = typer.Option(
             "model", help="model (the noise figures are known) or residual (scaled by the "
-            "reduced chi-square)."),
+            "reduced chi-square).", rich_help_panel=_FIT),
         pose: list[str] = typer.Option(  # noqa: B008 (typer's way of a repeatable option)
-            [], help="Joint angles (deg, model convention) where K_X is reported; repeatable."),
+            [], help="Joint angles (deg, model convention) where K_X is reported; repeatable.",
+            rich_help_panel=_REPORT),
         wrench: str = typer.Option(
             None, help="fx,fy,fz (N), mx,my,mz (N m) at P, base frame, for the predicted "
-            "deflection (default: protocol [report] wrench or first load case)."),
+            "deflection (default: protocol [report] wrench or first load case).",
+            rich_help_panel=_REPORT),
         trials: int = typer.Option(DEFAULT_TRIALS, help="Monte-Carlo trials per point of "
-                                   "the robustness curve."),
-        report: bool = typer.Option(True, "--report/--no-report", help="Write the report."),
+                                   "the robustness curve.", rich_help_panel=_REPORT),
+        report: bool = typer.Option(True, "--report/--no-report", help="Write the report.",
+            rich_help_panel=_REPORT),
         translation_sigma_um: float = typer.Option(
             None, "--translation-sigma-um",
-            help="Override: sigma of one measured displacement component (um)."),
+            help="Override: sigma of one measured displacement component (um).",
+            rich_help_panel=PANEL_NOISE),
         rotation_sigma_urad: float = typer.Option(
             None, "--rotation-sigma-urad",
-            help="Override: sigma of one measured rotation component (urad)."),
+            help="Override: sigma of one measured rotation component (urad).",
+            rich_help_panel=PANEL_NOISE),
         old_translation: float = typer.Option(None, "--sigma-translation-um", hidden=True),
         old_rotation: float = typer.Option(None, "--sigma-rotation-urad", hidden=True),
         force_sigma_n: float = typer.Option(
-            None, "--force-sigma-N", help="Override: sigma of a force component (N)."),
+            None, "--force-sigma-N", help="Override: sigma of a force component (N).",
+            rich_help_panel=PANEL_NOISE),
         moment_sigma_nm: float = typer.Option(
-            None, "--moment-sigma-Nm", help="Override: sigma of a moment component (N m)."),
+            None, "--moment-sigma-Nm", help="Override: sigma of a moment component (N m).",
+            rich_help_panel=PANEL_NOISE),
         joint_sigma_urad: float = typer.Option(
-            None, help="Override: sigma of a joint angle reading, encoders (urad)."),
+            None, help="Override: sigma of a joint angle reading, encoders (urad).",
+            rich_help_panel=PANEL_NOISE),
         force_pct: float = typer.Option(
             None, "--force-pct", help="F/T force noise in % of |f| of the reading, in "
-                                      "quadrature with --force-sigma-N."),
+                                      "quadrature with --force-sigma-N.",
+            rich_help_panel=PANEL_NOISE),
         moment_pct: float = typer.Option(
             None, "--moment-pct", help="F/T moment noise in % of |m| of the reading, in "
-                                       "quadrature with --moment-sigma-Nm."),
+                                       "quadrature with --moment-sigma-Nm.",
+            rich_help_panel=PANEL_NOISE),
         tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP + " Overrides the "
-                                        "protocol's or the sidecar's tool."),
-        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
+                                        "protocol's or the sidecar's tool.",
+            rich_help_panel=_INPUT),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP, rich_help_panel=_INPUT),
         accept_misfit: bool = typer.Option(
             False, "--accept-misfit", help="Write the result even when the checks refuse it "
             "(misfit, too good to be true, k > 10 x from nominal, negative k, a tool point the "
             "residuals contradict); results.json and the "
-            "report then say so."),
+            "report then say so.", rich_help_panel=_FIT),
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
                                      "(the keys of results.json, SI units) instead of "
-                                     "the tables."),
+                                     "the tables.", rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report.
 

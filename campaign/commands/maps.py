@@ -10,7 +10,14 @@ import typer
 from rich.console import Console
 
 from analysis.errors import InputError
-from campaign.cli_common import TableFormat, output_dir, print_json, stage
+from campaign.cli_common import (
+    PANEL_OUTPUT,
+    PANEL_ROBOT,
+    TableFormat,
+    output_dir,
+    print_json,
+    stage,
+)
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -20,35 +27,46 @@ from campaign.options import (
     wrench_option,
 )
 
+#: panel of --help (campaign.cli_common)
+_GRID = "Map grid"
+
 
 def register(app: typer.Typer) -> None:
     @app.command("maps")
     def maps(
-        robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
-        out: Path = typer.Option(..., help="Output directory."),
-        tip: str = typer.Option(None, help="Tool frame of a URDF."),
-        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
-        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
-        step: float = typer.Option(1.0, help="Grid step (deg)."),
+        robot: str = typer.Option(..., help="Built-in name, robot file or URDF.",
+            rich_help_panel=PANEL_ROBOT),
+        out: Path = typer.Option(..., help="Output directory.", rich_help_panel=PANEL_OUTPUT),
+        tip: str = typer.Option(None, help="Tool frame of a URDF.", rich_help_panel=PANEL_ROBOT),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP, rich_help_panel=PANEL_ROBOT),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP, rich_help_panel=PANEL_ROBOT),
+        step: float = typer.Option(1.0, help="Grid step (deg).", rich_help_panel=_GRID),
         fixed: str = typer.Option(
             None, help="Other joints q1..q6 in degrees (model convention); entries 2 and 3 "
-            "are ignored. Default: theta1 = 0, theta4..6 = 45 deg as in the paper."
+            "are ignored. Default: theta1 = 0, theta4..6 = 45 deg as in the paper.",
+            rich_help_panel=_GRID
         ),
-        joint_stiffness: str = typer.Option(None, help="k1,...,k6 (N m/rad)."),
+        joint_stiffness: str = typer.Option(None, help="k1,...,k6 (N m/rad).",
+            rich_help_panel=PANEL_ROBOT),
         wrench: str = typer.Option(
-            None, help="fx,fy,fz (N), mx,my,mz (N m); default the paper's worst case."
+            None, help="fx,fy,fz (N), mx,my,mz (N m); default the paper's worst case.",
+            rich_help_panel=PANEL_ROBOT
         ),
         length: float = typer.Option(
-            None, help="Characteristic length L (m); default the model's, else computed."
+            None, help="Characteristic length L (m); default the model's, else computed.",
+            rich_help_panel=_GRID
         ),
-        fmt: TableFormat = typer.Option("parquet", "--format", help="Map table format."),
+        fmt: TableFormat = typer.Option("parquet", "--format", help="Map table format.",
+            rich_help_panel=PANEL_OUTPUT),
         upper_bound: bool = typer.Option(
             False, "--deflection-upper-bound", help="Also map the 95 % upper bound of the "
-            "deflection |dp| from the identified model's covariance (model.toml)."),
+            "deflection |dp| from the identified model's covariance (model.toml).",
+            rich_help_panel=_GRID),
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
-                                   "(its map files are replaced)."),
+                                   "(its map files are replaced).", rich_help_panel=PANEL_OUTPUT),
         as_json: bool = typer.Option(False, "--json", help="Print map_summary.json (SI "
-                                     "units) instead of the text summary."),
+                                     "units) instead of the text summary.",
+            rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
         # pinocchio, scipy, pandas and matplotlib: imported when the command runs
