@@ -164,6 +164,17 @@ def _is_equilibrium_error(err: Exception) -> bool:
     return isinstance(err, EquilibriumError)
 
 
+def _error(text: str) -> None:
+    """An error message on stderr: one line for logs and scripts; on a terminal, wrapped
+    at word boundaries to its width (the terminal itself would cut words in two)."""
+    import shutil
+
+    from campaign.cli_common import wrap_text
+
+    width = shutil.get_terminal_size().columns if sys.stderr.isatty() else None
+    typer.echo(wrap_text(text, width), err=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit status."""
     app = build_app()
@@ -173,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(status, int) and status:
             return status
     except InputError as err:
-        typer.echo(f"error: {err}", err=True)
+        _error(f"error: {err}")
         return 2
     except typer.Abort:
         typer.echo("aborted", err=True)
@@ -185,8 +196,8 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except Exception as err:
         if type(err).__name__ == "EquilibriumError" and _is_equilibrium_error(err):
-            typer.echo(f"error: nonlinear equilibrium: {err}; reduce the wrench or check the "
-                       "joint stiffness", err=True)
+            _error(f"error: nonlinear equilibrium: {err}; reduce the wrench or check the "
+                   "joint stiffness")
             return 2
         # Usage errors of the click layer under typer carry their own message and code.
         if hasattr(err, "show") and isinstance(getattr(err, "exit_code", None), int):

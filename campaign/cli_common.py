@@ -127,6 +127,65 @@ def output_dir(out: Path, force: bool, where: str = "--out") -> Path:
     return out
 
 
+def text_width(stream=None) -> int | None:
+    """Columns at which text for a person is wrapped on ``stream`` (default stdout).
+
+    A terminal's own width; else ``$COLUMNS`` when set; else None: pipes and
+    files keep whole lines (one message, one line, for logs and scripts).
+    """
+    import os
+    import shutil
+    import sys
+
+    stream = sys.stdout if stream is None else stream
+    try:
+        if stream.isatty():
+            return shutil.get_terminal_size().columns
+    except (AttributeError, ValueError, OSError):
+        pass
+    columns = os.environ.get("COLUMNS", "")
+    return int(columns) if columns.isdigit() and int(columns) > 0 else None
+
+
+def wrap_text(text: str, width: int | None, hang: int = 2) -> str:
+    """``text`` with each line longer than ``width`` wrapped at spaces, never inside a word.
+
+    Continuation lines are indented ``hang`` columns more than their line's own
+    indentation, so a wrapped item still reads as one item; ``width`` None
+    leaves the text as it is. A word longer than the line stays whole.
+    """
+    import textwrap
+
+    if not width:
+        return text
+    out = []
+    for line in text.split("\n"):
+        if len(line) <= width:
+            out.append(line)
+            continue
+        lead = line[: len(line) - len(line.lstrip())]
+        out.extend(textwrap.wrap(line.strip(), width=width, initial_indent=lead,
+                                 subsequent_indent=lead + " " * hang, break_long_words=False,
+                                 break_on_hyphens=False) or [line])
+    return "\n".join(out)
+
+
+def echo(text: str = "", err: bool = False, nl: bool = True) -> None:
+    """``typer.echo`` of text for a person, wrapped at word boundaries to :func:`text_width`."""
+    import sys
+
+    import typer
+
+    typer.echo(wrap_text(text, text_width(sys.stderr if err else sys.stdout)), err=err, nl=nl)
+
+
+def print_wrapped(console, text: str, style: str | None = None) -> None:
+    """Print plain ``text`` (never read as markup) on a rich ``console``, wrapped at word
+    boundaries to the console's width with hanging indentation (:func:`wrap_text`)."""
+    console.print(wrap_text(text, console.width), style=style, markup=False, highlight=False,
+                  soft_wrap=True)
+
+
 @contextmanager
 def stage(text: str, enabled: bool = True) -> Iterator[None]:
     """A spinner with the elapsed time on stderr while ``text`` runs (terminal only).

@@ -317,7 +317,7 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"{n['rotation_sigma_urad']:.3g} urad, force {n['force_sigma_N']:.3g} N + "
         f"{n['force_relative_percent']:.3g} % of |f|, moment {n['moment_sigma_Nm']:.3g} N m + "
         f"{n['moment_relative_percent']:.3g} % of |m|, encoders "
-        f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg ({n['source']})",
+        f"{np.radians(n['joint_sigma_deg']) * 1e6:.3g} urad ({n['source']})",
         f"  method: {a['method']}; covariance {a['covariance']}; joints {a['joints']}",
         f"  robust fitting: {a['robust']}",
         f"  wrench errors in variables: {a['wrench_errors_in_variables']}",

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from campaign.cli_common import echo
+
 
 def register(app: typer.Typer) -> None:
     @app.command("compare")
@@ -28,15 +30,26 @@ def register(app: typer.Typer) -> None:
         if as_json:
             typer.echo(json.dumps(result, indent=2))
             return
-        typer.echo(f"{result['robot']}: B = {result['B']} vs A = {result['A']}")
-        typer.echo(f"{'joint':>5} {'k_A (kN m/rad)':>15} {'k_B (kN m/rad)':>15} "
-                   f"{'diff %':>8} {'95 % interval (kN m/rad)':>26} {'z':>7}  verdict")
-        for r in result["joints"]:
-            lo, hi = (v / 1e3 for v in r["ci95_difference_Nm_per_rad"])
-            typer.echo(f"{'k' + str(r['joint']):>5} {r['k_A_Nm_per_rad'] / 1e3:15.2f} "
-                       f"{r['k_B_Nm_per_rad'] / 1e3:15.2f} {100 * r['relative_difference']:8.2f}"
-                       f" {f'[{lo:.2f}, {hi:.2f}]':>26} {r['z']:7.2f}  {r['verdict']}")
-        typer.echo(f"verdict: |z| > {result['critical_z']:.3f} (two-sided, alpha "
-                   f"{result['alpha']:g} shared over {len(result['joints'])} joints)")
-        if plot is not None:
-            typer.echo(f"wrote {plot}")
+        for line in compare_lines(result):
+            echo(line)
+
+
+def compare_lines(result: dict) -> list[str]:
+    """The comparison as text lines of at most 80 columns (stiffness in kN m/rad)."""
+    from analysis.report.formatting import k_kNm, percent, sig
+
+    lines = [f"{result['robot']}: B = {result['B']} vs A = {result['A']}",
+             "k in kN m/rad; diff = (k_B - k_A) / k_A; 95 % interval of k_B - k_A; z on the "
+             "compliances 1/k (z > 0: B softer)",
+             f"{'':3} {'k_A':>8} {'k_B':>8} {'diff %':>7} {'95 % interval':>17} {'z':>6}  "
+             "verdict"]
+    for r in result["joints"]:
+        lo, hi = (sig(v / 1e3, 4) for v in r["ci95_difference_Nm_per_rad"])
+        lines.append(f"{'k' + str(r['joint']):3} {k_kNm(r['k_A_Nm_per_rad']):>8} "
+                     f"{k_kNm(r['k_B_Nm_per_rad']):>8} {percent(r['relative_difference']):>7} "
+                     f"{f'[{lo}, {hi}]':>17} {sig(r['z'], 3):>6}  {r['verdict']}")
+    lines.append(f"verdict: |z| > {result['critical_z']:.3f} (two-sided, alpha "
+                 f"{result['alpha']:g} shared over {len(result['joints'])} joints)")
+    if result.get("plot"):
+        lines.append(f"wrote {result['plot']}")
+    return lines

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli_common import Strategy, output_dir, print_json, stage
+from campaign.cli_common import Strategy, echo, output_dir, print_json, stage
 
 
 def plan(
@@ -56,8 +56,8 @@ def plan(
         summary = json.loads((out / "summary.json").read_text())
         print_json({**summary, "plan_file": str(path)})
         return
-    typer.echo(summary_text(result), nl=False)
-    typer.echo(f"plan written to {path}")
+    echo(summary_text(result), nl=False)
+    echo(f"plan written to {path}")
 
 
 def register(app: typer.Typer) -> None:

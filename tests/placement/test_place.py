@@ -183,3 +183,32 @@ def test_dask_local_cluster_equals_local_run():
     for field in ("value", "config", "angle", "reason", "point"):
         np.testing.assert_array_equal(getattr(remote, field), getattr(local, field))
     assert np.isfinite(local.value).sum() > 0 and np.isinf(local.value).sum() > 0
+
+
+def test_edge_of_the_box_is_warned_and_the_nonlinear_check_has_a_unit(tmp_path, capsys):
+    from campaign.place_run import edge_warnings
+
+    capsys.readouterr()
+    code, out = _place(tmp_path)
+    assert code == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((out / "placement.json").read_text())
+    p, space = summary["placement"], summary["search_space"]
+    on_edge = [key for key in ("x_mm", "y_mm") if p[key] in (space[key][0], space[key][-1])]
+    assert len(summary["warnings"]) == len(on_edge)
+    flat = " ".join(printed.split())
+    for key in on_edge:
+        assert f"edge of --{key.replace('_', '-')}" in flat
+    nl = summary["objective_nonlinear"]
+    assert f"nonlinear equilibrium with K_C: {nl:.4g} mm" in flat
+    assert repr(nl) not in printed  # no 16-digit float
+    # the rule itself: x, y, z, yaw grids, C order; a full turn of yaw has no edge
+    grids = {"x_mm": np.array([0.0, 100, 200]), "y_mm": np.array([0.0, 50]),
+             "z_mm": np.array([300.0]), "yaw_deg": np.arange(0.0, 360, 90)}
+    assert edge_warnings(grids, np.ravel_multi_index((1, 0, 0, 3), (3, 2, 1, 4))) == [
+        "the best placement is on the lower edge of --y-mm (y = 0 mm, range 0..50 mm): a "
+        "better one may lie outside the box; widen --y-mm"]
+    assert edge_warnings(grids, np.ravel_multi_index((2, 1, 0, 0), (3, 2, 1, 4)))[0].startswith(
+        "the best placement is on the upper edge of --x-mm (x = 200 mm")
+    grids["yaw_deg"] = np.array([-30.0, 0, 30])
+    assert "--yaw-deg" in edge_warnings(grids, np.ravel_multi_index((1, 0, 0, 2), (3, 2, 1, 3)))[1]
