@@ -16,6 +16,7 @@ from campaign.cli_common import (
     TableFormat,
     output_dir,
     print_json,
+    print_wrapped,
     stage,
 )
 from campaign.options import (
@@ -26,6 +27,11 @@ from campaign.options import (
     stiffness_option,
     wrench_option,
 )
+
+#: what --deflection-upper-bound maps, said when it is used
+BOUND_TEXT = ("deflection upper bound: |dp| + 1.96 sd(|dp|), the 95 % upper bound of |dp| "
+              "(linear model with K_C, the maps' model), sd from the identified compliances' "
+              "covariance (the robot file's [identification]) by the delta method along dp")
 
 #: panel of --help (campaign.cli_common)
 _GRID = "Map grid"
@@ -94,7 +100,15 @@ def register(app: typer.Typer) -> None:
                 length, _, _ = characteristic_length(r)
             how = "computed (minimum condition number of J_N over posture and L)"
         output_dir(out, force)
-        console.print(f"characteristic length L = {length:.4f} m ({how})")
+        from analysis.report.formatting import k_kNm
+        from campaign.commands.stiffness import WORST_CASE_TEXT, vector_text
+
+        w_source = "--wrench" if wrench else WORST_CASE_TEXT
+        print_wrapped(console, f"wrench w = {vector_text(w[:3], 6, False)} N, "
+                      f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
+        print_wrapped(console, f"joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN m/rad ("
+                      + ("--joint-stiffness" if joint_stiffness else "the robot model's") + ")")
+        print_wrapped(console, f"characteristic length L = {length:.4f} m ({how})")
         grid = GridSpec.from_limits(r, np.radians(step), fixed_q)
         with stage(f"map of {r.name} ({step:g} deg grid)"):
             table = joint_space_map(r, grid, k, w, length)
@@ -109,6 +123,7 @@ def register(app: typer.Typer) -> None:
             table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
                 r, grid.poses(), k, w, r.compliance_covariance).ravel()
             bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
+            print_wrapped(console, BOUND_TEXT)
         data = out / f"map_joint_space.{fmt}"
         if fmt == "parquet":
             table.to_parquet(data, index=False)
@@ -142,18 +157,28 @@ def register(app: typer.Typer) -> None:
             "max_v_r_deg": float(table.loc[ok, "v_r_deg"].max()),
             "max_inv_kappa_F": float(table["inv_kappa_F"].max()),
             "wrench_N_Nm": w.tolist(),
+            "wrench_source": w_source,
             "joint_stiffness_Nm_per_rad": k.tolist(),
         }
         if bound_cols:
             summary["max_deflection_upper95_mm"] = float(
                 table.loc[ok, "deflection_upper95_mm"].max())
+            summary["deflection_upper95_method"] = BOUND_TEXT
         (out / "map_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
         if as_json:
             print_json({**summary, "files": sorted(str(p) for p in out.iterdir())})
             return
-        console.print(
+        print_wrapped(console,
             f"{len(table)} poses, {summary['singular_nodes']} singular; "
             f"max v_p = {summary['max_v_p']:.4f}, max v_r = {summary['max_v_r_deg']:.4f} deg, "
             f"max 1/kappa_F = {summary['max_inv_kappa_F']:.3f}"
         )
-        console.print(f"wrote {data} and PNG plots to {out}/")
+        if bound_cols:
+            with_kc = table.loc[ok]
+            at = with_kc["deflection_upper95_mm"].idxmax()
+            print_wrapped(console, f"95 % upper bound of |dp|: at most "
+                          f"{summary['max_deflection_upper95_mm']:.4g} mm over the grid (at "
+                          f"theta2 = {with_kc.loc[at, 'theta2_deg']:.4g} deg, theta3 = "
+                          f"{with_kc.loc[at, 'theta3_deg']:.4g} deg); column "
+                          "deflection_upper95_mm and deflection_upper95_*.png")
+        print_wrapped(console, f"wrote {data} and PNG plots to {out}/")

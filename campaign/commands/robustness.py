@@ -215,6 +215,17 @@ def register(app: typer.Typer) -> None:
                                    reflector_radius_mm, tracker_distance_m, force_sigma_n,
                                    moment_sigma_nm, encoder_resolution_deg)
         console = Console(stderr=as_json)
+        from analysis.report.formatting import k_kNm
+        from campaign.cli_common import print_wrapped
+        from campaign.commands.stiffness import vector_text
+
+        w_source = "--wrench" if wrench else ("default: the paper's w_eff (eq. 22); --wrench "
+                                              "to choose another")
+        print_wrapped(console, f"wrench w = {vector_text(w[:3], 6, False)} N, "
+                      f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
+        print_wrapped(console, f"true joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN "
+                      "m/rad (" + ("--joint-stiffness" if joint_stiffness else
+                                   "the robot model's") + ")")
         with Progress(TextColumn("{task.description}"), BarColumn(),
                       TextColumn("{task.completed}/{task.total} identifications"),
                       TimeRemainingColumn(), console=console, transient=True) as progress:
@@ -231,7 +242,7 @@ def register(app: typer.Typer) -> None:
             console.print(f"note: {note}", markup=False, highlight=False)
         settings = {
             "robot": r.name, "joint_stiffness_Nm_per_rad": k.tolist(),
-            "wrench_N_Nm": w.tolist(), "tests": counts, "trials": trials,
+            "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts, "trials": trials,
             "method": method, "seed": seed, "pool_size": pool_size,
             "min_inverse_condition": min_dexterity, "noise": noise.describe(),
             "notes": notes,

@@ -164,3 +164,16 @@ def test_map_fixed_joints_one_rule():
     assert m.from_protocol == (0,) and m.from_poses == (3, 4, 5)
     assert m.values_text() == "\u03b81 = 5, \u03b84 = -90, \u03b85 = 80, \u03b86 = 20 deg"
     assert "\u03b84, \u03b85, \u03b86 the median of the tested poses" in m.rule_text()
+
+
+def test_robustness_says_its_default_wrench(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    code, out, err = run(["robustness", "--robot", "kr240-2", "--tests", "5", "--trials",
+                          "10", "--pool-size", "100", "--json"], capsys)
+    assert code == 0
+    data = json.loads(out)
+    assert data["wrench_N_Nm"] == [0, 2200, 2200, 200, 200, 0]
+    assert data["wrench_source"].startswith("default: the paper's w_eff (eq. 22)")
+    flat = " ".join(_plain(err).split())
+    assert "wrench w = [0, 2200, 2200] N, [200, 200, 0] N m at P, base frame (default: the " \
+           "paper's w_eff (eq. 22); --wrench to choose another)" in flat

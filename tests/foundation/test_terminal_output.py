@@ -3,6 +3,7 @@ indentation, numbers in one format (k in kN m/rad, no '-0', round-off shown as 0
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -109,3 +110,50 @@ def test_an_error_is_one_line_in_a_pipe_and_wrapped_on_an_80_column_terminal(tmp
     lines = shown.splitlines()
     assert len(lines) > 1 and all(len(line) <= 80 for line in lines)
     assert shown.split() == message.split()  # the same words, none cut in two
+
+
+def _stiffness(capsys, monkeypatch, *extra):
+    monkeypatch.setenv("COLUMNS", "80")
+    code = main(["stiffness", "--robot", "kr240-2", "--q", "0,30,10,45,45,45", *extra])
+    out = capsys.readouterr().out
+    assert code == 0
+    return out
+
+
+def test_stiffness_text_one_number_format_and_the_default_wrench_said(capsys, monkeypatch):
+    out = _stiffness(capsys, monkeypatch)
+    assert _fits(out)
+    flat = " ".join(out.split())
+    # the default wrench is named with its values
+    assert "w = [2200, 2200, 2200] N, [400, 400, 400] N m at P, base frame (default: the " \
+           "paper's worst case" in flat
+    # k in kN m/rad, as robots, analyze and compare show it
+    assert "k = [1409.8, 400.76, 935.28, 360.00, 370.00, 380.00] kN m/rad" in flat
+    assert "N m/rad;" not in flat and "1409800" not in flat
+    # no signed zero, no round-off residue: K_C's last column is exactly 0 here (joint 6
+    # turns about the tool point), J's zeros are zeros
+    assert not re.search(r"-0(\.0+)?(e[+-]?0+)?(\s|$|,|\])", out)
+    assert not re.search(r"e-1[0-9]", out)
+    kc = out.split("K_C (kN m/rad)")[1].splitlines()[1:7]
+    assert [row.split()[-1] for row in kc] == ["0"] * 6
+    # no 16-digit floats anywhere
+    assert not re.search(r"\d\.\d{9,}", out)
+    data = json.loads(_stiffness(capsys, monkeypatch, "--json"))
+    kc_json = np.array(data["K_C_Nm_per_rad"])
+    np.testing.assert_allclose([float(row.split()[0]) for row in kc], kc_json[:, 0] / 1e3,
+                               rtol=1e-4)
+    assert data["wrench_source"].startswith("default: the paper's worst case")
+    assert data["joint_stiffness_source"] == "the model's nominal values"
+
+
+def test_stiffness_json_keys_carry_their_units(capsys, monkeypatch):
+    data = json.loads(_stiffness(capsys, monkeypatch, "--json"))
+    # every numeric entry's key ends with its unit, except K_X's mixed blocks, which are
+    # named in "units" (as in results.json)
+    unit_suffix = re.compile(r"_(m_rad|m_rad_per_rad|Nm_per_rad|N_Nm|rad|mm|deg)$")
+    for key, value in data.items():
+        if isinstance(value, (list, float, int)) and not isinstance(value, bool):
+            assert unit_suffix.search(key) or key in ("K_X", "K_X_without_K_C"), key
+    for old in ("J", "K_C", "deflection", "deflection_nonlinear", "deflection_without_K_C"):
+        assert old not in data
+    assert set(data["units"]) >= {"J_m_rad_per_rad", "K_C_Nm_per_rad", "K_X"}

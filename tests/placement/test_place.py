@@ -73,10 +73,10 @@ def test_outputs_recomputed_from_path_joints(tmp_path, capsys):
                      "--wrench", ",".join(f"{v:.12f}" for v in w)])
         data = json.loads(capsys.readouterr().out)
         assert code == 0
-        ref = np.array(data["deflection_without_K_C"][:3]) * 1e3
+        ref = np.array(data["deflection_without_K_C_m_rad"][:3]) * 1e3
         row = np.array([float(rows[i][c]) for c in ("dx_mm", "dy_mm", "dz_mm")])
         np.testing.assert_allclose(row, ref, rtol=1e-7, atol=1e-9)
-        nl = np.array(data["deflection_nonlinear"][:3]) * 1e3
+        nl = np.array(data["deflection_nonlinear_m_rad"][:3]) * 1e3
         row_nl = np.array([float(rows[i][c]) for c in
                            ("dx_nonlinear_mm", "dy_nonlinear_mm", "dz_nonlinear_mm")])
         np.testing.assert_allclose(row_nl, nl, rtol=1e-7, atol=1e-9)
