@@ -27,7 +27,9 @@ from campaign.cli_common import (
     Covariance,
     Method,
     Robust,
+    echo,
     print_json,
+    print_wrapped,
     stage,
 )
 from campaign.options import (
@@ -177,7 +179,7 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
     run = read_run(run_dir)
     for note in run.notes:  # the loud ones also go to the terminal
         if note.startswith("WARNING"):
-            typer.echo(note, err=True)
+            echo(note, err=True)
     protocol = load_protocol(run.protocol_path) if run.protocol_path else None
     if protocol is not None:
         t = protocol.tool
@@ -323,7 +325,7 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"  wrench errors in variables: {a['wrench_errors_in_variables']}",
         f"  poses: {a['poses']}",
     ):
-        console.print(line, markup=False, highlight=False)
+        print_wrapped(console, line)
 
 
 def _poses(robot, protocol, pose_args: list[str], q_tests: np.ndarray, labels) -> list:
@@ -388,23 +390,21 @@ def _frozen_heap():
 
 
 def _print(console: Console, result, paths: dict) -> None:
-    from rich.markup import escape
-
     from analysis.report.formatting import interval_kNm, k_kNm
 
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
-    for col in ("joint", "k (kN m/rad)", f"{result.confidence:.0%} interval (kN m/rad)"):
+    for col in ("joint", "k (kN m/rad)", f"{100 * result.confidence:g} % interval (kN m/rad)"):
         table.add_column(col, justify="right")
     for j in range(6):
         table.add_row(f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
                       if np.isfinite(result.k[j]) else "-")
     console.print(table)
     for w in result.warnings:
-        console.print(f"[yellow]warning:[/yellow] {escape(w)}")
+        print_wrapped(console, f"warning: {w}", style="yellow")
     for w in result.misfit_accepted:
-        console.print(f"[red]ACCEPTED WITH --accept-misfit:[/red] {escape(w)}")
+        print_wrapped(console, f"ACCEPTED WITH --accept-misfit: {w}", style="red")
     for name, p in paths.items():
-        console.print(f"{name}: {p}")
+        print_wrapped(console, f"{name}: {p}")
 
 
 def register(app: typer.Typer) -> None:
@@ -599,7 +599,7 @@ def register(app: typer.Typer) -> None:
         (Path(out) / "analysis.json").write_text(json.dumps(summary, indent=2) + "\n")
         if as_json:
             for w in result.warnings:  # still on the terminal, beside the JSON on stdout
-                typer.echo(f"warning: {w}", err=True)
+                echo(f"warning: {w}", err=True)
             print_json({**json.loads((Path(out) / "results.json").read_text()),
                         "files": {k: str(v) for k, v in paths.items()}, **summary})
             return
