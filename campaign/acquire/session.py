@@ -20,6 +20,7 @@ from typing import Any
 
 from analysis.errors import InputError
 from campaign.acquire.checks import limits_for
+from campaign.acquire.ending import ending
 from campaign.acquire.instruments import open_instruments
 from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
 from campaign.acquire.progress import Reporter
@@ -211,6 +212,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
             except WriteFailure:
                 pass
     except BaseException as err:
+        interrupted = isinstance(err, KeyboardInterrupt) and run is not None
         if run is not None and run.metadata.get("status") == "running":
             try:
                 if isinstance(err, KeyboardInterrupt):
@@ -220,14 +222,20 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
                     run.set_status("failed", f"{type(err).__name__}: {err}", ended_utc=utc())
             except WriteFailure:
                 pass  # the original error says more than a second failed write
-        raise
+        if not interrupted:
+            raise
+        # Ctrl-C outside the runner (connecting, exporting): the run is recorded as
+        # aborted; the operator still gets the closing lines and the resume command
+        status, reason = "aborted", "interrupted by the operator (Ctrl-C)"
     finally:
         inst.close()
         if run is not None:
             run.close()
     outcome = Outcome(status, reason, run.path, counts["ok"], counts["failed"])
-    reporter.finish(status, reason, {"run_dir": str(run.path), "ok": outcome.ok,
-                                     "failed": outcome.failed})
+    total = sum(t.repeats for t in tests)
+    reporter.finish(status, reason, {**ending(run.path, run.session, status, opts.fake, total),
+                                     "ok_this_session": outcome.ok,
+                                     "failed_this_session": outcome.failed})
     return outcome
 
 
