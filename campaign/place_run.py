@@ -293,16 +293,15 @@ def _placement_dict(p: np.ndarray) -> dict:
 
 def run_place(o: PlaceOptions) -> None:
     """The whole command; raises InputError on bad input or when nothing is feasible."""
-    from rich.markup import escape
-
     from analysis.placement.details import path_details
     from analysis.placement.search import evaluate_chunk
+    from campaign.cli_common import print_wrapped
 
     console = Console()
     robot, problem, G, grids, assumptions, part = build_problem(o, console)
     N, A = problem.points.shape[0], problem.angles.size
     evaluations = G.shape[0] * N * A * len(problem.flags)
-    console.print(f"{G.shape[0]} placements x {N} points x {A} tool angles x "
+    print_wrapped(console, f"{G.shape[0]} placements x {N} points x {A} tool angles x "
                   f"{len(problem.flags)} configurations = {evaluations:.3g} evaluations")
     t0 = time.perf_counter()
     res, how = _run(problem, G, o, console)
@@ -377,25 +376,26 @@ def run_place(o: PlaceOptions) -> None:
     _plots(o, problem, G, res, grids, best, details, center_details, unit, scale, robot)
     programs = _programs(o, robot, details)
     for line in assumptions:
-        console.print(f"[dim]assumed:[/dim] {escape(line)}")
+        print_wrapped(console, f"assumed: {line}")
     p = summary["placement"]
     nonlinear = summary["objective_nonlinear"]
     check = ("" if nonlinear is None else
              f" (nonlinear equilibrium with K_C: {nonlinear:.4g} {unit})")
-    console.print(f"best placement x = {p['x_mm']:g} mm, y = {p['y_mm']:g} mm, z = "
+    print_wrapped(console, f"best placement x = {p['x_mm']:g} mm, y = {p['y_mm']:g} mm, z = "
                   f"{p['z_mm']:g} mm, yaw = {p['yaw_deg']:g} deg; {o.objective} = "
-                  f"{summary['objective']:.4g} {unit}{check}", markup=False, highlight=False)
+                  f"{summary['objective']:.4g} {unit}{check}")
     for note in summary["warnings"]:
-        console.print(f"warning: {note}", markup=False, highlight=False)
+        print_wrapped(console, f"warning: {note}", style="yellow")
     if summary["center_objective"] is not None:
-        console.print(f"centre of the box: {summary['center_objective']:.4g} {unit} "
+        print_wrapped(console, f"centre of the box: {summary['center_objective']:.4g} {unit} "
                       f"(x {summary['improvement_over_center']:.3g} better at the best)")
     else:
-        console.print(f"centre of the box infeasible: {summary['center_infeasible_reason']}")
-    console.print(f"{infeasible.size} of {G.shape[0]} placements infeasible"
+        print_wrapped(console, "centre of the box infeasible: "
+                      f"{summary['center_infeasible_reason']}")
+    print_wrapped(console, f"{infeasible.size} of {G.shape[0]} placements infeasible"
                   + (": " + "; ".join(f"{v} {k}" for k, v in by_reason.items())
                      if by_reason else ""))
-    console.print(f"wrote placement.json, path_joints.csv, plots{programs} to {o.out}/ "
+    print_wrapped(console, f"wrote placement.json, path_joints.csv, plots{programs} to {o.out}/ "
                   f"({elapsed:.2f} s, {how})")
 
 

@@ -117,17 +117,20 @@ def register(app: typer.Typer) -> None:
         files += co.robot_program(r, pc.comp.q_cmd, out, [
             f"Compensated path from {path.name} ({len(pin.q)} points), campaign compensate",
             f"Robot model: {r.name}"])
-        echo = typer.echo
+        from campaign.cli_common import echo
         for a in assumptions:
             echo(f"assumption: {a}")
         t, rr = summ["translation_m"], summ["rotation_rad"]
+        bound = ("" if cov is None else
+                 f" (95 % upper bound max {1e3 * t['before_upper95_max']:.4f} mm)")
         echo(f"{summ['points']} points; deflection before: max {1e3 * t['before']['max']:.4f} "
-             f"mm, RMS {1e3 * t['before']['rms']:.4f} mm (95 % upper bound max "
-             f"{1e3 * t['before_upper95_max']:.4f} mm); rotation max "
+             f"mm, RMS {1e3 * t['before']['rms']:.4f} mm{bound}; rotation max "
              f"{1e3 * rr['before']['max']:.4f} mrad")
-        echo(f"after compensation (model): max residual {1e6 * summ['max_residual_m']:.3g} um, "
-             f"{1e6 * summ['max_residual_rad']:.3g} urad; 95 % upper bound from the stiffness "
-             f"uncertainty {1e3 * t['after_upper95_max']:.4f} mm")
+        # the residuals are Newton's round-off (refused above 1 um / 1 urad): 3 decimals
+        after = ("" if cov is None else f"; 95 % upper bound from the stiffness uncertainty "
+                 f"{1e3 * t['after_upper95_max']:.4f} mm")
+        echo(f"after compensation (model): max residual {1e6 * summ['max_residual_m']:.3f} um, "
+             f"{1e6 * summ['max_residual_rad']:.3f} urad{after}")
         echo(f"worst point: line {summ['worst_point']['line']} "
              f"({1e3 * summ['worst_point']['deflection_m']:.4f} mm)")
         if verify_fake:
