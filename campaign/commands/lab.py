@@ -128,10 +128,13 @@ def register(app: typer.Typer) -> None:
                         fake_server.mode = "6dof"
             for name, url in addresses.items():
                 typer.echo(f"{name}={url}")
+            # name=url lines stay whole (scripts read them); these are for people
+            from campaign.cli_common import echo
+
             for line in _describe(settings, probe):
-                typer.echo(f"lab: {line}", err=True)
+                echo(f"lab: {line}", err=True)
             for note in sim.notes:
-                typer.echo(f"note: {note}", err=True)
+                echo(f"note: {note}", err=True)
             typer.echo("ready")
             sim.wait()
         except KeyboardInterrupt:

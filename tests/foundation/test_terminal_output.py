@@ -157,3 +157,27 @@ def test_stiffness_json_keys_carry_their_units(capsys, monkeypatch):
     for old in ("J", "K_C", "deflection", "deflection_nonlinear", "deflection_without_K_C"):
         assert old not in data
     assert set(data["units"]) >= {"J_m_rad_per_rad", "K_C_Nm_per_rad", "K_X"}
+
+
+def test_robots_prints_the_files_own_text_literally_and_k_in_one_format(tmp_path, capsys,
+                                                                        monkeypatch):
+    text = (ROOT / "analysis" / "data" / "robots" / "kr240-2.toml").read_text()
+    text = text.replace('stiffness = "Dumas et al. 2011 Table 2:',
+                        'stiffness = "[bold]see [stiffness] and [tool][/bold] Dumas et al. '
+                        '2011 Table 2:')
+    robot = tmp_path / "[lab] kr240.toml"
+    robot.write_text(text)
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["robots", str(robot)]) == 0
+    out = capsys.readouterr().out
+    flat = " ".join(out.split())
+    assert "source stiffness: [bold]see [stiffness] and [tool][/bold] Dumas et al." in flat
+    assert "[lab] kr240.toml" in flat
+    assert _fits(out)
+    rows = [line.split("│") for line in out.splitlines() if line.startswith("│")]
+    assert [row[5].strip() for row in rows] == ["1409.8", "400.76", "935.28", "360.00",
+                                                "370.00", "380.00"]
+    # continuation lines of a source hang under their label
+    lines = out.splitlines()
+    i = next(n for n, line in enumerate(lines) if line.startswith("source geometry:"))
+    assert lines[i + 1].startswith("  ") and not lines[i + 1].startswith("   ")
