@@ -32,7 +32,8 @@ def test_version(capsys):
 
 @pytest.mark.parametrize("command, listed", [
     ("analyze", ["ols|wls|exact", "model|residual"]),
-    ("plan", ["d-optimal|e-optimal|zones-random"]),
+    # plan lists its five strategies in the help text (as one word they fold at 80 columns)
+    ("plan", ["worst-joint (default)", "weighted:", "d-optimal", "e-optimal", "zones-random"]),
     ("robustness", ["ols|wls|exact", "reflectors|probe"]),
     ("maps", ["parquet|csv"]),
     ("compensate", ["base|tool"]),

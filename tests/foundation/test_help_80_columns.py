@@ -62,7 +62,8 @@ def test_options_panels_leave_a_readable_description_column(name, capsys, monkey
         for opt in (*param.opts, *param.secondary_opts):
             if opt.startswith("--"):
                 assert re.search(rf"(^|[\s,]){re.escape(opt)}(\s|,|$)", text, re.M), (name, opt)
-    # the description column: continuation lines of a panel start there
+    # the description column: continuation lines of a panel start there (the rightmost
+    # start: a metavar folded onto a second line starts further left)
     for panel in re.findall(r"╭─ (.*?) ─+╮\n(.*?)╰", text, re.S):
         title, body = panel
         starts = []
@@ -72,7 +73,7 @@ def test_options_panels_leave_a_readable_description_column(name, capsys, monkey
             if stripped and not stripped.startswith(("-", "*")) and len(inner) - len(stripped) > 3:
                 starts.append(len(inner) - len(stripped))
         if starts:
-            width = WIDTH - 4 - min(starts)
+            width = WIDTH - 4 - max(starts)
             assert width >= MIN_DESCRIPTION, (name, title, width)
 
 
