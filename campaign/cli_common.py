@@ -182,7 +182,11 @@ def echo(text: str = "", err: bool = False, nl: bool = True) -> None:
 def print_wrapped(console, text: str, style: str | None = None) -> None:
     """Print plain ``text`` (never read as markup) on a rich ``console``, wrapped at word
     boundaries to the console's width with hanging indentation (:func:`wrap_text`)."""
-    console.print(wrap_text(text, console.width), style=style, markup=False, highlight=False,
+    from rich.text import Text
+
+    # the style on the Text, not on print(): under a live panel, print's style would also
+    # colour the panel redrawn after the line
+    console.print(Text(wrap_text(text, console.width), style=style or ""), highlight=False,
                   soft_wrap=True)
 
 

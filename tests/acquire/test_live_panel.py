@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
 import signal
 
 import numpy as np
@@ -135,3 +136,69 @@ def test_safe_state_and_counts_come_from_the_run_directory(tmp_path):
                        {"event": "robot_stopped", "session": 1}])
     assert safe_state(tmp_path, 1) == "robot stopped; no load was on the tool"
     assert "resume" not in ending(tmp_path, 1, "complete", fake=False, total=3)
+
+
+def test_ctrl_c_on_an_80_column_terminal_erases_the_panel_and_ends_with_the_resume_line(
+        small_plan, tmp_path):
+    """The real command in a pseudo-terminal: after Ctrl-C the panel is wiped whole and
+    the last lines are the closing ones."""
+    import fcntl
+    import pty
+    import select
+    import struct
+    import subprocess
+    import sys
+    import termios
+    import time
+
+    from tests.acquire.conftest import ROOT
+
+    run = tmp_path / "run"
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
+    proc = subprocess.Popen([sys.executable, "-m", "campaign", "acquire", "--plan",
+                             str(small_plan), "--fake", "--yes", "--out", str(run),
+                             "--time-scale", "50"], cwd=ROOT, stdin=slave, stdout=slave,
+                            stderr=slave, start_new_session=True)
+    os.close(slave)
+    out, sent, deadline = b"", False, time.monotonic() + 120
+    try:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([master], [], [], 0.05)
+            if ready:
+                try:
+                    data = os.read(master, 65536)
+                except OSError:
+                    break
+                if not data:
+                    break
+                out += data
+            if not sent and b"test 1 repeat 1: ok" in out:
+                os.killpg(proc.pid, signal.SIGINT)
+                sent = True
+            if proc.poll() is not None and not ready:
+                break
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+    assert sent and proc.wait(timeout=30) == 1
+    text = out.decode(errors="replace")
+    stop = text.rindex("\x1b[?25h")  # the panel stopped (cursor shown again)
+    frame, after = text[:stop], text[stop:]
+    assert frame.rstrip().endswith("s remaining")  # its last frame was whole
+    rows = frame[frame.rindex("run  "):].count("\r\n")
+    # every row of it erased (cursor up + erase line), then only the closing lines
+    assert after.count("\x1b[1A\x1b[2K") == rows
+    plain = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", after).replace("\r", "")
+    lines = []  # logical lines: a wrapped one continues under a two-space indent
+    for line in plain.splitlines():
+        if line.startswith("  ") and lines:
+            lines[-1] += " " + line.strip()
+        elif line.strip():
+            lines.append(line)
+    assert all(len(line) <= 80 for line in plain.splitlines())
+    assert lines[0].startswith("run aborted: interrupted by the operator (Ctrl-C) (")
+    assert lines[-2].startswith("after the stop: robot stopped; ")
+    assert lines[-1] == f"to continue: campaign acquire --resume {run} --fake"
+    assert "deflection" not in plain
