@@ -107,7 +107,9 @@ def plot(pc: PathCompensation, path: Path, title: str) -> Path:
     axes[1].set_xlabel("point of the path")
     axes[0].set_title(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
     return path
 

@@ -19,6 +19,7 @@ from rich.console import Console
 
 from analysis.errors import InputError
 from analysis.model.ik import ALL_FLAGS
+from analysis.output_files import make_dir, replacing, write_text
 
 OBJECTIVE_UNITS = {"max": "mm", "rms": "mm", "compliance": "mm/kN"}
 #: Factor from SI (m, m/N) to the reported unit (mm, mm/kN).
@@ -332,7 +333,7 @@ def run_place(o: PlaceOptions) -> None:
     if np.isfinite(cres.value[0]):
         center_details = path_details(problem, center, problem.flags[cres.config[0]],
                                       cres.angle[0])
-    o.out.mkdir(parents=True, exist_ok=True)
+    make_dir(o.out)
     _write_path_csv(o.out / "path_joints.csv", robot, details, part, problem)
     summary = {
         "robot": robot.name,
@@ -372,7 +373,7 @@ def run_place(o: PlaceOptions) -> None:
         "assumptions": assumptions,
         "warnings": edge_warnings(grids, best),
     }
-    (o.out / "placement.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_text(o.out / "placement.json", json.dumps(summary, indent=2) + "\n")
     _plots(o, problem, G, res, grids, best, details, center_details, unit, scale, robot)
     programs = _programs(o, robot, details)
     for line in assumptions:
@@ -402,7 +403,7 @@ def run_place(o: PlaceOptions) -> None:
 def _write_path_csv(path: Path, robot, d, part, problem) -> None:
     import csv
 
-    with path.open("w", newline="") as fh:
+    with replacing(path) as tmp, tmp.open("w", newline="") as fh:
         wr = csv.writer(fh)
         head = ["point", "line", *(f"q{j + 1}_deg" for j in range(robot.n)), "tool_angle_deg",
                 "x_mm", "y_mm", "z_mm", "dx_mm", "dy_mm", "dz_mm", "d_mm"]

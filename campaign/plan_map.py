@@ -85,5 +85,7 @@ def draw_plan_map(plan, path: Path) -> None:
         if handle.get_label().startswith("candidates"):
             handle.set_markersize(6)
     fig.tight_layout()
-    fig.savefig(path, metadata={"Software": None})
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path, metadata={"Software": None})
     plt.close(fig)

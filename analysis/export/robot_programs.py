@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
+from analysis.output_files import make_dir, write_text
 
 _KRL_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,23}$")
 
@@ -47,8 +48,7 @@ def write_krl(directory: str | Path, name: str, q_pendant_deg: np.ndarray,
     if not 0 < velocity_percent <= 100:
         raise InputError("expected 0 < velocity <= 100 %", where="velocity_percent")
     q = _targets(q_pendant_deg, "KRL targets")
-    out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_dir(directory)
     n = len(q)
     upper = name.upper()
     src = [
@@ -69,8 +69,8 @@ def write_krl(directory: str | Path, name: str, q_pendant_deg: np.ndarray,
         dat.append(f"XPATH[{i}]={{{axes},E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}}")
     dat += ["ENDDAT", ""]
     src_path, dat_path = out / f"{name}.src", out / f"{name}.dat"
-    src_path.write_text("\n".join(src).replace("\n", "\r\n"))
-    dat_path.write_text("\n".join(dat).replace("\n", "\r\n"))
+    write_text(src_path, "\n".join(src).replace("\n", "\r\n"))
+    write_text(dat_path, "\n".join(dat).replace("\n", "\r\n"))
     return src_path, dat_path
 
 
@@ -95,6 +95,6 @@ def write_urscript(path: str | Path, name: str, q_rad: np.ndarray,
                      f"r={blend_m:g})")
     lines += ["end", f"{name}()", ""]
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines))
+    make_dir(path.parent)
+    write_text(path, "\n".join(lines))
     return path

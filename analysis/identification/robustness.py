@@ -444,5 +444,7 @@ def plot_study(summary: pd.DataFrame, path, title: str = "") -> None:
     axes.flat[0].legend(fontsize=8)
     fig.suptitle(title or "Identified joint stiffness vs number of tests")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path, dpi=120)
     plt.close(fig)

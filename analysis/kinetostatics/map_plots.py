@@ -59,7 +59,9 @@ def plot_joint_map(
         ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path)
     plt.close(fig)
     return path
 
@@ -81,6 +83,8 @@ def plot_cartesian_map(table: pd.DataFrame, column: str, path: str | Path, title
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path)
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path)
     plt.close(fig)
     return path

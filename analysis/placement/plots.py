@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.output_files import save_figure
+
 
 def _pyplot():
     import matplotlib
@@ -35,7 +37,7 @@ def plot_objective_map(xs_mm, ys_mm, values, best_xy_mm, title: str, unit: str,
     ax.set_title(title + "\n(blank: infeasible)")
     ax.legend(loc="best")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -54,5 +56,5 @@ def plot_path_deflection(best_mm: np.ndarray, center_mm: np.ndarray | None, titl
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)

@@ -209,7 +209,10 @@ class Runner:
         try:
             self.run_dir.set_status(status, reason, **extra)
         except WriteFailure as err:
-            reason += f"; metadata.json still says running ({err})"
+            reason = "; ".join(filter(None, [reason, f"metadata.json still says running "
+                                                      f"({err}): --resume records it"]))
+            # the appended files are still open: the status goes into events.jsonl at least
+            self._record("status", status=status, reason=reason)
         return status, reason
 
     def _make_safe(self, status: str) -> None:

@@ -179,9 +179,6 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
     from campaign.tests_meta import read_sidecar
 
     run = read_run(run_dir)
-    for note in run.notes:  # the loud ones also go to the terminal
-        if note.startswith("WARNING"):
-            echo(note, err=True)
     protocol = load_protocol(run.protocol_path) if run.protocol_path else None
     if protocol is not None:
         t = protocol.tool
@@ -205,8 +202,15 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
         if meta is not None and meta.noise is not None:
             noise, noise_source = meta.noise, meta.noise_source
         robot_source = "run metadata robot.key"
-        run.notes.append(f"no protocol copy in the run: robot from the metadata, tool "
-                         f"{tool.source}, noise from {noise_source}")
+        deleted = (" (metadata.json records its protocol_sha256: it was deleted)"
+                   if run.metadata.get("protocol_sha256") else "")
+        run.notes.append(f"WARNING: no protocol copy in the run{deleted}: robot from the "
+                         f"metadata robot.key {key!r}, tool {tool.source}, noise from "
+                         f"{noise_source}; restore the protocol copy to analyse with its "
+                         "figures")
+    for note in run.notes:  # the loud ones also go to the terminal
+        if note.startswith("WARNING"):
+            echo(note, err=True)
     info = _run_info(run, robot.name, protocol, tool)
     true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
     extras = {"protocol": protocol, "true_k": None if true_k is None else np.asarray(true_k,
@@ -391,7 +395,9 @@ def _frozen_heap():
         gc.unfreeze()
 
 
-def _print(console: Console, result, paths: dict) -> None:
+def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
+    """The result's table, warnings (but the first ``printed``, on the terminal already)
+    and files."""
     from analysis.report.formatting import interval_kNm, k_kNm
 
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
@@ -401,7 +407,7 @@ def _print(console: Console, result, paths: dict) -> None:
         table.add_row(f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
                       if np.isfinite(result.k[j]) else "-")
     console.print(table)
-    for w in result.warnings:
+    for w in result.warnings[printed:]:
         print_wrapped(console, f"warning: {w}", style="yellow")
     for w in result.misfit_accepted:
         print_wrapped(console, f"ACCEPTED WITH --accept-misfit: {w}", style="red")
@@ -484,6 +490,9 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
                                      "(the keys of results.json, SI units) instead of "
                                      "the tables.", rich_help_panel=PANEL_OUTPUT),
+        force: bool = typer.Option(False, "--force", help="Replace a non-empty output "
+                                   "directory: its contents as a whole, nothing of the "
+                                   "earlier analysis is kept.", rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report.
 
@@ -494,12 +503,14 @@ def register(app: typer.Typer) -> None:
         (the sidecar; else the flange centre) unless --tool-xyz-mm/--tool-rpy-deg
         give it. A result the data do not support (misfit, too good, k more than
         10 x from the model's nominal, a negative k, a tool point the residuals
-        contradict) is refused unless --accept-misfit.
+        contradict) is refused unless --accept-misfit. A non-empty output directory
+        (an earlier analysis) is refused unless --force, which replaces it as a whole.
         """
+        from analysis.identification.data_fingerprint import fingerprint
         from analysis.identification.estimate import identify, parse_joints
         from analysis.identification.measurements import TestArrays, to_arrays
         from analysis.identification.plausibility import problems
-        from analysis.identification.result import write_results
+        from analysis.output_files import check_output_dir, replaced_dir
 
         gc.freeze()  # what was just imported joins the frozen objects (see _frozen_heap)
         method, covariance, robust = str(method), str(covariance), str(robust)
@@ -513,11 +524,14 @@ def register(app: typer.Typer) -> None:
             if robot:
                 raise InputError("a run names its robot in its protocol; drop --robot",
                                  where="--robot")
+            check_output_dir(out or run_dir / "analysis", force, "--out",
+                             replaces="replace its contents")
             table, model, noise, info, extras = _from_run(run_dir, tool_xyz_mm, tool_rpy_deg)
             out = out or run_dir / "analysis"
         else:
             if out is None:
                 raise InputError("--measurements needs --out DIR", where="--out")
+            check_output_dir(out, force, "--out", replaces="replace its contents")
             table, model, noise, info, extras = _from_csv(measurements, robot, tip,
                                                           tool_xyz_mm, tool_rpy_deg)
         protocol = extras["protocol"]
@@ -527,6 +541,8 @@ def register(app: typer.Typer) -> None:
         noise_source = extras["noise_source"] + (
             f"; overridden by {', '.join(overridden)}" if overridden else "")
         joint_list = parse_joints(joints)
+        if report and trials < 10:
+            raise InputError("need at least 10 trials", where="--trials")
         assumptions = _assumptions(model, extras, noise, noise_source, method, covariance,
                                    joint_list, robust)
         # with --json, stdout carries the JSON document only
@@ -541,6 +557,10 @@ def register(app: typer.Typer) -> None:
             result = identify(model, tests, method=method, joints=joint_list,
                               noise=noise, covariance=covariance, robust=robust)
         result.assumptions = assumptions
+        # what the run's reader warned about (a damaged run) stays with the result
+        early = [n.removeprefix("WARNING: ") for n in info.notes if n.startswith("WARNING")]
+        result.warnings[:0] = early
+        result.tests_data = fingerprint(tests)
         if measurements is not None and extras["tool"].source.startswith("none given"):
             result.warnings.insert(0, (
                 "no tool point given: P assumed at the flange centre; if the displacements "
@@ -556,53 +576,67 @@ def register(app: typer.Typer) -> None:
                 "the report then say so)", where=str(run_dir or measurements))
         result.misfit_accepted = refused
         _release_freed_heap()  # the identification's freed pages, before the writer's
-        paths = write_results(result, out)
-        from analysis.identification.model_export import export_model  # model.toml, K_X
-
-        paths.update(export_model(result, model, out, tests, info))
-        if report:
-            # the report makes figures: matplotlib is imported only here
-            from analysis.report.build import ReportInputs, build_report
-            from analysis.report.write import write_report
-
-            gc.freeze()
-
-            if trials < 10:
-                raise InputError("need at least 10 trials", where="--trials")
-            labels = list(dict.fromkeys(tests.pose.tolist()))
-            w, w_source = _wrench(protocol, wrench, tests.w, noise)
-            if protocol is None:
-                from analysis.report.build import wrench_text
-                from analysis.report.quantities import load_cases
-
-                info.wrenches = [(wrench_text(c), n) for c, n in
-                                 load_cases(tests.w, noise.force_sigma, noise.moment_sigma)]
-            nominal, label = model.nominal_stiffness, "nominal (robot model)"
-            nominal_source = (model.sources or {}).get(
-                "stiffness", "the robot file's [stiffness] (its [sources] give no reference)")
-            if nominal is None and protocol is not None and protocol.campaign.prior_stiffness:
-                nominal, label = np.asarray(protocol.campaign.prior_stiffness), "prior (protocol)"
-                nominal_source = f"protocol {Path(protocol.path).name} [campaign] " \
-                    "prior_stiffness"
-            inputs = ReportInputs(
-                robot=model, tests=tests, info=info, noise=noise, wrench=w,
-                wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
-                nominal=None if nominal is None else np.asarray(nominal, float),
-                nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
-                map_fixed=_map_fixed(protocol, model.n, tests.q[
-                    [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
-                trials=trials)
-            with stage("report: maps, K_X, Monte-Carlo robustness, figures"):
-                built = build_report(result, inputs)
-            with stage("report: HTML and PDF"):
-                paths.update(write_report(built, out))
-        summary = {"run": str(run_dir) if run_dir else None, "partial": info.partial,
-                   "status": info.status, "failed_rows": info.n_failed}
-        (Path(out) / "analysis.json").write_text(json.dumps(summary, indent=2) + "\n")
+        # everything is written into a new directory that replaces ``out`` as a whole at
+        # the end: a refused or failed analysis leaves the earlier one untouched
+        with replaced_dir(out, force, "--out") as new:
+            paths = _write_outputs(result, model, new, tests, info, report, trials, protocol,
+                                   wrench, noise, pose, extras, run_dir)
+        paths = {k: out / Path(p).relative_to(new) for k, p in paths.items()}
         if as_json:
-            for w in result.warnings:  # still on the terminal, beside the JSON on stdout
-                echo(f"warning: {w}", err=True)
-            print_json({**json.loads((Path(out) / "results.json").read_text()),
+            summary = json.loads((out / "analysis.json").read_text())
+            for w in result.warnings[len(early):]:  # still on the terminal, beside the JSON
+                echo(f"warning: {w}", err=True)  # (the run's were printed on reading)
+            print_json({**json.loads((out / "results.json").read_text()),
                         "files": {k: str(v) for k, v in paths.items()}, **summary})
             return
-        _print(console, result, paths)
+        _print(console, result, paths, printed=len(early))
+
+
+def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: int,
+                   protocol, wrench, noise, pose, extras, run_dir) -> dict[str, Path]:
+    """Write results.json, residuals.csv, model.toml, the report and analysis.json into
+    ``out`` (a new directory); returns the paths of the main files by name."""
+    from analysis.identification.result import write_results
+    from analysis.output_files import write_text
+
+    paths = write_results(result, out)
+    from analysis.identification.model_export import export_model  # model.toml, K_X
+
+    paths.update(export_model(result, model, out, tests, info))
+    if report:
+        # the report makes figures: matplotlib is imported only here
+        from analysis.report.build import ReportInputs, build_report
+        from analysis.report.write import write_report
+
+        gc.freeze()
+        labels = list(dict.fromkeys(tests.pose.tolist()))
+        w, w_source = _wrench(protocol, wrench, tests.w, noise)
+        if protocol is None:
+            from analysis.report.build import wrench_text
+            from analysis.report.quantities import load_cases
+
+            info.wrenches = [(wrench_text(c), n) for c, n in
+                             load_cases(tests.w, noise.force_sigma, noise.moment_sigma)]
+        nominal, label = model.nominal_stiffness, "nominal (robot model)"
+        nominal_source = (model.sources or {}).get(
+            "stiffness", "the robot file's [stiffness] (its [sources] give no reference)")
+        if nominal is None and protocol is not None and protocol.campaign.prior_stiffness:
+            nominal, label = np.asarray(protocol.campaign.prior_stiffness), "prior (protocol)"
+            nominal_source = f"protocol {Path(protocol.path).name} [campaign] " \
+                "prior_stiffness"
+        inputs = ReportInputs(
+            robot=model, tests=tests, info=info, noise=noise, wrench=w,
+            wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
+            nominal=None if nominal is None else np.asarray(nominal, float),
+            nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
+            map_fixed=_map_fixed(protocol, model.n, tests.q[
+                [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
+            trials=trials)
+        with stage("report: maps, K_X, Monte-Carlo robustness, figures"):
+            built = build_report(result, inputs)
+        with stage("report: HTML and PDF"):
+            paths.update(write_report(built, out))
+    summary = {"run": str(run_dir) if run_dir else None, "partial": info.partial,
+               "status": info.status, "failed_rows": info.n_failed}
+    write_text(Path(out) / "analysis.json", json.dumps(summary, indent=2) + "\n")
+    return paths

@@ -15,19 +15,25 @@ def register(app: typer.Typer) -> None:
     def compare_cmd(
         a: Path = typer.Argument(..., help="Campaign A: run directory, analysis directory "
                                  "or results.json."),
-        b: Path = typer.Argument(..., help="Campaign B (same robot)."),
+        b: Path = typer.Argument(..., help="Campaign B (same robot, measured separately)."),
         alpha: float = typer.Option(0.05, help="False-alarm rate over all joints compared."),
-        plot: Path = typer.Option(None, help="Write the comparison plot (PNG) here."),
+        plot: Path = typer.Option(None, help="Write the comparison plot (.png, .pdf or .svg) "
+                                  "here."),
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
     ) -> None:
-        """Per joint: k_B - k_A with its 95 % interval, z score and verdict."""
-        from analysis.identification.compare import compare, load_campaign, plot_comparison
+        """Per joint: k_B - k_A with its interval, z score and verdict."""
+        from analysis.identification.compare import compare, load_campaign
+        from analysis.identification.compare_plot import check_plot_path, plot_comparison
 
+        if plot is not None:
+            check_plot_path(plot)
         result = compare(load_campaign(a), load_campaign(b), alpha)
         if plot is not None:
             plot_comparison(result, plot)
             result["plot"] = str(plot)
         if as_json:
+            for note in result["notes"]:
+                echo(f"note: {note}", err=True)
             typer.echo(json.dumps(result, indent=2))
             return
         for line in compare_lines(result):
@@ -35,21 +41,24 @@ def register(app: typer.Typer) -> None:
 
 
 def compare_lines(result: dict) -> list[str]:
-    """The comparison as text lines of at most 80 columns (stiffness in kN m/rad)."""
+    """The comparison as text lines of at most 80 columns (stiffness in kN m/rad, 5
+    digits; the interval of k_B - k_A at the verdict's level, 4 digits)."""
+    from analysis.identification.compare import level_text
     from analysis.report.formatting import k_kNm, percent, sig
 
-    lines = [f"{result['robot']}: B = {result['B']} vs A = {result['A']}",
-             "k in kN m/rad; diff = (k_B - k_A) / k_A; 95 % interval of k_B - k_A; z on the "
-             "compliances 1/k (z > 0: B softer)",
-             f"{'':3} {'k_A':>8} {'k_B':>8} {'diff %':>7} {'95 % interval':>17} {'z':>6}  "
-             "verdict"]
+    lines = [f"{result['robot']}: B = {result['B']}", f"  vs A = {result['A']}",
+             "k in kN m/rad; diff = (k_B - k_A) / k_A; interval of k_B - k_A at the "
+             f"verdict's level, {level_text(result)}",
+             f"{'':3} {'k_A':>8} {'k_B':>8} {'diff %':>7} {'interval':>17} {'z':>6}  verdict"]
     for r in result["joints"]:
-        lo, hi = (sig(v / 1e3, 4) for v in r["ci95_difference_Nm_per_rad"])
+        lo, hi = (sig(v / 1e3, 4) for v in r["interval_difference_Nm_per_rad"])
         lines.append(f"{'k' + str(r['joint']):3} {k_kNm(r['k_A_Nm_per_rad']):>8} "
                      f"{k_kNm(r['k_B_Nm_per_rad']):>8} {percent(r['relative_difference']):>7} "
-                     f"{f'[{lo}, {hi}]':>17} {sig(r['z'], 3):>6}  {r['verdict']}")
-    lines.append(f"verdict: |z| > {result['critical_z']:.3f} (two-sided, alpha "
-                 f"{result['alpha']:g} shared over {len(result['joints'])} joints)")
+                     f"{f'[{lo}, {hi}]':>17} {sig(r['z'], 3):>6}  {r['verdict']}"
+                     + (" (borderline)" if "note" in r else ""))
+    lines.append(f"verdict: changed when |z| > {result['critical_z']:.3f} (two-sided); "
+                 "z > 0: B stiffer")
+    lines += [f"note: {note}" for note in result["notes"]]
     if result.get("plot"):
         lines.append(f"wrote {result['plot']}")
     return lines

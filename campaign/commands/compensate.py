@@ -96,7 +96,11 @@ def register(app: typer.Typer) -> None:
         pc = compensate_path(r, pin.q, k, pin.w, cov, pin.line, str(path), min_inv_kappa)
         output_dir(out, force)
         table = co.output_table(pin.frame, pc, r, controller)
-        table.to_csv(out / "compensated.csv", index=False)
+        from analysis.output_files import make_dir, replacing, write_text
+
+        make_dir(out)
+        with replacing(out / "compensated.csv") as tmp:
+            table.to_csv(tmp, index=False)
         convention = "pendant" if controller else "model"
         assumptions = [
             f"robot {r.name} from {r.source_file or robot}",
@@ -135,7 +139,7 @@ def register(app: typer.Typer) -> None:
              f"({1e3 * summ['worst_point']['deflection_m']:.4f} mm)")
         if verify_fake:
             summ["verify_fake"] = _verify(protocol, r, pin, pc, readings, echo)
-        (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n")
+        write_text(out / "summary.json", json.dumps(summ, indent=2) + "\n")
         files.append(out / "summary.json")
         for f in files:
             echo(f"wrote {f}")

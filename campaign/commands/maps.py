@@ -124,11 +124,15 @@ def register(app: typer.Typer) -> None:
                 r, grid.poses(), k, w, r.compliance_covariance).ravel()
             bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
             print_wrapped(console, BOUND_TEXT)
+        from analysis.output_files import make_dir, replacing, write_text
+
+        make_dir(out)
         data = out / f"map_joint_space.{fmt}"
-        if fmt == "parquet":
-            table.to_parquet(data, index=False)
-        else:
-            table.to_csv(data, index=False)
+        with replacing(data) as tmp:
+            if fmt == "parquet":
+                table.to_parquet(tmp, index=False)
+            else:
+                table.to_csv(tmp, index=False)
         zones = [
             (z.name, tuple(np.degrees(z.ranges[1])), tuple(np.degrees(z.ranges[2])))
             for z in r.zones
@@ -164,7 +168,7 @@ def register(app: typer.Typer) -> None:
             summary["max_deflection_upper95_mm"] = float(
                 table.loc[ok, "deflection_upper95_mm"].max())
             summary["deflection_upper95_method"] = BOUND_TEXT
-        (out / "map_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        write_text(out / "map_summary.json", json.dumps(summary, indent=2) + "\n")
         if as_json:
             print_json({**summary, "files": sorted(str(p) for p in out.iterdir())})
             return

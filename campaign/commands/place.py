@@ -98,10 +98,12 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Search the workpiece placement and tool angles that minimise P's deflection."""
         args = dict(locals())
-        from campaign.cli_common import output_dir
+        from campaign.cli_common import output_dir, writing_into
         from campaign.place_run import PlaceOptions, run_place
 
         output_dir(args.pop("out"), args.pop("force"))
         args["out"] = out
         args["objective"], args["program"] = str(objective), str(program)
-        run_place(PlaceOptions(**args))
+        options = PlaceOptions(**args)
+        with writing_into(out):  # a refused search leaves no --out directory behind
+            run_place(options)

@@ -166,7 +166,7 @@ def test_aborted_run_is_analysed_and_says_partial(aborted_run):
     assert _analyze([str(aborted_run), "--no-report"]) == 0
     assert json.loads((out / "results.json").read_text())["n_tests"] == 12
     assert json.loads((out / "analysis.json").read_text())["partial"] is True
-    assert _analyze([str(aborted_run), "--trials", "20"]) == 0
+    assert _analyze([str(aborted_run), "--trials", "20", "--force"]) == 0
     html = (out / "report.html").read_text(encoding="utf-8")
     assert "PARTIAL RUN (status aborted: interrupted by the operator (Ctrl-C))" in html
     assert "12 test row(s) that finished ok of 15 planned" in html
