@@ -142,6 +142,8 @@ class Runner:
 
     def _phase(self, phase: str, **live: Any) -> None:
         self.ctx["phase"] = phase
+        self.inst.mark(self.ctx.get("test_id"), self.ctx.get("repeat"), self.ctx.get("attempt"),
+                       phase)
         self.run_dir.event({"t_utc": utc(), "event": "phase", "phase": phase,
                             "session": self.run_dir.session,
                             **{k: self.ctx.get(k) for k in ("test_id", "repeat", "attempt")}})

@@ -63,12 +63,7 @@ class Lab:
         if name == "ati-netcan":
             from drivers.sim.fake_netcan import FakeNetCAN
 
-            try:
-                return FakeNetCAN(self.world, interface=self.settings.can_interface)
-            except Exception as err:  # python-can backends raise assorted errors
-                self.notes.append(f"ati-netcan fake not started ({self.settings.can_interface}: "
-                                  f"{err}); use can_interface='virtual' in-process")
-                return None
+            return FakeNetCAN(self.world, interface=self.settings.can_interface)
         if name == "emscon":
             from drivers.sim.fake_emscon import FakeEmscon
 
@@ -119,6 +114,16 @@ class Lab:
             self.notes.append("ur fake did not start")
             return
         self.addresses["ur"] = line.split("=", 1)[1]
+
+    def window_guard(self, driver: str):
+        """The context a client of fake ``driver`` enters when it opens an averaging window
+        (:meth:`drivers.sim.base.FakeServer.window`), or None when no such fake runs."""
+        return next((fake.window for fake in self.fakes if fake.driver == driver), None)
+
+    def mark(self, *context: object) -> None:
+        """Tell the simulation what the client does now (test, repeat, attempt, phase):
+        the noise of each reading is drawn from (seed, instrument, context, sample)."""
+        self.world.noise_streams.mark(*context)
 
     def wait(self) -> None:
         """Block until a ``shutdown`` control command (or :meth:`stop`)."""

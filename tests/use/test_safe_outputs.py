@@ -282,7 +282,7 @@ def test_compare_plot_refuses_a_link_a_directory_and_a_missing_directory(identif
     args = ["compare", str(identified), str(other), "--plot"]
     (tmp_path / "c.png").symlink_to(outside / "victim.txt")
     refused(capsys, [*args, str(tmp_path / "c.png")], outside,
-            message="c.png: is a symbolic link")
+            message="c.png is a symbolic link")
     refused(capsys, [*args, str(outside / "dir")], outside, message="is a directory")
     refused(capsys, [*args, str(tmp_path / "missing" / "c.png")], outside,
             message="does not exist")
