@@ -239,7 +239,7 @@ def register(app: typer.Typer) -> None:
                    f"{r.name}: relative spread of k ({method}, {trials} trials)")
         notes = bias_notes(summary, method)
         for note in notes:
-            console.print(f"note: {note}", markup=False, highlight=False)
+            print_wrapped(console, f"note: {note}")
         settings = {
             "robot": r.name, "joint_stiffness_Nm_per_rad": k.tolist(),
             "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts, "trials": trials,
@@ -259,7 +259,7 @@ def register(app: typer.Typer) -> None:
             write_text(out / "robustness.json", json.dumps(settings, indent=2) + "\n")
             written = [out / "robustness.csv", out / "robustness.png", out / "robustness.json"]
             for path in written:
-                console.print(f"wrote {path}", markup=False, highlight=False)
+                print_wrapped(console, f"wrote {path}")
         if as_json:
             print_json({**settings, "results": summary.to_dict(orient="records"),
                         "files": [str(p) for p in written]})
