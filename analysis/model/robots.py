@@ -124,7 +124,9 @@ def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel
     Refused when P is already away from the flange (a robot file with its own
     ``[tool]``, e.g. a ``model.toml`` written by ``campaign analyze``): both
     tools are given in the flange frame, and composing them would put P at
-    neither.
+    neither. Refused too for an identified model (``[identification]``) whose P
+    is the flange: its P is the run's tool point (docs/use.md), and another one
+    must be written into its ``[tool]``, not added on the command line.
     """
     if not np.any(xyz) and not np.any(rpy):
         return robot
@@ -141,6 +143,13 @@ def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel
             f"{new_rpy} deg) would be composed on it. Give the tool point once: drop the tool "
             "option or the protocol's [tool], or write your tool into the robot file's [tool]",
             where=robot.source_file or robot.name)
+    if robot.identification is not None:
+        new_xyz, new_rpy = tool_mm_deg(tool.homogeneous, 6)
+        raise InputError(
+            "this identified model (model.toml) has P at the flange, the tool point of the "
+            f"run it was identified from; a second tool point (xyz {new_xyz} mm, rpy "
+            f"{new_rpy} deg) is refused: drop the tool option or the protocol's [tool], or "
+            "write your tool into the file's [tool]", where=robot.source_file or robot.name)
     model = pin.Model(robot.model)
     flange = model.frames[robot.tip_frame]
     frame = pin.Frame(

@@ -19,6 +19,8 @@ def register(app: typer.Typer) -> None:
         alpha: float = typer.Option(0.05, help="False-alarm rate over all joints compared."),
         plot: Path = typer.Option(None, help="Write the comparison plot (.png, .pdf or .svg) "
                                   "here."),
+        report: Path = typer.Option(None, help="Write report.html and report.pdf of the "
+                                    "comparison into this directory."),
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
     ) -> None:
         """Per joint: k_B - k_A with its interval, z score and verdict."""
@@ -31,6 +33,13 @@ def register(app: typer.Typer) -> None:
         if plot is not None:
             plot_comparison(result, plot)
             result["plot"] = str(plot)
+        if report is not None:  # the report: both runs named, verdict first
+            from analysis.report.compare_report import build_compare_report, run_facts
+            from analysis.report.write import write_report
+
+            files = write_report(build_compare_report(
+                result, run_facts("A", result["A"]), run_facts("B", result["B"])), report)
+            result["report"] = {k: str(v) for k, v in files.items()}
         if as_json:
             for note in result["notes"]:
                 echo(f"note: {note}", err=True)
@@ -61,4 +70,5 @@ def compare_lines(result: dict) -> list[str]:
     lines += [f"note: {note}" for note in result["notes"]]
     if result.get("plot"):
         lines.append(f"wrote {result['plot']}")
+    lines += [f"wrote {path}" for path in (result.get("report") or {}).values()]
     return lines

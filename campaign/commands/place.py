@@ -20,6 +20,7 @@ _FEASIBLE = "Feasibility"
 _OBJECTIVE = "Objective"
 _DASK = "Dask"
 _PROGRAM = "Robot program"
+_SIZE = "Size of the search"
 
 
 def register(app: typer.Typer) -> None:
@@ -88,6 +89,13 @@ def register(app: typer.Typer) -> None:
             "0 runs in this process without Dask.", rich_help_panel=_DASK),
         chunk: int = typer.Option(None, help="Placements per task (default: automatic).",
             rich_help_panel=_DASK),
+        max_evaluations: float = typer.Option(
+            None, help="Largest search allowed, in evaluations (placement x point x tool "
+            "angle x configuration); default 1e8, no limit with --scheduler.",
+            rich_help_panel=_SIZE),
+        max_memory_gib: float = typer.Option(
+            2.0, help="Largest memory for the per-placement results (GiB).",
+            rich_help_panel=_SIZE),
         runner_ups: int = typer.Option(5, help="Runner-up placements listed.",
             rich_help_panel=PANEL_OUTPUT),
         program: Program = typer.Option(
