@@ -94,9 +94,9 @@ def test_ignore_limits_computes_at_the_wrapped_pose(capsys):
     args = ["--q", "999,30,-170,45,45,45", "--ignore-limits"]
     out = _json(capsys, "--robot", "kr240-2", *args)
     ref = _json(capsys, "--robot", "kr240-2", "--q", "-81,30,-170,45,45,45")
-    np.testing.assert_allclose(out["J"], ref["J"], atol=1e-12)
-    np.testing.assert_allclose(out["deflection_nonlinear"], ref["deflection_nonlinear"],
-                               rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(out["J_m_rad_per_rad"], ref["J_m_rad_per_rad"], atol=1e-12)
+    np.testing.assert_allclose(out["deflection_nonlinear_m_rad"],
+                               ref["deflection_nonlinear_m_rad"], rtol=1e-9, atol=1e-15)
 
 
 @pytest.mark.parametrize("scale", [1.0, 3.0, 6.0, 10.0, 20.0])
