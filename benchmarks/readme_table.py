@@ -219,7 +219,10 @@ def _place(f: Fig) -> tuple[str, str, str, str]:
             f"{f['baseline']}: {f['loop_evaluations_per_s']}/s wall, "
             f"{f['loop_cpu_evaluations_per_s']}/s CPU on {f['sample']} points; the general "
             f"batched route {f['general_batched_evaluations_per_s']}/s wall; outputs agree: "
-            f"{f['outputs_agree']}. Timed: {f['timing']}",
+            f"{f['outputs_agree']}"
+            + (f" (loop: max difference {f['loop_max_rel_diff']} of the largest deflection)"
+               if f.get("loop_max_rel_diff") is not None else "")
+            + f". Timed: {f['timing']}",
             f"{f['ratio']}x wall, {f['ratio_cpu']}x CPU; {f['ratio_vs_general_batched']}x the "
             "general batched route (wall)")
 
