@@ -22,6 +22,9 @@ from analysis.model.ik import ALL_FLAGS
 from analysis.output_files import make_dir, replacing, write_text
 
 OBJECTIVE_UNITS = {"max": "mm", "rms": "mm", "compliance": "mm/kN"}
+#: what each objective is, for the colour bar of objective_xy.png
+OBJECTIVE_TEXT = {"max": "largest |δp| along the path", "rms": "RMS |δp| along the path",
+                  "compliance": "largest translational compliance along the path"}
 #: Factor from SI (m, m/N) to the reported unit (mm, mm/kN).
 OBJECTIVE_SCALE = {"max": 1e3, "rms": 1e3, "compliance": 1e6}
 REASON_NAMES = {
@@ -530,16 +533,23 @@ def _plots(o, problem, G, res, grids, best, details, center_details, unit, scale
     values = (scale * res.value).reshape(shape)
     ib = np.unravel_index(best, shape)
     sl = np.where(np.isfinite(values[:, :, ib[2], ib[3]]), values[:, :, ib[2], ib[3]], np.nan)
+    what = OBJECTIVE_TEXT.get(o.objective, o.objective)
+    if problem.cov_x is not None and o.objective != "compliance":
+        what = f"95 % upper bound of the {what}"
     plot_objective_map(grids["x_mm"], grids["y_mm"], sl,
                        (grids["x_mm"][ib[0]], grids["y_mm"][ib[1]]),
                        f"{robot.name}: {o.objective} at z = {grids['z_mm'][ib[2]]:g} mm, "
-                       f"yaw = {grids['yaw_deg'][ib[3]]:g} deg", unit, o.out / "objective_xy.png")
+                       f"yaw = {grids['yaw_deg'][ib[3]]:g} deg", f"{what} ({unit})",
+                       o.out / "objective_xy.png")
     if problem.wrench is not None:
         center = (None if center_details is None
                   else 1e3 * np.linalg.norm(center_details.dp, axis=1))
+        # with the stiffness covariance the per-point cost is the 95 % upper bound of |dp|
+        upper = (1e3 * details.cost if problem.cov_x is not None
+                 and o.objective != "compliance" else None)
         plot_path_deflection(1e3 * np.linalg.norm(details.dp, axis=1), center,
                              f"{robot.name}: deflection of P along the path (search model)",
-                             o.out / "path_deflection.png")
+                             o.out / "path_deflection.png", upper)
 
 
 def _programs(o, robot, details) -> str:

@@ -14,6 +14,7 @@ rad, N, N m). Every problem found in a file is reported as
 from __future__ import annotations
 
 import math
+from datetime import date
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -129,10 +130,20 @@ class NoiseSpec(_Strict):
 
 
 class InstrumentSpec(_Strict):
-    """``[instruments.<role>]``: a driver name and its address string."""
+    """``[instruments.<role>]``: a driver name and its address string.
+
+    ``model``, ``serial``, ``calibration_date``, ``calibration_due`` (dates,
+    TOML ``2026-03-14`` or a ``"2026-03-14"`` string) and ``certificate`` (its
+    number) are optional and only reported (docs/report.md).
+    """
 
     driver: str = Field(min_length=1)
     address: str = Field(min_length=1)
+    model: str | None = Field(default=None, min_length=1)
+    serial: str | None = Field(default=None, min_length=1)
+    calibration_date: date | None = None
+    calibration_due: date | None = None
+    certificate: str | None = Field(default=None, min_length=1)
     # driver options; nested tables (e.g. reflectors_mm) are checked by their consumer
     options: dict[str, str | int | float | bool | dict[str, list[float]]] = {}
     mount_xyz_mm: Length3 | None = None

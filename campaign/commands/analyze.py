@@ -86,6 +86,7 @@ def _instrument_text(spec) -> str:
 
 def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
     from analysis.report.summary import CampaignInfo
+    from campaign.report_trace import run_trace
 
     meta = run.metadata
     tool = tool.text()
@@ -110,7 +111,7 @@ def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
         software={str(k): str(v) for k, v in (meta.get("software") or {}).items()},
         n_planned=run.n_planned, n_rows=len(run.tests), n_ok=len(run.ok),
         n_failed=run.n_failed, flagged=flagged, flag_counts=run.flag_counts(),
-        notes=list(run.notes),
+        notes=list(run.notes), **run_trace(run, protocol),
     )
 
 
@@ -340,15 +341,37 @@ def _wrench(protocol, text: str | None, w_tests: np.ndarray,
         return parse_floats(text, "--wrench", 6), "--wrench"
     if protocol is not None and protocol.report.wrench is not None:
         return np.asarray(protocol.report.wrench, float), "protocol [report] wrench"
-    if protocol is not None:
-        return protocol.wrenches()[0], f"first load case '{protocol.load_cases[0].name}'"
     from analysis.report.quantities import load_cases
+
+    if protocol is not None:
+        from analysis.report.test_table import match_load_cases
+
+        cases = _load_cases(protocol, w_tests, noise)
+        used = sorted(set(match_load_cases(w_tests, cases, noise.force_sigma,
+                                           noise.moment_sigma).tolist()) - {-1})
+        i = used[0] if used else 0
+        return protocol.wrenches()[i], (
+            f"load case '{protocol.load_cases[i].name}', the first one tested" if used else
+            f"first load case '{protocol.load_cases[0].name}' (no test matches a load case)")
 
     # not the first test's measured wrench: its noise would show as a load component
     w, n = load_cases(w_tests, noise.force_sigma, noise.moment_sigma)[0]
     return w, (f"load case 1 of the imported tests: mean of its {n} measured wrench(es) "
                f"rounded to the noise sigmas ({noise.force_sigma:g} N, "
                f"{noise.moment_sigma:g} N m); --wrench to choose another")
+
+
+def _load_cases(protocol, w_tests: np.ndarray, noise: NoiseModel) -> list:
+    """The planned load cases (protocol), or those of the imported tests (CSV)."""
+    from analysis.report.test_table import LoadCase
+
+    if protocol is not None:
+        return [LoadCase(c.name, c.method, w) for c, w in zip(protocol.load_cases,
+                                                              protocol.wrenches(), strict=True)]
+    from analysis.report.quantities import load_cases
+
+    return [LoadCase(f"load case {i + 1}", "as measured", w) for i, (w, _) in
+            enumerate(load_cases(w_tests, noise.force_sigma, noise.moment_sigma))]
 
 
 def _map_fixed(protocol, n: int, q_poses: np.ndarray):
@@ -570,8 +593,10 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
 
     paths = write_results(result, out)
     from analysis.identification.model_export import export_model  # model.toml, K_X
+    from analysis.report.traceability import stamp_results
 
     paths.update(export_model(result, model, out, tests, info))
+    info.report_id = stamp_results(paths["results"], info.input_hashes())
     if report:
         # the report makes figures: matplotlib is imported only here
         from analysis.report.build import ReportInputs, build_report
@@ -600,7 +625,7 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
             nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
             map_fixed=_map_fixed(protocol, model.n, tests.q[
                 [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
-            trials=trials)
+            trials=trials, load_cases=_load_cases(protocol, tests.w, noise))
         with stage("report: maps, K_X, Monte-Carlo robustness, figures"):
             built = build_report(result, inputs)
         with stage("report: HTML and PDF"):

@@ -17,6 +17,8 @@ def register(app: typer.Typer) -> None:
         alpha: float = typer.Option(0.05, help="False-alarm rate over all joints compared."),
         plot: Path = typer.Option(None, help="Write the comparison plot (.png, .pdf or .svg) "
                                   "here."),
+        report: Path = typer.Option(None, help="Write report.html and report.pdf of the "
+                                    "comparison into this directory."),
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
     ) -> None:
         """Per joint: k_B - k_A with its interval, z score and verdict."""
@@ -29,6 +31,13 @@ def register(app: typer.Typer) -> None:
         if plot is not None:
             plot_comparison(result, plot)
             result["plot"] = str(plot)
+        if report is not None:  # the report: both runs named, verdict first
+            from analysis.report.compare_report import build_compare_report, run_facts
+            from analysis.report.write import write_report
+
+            files = write_report(build_compare_report(
+                result, run_facts("A", result["A"]), run_facts("B", result["B"])), report)
+            result["report"] = {k: str(v) for k, v in files.items()}
         if as_json:
             for note in result["notes"]:
                 typer.echo(f"note: {note}", err=True)
@@ -52,3 +61,5 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"note: {note}")
         if plot is not None:
             typer.echo(f"wrote {plot}")
+        for path in (result.get("report") or {}).values():
+            typer.echo(f"wrote {path}")

@@ -22,7 +22,7 @@ from campaign.cli_common import WrenchFrame, output_dir
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
-def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> dict:
+def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> tuple:
     from campaign.verify_fake import run_on_fake_lab
 
     check = run_on_fake_lab(protocol, robot, pin.q, pc.comp.q_cmd, pin.w, readings)
@@ -39,7 +39,7 @@ def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> dict:
              f"{1e3 * s['max_m']:.4f}), RMS {1e3 * s['rms_rad']:.4f} mrad (max "
              f"{1e3 * s['max_rad']:.4f})")
     echo(f"  after / before (RMS translation): {100 * stats['ratio_rms_translation']:.1f} %")
-    return stats
+    return stats, check
 
 
 def register(app: typer.Typer) -> None:
@@ -115,9 +115,7 @@ def register(app: typer.Typer) -> None:
         ]
         summ = co.summary(pc, pin.line)
         summ["assumptions"] = assumptions
-        files = [out / "compensated.csv",
-                 co.plot(pc, out / "deflection.png", f"{r.name}: deflection of P along "
-                         f"{path.name}")]
+        files = [out / "compensated.csv"]
         files += co.robot_program(r, pc.comp.q_cmd, out, [
             f"Compensated path from {path.name} ({len(pin.q)} points), campaign compensate",
             f"Robot model: {r.name}"])
@@ -134,8 +132,12 @@ def register(app: typer.Typer) -> None:
              f"uncertainty {1e3 * t['after_upper95_max']:.4f} mm")
         echo(f"worst point: line {summ['worst_point']['line']} "
              f"({1e3 * summ['worst_point']['deflection_m']:.4f} mm)")
+        check = None
         if verify_fake:
-            summ["verify_fake"] = _verify(protocol, r, pin, pc, readings, echo)
+            summ["verify_fake"], check = _verify(protocol, r, pin, pc, readings, echo)
+        # drawn after the verification: the measured errors go on the same plot
+        files.insert(1, co.plot(pc, out / "deflection.png", f"{r.name}: deflection of P "
+                                f"along {path.name}", check))
         write_text(out / "summary.json", json.dumps(summ, indent=2) + "\n")
         files.append(out / "summary.json")
         for f in files:

@@ -106,16 +106,21 @@ def register(app: typer.Typer) -> None:
             if 1 in z.ranges and 2 in z.ranges
         ]
         fixed_deg = np.degrees(grid.fixed)
-        others = ", ".join(f"theta{j + 1} = {fixed_deg[j]:g}" for j in range(r.n)
+        others = ", ".join(f"$\\theta_{j + 1}$ = {fixed_deg[j]:g}" for j in range(r.n)
                            if j not in (1, 2))
+        from analysis.report.build import wrench_text
+
+        under = f", under {wrench_text(w)}"  # what the v_p, v_r and deflection maps depend on
         with stage("plots"):
             for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"),
                               ("v_r_deg", "v_r"), *bound_cols):
                 label = LABELS.get(col, "95 % upper bound of |dp| (mm), identified model")
+                load = "" if col == "inv_kappa_F" else under.lstrip(", ") + ", "
                 plot_joint_map(table, col, out / f"{name}_joint.png",
-                               f"{r.name}: {label}\n({others} deg)", zones=zones)
+                               f"{r.name}: {label}\n{load}{others} deg", zones=zones)
                 plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
-                                   f"{r.name}: {label} over the workspace\n({others} deg)")
+                                   f"{r.name}: {label} over the workspace\n{load}{others} "
+                                   "deg\n(the largest value shown where poses overlap)")
         ok = ~table["singular"]
         summary = {
             "robot": r.name,

@@ -217,8 +217,14 @@ def register(app: typer.Typer) -> None:
             make_dir(out)
             with replacing(out / "robustness.csv") as tmp:
                 summary.to_csv(tmp, index=False)
+            nz = noise.describe()
             plot_study(summary, out / "robustness.png",
-                       f"{r.name}: mean +- std of identified k ({method}, {trials} trials)")
+                       f"{r.name}: identified k against the number of tests ({method}, "
+                       f"{trials} trials per point)",
+                       f"noise per component: translation {nz['translation_sigma_um']:.3g} "
+                       f"\u00b5m, rotation {nz['rotation_sigma_urad']:.3g} \u00b5rad, force "
+                       f"{nz['force_sigma_N']:.3g} N, moment {nz['moment_sigma_Nm']:.3g} N m; "
+                       "x at the top: not identifiable")
             write_text(out / "robustness.json", json.dumps(settings, indent=2) + "\n")
             written = [out / "robustness.csv", out / "robustness.png", out / "robustness.json"]
             for path in written:
