@@ -76,6 +76,8 @@ class Program(StrEnum):
     auto = "auto"
     krl = "krl"
     urscript = "urscript"
+    rapid = "rapid"
+    fanuc_ls = "fanuc-ls"
     none = "none"
 
 

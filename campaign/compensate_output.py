@@ -122,15 +122,17 @@ def plot(pc: PathCompensation, path: Path, title: str, measured=None) -> Path:
     return path
 
 
-def robot_program(robot: RobotModel, q_cmd: np.ndarray, out: Path, comments: list[str]
-                  ) -> list[Path]:
-    """KRL for KUKA models, URScript for UR models (pendant convention); [] otherwise."""
-    from analysis.export.robot_programs import write_krl, write_urscript
+def robot_program(robot: RobotModel, q_cmd: np.ndarray, out: Path, comments: list[str],
+                  kind: str = "auto") -> list[Path]:
+    """The compensated path as a robot program in the pendant convention.
 
-    name = robot.name.lower()
-    q_ctrl = robot.to_controller(q_cmd)
-    if "kuka" in name or robot.key.lower().startswith("kr"):
-        return list(write_krl(out, "comp_path", np.degrees(q_ctrl), comments))
-    if "universal robots" in name or robot.key.lower().startswith("ur"):
-        return [write_urscript(out / "comp_path.script", "comp_path", q_ctrl, comments)]
-    return []
+    ``kind``: ``krl``, ``urscript``, ``rapid``, ``fanuc-ls``, ``none``, or ``auto`` (KRL
+    for KUKA, URScript for UR, RAPID for ABB, ``.LS`` for FANUC models; none otherwise).
+    """
+    from analysis.export.robot_programs import default_format, write_program
+
+    if kind == "auto":
+        kind = default_format(robot.name, robot.key) or "none"
+    if kind == "none":
+        return []
+    return write_program(kind, out, "comp_path", robot.to_controller(q_cmd), comments)

@@ -3,7 +3,8 @@ search, run it (in this process or on Dask), and write the outputs.
 
 Outputs in ``--out``: ``placement.json``, ``path_joints.csv``, ``objective_xy.png``,
 ``path_deflection.png`` and, when the robot has a program format, the path as a
-KRL (``place_path.src/.dat``) or URScript (``place_path.script``) program.
+KRL (``place_path.src/.dat``), URScript (``place_path.script``), RAPID (``place_path.mod``) or
+FANUC TP (``PLACE_PATH.LS``) program.
 """
 
 from __future__ import annotations
@@ -152,8 +153,9 @@ def build_problem(o: PlaceOptions, console: Console):
 
     if o.objective not in OBJECTIVE_UNITS:
         raise InputError("expected max, rms or compliance", where="--objective")
-    if o.program not in ("auto", "krl", "urscript", "none"):
-        raise InputError("expected auto, krl, urscript or none", where="--program")
+    if o.program not in ("auto", "krl", "urscript", "rapid", "fanuc-ls", "none"):
+        raise InputError("expected auto, krl, urscript, rapid, fanuc-ls or none",
+                         where="--program")
     if not (np.isfinite(o.max_joint_step_deg) and o.max_joint_step_deg > 0):
         raise InputError("expected a positive number", where="--max-joint-step-deg")
     if not 0 <= o.min_inv_kappa < 1:  # NaN fails too
@@ -593,19 +595,18 @@ def _plots(o, problem, G, res, grids, best, details, center_details, unit, scale
 
 def _programs(o, robot, details) -> str:
     """Write the path as a robot program; returns a note for the summary line."""
-    from analysis.export.robot_programs import write_krl, write_urscript
+    from analysis.export.robot_programs import default_format, write_program
 
     kind = o.program
     if kind == "auto":
-        name = robot.name.lower()
-        kind = "krl" if "kuka" in name else "urscript" if "universal" in name else "none"
+        kind = default_format(robot.name, robot.key) or "none"
     if kind == "none":
         return ""
-    q_ctrl = robot.to_controller(details.q)
+    wrench = (f"--wrench {o.wrench} (N, N m, tool frame)" if o.wrench is not None
+              else "the path file's wrench columns, if any (tool frame)")
     note = [f"campaign place: {robot.name}, path {o.path}, best placement",
+            f"process wrench: {wrench}",
             "joint targets in the controller convention; the path is not compensated"]
-    if kind == "krl":
-        write_krl(o.out, "place_path", np.degrees(q_ctrl), note)
-        return ", place_path.src/.dat (KRL)"
-    write_urscript(o.out / "place_path.script", "place_path", q_ctrl, note)
-    return ", place_path.script (URScript)"
+    files = write_program(kind, o.out, "place_path", robot.to_controller(details.q), note)
+    label = {"krl": "KRL", "urscript": "URScript", "rapid": "RAPID", "fanuc-ls": "FANUC TP"}
+    return f", {'/'.join(f.name for f in files)} ({label[kind]})"

@@ -1,4 +1,6 @@
-"""Robot programs that replay a list of joint targets: KUKA KRL and Universal Robots URScript.
+"""Robot programs that replay a list of joint targets: KUKA KRL and Universal Robots URScript
+(ABB RAPID in :mod:`analysis.export.rapid_program`, FANUC ``.LS`` in
+:mod:`analysis.export.fanuc_tp`; :func:`write_program` picks one).
 
 Joint targets are given in the controller's (teach pendant) convention, as the
 controller takes them: degrees for KRL (``E6AXIS`` A1..A6), radians for
@@ -98,3 +100,42 @@ def write_urscript(path: str | Path, name: str, q_rad: np.ndarray,
     make_dir(path.parent)
     write_text(path, "\n".join(lines))
     return path
+
+
+#: program formats and the brand they are written for by default
+FORMATS = ("krl", "urscript", "rapid", "fanuc-ls")
+
+
+def default_format(robot_name: str, key: str = "") -> str | None:
+    """The program format of a robot by its model name or key, or None."""
+    name, key = robot_name.lower(), key.lower()
+    if "kuka" in name or key.startswith("kr"):
+        return "krl"
+    if "universal robots" in name or key.startswith("ur"):
+        return "urscript"
+    if name.startswith("abb") or "irb" in name:
+        return "rapid"
+    if "fanuc" in name:
+        return "fanuc-ls"
+    return None
+
+
+def write_program(kind: str, directory: str | Path, name: str, q_ctrl: np.ndarray,
+                  comments: list[str] | tuple[str, ...] = ()) -> list[Path]:
+    """Write joint targets ``q_ctrl`` (rad, controller convention) as a ``kind`` program."""
+    directory = Path(directory)
+    if kind == "krl":
+        return list(write_krl(directory, name, np.degrees(q_ctrl), comments))
+    if kind == "urscript":
+        return [write_urscript(directory / f"{name}.script", name, q_ctrl, comments)]
+    if kind == "rapid":
+        from analysis.export.rapid_program import write_rapid
+
+        return [write_rapid(directory / f"{name}.mod", name, np.degrees(q_ctrl), comments)]
+    if kind == "fanuc-ls":
+        from analysis.export.fanuc_tp import write_fanuc_ls
+
+        return [write_fanuc_ls(directory / f"{name.upper()}.LS", name, np.degrees(q_ctrl),
+                               comments)]
+    raise InputError(f"unknown program format {kind!r}; known: {', '.join(FORMATS)}",
+                     where="--program")

@@ -3,10 +3,10 @@
 ``campaign compensate --robot MODEL --path PATH.csv --out DIR`` writes
 ``DIR/compensated.csv`` (input columns, predicted deflection of P with 95 %
 bounds, compensated joints ``q1_cmd_deg..q6_cmd_deg``, residual),
-``DIR/deflection.png``, ``DIR/summary.json`` and a robot program (KRL
-``comp_path.src/.dat`` for KUKA models, URScript ``comp_path.script`` for UR
-models). ``--verify-fake --protocol P`` replays both paths on the simulated
-lab. Formats: ``docs/use.md``.
+``DIR/deflection.png``, ``DIR/summary.json`` and a robot program (``--program``;
+by default KRL ``comp_path.src/.dat`` for KUKA models, URScript ``comp_path.script``
+for UR, RAPID ``comp_path.mod`` for ABB, TP ``COMP_PATH.LS`` for FANUC models).
+``--verify-fake --protocol P`` replays both paths on the simulated lab. Formats: ``docs/use.md``.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 import typer
 
 from analysis.errors import InputError
-from campaign.cli_common import WrenchFrame, output_dir
+from campaign.cli_common import Program, WrenchFrame, output_dir
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
@@ -70,6 +70,9 @@ def register(app: typer.Typer) -> None:
                                       "(with --verify-fake)."),
         readings: int = typer.Option(1, help="Probe readings averaged per point "
                                      "(--verify-fake)."),
+        program: Program = typer.Option(
+            "auto", help="Robot program of the compensated path: krl, urscript, rapid, "
+            "fanuc-ls, none, or auto (by robot)."),
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
                                    "(its files are replaced)."),
     ) -> None:
@@ -118,7 +121,7 @@ def register(app: typer.Typer) -> None:
         files = [out / "compensated.csv"]
         files += co.robot_program(r, pc.comp.q_cmd, out, [
             f"Compensated path from {path.name} ({len(pin.q)} points), campaign compensate",
-            f"Robot model: {r.name}"])
+            f"Robot model: {r.name}", f"Wrench: {pin.wrench_source}"], str(program))
         from campaign.cli_common import echo
         for a in assumptions:
             echo(f"assumption: {a}")

@@ -11,7 +11,8 @@ from analysis.errors import InputError
 #: True joint stiffness of the KR240-2 (N m/rad), Dumas et al. 2011, Table 2.
 KR240_STIFFNESS = (1409800.0, 400760.0, 935280.0, 360000.0, 370000.0, 380000.0)
 
-#: Every fake the lab can start; "robot" picks ``ur`` for UR robots, else ``kuka-kvp``.
+#: Every fake the lab can start; "robot" picks ``ur`` for UR robots, ``fanuc-rmi`` for FANUC,
+#: ``abb-rws`` and ``abb-rws2`` (RobotWare 6 and 7) for ABB, else ``kuka-kvp``.
 ALL_INSTRUMENTS = ("ati-netft", "robotiq-ft300", "ati-netcan", "emscon", "geocom", "robot")
 
 

@@ -9,8 +9,10 @@ import pytest
 
 from campaign.cli import main
 
-KNOWN = ("fanuc-s420f (also s-420f, s420f), kr240-2 (also kr240, kuka-kr240-2), puma560 "
-         "(also puma, puma-560), ur10e (also ur10-e), ur5e (also ur5-e)")
+KNOWN = ("fanuc-s420f (also s-420f, s420f), irb6640 (also abb-irb6640, irb6640-185, "
+         "irb6640-185-2.80), kr240-2 (also kr240, kuka-kr240-2), puma560 (also puma, "
+         "puma-560), r2000ic (also fanuc-r2000ic, r-2000ic, r2000ic-165f), ur10e (also "
+         "ur10-e), ur5e (also ur5-e)")
 
 CASES = [
     (["robots", "kr24-2"], ["error: NAME (argument of campaign robots): unknown robot "
