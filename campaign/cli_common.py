@@ -81,6 +81,13 @@ class Program(StrEnum):
     none = "none"
 
 
+#: ``--program`` in --help: a short metavar, the choices in words (as one word,
+#: ``<auto|krl|urscript|rapid|fanuc-ls|none>`` folds mid-word at 80 columns)
+PROGRAM_METAVAR = "<program>"
+PROGRAM_CHOICES = ("auto (default: by robot), krl (KUKA), urscript (UR), rapid (ABB), "
+                   "fanuc-ls (FANUC), none")
+
+
 class RotationSource(StrEnum):
     reflectors = "reflectors"
     probe = "probe"

@@ -18,7 +18,13 @@ import numpy as np
 import typer
 
 from analysis.errors import InputError
-from campaign.cli_common import Program, WrenchFrame, output_dir
+from campaign.cli_common import (
+    PROGRAM_CHOICES,
+    PROGRAM_METAVAR,
+    Program,
+    WrenchFrame,
+    output_dir,
+)
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
@@ -47,8 +53,8 @@ def register(app: typer.Typer) -> None:
     def compensate_cmd(
         robot: str = typer.Option(..., help="Robot: model.toml from campaign analyze, a "
                                   "built-in name, a robot file or a URDF."),
-        path: Path = typer.Option(..., help="CSV: q1_deg..q6_deg per point, optional "
-                                  "fx_N,fy_N,fz_N,mx_Nm,my_Nm,mz_Nm."),
+        path: Path = typer.Option(..., help="CSV: q1_deg .. q6_deg per point, optional "
+                                  "fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm."),
         out: Path = typer.Option(..., help="Output directory."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
         tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
@@ -71,8 +77,8 @@ def register(app: typer.Typer) -> None:
         readings: int = typer.Option(1, help="Probe readings averaged per point "
                                      "(--verify-fake)."),
         program: Program = typer.Option(
-            "auto", help="Robot program of the compensated path: krl, urscript, rapid, "
-            "fanuc-ls, none, or auto (by robot)."),
+            "auto", metavar=PROGRAM_METAVAR, help="Robot program of the compensated path, "
+            "one of: " + PROGRAM_CHOICES + "."),
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
                                    "(its files are replaced)."),
     ) -> None:

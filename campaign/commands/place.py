@@ -10,7 +10,14 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli_common import PANEL_OUTPUT, PANEL_ROBOT, Objective, Program
+from campaign.cli_common import (
+    PANEL_OUTPUT,
+    PANEL_ROBOT,
+    PROGRAM_CHOICES,
+    PROGRAM_METAVAR,
+    Objective,
+    Program,
+)
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 #: panels of --help (campaign.cli_common)
@@ -99,8 +106,8 @@ def register(app: typer.Typer) -> None:
         runner_ups: int = typer.Option(5, help="Runner-up placements listed.",
             rich_help_panel=PANEL_OUTPUT),
         program: Program = typer.Option(
-            "auto", help="Robot program of the path: krl, urscript, none, or auto (by robot).",
-            rich_help_panel=_PROGRAM),
+            "auto", metavar=PROGRAM_METAVAR, help="Robot program of the path, one of: "
+            + PROGRAM_CHOICES + ".", rich_help_panel=_PROGRAM),
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
                                    "(its files are replaced).", rich_help_panel=PANEL_OUTPUT),
     ) -> None:

@@ -36,8 +36,11 @@ def test_version(capsys):
     ("plan", ["worst-joint (default)", "weighted:", "d-optimal", "e-optimal", "zones-random"]),
     ("robustness", ["ols|wls|exact", "reflectors|probe"]),
     ("maps", ["parquet|csv"]),
-    ("compensate", ["base|tool", "auto|krl|urscript|rapid|fanuc-ls|none"]),
-    ("place", ["max|rms|compliance", "auto|krl|urscript|rapid|fanuc-ls|none"]),
+    # --program lists its choices in words (as one word they fold at 80 columns)
+    ("compensate", ["base|tool", "auto (default: by robot), krl (KUKA), urscript (UR), "
+                    "rapid (ABB), fanuc-ls (FANUC), none"]),
+    ("place", ["max|rms|compliance", "auto (default: by robot), krl (KUKA), urscript (UR), "
+               "rapid (ABB), fanuc-ls (FANUC), none"]),
 ])
 def test_help_lists_the_choices(capsys, monkeypatch, command, listed):
     monkeypatch.setenv("COLUMNS", "250")  # one option per line in rich's help box
