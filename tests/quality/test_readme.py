@@ -56,6 +56,25 @@ def test_the_outputs_the_readme_writes_are_git_ignored():
         assert done.returncode == 0, f"{value} is not git-ignored"
 
 
+def test_no_two_walk_through_commands_write_into_one_directory():
+    """A command that writes into an earlier command's --out is refused (non-empty output):
+    the walk-through, run top to bottom, must not do that unless it says --force or
+    --resume."""
+    text = (ROOT / "README.md").read_text()
+    alternatives = [shlex.split(line.split("#")[0].strip()) for line in text.splitlines()
+                    if re.search(r"#\s*or\b", line)]  # "# or on the simulated lab"
+    seen: dict[str, list[str]] = {}
+    for cmd in _commands():
+        if "--force" in cmd or "--resume" in cmd or "--dry-run" in cmd or cmd in alternatives:
+            continue
+        for i, word in enumerate(cmd[:-1]):
+            if word == "--out":
+                seen.setdefault(cmd[i + 1], []).append(" ".join(cmd[:2]))
+    shared = {out: who for out, who in seen.items() if len(who) > 1}
+    assert not shared, f"commands writing into the same --out: {shared}"
+    assert "comp-verified" in seen  # the --verify-fake replay has its own directory
+
+
 def test_the_listed_strategies_are_the_planners():
     from campaign.cli_common import Strategy
     from campaign.planner import STRATEGIES
