@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
-from campaign.cli_common import print_json
+from analysis.report.formatting import k_kNm
+from campaign.cli_common import print_json, print_wrapped
 
 
 def _listing(console: Console, robots: list[dict]) -> None:
@@ -15,14 +17,14 @@ def _listing(console: Console, robots: list[dict]) -> None:
     for col in ("name", "model", "convention", "nominal stiffness", "zones"):
         table.add_column(col)
     for r in robots:
-        table.add_row(r["key"], r["name"], r["convention"],
+        table.add_row(r["key"], escape(r["name"]), r["convention"],
                       "yes" if r["nominal_stiffness_Nm_per_rad"] is not None else "no",
                       str(len(r["zones"])))
     console.print(table)
 
 
 def _model(console: Console, r: dict) -> None:
-    table = Table(title=f"{r['name']} ({r['source_file']})",
+    table = Table(title=escape(f"{r['name']} ({r['source_file']})"),
                   caption="angles in the model convention; pendant angle = sign q + "
                   "offset (+ coupling)")
     for col in ("joint", "lower (deg)", "upper (deg)", "pendant (deg)",
@@ -31,7 +33,7 @@ def _model(console: Console, r: dict) -> None:
     lower, upper = np.degrees(r["lower_rad"]), np.degrees(r["upper_rad"])
     offset, nominal = np.degrees(r["controller_offset_rad"]), r["nominal_stiffness_Nm_per_rad"]
     for j in range(r["joints"]):
-        k = "-" if nominal is None else f"{nominal[j] / 1e3:,.2f}"
+        k = "-" if nominal is None else k_kNm(nominal[j])
         table.add_row(
             str(j + 1), f"{lower[j]:.1f}", f"{upper[j]:.1f}",
             f"{r['controller_sign'][j]:+d} q {offset[j]:+.1f}"
@@ -41,15 +43,17 @@ def _model(console: Console, r: dict) -> None:
         )
     console.print(table)
     L = r["characteristic_length_m"]
-    console.print(f"characteristic length: {'not given' if L is None else f'{L:.3f} m'}")
+    print_wrapped(console,
+                  f"characteristic length: {'not given' if L is None else f'{L:.3f} m'}")
     for zone in r["zones"]:
         ranges = ", ".join(f"{j} {np.degrees(a):.0f}..{np.degrees(b):.0f} deg"
                            for j, (a, b) in zone["ranges_rad"].items())
-        console.print(f"{zone['name']}: {ranges}")
+        print_wrapped(console, f"{zone['name']}: {ranges}")
+    # the robot file's own text: plain (never read as markup), wrapped under its label
     if r["notes"]:
-        console.print(f"[bold]note[/bold]: {r['notes']}")
+        print_wrapped(console, f"note: {r['notes']}")
     for key, text in r["sources"].items():
-        console.print(f"[bold]source[/bold] {key}: {text}")
+        print_wrapped(console, f"source {key}: {text}")
 
 
 def register(app: typer.Typer) -> None:

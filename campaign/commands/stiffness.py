@@ -8,13 +8,15 @@ import numpy as np
 import typer
 from rich.console import Console
 
+from campaign.cli_common import print_wrapped
+from campaign.numbers_text import matrix_lines, vector_text
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
 
 def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
     console.print(f"[bold]{title}[/bold] ({unit})")
-    for row in M:
-        console.print("  " + " ".join(f"{v: .4e}" for v in row))
+    for line in matrix_lines(M):
+        console.print(line, markup=False, highlight=False)
 
 
 def register(app: typer.Typer) -> None:
@@ -57,34 +59,45 @@ def register(app: typer.Typer) -> None:
 
 def _present(res) -> None:
     """The text summary of a :class:`campaign.jobs.stiffness.StiffnessResult`."""
-    qr, k, w = np.array(res.q_rad), res.joint_stiffness_Nm_per_rad, res.wrench_N_Nm
-    lin, exact = np.array(res.deflection), np.array(res.deflection_nonlinear)
+    from analysis.report.formatting import k_kNm
+
+    qr, k, w = np.array(res.q_rad), np.array(res.joint_stiffness_Nm_per_rad), \
+        np.array(res.wrench_N_Nm)
+    lin, exact = np.array(res.deflection_m_rad), np.array(res.deflection_nonlinear_m_rad)
     console = Console()
-    console.print(f"[bold]{res.robot}[/bold]  q = {np.degrees(qr).round(3).tolist()} deg "
-                  "(model convention)")
-    console.print(f"tool: {res.tool_text}")
-    console.print(f"k = {k} N m/rad;  w = {w} N, N m")
-    _matrix(console, "J", np.array(res.J), "rows 1-3 m/rad, rows 4-6 rad/rad")
-    _matrix(console, "K_C", np.array(res.K_C), "N m/rad")
+    print_wrapped(console, f"{res.robot}  q = {vector_text(np.degrees(qr), 6, zeros=False)} "
+                  "deg (model convention)")
+    print_wrapped(console, f"tool: {res.tool_text}")
+    print_wrapped(console, f"k = [{', '.join(k_kNm(v) for v in k)}] kN m/rad "
+                  f"({res.joint_stiffness_source})")
+    print_wrapped(console, f"w = {vector_text(w[:3], 6, False)} N, "
+                  f"{vector_text(w[3:], 6, False)} N m at P, base frame ({res.wrench_source})")
+    _matrix(console, "J", np.array(res.J_m_rad_per_rad), "rows 1-3 m/rad, rows 4-6 rad/rad")
+    _matrix(console, "K_C", np.array(res.K_C_Nm_per_rad) / 1e3, "kN m/rad")
     if res.K_X is None:
-        console.print(f"[bold]K_X[/bold] (with and without K_C): undefined: "
-                      f"{res.undefined['K_X']}")
+        print_wrapped(console, f"K_X (with and without K_C): undefined: {res.undefined['K_X']}")
     else:
         _matrix(console, "K_X with K_C", np.array(res.K_X), "N/m, N/rad, N, N m/rad blocks")
         _matrix(console, "K_X without K_C", np.array(res.K_X_without_K_C), "same units")
     console.print("[bold]deflection of P[/bold] (mm, mrad)")
-    for label, d in (("with K_C", lin), ("without K_C", np.array(res.deflection_without_K_C)),
+    for label, d in (("with K_C", lin),
+                     ("without K_C", np.array(res.deflection_without_K_C_m_rad)),
                      ("nonlinear equilibrium", exact)):
-        console.print(f"  {label:22s} dp = {np.round(1e3 * d[:3], 4).tolist()} mm, "
-                      f"dr = {np.round(1e3 * d[3:], 4).tolist()} mrad")
+        print_wrapped(console, f"  {label:22s} dp = {vector_text(1e3 * d[:3])} mm, "
+                      f"dr = {vector_text(1e3 * d[3:])} mrad")
     if res.uncertainty is not None:
-        u = res.uncertainty
-        lo = np.array(u["deflection_nonlinear_lo95"])
-        hi = np.array(u["deflection_nonlinear_hi95"])
-        console.print("[bold]95 % intervals[/bold] (identified model, delta method)")
-        console.print(f"  dp from {np.round(1e3 * lo[:3], 4).tolist()} to "
-                      f"{np.round(1e3 * hi[:3], 4).tolist()} mm")
-        console.print(f"  dr from {np.round(1e3 * lo[3:], 4).tolist()} to "
-                      f"{np.round(1e3 * hi[3:], 4).tolist()} mrad")
-        half = np.round(1.96 * np.array(u["K_X_diag_se"]), 1).tolist()
-        console.print(f"  diag(K_X) +- {half} (SI)")
+        _present_intervals(console, res.uncertainty)
+
+
+def _present_intervals(console: Console, u: dict) -> None:
+    """The 95 % intervals of an identified model (delta method)."""
+    lo = np.array(u["deflection_nonlinear_lo95_m_rad"])
+    hi = np.array(u["deflection_nonlinear_hi95_m_rad"])
+    console.print("[bold]95 % intervals[/bold] (identified model, delta method)")
+    print_wrapped(console, f"  dp from {vector_text(1e3 * lo[:3])} to "
+                  f"{vector_text(1e3 * hi[:3])} mm")
+    print_wrapped(console, f"  dr from {vector_text(1e3 * lo[3:])} to "
+                  f"{vector_text(1e3 * hi[3:])} mrad")
+    half = 1.96 * np.array(u["K_X_diag_se"])
+    print_wrapped(console, f"  diag(K_X) +- {vector_text(half[:3])} N/m, "
+                  f"{vector_text(half[3:])} N m/rad")

@@ -203,13 +203,15 @@ def _tool_problem(result, model, tests, noise, method: str, tool) -> list[str]:
     assumed = tool.source.startswith("none given")
     limit = tool_check.P_ASSUMED if assumed else tool_check.P_GIVEN
     if check.p_value < limit:
-        k = ", ".join("-" if not np.isfinite(v) else f"{v:.4g}" for v in check.k_moved)
+        from analysis.report.formatting import k_kNm
+
+        k = ", ".join("-" if not np.isfinite(v) else k_kNm(v) for v in check.k_moved)
         if assumed:
             return [f"a missing tool point: no tool point was given, P was taken at the flange "
-                    f"centre, and {check.text()}; with P there k would be about [{k}] N m/rad. "
+                    f"centre, and {check.text()}; with P there k would be about [{k}] kN m/rad. "
                     "Give --tool-xyz-mm/--tool-rpy-deg (--tool-xyz-mm 0,0,0 if P really is "
                     "the flange centre)"]
-        return [f"wrong tool point? {check.text()}; with P there k would be about [{k}] N m/rad. "
+        return [f"wrong tool point? {check.text()}; with P there k would be about [{k}] kN m/rad. "
                 f"Check the tool point ({tool.source})"]
     if check.p_value < tool_check.P_WARN:
         result.warnings.append(f"tool point: {check.text()} (not significant enough to refuse)")

@@ -56,6 +56,8 @@ class CompensateResult:
 
     summary: dict
     files: list[Path] = field(default_factory=list)
+    #: the stiffness has a covariance (identified model, no --joint-stiffness): 95 % bounds
+    uncertainty: bool = False
 
     def to_json(self) -> dict:
         return {**self.summary, "files": [str(f) for f in self.files]}
@@ -126,4 +128,4 @@ def run(o: CompensateOptions) -> CompensateResult:
                             f"along {path.name}", check))
     write_text(out / "summary.json", json.dumps(summ, indent=2) + "\n")
     files.append(out / "summary.json")
-    return CompensateResult(summ, files)
+    return CompensateResult(summ, files, cov is not None)

@@ -23,6 +23,11 @@ from campaign.jobs.common import (
     wrench,
 )
 
+#: what --deflection-upper-bound maps, said when it is used
+BOUND_TEXT = ("deflection upper bound: |dp| + 1.96 sd(|dp|), the 95 % upper bound of |dp| "
+              "(linear model with K_C, the maps' model), sd from the identified compliances' "
+              "covariance (the robot file's [identification]) by the delta method along dp")
+
 
 @dataclass(frozen=True)
 class MapsOptions:
@@ -58,6 +63,8 @@ class MapsResult:
     summary: dict
     data_file: Path
     files: list[str] = field(default_factory=list)
+    #: (theta2, theta3) in deg of the largest 95 % upper bound of |dp| (None: not mapped)
+    bound_at_deg: tuple[float, float] | None = None
 
     def to_json(self) -> dict:
         """The document ``campaign maps --json`` prints."""
@@ -100,6 +107,16 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
         how = "computed (minimum condition number of J_N over posture and L)"
     out = Path(o.out)
     check_output_dir(out, o.force)
+    from analysis.report.formatting import k_kNm
+    from campaign.jobs.stiffness import WORST_CASE_TEXT
+    from campaign.numbers_text import vector_text
+
+    w_source = "--wrench" if o.wrench_N_Nm is not None else WORST_CASE_TEXT
+    note(f"wrench w = {vector_text(w[:3], 6, False)} N, "
+         f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
+    note(f"joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN m/rad ("
+         + ("--joint-stiffness" if o.joint_stiffness_Nm_per_rad is not None
+            else "the robot model's") + ")")
     note(f"characteristic length L = {length:.4f} m ({how})")
     grid = GridSpec.from_limits(r, o.step_rad, fixed_q)
     with stage(f"map of {r.name} ({step:g} deg grid)"):
@@ -115,6 +132,7 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
         table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
             r, grid.poses(), k, w, r.compliance_covariance).ravel()
         bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
+        note(BOUND_TEXT)
     make_dir(out)
     data = out / f"map_joint_space.{fmt}"
     with replacing(data) as tmp:
@@ -153,10 +171,16 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
         "max_v_r_deg": float(table.loc[ok, "v_r_deg"].max()),
         "max_inv_kappa_F": float(table["inv_kappa_F"].max()),
         "wrench_N_Nm": w.tolist(),
+        "wrench_source": w_source,
         "joint_stiffness_Nm_per_rad": k.tolist(),
     }
+    at_deg = None
     if bound_cols:
         summary["max_deflection_upper95_mm"] = float(
             table.loc[ok, "deflection_upper95_mm"].max())
+        summary["deflection_upper95_method"] = BOUND_TEXT
+        with_kc = table.loc[ok]
+        at = with_kc["deflection_upper95_mm"].idxmax()
+        at_deg = (float(with_kc.loc[at, "theta2_deg"]), float(with_kc.loc[at, "theta3_deg"]))
     write_text(out / "map_summary.json", json.dumps(summary, indent=2) + "\n")
-    return MapsResult(summary, data, sorted(str(p) for p in out.iterdir()))
+    return MapsResult(summary, data, sorted(str(p) for p in out.iterdir()), at_deg)

@@ -130,8 +130,11 @@ def bias_notes(summary, method: str) -> list[str]:
 
 
 def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None,
-        started: Callable[[int], Any] | None = None) -> RobustnessResult:
+        started: Callable[[int], Any] | None = None,
+        note: Callable[[str], None] = lambda text: None) -> RobustnessResult:
     """Simulate and identify ``trials`` campaigns per number of tests; write ``out``.
+
+    ``note(line)`` gets the wrench and true stiffness used, before the simulation.
 
     ``started(total)`` is called once with the number of identifications; it may
     return a context manager (e.g. the command line's progress bar) that stays open
@@ -153,6 +156,16 @@ def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None
     if o.pool_size < 10:
         raise InputError("need at least 10 poses", where="--pool-size")
     noise = noise_model(o)
+    from analysis.report.formatting import k_kNm
+    from campaign.numbers_text import vector_text
+
+    w_source = "--wrench" if o.wrench_N_Nm is not None else (
+        "default: the paper's w_eff (eq. 22); --wrench to choose another")
+    note(f"wrench w = {vector_text(w[:3], 6, False)} N, "
+         f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
+    note(f"true joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN "
+         "m/rad (" + ("--joint-stiffness" if o.joint_stiffness_Nm_per_rad is not None else
+                      "the robot model's") + ")")
     total = o.trials * len(counts)
     done = [0]
 
@@ -168,7 +181,7 @@ def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None
     notes = bias_notes(summary, method)
     settings = {
         "robot": r.name, "joint_stiffness_Nm_per_rad": k.tolist(),
-        "wrench_N_Nm": w.tolist(), "tests": counts, "trials": o.trials,
+        "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts, "trials": o.trials,
         "method": method, "seed": o.seed, "pool_size": o.pool_size,
         "min_inverse_condition": o.min_dexterity, "noise": noise.describe(),
         "notes": notes,

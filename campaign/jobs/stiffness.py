@@ -44,15 +44,17 @@ class StiffnessResult:
     tool: dict
     q_rad: list
     joint_stiffness_Nm_per_rad: list
+    joint_stiffness_source: str
     wrench_N_Nm: list
-    J: list
-    K_C: list
+    wrench_source: str
+    J_m_rad_per_rad: list
+    K_C_Nm_per_rad: list
     K_X: list | None
     K_X_without_K_C: list | None
     undefined: dict
-    deflection: list
-    deflection_without_K_C: list
-    deflection_nonlinear: list
+    deflection_m_rad: list
+    deflection_without_K_C_m_rad: list
+    deflection_nonlinear_m_rad: list
     units: dict
     tool_text: str = ""
     uncertainty: dict | None = None
@@ -86,9 +88,9 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
         chain_state(r, q), w)))
     return {
         "confidence": 0.95,
-        "deflection_nonlinear_sd": pred.sd.tolist(),
-        "deflection_nonlinear_lo95": lo.tolist(),
-        "deflection_nonlinear_hi95": hi.tolist(),
+        "deflection_nonlinear_sd_m_rad": pred.sd.tolist(),
+        "deflection_nonlinear_lo95_m_rad": lo.tolist(),
+        "deflection_nonlinear_hi95_m_rad": hi.tolist(),
         "K_X_diag_se": se.tolist(),
         "K_X_diag_lo95": (K_X - Z95 * se).tolist(),
         "K_X_diag_hi95": (K_X + Z95 * se).tolist(),
@@ -97,6 +99,11 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
                   "k_j^2 dq_j at the loaded pose (exact for the linear model without K_C); "
                   "K_X is linear in k, cov(k) from cov(x) by the delta method",
     }
+
+
+#: what the default wrench is, said wherever it is used (campaign stiffness, campaign maps)
+WORST_CASE_TEXT = ("default: the paper's worst case, 2200 N and 400 N m along every base "
+                   "axis; --wrench to choose another")
 
 
 def check_limits(robot, q: np.ndarray, controller: bool) -> None:
@@ -136,6 +143,10 @@ def run(o: StiffnessOptions) -> StiffnessResult:
         check_limits(r, qr, o.controller_angles)
     k = joint_stiffness(r, o.joint_stiffness_Nm_per_rad)
     w = wrench(o.wrench_N_Nm, WORST_CASE_WRENCH)
+    k_source = ("--joint-stiffness" if o.joint_stiffness_Nm_per_rad is not None else
+                "the identified model's values" if r.compliance_covariance is not None
+                else "the model's nominal values")
+    w_source = "--wrench" if o.wrench_N_Nm is not None else WORST_CASE_TEXT
     state = chain_state(r, qr)
     J = jacobian_from_state(state)
     K_C = complementary_stiffness_from_state(state, w)
@@ -159,18 +170,20 @@ def run(o: StiffnessOptions) -> StiffnessResult:
     cov_x = None if o.joint_stiffness_Nm_per_rad is not None else r.compliance_covariance
     return StiffnessResult(
         robot=r.name, tool=tool.describe(), q_rad=qr.tolist(),
-        joint_stiffness_Nm_per_rad=k.tolist(), wrench_N_Nm=w.tolist(),
-        J=J.tolist(), K_C=K_C.tolist(),
+        joint_stiffness_Nm_per_rad=k.tolist(), joint_stiffness_source=k_source,
+        wrench_N_Nm=w.tolist(), wrench_source=w_source,
+        J_m_rad_per_rad=J.tolist(), K_C_Nm_per_rad=K_C.tolist(),
         K_X=None if K_X is None else K_X.tolist(),
         K_X_without_K_C=None if K_X0 is None else K_X0.tolist(),
-        undefined=undefined, deflection=lin.tolist(),
-        deflection_without_K_C=deflection(J, k, w).tolist(),
-        deflection_nonlinear=exact.tolist(),
+        undefined=undefined, deflection_m_rad=lin.tolist(),
+        deflection_without_K_C_m_rad=deflection(J, k, w).tolist(),
+        deflection_nonlinear_m_rad=exact.tolist(),
         units={
-            "J": "rows 1-3 m/rad, rows 4-6 rad/rad; base axes at P",
-            "K_C": "N m/rad",
-            "K_X": "N/m | N/rad ; N | N m/rad blocks, base frame at P",
-            "deflection": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation vector)",
+            "J_m_rad_per_rad": "rows 1-3 m/rad, rows 4-6 rad/rad; base axes at P",
+            "K_C_Nm_per_rad": "N m/rad",
+            "K_X": "N/m | N/rad ; N | N m/rad blocks, base frame at P (as results.json)",
+            "deflection_*_m_rad": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation "
+                                  "vector)",
         },
         tool_text=tool.text(),
         uncertainty=None if cov_x is None else _intervals(r, qr, k, w, J, cov_x),

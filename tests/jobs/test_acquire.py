@@ -4,6 +4,7 @@ the job runs in its own process, reports through an events file and aborts as Ct
 from __future__ import annotations
 
 import json
+import pickle
 import shutil
 import subprocess
 import sys
@@ -13,6 +14,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from analysis.errors import InputError
 from campaign.jobs.acquire import AcquireJobOptions, abort, run
 from tests.jobs.conftest import cli, cli_error
 
@@ -93,6 +95,9 @@ def test_options_record_round_trips_through_json(tmp_path):
     o = AcquireJobOptions(plan=Path("p"), out=tmp_path / "r", fake=True, time_scale=50.0,
                           events_file=Path("e.jsonl"))
     assert AcquireJobOptions.from_dict(json.loads(json.dumps(o.to_dict()))) == o
+    assert pickle.loads(pickle.dumps(o)) == o  # for a multiprocessing start, too
+    with pytest.raises(InputError, match="unknown option"):
+        AcquireJobOptions.from_dict({"plan": "p", "yes": True})
 
 
 def _load_hangs(events: Path) -> bool:

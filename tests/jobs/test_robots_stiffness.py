@@ -38,11 +38,12 @@ def test_stiffness_same_result_deg_at_the_cli_si_at_the_api(ws, client):
     got = api.json()
     assert got.keys() == doc.keys()
     assert got["tool"] == doc["tool"]
-    for key in ("q_rad", "J", "K_C", "K_X", "deflection", "deflection_nonlinear"):
+    for key in ("q_rad", "J_m_rad_per_rad", "K_C_Nm_per_rad", "K_X", "deflection_m_rad",
+                "deflection_nonlinear_m_rad"):
         np.testing.assert_allclose(got[key], doc[key], rtol=1e-12, atol=1e-15)
     # an independent check: the linear deflection is J K_theta^-1 J^T w without K_C
-    J, k = np.array(got["J"]), np.array(got["joint_stiffness_Nm_per_rad"])
-    np.testing.assert_allclose(got["deflection_without_K_C"],
+    J, k = np.array(got["J_m_rad_per_rad"]), np.array(got["joint_stiffness_Nm_per_rad"])
+    np.testing.assert_allclose(got["deflection_without_K_C_m_rad"],
                                J @ np.diag(1 / k) @ J.T @ np.array(body["wrench_N_Nm"]),
                                rtol=1e-9, atol=1e-15)
 
