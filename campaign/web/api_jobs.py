@@ -20,6 +20,7 @@ schema) with the same one-line message as the command line; a refused write
 from __future__ import annotations
 
 import dataclasses
+import errno
 from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -58,14 +59,23 @@ def inside(ws: Path, rel: str | Path, field: str) -> Path:
     part resolves (through symbolic links) outside the workspace.
     """
     text = str(rel)
+    if "\x00" in text:
+        raise HTTPException(400, f"{field}: a path cannot hold a NUL character")
     parts = PurePosixPath(text.replace("\\", "/")).parts
     if not text or text.startswith(("/", "\\")) or (parts and ":" in parts[0]):
         raise HTTPException(400, f"{field}: {text!r} is not a path relative to the workspace")
     if ".." in parts:
         raise HTTPException(400, f"{field}: {text!r} has a '..' part; paths stay inside "
                                  "the workspace")
+    if any(len(part.encode()) > 255 for part in parts):
+        raise HTTPException(400, f"{field}: a name in the path is longer than 255 bytes")
     path = ws.joinpath(*parts)
-    if not path.resolve().is_relative_to(ws):
+    try:
+        resolved = path.resolve()
+    except (OSError, RuntimeError) as err:  # a name too long, a symbolic link loop
+        raise HTTPException(400, f"{field}: {text!r}: {getattr(err, 'strerror', None) or err}"
+                            ) from None
+    if not resolved.is_relative_to(ws):
         raise HTTPException(400, f"{field}: {text!r} leads out of the workspace "
                                  "(symbolic link)")
     return path
@@ -91,7 +101,12 @@ def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
         raise HTTPException(400, text) from None
     except OSError as err:
         where = f"{err.filename}: " if err.filename else ""
-        raise HTTPException(409, f"{where}{err.strerror or err}") from None
+        text = f"{where}{err.strerror or err}"
+        if ws is not None:
+            text = text.replace(f"{ws}/", "")
+        # a name the file system cannot take is bad input; a refused write is a conflict
+        status = 400 if err.errno in (errno.ENAMETOOLONG, errno.EINVAL) else 409
+        raise HTTPException(status, text) from None
     except Exception as err:
         if type(err).__name__ == "EquilibriumError":
             raise HTTPException(400, f"nonlinear equilibrium: {err}; reduce the wrench or "
