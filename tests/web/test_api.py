@@ -1,0 +1,164 @@
+"""HTTP tests of the GUI's API: access token, CSRF header, workspace paths, numbers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from tests.web.conftest import POSES_DEG, TOKEN
+
+SMALL = {"trials": 200, "n_tests": 6}
+
+
+def test_no_token_is_401_and_wrong_token_403(app):
+    c = TestClient(app)
+    for path in ("/", "/openapi.json", "/api/runs", "/api/session", "/static/app.js"):
+        assert c.get(path).status_code == 401, path
+        assert c.get(path, headers={"Authorization": "token nope"}).status_code == 403, path
+    assert c.post("/api/sensitivity", json=SMALL).status_code == 401
+
+
+def test_url_token_sets_cookie_and_leaves_url(app):
+    c = TestClient(app)
+    r = c.get(f"/?token={TOKEN}", follow_redirects=False)
+    assert r.status_code == 303 and "token" not in r.headers["location"]
+    cookie = r.headers["set-cookie"].lower()
+    assert "httponly" in cookie and "samesite=strict" in cookie
+    assert c.get("/api/runs").status_code == 200  # the cookie alone now suffices
+
+
+def test_post_needs_the_csrf_header(client):
+    from campaign.web.security import CSRF_HEADER
+
+    good = client.headers.pop(CSRF_HEADER)
+    assert client.post("/api/sensitivity", json=SMALL).status_code == 403
+    assert client.post("/api/sensitivity", json=SMALL,
+                       headers={CSRF_HEADER: "x" + good}).status_code == 403
+    assert client.post("/api/sensitivity", json=SMALL,
+                       headers={CSRF_HEADER: good}).status_code == 200
+
+
+def test_session_gives_the_csrf_value(client):
+    from campaign.web.security import csrf_value
+
+    s = client.get("/api/session").json()
+    assert s["csrf_token"] == csrf_value(TOKEN) != TOKEN
+
+
+def test_sensitivity_equals_the_job(client, workspace):
+    from campaign.jobs.sensitivity import ErrorSources, SensitivityOptions, run_sensitivity
+
+    body = {**SMALL, "method": "wls", "translation_sigma_um": 30, "force_percent": 0.5,
+            "seed": 3}
+    got = client.post("/api/sensitivity", json=body).json()
+    want = run_sensitivity(SensitivityOptions(
+        n_tests=6, trials=200, method="wls", seed=3,
+        errors=ErrorSources(translation_sigma=30e-6, force_relative=0.005))).to_dict()
+    # same seed: the same numbers (to rounding: BLAS may sum in another order)
+    for a, b in zip(got["joints"], want["joints"], strict=True):
+        assert a.keys() == b.keys()
+        for key in a:
+            assert a[key] == pytest.approx(b[key], rel=1e-12), key
+    assert np.allclose(got["sets_Nm_per_rad"], want["sets_Nm_per_rad"], rtol=1e-12)
+    assert got["noise"]["translation_sigma_um"] == pytest.approx(30)
+    assert got["noise"]["force_relative_percent"] == pytest.approx(0.5)
+
+
+def test_sensitivity_spread_follows_the_noise_and_the_prediction(client):
+    """WLS at the true weights: the Monte-Carlo std is the planner's se within the sampling
+    error; doubling the tracker sigma (tracker-dominated) about doubles both."""
+    base = {"trials": 2000, "n_tests": 12, "method": "wls", "force_sigma_N": 0,
+            "moment_sigma_Nm": 0, "encoder_resolution_deg": 0}
+    one = client.post("/api/sensitivity", json={**base, "translation_sigma_um": 20,
+                                                "rotation_sigma_urad": 50}).json()
+    two = client.post("/api/sensitivity", json={**base, "translation_sigma_um": 40,
+                                                "rotation_sigma_urad": 100}).json()
+    for a, b in zip(one["joints"], two["joints"], strict=True):
+        assert a["std_Nm_per_rad"] == pytest.approx(a["predicted_se_Nm_per_rad"], rel=0.1)
+        assert b["predicted_se_Nm_per_rad"] == pytest.approx(
+            2 * a["predicted_se_Nm_per_rad"], rel=0.02)
+
+
+def test_sensitivity_from_a_plan_uses_its_poses_and_wrenches(client):
+    got = client.post("/api/sensitivity", json={**SMALL, "poses": "plan", "plan": "plan",
+                                                "n_tests": 5}).json()
+    assert np.allclose(got["q_deg"][0], POSES_DEG[0])
+    assert np.allclose(got["q_deg"][3], got["q_deg"][0])  # 3 plan tests, cycled
+    assert np.allclose(got["wrench_N_Nm"][1], [0, 2200, 2200, 200, 200, 0])
+
+
+def test_sensitivity_typed_poses_and_robot_file(client):
+    got = client.post("/api/sensitivity", json={
+        **SMALL, "robot": "robot.toml", "poses": "typed",
+        "q_deg": POSES_DEG[:2]}).json()
+    assert got["robot"] == "KUKA KR240-2" and len(got["q_deg"]) == 6
+    assert np.allclose(got["q_deg"][2], POSES_DEG[0])
+
+
+@pytest.mark.parametrize("field,value", [
+    ("plan", "../outside"), ("plan", "/etc"), ("plan", "plan/../../x"),
+    ("robot", "../robot.toml"), ("robot", "/etc/passwd.toml"), ("robot", "link.toml"),
+    ("plan", "linkdir"),
+])
+def test_paths_outside_the_workspace_are_refused(client, workspace, field, value):
+    (workspace / "link.toml").symlink_to(workspace / "robot.toml")
+    (workspace / "linkdir").symlink_to(workspace / "plan")
+    body = {**SMALL, field: value, "poses": "plan" if field == "plan" else "zones"}
+    if field == "robot":
+        body.pop("plan", None)
+    r = client.post("/api/sensitivity", json=body)
+    assert r.status_code == 422, r.text
+    assert any(w in r.json()["detail"] for w in ("'..'", "absolute", "symbolic link"))
+
+
+def test_bad_settings_are_422_with_the_field(client):
+    for body, word in [({"trials": 1}, "trials"), ({"method": "lsq"}, "method"),
+                       ({"wrench_N_Nm": [0] * 6}, "wrench"), ({"robot": "kr999"}, "robot"),
+                       ({"poses": "typed", "q_deg": [[0, 0, 0]]}, "q"),
+                       ({"translation_sigma_um": -1}, "translation_sigma_um")]:
+        r = client.post("/api/sensitivity", json={**SMALL, **body})
+        assert r.status_code == 422 and word in r.json()["detail"], (body, r.text)
+
+
+def test_runs_lists_plan_run_and_analysis(client, workspace):
+    import json
+
+    run = workspace / "runs" / "r1"
+    (run / "analysis").mkdir(parents=True)
+    (run / "metadata.json").write_text(json.dumps({
+        "status": "aborted", "reason": "Ctrl-C", "started_utc": "2026-01-02T03:04:05+00:00",
+        "robot": {"name": "KUKA KR240-2"}, "n_planned_tests": 4}))
+    (run / "tests.csv").write_text("h\n1\n2\n")
+    (run / "analysis" / "results.json").write_text(json.dumps({
+        "robot": "KUKA KR240-2", "method": "ols", "n_tests": 2,
+        "joint_stiffness_Nm_per_rad": [1.0e6, 2.0e5], "ci95_Nm_per_rad": [[9e5, 1.1e6],
+                                                                          [1e5, 3e5]]}))
+    (workspace / "plan" / "summary.json").write_text(json.dumps({
+        "robot": "KUKA KR240-2", "tests": [1, 2, 3], "strategy": "worst-joint",
+        "predicted_standard_errors": [{"joint": 1, "k_prior_N_m_per_rad": 1.4e6,
+                                       "se_design_N_m_per_rad": 3e3}]}))
+    (workspace / ".hidden").mkdir()
+    (workspace / ".hidden" / "metadata.json").write_text("{}")
+    entries = {(e["kind"], e["path"]): e for e in client.get("/api/runs").json()}
+    assert set(entries) == {("plan", "plan"), ("run", "runs/r1"),
+                            ("analysis", "runs/r1/analysis")}
+    assert entries[("run", "runs/r1")]["status"] == "aborted"
+    assert "2 test rows measured, 4 tests planned; Ctrl-C" == entries[("run", "runs/r1")]["detail"]
+    assert entries[("analysis", "runs/r1/analysis")]["k"][1]["k_Nm_per_rad"] == 2.0e5
+    table = client.get("/api/runs/table").text
+    assert "k1 = 1,000 [900, 1,100]" in table and "k1 = 1,400 \u00b1 3.0" in table
+
+
+def test_runs_reports_an_unreadable_file(client, workspace):
+    (workspace / "bad").mkdir()
+    (workspace / "bad" / "metadata.json").write_text("{not json")
+    e = [e for e in client.get("/api/runs").json() if e["path"] == "bad"]
+    assert e and e[0]["status"] == "unreadable" and "metadata.json" in e[0]["detail"]
+
+
+def test_openapi_document_lists_the_routes(client):
+    doc = client.get("/openapi.json").json()
+    assert "/api/sensitivity" in doc["paths"] and "/api/runs" in doc["paths"]
+    props = doc["components"]["schemas"]["SensitivityRequest"]["properties"]
+    assert props["n_tests"]["maximum"] == 200

@@ -1,0 +1,69 @@
+"""The GUI binds loopback by default and refuses another address without a password."""
+
+from __future__ import annotations
+
+import inspect
+
+import pytest
+
+from analysis.errors import InputError
+
+
+def test_default_host_is_loopback():
+    from campaign.web.security import is_loopback
+    from campaign.web.server import DEFAULT_HOST, GuiOptions
+
+    assert GuiOptions(workspace=".").host == DEFAULT_HOST == "127.0.0.1"
+    assert is_loopback(DEFAULT_HOST)
+    from campaign.commands import gui
+
+    assert '"127.0.0.1"' in inspect.getsource(gui)
+
+
+def test_server_socket_is_loopback(tmp_path):
+    from campaign.web.server import GuiOptions, make_server
+
+    server, sock = make_server(GuiOptions(workspace=tmp_path, port=0), "t" * 20)
+    try:
+        assert sock.getsockname()[0] == "127.0.0.1"
+    finally:
+        sock.close()
+
+
+@pytest.mark.parametrize("host,remote,password,ok", [
+    ("127.0.0.1", False, None, True), ("::1", False, None, True),
+    ("localhost", False, None, True), ("0.0.0.0", False, None, False),
+    ("0.0.0.0", True, None, False), ("192.168.1.5", True, "short", False),
+    ("0.0.0.0", True, "a-long-password", True), ("example.org", False, None, False),
+])
+def test_check_bind(host, remote, password, ok):
+    from campaign.web.security import check_bind
+
+    if ok:
+        check_bind(host, remote, password)
+    else:
+        with pytest.raises(InputError):
+            check_bind(host, remote, password)
+
+
+def test_cli_refuses_remote_host_with_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "campaign", "gui", "--workspace", str(tmp_path),
+                        "--host", "0.0.0.0", "--no-browser"], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 2 and "--host" in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_password_login(tmp_path):
+    from fastapi.testclient import TestClient
+
+    from campaign.web.app import create_app
+
+    c = TestClient(create_app(tmp_path, "t" * 20, password="a-long-password"))
+    assert c.get("/api/runs").status_code == 401
+    assert c.post("/login", data={"password": "wrong"}).status_code == 403
+    assert c.post("/login", data={"password": "a-long-password"}).status_code == 200
+    assert c.get("/api/runs").status_code == 200
