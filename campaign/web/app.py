@@ -9,9 +9,8 @@ others down. The OpenAPI document is at ``/openapi.json`` (the page reads its
 routes from it); the interactive docs are off, since they load from a CDN.
 """
 
-from __future__ import annotations
 
-import importlib
+import importlib  # no "from __future__ import annotations": FastAPI reads the hints
 import logging
 from pathlib import Path
 
