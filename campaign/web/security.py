@@ -80,12 +80,16 @@ def inside_workspace(workspace: Path, relative: str, where: str = "path") -> Pat
         raise InputError("'..' is refused: give a path inside the workspace", where=where)
     root = workspace.resolve()
     path = root
-    for part in pure.parts:
-        if part in ("", "."):
-            continue
-        path = path / part
-        if path.is_symlink():
-            raise InputError("a symbolic link is refused", where=where)
-    if not path.resolve().is_relative_to(root):
+    try:
+        for part in pure.parts:
+            if part in ("", "."):
+                continue
+            path = path / part
+            if path.is_symlink():
+                raise InputError("a symbolic link is refused", where=where)
+        inside = path.resolve().is_relative_to(root)
+    except OSError as err:  # a name too long, a loop: not a path of the workspace
+        raise InputError(f"not a usable path ({err.strerror})", where=where) from err
+    if not inside:
         raise InputError("the path leaves the workspace", where=where)
     return path

@@ -1,0 +1,134 @@
+"""Fuzz of the GUI's API from its own OpenAPI document: no 500, nothing written.
+
+Every operation of ``/openapi.json`` is called with bodies drawn from its request
+schema (:func:`from_schema`: each property's types, enums and bounds, and values just
+outside them) and with arbitrary JSON; the answer must be a
+2xx or 4xx, and no file may appear or change outside the workspace (nor inside:
+these routes only read). Bounded: the trials and tests maxima are lowered in the
+schema the bodies are drawn from, so that one example costs milliseconds.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+BOUNDS = {"trials": 40, "n_tests": 12}  # fuzz-time maxima (the API allows more)
+
+
+def _resolve(node, components):
+    if isinstance(node, dict):
+        if "$ref" in node:
+            return _resolve(components[node["$ref"].rsplit("/", 1)[-1]], components)
+        return {k: _resolve(v, components) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_resolve(v, components) for v in node]
+    return node
+
+
+def _operations(doc):
+    comps = doc.get("components", {}).get("schemas", {})
+    for path, ops in doc["paths"].items():
+        for method, op in ops.items():
+            body = op.get("requestBody", {}).get("content", {}).get("application/json")
+            schema = None if body is None else _resolve(body["schema"], comps)
+            if schema is not None:
+                schema = copy.deepcopy(schema)
+                for key, hi in BOUNDS.items():
+                    if key in schema.get("properties", {}):
+                        schema["properties"][key]["maximum"] = hi
+            yield path, method, schema
+
+
+def _snapshot(root):
+    out = {}
+    for d, _, files in os.walk(root):
+        for f in files:
+            p = os.path.join(d, f)
+            st_ = os.lstat(p)
+            out[p] = (st_.st_size, st_.st_mtime_ns)
+    return out
+
+
+def from_schema(schema: dict) -> st.SearchStrategy:
+    """Values for a JSON schema of the OpenAPI document: in and just out of its bounds."""
+    if "anyOf" in schema:
+        return st.one_of([from_schema(s) for s in schema["anyOf"]])
+    if "enum" in schema:
+        return st.sampled_from(schema["enum"]) | st.text(max_size=6)
+    t = schema.get("type")
+    if t == "null":
+        return st.none()
+    if t in ("number", "integer"):
+        lo, hi = schema.get("minimum"), schema.get("maximum")
+        edge = [v for v in (lo, hi) if v is not None]
+        inside = (st.integers(lo, hi) if t == "integer" else
+                  st.floats(lo, hi, allow_nan=False, allow_infinity=False))
+        return inside | st.sampled_from(edge + [v + d for v in edge for d in (-1, 1)] or [0])
+    if t == "string":
+        return st.text(max_size=40) | st.sampled_from(
+            ["plan", "robot.toml", "kr240-2", "../x", "/etc", "plan/../..", "a" * 300])
+    if t == "boolean":
+        return st.booleans()
+    if t == "array":
+        return st.lists(from_schema(schema.get("items", {})),
+                        max_size=min(8, schema.get("maxItems", 8) + 1))
+    if t == "object" or "properties" in schema:
+        props = schema.get("properties", {})
+        return st.fixed_dictionaries({}, optional={k: from_schema(v) for k, v in props.items()})
+    return JSON
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False)
+                    | st.text(max_size=20),
+                    lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=8), c,
+                                                                         max_size=4),
+                    max_leaves=10)
+
+
+def _fuzz(client, path, method, strategy) -> dict[int, int]:
+    """Call the operation with examples of ``strategy``; count the answers by status."""
+    seen: dict[int, int] = {}
+
+    @settings(max_examples=150, deadline=None, database=None,
+              suppress_health_check=list(HealthCheck))
+    @given(body=strategy)
+    def call(body):
+        r = client.request(method.upper(), path, json=body)
+        assert r.status_code < 500, (path, body, r.text)
+        seen[r.status_code] = seen.get(r.status_code, 0) + 1
+
+    call()
+    return seen
+
+
+def test_fuzz_api_from_openapi(client, workspace):
+    doc = client.get("/openapi.json").json()
+    ops = list(_operations(doc))
+    assert any(m == "post" for _, m, _ in ops)
+    before = _snapshot(workspace.parent)
+
+    for path, method, schema in ops:
+        if schema is None:
+            r = client.request(method.upper(), path)
+            assert r.status_code < 500, (path, r.text)
+            continue
+        seen = _fuzz(client, path, method, st.one_of(from_schema(schema), JSON))
+        # the drawn bodies reach the job, not only the validation
+        assert seen.get(200, 0) >= 5 and seen.get(422, 0) >= 5, (path, seen)
+    assert _snapshot(workspace.parent) == before
+
+
+@pytest.mark.parametrize("text", ["a" * 300, "x/" * 120, "\x00", "plan/\x00", "..", "./..",
+                                  "plan//..//..", "C:/Windows", "~root", "\\..\\x"])
+def test_odd_paths_are_422(client, text):
+    for field in ("plan", "robot"):
+        body = {"trials": 5, "n_tests": 2, field: text}
+        if field == "plan":
+            body["poses"] = "plan"
+        r = client.post("/api/sensitivity", json=body)
+        assert r.status_code == 422, (field, text, r.text)
