@@ -99,6 +99,7 @@ async function update() {
     render(data);
     state.updates += 1;
     document.body.dataset.updates = String(state.updates);
+    document.body.dataset.shown = JSON.stringify(payload);  // the settings on display
     $("sens-status").textContent = `${data.trials} trials of ${data.n_tests} tests ` +
       `(${data.method}) in ${Math.round(performance.now() - t0)} ms`;
   } catch (err) {
