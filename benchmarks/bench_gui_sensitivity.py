@@ -1,7 +1,8 @@
 """Latency of the GUI's sensitivity explorer: one slider move = one API round trip.
 
-A GUI server (uvicorn, the app of ``campaign gui``) runs on 127.0.0.1 in a thread;
-an HTTP client holding the token cookie and the CSRF header posts the settings a
+``campaign gui --port 0 --no-browser`` runs as its own process on 127.0.0.1 (as a
+user starts it); an HTTP client holding the token cookie and the CSRF header posts
+the settings a
 user produces by moving each slider through its range (tracker translation and
 rotation, F/T force and moment absolute and % of reading, encoders, number of
 tests), at 1,000 trials, the KR240-2 and its zones. Baseline: the job itself
@@ -16,9 +17,9 @@ import argparse
 import json
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -43,41 +44,24 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=2, help="Passes over the sweeps.")
     args = parser.parse_args()
 
-    import httpx
-
     from campaign.jobs.sensitivity import run_sensitivity
     from campaign.web.security import COOKIE, CSRF_HEADER, csrf_value
     from campaign.web.sensitivity_api import SensitivityRequest, options_from_request
-    from campaign.web.server import GuiOptions, make_server
 
-    token = "bench-token-0123456789"
     ws = Path(tempfile.mkdtemp(prefix="bench-gui-"))
-    srv, sock = make_server(GuiOptions(workspace=ws, port=0, open_browser=False), token)
-    thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    while not srv.started:
-        time.sleep(0.01)
-    host, port = sock.getsockname()[:2]
-    client = httpx.Client(base_url=f"http://{host}:{port}", cookies={COOKIE: token},
-                          headers={CSRF_HEADER: csrf_value(token)}, timeout=60)
-
-    bodies = [{"trials": args.trials, "method": args.method, key: v}
-              for _ in range(args.repeat) for key, values in SWEEPS.items() for v in values]
-    client.post("/api/sensitivity", json=bodies[0]).raise_for_status()  # warm up
-    api_ms, job_ms, worst_diff = [], [], 0.0
-    for body in bodies:
-        t0 = time.perf_counter()
-        r = client.post("/api/sensitivity", json=body)
-        api_ms.append(1e3 * (time.perf_counter() - t0))
-        r.raise_for_status()
-        t0 = time.perf_counter()
-        want = run_sensitivity(options_from_request(SensitivityRequest(**body), ws)).to_dict()
-        job_ms.append(1e3 * (time.perf_counter() - t0))
-        for a, b in zip(r.json()["joints"], want["joints"], strict=True):
-            for key in ("median_Nm_per_rad", "std_Nm_per_rad", "predicted_se_Nm_per_rad"):
-                worst_diff = max(worst_diff, abs(a[key] - b[key]) / abs(b[key]))
-    srv.should_exit = True
-    thread.join(10)
+    server = subprocess.Popen(
+        [sys.executable, "-m", "campaign", "gui", "--workspace", str(ws), "--port", "0",
+         "--no-browser"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        url = _url(server)
+        base, token = url.split("/?token=")
+        client = _Client(base, {"Cookie": f"{COOKIE}={token}",
+                                CSRF_HEADER: csrf_value(token)})
+        api_ms, job_ms, worst_diff, bodies = _measure(
+            client, args, ws, run_sensitivity, SensitivityRequest, options_from_request)
+    finally:
+        server.terminate()
+        server.wait(10)
 
     def q(v, p):
         return round(statistics.quantiles(v, n=100)[p - 1], 1)
@@ -96,8 +80,64 @@ def main() -> None:
         "cpus": os.cpu_count(),
         "baseline": "the job called in-process on the same settings (no HTTP, no JSON)",
         "timing": "wall time (time.perf_counter) per call, interleaved with the baseline; "
-                  "server and client on 127.0.0.1 in one process (uvicorn in a thread)",
+                  "the server is `campaign gui` in its own process on 127.0.0.1",
     }))
+
+
+class _Client:
+    """One kept-alive HTTP/1.1 connection with TCP_NODELAY, as a browser holds: without
+    it, Nagle's algorithm and delayed ACKs add ~40 ms to every small request."""
+
+    def __init__(self, base: str, headers: dict) -> None:
+        import http.client
+        import socket
+        from urllib.parse import urlsplit
+
+        u = urlsplit(base)
+        self.conn = http.client.HTTPConnection(u.hostname, u.port, timeout=60)
+        self.conn.connect()
+        self.conn.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.headers = {**headers, "Content-Type": "application/json"}
+
+    def post(self, path: str, json: dict) -> dict:
+        import json as js
+
+        self.conn.request("POST", path, body=js.dumps(json), headers=self.headers)
+        r = self.conn.getresponse()
+        data = r.read()
+        if r.status != 200:
+            raise SystemExit(f"{path}: HTTP {r.status}: {data[:200]!r}")
+        return js.loads(data)
+
+
+def _url(server) -> str:
+    """The URL `campaign gui` prints (its line ``open http://...``)."""
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        line = server.stdout.readline()
+        if not line:
+            break
+        if line.startswith("open http"):
+            return line.split()[1]
+    raise SystemExit("campaign gui did not print its URL")
+
+
+def _measure(client, args, ws, run_sensitivity, SensitivityRequest, options_from_request):
+    bodies = [{"trials": args.trials, "method": args.method, key: v}
+              for _ in range(args.repeat) for key, values in SWEEPS.items() for v in values]
+    client.post("/api/sensitivity", json=bodies[0])  # warm up
+    api_ms, job_ms, worst_diff = [], [], 0.0
+    for body in bodies:
+        t0 = time.perf_counter()
+        got = client.post("/api/sensitivity", json=body)
+        api_ms.append(1e3 * (time.perf_counter() - t0))
+        t0 = time.perf_counter()
+        want = run_sensitivity(options_from_request(SensitivityRequest(**body), ws)).to_dict()
+        job_ms.append(1e3 * (time.perf_counter() - t0))
+        for a, b in zip(got["joints"], want["joints"], strict=True):
+            for key in ("median_Nm_per_rad", "std_Nm_per_rad", "predicted_se_Nm_per_rad"):
+                worst_diff = max(worst_diff, abs(a[key] - b[key]) / abs(b[key]))
+    return api_ms, job_ms, worst_diff, bodies
 
 
 if __name__ == "__main__":
