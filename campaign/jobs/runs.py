@@ -48,6 +48,14 @@ def _mtime(path: Path) -> str:
     return datetime.fromtimestamp(path.stat().st_mtime, UTC).isoformat(timespec="seconds")
 
 
+def _seconds(text: str) -> str:
+    """An ISO time to the second (as the other entries' dates), else as written."""
+    try:
+        return datetime.fromisoformat(text).isoformat(timespec="seconds")
+    except ValueError:
+        return text
+
+
 def _plan(d: Path, rel: str) -> Entry:
     s = _load(d / "summary.json")
     k = [{"joint": r["joint"], "k_Nm_per_rad": r["k_prior_N_m_per_rad"],
@@ -71,7 +79,8 @@ def _run(d: Path, rel: str) -> Entry:
     detail = f"{rows} test rows measured, {m.get('n_planned_tests', '?')} tests planned"
     if m.get("reason"):
         detail += f"; {m['reason']}"
-    return Entry("run", rel, name, str(m.get("started_utc", "")) or _mtime(d / "metadata.json"),
+    return Entry("run", rel, name, _seconds(str(m.get("started_utc", "")))
+                 or _mtime(d / "metadata.json"),
                  str(m.get("status", "unknown")), detail)
 
 
