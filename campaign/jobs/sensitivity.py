@@ -30,6 +30,7 @@ MAX_TESTS = 200
 MAX_TRIALS = 20_000
 ZONE_POOL = 200  # poses drawn once from the zones; the tests are its first n_tests
 SETS_SHOWN = 5  # individual trial sets returned (the paper's broken lines)
+CURVE_TESTS = 40  # the predicted spread is drawn for 1 .. max(this, n_tests) tests
 
 
 @dataclass(frozen=True)
@@ -102,7 +103,9 @@ class JointSpread:
 @dataclass(frozen=True)
 class SensitivityResult:
     """Per joint spreads, the first trial sets (sets[s][j], N m/rad, NaN if rejected), the
-    poses (q (n_tests, n) rad) and wrenches (n_tests, 6) simulated, and the noise figures."""
+    poses (q (n_tests, n) rad) and wrenches (n_tests, 6) simulated, the noise figures, and
+    the planner's relative standard error of each k against the number of tests
+    (curve_se[i, j] for curve_tests[i] tests, inf where not identifiable: Fig. 7)."""
 
     robot: str
     method: str
@@ -113,6 +116,8 @@ class SensitivityResult:
     q: np.ndarray
     wrench: np.ndarray
     noise: dict
+    curve_tests: np.ndarray
+    curve_se: np.ndarray
 
     def to_dict(self) -> dict:
         """JSON-ready (SI; NaN and inf as None)."""
@@ -132,6 +137,8 @@ class SensitivityResult:
             "q_deg": np.degrees(self.q).round(6).tolist(),
             "wrench_N_Nm": self.wrench.tolist(),
             "noise": self.noise,
+            "curve_tests": self.curve_tests.tolist(),
+            "curve_relative_se": [[num(v) for v in row] for row in self.curve_se],
         }
 
 
@@ -148,13 +155,13 @@ def _check(o: SensitivityOptions) -> None:
         raise InputError(f"must be 2 to {MAX_TRIALS}, got {o.trials}", where="trials")
 
 
-def _poses(o: SensitivityOptions, robot) -> tuple[np.ndarray, np.ndarray | None]:
-    """(q (n_tests, n) rad, the plan's wrenches (n_tests, 6) or None)."""
+def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """(q (count, n) rad, the plan's wrenches (count, 6) or None): the tests in order."""
     if o.poses == "zones":
         from analysis.identification.robustness import sample_poses
 
-        q = sample_poses(robot, ZONE_POOL, np.random.default_rng(o.seed))
-        return q[:o.n_tests], None
+        q = sample_poses(robot, max(ZONE_POOL, count), np.random.default_rng(o.seed))
+        return q[:count], None
     if o.poses == "plan":
         if o.plan_dir is None:
             raise InputError("poses 'plan' needs a plan directory", where="plan")
@@ -163,7 +170,7 @@ def _poses(o: SensitivityOptions, robot) -> tuple[np.ndarray, np.ndarray | None]
         _, df = read_plan(o.plan_dir)
         q = np.radians(df[[f"q{j}_model_deg" for j in range(1, robot.n + 1)]].to_numpy(float))
         w = df[["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m"]].to_numpy(float)
-        idx = np.arange(o.n_tests) % len(q)
+        idx = np.arange(count) % len(q)
         return q[idx], w[idx]
     q = None if o.q is None else np.asarray(o.q, dtype=float)
     if q is None or q.ndim != 2 or q.shape[0] < 1 or q.shape[1] != robot.n \
@@ -171,19 +178,18 @@ def _poses(o: SensitivityOptions, robot) -> tuple[np.ndarray, np.ndarray | None]
         raise InputError(f"typed poses need rows of {robot.n} finite joint angles", where="q")
     if np.any(q < robot.lower - 1e-9) or np.any(q > robot.upper + 1e-9):
         raise InputError("a typed pose is outside the joint limits", where="q")
-    return q[np.arange(o.n_tests) % len(q)], None
+    return q[np.arange(count) % len(q)], None
 
 
-def predicted_se(robot, q, w, k, noise) -> np.ndarray:
-    """The planner's predicted standard error of each k (N m/rad) for tests (q, w), one row
-    each; inf where the design does not identify it."""
+def predicted_relative_se(robot, q, w, k, noise) -> np.ndarray:
+    """(t, n): the planner's relative standard error of each k for the first 1, 2, ..., t
+    of the tests (q (t, n) rad, w (t, 6) N, N m), one row each; inf where not identified."""
     from analysis.identification.robustness import jacobian_derivative
     from analysis.model.kinematics import jacobian
     from campaign.criteria import candidate_information, relative_se
 
-    M = candidate_information(jacobian(robot, q), w, noise, k, 1,
-                              jacobian_derivative(robot, q)).sum(axis=0)
-    return relative_se(M) * k
+    F = candidate_information(jacobian(robot, q), w, noise, k, 1, jacobian_derivative(robot, q))
+    return relative_se(np.cumsum(F, axis=0))
 
 
 def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
@@ -207,7 +213,8 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
     else:
         k = np.asarray(robot.nominal_stiffness, dtype=float)
     noise = o.errors.noise()
-    q, plan_w = _poses(o, robot)
+    count = max(CURVE_TESTS, o.n_tests)
+    q, plan_w = _poses(o, robot, count)
     if o.wrench is not None:
         w = np.asarray(o.wrench, dtype=float)
         if w.shape != (6,) or not np.all(np.isfinite(w)) or not np.any(w):
@@ -215,13 +222,15 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
         w = np.broadcast_to(w, (len(q), 6)).copy()
     else:
         w = plan_w if plan_w is not None else np.broadcast_to(W_EFF, (len(q), 6)).copy()
+    curve = predicted_relative_se(robot, q, w, k, noise)
+    q, w = q[:o.n_tests], w[:o.n_tests]
     rng = np.random.default_rng(o.seed + 1)
     sim = simulate_campaigns(robot, q, w, k, noise, 1, o.trials, rng)
     with np.errstate(all="ignore"):
         x = identify_campaigns(robot, sim, noise, 1.0 / k, o.method)  # (T, n)
         ok = np.isfinite(x) & (x > 0)
         kk = np.where(ok, 1.0 / np.where(ok, x, 1.0), np.nan)
-    se = predicted_se(robot, q, w, k, noise)
+    se = curve[o.n_tests - 1] * k
     joints = []
     for j in range(robot.n):
         v = kk[ok[:, j], j]
@@ -233,4 +242,5 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
             rejected=int((~ok[:, j]).sum())))
     return SensitivityResult(
         robot=robot.name, method=o.method, trials=o.trials, n_tests=o.n_tests, joints=joints,
-        sets=kk[:SETS_SHOWN].tolist(), q=q, wrench=w, noise=noise.describe())
+        sets=kk[:SETS_SHOWN].tolist(), q=q, wrench=w, noise=noise.describe(),
+        curve_tests=np.arange(1, count + 1), curve_se=curve)

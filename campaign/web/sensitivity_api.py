@@ -73,6 +73,8 @@ class SensitivityResponse(BaseModel):
     q_deg: list[list[float]]
     wrench_N_Nm: list[list[float]]
     noise: dict
+    curve_tests: list[int]
+    curve_relative_se: list[list[float | None]]
 
 
 class Defaults(BaseModel):

@@ -162,3 +162,14 @@ def test_openapi_document_lists_the_routes(client):
     assert "/api/sensitivity" in doc["paths"] and "/api/runs" in doc["paths"]
     props = doc["components"]["schemas"]["SensitivityRequest"]["properties"]
     assert props["n_tests"]["maximum"] == 200
+
+
+def test_predicted_curve_falls_with_the_tests_and_matches_the_table(client):
+    got = client.post("/api/sensitivity", json={**SMALL, "method": "wls"}).json()
+    curve = np.array(got["curve_relative_se"], dtype=float)
+    assert got["curve_tests"][0] == 1 and len(curve) == len(got["curve_tests"]) >= 40
+    finite = curve[np.all(np.isfinite(curve), axis=1)]
+    assert len(finite) > 30 and np.all(np.diff(finite, axis=0) <= 1e-12)  # information adds
+    for c, j in enumerate(got["joints"]):
+        assert curve[SMALL["n_tests"] - 1, c] * j["k_true_Nm_per_rad"] == pytest.approx(
+            j["predicted_se_Nm_per_rad"], rel=1e-12)

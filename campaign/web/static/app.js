@@ -130,6 +130,7 @@ function render(d) {
   }
   plotSets(d);
   plotSpread(d);
+  plotCurve(d);
 }
 
 function rel(v, k) { return v === null ? null : 100 * (v / k - 1); }
@@ -175,6 +176,28 @@ function plotSpread(d) {
     { label: "planner's predicted se", stroke: "#1b9e77", width: 2, dash: [6, 3], points: { size: 8 } }];
   plot("fig-spread", { width: 560, height: 320, scales: { x: { time: false } }, series,
                        axes: [AXES_X, { label: "relative spread of k (%)", size: 60 }] }, data);
+}
+
+const JOINT_COLORS = ["#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#a6761d"];
+
+function plotCurve(d) {
+  const x = d.curve_tests;
+  const data = [x];
+  const series = [{ label: "tests" }];
+  d.joints.forEach((j, c) => {
+    data.push(d.curve_relative_se.map((row) => row[c] === null ? null : 100 * row[c]));
+    series.push({ label: `k${j.joint} predicted`, stroke: JOINT_COLORS[c], width: 1.5 });
+  });
+  d.joints.forEach((j, c) => {
+    const std = j.std_Nm_per_rad === null ? null : 100 * j.std_Nm_per_rad / j.k_true_Nm_per_rad;
+    data.push(x.map((n) => (n === d.n_tests ? std : null)));
+    series.push({ label: `k${j.joint} Monte-Carlo`, stroke: JOINT_COLORS[c], width: 0,
+                  points: { show: true, size: 9, fill: JOINT_COLORS[c] } });
+  });
+  plot("fig-curve", { width: 1140, height: 300, scales: { x: { time: false }, y: { distr: 3 } },
+                      series, legend: { live: true },
+                      axes: [{ label: "number of tests" },
+                             { label: "relative se of k (%), log scale", size: 70 }] }, data);
 }
 
 function showView(name) {
