@@ -67,3 +67,29 @@ def test_password_login(tmp_path):
     assert c.post("/login", data={"password": "wrong"}).status_code == 403
     assert c.post("/login", data={"password": "a-long-password"}).status_code == 200
     assert c.get("/api/runs").status_code == 200
+
+
+def test_campaign_gui_serves_loopback_with_its_token(tmp_path):
+    """The command as a user runs it: prints a 127.0.0.1 URL; the token opens it."""
+    import subprocess
+    import sys
+    import urllib.error
+    import urllib.request
+
+    proc = subprocess.Popen([sys.executable, "-m", "campaign", "gui", "--workspace",
+                             str(tmp_path), "--port", "0", "--no-browser"],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        url = next(line.split()[1] for line in proc.stdout if line.startswith("open http"))
+        base, token = url.split("/?token=")
+        assert base.startswith("http://127.0.0.1:") and len(token) >= 40
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(base + "/api/runs", timeout=30)
+        assert err.value.code == 401
+        req = urllib.request.Request(base + "/api/runs",
+                                     headers={"Authorization": f"token {token}"})
+        with urllib.request.urlopen(req, timeout=30) as r:
+            assert r.status == 200 and r.read() == b"[]"
+    finally:
+        proc.terminate()
+        proc.wait(10)
