@@ -176,8 +176,13 @@ def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.nda
     if q is None or q.ndim != 2 or q.shape[0] < 1 or q.shape[1] != robot.n \
             or not np.all(np.isfinite(q)):
         raise InputError(f"typed poses need rows of {robot.n} finite joint angles", where="q")
-    if np.any(q < robot.lower - 1e-9) or np.any(q > robot.upper + 1e-9):
-        raise InputError("a typed pose is outside the joint limits", where="q")
+    out = (q < robot.lower - 1e-9) | (q > robot.upper + 1e-9)
+    if out.any():
+        i, j = (int(v) for v in np.argwhere(out)[0])
+        raise InputError(
+            f"pose {i + 1}: q{j + 1} = {np.degrees(q[i, j]):.6g} deg is outside the joint "
+            f"limits [{np.degrees(robot.lower[j]):.6g}, {np.degrees(robot.upper[j]):.6g}] deg",
+            where="q")
     return q[np.arange(count) % len(q)], None
 
 

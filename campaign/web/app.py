@@ -25,6 +25,9 @@ ROUTERS: tuple[str, ...] = (
 )
 
 STATIC = Path(__file__).parent / "static"
+#: uPlot and htmx set inline styles; scripts only from the server's own files
+CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+       "img-src 'self' data:; frame-ancestors 'none'; base-uri 'none'; form-action 'self'")
 log = logging.getLogger("campaign.gui")
 
 
@@ -88,7 +91,12 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
                                         status_code=303)
             _set_cookie(response, token)
             return response
-        return await call_next(request)
+        response = await call_next(request)
+        # the page's own files only; no framing by another site (clickjacking)
+        response.headers.setdefault("Content-Security-Policy", CSP)
+        response.headers.setdefault("X-Frame-Options", "DENY")
+        response.headers.setdefault("X-Content-Type-Options", "nosniff")
+        return response
 
     @app.exception_handler(InputError)
     async def input_error(request: Request, err: InputError):

@@ -116,6 +116,8 @@ def test_bad_settings_are_422_with_the_field(client):
     for body, word in [({"trials": 1}, "trials"), ({"method": "lsq"}, "method"),
                        ({"wrench_N_Nm": [0] * 6}, "wrench"), ({"robot": "kr999"}, "robot"),
                        ({"poses": "typed", "q_deg": [[0, 0, 0]]}, "q"),
+                       ({"poses": "typed", "q_deg": [[0, -10, 0, 0, 0, 0]]},
+                        "pose 1: q2 = -10 deg is outside the joint limits [0, 146] deg"),
                        ({"translation_sigma_um": -1}, "translation_sigma_um")]:
         r = client.post("/api/sensitivity", json={**SMALL, **body})
         assert r.status_code == 422 and word in r.json()["detail"], (body, r.text)

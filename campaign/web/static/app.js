@@ -14,8 +14,8 @@ const SLIDERS = [
   ["n_tests", "Number of tests", "", 60, 1],
 ];
 
-const state = { api: {}, csrf: null, header: null, controller: null, timer: null,
-                updates: 0, plots: {} };
+const state = { api: {}, csrf: null, header: null, inflight: false, dirty: false,
+                timer: null, updates: 0, plots: {} };
 
 function $(id) { return document.getElementById(id); }
 
@@ -82,28 +82,36 @@ function schedule() {
 }
 
 async function update() {
-  if (state.controller) state.controller.abort();   // the latest setting wins
-  const controller = new AbortController();
-  state.controller = controller;
-  const t0 = performance.now();
+  // one request in flight at most: moves made meanwhile are sent, coalesced, when it
+  // returns (aborting a fetch would not stop the server's work)
+  if (state.inflight) { state.dirty = true; return; }
   let payload;
   try { payload = body(); } catch (err) { $("sens-error").textContent = err.message; return; }
+  state.inflight = true;
+  const t0 = performance.now();
   try {
     const r = await fetch(state.api.sensitivity, {
-      method: "POST", credentials: "same-origin", signal: controller.signal,
+      method: "POST", credentials: "same-origin",
       headers: { "Content-Type": "application/json", [state.header]: state.csrf },
       body: JSON.stringify(payload) });
     const data = await r.json();
-    if (!r.ok) { $("sens-error").textContent = data.detail || r.statusText; return; }
-    $("sens-error").textContent = "";
-    render(data);
-    state.updates += 1;
-    document.body.dataset.updates = String(state.updates);
-    document.body.dataset.shown = JSON.stringify(payload);  // the settings on display
-    $("sens-status").textContent = `${data.trials} trials of ${data.n_tests} tests ` +
-      `(${data.method}) in ${Math.round(performance.now() - t0)} ms`;
+    if (!r.ok) {
+      $("sens-error").textContent = data.detail || r.statusText;
+      document.body.dataset.shown = "error:" + JSON.stringify(payload);
+    } else {
+      $("sens-error").textContent = "";
+      render(data);
+      state.updates += 1;
+      document.body.dataset.updates = String(state.updates);
+      document.body.dataset.shown = JSON.stringify(payload);  // the settings on display
+      $("sens-status").textContent = `${data.trials} trials of ${data.n_tests} tests ` +
+        `(${data.method}) in ${Math.round(performance.now() - t0)} ms`;
+    }
   } catch (err) {
-    if (err.name !== "AbortError") $("sens-error").textContent = String(err);
+    $("sens-error").textContent = String(err);
+  } finally {
+    state.inflight = false;
+    if (state.dirty) { state.dirty = false; update(); }
   }
 }
 
