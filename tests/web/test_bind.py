@@ -93,3 +93,20 @@ def test_campaign_gui_serves_loopback_with_its_token(tmp_path):
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+def test_package_data_ships_the_page():
+    """Every file of campaign/web/static matches a package-data glob (pip install ships it)."""
+    import fnmatch
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"]["campaign"]
+    static = root / "campaign" / "web" / "static"
+    files = [p.relative_to(root / "campaign").as_posix() for p in static.rglob("*")
+             if p.is_file()]
+    assert {"web/static/index.html", "web/static/vendor/uPlot.iife.min.js"} <= set(files)
+    for f in files:
+        assert any(fnmatch.fnmatch(f, g) and f.count("/") == g.count("/") for g in globs), f
