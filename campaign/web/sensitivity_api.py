@@ -7,7 +7,7 @@ rest. A robot file or a plan is a path inside the workspace.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from fastapi import APIRouter, Request
@@ -22,6 +22,12 @@ API_MAX_TRIALS = 5000
 ROBOT_SUFFIXES = (".toml", ".yaml", ".yml")
 
 
+#: a wrench component (N or N m) and a joint stiffness (N m/rad) within physical reach
+WrenchValue = Annotated[float, Field(ge=-1e6, le=1e6)]
+StiffnessValue = Annotated[float, Field(ge=1.0, le=1e12)]
+AngleDeg = Annotated[float, Field(ge=-3600, le=3600)]
+
+
 class SensitivityRequest(BaseModel):
     """Settings of the explorer (units in the field names; ``None``: the default)."""
 
@@ -33,10 +39,11 @@ class SensitivityRequest(BaseModel):
     poses: Literal["zones", "plan", "typed"] = "zones"
     plan: str | None = Field(None, max_length=500,
                              description="Plan directory inside the workspace (poses=plan).")
-    q_deg: list[list[float]] | None = Field(None, max_length=200,
+    q_deg: list[Annotated[list[AngleDeg], Field(max_length=12)]] | None = Field(
+        None, max_length=200,
                                             description="Typed poses, model convention (deg).")
-    wrench_N_Nm: list[float] | None = Field(None, min_length=6, max_length=6)
-    joint_stiffness_Nm_per_rad: list[float] | None = Field(None, max_length=12)
+    wrench_N_Nm: list[WrenchValue] | None = Field(None, min_length=6, max_length=6)
+    joint_stiffness_Nm_per_rad: list[StiffnessValue] | None = Field(None, max_length=12)
     translation_sigma_um: float | None = Field(None, ge=0, le=10_000)
     rotation_sigma_urad: float | None = Field(None, ge=0, le=100_000)
     force_sigma_N: float | None = Field(None, ge=0, le=10_000)

@@ -83,7 +83,8 @@ def from_schema(schema: dict) -> st.SearchStrategy:
     return JSON
 
 
-JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False)
+JSON = st.recursive(st.none() | st.booleans() | st.integers()
+                    | st.floats(allow_nan=False, allow_infinity=False)
                     | st.text(max_size=20),
                     lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=8), c,
                                                                          max_size=4),
@@ -132,3 +133,12 @@ def test_odd_paths_are_422(client, text):
             body["poses"] = "plan"
         r = client.post("/api/sensitivity", json=body)
         assert r.status_code == 422, (field, text, r.text)
+
+
+@pytest.mark.parametrize("raw", ['{"translation_sigma_um": Infinity}', '{"trials": NaN}',
+                                 '{"wrench_N_Nm": [0, 1e999, 0, 0, 0, 0]}', "{", "[]", "null",
+                                 '{"q_deg": [[NaN]], "poses": "typed"}'])
+def test_non_finite_and_broken_json_are_422(client, raw):
+    r = client.post("/api/sensitivity", content=raw,
+                    headers={"Content-Type": "application/json"})
+    assert r.status_code == 422, r.text
