@@ -41,6 +41,8 @@ class ErrorSources:
     displacement; force_sigma (N), moment_sigma (N m): one wrench component;
     force_relative, moment_relative: part proportional to the reading (0.01 = 1 %);
     encoder_resolution (rad): joint encoder resolution (sigma = resolution / sqrt 12).
+    reflector_radius (m): circumradius of the three-reflector triangle the rotation is
+    fitted from; used when rotation_sigma is None (the noise model's reflector fit).
     """
 
     translation_sigma: float | None = None
@@ -50,6 +52,7 @@ class ErrorSources:
     force_relative: float | None = None
     moment_relative: float | None = None
     encoder_resolution: float | None = None
+    reflector_radius: float | None = None
 
     def noise(self):
         """The :class:`NoiseModel` with these figures."""
@@ -60,7 +63,7 @@ class ErrorSources:
             rotation_sigma_override=self.rotation_sigma,
             force_sigma=self.force_sigma, moment_sigma=self.moment_sigma,
             force_relative=self.force_relative, moment_relative=self.moment_relative,
-            encoder_resolution=self.encoder_resolution)
+            encoder_resolution=self.encoder_resolution, reflector_radius=self.reflector_radius)
 
 
 @dataclass(frozen=True)

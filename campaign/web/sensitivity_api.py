@@ -51,6 +51,9 @@ class SensitivityRequest(BaseModel):
     force_percent: float | None = Field(None, ge=0, le=100)
     moment_percent: float | None = Field(None, ge=0, le=100)
     encoder_resolution_deg: float | None = Field(None, ge=0, le=1)
+    reflector_radius_mm: float | None = Field(
+        None, ge=10, le=2000, description="Reflector triangle circumradius (mm): the rotation "
+        "sigma from the reflector fit, when rotation_sigma_urad is not given.")
     n_tests: int = Field(10, ge=1, le=200)
     method: Literal["ols", "wls", "exact"] = "ols"
     trials: int = Field(1000, ge=2, le=API_MAX_TRIALS)
@@ -94,6 +97,7 @@ class Defaults(BaseModel):
     force_percent: float
     moment_percent: float
     encoder_resolution_deg: float
+    reflector_radius_mm: float
     robots: list[str]
 
 
@@ -129,7 +133,8 @@ def options_from_request(body: SensitivityRequest, workspace):
         force_sigma=body.force_sigma_N, moment_sigma=body.moment_sigma_Nm,
         force_relative=scaled(body.force_percent, 0.01),
         moment_relative=scaled(body.moment_percent, 0.01),
-        encoder_resolution=scaled(body.encoder_resolution_deg, np.pi / 180))
+        encoder_resolution=scaled(body.encoder_resolution_deg, np.pi / 180),
+        reflector_radius=scaled(body.reflector_radius_mm, 1e-3))
     return SensitivityOptions(
         robot=robot, poses=body.poses, plan_dir=plan, q=q,
         wrench=None if body.wrench_N_Nm is None else np.array(body.wrench_N_Nm),
@@ -159,4 +164,5 @@ def defaults() -> Defaults:
         force_sigma_N=n.force_sigma, moment_sigma_Nm=n.moment_sigma,
         force_percent=100 * n.force_relative, moment_percent=100 * n.moment_relative,
         encoder_resolution_deg=float(np.degrees(n.encoder_resolution)),
+        reflector_radius_mm=1e3 * n.reflector_radius,
         robots=sorted({p.stem for p in builtin_files().values()}))

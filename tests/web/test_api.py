@@ -175,3 +175,17 @@ def test_predicted_curve_falls_with_the_tests_and_matches_the_table(client):
     for c, j in enumerate(got["joints"]):
         assert curve[SMALL["n_tests"] - 1, c] * j["k_true_Nm_per_rad"] == pytest.approx(
             j["predicted_se_Nm_per_rad"], rel=1e-12)
+
+
+def test_reflector_radius_sets_the_rotation_sigma(client):
+    """sigma_rot = sqrt(2) * sigma_point * sqrt(2/3) / rho: halving rho doubles it."""
+    from analysis.identification.noise import NoiseModel
+
+    a = client.post("/api/sensitivity", json={**SMALL, "reflector_radius_mm": 100}).json()
+    b = client.post("/api/sensitivity", json={**SMALL, "reflector_radius_mm": 50}).json()
+    expect = np.sqrt(2) * NoiseModel().point_sigma * np.sqrt(2 / 3) / 0.1 * 1e6
+    assert a["noise"]["rotation_sigma_urad"] == pytest.approx(expect, rel=1e-12)
+    assert b["noise"]["rotation_sigma_urad"] == pytest.approx(2 * expect, rel=1e-12)
+    c = client.post("/api/sensitivity", json={**SMALL, "reflector_radius_mm": 50,
+                                              "rotation_sigma_urad": 7}).json()
+    assert c["noise"]["rotation_sigma_urad"] == pytest.approx(7)  # the sigma wins

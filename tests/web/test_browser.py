@@ -124,6 +124,17 @@ def test_slider_moves_update_the_numbers(page, workspace):
     assert body["translation_sigma_um"] == first["translation_sigma_um"] + 20
 
 
+def test_rotation_from_the_reflector_triangle(page, workspace):
+    before = int(page.evaluate("() => document.body.dataset.updates"))
+    page.select_option("#rotation-from", "reflectors")
+    page.wait_for_function(f"() => Number(document.body.dataset.updates) > {before}")
+    _wait_shown(page)
+    assert page.locator("#s-rotation_sigma_urad").is_disabled()
+    _move(page, "reflector_radius_mm", 4, "ArrowLeft")
+    body = _assert_page_equals_job(page, workspace)
+    assert "rotation_sigma_urad" not in body and body["reflector_radius_mm"] == 80
+
+
 def test_method_and_plan_poses(page, workspace):
     page.select_option("#method", "wls")
     page.select_option("#poses", "plan")

@@ -6,6 +6,7 @@ const SLIDERS = [
   // key of the request, label, unit, max shown, step
   ["translation_sigma_um", "Tracker translation", "\u00b5m", 200, 1],
   ["rotation_sigma_urad", "Tracker rotation", "\u00b5rad", 500, 1],
+  ["reflector_radius_mm", "Reflector triangle radius", "mm", 500, 5],
   ["force_sigma_N", "F/T force", "N", 100, 0.5],
   ["force_percent", "F/T force, of reading", "%", 5, 0.05],
   ["moment_sigma_Nm", "F/T moment", "N m", 20, 0.1],
@@ -41,7 +42,7 @@ function buildSliders(schema, defaults) {
   for (const [key, label, unit, max, step] of SLIDERS) {
     const prop = schema.properties[key] || {};
     const hi = Math.min(max, prop.maximum ?? max);
-    const lo = key === "n_tests" ? (prop.minimum ?? 1) : 0;
+    const lo = prop.minimum ?? (key === "n_tests" ? 1 : 0);
     const start = key === "n_tests" ? 10 : Math.min(hi, defaults[key]);
     const row = document.createElement("label");
     row.className = "slider";
@@ -67,6 +68,9 @@ function body() {
   const b = { robot: $("robot").value.trim(), poses: $("poses").value,
               method: $("method").value, trials: Number($("trials").value) };
   for (const [key] of SLIDERS) b[key] = Number($(`s-${key}`).value);
+  // rotation: its own sigma, or the fit of the reflector triangle (one of the two sliders)
+  if ($("rotation-from").value === "reflectors") delete b.rotation_sigma_urad;
+  else delete b.reflector_radius_mm;
   const w = $("wrench").value.trim();
   if (w) b.wrench_N_Nm = numbers(w, "wrench");
   if (b.poses === "plan") b.plan = $("plan").value.trim();
@@ -213,6 +217,12 @@ function showView(name) {
   for (const v of document.querySelectorAll(".view")) v.hidden = v.id !== `view-${name}`;
 }
 
+function rotationChanged() {
+  const fromReflectors = $("rotation-from").value === "reflectors";
+  $("s-rotation_sigma_urad").disabled = fromReflectors;
+  $("s-reflector_radius_mm").disabled = !fromReflectors;
+}
+
 function posesChanged() {
   const p = $("poses").value;
   for (const el of document.querySelectorAll(".for-plan")) el.hidden = p !== "plan";
@@ -236,6 +246,8 @@ async function start() {
   }
   $("poses").addEventListener("change", posesChanged);
   posesChanged();
+  $("rotation-from").addEventListener("change", () => { rotationChanged(); schedule(); });
+  rotationChanged();
   update();
 }
 
