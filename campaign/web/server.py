@@ -64,9 +64,13 @@ def make_server(options: GuiOptions, token: str):
     if not 0 <= options.port <= 65535:
         raise InputError(f"expected 0 to 65535, got {options.port}", where="--port")
     check_bind(options.host, options.allow_remote, options.password)
-    app = create_app(options.workspace, token, options.password if options.allow_remote
-                     else None)
     sock = bind(options.host, options.port)
+    try:
+        app = create_app(options.workspace, token, options.password if options.allow_remote
+                         else None)
+    except BaseException:
+        sock.close()
+        raise
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off")
     return uvicorn.Server(config), sock
 

@@ -110,3 +110,29 @@ def test_package_data_ships_the_page():
     assert {"web/static/index.html", "web/static/vendor/uPlot.iife.min.js"} <= set(files)
     for f in files:
         assert any(fnmatch.fnmatch(f, g) and f.count("/") == g.count("/") for g in globs), f
+
+
+@pytest.mark.parametrize("args,word", [
+    (["--workspace", "{tmp}/missing"], "not an existing directory"),
+    (["--port", "70000"], "--port"),
+    (["--port", "{busy}"], "cannot listen"),
+])
+def test_cli_bad_options_are_one_line(tmp_path, args, word):
+    import socket
+    import subprocess
+    import sys
+
+    busy = socket.socket()
+    busy.bind(("127.0.0.1", 0))
+    busy.listen(1)
+    try:
+        args = [a.format(tmp=tmp_path, busy=busy.getsockname()[1]) for a in args]
+        if "--workspace" not in args:
+            args += ["--workspace", str(tmp_path)]
+        r = subprocess.run([sys.executable, "-m", "campaign", "gui", "--no-browser", *args],
+                           capture_output=True, text=True, timeout=60)
+    finally:
+        busy.close()
+    assert r.returncode == 2 and word in r.stderr, r.stderr
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert "Traceback" not in r.stderr and len(errors) == 1 and word in errors[0]
