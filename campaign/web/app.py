@@ -12,6 +12,8 @@ routes from it); the interactive docs are off, since they load from a CDN.
 
 import importlib  # no "from __future__ import annotations": FastAPI reads the hints
 import logging
+import os
+import threading
 from pathlib import Path
 
 from analysis.errors import InputError
@@ -66,6 +68,8 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
     app.state.token = token
     app.state.csrf = security.csrf_value(token)
     app.state.password = password
+    # Monte-Carlo requests of every tab and client share the CPUs: one per core at a time
+    app.state.compute_slots = threading.BoundedSemaphore(os.cpu_count() or 1)
 
     def _denied(status: int, why: str) -> JSONResponse:
         return JSONResponse({"detail": why}, status_code=status)

@@ -149,7 +149,9 @@ def sensitivity(body: SensitivityRequest, request: Request) -> dict:
     """Monte-Carlo spread of the identified k for these settings (Figs. 6 and 7)."""
     from campaign.jobs.sensitivity import run_sensitivity
 
-    return run_sensitivity(options_from_request(body, request.app.state.workspace)).to_dict()
+    options = options_from_request(body, request.app.state.workspace)
+    with request.app.state.compute_slots:
+        return run_sensitivity(options).to_dict()
 
 
 @router.get("/defaults", response_model=Defaults)
