@@ -189,3 +189,37 @@ def test_reflector_radius_sets_the_rotation_sigma(client):
     c = client.post("/api/sensitivity", json={**SMALL, "reflector_radius_mm": 50,
                                               "rotation_sigma_urad": 7}).json()
     assert c["noise"]["rotation_sigma_urad"] == pytest.approx(7)  # the sigma wins
+
+
+def test_predicted_se_is_the_planners_for_its_plan(client, workspace):
+    """The explorer on a plan `campaign plan` wrote, with the plan's noise figures and
+    as many tests as the plan's rows, predicts the plan's own standard errors."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pandas as pd
+
+    root = Path(__file__).resolve().parents[2]
+    out = workspace / "planned"
+    subprocess.run([sys.executable, "-m", "campaign", "plan", "--protocol",
+                    str(root / "protocols" / "kr240-2.toml"), "--out", str(out),
+                    "--no-figure", "--candidates", "500"], check=True, capture_output=True,
+                   timeout=120)
+    summary = json.loads((out / "summary.json").read_text())
+    repeats = pd.read_csv(out / "plan.csv")["repeats"]
+    assert repeats.nunique() == 1  # cycling the tests then gives the plan's rows
+    nz = summary["noise_model_per_row"]
+    body = {"poses": "plan", "plan": "planned", "trials": 20, "n_tests": int(repeats.sum()),
+            "translation_sigma_um": nz["translation_sigma_um"],
+            "rotation_sigma_urad": nz["rotation_sigma_urad"],
+            "force_sigma_N": nz["force_sigma_N"], "moment_sigma_Nm": nz["moment_sigma_Nm"],
+            "force_percent": nz["force_relative_percent"],
+            "moment_percent": nz["moment_relative_percent"],
+            "encoder_resolution_deg": nz["joint_sigma_deg"] * np.sqrt(12)}
+    got = client.post("/api/sensitivity", json=body).json()
+    for j, want in zip(got["joints"], summary["predicted_standard_errors"], strict=True):
+        assert j["k_true_Nm_per_rad"] == want["k_prior_N_m_per_rad"]
+        assert j["predicted_se_Nm_per_rad"] == pytest.approx(want["se_design_N_m_per_rad"],
+                                                             rel=1e-9)
