@@ -33,6 +33,7 @@ class Entry:
     status: str
     detail: str = ""
     k: list[dict] = field(default_factory=list)
+    files: list[str] = field(default_factory=list)  # what the page links to (relative paths)
 
 
 def _load(path: Path) -> dict:
@@ -99,6 +100,17 @@ def _analysis(d: Path, rel: str) -> Entry:
                  f"{r.get('method', '')}, {r.get('n_tests', '?')} tests", k)
 
 
+#: files of an entry the page offers to open (read-only)
+LINKED = ("report.html", "report.pdf", "summary.txt", "plan_map.png", "results.json",
+          "model.toml")
+
+
+def _with_files(e: Entry, d: Path) -> Entry:
+    found = [f"{e.path}/{n}" if e.path else n for n in LINKED
+             if (d / n).is_file() and not (d / n).is_symlink()]
+    return Entry(**{**asdict(e), "files": found})
+
+
 KINDS = (("plan", "summary.json", _plan), ("run", "metadata.json", _run),
          ("analysis", "results.json", _analysis))
 
@@ -118,7 +130,7 @@ def list_workspace(workspace: str | Path) -> list[Entry]:
                                            and "plan.csv" not in filenames):
                 continue
             try:
-                out.append(read(d, rel))
+                out.append(_with_files(read(d, rel), d))
             except (OSError, ValueError, KeyError, TypeError, AttributeError) as err:
                 out.append(Entry(kind, rel, "", "", "unreadable",
                                  f"{marker}: {err}"))

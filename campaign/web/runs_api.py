@@ -7,9 +7,10 @@ HTML table fragment, which the page loads with htmx.
 from __future__ import annotations
 
 from html import escape
+from urllib.parse import quote
 
-from fastapi import APIRouter, Request
-from fastapi.responses import HTMLResponse
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import FileResponse, HTMLResponse
 from pydantic import BaseModel
 
 router = APIRouter(prefix="/api/runs", tags=["runs"])
@@ -23,6 +24,35 @@ class RunEntry(BaseModel):
     status: str
     detail: str
     k: list[dict]
+    files: list[str]
+
+
+#: what /api/runs/file serves, by suffix (read-only; nothing else of the workspace)
+MEDIA = {".html": "text/html", ".pdf": "application/pdf", ".png": "image/png",
+         ".txt": "text/plain", ".json": "application/json", ".toml": "text/plain",
+         ".csv": "text/csv"}
+MAX_FILE_BYTES = 200_000_000
+
+
+@router.get("/file")
+def run_file(request: Request, path: str = Query(..., max_length=1000)) -> FileResponse:
+    """One file of a plan, run or analysis (a report, a summary, results.json), by its
+    path inside the workspace; ``..``, absolute paths and symbolic links are refused."""
+    from analysis.errors import InputError
+    from campaign.web.security import inside_workspace
+
+    p = inside_workspace(request.app.state.workspace, path, "path")
+    media = MEDIA.get(p.suffix.lower())
+    if media is None:
+        raise InputError(f"only {', '.join(sorted(MEDIA))} files are served", where="path")
+    if not p.is_file():
+        raise InputError("no such file in the workspace", where="path")
+    if p.stat().st_size > MAX_FILE_BYTES:
+        raise InputError("file too large to serve", where="path")
+    # a report opened from the page must not run scripts with the page's rights
+    return FileResponse(p, media_type=media, headers={
+        "Content-Security-Policy": "sandbox; default-src 'none'; img-src data:; "
+                                   "style-src 'unsafe-inline'"} if media == "text/html" else None)
 
 
 @router.get("", response_model=list[RunEntry])
@@ -63,10 +93,13 @@ def runs_table(request: Request) -> HTMLResponse:
             f"<td>{escape(e.kind)}</td><td>{escape(e.path or '.')}</td>"
             f"<td>{escape(e.robot)}</td><td>{escape(e.date_utc)}</td>"
             f"<td class='status'>{escape(e.status)}</td><td>{escape(e.detail)}</td>"
-            f"<td class='k'>{escape(_k_text(e.k))}</td></tr>")
+            f"<td class='k'>{escape(_k_text(e.k))}</td><td class='files'>"
+            + " ".join(f"<a href='/api/runs/file?path={quote(f)}' target='_blank' "
+                       f"rel='noopener'>{escape(f.rsplit('/', 1)[-1])}</a>" for f in e.files)
+            + "</td></tr>")
     if not rows:
-        rows.append("<tr><td colspan=7>no plan, run or analysis in the workspace yet</td></tr>")
+        rows.append("<tr><td colspan=8>no plan, run or analysis in the workspace yet</td></tr>")
     head = ("<tr><th>kind</th><th>path</th><th>robot</th><th>date (UTC)</th><th>status</th>"
-            "<th>detail</th><th>k (kN m/rad)</th></tr>")
+            "<th>detail</th><th>k (kN m/rad)</th><th>files</th></tr>")
     return HTMLResponse(f"<table id='runs-table'><thead>{head}</thead><tbody>"
                         + "".join(rows) + "</tbody></table>")

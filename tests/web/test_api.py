@@ -223,3 +223,25 @@ def test_predicted_se_is_the_planners_for_its_plan(client, workspace):
         assert j["k_true_Nm_per_rad"] == want["k_prior_N_m_per_rad"]
         assert j["predicted_se_Nm_per_rad"] == pytest.approx(want["se_design_N_m_per_rad"],
                                                              rel=1e-9)
+
+
+def test_runs_file_serves_workspace_files_only(client, workspace, tmp_path):
+    (workspace / "plan" / "summary.txt").write_text("5 tests\n")
+    (workspace / "plan" / "summary.json").write_text('{"robot": "KUKA KR240-2"}')
+    (workspace / "plan" / "report.html").write_text("<p>report</p>")
+    secret = tmp_path / "secret.txt"
+    secret.write_text("outside")
+    (workspace / "plan" / "leak.txt").symlink_to(secret)
+    r = client.get("/api/runs/file", params={"path": "plan/summary.txt"})
+    assert r.status_code == 200 and r.text == "5 tests\n"
+    r = client.get("/api/runs/file", params={"path": "plan/report.html"})
+    assert "sandbox" in r.headers["content-security-policy"]
+    for bad, word in [("../secret.txt", "'..'"), (str(secret), "absolute"),
+                      ("plan/leak.txt", "symbolic link"), ("plan/plan.csv.exe", "only"),
+                      ("plan/missing.txt", "no such file"), ("robot.toml/..", "'..'")]:
+        r = client.get("/api/runs/file", params={"path": bad})
+        assert r.status_code == 422 and word in r.json()["detail"], (bad, r.text)
+    assert "outside" not in client.get("/api/runs/table").text
+    table = client.get("/api/runs/table").text
+    assert "/api/runs/file?path=plan/summary.txt" in table
+    assert "leak" not in table

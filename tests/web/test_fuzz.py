@@ -43,7 +43,9 @@ def _operations(doc):
                 for key, hi in BOUNDS.items():
                     if key in schema.get("properties", {}):
                         schema["properties"][key]["maximum"] = hi
-            yield path, method, schema
+            query = {p["name"]: _resolve(p.get("schema", {}), comps)
+                     for p in op.get("parameters", []) if p.get("in") == "query"}
+            yield path, method, schema, query
 
 
 def _snapshot(root):
@@ -95,12 +97,15 @@ JSON = st.recursive(st.none() | st.booleans() | st.integers()
 
 #: the read-only routes of this face: they must not write, even inside the workspace
 READ_ONLY = ("/api/sensitivity", "/api/runs", "/api/session")
-SEGMENT = st.text(max_size=30) | st.sampled_from(["..", "%2e%2e", "/etc/passwd", "a" * 300])
+SEGMENT = st.text(max_size=30) | st.sampled_from(
+    ["..", "%2e%2e", "/etc/passwd", "a" * 300, "plan/note.txt", "plan/plan.csv", "plan",
+     "plan/../../x", "robot.toml", "plan/note.txt/.."])
 
 
-def _fuzz(client, path, method, body, examples) -> dict[int, int]:
-    """Call the operation with examples of ``body`` (None: no body) and of its path
-    parameters; count the answers by status."""
+def _fuzz(client, path, method, body, query, examples) -> dict[int, int]:
+    """Call the operation with examples of ``body`` (None: no body), of its path
+    parameters and of its query parameters (``query``: name -> schema); count the
+    answers by status."""
     seen: dict[int, int] = {}
     names = re.findall(r"{(\w+)}", path)
 
@@ -108,12 +113,17 @@ def _fuzz(client, path, method, body, examples) -> dict[int, int]:
               suppress_health_check=list(HealthCheck))
     @given(data=st.fixed_dictionaries({"body": body if body is not None else st.none(),
                                        "params": st.fixed_dictionaries(
-                                           {n: SEGMENT for n in names})}))
+                                           {n: SEGMENT for n in names}),
+                                       "query": st.fixed_dictionaries({}, optional={
+                                           n: SEGMENT if q.get("type") == "string"
+                                           else from_schema(q) for n, q in query.items()})}))
     def call(data):
         url = path
         for n, v in data["params"].items():
             url = url.replace("{" + n + "}", quote(v, safe=""))
         kwargs = {} if body is None else {"json": data["body"]}
+        if data["query"]:
+            kwargs["params"] = {k: v for k, v in data["query"].items() if v is not None}
         r = client.request(method.upper(), url, **kwargs)
         assert r.status_code < 500, (url, data, r.text)
         seen[r.status_code] = seen.get(r.status_code, 0) + 1
@@ -129,15 +139,20 @@ def _outside(snapshot: dict, workspace) -> dict:
 def test_fuzz_api_from_openapi(client, workspace):
     doc = client.get("/openapi.json").json()
     ops = sorted(_operations(doc), key=lambda op: not op[0].startswith(READ_ONLY))
-    assert any(m == "post" for _, m, _ in ops)
+    assert any(m == "post" for _, m, _, _ in ops)
+    assert any(q for *_, q in ops)  # /api/runs/file?path=
+    (workspace / "plan" / "note.txt").write_text("a file to find")
     before = _snapshot(workspace.parent)
-    for path, method, schema in ops:
+    for path, method, schema, query in ops:
         mine = path.startswith(READ_ONLY)
         body = None if schema is None else st.one_of(from_schema(schema), JSON)
-        seen = _fuzz(client, path, method, body, 150 if mine and body is not None else 25)
+        seen = _fuzz(client, path, method, body, query,
+                     150 if mine and (body is not None or query) else 25)
         if path == "/api/sensitivity":
             # the drawn bodies reach the job, not only the validation
             assert seen.get(200, 0) >= 5 and seen.get(422, 0) >= 5, (path, seen)
+        if path == "/api/runs/file":
+            assert seen.get(200, 0) >= 1 and seen.get(422, 0) >= 5, (path, seen)
         if mine:
             assert _snapshot(workspace.parent) == before, path
     assert _outside(_snapshot(workspace.parent), workspace) == _outside(before, workspace)
