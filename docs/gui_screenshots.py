@@ -39,7 +39,7 @@ def main(workspace: str) -> None:
         page.screenshot(path=docs / "gui_sensitivity.png", full_page=True)
         page.click("#tab-runs")
         page.wait_for_selector("#runs-table")
-        page.set_viewport_size({"width": 1240, "height": 300})
+        page.set_viewport_size({"width": 1240, "height": 430})
         page.screenshot(path=docs / "gui_runs.png")
         browser.close()
     srv.should_exit = True

@@ -159,11 +159,18 @@ def test_bad_wrench_is_shown_beside_the_form(page):
 def test_runs_view_lists_the_workspace(page, workspace):
     from campaign.jobs.runs import list_workspace
 
+    (workspace / "plan" / "summary.json").write_text('{"robot": "KUKA KR240-2"}')
+    (workspace / "plan" / "summary.txt").write_text("the plan in words\n")
     page.click("#tab-runs")
-    page.wait_for_selector("#runs-table")
+    page.click("#runs-refresh")  # the table was loaded with the page, before these files
+    page.wait_for_selector("#runs-table tr[data-path='plan']")
     rows = page.locator("#runs-table tbody tr")
     entries = list_workspace(workspace)
     assert rows.count() == max(1, len(entries))
     for e in entries:
         row = page.locator(f"#runs-table tr[data-path='{e.path}'][data-kind='{e.kind}']")
         assert row.locator("td.status").inner_text() == e.status
+    # the page's link opens the file (with the page's cookie)
+    link = page.locator("#runs-table tr[data-path='plan'] td.files a", has_text="summary.txt")
+    r = page.request.get(link.evaluate("a => a.href"))  # absolute, on the page's origin
+    assert r.status == 200 and r.text() == "the plan in words\n"
