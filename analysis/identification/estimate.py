@@ -176,8 +176,8 @@ def _beyond(t: np.ndarray, mask: np.ndarray, threshold: float) -> np.ndarray:
 
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
-                  scale: float, threshold: float, t_first: np.ndarray | None = None
-                  ) -> np.ndarray:
+                  scale: float, threshold: float, t_first: np.ndarray | None = None,
+                  bias_se: np.ndarray | None = None) -> np.ndarray:
     """(m, 6) bool: residuals beyond ``threshold``, found one at a time.
 
     A gross error pulls the fit towards itself and inflates the residuals of
@@ -186,6 +186,9 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
     aside, the rest is refitted and tested again (a sequential, Grubbs-like
     procedure), at most :data:`MAX_OUTLIERS` times or while equations remain.
     ``t_first``: the (m, 6) studentized residuals of ``first`` if the caller has them.
+    ``bias_se`` (p,): for a linear fit whose linearisation bias was corrected, the
+    standard errors of ``first``; each refit is then corrected too and its residuals
+    are those of the exact model at the corrected estimate, as for ``first``.
 
     Above :data:`OUTLIERS_AT_ONCE_ABOVE` measured components, each round sets aside
     every residual beyond the threshold (largest |t| first, within the same budget)
@@ -226,6 +229,12 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
         try:
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
                                      tests.d[i, c])
+            if bias_se is not None:
+                from analysis.identification.linear_bias import correct_linear_bias
+
+                corr = correct_linear_bias(robot, rest, joints, current, bias_se, method)
+                if corr.reliable:
+                    current.predicted = corr.predicted
             t = None  # its 48 MB (1e6 tests) before the next
             t = _studentized_matrix(rest, current, scale)
         except InputError:
@@ -482,6 +491,15 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     else:
         cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
                                                       chosen.Linv)
+        if method in ("ols", "wls"):
+            # the linear model's bias corrected; where reliable, the residuals (chi-square,
+            # outliers, notes) are those of the exact model at the corrected estimate
+            from analysis.identification.linear_bias import correct_linear_bias
+
+            corr = correct_linear_bias(robot, tests, joints, chosen,
+                                       np.sqrt(np.diag(cov_x)), method)
+            if corr.reliable:
+                chosen.predicted = corr.predicted
         # the fit's own whitening when it used the same components, else made block by
         # block (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of
         # the whitened system, for its scaled condition without the (6m, p) Linv A
@@ -514,14 +532,24 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         crit = critical_value(confidence, dof)
     cov_x = cov_x * scale
     se_x = np.sqrt(np.diag(cov_x))
-    ci = stiffness_interval(chosen.x, se_x, crit)
+    x_out = chosen.x  # the raw linear estimate for ols/wls (the outlier refits start there)
+    bias = None
     if method in ("ols", "wls"):
-        from analysis.identification.linear_bias import bias_decision, linearisation_bias
+        from analysis.identification.linear_bias import summary
 
-        widen, note = bias_decision(method, joints, linearisation_bias(
-            robot, tests, joints, chosen.x, chosen.estimator, chosen.predicted), se_x)
-        ci = stiffness_interval(chosen.x, se_x + widen / crit, crit)
-        warnings.append(note)
+        se_raw = se_x
+        if corr.reliable:
+            x_out = corr.x
+            cov_x = corr.propagation @ cov_x @ corr.propagation.T
+            se_x = np.sqrt(np.diag(cov_x))
+            ci = stiffness_interval(x_out, se_x, crit)
+        else:  # the raw estimate, its interval widened by |b| where b is known
+            widen = np.where(np.isfinite(corr.bias), np.abs(corr.bias), 0.0)
+            ci = stiffness_interval(x_out, se_x + widen / crit, crit)
+        bias = summary(corr, se_raw, se_x)
+        warnings.append(bias["note"])
+    else:
+        ci = stiffness_interval(chosen.x, se_x, crit)
     eiv = None
     if chosen.eiv_shift is not None:
         from analysis.identification.eiv import shift_summary
@@ -536,7 +564,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                         "not match the noise model; check the noise figures or use "
                         "covariance='residual'")
     for idx, j in enumerate(joints):
-        if chosen.x[idx] - crit * se_x[idx] <= 0:
+        if x_out[idx] - crit * se_x[idx] <= 0:
             warnings.append(f"joint {j + 1}: the {confidence:.0%} interval of its compliance "
                             "reaches 0, the data do not bound k from above")
 
@@ -544,7 +572,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     t = _studentize(tests, chosen.predicted, var_r, scale)  # in var_r's array
     var_r = None
     if rob is None:
-        flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t)
+        flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t,
+                              bias_se=se_raw if bias is not None and bias["reliable"] else None)
     else:
         flags = tests.measured & ~kept
     if tests.m > per_test.LAZY_TESTS:
@@ -570,7 +599,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             f"{n_flagged} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
             f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
     result = IdentificationResult.build(
-        robot=robot.name, method=method, joints=joints, x=chosen.x, cov_x=cov_x, ci=ci,
+        robot=robot.name, method=method, joints=joints, x=x_out, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,
         condition_number_weighted=float(scaled_condition(Aw)), tests=tests, n_equations=n_eq,
         dof=dof, chi2_reduced=chi2_red, p_value=p_value, residuals=residuals,
@@ -580,6 +609,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     )
     result.residual_rows = rows
     result.wrench_eiv = eiv
+    result.linear_bias = bias
     if rob is not None:
         result.robust = rob.describe()
     result.validation = validation

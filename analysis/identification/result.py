@@ -285,6 +285,10 @@ class IdentificationResult:
     wrench_eiv : the correction for the wrench noise in the regressor
         (:func:`analysis.identification.eiv.shift_summary`), None when not applied;
         results.json ``wrench_errors_in_variables``.
+    linear_bias : ols/wls only, the linearisation-bias correction
+        (:func:`analysis.identification.linear_bias.summary`: raw and corrected k, the
+        bias in standard errors, whether the correction is reliable); None for exact.
+        results.json ``linearisation_bias``.
     """
 
     robot: str
@@ -318,6 +322,7 @@ class IdentificationResult:
     robust: dict | None = None
     residual_rows: ResidualRows | None = None
     wrench_eiv: dict | None = None
+    linear_bias: dict | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -404,6 +409,7 @@ class IdentificationResult:
             "noise": self.noise.describe(),
             "robust": self.robust,
             "wrench_errors_in_variables": self.wrench_eiv,
+            "linearisation_bias": self.linear_bias,
             "warnings": self.warnings,
             **residual_summary(self.residuals, rows=self.residual_rows),
             **validation_summary(self.validation),

@@ -380,11 +380,19 @@ def _print(console: Console, result, paths: dict) -> None:
     from analysis.report.formatting import interval_kNm, k_kNm
 
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
-    for col in ("joint", "k (kN m/rad)", f"{result.confidence:.0%} interval (kN m/rad)"):
+    bias = result.linear_bias
+    cols = ["joint", "k (kN m/rad)", f"{result.confidence:.0%} interval (kN m/rad)"]
+    if bias is not None:  # ols/wls: the raw linear estimate beside the corrected one
+        cols.append(f"raw {result.method}, linearisation bias not corrected (kN m/rad)")
+    for col in cols:
         table.add_column(col, justify="right")
     for j in range(6):
-        table.add_row(f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
-                      if np.isfinite(result.k[j]) else "-")
+        row = [f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
+               if np.isfinite(result.k[j]) else "-"]
+        if bias is not None:
+            raw = bias["raw_joint_stiffness_Nm_per_rad"][j]
+            row.append("-" if raw is None else k_kNm(raw))
+        table.add_row(*row)
     console.print(table)
     for w in result.warnings:
         console.print(f"[yellow]warning:[/yellow] {escape(w)}")
@@ -517,7 +525,11 @@ def register(app: typer.Typer) -> None:
                 "(a tool error need not show in the chi-square, it shows in k)"))
         refused = problems(result, model.nominal_stiffness)
         _release_freed_heap()  # the identification's freed pages, before the checks
-        refused += _tool_problem(result, model, tests, noise, method, extras["tool"])
+        # a linear fit whose bias was corrected is a compliance of the exact model: its
+        # residuals are the exact model's (as in the chi-square)
+        corrected = (result.linear_bias or {}).get("reliable", False)
+        refused += _tool_problem(result, model, tests, noise,
+                                 "exact" if corrected else method, extras["tool"])
         if refused and not accept_misfit:
             raise InputError(
                 "refused, the data do not support this stiffness: " + " | ".join(refused)

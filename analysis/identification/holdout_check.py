@@ -1,0 +1,107 @@
+"""The held-out-pose check normalised by the prediction's total uncertainty, and its limit.
+
+A held-out pose's tests are predicted from the compliances x_h refitted without them.
+The prediction error e = d - f(x_h) of its n measured components then has the
+covariance ``V = Sigma + F C_h F^T``: the measurement noise Sigma (block diagonal,
+per test, :func:`analysis.identification.noise.residual_covariance`) plus the
+parameter uncertainty of the refit, C_h (p, p) the covariance of x_h, mapped through
+the model's Jacobian F (n, p) (the held-out data are not in the refit, so the two are
+independent). The statistic ``q = e^T V^-1 e`` is then chi-square with n degrees of
+freedom under the noise model; it is computed from per-pose sums of the whitened
+rows (W = Sigma^-1) by the Woodbury identity,
+``q = e^T W e - b^T (I + C_h N)^-1 C_h b``, ``b = F^T W e``, ``N = F^T W F``, so that no
+n x n matrix is formed.
+
+Reported per pose: ``rms_normalized_total`` = sqrt(q / n) (about 1), its p-value
+P(chi2_n >= q), the limit ``limit_normalized_total`` = sqrt(chi2_n^-1(1 - a) / n) and
+``beyond_limit`` (q above it), with a = 1 - (1 - :data:`HOLDOUT_FAMILY_LEVEL`)^(1/P)
+over the P poses validated (Sidak): data that follow the noise model flag some pose
+with probability 1 %, whatever the number of poses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: family-wise level of the held-out-pose flag (Sidak over the poses validated)
+HOLDOUT_FAMILY_LEVEL = 0.01
+
+
+class PredictiveSums:
+    """Per-pose sums of whitened held-out rows: ``eWe`` (P,), ``FWe`` (P, p), ``FWF``
+    (upper triangles, P x p (p + 1) / 2), ``n`` (P,) measured components; ``add`` a
+    block of tests at a time."""
+
+    def __init__(self, n_folds: int, p: int) -> None:
+        self.P, self.p = n_folds, p
+        self.iu = np.triu_indices(p)
+        self.eWe, self.n = np.zeros(n_folds), np.zeros(n_folds)
+        self.FWe, self.FWF = np.zeros((n_folds, p)), np.zeros((n_folds, len(self.iu[0])))
+
+    def add(self, fold: np.ndarray, Linv: np.ndarray, F: np.ndarray, err: np.ndarray,
+            measured: np.ndarray) -> None:
+        """fold (b,) ints; Linv (b, 6, 6) whitening (rows of unmeasured components zero);
+        F (b, 6, p) model Jacobian (m/(rad/(N m)), ...); err (b, 6) prediction errors
+        (m, rad; ignored where not measured)."""
+        P = self.P
+        Le = np.einsum("mij,mj->mi", Linv, np.where(measured, err, 0.0))
+        LF = Linv @ np.where(measured[..., None], F, 0.0)
+        self.eWe += np.bincount(fold, np.sum(Le ** 2, axis=1), P)
+        self.n += np.bincount(fold, measured.sum(axis=1), P)
+        Fe = np.einsum("mri,mr->mi", LF, Le)
+        FF = np.einsum("mri,mrj->mij", LF, LF)[:, self.iu[0], self.iu[1]]
+        for a in range(Fe.shape[1]):
+            self.FWe[:, a] += np.bincount(fold, Fe[:, a], P)
+        for a in range(FF.shape[1]):
+            self.FWF[:, a] += np.bincount(fold, FF[:, a], P)
+
+    def normal(self, h: np.ndarray) -> np.ndarray:
+        """N = F^T W F (len(h), p, p) of poses h."""
+        out = np.empty((len(h), self.p, self.p))
+        out[:, self.iu[0], self.iu[1]] = self.FWF[h]
+        out[:, self.iu[1], self.iu[0]] = self.FWF[h]
+        return out
+
+
+#: poses per chunk of the per-pose p x p algebra
+CHUNK = 8192
+
+
+def predictive_statistic(sums: PredictiveSums, covariance) -> np.ndarray:
+    """q (P,) = e^T (Sigma + F C_h F^T)^-1 e per pose. ``covariance(h)``: the covariances
+    C_h (len(h), p, p) of the refits of poses h ((rad/(N m))^2), made in chunks of poses;
+    NaN where C_h is not finite."""
+    p = sums.p
+    out = np.full(sums.P, np.nan)
+    for s in range(0, sums.P, CHUNK):
+        h = np.arange(s, min(s + CHUNK, sums.P))
+        C = covariance(h)
+        ok = np.all(np.isfinite(C.reshape(len(h), -1)), axis=1)
+        if not ok.any():
+            continue
+        C, hk = C[ok], h[ok]
+        Cb = C @ sums.FWe[hk][..., None]  # C b
+        K = np.eye(p) + C @ sums.normal(hk)  # I + C N
+        y = np.linalg.solve(K, Cb)[..., 0]
+        out[hk] = np.maximum(sums.eWe[hk] - np.einsum("fi,fi->f", sums.FWe[hk], y), 0.0)
+    return out
+
+
+def flag_columns(q: np.ndarray, n: np.ndarray, level: float = HOLDOUT_FAMILY_LEVEL) -> dict:
+    """The table's columns from q (P,) and the measured components n (P,) of each pose:
+    ``rms_normalized_total``, ``p_value_total``, ``limit_normalized_total`` and
+    ``beyond_limit`` (see the module docstring)."""
+    from scipy import special  # chi-square tails without importing scipy.stats
+
+    q, n = np.asarray(q, float), np.asarray(n, float)
+    valid = np.isfinite(q) & (n > 0)
+    P = max(int(valid.sum()), 1)
+    per_pose = -np.expm1(np.log1p(-level) / P)  # 1 - (1 - level)^(1/P)
+    nn = np.where(n > 0, n, 1.0)
+    with np.errstate(invalid="ignore"):
+        p_value = np.where(valid, special.chdtrc(nn, np.where(valid, q, 0.0)), np.nan)
+        limit = np.where(n > 0, np.sqrt(special.chdtri(nn, per_pose) / nn), np.nan)
+        rms = np.where(valid, np.sqrt(np.where(valid, q, 0.0) / nn), np.nan)
+    return {"rms_normalized_total": rms, "p_value_total": p_value,
+            "limit_normalized_total": limit,
+            "beyond_limit": valid & (p_value < per_pose)}
