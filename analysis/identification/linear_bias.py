@@ -36,7 +36,6 @@ from analysis.identification.exact_fit import model_displacement_masked
 from analysis.identification.gauss_newton import EVAL_BLOCK
 from analysis.identification.lsq import stack_vector
 from analysis.identification.measurements import TestArrays
-from analysis.identification.per_test import apply
 from analysis.model.robot_model import RobotModel
 
 #: the correction is unreliable when || S^-1 B S ||_2 exceeds this (S = diag(se))
@@ -75,28 +74,39 @@ def linearisation_bias(
     return G @ stack_vector(diff)
 
 
-def _bias_and_slope(robot, tests, joints, x, G, A):
-    """(b (p,), B (p, p)) at x: ``G (f(x) - A x)`` and ``G (F(x) - A)``, blockwise; NaN
-    when the equilibrium cannot be solved at x. ``A`` (m, 6, p), array or made when sliced."""
+def _gather(G, sl, V: np.ndarray) -> np.ndarray:
+    """``A^T W V`` (p, k) of the tests ``sl`` for the factored estimator G = bread A^T W;
+    V (b, 6, k), zero where not measured."""
+    if G.Linv is not None:  # W V = Linv^T Linv V per test
+        Lb = np.asarray(G.Linv[sl], dtype=float)
+        V = np.einsum("mji,mjk->mik", Lb, np.einsum("mij,mjk->mik", Lb, V))
+    return np.einsum("mrp,mrk->pk", np.asarray(G.A[sl], dtype=float), V)
+
+
+def _bias_and_slope(robot, tests, joints, x, G, A, slope: bool = True, out=None):
+    """(b (p,), B (p, p) or None) at x: ``G (f(x) - A x)`` and ``G (F(x) - A)``, blockwise;
+    NaN when the equilibrium cannot be solved at x. ``A`` (m, 6, p), array or made when
+    sliced; ``out`` (m, 6): receives f(x) (m, rad)."""
     p = len(joints)
     x_full = np.zeros(robot.n)
     x_full[list(joints)] = x
-    acc = np.zeros((p, p + 1))
+    acc = np.zeros((p, p + 1 if slope else 1))
     for s in range(0, tests.m, EVAL_BLOCK):
         sl = slice(s, s + EVAL_BLOCK)
-        f, D, ok = model_displacement_masked(robot, tests.q[sl], x_full, tests.w[sl])
+        f, D, ok = model_displacement_masked(robot, tests.q[sl], x_full, tests.w[sl],
+                                             with_jacobian=slope)
         if not np.all(ok):
-            return np.full(p, np.nan), np.full((p, p), np.nan)
+            return np.full(p, np.nan), (np.full((p, p), np.nan) if slope else None)
+        if out is not None:
+            out[sl] = f
         Ab = np.asarray(A[sl], dtype=float)
         meas = tests.measured[sl][..., None]
-        V = np.concatenate([np.where(meas, D[..., list(joints)] - Ab, 0.0),
-                            np.where(meas, (f - Ab @ x)[..., None], 0.0)], axis=-1)
-        if G.Linv is not None:  # W V = Linv^T Linv V per test
-            Lb = np.asarray(G.Linv[sl], dtype=float)
-            V = np.einsum("mji,mjk->mik", Lb, np.einsum("mij,mjk->mik", Lb, V))
-        acc += np.einsum("mrp,mrk->pk", np.asarray(G.A[sl], dtype=float), V)
-    out = G.bread @ acc
-    return out[:, p], out[:, :p]
+        V = np.where(meas, (f - Ab @ x)[..., None], 0.0)
+        if slope:
+            V = np.concatenate([np.where(meas, D[..., list(joints)] - Ab, 0.0), V], axis=-1)
+        acc += _gather(G, sl, V)
+    res = G.bread @ acc
+    return res[:, -1], (res[:, :p] if slope else None)
 
 
 @dataclass
@@ -155,13 +165,12 @@ def correct_linear_bias(robot: RobotModel, tests: TestArrays, joints: tuple[int,
     M = np.linalg.inv(np.eye(p) + B)
     x = x_hat - M @ b0
     residual = float("inf")
+    f = np.empty(tests.measured.shape)  # the model at the last iterate (48 MB at 1e6 tests)
     for step in range(1, MAX_STEPS + 1):
-        f = model_prediction(robot, tests, joints, x)
-        if f is None:
+        b, _ = _bias_and_slope(robot, tests, joints, x, G, A, slope=False, out=f)
+        if not np.all(np.isfinite(b)):
             return give_up("the equilibrium cannot be solved at a corrected estimate",
                            contraction, step)
-        Ax = apply(A, x)
-        b = G @ stack_vector(np.where(tests.measured, f - Ax, 0.0))
         r = x + b - x_hat
         residual = float(np.max(np.abs(r) / se_x))
         if residual <= TOLERANCE_SE:
@@ -172,22 +181,6 @@ def correct_linear_bias(robot: RobotModel, tests: TestArrays, joints: tuple[int,
                        f"{residual:.2g} se)", contraction, MAX_STEPS)
     return BiasCorrection(method, joints, x_hat, b0, x, M, contraction, step, residual, True,
                           predicted=f)
-
-
-def model_prediction(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
-                     x: np.ndarray) -> np.ndarray | None:
-    """(m, 6) the exact equilibrium's displacement of every test at compliances x (p,)
-    (m, rad), blockwise; None where the equilibrium cannot be solved for some test."""
-    x_full = np.zeros(robot.n)
-    x_full[list(joints)] = x
-    out = np.empty(tests.measured.shape)
-    for s in range(0, tests.m, EVAL_BLOCK):
-        sl = slice(s, s + EVAL_BLOCK)
-        out[sl], _, ok = model_displacement_masked(robot, tests.q[sl], x_full, tests.w[sl],
-                                                   with_jacobian=False)
-        if not np.all(ok):
-            return None
-    return out
 
 
 def summary(c: BiasCorrection, se_raw: np.ndarray, se: np.ndarray) -> dict:
