@@ -39,7 +39,13 @@ from analysis.identification.fitting import (
     fit,
     fit_exact,
 )
+from analysis.identification.holdout_check import (
+    PredictiveSums,
+    flag_columns,
+    predictive_statistic,
+)
 from analysis.identification.linear_model import design_block
+from analysis.identification.lsq import sandwich_and_residual_variance, whitening
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.identification.poses import group_names, pose_groups, pose_tolerance
@@ -71,6 +77,7 @@ def leave_one_pose_out(
     full_fit=None,
     group: np.ndarray | None = None,
     fold_sums=None,
+    linear_shift: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> pd.DataFrame | None:
     """Table of held-out prediction errors, or None with fewer than 3 distinct poses.
 
@@ -82,6 +89,15 @@ def leave_one_pose_out(
     tests' pose groups (:func:`~analysis.identification.poses.pose_groups`) if the caller
     has them. ``fold_sums``: the per-pose sums of a streamed exact ``full_fit``
     (:class:`FinalPassSums`, made in its final pass).
+    ``linear_shift``: for ols/wls whose linearisation bias was corrected
+    (:mod:`analysis.identification.linear_bias`), (shift, M) of the full-data correction
+    (x_c - x_hat (p,), and its propagation (p, p)): each fold's estimate is then
+    corrected too and predicted with the exact model -- by its own correction up to
+    :data:`EXACT_REFITS_MAX` poses, beyond by the full-data shift (the note says so).
+
+    Besides the RMS errors and ``rms_normalized`` (errors over the measurement sigma),
+    each pose gets the check against the prediction's total uncertainty (noise plus the
+    refit's parameter uncertainty) and its flag (:mod:`analysis.identification.holdout_check`).
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
@@ -90,6 +106,9 @@ def leave_one_pose_out(
     names = group_names(tests.pose, group)
     if len(names) < 3:
         return None
+    per_fold_correction = linear_shift is not None and len(names) <= max_exact_refits
+    if per_fold_correction:
+        batched = False  # each fold is refitted and corrected (the reference path)
     if batched and method == "ols":
         try:
             check_tests(robot, tests, joints)  # row checks hold for every subset then
@@ -101,8 +120,11 @@ def leave_one_pose_out(
             else:
                 J = jacobian(robot, tests.q)
                 A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
-            return _downdate_batched(robot, tests, group, names, joints, noise, A, tests.d,
-                                     np.zeros(len(joints)), method)
+            table = _downdate_batched(robot, tests, group, names, joints, noise, A, tests.d,
+                                      np.zeros(len(joints)), method, linear_shift=linear_shift)
+            if linear_shift is not None:
+                table["note"] = [n or SHIFT_NOTE for n in table["note"]]
+            return table
     start = None
     if batched and method == "exact":
         try:
@@ -123,42 +145,81 @@ def leave_one_pose_out(
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
+    cols = list(joints)
+    p = len(cols)
+    total = PredictiveSums(len(names), p)
+    C_folds = np.full((len(names), p, p), np.nan)
     for g, label in enumerate(names):
         held = group == g
         train, test = tests.subset(~held), tests.subset(held)
         row = {"held_out_pose": label, "n_tests": int(held.sum())}
+        note = ""
         try:
             check_tests(robot, train, joints, noise)
             J = jacobian(robot, train.q)
-            A = design_block(J, train.w)[..., list(joints)] * train.measured[..., None]
+            A = design_block(J, train.w)[..., cols] * train.measured[..., None]
             check_identifiable(A, joints)
             if start is not None:
-                x_p = fit_exact(robot, train, joints, noise, start).x
+                f_fold = fit_exact(robot, train, joints, noise, start)
             else:
-                x_p = fit(robot, train, joints, noise, method).x
+                f_fold = fit(robot, train, joints, noise, method)
+            x_p = f_fold.x
+            C_fold, _ = sandwich_and_residual_variance(f_fold.A, f_fold.cov, f_fold.bread,
+                                                       f_fold.Linv)
+            exact_model = method == "exact"
+            if linear_shift is not None:
+                from analysis.identification.linear_bias import correct_linear_bias
+
+                corr = correct_linear_bias(robot, train, joints, f_fold,
+                                           np.sqrt(np.diag(C_fold)), method)
+                if corr.reliable:
+                    x_p, exact_model = corr.x, True
+                    C_fold = corr.propagation @ C_fold @ corr.propagation.T
+                else:
+                    note = f"fold's linearisation bias not corrected: {corr.reason}"
         except InputError as err:
             rows.append({**row, "rms_translation_m": np.nan, "rms_rotation_rad": np.nan,
                          "rms_normalized": np.nan, "note": str(err)})
             continue
         x = np.zeros(6)
-        x[list(joints)] = x_p
-        if method == "exact":
-            pred, _ = model_displacement(robot, test.q, x, test.w, with_jacobian=False)
-        else:
-            pred = np.einsum("mrj,j->mr", design_block(jacobian(robot, test.q), test.w), x)
-        err = np.where(test.measured, test.d - pred, np.nan)
+        x[cols] = x_p
         Jt = jacobian(robot, test.q)
+        if exact_model:
+            pred, D = model_displacement(robot, test.q, x, test.w)
+            F = D[..., cols]
+        else:
+            F = design_block(Jt, test.w)[..., cols]
+            pred = F @ x_p
+        err = np.where(test.measured, test.d - pred, np.nan)
         C = np.einsum("...ij,j,...kj->...ik", Jt, x, Jt)
-        sig = np.sqrt(np.diagonal(residual_covariance(noise, C, test.w), axis1=-2, axis2=-1))
+        cov_t = residual_covariance(noise, C, test.w)
+        sig = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
         norm = err / sig
+        total.add(np.full(test.m, g), whitening(cov_t, test.measured), F, err, test.measured)
+        C_folds[g] = C_fold
         rows.append({
             **row,
             "rms_translation_m": _rms(err[:, :3][test.measured[:, :3]]),
             "rms_rotation_rad": _rms(err[:, 3:][test.measured[:, 3:]]),
             "rms_normalized": _rms(norm[test.measured]),
-            "note": "",
+            "note": note,
         })
-    return pd.DataFrame(rows)
+    return _with_total(pd.DataFrame(rows), total, lambda h: C_folds[h])
+
+
+SHIFT_NOTE = ("linearisation bias of the fold corrected by the full-data correction (more "
+              f"than {EXACT_REFITS_MAX} poses)")
+
+
+def _with_total(table: pd.DataFrame, total: PredictiveSums, covariance) -> pd.DataFrame:
+    """``table`` with the columns of the check against the prediction's total uncertainty
+    (:func:`analysis.identification.holdout_check.flag_columns`); folds without a
+    prediction (NaN RMS) get NaN and no flag."""
+    q = predictive_statistic(total, covariance)
+    q[~np.isfinite(table["rms_normalized"].to_numpy(dtype=float))] = np.nan
+    for name, col in flag_columns(q, total.n).items():
+        table[name] = col
+    return table
 
 
 def _system_of(fit):
@@ -181,8 +242,8 @@ def _system_of(fit):
 
 
 def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
-                      dq0=None, Linv=None, system=None, sums=None, shift=None
-                      ) -> pd.DataFrame:
+                      dq0=None, Linv=None, system=None, sums=None, shift=None,
+                      linear_shift=None) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
 
     ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the design and right-hand side: for ols the
@@ -199,7 +260,13 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     no pass over the tests for the folds' estimates; with ``system``). Each fold's
     estimate is then corrected for the
     wrench noise in the regressor like the fits (:mod:`analysis.identification.eiv`), with
-    the fold's S and (A^T W A)^-1 (``Linv`` None for ols).
+    the fold's S and (A^T W A)^-1 (``Linv`` None for ols). ``linear_shift``: (shift, M)
+    of an ols fit's linearisation-bias correction, added to every fold's estimate (the
+    prediction is then the exact model's, and the folds' covariances are M C M^T).
+
+    The folds' covariances for the total-uncertainty check: (A^T W A)_-h^-1 for a fit
+    whitened by its own covariances, the sandwich bread_-h meat_-h bread_-h for ols
+    (meat summed per fold in the prediction pass).
     """
     from scipy.linalg import solve_triangular
 
@@ -297,8 +364,13 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         z[h] = np.linalg.solve(np.eye(p) - S[h], (c - t[h])[..., None])[..., 0]
     x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
     x_p[ok] = _fold_eiv(held, R, scale, S, x_p, ok)
+    if linear_shift is not None:
+        x_p = x_p + linear_shift[0]
+    exact_model = method == "exact" or linear_shift is not None
     x = np.zeros((P, 6))
     x[:, cols] = x_p
+    total = PredictiveSums(P, p)
+    meat = None if Linv is not None else np.zeros((P, len(total.iu[0])))
     # held-out prediction errors, summed per fold (test blocks bound the memory)
     sq = np.zeros((3, P))  # squared errors: translation, rotation, normalised
     failed = np.zeros(P, dtype=bool)
@@ -306,19 +378,27 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         sl = slice(s, s + TEST_BLOCK)
         f, q, w, meas = fold[sl], tests.q[sl], tests.w[sl], tests.measured[sl]
         xt = x[f]  # the held-out estimate used for each test
-        if method == "exact":
+        if exact_model:
             unloaded: dict = {}
-            pred, _, good, _ = model_displacement_state(
-                robot, q, xt, w, with_jacobian=False, dq0=None if dq0 is None else dq0[sl],
-                unloaded=unloaded)
+            pred, D, good, _ = model_displacement_state(
+                robot, q, xt, w, dq0=None if dq0 is None else dq0[sl], unloaded=unloaded)
             J = jacobian_from_state(unloaded["state"])  # J(q), from the model's own state
             failed |= np.bincount(f, ~good, P) > 0
+            F = D[..., cols]
         else:
             J = jacobian(robot, q)
-            pred = np.einsum("mrj,mj->mr", design_block(J, w), xt)
+            F = design_block(J, w)[..., cols]
+            pred = np.einsum("mrj,mj->mr", F, x_p[f])
         err = np.where(meas, tests.d[sl] - pred, 0.0)
         C = (J * xt[:, None, :]) @ np.swapaxes(J, -1, -2)  # J diag(x) J^T
-        sig = np.sqrt(np.diagonal(residual_covariance(noise, C, w), axis1=-2, axis2=-1))
+        cov_t = residual_covariance(noise, C, w)
+        sig = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
+        total.add(f, whitening(cov_t, meas), F, err, meas)
+        if meat is not None:  # ols: A^T Sigma A of the tests, per fold
+            Ab = np.where(meas[..., None], np.asarray(Aw[sl], dtype=float), 0.0)
+            AtSA = np.einsum("mri,mrs,msj->mij", Ab, cov_t, Ab)[:, total.iu[0], total.iu[1]]
+            for a in range(AtSA.shape[1]):
+                meat[:, a] += np.bincount(f, AtSA[:, a], P)
         sq[0] += np.bincount(f, np.sum(err[:, :3] ** 2, axis=1), P)
         sq[1] += np.bincount(f, np.sum(err[:, 3:] ** 2, axis=1), P)
         sq[2] += np.bincount(f, np.sum((err / sig) ** 2, axis=1), P)
@@ -332,12 +412,27 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         notes[h] = ("the equilibrium has no solution at this fold's estimate for a held-out "
                     "test (wrench too large for these compliances)")
     rms[:, ~ok] = np.nan
-    return pd.DataFrame({
+    table = pd.DataFrame({
         "held_out_pose": list(labels),
         "n_tests": np.bincount(fold, minlength=P).astype(int),
         "rms_translation_m": rms[0], "rms_rotation_rad": rms[1], "rms_normalized": rms[2],
         "note": notes,
     })
+    Rinv = np.linalg.inv(R)
+    meat_total = None if meat is None else PackedSym(meat, p).total()
+
+    def covariance(h):  # the folds' covariances (len(h), p, p), NaN for folds not fitted
+        with np.errstate(all="ignore"):
+            bread = (Rinv @ np.linalg.solve(np.eye(p) - S[h], np.broadcast_to(
+                Rinv.T, (len(h), p, p)))) / (scale[:, None] * scale[None, :])
+        if meat is not None:
+            bread = bread @ (meat_total - PackedSym(meat, p)[h]) @ bread
+        if linear_shift is not None:
+            bread = linear_shift[1] @ bread @ linear_shift[1].T
+        bread[~ok[h]] = np.nan
+        return bread
+
+    return _with_total(table, total, covariance)
 
 
 class FoldSums:

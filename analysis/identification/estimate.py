@@ -315,6 +315,25 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
     return fit(robot, rest, joints, noise, method)
 
 
+def _validation_flags(validation: pd.DataFrame, named: int = 5) -> list[str]:
+    """A warning naming the held-out poses beyond the limit of the total-uncertainty check
+    (:mod:`analysis.identification.holdout_check`), or nothing."""
+    beyond = validation[validation["beyond_limit"].to_numpy(dtype=bool)]
+    if not len(beyond):
+        return []
+    from analysis.identification.holdout_check import HOLDOUT_FAMILY_LEVEL
+
+    worst = beyond.sort_values("rms_normalized_total", ascending=False).head(named)
+    text = ", ".join(f"pose {r.held_out_pose} at {r.rms_normalized_total:.2f} (limit "
+                     f"{r.limit_normalized_total:.2f}, p = {r.p_value_total:.2g})"
+                     for r in worst.itertuples())
+    more = f" and {len(beyond) - named} more" if len(beyond) > named else ""
+    return [f"{len(beyond)} held-out pose(s) predicted worse than their total uncertainty "
+            f"(noise and the refit's parameter uncertainty; Sidak, "
+            f"{HOLDOUT_FAMILY_LEVEL:.0%} family-wise over {len(validation)} poses): "
+            f"{text}{more}; the model or the data of these poses is suspect"]
+
+
 #: residual tables of more rows than this are held in memory only for the tests with the
 #: largest |studentized| residuals (:class:`ResidualRows`; results.json lists 1000 rows and
 #: the report 200 tests); the whole table is written to residuals.csv block by block
@@ -438,6 +457,18 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
 
     if tests.m > per_test.LAZY_TESTS:
         per_test.release_freed_heap()  # the fit's freed pages, before the validation
+    corr = None
+    if method in ("ols", "wls"):
+        # the linear model's bias corrected (before the validation, which corrects its folds
+        # too); where reliable, the residuals (chi-square, outliers, notes) are those of the
+        # exact model at the corrected estimate
+        from analysis.identification.linear_bias import correct_linear_bias
+        from analysis.identification.lsq import sandwich
+
+        corr = correct_linear_bias(robot, tests, joints, chosen, np.sqrt(np.diag(
+            sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv))), method)
+        if corr.reliable:
+            chosen.predicted = corr.predicted
     # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
     # start for the held-out tests) are let go before the per-test statistics are made
     validation = None
@@ -449,7 +480,11 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
         validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
                                         full_fit=chosen if rob is None else None,
-                                        group=group, fold_sums=sums)
+                                        group=group, fold_sums=sums,
+                                        linear_shift=None if corr is None or not corr.reliable
+                                        else (corr.x - corr.x_raw, corr.propagation))
+    if validation is not None:
+        warnings += _validation_flags(validation)
     sums = None
     if chosen.R is not None:
         chosen.deflection = None  # 48 MB at 1e6 tests, not used beyond the validation
@@ -491,15 +526,6 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     else:
         cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
                                                       chosen.Linv)
-        if method in ("ols", "wls"):
-            # the linear model's bias corrected; where reliable, the residuals (chi-square,
-            # outliers, notes) are those of the exact model at the corrected estimate
-            from analysis.identification.linear_bias import correct_linear_bias
-
-            corr = correct_linear_bias(robot, tests, joints, chosen,
-                                       np.sqrt(np.diag(cov_x)), method)
-            if corr.reliable:
-                chosen.predicted = corr.predicted
         # the fit's own whitening when it used the same components, else made block by
         # block (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of
         # the whitened system, for its scaled condition without the (6m, p) Linv A

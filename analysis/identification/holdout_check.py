@@ -25,6 +25,11 @@ import numpy as np
 
 #: family-wise level of the held-out-pose flag (Sidak over the poses validated)
 HOLDOUT_FAMILY_LEVEL = 0.01
+LIMIT_TEXT = (
+    "a held-out pose is flagged (beyond_limit) when q = e^T (Sigma + F C F^T)^-1 e of its n "
+    "measured components exceeds the chi-square(n) quantile at 1 - a, a = 1 - (1 - "
+    f"{HOLDOUT_FAMILY_LEVEL:g})^(1/P) over the P poses (Sidak, {HOLDOUT_FAMILY_LEVEL:.0%} "
+    "family-wise); limit_normalized_total = sqrt(quantile / n)")
 
 
 class PredictiveSums:

@@ -423,12 +423,14 @@ VALIDATION_LISTED = 200
 
 
 def worst_poses(validation: pd.DataFrame, listed: int = VALIDATION_LISTED) -> pd.DataFrame:
-    """The ``listed`` rows of ``validation`` of largest RMS error / sigma (NaN, i.e. folds
-    that could not be fitted, first), largest first; all rows in order when there are
-    no more than ``listed``."""
+    """The ``listed`` rows of ``validation`` of largest RMS error over the prediction's total
+    uncertainty (or over sigma in a table without it; NaN, i.e. folds that could not be
+    fitted, first), largest first; all rows in order when there are no more than
+    ``listed``."""
     if len(validation) <= listed:
         return validation
-    key = validation["rms_normalized"].to_numpy(dtype=float)
+    col = "rms_normalized_total" if "rms_normalized_total" in validation else "rms_normalized"
+    key = validation[col].to_numpy(dtype=float)
     key = np.where(np.isfinite(key), key, np.inf)
     return validation.iloc[np.argsort(-key, kind="stable")[:listed]]
 
@@ -457,10 +459,24 @@ def validation_summary(validation: pd.DataFrame | None, listed: int = VALIDATION
         "rms_translation_m_pooled": pooled("rms_translation_m"),
         "rms_rotation_rad_pooled": pooled("rms_rotation_rad"),
     }
+    if "rms_normalized_total" in validation:
+        from analysis.identification.holdout_check import HOLDOUT_FAMILY_LEVEL, LIMIT_TEXT
+
+        tot = validation["rms_normalized_total"].to_numpy(dtype=float)
+        ok = np.isfinite(tot)
+        beyond = validation["beyond_limit"].to_numpy(dtype=bool)
+        summary.update({
+            "rms_normalized_total_median": float(np.median(tot[ok])) if ok.any() else None,
+            "rms_normalized_total_max": float(np.max(tot[ok])) if ok.any() else None,
+            "n_beyond_limit": int(beyond.sum()),
+            "poses_beyond_limit": [str(v) for v in validation["held_out_pose"][beyond]][:100],
+            "limit_family_level": HOLDOUT_FAMILY_LEVEL,
+            "limit": LIMIT_TEXT,
+        })
     rows = worst_poses(validation, listed)
     which = (f"all {len(validation)} held-out poses" if len(rows) == len(validation) else
              f"the {listed} of {len(validation)} held-out poses with the largest RMS error / "
-             "sigma (folds not fitted first); every pose is in validation.csv")
+             "total uncertainty (folds not fitted first); every pose is in validation.csv")
     return {"validation": _records(rows), "validation_listed": which,
             "validation_summary": summary}
 
