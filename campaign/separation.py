@@ -17,8 +17,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-#: default of the protocol key ``[thresholds] min_pose_separation_deg``
-DEFAULT_MIN_SEPARATION_DEG = 5.0
+from analysis.identification.holdout_check import CLUSTER_DEG
+
+#: default of the protocol key ``[thresholds] min_pose_separation_deg``: the distance
+#: below which the held-out validation holds poses out together
+DEFAULT_MIN_SEPARATION_DEG = CLUSTER_DEG
 
 
 class Separation:

@@ -40,8 +40,10 @@ from analysis.identification.fitting import (
     fit_exact,
 )
 from analysis.identification.holdout_check import (
+    CLUSTER_DEG,
     PredictiveSums,
     flag_columns,
+    holdout_folds,
     predictive_statistic,
 )
 from analysis.identification.linear_model import design_block
@@ -78,8 +80,47 @@ def leave_one_pose_out(
     group: np.ndarray | None = None,
     fold_sums=None,
     linear_shift: tuple[np.ndarray, np.ndarray] | None = None,
+    cluster_rad: float | None = None,
 ) -> pd.DataFrame | None:
-    """Table of held-out prediction errors, or None with fewer than 3 distinct poses.
+    """Table of held-out prediction errors, or None with fewer than 3 folds.
+
+    The folds are the poses, those within ``cluster_rad`` (rad, ||dq|| over the joints;
+    default :data:`~analysis.identification.holdout_check.CLUSTER_DEG`) of each other
+    held out together (:func:`~analysis.identification.holdout_check.holdout_folds`);
+    ``group``: the folds if the caller has them (:func:`holdout_folds` of the poses).
+    Columns ``poses_held_out`` (poses in the fold) and a note where it is more than one;
+    ``held_out_pose`` names the fold by its labels joined with '+'. See
+    :func:`_leave_out` for the rest.
+    """
+    if group is None:
+        radius = CLUSTER_DEG * np.pi / 180.0 if cluster_rad is None else cluster_rad
+        poses = pose_groups(tests.q, pose_tolerance(noise))
+        group = holdout_folds(tests.q, poses, radius)
+    else:
+        poses = pose_groups(tests.q, pose_tolerance(noise))
+    table = _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits,
+                       full_fit, group, fold_sums, linear_shift)
+    if table is None:
+        return None
+    # poses per fold: distinct (fold, pose) pairs counted per fold
+    n_folds = int(group.max(initial=-1)) + 1
+    pairs = np.unique(group.astype(np.int64) * (int(poses.max(initial=0)) + 1) + poses)
+    count = np.bincount(pairs // (int(poses.max(initial=0)) + 1), minlength=n_folds)
+    table["poses_held_out"] = count.astype(int)
+    table["note"] = [
+        "; ".join(t for t in (n, f"{c} poses within {_deg(cluster_rad)} of each other held "
+                              "out together") if t) if c > 1 else n
+        for n, c in zip(table["note"], count, strict=True)]
+    return table
+
+
+def _deg(radius: float | None) -> str:
+    return f"{CLUSTER_DEG if radius is None else radius * 180.0 / np.pi:g} deg"
+
+
+def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, full_fit,
+               group, fold_sums, linear_shift) -> pd.DataFrame | None:
+    """The table of :func:`leave_one_pose_out` over the folds ``group`` (m,) ints.
 
     ``batched=False`` refits from scratch for every pose (the reference path).
     ``max_exact_refits`` (default :data:`EXACT_REFITS_MAX`): with more poses than
@@ -101,8 +142,6 @@ def leave_one_pose_out(
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
-    if group is None:
-        group = pose_groups(tests.q, pose_tolerance(noise))
     names = group_names(tests.pose, group)
     if len(names) < 3:
         return None

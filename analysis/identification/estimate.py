@@ -352,6 +352,7 @@ def identify(
     validate: bool = True,
     confidence: float = 0.95,
     robust: str = "none",
+    holdout_radius: float | None = None,
 ) -> IdentificationResult:
     """Identify joint stiffness from tests; see the module docstring for the estimators.
 
@@ -370,6 +371,10 @@ def identify(
         (:mod:`analysis.identification.robust`). The chi-square, the noise-ratio notes
         and the validation then use the components kept (weight >= 0.5); the
         ``outlier`` column marks the ones down-weighted below it.
+    holdout_radius : poses closer than this (rad, ||dq|| over the joints) are held out
+        together in the validation; default
+        :data:`analysis.identification.holdout_check.CLUSTER_DEG` (the planner's default
+        minimum separation; a run passes its protocol's).
     """
     from threadpoolctl import threadpool_limits
 
@@ -378,11 +383,11 @@ def identify(
     # (measured: TSQR of 6e5 x 7 rows 0.02-0.06 s in one thread, 0.13-0.36 s in two)
     with threadpool_limits(limits=1):
         return _identify(robot, tests, method, joints, noise, covariance, cond_limit,
-                         outlier_level, validate, confidence, robust)
+                         outlier_level, validate, confidence, robust, holdout_radius)
 
 
 def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outlier_level,
-              validate, confidence, robust) -> IdentificationResult:
+              validate, confidence, robust, holdout_radius) -> IdentificationResult:
     """:func:`identify` in the calling thread's BLAS thread limit."""
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}",
@@ -406,6 +411,12 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
 
     group = pose_groups(tests.q, pose_tolerance(noise))  # once: 1-2 s at 1e6 tests
     check_tests(robot, tests, joints, noise, group=group)
+    from analysis.identification.holdout_check import CLUSTER_DEG, holdout_folds
+
+    if holdout_radius is None:
+        holdout_radius = np.radians(CLUSTER_DEG)
+    # the validation's folds: the poses, nearby ones together
+    fold = holdout_folds(tests.q, group, holdout_radius) if validate else group
     design = _design(robot, tests, joints)
     cond = check_identifiable(design[1], joints, cond_limit)
     warnings: list[str] = []
@@ -440,8 +451,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             # made in the pass that forms the final system (no passes of their own)
             from analysis.identification.crossval import FinalPassSums
 
-            folds = int(group.max(initial=-1)) + 1
-            sums = FinalPassSums(tests, joints, noise, group if validate and folds >= 3
+            folds = int(fold.max(initial=-1)) + 1
+            sums = FinalPassSums(tests, joints, noise, fold if validate and folds >= 3
                                  else None, folds)
         # the first Gauss-Newton weights are WLS's first ones (both at the OLS estimate)
         chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"],
@@ -480,7 +491,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
         validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
                                         full_fit=chosen if rob is None else None,
-                                        group=group, fold_sums=sums,
+                                        group=fold, cluster_rad=holdout_radius,
+                                        fold_sums=sums,
                                         linear_shift=None if corr is None or not corr.reliable
                                         else (corr.x - corr.x_raw, corr.propagation))
     if validation is not None:

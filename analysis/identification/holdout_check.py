@@ -17,6 +17,11 @@ P(chi2_n >= q), the limit ``limit_normalized_total`` = sqrt(chi2_n^-1(1 - a) / n
 ``beyond_limit`` (q above it), with a = 1 - (1 - :data:`HOLDOUT_FAMILY_LEVEL`)^(1/P)
 over the P poses validated (Sidak): data that follow the noise model flag some pose
 with probability 1 %, whatever the number of poses.
+
+Folds (:func:`holdout_folds`): poses whose joint angles are within
+:data:`CLUSTER_DEG` of each other (Euclidean norm over the joints; the planner's
+default minimum separation) are held out together: a pose 0.2 deg from another is
+the same configuration, and each would predict the other.
 """
 
 from __future__ import annotations
@@ -25,6 +30,9 @@ import numpy as np
 
 #: family-wise level of the held-out-pose flag (Sidak over the poses validated)
 HOLDOUT_FAMILY_LEVEL = 0.01
+#: poses closer than this (deg, ||dq|| over the joints) are held out together; the
+#: default of the planner's ``[thresholds] min_pose_separation_deg``
+CLUSTER_DEG = 5.0
 LIMIT_TEXT = (
     "a held-out pose is flagged (beyond_limit) when q = e^T (Sigma + F C F^T)^-1 e of its n "
     "measured components exceeds the chi-square(n) quantile at 1 - a, a = 1 - (1 - "
@@ -110,3 +118,33 @@ def flag_columns(q: np.ndarray, n: np.ndarray, level: float = HOLDOUT_FAMILY_LEV
     return {"rms_normalized_total": rms, "p_value_total": p_value,
             "limit_normalized_total": limit,
             "beyond_limit": valid & (p_value < per_pose)}
+
+
+def holdout_folds(q: np.ndarray, group: np.ndarray, radius: float) -> np.ndarray:
+    """Fold (m,) of each test: its pose ``group`` (m,) ints, with the poses whose joint
+    angles are within ``radius`` (rad, Euclidean norm over the joints of q (m, n) rad)
+    of a fold's first pose held out with it; folds numbered by first appearance.
+
+    Leader clustering, not single linkage: each pose not yet in a fold, in order of first
+    appearance, opens a fold with every unassigned pose within ``radius`` of it, so a
+    chain of poses each close to the next does not merge a whole dense campaign (a
+    fold's poses are within 2 ``radius`` of each other). ``radius`` 0: the poses.
+    """
+    group = np.asarray(group)
+    n_groups = int(group.max(initial=-1)) + 1
+    if radius <= 0 or n_groups < 2:
+        return group.copy()
+    from scipy.spatial import cKDTree
+
+    _, first = np.unique(group, return_index=True)  # groups are 0..G-1 by first appearance
+    rep = np.asarray(q, dtype=float)[first]  # (G, n) a reading of each pose
+    near = cKDTree(rep).query_ball_point(rep, r=radius * (1 + 1e-12))
+    fold_of = np.full(n_groups, -1)
+    n_folds = 0
+    for g in range(n_groups):
+        if fold_of[g] >= 0:
+            continue
+        members = np.asarray(near[g], dtype=int)
+        fold_of[members[fold_of[members] < 0]] = n_folds
+        n_folds += 1
+    return fold_of[group]

@@ -280,6 +280,7 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
         "poses": (f"tests whose joint angles agree to within "
                   f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
                   "encoder sigmas) are at one pose"),
+        "validation_folds": _folds_text(extras.get("protocol")),
         "conventions": CONVENTIONS,
     }
 
@@ -291,6 +292,22 @@ def _release_freed_heap() -> None:
     from analysis.identification.per_test import release_freed_heap
 
     release_freed_heap()
+
+
+def _holdout_deg(protocol) -> tuple[float, str]:
+    """Poses closer than this (deg) are held out together, and where that comes from."""
+    from analysis.identification.holdout_check import CLUSTER_DEG
+
+    if protocol is not None:
+        return (float(protocol.thresholds.min_pose_separation_deg),
+                f"protocol {Path(protocol.path).name} [thresholds] min_pose_separation_deg")
+    return CLUSTER_DEG, "default, the planner's default minimum pose separation"
+
+
+def _folds_text(protocol) -> str:
+    deg, source = _holdout_deg(protocol)
+    return (f"held-out validation: poses within {deg:g} deg of each other (joint space) are "
+            f"held out together ({source})")
 
 
 def _print_assumptions(console: Console, a: dict) -> None:
@@ -309,6 +326,7 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"  robust fitting: {a['robust']}",
         f"  wrench errors in variables: {a['wrench_errors_in_variables']}",
         f"  poses: {a['poses']}",
+        f"  {a['validation_folds']}",
     ):
         console.print(line, markup=False, highlight=False)
 
@@ -516,7 +534,8 @@ def register(app: typer.Typer) -> None:
             del table
             _release_freed_heap()
             result = identify(model, tests, method=method, joints=joint_list,
-                              noise=noise, covariance=covariance, robust=robust)
+                              noise=noise, covariance=covariance, robust=robust,
+                              holdout_radius=np.radians(_holdout_deg(protocol)[0]))
         result.assumptions = assumptions
         if measurements is not None and extras["tool"].source.startswith("none given"):
             result.warnings.insert(0, (

@@ -75,3 +75,30 @@ def test_a_bad_pose_is_flagged_and_named(setup):
     assert any("held-out pose(s)" in w and "pose P2" in w for w in res.warnings)
     summary = res.to_dict()["validation_summary"]
     assert summary["n_beyond_limit"] == 1 and summary["poses_beyond_limit"] == ["P2"]
+
+
+def test_folds_hold_nearby_poses_together_without_chaining():
+    from analysis.identification.holdout_check import holdout_folds
+
+    deg = np.pi / 180
+    # poses along one joint at 0, 0.2, 4, 8, 12, 30 deg (labels 0..5), two tests each
+    q = np.zeros((12, 6))
+    q[:, 1] = np.repeat([0, 0.2, 4, 8, 12, 30], 2) * deg
+    group = np.repeat(np.arange(6), 2)
+    fold = holdout_folds(q, group, 5 * deg)
+    # leader clustering: {0, 0.2, 4}, {8, 12}, {30}; a chain 4 deg apart is not one fold
+    assert list(fold) == list(np.repeat([0, 0, 0, 1, 1, 2], 2))
+    assert list(holdout_folds(q, group, 0.0)) == list(group)
+
+
+def test_nearly_coinciding_poses_are_held_out_together(setup):
+    robot, q, W, k = setup
+    q = np.vstack([q, q[2] + np.radians([0, 0.2, 0, 0, 0, 0])])  # a sixth pose 0.2 deg off P2
+    t = _tests(robot, q, W, k, np.random.default_rng(3))
+    v = identify(robot, t, method="exact", noise=NOISE).validation
+    assert len(v) == 5 and "P2+P5" in list(v["held_out_pose"])
+    row = v[v["held_out_pose"] == "P2+P5"].iloc[0]
+    assert row["poses_held_out"] == 2 and row["n_tests"] == 6
+    assert "held out together" in row["note"]
+    apart = identify(robot, t, method="exact", noise=NOISE, holdout_radius=0.0).validation
+    assert len(apart) == 6 and set(apart["poses_held_out"]) == {1}
