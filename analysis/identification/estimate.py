@@ -572,6 +572,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     se_x = np.sqrt(np.diag(cov_x))
     x_out = chosen.x  # the raw linear estimate for ols/wls (the outlier refits start there)
     bias = None
+    # systematic terms added to the interval's half-width of x (rad/(N m))
+    widen = np.zeros(len(joints))
     if method in ("ols", "wls"):
         from analysis.identification.linear_bias import summary
 
@@ -580,14 +582,19 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             x_out = corr.x
             cov_x = corr.propagation @ cov_x @ corr.propagation.T
             se_x = np.sqrt(np.diag(cov_x))
-            ci = stiffness_interval(x_out, se_x, crit)
         else:  # the raw estimate, its interval widened by |b| where b is known
-            widen = np.where(np.isfinite(corr.bias), np.abs(corr.bias), 0.0)
-            ci = stiffness_interval(x_out, se_x + widen / crit, crit)
+            widen += np.where(np.isfinite(corr.bias), np.abs(corr.bias), 0.0)
         bias = summary(corr, se_raw, se_x)
         warnings.append(bias["note"])
-    else:
-        ci = stiffness_interval(chosen.x, se_x, crit)
+    from analysis.identification import encoder_eiv
+
+    b_q = encoder_eiv.encoder_bias(robot, tests, joints, x_out, noise)
+    widen += np.abs(b_q)
+    encoder = encoder_eiv.summary(joints, x_out, b_q, se_x, noise,
+                                  min(tests.m, encoder_eiv.MAX_TESTS))
+    if max(encoder["bias_in_standard_errors"][j] for j in joints) >= EIV_WARN_SE:
+        warnings.append(encoder["note"])
+    ci = stiffness_interval(x_out, se_x + widen / crit, crit)
     eiv = None
     if chosen.eiv_shift is not None:
         from analysis.identification.eiv import shift_summary
@@ -648,6 +655,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     result.residual_rows = rows
     result.wrench_eiv = eiv
     result.linear_bias = bias
+    result.encoder_eiv = encoder
     if rob is not None:
         result.robust = rob.describe()
     result.validation = validation

@@ -289,6 +289,9 @@ class IdentificationResult:
         (:func:`analysis.identification.linear_bias.summary`: raw and corrected k, the
         bias in standard errors, whether the correction is reliable); None for exact.
         results.json ``linearisation_bias``.
+    encoder_eiv : the bias of the encoder noise in J, added to the intervals as a
+        systematic term (:func:`analysis.identification.encoder_eiv.summary`);
+        results.json ``encoder_errors_in_variables``.
     """
 
     robot: str
@@ -323,6 +326,7 @@ class IdentificationResult:
     residual_rows: ResidualRows | None = None
     wrench_eiv: dict | None = None
     linear_bias: dict | None = None
+    encoder_eiv: dict | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -410,6 +414,7 @@ class IdentificationResult:
             "robust": self.robust,
             "wrench_errors_in_variables": self.wrench_eiv,
             "linearisation_bias": self.linear_bias,
+            "encoder_errors_in_variables": self.encoder_eiv,
             "warnings": self.warnings,
             **residual_summary(self.residuals, rows=self.residual_rows),
             **validation_summary(self.validation),
