@@ -232,9 +232,8 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
             if bias_se is not None:
                 from analysis.identification.linear_bias import correct_linear_bias
 
-                corr = correct_linear_bias(robot, rest, joints, current, bias_se, method)
-                if corr.reliable:
-                    current.predicted = corr.predicted
+                correct_linear_bias(robot, rest, joints, current, bias_se, method,
+                                    in_place=True)
             t = None  # its 48 MB (1e6 tests) before the next
             t = _studentized_matrix(rest, current, scale)
         except InputError:
@@ -476,10 +475,10 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         from analysis.identification.linear_bias import correct_linear_bias
         from analysis.identification.lsq import sandwich
 
+        # chosen.predicted becomes f(x_c) in place where the correction is reliable
         corr = correct_linear_bias(robot, tests, joints, chosen, np.sqrt(np.diag(
-            sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv))), method)
-        if corr.reliable:
-            chosen.predicted = corr.predicted
+            sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv))), method,
+            in_place=True)
     # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
     # start for the held-out tests) are let go before the per-test statistics are made
     validation = None

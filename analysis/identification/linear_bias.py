@@ -36,6 +36,7 @@ from analysis.identification.exact_fit import model_displacement_masked
 from analysis.identification.gauss_newton import EVAL_BLOCK
 from analysis.identification.lsq import stack_vector
 from analysis.identification.measurements import TestArrays
+from analysis.identification.per_test import apply
 from analysis.model.robot_model import RobotModel
 
 #: the correction is unreliable when || S^-1 B S ||_2 exceeds this (S = diag(se))
@@ -137,13 +138,16 @@ class BiasCorrection:
 
 
 def correct_linear_bias(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...], fit,
-                        se_x: np.ndarray, method: str,
-                        limit: float = CONTRACTION_LIMIT) -> BiasCorrection:
+                        se_x: np.ndarray, method: str, limit: float | None = None,
+                        in_place: bool = False) -> BiasCorrection:
     """Solve ``x + G (f(x) - A x) = x_hat`` for the linear fit ``fit`` (its x, A, estimator).
 
     ``se_x`` (p,): standard errors of ``fit.x`` (rad/(N m)). See the module docstring
-    for the criterion of reliability.
+    for the criterion of reliability. ``in_place``: the exact model's values are written
+    into ``fit.predicted`` (no second (m, 6) array: 48 MB at 1e6 tests), which then holds
+    f(x_c) when the correction is reliable and A x_hat again when it is not.
     """
+    limit = CONTRACTION_LIMIT if limit is None else limit
     x_hat = np.asarray(fit.x, dtype=float)
     p = len(joints)
     G, A = fit.estimator, fit.A
@@ -165,20 +169,27 @@ def correct_linear_bias(robot: RobotModel, tests: TestArrays, joints: tuple[int,
     M = np.linalg.inv(np.eye(p) + B)
     x = x_hat - M @ b0
     residual = float("inf")
-    f = np.empty(tests.measured.shape)  # the model at the last iterate (48 MB at 1e6 tests)
+    # the model at the last iterate (48 MB at 1e6 tests)
+    f = fit.predicted if in_place else np.empty(tests.measured.shape)
+
+    def undo(out: BiasCorrection) -> BiasCorrection:
+        if in_place:  # the linear model's values again
+            f[...] = apply(A, x_hat)
+        return out
+
     for step in range(1, MAX_STEPS + 1):
         b, _ = _bias_and_slope(robot, tests, joints, x, G, A, slope=False, out=f)
         if not np.all(np.isfinite(b)):
-            return give_up("the equilibrium cannot be solved at a corrected estimate",
-                           contraction, step)
+            return undo(give_up("the equilibrium cannot be solved at a corrected estimate",
+                                contraction, step))
         r = x + b - x_hat
         residual = float(np.max(np.abs(r) / se_x))
         if residual <= TOLERANCE_SE:
             break
         x = x - M @ r
     else:
-        return give_up(f"the correction did not converge in {MAX_STEPS} steps (residual "
-                       f"{residual:.2g} se)", contraction, MAX_STEPS)
+        return undo(give_up(f"the correction did not converge in {MAX_STEPS} steps "
+                            f"(residual {residual:.2g} se)", contraction, MAX_STEPS))
     return BiasCorrection(method, joints, x_hat, b0, x, M, contraction, step, residual, True,
                           predicted=f)
 

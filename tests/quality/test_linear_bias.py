@@ -105,7 +105,6 @@ def test_unreliable_correction_is_refused_and_can_be_accepted(setup, monkeypatch
     c = good.linear_bias["contraction"]
     assert 0 < c < lb.CONTRACTION_LIMIT
     monkeypatch.setattr(lb, "CONTRACTION_LIMIT", c / 2)
-    monkeypatch.setattr(lb.correct_linear_bias, "__defaults__", (c / 2,))
     bad = identify(robot, t, method="wls", noise=NOISE, validate=False)
     assert not bad.linear_bias["reliable"]
     assert "limit" in bad.linear_bias["reason"]

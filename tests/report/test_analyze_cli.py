@@ -193,7 +193,7 @@ def test_unreliable_linear_correction_is_refused_unless_accepted(tmp_path, compl
                                                                   monkeypatch):
     import analysis.identification.linear_bias as lb
 
-    monkeypatch.setattr(lb.correct_linear_bias, "__defaults__", (1e-9,))
+    monkeypatch.setattr(lb, "CONTRACTION_LIMIT", 1e-9)
     args = ["analyze", str(complete_run), "--method", "ols", "--no-report"]
     assert main([*args, "--out", str(tmp_path / "a")]) == 2
     assert main([*args, "--out", str(tmp_path / "b"), "--accept-misfit"]) == 0
