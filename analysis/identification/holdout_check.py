@@ -138,13 +138,25 @@ def holdout_folds(q: np.ndarray, group: np.ndarray, radius: float) -> np.ndarray
 
     _, first = np.unique(group, return_index=True)  # groups are 0..G-1 by first appearance
     rep = np.asarray(q, dtype=float)[first]  # (G, n) a reading of each pose
-    near = cKDTree(rep).query_ball_point(rep, r=radius * (1 + 1e-12))
+    # only the close pairs (i < j), as one array: few in a planned campaign
+    pairs = cKDTree(rep).query_pairs(radius * (1 + 1e-12), output_type="ndarray")
     fold_of = np.full(n_groups, -1)
-    n_folds = 0
-    for g in range(n_groups):
-        if fold_of[g] >= 0:
-            continue
-        members = np.asarray(near[g], dtype=int)
-        fold_of[members[fold_of[members] < 0]] = n_folds
-        n_folds += 1
-    return fold_of[group]
+    if len(pairs):
+        # each pose's later neighbours, by the pair list sorted on its first member
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+        start = np.searchsorted(pairs[:, 0], np.arange(n_groups + 1))
+        n_folds = 0
+        for g in np.unique(pairs.ravel()):  # the poses with a neighbour, in order
+            if fold_of[g] >= 0:
+                continue
+            members = pairs[start[g]:start[g + 1], 1]
+            fold_of[g] = n_folds
+            fold_of[members[fold_of[members] < 0]] = n_folds
+            n_folds += 1
+    # every other pose is a fold of its own; folds renumbered by first appearance
+    alone = fold_of < 0
+    fold_of[alone] = fold_of.max(initial=-1) + 1 + np.arange(int(alone.sum()))
+    _, renumber = np.unique(fold_of, return_index=True)
+    rank = np.empty(len(renumber), dtype=int)
+    rank[np.argsort(renumber, kind="stable")] = np.arange(len(renumber))
+    return rank[fold_of][group]
