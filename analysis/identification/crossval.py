@@ -408,8 +408,17 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     exact_model = method == "exact" or linear_shift is not None
     x = np.zeros((P, 6))
     x[:, cols] = x_p
-    total = PredictiveSums(P, p)
-    meat = None if Linv is not None else np.zeros((P, len(total.iu[0])))
+    if Linv is not None:
+        # a fit whitened by its own covariances: the held-out poses' F^T W F are the
+        # folds' parts of its normal matrix, D R^T S_h R D (no per-fold sums of their own)
+        def normal(h):
+            return scale[:, None] * (R.T @ S[h] @ R) * scale[None, :]
+
+        total = PredictiveSums(P, p, normal=normal)
+        meat = None
+    else:  # ols: A^T Sigma A per fold for the sandwich (float32: 8 MB at 1e5 poses)
+        total = PredictiveSums(P, p)
+        meat = np.zeros((P, len(total.iu[0])), dtype=np.float32)
     # held-out prediction errors, summed per fold (test blocks bound the memory)
     sq = np.zeros((3, P))  # squared errors: translation, rotation, normalised
     failed = np.zeros(P, dtype=bool)
@@ -462,14 +471,14 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         "note": notes,
     })
     Rinv = np.linalg.inv(R)
-    meat_total = None if meat is None else PackedSym(meat, p).total()
+    meat_total = None if meat is None else PackedSym(meat.astype(float), p).total()
 
     def covariance(h):  # the folds' covariances (len(h), p, p), NaN for folds not fitted
         with np.errstate(all="ignore"):
             bread = (Rinv @ np.linalg.solve(np.eye(p) - S[h], np.broadcast_to(
                 Rinv.T, (len(h), p, p)))) / (scale[:, None] * scale[None, :])
         if meat is not None:
-            bread = bread @ (meat_total - PackedSym(meat, p)[h]) @ bread
+            bread = bread @ (meat_total - PackedSym(meat, p)[h].astype(float)) @ bread
         if linear_shift is not None:
             bread = linear_shift[1] @ bread @ linear_shift[1].T
         bread[~ok[h]] = np.nan

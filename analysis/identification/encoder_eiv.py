@@ -35,8 +35,8 @@ from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
-#: tests on which the sums are taken (evenly spaced); ~0.1 s for 5000 tests
-MAX_TESTS = 5000
+#: tests on which the sums are taken (evenly spaced); ~0.05 s for 2000 tests
+MAX_TESTS = 2000
 #: finite-difference step of dA/dq and d2A/dq2 (rad)
 STEP = 1e-4
 

@@ -33,6 +33,10 @@ HOLDOUT_FAMILY_LEVEL = 0.01
 #: poses closer than this (deg, ||dq|| over the joints) are held out together; the
 #: default of the planner's ``[thresholds] min_pose_separation_deg``
 CLUSTER_DEG = 5.0
+#: above this many poses the folds are the poses: a neighbour is one of more than this
+#: many poses in the refit, too small a share of its information to make the check
+#: optimistic (and the search would cost ~40 MB at 1e5 poses)
+CLUSTER_MAX_POSES = 20_000
 LIMIT_TEXT = (
     "a held-out pose is flagged (beyond_limit) when q = e^T (Sigma + F C F^T)^-1 e of its n "
     "measured components exceeds the chi-square(n) quantile at 1 - a, a = 1 - (1 - "
@@ -42,14 +46,19 @@ LIMIT_TEXT = (
 
 class PredictiveSums:
     """Per-pose sums of whitened held-out rows: ``eWe`` (P,), ``FWe`` (P, p), ``FWF``
-    (upper triangles, P x p (p + 1) / 2), ``n`` (P,) measured components; ``add`` a
-    block of tests at a time."""
+    (upper triangles, P x p (p + 1) / 2, float32: a diagnostic's p x p matrix, 8 MB
+    instead of 17 at 1e5 poses), ``n`` (P,) measured components; ``add`` a block of
+    tests at a time. ``normal``: a callable giving N = F^T W F of poses h when the
+    caller has it (then ``FWF`` is not summed)."""
 
-    def __init__(self, n_folds: int, p: int) -> None:
+    def __init__(self, n_folds: int, p: int, normal=None) -> None:
         self.P, self.p = n_folds, p
         self.iu = np.triu_indices(p)
         self.eWe, self.n = np.zeros(n_folds), np.zeros(n_folds)
-        self.FWe, self.FWF = np.zeros((n_folds, p)), np.zeros((n_folds, len(self.iu[0])))
+        self.FWe = np.zeros((n_folds, p))
+        self._normal = normal
+        self.FWF = None if normal is not None else np.zeros((n_folds, len(self.iu[0])),
+                                                             dtype=np.float32)
 
     def add(self, fold: np.ndarray, Linv: np.ndarray, F: np.ndarray, err: np.ndarray,
             measured: np.ndarray) -> None:
@@ -62,14 +71,18 @@ class PredictiveSums:
         self.eWe += np.bincount(fold, np.sum(Le ** 2, axis=1), P)
         self.n += np.bincount(fold, measured.sum(axis=1), P)
         Fe = np.einsum("mri,mr->mi", LF, Le)
-        FF = np.einsum("mri,mrj->mij", LF, LF)[:, self.iu[0], self.iu[1]]
         for a in range(Fe.shape[1]):
             self.FWe[:, a] += np.bincount(fold, Fe[:, a], P)
+        if self.FWF is None:
+            return
+        FF = np.einsum("mri,mrj->mij", LF, LF)[:, self.iu[0], self.iu[1]]
         for a in range(FF.shape[1]):
             self.FWF[:, a] += np.bincount(fold, FF[:, a], P)
 
     def normal(self, h: np.ndarray) -> np.ndarray:
         """N = F^T W F (len(h), p, p) of poses h."""
+        if self._normal is not None:
+            return self._normal(h)
         out = np.empty((len(h), self.p, self.p))
         out[:, self.iu[0], self.iu[1]] = self.FWF[h]
         out[:, self.iu[1], self.iu[0]] = self.FWF[h]
@@ -128,11 +141,12 @@ def holdout_folds(q: np.ndarray, group: np.ndarray, radius: float) -> np.ndarray
     Leader clustering, not single linkage: each pose not yet in a fold, in order of first
     appearance, opens a fold with every unassigned pose within ``radius`` of it, so a
     chain of poses each close to the next does not merge a whole dense campaign (a
-    fold's poses are within 2 ``radius`` of each other). ``radius`` 0: the poses.
+    fold's poses are within 2 ``radius`` of each other). ``radius`` 0, or more than
+    :data:`CLUSTER_MAX_POSES` poses: the poses.
     """
     group = np.asarray(group)
     n_groups = int(group.max(initial=-1)) + 1
-    if radius <= 0 or n_groups < 2:
+    if radius <= 0 or n_groups < 2 or n_groups > CLUSTER_MAX_POSES:
         return group.copy()
     from scipy.spatial import cKDTree
 
