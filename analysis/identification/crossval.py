@@ -102,10 +102,15 @@ def leave_one_pose_out(
                        full_fit, group, fold_sums, linear_shift)
     if table is None:
         return None
-    # poses per fold: distinct (fold, pose) pairs counted per fold
+    # poses per fold: distinct (fold, pose) pairs counted per fold (one each when there
+    # are as many folds as poses: folds are unions of poses)
     n_folds = int(group.max(initial=-1)) + 1
-    pairs = np.unique(group.astype(np.int64) * (int(poses.max(initial=0)) + 1) + poses)
-    count = np.bincount(pairs // (int(poses.max(initial=0)) + 1), minlength=n_folds)
+    n_poses = int(poses.max(initial=-1)) + 1
+    if n_folds == n_poses:
+        count = np.ones(n_folds, dtype=int)
+    else:
+        pairs = np.unique(group.astype(np.int64) * n_poses + poses)
+        count = np.bincount(pairs // n_poses, minlength=n_folds)
     table["poses_held_out"] = count.astype(int)
     table["note"] = [
         "; ".join(t for t in (n, f"{c} poses within {_deg(cluster_rad)} of each other held "
