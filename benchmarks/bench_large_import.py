@@ -106,7 +106,8 @@ def reference_ols(csv: Path, dense_se: bool) -> tuple[np.ndarray, np.ndarray | N
 
 def analyze_csv(csv: Path, out: Path, method: str, extra: tuple[str, ...] = ()) -> list[str]:
     return [*CAMPAIGN, "analyze", "--measurements", str(csv), "--robot", "kr240-2",
-            "--out", str(out), "--method", method, "--no-report", "--accept-misfit", *extra]
+            "--out", str(out), "--force", "--method", method, "--no-report", "--accept-misfit",
+            *extra]
 
 
 def main() -> None:
@@ -180,7 +181,7 @@ def main() -> None:
         subprocess.run([*CAMPAIGN, "demo", "--out", str(demo), "--quiet", "--no-report"],
                        check=True, capture_output=True)
         r = best(launcher, [*CAMPAIGN, "analyze", str(demo / "run"), "--out",
-                            str(demo / "an")], args.repeat)
+                            str(demo / "an"), "--force"], args.repeat)
         base = best(launcher, [sys.executable, "-c",
                                "import numpy, pandas, matplotlib.pyplot, pinocchio"],
                     args.repeat)

@@ -200,9 +200,12 @@ def _compensate(f: Fig) -> tuple[str, str, str, str]:
             f"{f['batched_s']} s wall, {f['batched_cpu_s']} s CPU "
             f"({f['batched_points_per_s']} points/s wall)",
             f"{f['baseline']}: {f['loop_points_per_s']} points/s wall, "
-            f"{f['loop_cpu_points_per_s']} CPU, on {f['sample']} points; max |q_cmd "
-            f"difference| {f['max_q_cmd_difference_rad']} rad, max deflection difference "
-            f"{f['max_deflection_difference']}. Timed: {f['timing']}",
+            f"{f['loop_cpu_points_per_s']} CPU, on {f['sample']} points; "
+            + (f"outputs agree: {_rel(f, 'max_rel_diff')} (q_cmd: max absolute difference, "
+               "rad; the others: max difference relative to the largest value)"
+               if f.get("max_rel_diff") is not None else
+               f"max |q_cmd difference| {f['max_q_cmd_difference_rad']} rad, max deflection "
+               f"difference {f['max_deflection_difference']}") + f". Timed: {f['timing']}",
             f"{f['ratio']}x wall, {f['ratio_cpu']}x CPU")
 
 
@@ -216,7 +219,10 @@ def _place(f: Fig) -> tuple[str, str, str, str]:
             f"{f['baseline']}: {f['loop_evaluations_per_s']}/s wall, "
             f"{f['loop_cpu_evaluations_per_s']}/s CPU on {f['sample']} points; the general "
             f"batched route {f['general_batched_evaluations_per_s']}/s wall; outputs agree: "
-            f"{f['outputs_agree']}. Timed: {f['timing']}",
+            f"{f['outputs_agree']}"
+            + (f" (loop: max difference {f['loop_max_rel_diff']} of the largest deflection)"
+               if f.get("loop_max_rel_diff") is not None else "")
+            + f". Timed: {f['timing']}",
             f"{f['ratio']}x wall, {f['ratio_cpu']}x CPU; {f['ratio_vs_general_batched']}x the "
             "general batched route (wall)")
 

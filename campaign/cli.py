@@ -7,7 +7,9 @@ so that a command pays only for its own imports; a module not in the table is
 imported when the app is built. Bad input raises
 :class:`analysis.errors.InputError`; :func:`main` prints it as one line on
 stderr and exits with status 2, never with a traceback. So does a wrench the
-nonlinear equilibrium cannot carry (:class:`EquilibriumError`).
+nonlinear equilibrium cannot carry (:class:`EquilibriumError`). A file system that
+refuses a write (:class:`OSError`: disk full, read-only, permissions) is one line
+and exit status 1.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
                 "disk before the next motion."),
     "analyze": ("analyze", "Identify joint stiffness from a run or a CSV file; write "
                 "results.json and the report."),
-    "compare": ("compare", "Per joint: k_B - k_A with its 95 % interval, z score and verdict."),
+    "compare": ("compare", "Per joint: k_B - k_A with its interval, z score and verdict."),
     "compensate": ("compensate", "Predict the deflection of P along a path and compute the "
                    "compensated joints."),
     "demo": ("demo", "Plan, acquire on the simulated lab and analyse the KR240-2 campaign "
@@ -162,6 +164,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
         return 130
+    except OSError as err:
+        # the file system refused (disk full, read-only, permissions): a runtime failure,
+        # one line naming the file, exit status 1
+        where = f"{err.filename}: " if err.filename else ""
+        typer.echo(f"error: {where}{err.strerror or err}", err=True)
+        return 1
     except Exception as err:
         if type(err).__name__ == "EquilibriumError" and _is_equilibrium_error(err):
             typer.echo(f"error: nonlinear equilibrium: {err}; reduce the wrench or check the "

@@ -15,8 +15,6 @@ from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 
-from analysis.errors import InputError
-
 
 class Method(StrEnum):
     """Estimator of the joint compliances (analysis.identification.estimate.METHODS)."""
@@ -71,6 +69,8 @@ class Program(StrEnum):
     auto = "auto"
     krl = "krl"
     urscript = "urscript"
+    rapid = "rapid"
+    fanuc_ls = "fanuc-ls"
     none = "none"
 
 
@@ -102,22 +102,24 @@ def print_json(obj) -> None:
 
 
 def output_dir(out: Path, force: bool, where: str = "--out") -> Path:
-    """Create ``out``; refuse a non-empty existing directory unless ``force``.
+    """Check that ``out`` may be written: refuse a symbolic link, a file, and a non-empty
+    directory unless ``force``. Nothing is created here (see :func:`writing_into`).
 
     ``campaign acquire`` and ``demo`` never overwrite a run; the other commands
     that write a directory follow the same rule, with ``--force`` to replace
-    the files they write (other files are left alone).
+    the files they write (other files are left alone; a file of theirs that is a
+    symbolic link is refused, never written through).
     """
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a directory", where=str(out))
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise InputError("output directory exists and is not empty; choose another or add "
-                         "--force to overwrite its files", where=f"{where} {out}")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError(f"cannot create the output directory: {err}", where=str(out)) from None
-    return out
+    from analysis.output_files import check_output_dir
+
+    return check_output_dir(out, force, where)
+
+
+def writing_into(out: Path):
+    """Context manager: create ``out``; if the command then fails, remove what it created."""
+    from analysis.output_files import created_dir
+
+    return created_dir(out)
 
 
 @contextmanager

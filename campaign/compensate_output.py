@@ -78,8 +78,11 @@ def summary(pc: PathCompensation, lines: np.ndarray) -> dict:
     }
 
 
-def plot(pc: PathCompensation, path: Path, title: str) -> Path:
-    """|dp| (mm) and |dr| (mrad) along the path, before and after, with the 95 % band."""
+def plot(pc: PathCompensation, path: Path, title: str, measured=None) -> Path:
+    """|dp| (mm) and |dr| (mrad) along the path: before (predicted, with its 95 % band) and
+    after compensation (the 95 % upper bound from the stiffness uncertainty); with
+    ``measured`` (:class:`campaign.verify_fake.FakeLabCheck`) the errors measured on the
+    simulated lab before and after, as points. The legend is under the plots."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -87,40 +90,49 @@ def plot(pc: PathCompensation, path: Path, title: str) -> Path:
 
     n = norms(pc)
     x = np.arange(1, len(n["before_p"]) + 1)
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6.6), sharex=True)
     for ax, key, scale, unit in ((axes[0], "p", 1e3, "mm"), (axes[1], "r", 1e3, "mrad")):
         mid, hi = scale * n[f"before_{key}"], scale * n[f"before_{key}_hi"]
         ax.plot(x, mid, color="tab:red", label="before: predicted")
-        ax.fill_between(x, np.maximum(2 * mid - hi, mid * 1e-3), hi, color="tab:red",
-                        alpha=0.25, label="before: 95 % band")
+        # the band's lower edge mirrors its upper one about the prediction (positive)
+        ax.fill_between(x, np.maximum(2 * mid - hi, 0.5 * mid), hi, color="tab:red",
+                        alpha=0.25, lw=0, label="before: 95 % band")
         ax.plot(x, scale * n[f"after_{key}_hi"], color="tab:blue",
-                label="after: 95 % upper bound (stiffness uncertainty)")
-        ax.fill_between(x, scale * n[f"after_{key}_hi"] * 1e-3, scale * n[f"after_{key}_hi"],
-                        color="tab:blue", alpha=0.15)
+                label="after: predicted 95 % upper bound (stiffness uncertainty)")
+        if measured is not None:
+            sl = slice(0, 3) if key == "p" else slice(3, 6)
+            for err, color, what in ((measured.before, "darkred", "before"),
+                                     (measured.after, "navy", "after")):
+                ax.plot(x, scale * np.linalg.norm(err[:, sl], axis=1), ".", ms=3,
+                        color=color, label=f"{what}: measured on the simulated lab")
         ax.set_yscale("log")
-        ax.set_ylabel(f"|{'dp' if key == 'p' else 'dr'}| ({unit})")
+        ax.set_ylabel(f"$|\\delta {'p' if key == 'p' else 'r'}|$ ({unit})")
         ax.grid(alpha=0.3, which="both")
-    axes[1].text(0.01, 0.02, "after compensation the model's own residual is below "
-                 f"{1e6 * n['after_p'].max():.2g} um / {1e6 * n['after_r'].max():.2g} urad",
-                 transform=axes[1].transAxes, fontsize=8)
-    axes[0].legend(fontsize=8, loc="upper right")
     axes[1].set_xlabel("point of the path")
-    axes[0].set_title(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    axes[0].set_title(title + f"\nafter compensation the model's own residual is below "
+                      f"{1e6 * n['after_p'].max():.2g} \u00b5m / "
+                      f"{1e6 * n['after_r'].max():.2g} \u00b5rad", fontsize=9)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.1 if measured is not None else 0.07, 1, 1))
+    from analysis.output_files import save_figure
+
+    save_figure(fig, path, dpi=150)
     plt.close(fig)
     return path
 
 
-def robot_program(robot: RobotModel, q_cmd: np.ndarray, out: Path, comments: list[str]
-                  ) -> list[Path]:
-    """KRL for KUKA models, URScript for UR models (pendant convention); [] otherwise."""
-    from analysis.export.robot_programs import write_krl, write_urscript
+def robot_program(robot: RobotModel, q_cmd: np.ndarray, out: Path, comments: list[str],
+                  kind: str = "auto") -> list[Path]:
+    """The compensated path as a robot program in the pendant convention.
 
-    name = robot.name.lower()
-    q_ctrl = robot.to_controller(q_cmd)
-    if "kuka" in name or robot.key.lower().startswith("kr"):
-        return list(write_krl(out, "comp_path", np.degrees(q_ctrl), comments))
-    if "universal robots" in name or robot.key.lower().startswith("ur"):
-        return [write_urscript(out / "comp_path.script", "comp_path", q_ctrl, comments)]
-    return []
+    ``kind``: ``krl``, ``urscript``, ``rapid``, ``fanuc-ls``, ``none``, or ``auto`` (KRL
+    for KUKA, URScript for UR, RAPID for ABB, ``.LS`` for FANUC models; none otherwise).
+    """
+    from analysis.export.robot_programs import default_format, write_program
+
+    if kind == "auto":
+        kind = default_format(robot.name, robot.key) or "none"
+    if kind == "none":
+        return []
+    return write_program(kind, out, "comp_path", robot.to_controller(q_cmd), comments)

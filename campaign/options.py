@@ -23,10 +23,21 @@ if TYPE_CHECKING:
 
 
 def parse_floats(text: str, where: str, count: int | None = None) -> np.ndarray:
-    """Comma-separated numbers -> float array; errors name ``where`` and the bad item."""
-    items = [s.strip() for s in text.replace(";", ",").split(",") if s.strip()]
+    """Comma-separated numbers -> float array; errors name ``where`` and the bad item.
+
+    An empty text or an empty item (``0,,30``, a trailing comma) is refused: it is
+    a typo, and dropping it (or falling back to a default) would be a silent guess.
+    """
+    if not text.strip():
+        raise InputError("empty value: expected "
+                         + (f"{count} " if count is not None else "")
+                         + "comma-separated numbers", where=where)
+    items = [s.strip() for s in text.replace(";", ",").split(",")]
     values = []
     for pos, item in enumerate(items, start=1):
+        if not item:
+            raise InputError(f"item {pos} is empty (two commas in a row, or a comma at an "
+                             "end)", where=where)
         try:
             value = float(item)
         except ValueError:
@@ -152,7 +163,7 @@ def joint_angles_option(robot: RobotModel, text: str, controller: bool, where: s
 
 def stiffness_option(robot: RobotModel, text: str | None) -> np.ndarray:
     """``--joint-stiffness`` (N m/rad, comma-separated) or the model's nominal values."""
-    if text:
+    if text is not None:
         k = parse_floats(text, "--joint-stiffness", robot.n)
         if np.any(k <= 0):
             raise InputError("joint stiffness values must be positive (N m/rad)",
@@ -169,4 +180,4 @@ def stiffness_option(robot: RobotModel, text: str | None) -> np.ndarray:
 
 def wrench_option(text: str | None, default: np.ndarray) -> np.ndarray:
     """``--wrench fx,fy,fz,mx,my,mz`` in N and N m (base frame, at P)."""
-    return default.copy() if not text else parse_floats(text, "--wrench", 6)
+    return default.copy() if text is None else parse_floats(text, "--wrench", 6)

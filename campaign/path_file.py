@@ -43,6 +43,21 @@ def where_row(path: Path, line: int) -> str:
     return f"{path}:{line} (point {line - 1})"
 
 
+def _duplicated_column(path: Path) -> str | None:
+    """The first column name given twice in the CSV header (pandas renames the second
+    ``q1_deg.1`` and would silently use the first), or None."""
+    import csv
+
+    with path.open(newline="", encoding="utf-8-sig", errors="replace") as fh:
+        header = next(csv.reader(fh), [])
+    seen: set[str] = set()
+    for name in (h.strip() for h in header):
+        if name in seen:
+            return name
+        seen.add(name)
+    return None
+
+
 def read_path(path: Path, robot: RobotModel, controller: bool, wrench: np.ndarray | None,
               wrench_frame: str) -> PathInput:
     """Read and check PATH.csv; refuse (naming the line and column) anything unusable."""
@@ -56,6 +71,10 @@ def read_path(path: Path, robot: RobotModel, controller: bool, wrench: np.ndarra
         frame = pd.read_csv(path)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
         raise InputError(f"not a readable CSV file: {err}", where=str(path)) from None
+    duplicated = _duplicated_column(path)
+    if duplicated:
+        raise InputError(f"column {duplicated!r} appears more than once in the header: "
+                         "which one is meant is a guess; keep one", where=f"{path}:1")
     missing = [c for c in Q_COLS if c not in frame.columns]
     if missing:
         raise InputError(f"missing column(s) {', '.join(missing)} (expected q1_deg..q6_deg)",

@@ -3,7 +3,8 @@ search, run it (in this process or on Dask), and write the outputs.
 
 Outputs in ``--out``: ``placement.json``, ``path_joints.csv``, ``objective_xy.png``,
 ``path_deflection.png`` and, when the robot has a program format, the path as a
-KRL (``place_path.src/.dat``) or URScript (``place_path.script``) program.
+KRL (``place_path.src/.dat``), URScript (``place_path.script``), RAPID (``place_path.mod``) or
+FANUC TP (``PLACE_PATH.LS``) program.
 """
 
 from __future__ import annotations
@@ -19,8 +20,12 @@ from rich.console import Console
 
 from analysis.errors import InputError
 from analysis.model.ik import ALL_FLAGS
+from analysis.output_files import make_dir, replacing, write_text
 
 OBJECTIVE_UNITS = {"max": "mm", "rms": "mm", "compliance": "mm/kN"}
+#: what each objective is, for the colour bar of objective_xy.png
+OBJECTIVE_TEXT = {"max": "largest |δp| along the path", "rms": "RMS |δp| along the path",
+                  "compliance": "largest translational compliance along the path"}
 #: Factor from SI (m, m/N) to the reported unit (mm, mm/kN).
 OBJECTIVE_SCALE = {"max": 1e3, "rms": 1e3, "compliance": 1e6}
 REASON_NAMES = {
@@ -32,6 +37,13 @@ REASON_NAMES = {
 }
 #: Infeasible placements listed one by one in placement.json (all are counted).
 MAX_LISTED = 2000
+#: Evaluations (placement x point x tool angle x configuration) a search may have without
+#: --max-evaluations or --scheduler: a few minutes on one core at the 0.3-1e6 evaluations/s
+#: a whole search step runs at (docs/place.md, Speed); more is refused before any work.
+DEFAULT_MAX_EVALUATIONS = 100_000_000
+#: Values one grid axis may have (a 1 um step over a metre): refused before the axis
+#: is made.
+MAX_AXIS_VALUES = 1_000_000
 
 
 @dataclass
@@ -69,6 +81,8 @@ class PlaceOptions:
     chunk: int | None
     runner_ups: int
     program: str
+    max_evaluations: float | None = None
+    max_memory_gib: float = 2.0
 
 
 def parse_range(text: str, where: str) -> tuple[float, float]:
@@ -92,6 +106,11 @@ def grid(text: str, step: float, where: str, turn: float | None = None) -> np.nd
         return np.array([lo])
     if not (step > 0 and np.isfinite(step)):
         raise InputError("expected a positive step", where=f"{where} step")
+    count = np.floor((hi - lo) / step + 1e-9) + 1
+    if count > MAX_AXIS_VALUES:
+        raise InputError(f"{count:.3g} grid values from {lo:g} to {hi:g} in steps of "
+                         f"{step:g}: more than {MAX_AXIS_VALUES:.0e}; use a coarser step",
+                         where=f"{where} step")
     values = np.arange(lo, hi + step * 1e-9, step)
     if turn is not None and hi - lo >= turn - 1e-9:
         values = values[values < lo + turn - 1e-9]
@@ -127,23 +146,31 @@ def build_problem(o: PlaceOptions, console: Console):
     from analysis.kinetostatics.dexterity import characteristic_length
     from analysis.model.ik import IKSolver
     from analysis.placement.evaluate import Problem
+    from analysis.placement.grid import PlacementGrid
     from analysis.placement.path import read_part_path
     from campaign.options import parse_floats, robot_option, stiffness_option
 
     if o.objective not in OBJECTIVE_UNITS:
         raise InputError("expected max, rms or compliance", where="--objective")
-    if o.program not in ("auto", "krl", "urscript", "none"):
-        raise InputError("expected auto, krl, urscript or none", where="--program")
-    for value, where in ((o.max_joint_step_deg, "--max-joint-step-deg"),
-                         (o.min_inv_kappa + 1.0, "--min-inv-kappa")):
-        if not (np.isfinite(value) and value > 0):
-            raise InputError("expected a positive number", where=where)
+    if o.program not in ("auto", "krl", "urscript", "rapid", "fanuc-ls", "none"):
+        raise InputError("expected auto, krl, urscript, rapid, fanuc-ls or none",
+                         where="--program")
+    if not (np.isfinite(o.max_joint_step_deg) and o.max_joint_step_deg > 0):
+        raise InputError("expected a positive number", where="--max-joint-step-deg")
+    if not 0 <= o.min_inv_kappa < 1:  # NaN fails too
+        raise InputError(f"expected 0 <= 1/kappa_F < 1 (0: no singularity check), got "
+                         f"{o.min_inv_kappa:g}", where="--min-inv-kappa")
     if not 0 <= o.limit_margin_deg < 90:
         raise InputError("expected 0 <= margin < 90 deg", where="--limit-margin-deg")
     if o.workers is not None and o.workers < 0:
         raise InputError("expected 0 or more workers", where="--workers")
     if o.chunk is not None and o.chunk < 1:
         raise InputError("expected at least one placement per task", where="--chunk")
+    if o.max_evaluations is not None and not (o.max_evaluations >= 1
+                                              and np.isfinite(o.max_evaluations)):
+        raise InputError("expected a positive number of evaluations", where="--max-evaluations")
+    if not (o.max_memory_gib > 0 and np.isfinite(o.max_memory_gib)):
+        raise InputError("expected a positive size in GiB", where="--max-memory-gib")
     robot = robot_option(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
     if robot.n != 6:
         raise InputError(f"{robot.name} has {robot.n} joints: placement needs a 6-axis arm",
@@ -151,7 +178,7 @@ def build_problem(o: PlaceOptions, console: Console):
     k = stiffness_option(robot, o.joint_stiffness)
     part = read_part_path(o.path)
     assumptions = []
-    if o.wrench:
+    if o.wrench is not None:
         wrench = np.tile(parse_floats(o.wrench, "--wrench", 6), (part.n, 1))
         assumptions.append("process wrench: --wrench, constant, tool frame at P")
     elif part.wrench is not None:
@@ -163,6 +190,11 @@ def build_problem(o: PlaceOptions, console: Console):
         raise InputError("no process wrench: add fx_N..mz_Nm columns to the path file or give "
                          "--wrench fx,fy,fz,mx,my,mz (tool frame), or use --objective "
                          "compliance", where="--wrench")
+    if wrench is not None and not np.any(wrench) and o.objective != "compliance":
+        src = "--wrench" if o.wrench is not None else f"{part.source} (wrench columns)"
+        raise InputError("the process wrench is zero on every path point: every placement "
+                         "deflects 0 and there is nothing to minimise; give the process "
+                         "wrench, or use --objective compliance", where=src)
     cov = getattr(robot, "compliance_covariance", None)
     if o.upper_bound and cov is None:
         raise InputError(f"{robot.name} has no stiffness covariance (no [identification] "
@@ -196,8 +228,7 @@ def build_problem(o: PlaceOptions, console: Console):
         max_step=np.radians(o.max_joint_step_deg), objective=o.objective, flags=flags,
         keep_out=parse_keep_out(o.keep_out_mm), cov_x=cov if o.upper_bound else None,
     )
-    G = np.stack(np.meshgrid(1e-3 * xs, 1e-3 * ys, 1e-3 * zs, np.radians(yaws),
-                             indexing="ij"), axis=-1).reshape(-1, 4)
+    G = PlacementGrid(1e-3 * xs, 1e-3 * ys, 1e-3 * zs, np.radians(yaws))
     assumptions += [
         f"robot {robot.name}: inverse kinematics {solver.kind}; P = the robot file's tool point",
         f"joint stiffness {np.round(k, 1).tolist()} N m/rad",
@@ -220,11 +251,120 @@ def build_problem(o: PlaceOptions, console: Console):
     return robot, problem, G, grids, assumptions, part
 
 
+@dataclass(frozen=True)
+class SearchSize:
+    """The size of a search, known before any work (exact integers).
+
+    placements, points, angles, configurations; evaluations = their product;
+    result_bytes: the per-placement results kept (17 + 4 points bytes each).
+    """
+
+    placements: int
+    points: int
+    angles: int
+    configurations: int
+    result_bytes: int
+
+    @property
+    def evaluations(self) -> int:
+        return self.placements * self.points * self.angles * self.configurations
+
+    def text(self) -> str:
+        return (f"{self.placements} placements x {self.points} points x {self.angles} tool "
+                f"angles x {self.configurations} configurations = {self.evaluations} "
+                "evaluations")
+
+
+def search_size(problem, G) -> SearchSize:
+    """:class:`SearchSize` of ``problem`` over the placement grid ``G``."""
+    from analysis.placement.search import result_bytes
+
+    P, N = len(G), int(problem.points.shape[0])
+    return SearchSize(P, N, int(problem.angles.size), len(problem.flags), result_bytes(P, N))
+
+
+def check_size(size: SearchSize, o: PlaceOptions) -> None:
+    """Refuse a search above the evaluation or memory limit (before any work).
+
+    The evaluation limit is --max-evaluations when given, else
+    :data:`DEFAULT_MAX_EVALUATIONS` unless --scheduler sends the work to a cluster.
+    The memory limit (--max-memory-gib) bounds the results kept in this process.
+    """
+    where = "--x-mm/--y-mm/--z-mm/--yaw-deg/--tool-angle-deg and their steps"
+    limit = o.max_evaluations
+    if limit is None and not o.scheduler:
+        limit = DEFAULT_MAX_EVALUATIONS
+    if limit is not None and size.evaluations > limit:
+        how = ("raise --max-evaluations" if o.max_evaluations is not None else
+               "allow it with --max-evaluations N or run it on a cluster with --scheduler")
+        raise InputError(f"the search has {size.text()} ({size.evaluations:.3g}), above the "
+                         f"limit of {limit:.3g}: coarsen the steps or narrow the box, or {how}",
+                         where=where)
+    gib = size.result_bytes / 2**30
+    if gib > o.max_memory_gib:
+        raise InputError(f"the search's {size.placements} placements need {gib:.3g} GiB for "
+                         f"their results ({size.result_bytes // size.placements} bytes each), "
+                         f"above --max-memory-gib {o.max_memory_gib:g}: coarsen the steps or "
+                         "narrow the box", where=where)
+
+
+def _workers(o: PlaceOptions) -> int | None:
+    """Processes the search runs on: 1 in this process, the local cluster's workers, or
+    None for a --scheduler (its size is not known before connecting)."""
+    if o.scheduler:
+        return None
+    if o.workers == 0:
+        return 1
+    return o.workers or os.cpu_count() or 1
+
+
+def probe(problem, G, size: SearchSize, workers: int | None) -> str:
+    """Time and memory of the search, estimated from a timed probe, as one line.
+
+    The probe evaluates the first batch of placements that
+    :func:`analysis.placement.search.evaluate_chunk` takes at once (its
+    ``max_triples`` // (points x angles), at least one) in this process, timed with
+    ``time.perf_counter`` and with its peak allocation traced (``tracemalloc``; numpy
+    reports its buffers to it). Expected time = probe time per placement x
+    placements / processes; memory = the results plus one probe's peak per process.
+    """
+    import tracemalloc
+
+    from analysis.placement.search import evaluate_chunk
+
+    per = max(1, 20000 // (size.points * size.angles))
+    sample = G[0:min(len(G), per)]
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    evaluate_chunk(problem, sample)
+    seconds = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    n = sample.shape[0]
+    rate = n * size.angles * size.points * size.configurations / max(seconds, 1e-9)
+    total = seconds / n * size.placements
+    procs = workers or 1
+    memory = size.result_bytes + procs * peak
+    where = (f"on {procs} process{'es' if procs > 1 else ''}" if workers else
+             "on one core (divide by the cluster's cores)")
+    return (f"expected {_duration(total / procs)} {where} and {memory / 2**20:.3g} MiB "
+            f"(timed probe of {n} placement{'s' if n > 1 else ''}: {rate:.3g} evaluations/s, "
+            f"peak {peak / 2**20:.3g} MiB; results {size.result_bytes / 2**20:.3g} MiB)")
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.2g} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.3g} min"
+    return f"{seconds / 3600:.3g} h"
+
+
 def _run(problem, G, o: PlaceOptions, console: Console):
     """Search every placement; returns (ChunkResult, how it ran)."""
     from analysis.placement.search import run_dask, run_local
 
-    per_task = o.chunk or max(1, min(64, -(-G.shape[0] // (4 * (os.cpu_count() or 1)))))
+    per_task = o.chunk or max(1, min(64, -(-len(G) // (4 * (os.cpu_count() or 1)))))
     if o.workers == 0 and not o.scheduler:
         with console.status("searching in this process"):
             return run_local(problem, G, per_task), "in this process (no Dask)"
@@ -245,7 +385,7 @@ def _run(problem, G, o: PlaceOptions, console: Console):
         client = Client(cluster)
         how = f"local Dask cluster, {n} worker processes"
     try:
-        console.print(f"searching on the {how}; {G.shape[0]} placements in tasks of "
+        console.print(f"searching on the {how}; {len(G)} placements in tasks of "
                       f"{per_task}")
         return run_dask(problem, G, per_task, client, show_progress=True), how
     finally:
@@ -266,10 +406,11 @@ def run_place(o: PlaceOptions) -> None:
 
     console = Console()
     robot, problem, G, grids, assumptions, part = build_problem(o, console)
-    N, A = problem.points.shape[0], problem.angles.size
-    evaluations = G.shape[0] * N * A * len(problem.flags)
-    console.print(f"{G.shape[0]} placements x {N} points x {A} tool angles x "
-                  f"{len(problem.flags)} configurations = {evaluations:.3g} evaluations")
+    size = search_size(problem, G)
+    check_size(size, o)
+    N, evaluations = size.points, size.evaluations
+    console.print(f"search: {size.text()}")
+    console.print(probe(problem, G, size, _workers(o)))
     t0 = time.perf_counter()
     res, how = _run(problem, G, o, console)
     elapsed = time.perf_counter() - t0
@@ -283,7 +424,7 @@ def run_place(o: PlaceOptions) -> None:
     by_reason = {REASON_NAMES[c]: int(np.sum(res.reason[infeasible] == c))
                  for c in sorted(REASON_NAMES) if np.any(res.reason[infeasible] == c)}
     if feasible.size == 0:
-        raise InputError(f"no feasible placement among {G.shape[0]}: "
+        raise InputError(f"no feasible placement among {len(G)}: "
                          + "; ".join(f"{v} {k}" for k, v in by_reason.items())
                          + " (widen the box, relax --min-inv-kappa, --max-joint-step-deg or "
                          "--limit-margin-deg)", where="--x-mm/--y-mm/--z-mm")
@@ -299,7 +440,7 @@ def run_place(o: PlaceOptions) -> None:
     if np.isfinite(cres.value[0]):
         center_details = path_details(problem, center, problem.flags[cres.config[0]],
                                       cres.angle[0])
-    o.out.mkdir(parents=True, exist_ok=True)
+    make_dir(o.out)
     _write_path_csv(o.out / "path_joints.csv", robot, details, part, problem)
     summary = {
         "robot": robot.name,
@@ -316,7 +457,8 @@ def run_place(o: PlaceOptions) -> None:
         "center_infeasible_reason": (None if np.isfinite(cres.value[0])
                                      else REASON_NAMES[int(cres.reason[0])]),
         "improvement_over_center": (float(cres.value[0] / res.value[best])
-                                    if np.isfinite(cres.value[0]) else None),
+                                    if np.isfinite(cres.value[0]) and res.value[best] > 0
+                                    else None),
         "runner_ups": [{"placement": _placement_dict(G[i]),
                         "objective": float(scale * res.value[i])}
                        for i in order[1:1 + max(0, o.runner_ups)]],
@@ -324,7 +466,7 @@ def run_place(o: PlaceOptions) -> None:
             "method": "exhaustive grid (see docs/place.md for why not an optimizer)",
             **{k: v.tolist() for k, v in grids.items()},
             "configurations": [list(f) for f in problem.flags],
-            "placements": int(G.shape[0]), "points": int(N),
+            "placements": len(G), "points": int(N),
             "evaluations": int(evaluations),
         },
         "infeasible": {
@@ -338,7 +480,8 @@ def run_place(o: PlaceOptions) -> None:
                 "evaluations_per_second": round(evaluations / max(elapsed, 1e-9))},
         "assumptions": assumptions,
     }
-    (o.out / "placement.json").write_text(json.dumps(summary, indent=2) + "\n")
+    # allow_nan=False: NaN or inf are not JSON; a non-finite number is a bug, not output
+    write_text(o.out / "placement.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
     _plots(o, problem, G, res, grids, best, details, center_details, unit, scale, robot)
     programs = _programs(o, robot, details)
     for line in assumptions:
@@ -348,12 +491,14 @@ def run_place(o: PlaceOptions) -> None:
                   f"{p['z_mm']:g} mm, yaw = {p['yaw_deg']:g} deg; {o.objective} = "
                   f"{summary['objective']:.4g} {unit} (nonlinear check: "
                   f"{summary['objective_nonlinear']})")
-    if summary["center_objective"] is not None:
+    if summary["improvement_over_center"] is not None:
         console.print(f"centre of the box: {summary['center_objective']:.4g} {unit} "
                       f"(x {summary['improvement_over_center']:.3g} better at the best)")
+    elif summary["center_objective"] is not None:
+        console.print(f"centre of the box: {summary['center_objective']:.4g} {unit}")
     else:
         console.print(f"centre of the box infeasible: {summary['center_infeasible_reason']}")
-    console.print(f"{infeasible.size} of {G.shape[0]} placements infeasible"
+    console.print(f"{infeasible.size} of {len(G)} placements infeasible"
                   + (": " + "; ".join(f"{v} {k}" for k, v in by_reason.items())
                      if by_reason else ""))
     console.print(f"wrote placement.json, path_joints.csv, plots{programs} to {o.out}/ "
@@ -363,7 +508,7 @@ def run_place(o: PlaceOptions) -> None:
 def _write_path_csv(path: Path, robot, d, part, problem) -> None:
     import csv
 
-    with path.open("w", newline="") as fh:
+    with replacing(path) as tmp, tmp.open("w", newline="") as fh:
         wr = csv.writer(fh)
         head = ["point", "line", *(f"q{j + 1}_deg" for j in range(robot.n)), "tool_angle_deg",
                 "x_mm", "y_mm", "z_mm", "dx_mm", "dy_mm", "dz_mm", "d_mm"]
@@ -390,33 +535,39 @@ def _plots(o, problem, G, res, grids, best, details, center_details, unit, scale
     values = (scale * res.value).reshape(shape)
     ib = np.unravel_index(best, shape)
     sl = np.where(np.isfinite(values[:, :, ib[2], ib[3]]), values[:, :, ib[2], ib[3]], np.nan)
+    what = OBJECTIVE_TEXT.get(o.objective, o.objective)
+    if problem.cov_x is not None and o.objective != "compliance":
+        what = f"95 % upper bound of the {what}"
     plot_objective_map(grids["x_mm"], grids["y_mm"], sl,
                        (grids["x_mm"][ib[0]], grids["y_mm"][ib[1]]),
                        f"{robot.name}: {o.objective} at z = {grids['z_mm'][ib[2]]:g} mm, "
-                       f"yaw = {grids['yaw_deg'][ib[3]]:g} deg", unit, o.out / "objective_xy.png")
+                       f"yaw = {grids['yaw_deg'][ib[3]]:g} deg", f"{what} ({unit})",
+                       o.out / "objective_xy.png")
     if problem.wrench is not None:
         center = (None if center_details is None
                   else 1e3 * np.linalg.norm(center_details.dp, axis=1))
+        # with the stiffness covariance the per-point cost is the 95 % upper bound of |dp|
+        upper = (1e3 * details.cost if problem.cov_x is not None
+                 and o.objective != "compliance" else None)
         plot_path_deflection(1e3 * np.linalg.norm(details.dp, axis=1), center,
                              f"{robot.name}: deflection of P along the path (search model)",
-                             o.out / "path_deflection.png")
+                             o.out / "path_deflection.png", upper)
 
 
 def _programs(o, robot, details) -> str:
     """Write the path as a robot program; returns a note for the summary line."""
-    from analysis.export.robot_programs import write_krl, write_urscript
+    from analysis.export.robot_programs import default_format, write_program
 
     kind = o.program
     if kind == "auto":
-        name = robot.name.lower()
-        kind = "krl" if "kuka" in name else "urscript" if "universal" in name else "none"
+        kind = default_format(robot.name, robot.key) or "none"
     if kind == "none":
         return ""
-    q_ctrl = robot.to_controller(details.q)
+    wrench = (f"--wrench {o.wrench} (N, N m, tool frame)" if o.wrench is not None
+              else "the path file's wrench columns, if any (tool frame)")
     note = [f"campaign place: {robot.name}, path {o.path}, best placement",
+            f"process wrench: {wrench}",
             "joint targets in the controller convention; the path is not compensated"]
-    if kind == "krl":
-        write_krl(o.out, "place_path", np.degrees(q_ctrl), note)
-        return ", place_path.src/.dat (KRL)"
-    write_urscript(o.out / "place_path.script", "place_path", q_ctrl, note)
-    return ", place_path.script (URScript)"
+    files = write_program(kind, o.out, "place_path", robot.to_controller(details.q), note)
+    label = {"krl": "KRL", "urscript": "URScript", "rapid": "RAPID", "fanuc-ls": "FANUC TP"}
+    return f", {'/'.join(f.name for f in files)} ({label[kind]})"

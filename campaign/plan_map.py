@@ -69,11 +69,6 @@ def draw_plan_map(plan, path: Path) -> None:
             ms=8, label="random zone design")
     ax.plot(cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG, "o", color="tab:red", mec="black",
             ms=7, clip_on=False, zorder=5, label=f"{plan.strategy} design")
-    for i, p in enumerate(chosen):
-        ax.annotate(str(i + 1), (cand.q[p, 1] / DEG, cand.q[p, 2] / DEG), color="black",
-                    xytext=(5, 5), textcoords="offset points", fontsize=8, fontweight="bold",
-                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none",
-                          "alpha": 0.85}, zorder=6, annotation_clip=False)
     ax.set_title(f"{robot.name}: $1/\\kappa_F$ over ($\\theta_2$, $\\theta_3$) at "
                  f"{fixed.values_text()}\n({fixed.rule_text()})", fontsize=9)
     ax.set_xlabel(r"$\theta_2$ (deg, model convention)")
@@ -85,5 +80,12 @@ def draw_plan_map(plan, path: Path) -> None:
         if handle.get_label().startswith("candidates"):
             handle.set_markersize(6)
     fig.tight_layout()
-    fig.savefig(path, metadata={"Software": None})
+    # numbered once the layout is final: each label where it hides no other and no pose
+    # (a leader line when moved away), inside the axes (never on the title)
+    from analysis.output_files import save_figure
+    from analysis.report.figures import place_labels
+
+    place_labels(ax, cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG,
+                 [str(i + 1) for i in range(len(chosen))], 7 / 2 + 1)
+    save_figure(fig, path, metadata={"Software": None})
     plt.close(fig)

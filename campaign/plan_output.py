@@ -181,22 +181,19 @@ def _criterion_lines(s: dict) -> list[str]:
 
 def write_plan(plan: Plan, out: str | Path, figure: bool = True) -> Path:
     """Write the plan directory ``out`` (created if needed); returns the plan.csv path."""
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError(f"cannot create the output directory: {err.strerror}",
-                         where=str(out)) from err
+    from analysis.output_files import make_dir, write_text
+
+    out = make_dir(out)
     suffix = Path(plan.protocol.path).suffix.lower() or ".toml"
     for old in out.glob("protocol.*"):
         if old.suffix in (".toml", ".yaml", ".yml") and old.suffix != suffix:
             old.unlink()
-    (out / f"protocol{suffix}").write_text(plan.protocol.text, encoding="utf-8")
+    write_text(out / f"protocol{suffix}", plan.protocol.text)
     csv_path = out / PLAN_FILE
-    csv_path.write_text(format_frame(plan.to_frame()), encoding="utf-8")
-    (out / "summary.txt").write_text(summary_text(plan), encoding="utf-8")
-    (out / "summary.json").write_text(
-        json.dumps(summary_dict(plan), indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    write_text(csv_path, format_frame(plan.to_frame()))
+    write_text(out / "summary.txt", summary_text(plan))
+    write_text(out / "summary.json",
+               json.dumps(summary_dict(plan), indent=2, sort_keys=True) + "\n")
     if figure:
         from campaign.plan_map import draw_plan_map
 
@@ -234,6 +231,11 @@ def load_plan(directory: str | Path) -> tuple[Protocol, pd.DataFrame, str]:
     from analysis.file_errors import read_utf8
 
     directory = Path(directory)
+    if not directory.is_dir():
+        raise InputError("the plan directory does not exist (write one with campaign plan)"
+                         if not directory.exists() else
+                         "not a directory: --plan takes the directory campaign plan wrote",
+                         where=str(directory))
     copies = sorted(p for p in directory.glob("protocol.*")
                     if p.suffix in (".toml", ".yaml", ".yml"))
     if not copies:

@@ -14,11 +14,13 @@ rad, N, N m). Every problem found in a file is reported as
 from __future__ import annotations
 
 import math
+from datetime import date
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
@@ -38,7 +40,35 @@ from analysis.file_errors import (
 from campaign.separation import DEFAULT_MIN_SEPARATION_DEG
 
 DEG = math.pi / 180.0
-Vec3 = tuple[float, float, float]
+
+
+def _within(limit: float, unit: str, why: str):
+    """A float type refusing ``|value| > limit`` (a plausible range, not a safety limit):
+    a value beyond it is a unit slip or a typo (``-1e300``), and would overflow the
+    sums and norms made of it."""
+
+    def check(value: float) -> float:
+        if abs(value) > limit:
+            raise ValueError(f"{value:g} {unit} is implausible: expected |value| <= "
+                             f"{limit:g} {unit} ({why}); check the value and its unit")
+        return value
+
+    return Annotated[float, AfterValidator(check)]
+
+
+#: Plausible ranges of the protocol's numbers (protocols/README.md lists them).
+ForceN = _within(1e5, "N", "100 kN: far above any test load of an industrial arm")
+MomentNm = _within(1e5, "N m", "100 kN m")
+LengthMm = _within(1e5, "mm", "100 m")
+AngleDeg = _within(3600.0, "deg", "ten turns")
+Stiffness = _within(1e10, "N m/rad", "far above any industrial joint")
+Ratio = _within(1e6, "", "a direction's components are scaled to a unit vector")
+Force3 = tuple[ForceN, ForceN, ForceN]
+Moment3 = tuple[MomentNm, MomentNm, MomentNm]
+Length3 = tuple[LengthMm, LengthMm, LengthMm]
+Angle3 = tuple[AngleDeg, AngleDeg, AngleDeg]
+Angle6 = tuple[AngleDeg, AngleDeg, AngleDeg, AngleDeg, AngleDeg, AngleDeg]
+Stiffness6 = tuple[Stiffness, Stiffness, Stiffness, Stiffness, Stiffness, Stiffness]
 LoadMethod = Literal["hanging-mass", "cable-pulley", "push"]
 
 
@@ -67,8 +97,8 @@ class CampaignSpec(_Strict):
     robot: str
     tests: int = Field(ge=1, le=200)
     repeats: int = Field(default=1, ge=1, le=100)
-    prior_stiffness: tuple[float, float, float, float, float, float] | None = None
-    characteristic_length_mm: float | None = Field(default=None, gt=0)
+    prior_stiffness: Stiffness6 | None = None
+    characteristic_length_mm: LengthMm | None = Field(default=None, gt=0)
 
     @field_validator("prior_stiffness")
     @classmethod
@@ -81,33 +111,44 @@ class CampaignSpec(_Strict):
 class ToolSpec(_Strict):
     """``[tool]``: the tool point P in the flange frame, and the tool mass."""
 
-    xyz_mm: Vec3 = (0.0, 0.0, 0.0)
-    rpy_deg: Vec3 = (0.0, 0.0, 0.0)
-    mass_kg: float = Field(default=0.0, ge=0)
+    xyz_mm: Length3 = (0.0, 0.0, 0.0)
+    rpy_deg: Angle3 = (0.0, 0.0, 0.0)
+    mass_kg: float = Field(default=0.0, ge=0, le=1e4)
 
 
 class NoiseSpec(_Strict):
     """Standard deviations of an instrument's readings (one sigma, per component)."""
 
-    translation_um: float | None = Field(default=None, ge=0)
-    rotation_urad: float | None = Field(default=None, ge=0)
-    force_N: float | None = Field(default=None, ge=0)
-    torque_N_m: float | None = Field(default=None, ge=0)
-    joint_urad: float | None = Field(default=None, ge=0)
+    # upper bounds: plausible ranges (0.1 m, 0.1 rad, 10 kN, 10 kN m, 100 %)
+    translation_um: float | None = Field(default=None, ge=0, le=1e5)
+    rotation_urad: float | None = Field(default=None, ge=0, le=1e5)
+    force_N: float | None = Field(default=None, ge=0, le=1e4)
+    torque_N_m: float | None = Field(default=None, ge=0, le=1e4)
+    joint_urad: float | None = Field(default=None, ge=0, le=1e5)
     # F/T noise proportional to the reading: % of |f| (of |m|), in quadrature with force_N
-    force_pct: float | None = Field(default=None, ge=0)
-    torque_pct: float | None = Field(default=None, ge=0)
+    force_pct: float | None = Field(default=None, ge=0, le=100)
+    torque_pct: float | None = Field(default=None, ge=0, le=100)
 
 
 class InstrumentSpec(_Strict):
-    """``[instruments.<role>]``: a driver name and its address string."""
+    """``[instruments.<role>]``: a driver name and its address string.
+
+    ``model``, ``serial``, ``calibration_date``, ``calibration_due`` (dates,
+    TOML ``2026-03-14`` or a ``"2026-03-14"`` string) and ``certificate`` (its
+    number) are optional and only reported (docs/report.md).
+    """
 
     driver: str = Field(min_length=1)
     address: str = Field(min_length=1)
+    model: str | None = Field(default=None, min_length=1)
+    serial: str | None = Field(default=None, min_length=1)
+    calibration_date: date | None = None
+    calibration_due: date | None = None
+    certificate: str | None = Field(default=None, min_length=1)
     # driver options; nested tables (e.g. reflectors_mm) are checked by their consumer
     options: dict[str, str | int | float | bool | dict[str, list[float]]] = {}
-    mount_xyz_mm: Vec3 | None = None
-    mount_rpy_deg: Vec3 | None = None
+    mount_xyz_mm: Length3 | None = None
+    mount_rpy_deg: Angle3 | None = None
     noise: NoiseSpec = NoiseSpec()
 
 
@@ -116,10 +157,10 @@ class LoadCaseSpec(_Strict):
 
     name: str = Field(min_length=1)
     method: LoadMethod
-    force_N: Vec3 | None = None
-    moment_N_m: Vec3 | None = None
-    direction: Vec3 | None = None
-    magnitude_N: float | None = Field(default=None, gt=0)
+    force_N: Force3 | None = None
+    moment_N_m: Moment3 | None = None
+    direction: tuple[Ratio, Ratio, Ratio] | None = None
+    magnitude_N: ForceN | None = Field(default=None, gt=0)
 
     @model_validator(mode="after")
     def _one_form(self) -> LoadCaseSpec:
@@ -162,7 +203,7 @@ class ZoneSpec(_Strict):
     """``[[zones]]``: a box in joint space, model convention, degrees."""
 
     name: str = Field(min_length=1)
-    ranges_deg: dict[str, tuple[float, float]]
+    ranges_deg: dict[str, tuple[AngleDeg, AngleDeg]]
 
     @field_validator("ranges_deg")
     @classmethod
@@ -174,8 +215,8 @@ class SamplingSpec(_Strict):
     """``[sampling]``: values of the joints that zones leave free (model convention, deg)."""
 
     use_robot_zones: bool = True
-    fixed_deg: dict[str, float] = {}
-    ranges_deg: dict[str, tuple[float, float]] = {}
+    fixed_deg: dict[str, AngleDeg] = {}
+    ranges_deg: dict[str, tuple[AngleDeg, AngleDeg]] = {}
 
     @field_validator("fixed_deg")
     @classmethod
@@ -201,12 +242,12 @@ class ThresholdSpec(_Strict):
 class SafetySpec(_Strict):
     """``[safety]``: limits the planner and the runner respect."""
 
-    joint_margin_deg: float = Field(default=2.0, ge=0)
-    max_joint_speed_deg_s: float = Field(default=10.0, gt=0)
-    max_joint_acceleration_deg_s2: float = Field(default=20.0, gt=0)
-    approach_offset_mm: float = Field(default=50.0, ge=0)
-    max_force_N: float = Field(default=1000.0, gt=0)
-    max_moment_N_m: float = Field(default=200.0, gt=0)
+    joint_margin_deg: float = Field(default=2.0, ge=0, le=90)
+    max_joint_speed_deg_s: float = Field(default=10.0, gt=0, le=1e3)
+    max_joint_acceleration_deg_s2: float = Field(default=20.0, gt=0, le=1e5)
+    approach_offset_mm: float = Field(default=50.0, ge=0, le=1e4)
+    max_force_N: ForceN = Field(default=1000.0, gt=0)
+    max_moment_N_m: MomentNm = Field(default=200.0, gt=0)
 
 
 class ReportSpec(_Strict):
@@ -217,17 +258,17 @@ class ReportSpec(_Strict):
     frame, for the predicted deflection (default: the first load case).
     """
 
-    poses_deg: dict[str, tuple[float, float, float, float, float, float]] = {}
-    wrench: tuple[float, float, float, float, float, float] | None = None
+    poses_deg: dict[str, Angle6] = {}
+    wrench: tuple[ForceN, ForceN, ForceN, MomentNm, MomentNm, MomentNm] | None = None
 
 
 class FakeLabSpec(_Strict):
     """``[fake_lab]``: the simulated lab (truth and noise it simulates)."""
 
-    true_joint_stiffness: tuple[float, float, float, float, float, float]
+    true_joint_stiffness: Stiffness6
     noise: NoiseSpec = NoiseSpec()
     seed: int = Field(default=0, ge=0)
-    time_scale: float = Field(default=1.0, gt=0)
+    time_scale: float = Field(default=1.0, gt=0, le=1e4)
 
     @field_validator("true_joint_stiffness")
     @classmethod

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -255,16 +256,79 @@ def _to_si(frame: pd.DataFrame, where: str) -> pd.DataFrame:
     return table
 
 
-def _export_parquet(run: Path, tests: pd.DataFrame, notes: list[str]) -> None:
-    """Write ``tests.parquet`` and ``samples.parquet`` when missing (docs/run_format.md)."""
+#: line numbers of damaged lines listed in a message, at most
+LINES_LISTED = 5
+
+
+def _damaged_samples(path: Path) -> tuple[list[int], bool]:
+    """(line numbers (1-based) of ``samples.jsonl`` that are not a JSON object (a line cut
+    short by a crash, a disk error, an edit; blank lines are not counted), True when the
+    last of them is the file's unfinished last line (no end of line))."""
+    bad, line = [], b"\n"
+    with open(path, "rb") as fh:
+        for i, line in enumerate(fh, start=1):
+            if not line.strip():
+                continue
+            try:
+                record = json.loads(line)
+            except ValueError:  # not JSON, or not UTF-8
+                record = None
+            if not isinstance(record, dict):
+                bad.append(i)
+    return bad, bool(bad) and bad[-1] == i and not line.endswith(b"\n")
+
+
+def _check_samples(run: Path, partial: bool, notes: list[str]) -> list[int]:
+    """Damaged lines of the run's ``samples.jsonl``: a WARNING note when any, but a plain
+    note for the unfinished last line of a run that stopped (as for tests.csv)."""
+    path = run / "samples.jsonl"
+    if not path.is_file():
+        return []
     try:
-        if not (run / "tests.parquet").exists():
-            tests.drop(columns=["flag_list"]).to_parquet(run / "tests.parquet", index=False)
+        bad, cut_last = _damaged_samples(path)
+    except OSError as err:
+        notes.append(f"WARNING: {path.name}: cannot read ({err.strerror or err}): the raw "
+                     "readings were not checked")
+        return []
+    loud = bad
+    if partial and cut_last:
+        notes.append(f"{path.name} line {bad[-1]} was being written when the run stopped: "
+                     "dropped")
+        loud = bad[:-1]
+    if loud:
+        listed = ", ".join(str(i) for i in loud[:LINES_LISTED]) + (
+            f" and {len(loud) - LINES_LISTED} more" if len(loud) > LINES_LISTED else "")
+        notes.append(f"WARNING: {path.name}: {len(loud)} damaged line(s) (not a JSON object: "
+                     f"line {listed}), skipped; the raw readings on them are lost (the "
+                     "analysis uses tests.csv, which is not affected)")
+    return bad
+
+
+def _export_parquet(run: Path, tests: pd.DataFrame, notes: list[str],
+                    damaged: list[int] = ()) -> None:
+    """Write ``tests.parquet`` and ``samples.parquet`` when missing (docs/run_format.md);
+    the ``damaged`` lines of samples.jsonl are left out."""
+    from analysis.output_files import replacing
+
+    try:
+        if not os.path.lexists(run / "tests.parquet"):
+            with replacing(run / "tests.parquet") as tmp:
+                tests.drop(columns=["flag_list"]).to_parquet(tmp, index=False)
         samples = run / "samples.jsonl"
-        if samples.is_file() and not (run / "samples.parquet").exists():
-            table = pd.read_json(samples, lines=True)
+        if samples.is_file() and not os.path.lexists(run / "samples.parquet"):
+            source = samples
+            if damaged:
+                import io
+
+                skip = set(damaged)
+                with open(samples, "rb") as fh:
+                    good = b"".join(line for i, line in enumerate(fh, start=1)
+                                    if i not in skip and line.strip())
+                source = io.StringIO(good.decode("utf-8"))
+            table = pd.read_json(source, lines=True)
             if len(table):
-                table.to_parquet(run / "samples.parquet", index=False)
+                with replacing(run / "samples.parquet") as tmp:
+                    table.to_parquet(tmp, index=False)
     except (OSError, ValueError, ImportError) as err:
         notes.append(f"could not write the Parquet exports into the run: {err}")
 
@@ -317,8 +381,9 @@ def read_run(path: str | Path, export: bool = True) -> Run:
             # the robot, tool and noise come from this copy: a changed one changes k
             raise InputError(f"{proto.name} does not match protocol_sha256 of metadata.json "
                              "(the copy was changed after the run started): restore the "
-                             "original; to analyse with other figures use the --sigma-* "
-                             "options, or import tests.csv with --measurements",
+                             "original; to analyse with other figures use the options "
+                             "--translation-sigma-um, --rotation-sigma-urad, --force-sigma-N "
+                             "and --moment-sigma-Nm, or import tests.csv with --measurements",
                              where=str(run))
     plan_sha = meta.get("plan_sha256")
     if isinstance(plan_sha, str) and (run / "plan.csv").is_file():
@@ -326,8 +391,9 @@ def read_run(path: str | Path, export: bool = True) -> Run:
         if hashlib.sha256((run / "plan.csv").read_bytes()).hexdigest() != plan_sha:
             notes.append("WARNING: plan.csv does not match plan_sha256 of metadata.json: the "
                          "copy was changed after the run started (not used by the analysis)")
+    damaged = _check_samples(run, status != "complete", notes)
     if export:
-        _export_parquet(run, frame, notes)
+        _export_parquet(run, frame, notes, damaged)
     events = _read_events(run / "events.jsonl", notes)
     notes.extend(_load_notes(events))
     return Run(path=run, metadata=meta, status=status, reason=str(meta.get("reason") or ""),

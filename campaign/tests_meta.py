@@ -93,10 +93,10 @@ def sidecar_record(*, robot_key: str | None, robot_name: str | None, tool_xyz_mm
 
 def write_sidecar(csv_path: str | Path, record: dict) -> Path:
     """Write ``record`` next to ``csv_path`` (atomically: temporary file, then rename)."""
+    from analysis.output_files import write_text
+
     path = sidecar_path(csv_path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    tmp.replace(path)
+    write_text(path, json.dumps(record, indent=2) + "\n")
     return path
 
 

@@ -4,7 +4,8 @@ Public API for a campaign runner:
 
 - :func:`drivers.registry.open_driver` ``(name, address, **options)`` builds a
   driver from its registry name (``ati-netft``, ``robotiq-ft300``, ``ati-netcan``,
-  ``emscon``, ``geocom``, ``ur``, ``kuka-kvp``, ``manual``, ``manual-load``,
+  ``emscon``, ``geocom``, ``ur``, ``kuka-kvp``, ``fanuc-rmi``, ``abb-rws``, ``abb-rws2``,
+  ``manual``, ``manual-load``,
   ``lab-load``, or any name added through the ``stiffness_campaign.drivers``
   entry-point group) and an address string (:func:`drivers.address.parse_address`).
 - Roles in :mod:`drivers.roles`: ``RobotController``, ``ForceTorqueSensor``,

@@ -12,6 +12,9 @@ Accepted forms (examples)::
     ur://192.168.1.20                Universal Robots controller (RTDE)
     lab://127.0.0.1:40000            control channel of the simulated lab
     manual://                        operator at the teach pendant
+    rmi://192.168.1.30               FANUC RMI (handshake port 16001)
+    rws://Default%20User:robotics@192.168.125.1       ABB RWS 1.0 (RobotWare 6, HTTP)
+    rws2://Admin:robotics@192.168.125.1?insecure=1    ABB RWS 2.0 (RobotWare 7, HTTPS)
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from urllib.parse import parse_qsl, urlsplit
 
 from drivers.errors import AddressError
 
-_NETWORK = {"udp", "tcp", "socket", "http", "ur", "lab", "kvp"}
+_NETWORK = {"udp", "tcp", "socket", "http", "ur", "lab", "kvp", "rmi", "rws", "rws2"}
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,8 @@ class Address:
     path: str = ""
     options: dict[str, str] = field(default_factory=dict)
     text: str = ""
+    user: str = ""
+    password: str = ""
 
     def option(self, name: str, default: str | None = None) -> str | None:
         """Return the query option ``name``, or ``default``."""
@@ -78,7 +83,8 @@ class Address:
         """Return a copy whose port is ``port`` when none was given."""
         if self.port is not None:
             return self
-        return Address(self.scheme, self.host, port, self.path, dict(self.options), self.text)
+        return Address(self.scheme, self.host, port, self.path, dict(self.options), self.text,
+                       self.user, self.password)
 
 
 def parse_address(text: str) -> Address:
@@ -140,4 +146,7 @@ def parse_address(text: str) -> Address:
     host = parts.hostname or ""
     if not host:
         raise AddressError(f"{text!r}: missing host")
-    return Address(scheme, host=host, port=port, path=parts.path, options=options, text=text)
+    from urllib.parse import unquote
+
+    return Address(scheme, host=host, port=port, path=parts.path, options=options, text=text,
+                   user=unquote(parts.username or ""), password=unquote(parts.password or ""))

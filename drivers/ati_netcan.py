@@ -76,7 +76,12 @@ class NetCANSensor(ForceTorqueSensor):
     ----------
     address : str
         ``can://CHANNEL?interface=socketcan&base_id=0x7f`` (any python-can
-        interface; ``bitrate`` passed on when given).
+        interface; ``bitrate`` passed on when given), or through a socketcand
+        server ``can://can0?interface=socketcand&host=HOST&port=PORT&base_id=0x7f``.
+
+    Every answer frame carries data, so a frame without data on an answer
+    identifier (a request: another node's, or ours echoed by a bus that loops
+    frames back) is not taken for an answer.
     """
 
     rate_hz = 200.0
@@ -91,6 +96,8 @@ class NetCANSensor(ForceTorqueSensor):
         self.interface = addr.option("interface", "socketcan")
         self.base_id = addr.int_option("base_id", 0x7F)
         self.bitrate = addr.options.get("bitrate")
+        self.host = addr.options.get("host")
+        self.port = addr.int_option("port", 29536) if self.host else None
         self._bus = None
         self.matrix = np.eye(6)
         self.scale = np.ones(6)
@@ -101,6 +108,10 @@ class NetCANSensor(ForceTorqueSensor):
         kwargs: dict[str, Any] = {"channel": self.channel, "interface": self.interface}
         if self.bitrate:
             kwargs["bitrate"] = int(self.bitrate)
+        if self.host:
+            kwargs.update(host=self.host, port=self.port)
+        elif self.interface == "socketcand":
+            raise ConnectionFailed(f"{self.address}: socketcand needs host= and port= options")
         try:
             self._bus = can.Bus(**kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as err:
@@ -154,11 +165,14 @@ class NetCANSensor(ForceTorqueSensor):
                 left = deadline - time.monotonic()
                 if left <= 0:
                     break
-                msg = self._bus.recv(left)
+                try:
+                    msg = self._bus.recv(left)
+                except can.CanError as err:
+                    raise ConnectionFailed(f"{self.address}: {err}".splitlines()[0]) from err
                 if msg is None:
                     break
                 op = wanted.get(msg.arbitration_id)
-                if op is not None and not msg.is_remote_frame:
+                if op is not None and not msg.is_remote_frame and msg.data:
                     got[op] = bytes(msg.data)
             if len(got) == len(answers):
                 return got

@@ -27,6 +27,9 @@ BUILTIN: dict[str, str] = {
     # robots
     "ur": "drivers.ur:URRobot",
     "kuka-kvp": "drivers.kuka_kvp:KukaVarProxyRobot",
+    "fanuc-rmi": "drivers.fanuc_rmi:FanucRMIRobot",
+    "abb-rws": "drivers.abb_rws:ABBRWSRobot",
+    "abb-rws2": "drivers.abb_rws:ABBRWSRobot",  # the same; names the RobotWare 7 fake
     "manual": "drivers.manual:ManualRobot",
     # loads
     "manual-load": "drivers.manual:ManualLoad",

@@ -1,4 +1,6 @@
-"""Robot programs that replay a list of joint targets: KUKA KRL and Universal Robots URScript.
+"""Robot programs that replay a list of joint targets: KUKA KRL and Universal Robots URScript
+(ABB RAPID in :mod:`analysis.export.rapid_program`, FANUC ``.LS`` in
+:mod:`analysis.export.fanuc_tp`; :func:`write_program` picks one).
 
 Joint targets are given in the controller's (teach pendant) convention, as the
 controller takes them: degrees for KRL (``E6AXIS`` A1..A6), radians for
@@ -16,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
+from analysis.output_files import make_dir, write_text
 
 _KRL_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,23}$")
 
@@ -47,8 +50,7 @@ def write_krl(directory: str | Path, name: str, q_pendant_deg: np.ndarray,
     if not 0 < velocity_percent <= 100:
         raise InputError("expected 0 < velocity <= 100 %", where="velocity_percent")
     q = _targets(q_pendant_deg, "KRL targets")
-    out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_dir(directory)
     n = len(q)
     upper = name.upper()
     src = [
@@ -69,8 +71,8 @@ def write_krl(directory: str | Path, name: str, q_pendant_deg: np.ndarray,
         dat.append(f"XPATH[{i}]={{{axes},E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}}")
     dat += ["ENDDAT", ""]
     src_path, dat_path = out / f"{name}.src", out / f"{name}.dat"
-    src_path.write_text("\n".join(src).replace("\n", "\r\n"))
-    dat_path.write_text("\n".join(dat).replace("\n", "\r\n"))
+    write_text(src_path, "\n".join(src).replace("\n", "\r\n"))
+    write_text(dat_path, "\n".join(dat).replace("\n", "\r\n"))
     return src_path, dat_path
 
 
@@ -95,6 +97,45 @@ def write_urscript(path: str | Path, name: str, q_rad: np.ndarray,
                      f"r={blend_m:g})")
     lines += ["end", f"{name}()", ""]
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines))
+    make_dir(path.parent)
+    write_text(path, "\n".join(lines))
     return path
+
+
+#: program formats and the brand they are written for by default
+FORMATS = ("krl", "urscript", "rapid", "fanuc-ls")
+
+
+def default_format(robot_name: str, key: str = "") -> str | None:
+    """The program format of a robot by its model name or key, or None."""
+    name, key = robot_name.lower(), key.lower()
+    if "kuka" in name or key.startswith("kr"):
+        return "krl"
+    if "universal robots" in name or key.startswith("ur"):
+        return "urscript"
+    if name.startswith("abb") or "irb" in name:
+        return "rapid"
+    if "fanuc" in name:
+        return "fanuc-ls"
+    return None
+
+
+def write_program(kind: str, directory: str | Path, name: str, q_ctrl: np.ndarray,
+                  comments: list[str] | tuple[str, ...] = ()) -> list[Path]:
+    """Write joint targets ``q_ctrl`` (rad, controller convention) as a ``kind`` program."""
+    directory = Path(directory)
+    if kind == "krl":
+        return list(write_krl(directory, name, np.degrees(q_ctrl), comments))
+    if kind == "urscript":
+        return [write_urscript(directory / f"{name}.script", name, q_ctrl, comments)]
+    if kind == "rapid":
+        from analysis.export.rapid_program import write_rapid
+
+        return [write_rapid(directory / f"{name}.mod", name, np.degrees(q_ctrl), comments)]
+    if kind == "fanuc-ls":
+        from analysis.export.fanuc_tp import write_fanuc_ls
+
+        return [write_fanuc_ls(directory / f"{name.upper()}.LS", name, np.degrees(q_ctrl),
+                               comments)]
+    raise InputError(f"unknown program format {kind!r}; known: {', '.join(FORMATS)}",
+                     where="--program")

@@ -138,7 +138,9 @@ def write_model_file(data: dict, path: Path) -> Path:
               "(analysis/model/robot_files.py)\n# whose joint stiffness is the identified "
               "one; [identification] holds the covariance of the\n# identified compliances "
               "x = 1/k. Use it with any --robot option.\n")
-    path.write_text(header + tomli_w.dumps(data))
+    from analysis.output_files import write_text
+
+    write_text(path, header + tomli_w.dumps(data))
     return path
 
 
@@ -244,5 +246,7 @@ def export_model(result: IdentificationResult, robot: RobotModel, out_dir: str |
     except InputError as err:
         doc["model_file"] = None
         doc["model_file_note"] = f"no model.toml: {err}"
-    results_path.write_text(json.dumps(doc, indent=2) + "\n")
+    from analysis.output_files import write_text
+
+    write_text(results_path, json.dumps(doc, indent=2) + "\n")
     return paths

@@ -77,7 +77,11 @@ def noise_ratio_notes(
                   f"the {'tracker' if name == 'translation' else 'rotation (tracker fit or probe)'}"
                   " noise")
         way = "too small" if ratio > factor else "too large"
+        options = ("--force-sigma-N, --moment-sigma-Nm, --force-pct, --moment-pct"
+                   if ft_share > 0.5 else
+                   "--translation-sigma-um" if name == "translation" else
+                   "--rotation-sigma-urad")
         notes.append(f"{name} residuals are {ratio:.2g} times the declared noise: {source} looks "
                      f"{way} by about that factor (check the instrument figures or the "
-                     "--sigma-* options)")
+                     f"options {options})")
     return notes

@@ -57,7 +57,8 @@ CAUSES_MISFIT = (
 CAUSES_TOO_GOOD = (
     "units (displacements typed in m instead of mm, rotations in rad instead of mrad: "
     "1000 x too small)",
-    "noise figures far larger than the instruments' (--sigma-* options, protocol noise)",
+    "noise figures far larger than the instruments' (--translation-sigma-um, "
+    "--rotation-sigma-urad, --force-sigma-N, --moment-sigma-Nm, protocol noise)",
     "data computed from a model rather than measured",
 )
 CAUSES_NEGATIVE = (

@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.errors import InputError
 from analysis.identification.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 
@@ -292,6 +291,10 @@ class IdentificationResult:
     encoder_eiv : the bias of the encoder noise in J, added to the intervals as a
         systematic term (:func:`analysis.identification.encoder_eiv.summary`);
         results.json ``encoder_errors_in_variables``.
+    tests_data : fingerprint of the tests analysed
+        (:func:`analysis.identification.data_fingerprint.fingerprint`), filled by the
+        caller; results.json ``tests_data`` (``campaign compare`` refuses campaigns that
+        share tests).
     """
 
     robot: str
@@ -327,6 +330,7 @@ class IdentificationResult:
     wrench_eiv: dict | None = None
     linear_bias: dict | None = None
     encoder_eiv: dict | None = None
+    tests_data: dict | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -416,6 +420,7 @@ class IdentificationResult:
             "linearisation_bias": self.linear_bias,
             "encoder_errors_in_variables": self.encoder_eiv,
             "warnings": self.warnings,
+            "tests_data": self.tests_data,
             **residual_summary(self.residuals, rows=self.residual_rows),
             **validation_summary(self.validation),
         }
@@ -564,13 +569,11 @@ def write_results(result: IdentificationResult, out_dir: str | Path) -> dict[str
 
     Returns the paths written, by name.
     """
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError(f"cannot create the output directory: {err}", where=str(out)) from err
+    from analysis.output_files import make_dir, write_text
+
+    out = make_dir(out_dir)
     paths = {"results": out / "results.json", "residuals": out / "residuals.csv"}
-    paths["results"].write_text(json.dumps(result.to_dict(), indent=2) + "\n")
+    write_text(paths["results"], json.dumps(result.to_dict(), indent=2) + "\n")
     write_table(result.residuals if result.residual_rows is None else result.residual_rows,
                 paths["residuals"])
     if result.validation is not None:

@@ -216,7 +216,9 @@ def write_blocks(path: str | Path, names: list[str],
 def _write(path, names: list[str], blocks, memo: dict) -> None:
     if len(names) < 2:
         raise ValueError("write_blocks takes two columns or more (csv quotes a lone empty cell)")
-    with open(path, "wb") as fh:
+    from analysis.output_files import replacing
+
+    with replacing(path) as tmp, open(tmp, "wb") as fh:
         fh.write(_csv_line([str(c) for c in names]).encode())
         for block in blocks:
             columns = [block[c] for c in names]
@@ -233,7 +235,10 @@ def _write(path, names: list[str], blocks, memo: dict) -> None:
 def write_frame(frame: pd.DataFrame, path: str | Path, block: int = BLOCK_ROWS) -> None:
     """``frame.to_csv(path, index=False)``, byte for byte, a block of rows at a time."""
     if len(frame.columns) < 2 or not frame.columns.is_unique:
-        frame.to_csv(path, index=False)
+        from analysis.output_files import replacing
+
+        with replacing(path) as tmp:
+            frame.to_csv(tmp, index=False)
         return
     write_blocks(path, list(frame.columns),
                  (frame.iloc[s:s + block] for s in range(0, len(frame), block)))

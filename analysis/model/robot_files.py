@@ -42,7 +42,9 @@ File format (every number in the units the file declares)::
     [identification]                  # optional: written by `campaign analyze` (model.toml)
     quantity = "compliance"           # the covariance is of x = 1/k, not of k
     covariance_unit = "(rad/(N m))^2"
-    covariance = [[...], ...]         # 6 x 6, zero rows/columns for joints_nominal
+    covariance = [[...], ...]         # 6 x 6, symmetric, positive semi-definite (the
+                                      # correlation matrix's eigenvalues >= -1e-9);
+                                      # zero rows/columns for joints_nominal
     joints_identified = [1, 2, 3, 4, 5, 6]
     joints_nominal = []               # joints whose stiffness is the nominal one
     method = "exact"                  # estimator of campaign analyze
@@ -130,6 +132,41 @@ class ReferencePose(_Strict):
     source: str
 
 
+#: Tolerance of the positive semi-definiteness check of a covariance: the smallest
+#: eigenvalue of its correlation matrix (unit diagonal, so the check does not depend
+#: on the joints' very different compliance scales) must be >= -PSD_TOLERANCE. A
+#: covariance written by ``campaign analyze`` (17 significant digits) is PSD to ~1e-15.
+PSD_TOLERANCE = 1e-9
+
+
+def covariance_psd_problem(cov: np.ndarray) -> str | None:
+    """Why the symmetric ``cov`` (n, n) with a non-negative diagonal is not a covariance
+    (not positive semi-definite within :data:`PSD_TOLERANCE`), or None when it is one.
+
+    A joint with zero variance must have zero covariances (its correlation is
+    undefined, and any non-zero entry makes the matrix indefinite); the others are
+    checked through the eigenvalues of their correlation matrix.
+    """
+    var = np.diag(cov)
+    zero = var == 0
+    for j in np.flatnonzero(zero):
+        if np.any(cov[j] != 0):
+            return (f"covariance is not positive semi-definite: joint {j + 1} has zero "
+                    "variance but a non-zero covariance with another joint")
+    keep = np.flatnonzero(~zero)
+    if keep.size == 0:
+        return None
+    s = np.sqrt(var[keep])
+    corr = cov[np.ix_(keep, keep)] / np.outer(s, s)
+    smallest = float(np.linalg.eigvalsh(corr)[0])
+    if smallest < -PSD_TOLERANCE:
+        worst = float(np.linalg.eigvalsh(cov)[0])
+        return (f"covariance is not positive semi-definite: its smallest eigenvalue is "
+                f"{worst:.3g} (rad/(N m))^2 (correlation matrix: {smallest:.3g}, tolerance "
+                f"-{PSD_TOLERANCE:g}); intervals from it would be meaningless")
+    return None
+
+
 class IdentificationSpec(_Strict):
     """``[identification]``: where an identified stiffness comes from and its covariance."""
 
@@ -149,16 +186,26 @@ class IdentificationSpec(_Strict):
     software: str = ""
     notes: list[str] = []
 
-    @model_validator(mode="after")
-    def _shape(self) -> IdentificationSpec:
-        n = len(self.covariance)
-        if n == 0 or any(len(row) != n for row in self.covariance):
+    @field_validator("covariance")
+    @classmethod
+    def _covariance(cls, value: list[list[float]]) -> list[list[float]]:
+        n = len(value)
+        if n == 0 or any(len(row) != n for row in value):
             raise ValueError("covariance must be a square matrix (one row per joint)")
-        cov = np.array(self.covariance, dtype=float)
+        cov = np.array(value, dtype=float)
         if not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
             raise ValueError("covariance must be symmetric")
         if np.any(np.diag(cov) < 0):
             raise ValueError("covariance has a negative variance on its diagonal")
+        problem = covariance_psd_problem(cov)
+        if problem:
+            raise ValueError(problem)
+        return value
+
+    @model_validator(mode="after")
+    def _shape(self) -> IdentificationSpec:
+        n = len(self.covariance)
+        cov = np.array(self.covariance, dtype=float)
         for name, joints in (("joints_identified", self.joints_identified),
                              ("joints_nominal", self.joints_nominal)):
             if any(not 1 <= j <= n for j in joints) or len(set(joints)) != len(joints):
@@ -297,7 +344,70 @@ def load_robot_file(path: str | Path, key: str = "") -> RobotModel:
         spec = RobotFile.model_validate(data)
     except ValidationError as err:
         raise input_error_from_validation(err, str(path), text) from None
-    return robot_from_spec(spec, source_file=str(path), key=key or path.stem)
+    robot = robot_from_spec(spec, source_file=str(path), key=key or path.stem)
+    _check_reach(spec, robot, str(path), text)
+    _check_stiffness(spec, robot, str(path), text)
+    return robot
+
+
+#: Chain lengths (m, :attr:`RobotModel.chain_length`) plausible for an industrial arm:
+#: from a small desktop arm (~0.2 m) to the largest floor-mounted arms (~5 m), with a
+#: margin. Lengths typed in mm under ``length_unit = "m"`` give ~1000 m, lengths in m
+#: under ``"mm"`` ~0.003 m: both far outside.
+REACH_RANGE_M = (0.05, 10.0)
+
+
+#: Joint stiffness plausible for an industrial arm (N m/rad): from a small arm's wrist
+#: (PUMA 560 joint 5: 101 N m/rad) to far above the largest arms' base joints (~1e7).
+STIFFNESS_RANGE_NM_PER_RAD = (10.0, 1e9)
+
+
+def _line(path: str, text: str, loc: tuple) -> str:
+    from analysis.file_errors import toml_line, yaml_line
+
+    finder = yaml_line if path.endswith((".yaml", ".yml")) else toml_line
+    line = finder(text, loc)
+    return f"{path}:{line}" if line else path
+
+
+def _check_stiffness(spec: RobotFile, robot: RobotModel, path: str, text: str) -> None:
+    """Refuse a nominal joint stiffness outside the plausible range, naming the unit."""
+    k = robot.nominal_stiffness
+    if k is None:
+        return
+    lo, hi = STIFFNESS_RANGE_NM_PER_RAD
+    bad = np.flatnonzero((k < lo) | (k > hi))
+    if bad.size == 0:
+        return
+    j = int(bad[0])
+    hint = ""
+    if k[j] > hi and spec.stiffness_unit == "kN m/rad":
+        hint = ': are the values in N m/rad? (set stiffness_unit = "N m/rad")'
+    elif k[j] < lo and spec.stiffness_unit == "N m/rad":
+        hint = ': are the values in kN m/rad? (set stiffness_unit = "kN m/rad")'
+    raise InputError(
+        f"joints[{j}].stiffness = {spec.joints[j].stiffness:g} {spec.stiffness_unit} is "
+        f"{k[j]:.4g} N m/rad, implausible for an industrial arm's joint (expected "
+        f"{lo:g}..{hi:g} N m/rad){hint}", where=_line(path, text, ("stiffness_unit",)))
+
+
+def _check_reach(spec: RobotFile, robot: RobotModel, path: str, text: str) -> None:
+    """Refuse a robot file whose reach is implausible, naming the likely unit mix-up."""
+    reach = robot.chain_length
+    lo, hi = REACH_RANGE_M
+    if lo <= reach <= hi:
+        return
+    lengths = [(abs(getattr(j, f)), f"joints[{i}].{f}") for i, j in enumerate(spec.joints)
+               for f in ("a", "d", "r")]
+    lengths += [(abs(v), f"tool.xyz[{i}]") for i, v in enumerate(spec.tool.xyz)]
+    value, key = max(lengths)
+    where = _line(path, text, ("length_unit",))
+    other = "mm" if spec.length_unit == "m" else "m"
+    raise InputError(
+        f"length_unit = \"{spec.length_unit}\": the chain's link lengths add up to "
+        f"{reach:.4g} m, implausible for an industrial arm (expected {lo:g}..{hi:g} m); "
+        f"{key} = {value:g}: are the lengths in {other}? (set length_unit = \"{other}\")",
+        where=where)
 
 
 def load_urdf(path: str | Path, tip: str, name: str | None = None) -> RobotModel:

@@ -103,6 +103,14 @@ class RobotModel:
         """Number of joints."""
         return self.chain.n
 
+    @property
+    def chain_length(self) -> float:
+        """Sum of the fixed link translations from joint 1 to P (m): the arm's reach
+        (P's largest distance from joint 1's origin) is at most this, and close to it for
+        an industrial arm. Used to judge whether lengths and deflections are plausible."""
+        links = np.linalg.norm(self.chain.placements[1:, :3, 3], axis=-1).sum()
+        return float(links + np.linalg.norm(self.chain.tip[:3, 3]))
+
     def to_controller(self, q: np.ndarray) -> np.ndarray:
         """Model joint angles (rad) -> controller (teach pendant) angles (rad)."""
         return np.asarray(q, dtype=float) @ self.controller_matrix.T + self.controller_offset

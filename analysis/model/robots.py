@@ -48,13 +48,33 @@ def _load_builtin(key: str) -> RobotModel:
     return load_robot_file(path, key=path.stem)
 
 
-def load_robot(spec: str, tip: str | None = None) -> RobotModel:
+def known_names_text() -> str:
+    """'fanuc-s420f (also s420f, s-420f), kr240-2 (also kr240, kuka-kr240-2), ...'."""
+    by_key: dict[str, list[str]] = {key: [] for key in builtin_names()}
+    for name, path in builtin_files().items():
+        if name != path.stem:
+            by_key[path.stem].append(name)
+    return ", ".join(key + (f" (also {', '.join(sorted(a))})" if a else "")
+                     for key, a in by_key.items())
+
+
+def closest_name(spec: str) -> str | None:
+    """The built-in key whose name or alias is closest to ``spec``, if any is close."""
+    import difflib
+
+    files = builtin_files()
+    match = difflib.get_close_matches(spec.strip().lower(), list(files), n=1, cutoff=0.6)
+    return files[match[0]].stem if match else None
+
+
+def load_robot(spec: str, tip: str | None = None, where: str = "--robot") -> RobotModel:
     """Resolve a robot: a built-in name, a robot file (.toml/.yaml/.yml) or a URDF.
 
     Parameters
     ----------
     spec : built-in name (see ``campaign robots``) or a file path.
     tip : frame name of the tool point, required for a URDF.
+    where : the option or argument ``spec`` came from, for messages.
     """
     key = spec.strip().lower()
     if key in builtin_files():
@@ -62,16 +82,19 @@ def load_robot(spec: str, tip: str | None = None) -> RobotModel:
     path = Path(spec)
     if path.suffix.lower() == ".urdf":
         if not tip:
-            raise InputError("a URDF needs the tool frame: add --tip FRAME", where="--robot")
+            raise InputError("a URDF needs the tool frame: add --tip FRAME", where=where)
         return load_urdf(path, tip)
     if path.suffix.lower() in (".toml", ".yaml", ".yml"):
         if not path.is_file():
             raise InputError("robot file not found", where=str(path))
         return load_robot_file(path)
+    close = closest_name(spec)
     raise InputError(
-        f"unknown robot {spec!r}: expected one of {', '.join(builtin_names())}, "
-        "or a .toml/.yaml robot file, or a .urdf with --tip",
-        where="--robot",
+        f"unknown robot {spec!r}"
+        + (f" (did you mean {close}?)" if close else "")
+        + f": expected a built-in name, {known_names_text()}, or a .toml/.yaml robot "
+        "file, or a .urdf with --tip",
+        where=where,
     )
 
 
@@ -101,7 +124,9 @@ def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel
     Refused when P is already away from the flange (a robot file with its own
     ``[tool]``, e.g. a ``model.toml`` written by ``campaign analyze``): both
     tools are given in the flange frame, and composing them would put P at
-    neither.
+    neither. Refused too for an identified model (``[identification]``) whose P
+    is the flange: its P is the run's tool point (docs/use.md), and another one
+    must be written into its ``[tool]``, not added on the command line.
     """
     if not np.any(xyz) and not np.any(rpy):
         return robot
@@ -118,6 +143,13 @@ def with_tool(robot: RobotModel, xyz: np.ndarray, rpy: np.ndarray) -> RobotModel
             f"{new_rpy} deg) would be composed on it. Give the tool point once: drop the tool "
             "option or the protocol's [tool], or write your tool into the robot file's [tool]",
             where=robot.source_file or robot.name)
+    if robot.identification is not None:
+        new_xyz, new_rpy = tool_mm_deg(tool.homogeneous, 6)
+        raise InputError(
+            "this identified model (model.toml) has P at the flange, the tool point of the "
+            f"run it was identified from; a second tool point (xyz {new_xyz} mm, rpy "
+            f"{new_rpy} deg) is refused: drop the tool option or the protocol's [tool], or "
+            "write your tool into the file's [tool]", where=robot.source_file or robot.name)
     model = pin.Model(robot.model)
     flange = model.frames[robot.tip_frame]
     frame = pin.Frame(

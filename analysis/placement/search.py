@@ -124,31 +124,82 @@ def evaluate_chunk(problem: Problem, placements: np.ndarray,
     return ChunkResult.concat(parts)
 
 
-def chunks_of(placements: np.ndarray, chunk: int) -> list[np.ndarray]:
+#: Bytes kept per placement by a search: value (float64), config (int32), reason (int8),
+#: point (int32), plus an int32 angle index per path point (:class:`ChunkResult`).
+RESULT_BYTES_FIXED = 8 + 4 + 1 + 4
+RESULT_BYTES_PER_POINT = 4
+#: Tasks in flight on Dask at once: the client holds this many chunks of placements and
+#: their results besides the collected arrays, whatever the size of the grid.
+DASK_WINDOW = 512
+
+
+def result_bytes(placements: int, points: int) -> int:
+    """Memory (bytes) of the per-placement results of a search of ``placements``."""
+    return placements * (RESULT_BYTES_FIXED + RESULT_BYTES_PER_POINT * points)
+
+
+def chunks_of(placements, chunk: int) -> list[np.ndarray]:
     """Split placements (P, 4) into consecutive chunks of at most ``chunk`` rows."""
-    return [placements[i:i + chunk] for i in range(0, placements.shape[0], chunk)]
+    return [placements[i:i + chunk] for i in range(0, len(placements), chunk)]
 
 
-def run_local(problem: Problem, placements: np.ndarray, chunk: int,
+class _Collector:
+    """The results of every placement, filled chunk by chunk in preallocated arrays."""
+
+    def __init__(self, count: int, points: int) -> None:
+        self.value = np.empty(count)
+        self.config = np.empty(count, dtype=np.int32)
+        self.angle = np.empty((count, points), dtype=np.int32)
+        self.reason = np.empty(count, dtype=np.int8)
+        self.point = np.empty(count, dtype=np.int32)
+
+    def put(self, start: int, part: ChunkResult) -> None:
+        sl = slice(start, start + part.value.shape[0])
+        for name in ("value", "config", "angle", "reason", "point"):
+            getattr(self, name)[sl] = getattr(part, name)
+
+    def result(self) -> ChunkResult:
+        return ChunkResult(self.value, self.config, self.angle, self.reason, self.point)
+
+
+def run_local(problem: Problem, placements, chunk: int,
               progress: Callable[[int, int], None] | None = None) -> ChunkResult:
-    """Evaluate every chunk in this process, in order."""
-    parts = []
-    pieces = chunks_of(placements, chunk)
-    for i, piece in enumerate(pieces):
-        parts.append(evaluate_chunk(problem, piece))
+    """Evaluate every chunk in this process, in order.
+
+    ``placements``: a (P, 4) array or a :class:`analysis.placement.grid.PlacementGrid`,
+    whose rows are made one chunk at a time (memory: the results, 17 + 4 N bytes per
+    placement, and one chunk).
+    """
+    total = len(placements)
+    out = _Collector(total, problem.points.shape[0])
+    count = -(-total // chunk)
+    for i, start in enumerate(range(0, total, chunk)):
+        out.put(start, evaluate_chunk(problem, placements[start:start + chunk]))
         if progress:
-            progress(i + 1, len(pieces))
-    return ChunkResult.concat(parts)
+            progress(i + 1, count)
+    return out.result()
 
 
-def run_dask(problem: Problem, placements: np.ndarray, chunk: int, client,
+def run_dask(problem: Problem, placements, chunk: int, client,
              show_progress: bool = False) -> ChunkResult:
-    """Evaluate the chunks as tasks of a ``dask.distributed`` client, gathered in order."""
-    problem_f = client.scatter(problem, broadcast=True)
-    pieces = chunks_of(placements, chunk)
-    futures = client.map(evaluate_chunk, [problem_f] * len(pieces), pieces)
-    if show_progress:
-        from distributed import progress
+    """Evaluate the chunks as tasks of a ``dask.distributed`` client, gathered in order.
 
-        progress(futures)
-    return ChunkResult.concat(client.gather(futures))
+    At most :data:`DASK_WINDOW` tasks are submitted at a time, so the client holds a
+    bounded number of chunks besides the collected results.
+    """
+    problem_f = client.scatter(problem, broadcast=True)
+    total = len(placements)
+    out = _Collector(total, problem.points.shape[0])
+    span = chunk * DASK_WINDOW
+    for first in range(0, total, span):
+        starts = list(range(first, min(total, first + span), chunk))
+        pieces = [placements[s:s + chunk] for s in starts]
+        futures = client.map(evaluate_chunk, [problem_f] * len(pieces), pieces)
+        if show_progress:
+            from distributed import progress
+
+            progress(futures)
+        for s, part in zip(starts, client.gather(futures), strict=True):
+            out.put(s, part)
+        del futures
+    return out.result()

@@ -6,7 +6,7 @@ naming its unit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,23 +29,36 @@ from analysis.report.formatting import (
     percent,
     sig,
 )
-from analysis.report.model import Paragraph, Report, Section, Table
+from analysis.report.model import Paragraph, Report, Section, Table, Trace
 from analysis.report.quantities import (
     deflection_map,
     map_length,
     pose_stiffness,
     stiffness_for_prediction,
 )
-from analysis.report.summary import CampaignInfo, partial_text, quality_blocks, summary_table
+from analysis.report.summary import (
+    CampaignInfo,
+    approval_table,
+    instrument_table,
+    partial_text,
+    quality_blocks,
+    summary_table,
+)
+from analysis.report.test_table import LoadCase, tests_table
+from analysis.report.verdict import outlier_counts, relative_interval, result_blocks
 
 SECTION_TITLES = (
     "Summary",
     "Identified joint stiffness",
     "Residuals and validation",
+    "Tests",
     "Deflection under the user wrench",
     "Cartesian stiffness K_X",
     "Robustness of this design",
 )
+#: up to this many tests, the table of tests is a section after the residuals; beyond,
+#: an appendix at the end of the report
+TESTS_INLINE = 30
 AXES = ["x", "y", "z", "rx", "ry", "rz"]
 
 
@@ -65,6 +78,7 @@ class ReportInputs:
     map_fixed : joint values of the maps (:class:`MapFixed`, or (6,) rad with entries
         2 and 3 ignored; default the median of the tested poses).
     trials : Monte-Carlo trials per number of tests for the robustness curve.
+    load_cases : the planned load cases (name, method, wrench), for the table of tests.
     """
 
     robot: RobotModel
@@ -80,6 +94,7 @@ class ReportInputs:
     true_k: np.ndarray | None = None
     map_fixed: MapFixed | np.ndarray | None = None
     trials: int = 300
+    load_cases: list[LoadCase] = field(default_factory=list)
 
 
 def wrench_text(w: np.ndarray) -> str:
@@ -104,7 +119,8 @@ def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
     conf = f"{result.confidence:.0%}"
     short = inp.nominal_label.split(" (")[0]  # "nominal" or "prior"
     cols = ["joint", "k (kN m/rad)", f"{conf} interval (kN m/rad)", "se (kN m/rad)",
-            "se/k (%)", f"{inp.nominal_label} (kN m/rad)", f"k/{short} - 1 (%)"]
+            "se/k (%)", f"{inp.nominal_label} (kN m/rad)", f"k/{short} - 1 (%)",
+            f"{short} in interval"]
     if inp.true_k is not None:
         cols += ["true (kN m/rad)", "k/true - 1 (%)"]
     rows, marked = [], []
@@ -117,27 +133,30 @@ def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
                sig(result.se_k[j] / 1e3, 3, zeros=True),
                fixed(100 * result.se_k[j] / k, 2) if ident else "-", k_kNm(nom),
                percent(k / nom - 1) if ident and np.isfinite(nom) else "-"]
+        inside = ident and np.isfinite(nom) and bool(result.ci[j, 0] <= nom <= result.ci[j, 1])
+        row.append("-" if not (ident and np.isfinite(nom)) else ("yes" if inside else "no"))
         if inp.true_k is not None:
             row += [k_kNm(inp.true_k[j]),
                     percent(k / inp.true_k[j] - 1) if ident else "-"]
         rows.append(row)
-        outside = ident and np.isfinite(nom) and not (result.ci[j, 0] <= nom <= result.ci[j, 1])
-        marked.append(bool(outside))
-    return Table("Identified joint stiffness", cols, rows, marked,
+        marked.append(False)  # red is for failures; a reference outside is not one
+    return Table("Stiffness with standard errors and reference values", cols, rows, marked,
                  caption=(f"{short.capitalize()} values: {inp.nominal_source}. "
                           if inp.nominal_source and inp.nominal is not None else "")
-                 + f"Highlighted: the {inp.nominal_label} value lies outside the "
-                 f"{conf} interval. Interval: {conf} interval of the compliance 1/k mapped "
-                 "to k ('inf': the data do not bound k from above).",
-                 widths=[0.6, 1.1, 1.7, 1.0, 0.8, 1.2, 1.1] + ([1.0, 1.0] if inp.true_k
-                                                               is not None else []))
+                 + f"'{short} in interval': whether the {inp.nominal_label} value lies inside "
+                 f"the {conf} interval (a reference, not a pass/fail test). Interval: {conf} "
+                 "interval of the compliance 1/k mapped to k ('inf': the data do not bound "
+                 "k from above).",
+                 widths=[0.6, 1.1, 1.7, 1.0, 0.8, 1.2, 1.1, 0.8] + ([1.0, 1.0] if inp.true_k
+                                                                    is not None else []))
 
 
 def fit_paragraph(result: IdentificationResult) -> Paragraph:
     return Paragraph(
         f"Method {result.method} ({result.covariance} covariance), {result.n_tests} tests at "
         f"{result.n_poses} poses, {result.n_equations} equations, {result.dof} residual "
-        f"degrees of freedom. Reduced chi-square {sig(result.chi2_reduced, 3)} "
+        f"degrees of freedom. Reduced chi-square χ²/ν "
+        f"{sig(result.chi2_reduced, 3)} "
         f"(p = {sig(result.p_value, 2)}); condition number of the column-scaled A "
         f"{sig(result.condition_number, 3)} (weighted {sig(result.condition_number_weighted, 3)})."
     )
@@ -184,7 +203,8 @@ def residual_table(result: IdentificationResult) -> Table:
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
     mark = (f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} (Sidak, "
-            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {n_rows} residuals)"
+            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {n_rows} residuals), flagged by "
+            "the sequential test (largest first, refit after each)"
             if result.robust is None else
             f"* down-weighted below {result.robust['reported_below_weight']:g} by the "
             f"{result.robust['method']} fit (see the robust fitting table)")
@@ -225,32 +245,51 @@ def validation_blocks(result: IdentificationResult) -> list:
         return [Paragraph("Held-out validation needs 3 distinct poses or more: not done.",
                           "note")]
     from analysis.identification.result import validation_summary, worst_poses
+    from analysis.report.verdict import HELD_OUT_LIMIT, _column
 
     shown = worst_poses(result.validation)
-    rows = []
+    total = _column(shown, "total")  # the ratio to the total (noise + prediction) sigma
+    flag = _column(shown, "flag", dtype=bool)
+    limit_col = _column(shown, "limit") if total else None
+    rows, marked = [], []
     for _, r in shown.iterrows():
+        ratio = r[total] if total else r["rms_normalized"]
+        bad = bool(r[flag]) if flag else bool(np.isfinite(ratio) and ratio > HELD_OUT_LIMIT)
         rows.append([str(r["held_out_pose"]), str(r["n_tests"]),
                      fixed(1e6 * r["rms_translation_m"], 1), fixed(1e6 * r["rms_rotation_rad"], 1),
-                     fixed(r["rms_normalized"], 2), str(r["note"]) or "-"])
+                     fixed(r["rms_normalized"], 2),
+                     *([fixed(r[total], 2)] if total else []),
+                     *([fixed(r[limit_col], 2)] if limit_col else []),
+                     "beyond the limit" if bad else (str(r["note"] or "-"))])
+        marked.append(bad)
+    limit = ("flagged by the validation's own limit" if flag else
+             f"highlighted: above {HELD_OUT_LIMIT:g}")
     return [Table(
         "Held-out validation (leave one pose out)",
         ["held-out pose", "tests", f"RMS error translation ({MICRO}m)",
-         f"RMS error rotation ({MICRO}rad)", "RMS error / sigma (1)", "note"],
-        rows, caption="Each pose is predicted from a fit without it; an RMS error / sigma "
-        "near 1 means the model predicts unseen poses to within the measurement noise."
+         f"RMS error rotation ({MICRO}rad)", "RMS error / noise sigma",
+         *(["RMS error / total sigma"] if total else []),
+         *(["limit"] if limit_col else []), "note"],
+        rows, marked, caption="Each pose is predicted from a fit without it; an RMS error / "
+        "sigma near 1 means the model predicts unseen poses to within the measurement noise"
+        + (" (total sigma: the noise and the prediction's own uncertainty)" if total else
+           " (the prediction's own uncertainty is not included)")
+        + f"; {limit}."
         + ("" if len(shown) == len(result.validation) else
            f" Shown: {validation_summary(result.validation)['validation_listed']}."),
-        widths=[1, 0.6, 1.5, 1.5, 1.3, 2]),
+        widths=[1, 0.6, 1.5, 1.5, 1.3, *([1.3] if total else []),
+                *([0.7] if limit_col else []), 1.6]),
     ]
 
 
 KX_ROWS = ["fx (N)", "fy (N)", "fz (N)", "mx (N m)", "my (N m)", "mz (N m)"]
-KX_COLS = ["x (/mm)", "y (/mm)", "z (/mm)", "rx (/mrad)", "ry (/mrad)", "rz (/mrad)"]
+KX_COLS = ["\u03b4x (per mm)", "\u03b4y (per mm)", "\u03b4z (per mm)", "\u03b4rx (per mrad)",
+           "\u03b4ry (per mrad)", "\u03b4rz (per mrad)"]
 
 
-def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> Table:
-    """K_X (with K_C) in engineering units, its diagonal with standard errors and the
-    principal stiffnesses.
+def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> list[Table]:
+    """K_X (with K_C) in engineering units with its diagonal and standard errors, and the
+    table of the principal stiffnesses (translation in N/mm, rotation in N m/mrad).
 
     Every column is per mm (translation) or per mrad (rotation) of P, every row
     a force (N) or a moment (N m), so each SI entry is scaled by 1e-3: the
@@ -265,18 +304,23 @@ def kx_engineering(ps, label: str, se_diag: np.ndarray | None) -> Table:
     rows = []
     for i in range(6):
         se = "" if se_diag is None else f" {PM} {sig(1e-3 * se_diag[i], 2)}"
-        rows.append([KX_ROWS[i], *[eng(v) for v in M[i]], eng(diag[i]) + se,
-                     eng(principal[i])])
-    return Table(f"K_X at {pose_title(label, start=False)}, with K_C",
-                 ["", *KX_COLS, f"diagonal {PM} se", "principal"], rows,
-                 caption="Row: force (N) or moment (N m) at P; column: translation (mm) or "
-                 "rotation (mrad) of P, base frame; so the translational block reads in N/mm "
-                 "and the rotational one in N m/mrad. Principal: the stiffness P shows under a "
-                 "pure force (top three, N/mm) or a pure moment (bottom three, N m/mrad) along "
-                 "the principal directions, largest first (inverse eigenvalues of the blocks "
-                 "of K_X\u207b\u00b9). Standard errors from the covariance of the identified "
-                 "compliances.",
-                 widths=[0.8, 0.9, 0.9, 0.9, 0.9, 0.9, 0.9, 1.2, 0.9], mono=True)
+        rows.append([KX_ROWS[i], *[eng(v) for v in M[i]], eng(diag[i]) + se])
+    where = pose_title(label, start=False)
+    kx = Table(f"K_X at {where}, with K_C",
+               ["", *KX_COLS, f"diagonal {PM} se"], rows,
+               caption="Row: force (N) or moment (N m) at P; column: translation (mm) or "
+               "rotation (mrad) of P, base frame; so the translational block reads in N/mm "
+               "and the rotational one in N m/mrad. Standard errors from the covariance of "
+               "the identified compliances.",
+               widths=[0.8, 0.9, 0.9, 0.9, 0.9, 0.9, 0.9, 1.3], mono=True)
+    principal_table = Table(
+        f"Principal stiffnesses at {where}", ["load", "largest", "middle", "smallest"],
+        [["pure force (N/mm)", *[eng(v) for v in principal[:3]]],
+         ["pure moment (N m/mrad)", *[eng(v) for v in principal[3:]]]],
+        caption="The stiffness P shows under a pure force or a pure moment along the "
+        "principal directions (inverse eigenvalues of the translational and rotational "
+        "blocks of K_X\u207b\u00b9), largest first.", widths=[1.6, 1, 1, 1], mono=True)
+    return [kx, principal_table]
 
 
 def kc_effect_table(poses: list) -> Table:
@@ -295,19 +339,20 @@ def kc_effect_table(poses: list) -> Table:
                      fixed(100 * rel[0], 2), fixed(100 * rel[1], 2)])
     return Table(
         "Effect of K_C (the load's geometric stiffness)",
-        ["pose", "|\u03b4p| with K_C (mm)", "|\u03b4p| without (mm)",
-         "|\u03b4p_with - \u03b4p_without| (mm)", "of |\u03b4p| (%)",
-         "\u0394K_X translation (%)", "\u0394K_X rotation (%)"], rows,
-        caption="\u0394K_X: Frobenius norm of K_X(with K_C) - K_X(without) over that of "
-        "K_X(without), per diagonal block. A few % or less: K_C can be neglected at "
-        "this load.", widths=[1.6, 1, 1, 1.3, 0.9, 1.1, 1.1])
+        ["pose", "|\u03b4p|, load's stiffness included (mm)", "|\u03b4p|, neglected (mm)",
+         "|difference| (mm)", "of |\u03b4p| (%)",
+         "change, translational block (%)", "change, rotational block (%)"], rows,
+        caption="Change of a block: Frobenius norm of K_X(with K_C) - K_X(without) over "
+        "that of K_X(without), per diagonal block of K_X. A few % or less: K_C can be "
+        "neglected at this load.", widths=[1.6, 1, 1, 1.3, 0.9, 1.1, 1.1])
 
 
 def kx_blocks(inp: ReportInputs, k_pred: np.ndarray,
               result: IdentificationResult | None = None) -> list:
     blocks: list = [Paragraph(
         "K_X = J\u207b\u1d40 (K_\u03b8 \u2212 K_C) J\u207b\u00b9 (eq. 6), at P in the base "
-        f"frame, under the user wrench {wrench_text(inp.wrench)}; K_C is the "
+        f"frame, under the user wrench {wrench_text(inp.wrench)} ({inp.wrench_source}); "
+        "K_C is the "
         "complementary stiffness the load adds through the change of J (eq. 12 drops it).")]
     computed = []
     for label, q in inp.poses:
@@ -321,7 +366,7 @@ def kx_blocks(inp: ReportInputs, k_pred: np.ndarray,
             f"with K_C: \u03b4p = ({', '.join(eng(v, 3) for v in dp)}) mm, |\u03b4p| = "
             f"{eng(float(np.linalg.norm(dp)), 3)} mm; \u03b4\u03c6 = "
             f"({', '.join(eng(v, 3) for v in dr)}) mrad."))
-        blocks.append(kx_engineering(ps, label, _kx_se_diag(inp, q, k_pred, result)))
+        blocks.extend(kx_engineering(ps, label, _kx_se_diag(inp, q, k_pred, result)))
     if computed:
         blocks.append(kc_effect_table(computed))
     return blocks
@@ -362,26 +407,46 @@ def robustness_blocks(result: IdentificationResult, inp: ReportInputs,
     table = design_robustness(inp.robot, q, w, k_ref, inp.noise, result.joints, tests=ns,
                               trials=inp.trials)
     se_rel = {j + 1: result.se_k[j] / result.k[j] for j in result.joints}
-    fig = figures.robustness_curve(table, result.n_tests, se_rel)
-    rows = []
+    nz = inp.noise
+    noise_text = (f"wls, {inp.trials} trials; noise {sig(1e6 * nz.translation_sigma, 3)} "
+                  f"\u00b5m, {sig(1e6 * nz.rotation_sigma, 3)} \u00b5rad, "
+                  f"{sig(nz.force_sigma, 3)} N, {sig(nz.moment_sigma, 3)} N m")
+    fig = figures.robustness_curve(table, result.n_tests, se_rel, noise_text)
+    rows, std_rows = [], []
     for j in sorted(table["joint"].unique()):
-        s = table[table["joint"] == j].set_index("n_tests")["relative_std"]
-        rows.append([f"k{j}", *[fixed(100 * s[n], 2) for n in ns]])
+        s = table[table["joint"] == j].set_index("n_tests")
+        rows.append([f"k{j}", *[sig(100 * s.loc[n, "robust_sigma"], 2)
+                                if s.loc[n, "identifiable"] else "n.i." for n in ns]])
+        std_rows.append([f"k{j}", *[sig(100 * s.loc[n, "relative_std"], 2)
+                                    if s.loc[n, "identifiable"] else "n.i." for n in ns]])
     return [
-        Paragraph(f"The campaign's {m} distinct pose/load pairs, each repeated n // {m} "
-                  f"times plus n mod {m} of them at random (n < {m}: n of them at random); "
-                  f"{inp.trials} trials per point; truth = the identified k; noise = the "
-                  "identification's noise model; batched least squares on the linear model "
-                  "weighted by the displacement sigmas. At n = this campaign's size the "
-                  "curve should meet its reported standard errors (stars)."),
+        Paragraph(f"The campaign's {m} distinct pose/load pairs, each repeated "
+                  f"\u230an/{m}\u230b times plus (n mod {m}) of them at random (n < {m}: n "
+                  f"of them at random); {inp.trials} trials per point; truth = the "
+                  "identified k; noise = the identification's noise model (translation "
+                  f"{sig(1e6 * nz.translation_sigma, 3)} \u00b5m, rotation "
+                  f"{sig(1e6 * nz.rotation_sigma, 3)} \u00b5rad, force "
+                  f"{sig(nz.force_sigma, 3)} N, moment {sig(nz.moment_sigma, 3)} N m per "
+                  "component); batched weighted least squares on the linear model. At n = "
+                  "this campaign's size the curve should meet its reported standard errors "
+                  "(stars)."),
         fig,
-        Table("Relative standard deviation of k (%) against the number of tests",
-              ["joint", *[f"n = {n}" for n in ns]], rows),
+        Table("Spread of k (IQR / 1.349, % of k) against the number of tests",
+              ["joint", *[f"n = {n}" for n in ns]], rows,
+              caption="Interquartile range of k / k_ref over 1.349 (the standard deviation "
+              "of a normal spread). n.i.: not identifiable at that number of tests (more "
+              "than 10 % of the trials give no positive k, or the spread exceeds 100 %)."),
+        Table("Standard deviation of k (% of k), where identifiable",
+              ["joint", *[f"n = {n}" for n in ns]], std_rows,
+              caption="The plain standard deviation over the trials (with the median and "
+              "IQR above: a few wild draws inflate it at small n)."),
     ]
 
 
 def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     """Assemble the report's sections (runs the maps and the Monte-Carlo study)."""
+    from analysis.report.traceability import software_text, utc_now_text
+
     k_pred, pred_notes = stiffness_for_prediction(result.k, inp.nominal)
     length, length_source = map_length(inp.robot)
     mf = map_fixed_of(inp)
@@ -392,36 +457,49 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
     labels = list(dict.fromkeys(inp.tests.pose.tolist()))
     first = [int(np.flatnonzero(inp.tests.pose == lab)[0]) for lab in labels]
     q_poses = inp.tests.q[first]
-    banner = [t for t in [partial_text(inp.info)] if t]
+    run_notes = [t for t in [partial_text(inp.info)] if t]
+    if inp.info.n_failed:
+        run_notes.append(f"{inp.info.n_failed} failed test row(s): see Data quality")
+    banner = list(run_notes)
     for problem in result.misfit_accepted:
         banner.append(f"ACCEPTED DESPITE A REFUSAL (--accept-misfit): {problem}")
-    if inp.info.n_failed:
-        banner.append(f"{inp.info.n_failed} failed test row(s): see Data quality.")
     d = table["deflection_mm"].to_numpy()
     d = d[np.isfinite(d)]
     ident = [j for j in result.joints if np.isfinite(result.k[j])]
-    half = [(result.ci[j, 1] - result.ci[j, 0]) / 2 / result.k[j] for j in ident]
+    spans = ", ".join(f"k{j + 1} {relative_interval(result.k[j], *result.ci[j])}"
+                      for j in ident)
     answer = Paragraph(
         f"Joints {', '.join(str(j + 1) for j in ident)} identified from {result.n_tests} "
-        f"tests; 95 % intervals span {pm_text(min(half, default=np.nan))} to "
-        f"{pm_text(max(half, default=np.nan))} of k. Under {wt} the predicted deflection of "
-        f"P over the (\u03b8\u2082, \u03b8\u2083) map ranges from {eng(d.min(), 3)} to "
-        f"{eng(d.max(), 3)} mm (median {eng(float(np.median(d)), 3)} mm)." if d.size else "")
+        f"tests; {result.confidence:.0%} intervals relative to k: {spans}. Under {wt} "
+        f"({inp.wrench_source}) the predicted deflection of P over the (\u03b8\u2082, "
+        f"\u03b8\u2083) map ranges from {eng(d.min(), 3)} to {eng(d.max(), 3)} mm (median "
+        f"{eng(float(np.median(d)), 3)} mm)." if d.size else "")
+    short = inp.nominal_label.split(" (")[0]
+    test_rows, rms_table = tests_table(inp.robot, inp.tests, result, inp.load_cases, inp.noise,
+                                       inp.nominal, short, inp.info.repeatability_mm)
+    instruments = instrument_table(inp.info)
     summary = Section(SECTION_TITLES[0], [
-        *[Paragraph(t, "warning") for t in banner], *assumption_blocks(result), answer,
-        summary_table(inp.info),
+        *result_blocks(result, inp.nominal, inp.nominal_label, robot_text(inp.info),
+                       inp.info.campaign, inp.info.started_utc, inp.info.report_id, run_notes),
+        *[Paragraph(t, "refusal" if t.startswith("ACCEPTED") else "warning")
+          for t in banner if not t.startswith("ACCEPTED")],
+        answer, approval_table(), *assumption_blocks(result),
+        summary_table(inp.info), *([instruments] if instruments is not None else []),
         Paragraph("Data quality", "heading"), *quality_blocks(inp.info)])
     ident_sec = Section(SECTION_TITLES[1], [
         stiffness_table(result, inp), fit_paragraph(result),
         *[Paragraph(w, "warning") for w in result.warnings],
+        *([rms_table] if rms_table is not None else []),
         figures.stiffness_bars(result.k, result.ci, inp.nominal, inp.nominal_label,
                                result.confidence)])
+    flagged, beyond = outlier_counts(result)
     resid_sec = Section(SECTION_TITLES[2], [
         residual_table(result), figures.residual_plot(
             result.residuals, result.outlier_threshold,
-            None if result.residual_rows is None else result.residual_rows.n_tests),
+            None if result.residual_rows is None else result.residual_rows.n_tests,
+            flagged=flagged, beyond=beyond),
         *robust_blocks(result), *validation_blocks(result)])
-    defl_sec = Section(SECTION_TITLES[3], [
+    defl_sec = Section(SECTION_TITLES[4], [
         Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "
                   "with the identified k and K_C (linear, eq. 6)."),
         *[Paragraph(n, "note") for n in pred_notes],
@@ -429,12 +507,38 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         figures.poses_on_kappa_map(table, q_poses, labels, ft, rule),
         figures.deflection_joint_map(table, q_poses, wt, ft, labels, rule),
         figures.deflection_cartesian_map(table, wt)])
-    kx_sec = Section(SECTION_TITLES[4], kx_blocks(inp, k_pred, result))
-    rob_sec = Section(SECTION_TITLES[5], robustness_blocks(result, inp, k_pred))
+    kx_sec = Section(SECTION_TITLES[5], kx_blocks(inp, k_pred, result))
+    rob_sec = Section(SECTION_TITLES[6], robustness_blocks(result, inp, k_pred))
+    tests_sec = Section(SECTION_TITLES[3] if inp.tests.m <= TESTS_INLINE
+                        else f"Appendix: {SECTION_TITLES[3].lower()}",
+                        [pose_table(labels, q_poses), test_rows])
+    sections = [summary, ident_sec, resid_sec]
+    if inp.tests.m <= TESTS_INLINE:
+        sections.append(tests_sec)
+    sections += [defl_sec, kx_sec, rob_sec]
+    if inp.tests.m > TESTS_INLINE:
+        sections.append(tests_sec)
     title = f"Joint stiffness of {inp.robot.name}"
     subtitle = f"{inp.info.source}: {inp.info.location}"
-    return Report(title, subtitle, [summary, ident_sec, resid_sec, defl_sec, kx_sec, rob_sec],
-                  banner)
+    return Report(title, subtitle, sections, banner, simulated=inp.info.simulated,
+                  trace=Trace(inp.info.report_id, utc_now_text(), software_text()))
+
+
+def robot_text(info: CampaignInfo) -> str:
+    """The robot's name with its serial when the protocol or the controller gives one."""
+    for rec in info.instrument_records:
+        if rec.get("role") == "robot" and rec.get("serial"):
+            return f"{info.robot} (serial {rec['serial']})"
+    return info.robot
+
+
+def pose_table(labels: list[str], q: np.ndarray) -> Table:
+    """The tested poses: plan label and joint angles (deg, model convention)."""
+    rows = [[str(lab), *[fixed(v, 2) for v in clean(np.degrees(qi), 360.0)]]
+            for lab, qi in zip(labels, q, strict=True)]
+    return Table("Tested poses", ["pose", *[f"\u03b8{j} (deg)" for j in range(1, 7)]], rows,
+                 caption="Joint angles of each tested pose (model convention), as measured "
+                 "at its first test.", widths=[1, 1, 1, 1, 1, 1, 1])
 
 
 def assumption_blocks(result: IdentificationResult) -> list:
@@ -458,7 +562,11 @@ def assumption_blocks(result: IdentificationResult) -> list:
                      f"({n['source']})"])
     for key in ("method", "robust", "covariance", "joints", "poses"):
         # the default Gaussian fit needs no row of its own: the method row says it
-        if key in a and not (key == "robust" and str(a[key]).startswith("none")):
+        if key == "joints":  # what was done, not the rule that chose it
+            rigid = [str(j + 1) for j in range(6) if j not in result.joints]
+            rows.append(["joints identified", ", ".join(str(j + 1) for j in result.joints)
+                         + (f" (taken as rigid: {', '.join(rigid)})" if rigid else "")])
+        elif key in a and not (key == "robust" and str(a[key]).startswith("none")):
             rows.append([key, str(a[key])])
     return [Table("Assumptions", ["item", "value"], rows, widths=[1, 3.2])]
 

@@ -30,6 +30,12 @@ from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
 DEFAULT_TESTS = (3, 4, 5, 6, 8, 10, 15, 20)
+#: a number of tests leaves the design not identifiable when more than this fraction of
+#: the trials give no positive finite k, or the spread (IQR / 1.349) exceeds the value
+UNIDENTIFIABLE_FAILED = 0.10
+UNIDENTIFIABLE_SPREAD = 1.0
+#: IQR of a normal distribution in standard deviations: IQR / 1.349 estimates the std
+IQR_PER_SIGMA = 1.349
 
 
 Q_TOL = 1e-3  # rad: joint angles closer than this are one pose
@@ -79,7 +85,12 @@ def design_robustness(
     Returns
     -------
     One row per (n_tests, joint): ``n_tests``, ``joint`` (1-based), ``relative_std``
-    (std of k / k_ref), ``relative_bias`` (median k / k_ref - 1), ``trials_used``.
+    (std of k / k_ref), ``relative_bias`` (median k / k_ref - 1), ``relative_q25``,
+    ``relative_q75`` (quartiles of k / k_ref - 1), ``relative_iqr`` (their difference),
+    ``robust_sigma`` (relative_iqr / 1.349: the std of a normal spread, robust to the
+    few wild draws of an ill-conditioned design), ``trials_used`` and ``identifiable``
+    (False when more than :data:`UNIDENTIFIABLE_FAILED` of the trials fail or
+    robust_sigma exceeds :data:`UNIDENTIFIABLE_SPREAD`).
     """
     if trials < 10:
         raise InputError("need at least 10 trials", where="--trials")
@@ -106,10 +117,18 @@ def design_robustness(
         ok = np.all(np.isfinite(x), axis=1) & np.all(x > 0, axis=1)
         for c, j in enumerate(cols):
             kk = 1.0 / x[ok, c]
+            q25, q75 = (np.percentile(kk, [25, 75]) / k_ref[j] - 1 if ok.sum() > 3
+                        else (np.nan, np.nan))
+            spread = (q75 - q25) / IQR_PER_SIGMA
             rows.append({
                 "n_tests": int(n), "joint": j + 1,
                 "relative_std": float(np.std(kk, ddof=1) / k_ref[j]) if ok.sum() > 1 else np.nan,
                 "relative_bias": float(np.median(kk) / k_ref[j] - 1) if ok.any() else np.nan,
                 "trials_used": int(ok.sum()),
+                "relative_q25": float(q25), "relative_q75": float(q75),
+                "relative_iqr": float(q75 - q25), "robust_sigma": float(spread),
+                "identifiable": bool(ok.sum() >= (1 - UNIDENTIFIABLE_FAILED) * trials
+                                     and np.isfinite(spread)
+                                     and spread <= UNIDENTIFIABLE_SPREAD),
             })
     return pd.DataFrame(rows)

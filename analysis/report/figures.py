@@ -1,4 +1,8 @@
-"""The report's plots, as PNG bytes of a fixed size (:data:`WIDTH` x :data:`HEIGHT` px).
+"""The report's plots, as PNG bytes drawn at 300 px per inch (:data:`DPI`), shown at
+:data:`WIDTH` x :data:`HEIGHT` CSS px (6.4 x 4 in; 325 px per inch at the PDF's 150 mm).
+
+Texts inside the figures use mathtext for symbols (θ₂, κ_F as $\\kappa_F$): no
+literal underscore is drawn.
 
 Each function takes data in SI (angles in rad where arrays of poses are
 given) and labels its axes in the report's units (deg, kN m/rad, mm).
@@ -18,8 +22,10 @@ from matplotlib.figure import Figure as MplFigure
 from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
-DPI = 125  # px per inch: 800 x 500 px, 135 px per inch at the PDF's 150 mm width
-WIDTH, HEIGHT = int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI)
+DPI = 300  # px per inch of the PNG: 1920 x 1200 px, 325 px per inch at the PDF's 150 mm
+DISPLAY_DPI = 125  # CSS px per inch in the HTML: shown at 800 x 500
+WIDTH, HEIGHT = int(SIZE_IN[0] * DISPLAY_DPI), int(SIZE_IN[1] * DISPLAY_DPI)
+PIXELS = (int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI))
 COMPONENT_MARKERS = {"dx": "o", "dy": "s", "dz": "^", "rx": "v", "ry": "D", "rz": "P"}
 
 
@@ -33,18 +39,120 @@ POSE_STYLE = {"marker": "o", "mfc": "white", "mec": "black", "mew": 1.5, "ms": 8
 LABEL_BOX = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85}
 
 
+#: label offsets tried around a pose, in points from its centre (nearest first); the far
+#: ones get a leader line back to the pose
+NEAR_OFFSETS = [(6, 5), (6, -5), (-6, 5), (-6, -5), (0, 9), (0, -9)]
+FAR_RADII = (16.0, 26.0, 38.0, 52.0)
+#: poses closer than this (points on the map) are listed as nearly coinciding
+COINCIDE_PT = 6.0
+
+
+def _candidates():
+    """(dx, dy, ha, va, leader) label placements, nearest first."""
+    out = []
+    for dx, dy in NEAR_OFFSETS:
+        out.append((dx, dy, "left" if dx > 0 else "right" if dx < 0 else "center",
+                    "bottom" if dy > 0 else "top", False))
+    for r in FAR_RADII:
+        for ang in np.radians(np.arange(30, 390, 30)):
+            dx, dy = r * np.cos(ang), r * np.sin(ang)
+            out.append((dx, dy, "left" if dx > 1 else "right" if dx < -1 else "center",
+                        "bottom" if dy > 1 else "top" if dy < -1 else "center", True))
+    return out
+
+
+def _box(x, y, dx, dy, ha, va, w, h, s):
+    """Pixel box of a label of w x h points anchored (ha, va) at (x, y) + (dx, dy) pt."""
+    x0 = x + dx * s - {"left": 0.0, "center": w / 2, "right": w}[ha] * s
+    y0 = y + dy * s - {"bottom": 0.0, "center": h / 2, "top": h}[va] * s
+    return (x0, y0, x0 + w * s, y0 + h * s)
+
+
+def _overlaps(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
 def draw_poses(ax, t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str]) -> None:
     """Tested poses as white dots with a black edge, each numbered with its plan label.
 
     Markers and labels are not clipped (a pose on a joint limit sits on the
-    axes' edge) and the labels sit on a white box (readable on any colour map).
+    axes' edge) and the labels sit on a white box (readable on any colour map),
+    placed by :func:`place_labels`.
     """
     ax.plot(t2_deg, t3_deg, clip_on=False, zorder=5, label="tested poses (plan labels)",
             **POSE_STYLE)
-    for a, b, text in zip(t2_deg, t3_deg, labels, strict=True):
-        ax.annotate(text, (a, b), xytext=(6, 5), textcoords="offset points", fontsize=8,
-                    fontweight="bold", color="black", bbox=LABEL_BOX, zorder=6,
-                    annotation_clip=False)
+    place_labels(ax, t2_deg, t3_deg, labels, POSE_STYLE["ms"] / 2 + 1)
+
+
+def place_labels(ax, x_data: np.ndarray, y_data: np.ndarray, labels: list[str],
+                 marker_radius_pt: float, fontsize: float = 8.0) -> list:
+    """Number poses so that no label covers another label or a pose marker.
+
+    Each label takes the nearest of :func:`_candidates` that stays inside the axes and
+    overlaps nothing placed before (a leader line back to its pose when it had to move
+    away). Call it once the figure's layout is final (the placement is in pixels). The
+    labels are returned and kept on ``ax.figure.pose_labels`` for the overlap check.
+    """
+    fig = ax.figure
+    ax.autoscale_view()
+    xy = ax.transData.transform(np.column_stack([x_data, y_data]))
+    s = fig.dpi / 72.0  # px per point
+    frame = ax.get_window_extent()
+    pad = 2 * s
+    limits = (frame.x0 - pad, frame.y0 - pad, frame.x1 + pad, frame.y1 + pad)
+    r = marker_radius_pt
+    markers = [(x - r * s, y - r * s, x + r * s, y + r * s) for x, y in xy]
+    placed: list = []
+    texts = []
+    for (x, y), text in zip(xy, labels, strict=True):
+        w, h = 0.62 * fontsize * len(text) + 4, fontsize * 1.2 + 3  # points, with the box
+        choice = None
+        for dx, dy, ha, va, leader in _candidates():
+            box = _box(x, y, dx, dy, ha, va, w, h, s)
+            inside = (box[0] >= limits[0] and box[1] >= limits[1] and box[2] <= limits[2]
+                      and box[3] <= limits[3])
+            if inside and not any(_overlaps(box, o) for o in placed + markers):
+                choice = (dx, dy, ha, va, leader, box)
+                break
+        if choice is None:  # crowded beyond every place tried: the nearest one
+            dx, dy, ha, va, leader = _candidates()[0]
+            choice = (dx, dy, ha, va, leader, _box(x, y, dx, dy, ha, va, w, h, s))
+        dx, dy, ha, va, leader, box = choice
+        placed.append(box)
+        texts.append(ax.annotate(
+            text, ax.transData.inverted().transform((x, y)), xytext=(dx, dy),
+            textcoords="offset points", fontsize=fontsize, fontweight="bold", color="black",
+            ha=ha, va=va, bbox=LABEL_BOX, zorder=6, annotation_clip=False,
+            arrowprops={"arrowstyle": "-", "lw": 0.8, "color": "black", "shrinkA": 0,
+                        "shrinkB": r} if leader else None))
+    fig.pose_labels = getattr(fig, "pose_labels", []) + texts
+    return texts
+
+
+def coinciding(t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str],
+               tol_deg: float) -> list[list[str]]:
+    """Groups of poses whose (theta_2, theta_3) lie within ``tol_deg`` of each other."""
+    groups: list[list[int]] = []
+    for i in range(len(labels)):
+        for g in groups:
+            if any(np.hypot(t2_deg[i] - t2_deg[j], t3_deg[i] - t3_deg[j]) <= tol_deg
+                   for j in g):
+                g.append(i)
+                break
+        else:
+            groups.append([i])
+    return [[labels[i] for i in g] for g in groups if len(g) > 1]
+
+
+def _coincide_text(deg: np.ndarray, labels: list[str], ax) -> str:
+    """Caption words for poses that nearly coincide on the map ('' if none)."""
+    x0, x1 = ax.get_xlim()
+    tol = COINCIDE_PT / 72.0 * abs(x1 - x0) / (ax.get_position().width * SIZE_IN[0])
+    groups = coinciding(deg[:, 1], deg[:, 2], labels, tol)
+    if not groups:
+        return ""
+    return (" Nearly coinciding on this map (within " + f"{tol:.2g} deg; labels set apart "
+            "with leader lines): " + "; ".join(", ".join(g) for g in groups) + ".")
 
 
 def _png(fig, name: str, caption: str) -> Figure:
@@ -63,7 +171,15 @@ def _png(fig, name: str, caption: str) -> Figure:
     buf = io.BytesIO()
     # zlib level 3: files 2 % larger than at the default 6, written in two thirds of the time
     Image.fromarray(rgb).save(buf, format="PNG", dpi=(DPI, DPI), compress_level=3)
-    return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption)
+    from matplotlib.text import Text
+
+    texts = [t.get_text() for t in fig.findobj(match=Text) if t.get_visible()
+             and t.get_text().strip()]
+    renderer = canvas.get_renderer()
+    boxes = [tuple(float(v) for v in t.get_window_extent(renderer).extents)
+             for t in getattr(fig, "pose_labels", [])]
+    return Figure(name=name, png=buf.getvalue(), width=WIDTH, height=HEIGHT, caption=caption,
+                  texts=texts, label_boxes=boxes)
 
 
 #: fixed margins (fractions of the canvas) for the report's one layout: title above,
@@ -76,10 +192,23 @@ POSES_TOP = 0.87  # room between the title and the axes for the label of a pose 
 POSE_TITLE_PAD = 16.0  # points: the title above such a label
 
 
+SUBSCRIPT_DIGITS = str.maketrans("0123456789", "\u2080\u2081\u2082\u2083\u2084\u2085\u2086"
+                                 "\u2087\u2088\u2089")
+
+
+def _joint_subscripts(text: str) -> str:
+    """'θ1 = 0' -> 'θ₁ = 0': joint indices as subscripts in a figure's text."""
+    import re
+
+    return re.sub("\u03b8(\\d)", lambda m: "\u03b8" + m.group(1).translate(SUBSCRIPT_DIGITS),
+                  text)
+
+
 def _title(ax, text: str, fontsize: float, pad: float = 6.0) -> None:
     """Title at a fixed height above the axes (``y`` given): matplotlib's automatic title
-    placement measures every tick label of the axes again on each draw."""
-    ax.set_title(text, fontsize=fontsize, pad=pad, y=1.0)
+    placement measures every tick label of the axes again on each draw. Joint indices
+    (θ1) are drawn as subscripts (θ₁)."""
+    ax.set_title(_joint_subscripts(text), fontsize=fontsize, pad=pad, y=1.0)
 
 
 def _new(legend_below: bool = False, colorbar: bool = False, poses: bool = False):
@@ -141,7 +270,7 @@ def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[st
     fig, ax = _new(legend_below=True, colorbar=True, poses=True)
     t2, t3, z = _grid(table, "inv_kappa_F")
     cs = ax.contourf(t2, t3, z, levels=20, cmap="gray")
-    _colorbar(fig, ax, cs, "1/\u03ba_F of J_N")
+    _colorbar(fig, ax, cs, r"$1/\kappa_F$ of $J_N$")
     deg = np.degrees(q_tests)
     draw_poses(ax, deg[:, 1], deg[:, 2], labels)
     ax.set_xlabel("\u03b8\u2082 (deg, model convention)")
@@ -150,7 +279,7 @@ def poses_on_kappa_map(table: pd.DataFrame, q_tests: np.ndarray, labels: list[st
     _legend_below(ax)
     return _png(fig, "poses_kappa_map", f"Tested poses {_pose_list(labels)} on the "
                 f"1/\u03ba_F map ({fixed_text}{_rule(rule)}; the poses' own \u03b8\u2081, "
-                "\u03b8\u2084..\u03b8\u2086 may differ).")
+                "\u03b8\u2084..\u03b8\u2086 may differ)." + _coincide_text(deg, labels, ax))
 
 
 def _rule(rule: str) -> str:
@@ -210,12 +339,14 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals, {what}.")
 
 
-def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None = None
-                  ) -> Figure:
-    """Studentized residual per test and component; outliers (|t| > threshold) in red.
+def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None = None,
+                  flagged: int | None = None, beyond: int | None = None) -> Figure:
+    """Studentized residual per test and component; the flagged outliers circled in red,
+    residuals beyond the threshold the procedure did not set aside marked with a cross.
 
     ``n_tests``: the campaign's number of tests when ``residuals`` holds only the rows of
-    the tests with the largest residuals (the caption then says so)."""
+    the tests with the largest residuals (the caption then says so). ``flagged``,
+    ``beyond``: counts over the whole campaign (default: those of ``residuals``)."""
     fig, ax = _new(legend_below=True)
     tests = residuals["test"].to_numpy()
     for comp, marker in COMPONENT_MARKERS.items():
@@ -224,9 +355,15 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
             ax.plot(tests[sel] + 1, residuals.loc[sel, "studentized"], marker, ms=5,
                     mfc="none", label=comp, linestyle="none")
     out = residuals["outlier"].to_numpy(dtype=bool)
+    t_all = residuals["studentized"].to_numpy(dtype=float)
+    over = np.isfinite(t_all) & (np.abs(t_all) > threshold)
     if out.any():
-        ax.plot(tests[out] + 1, residuals.loc[out, "studentized"], "o", ms=11, mfc="none",
-                mec="red", mew=1.5, label="outlier")
+        ax.plot(tests[out] + 1, t_all[out], "o", ms=11, mfc="none",
+                mec="red", mew=1.5, label="flagged outlier")
+    rest = over & ~out
+    if rest.any():
+        ax.plot(tests[rest] + 1, t_all[rest], "x", ms=9, color="darkorange", mew=1.5,
+                label="beyond, not set aside")
     for s in (-threshold, threshold):
         ax.axhline(s, color="red", ls="--", lw=1, zorder=3)
     ax.axhline(0, color="k", lw=0.8)
@@ -234,7 +371,7 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
     extent = max(float(np.nanmax(np.abs(residuals["studentized"]), initial=0.0)), threshold)
     ax.set_ylim(-1.15 * extent, 1.15 * extent)
     ax.set_xlabel("test (row of the identification, 1-based)")
-    ax.set_ylabel("studentized residual (1)")
+    ax.set_ylabel("studentized residual")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))
     _title(ax, "Residuals per test and component", fontsize=9)
@@ -242,8 +379,18 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
              f" Shown: the {residuals['test'].nunique()} of {n_tests} tests holding the "
              "largest |studentized| residuals (outliers first); every test is in "
              "residuals.csv.")
-    return _png(fig, "residuals", f"Studentized residuals; dashed lines at \u00b1{threshold:.2f}; "
-                "circled in red: outliers." + shown)
+    from analysis.identification.estimate import MAX_OUTLIERS
+
+    n_flag = int(out.sum()) if flagged is None else flagged
+    n_over = int(over.sum()) if beyond is None else beyond
+    how = (f"{n_over} residual(s) of the fit beyond the dashed lines at \u00b1{threshold:.2f}; "
+           f"{n_flag} flagged as outliers (circled in red)")
+    if n_over != n_flag:
+        how += (f". The outlier test sets aside the largest |t| and refits, one at a time, "
+                f"at most {MAX_OUTLIERS + 1} residuals: after the refits some residuals "
+                "beyond the line in this first fit fall inside it, or the budget is spent; "
+                "crosses: beyond the line, not set aside")
+    return _png(fig, "residuals", f"Studentized residuals of the fit; {how}." + shown)
 
 
 def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: str,
@@ -266,7 +413,7 @@ def deflection_joint_map(table: pd.DataFrame, q_tests: np.ndarray, wrench_text: 
     return _png(fig, "deflection_joint_map", "Norm of the predicted translational deflection "
                 f"of P (with K_C) over (\u03b8\u2082, \u03b8\u2083), {fixed_text}"
                 f"{_rule(rule)}, with the tested poses {_pose_list(labels)}; colour scale "
-                "clipped at the 99th percentile.")
+                "clipped at the 99th percentile." + _coincide_text(deg, labels, ax))
 
 
 def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:
@@ -291,37 +438,59 @@ def deflection_cartesian_map(table: pd.DataFrame, wrench_text: str) -> Figure:
                 "P in the arm's plane (same poses as the joint-space map).")
 
 
-def robustness_curve(table: pd.DataFrame, n_campaign: int, se_rel: dict[int, float]) -> Figure:
-    """Relative std of each k (%) vs number of tests; the campaign's size and its own se."""
-    fig, ax = _new()
+def robustness_curve(table: pd.DataFrame, n_campaign: int, se_rel: dict[int, float],
+                     method_text: str = "") -> Figure:
+    """Robust spread (IQR / 1.349 of k / k_ref, %) of each k vs number of tests, with the
+    campaign's size and its own standard errors; numbers of tests where the design is not
+    identifiable are marked at the top instead of drawn (their spread would set the scale).
+    """
+    fig, ax = _new(legend_below=True)
+    ident = table[table["identifiable"]]
     for j in sorted(table["joint"].unique()):
-        s = table[table["joint"] == j]
-        line, = ax.plot(s["n_tests"], 100 * s["relative_std"], "o-", ms=3, label=f"k{j}")
+        s = ident[ident["joint"] == j]
+        line, = ax.plot(s["n_tests"], 100 * s["robust_sigma"], "o-", ms=3, label=f"k{j}")
         if j in se_rel and np.isfinite(se_rel[j]):
             ax.plot([n_campaign], [100 * se_rel[j]], "*", ms=10, color=line.get_color())
     ax.axvline(n_campaign, color="k", ls=":", lw=1)
     ax.set_yscale("log")
     from matplotlib.ticker import FuncFormatter, MaxNLocator
 
-    # plain numbers (0.1, 1, 10) rather than the default 10^x labels, which go through the
-    # mathtext parser (its first use costs about a quarter of a second); within less than
-    # a decade the 2 and 5 minor ticks are labelled too, so two labels at least are shown
+    # plain numbers (0.1, 1, 10) rather than the default 10^x labels; within less than a
+    # decade the 2 and 5 minor ticks are labelled too, so two labels at least are shown
     ax.yaxis.set_major_formatter(FuncFormatter(_plain))
-    values = 100 * table["relative_std"].to_numpy(dtype=float)
-    values = values[np.isfinite(values) & (values > 0)]
+    values = 100 * ident["robust_sigma"].to_numpy(dtype=float)
+    stars = [100 * v for v in se_rel.values() if np.isfinite(v) and v > 0]
+    values = np.concatenate([values[np.isfinite(values) & (values > 0)], stars])
     few = values.size == 0 or np.floor(np.log10(values.max())) == np.floor(
         np.log10(values.min()))
     ax.yaxis.set_minor_formatter(FuncFormatter(_plain_25 if few else _none))
+    if values.size:
+        ax.set_ylim(values.min() / 1.5, values.max() * 1.5)
+    bad = sorted(set(table.loc[~table["identifiable"], "n_tests"].tolist()))
+    if bad:
+        from matplotlib.transforms import blended_transform_factory
 
+        trans = blended_transform_factory(ax.transData, ax.transAxes)
+        ax.plot(bad, [0.96] * len(bad), "x", color="0.35", ms=7, mew=1.5, transform=trans,
+                clip_on=False, label="not identifiable")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # a number of tests
     ax.set_xlabel("number of tests drawn from this campaign's design")
-    ax.set_ylabel("relative std of k (%)")
+    ax.set_ylabel("IQR/1.349 of k/k$_{ref}$ (%)")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8, ncol=2)
-    _title(ax, "Robustness of the identification to measurement noise", fontsize=9)
-    return _png(fig, "robustness", "Monte-Carlo spread of the identified k against the "
-                "number of tests; dotted line: this campaign's number of tests; stars: the "
-                "standard errors reported for this campaign.")
+    ax.legend(fontsize=7, ncol=8, loc="upper center", bbox_to_anchor=(0.5, -0.15),
+              frameon=False)
+    _title(ax, "Robustness to measurement noise" + (f": {method_text}" if method_text
+                                                    else ""), fontsize=7.5)
+    caption = ("Monte-Carlo spread of the identified k against the number of tests: "
+               "interquartile range of k / k_ref over 1.349 (the standard deviation of a "
+               "normal spread, not inflated by the wild draws of a nearly singular design); "
+               "dotted line: this campaign's number of tests; stars: the standard errors "
+               "reported for this campaign.")
+    if bad:
+        caption += (" Crosses at the top: numbers of tests where the design is not "
+                    "identifiable (more than 10 % of the trials give no positive k, or the "
+                    "spread exceeds 100 %): " + ", ".join(str(int(n)) for n in bad) + ".")
+    return _png(fig, "robustness", caption)
 
 
 def _plain(value: float, _pos=None) -> str:

@@ -93,3 +93,19 @@ def fixed(value: float | None, decimals: int) -> str:
     if value is None or not math.isfinite(value):
         return "-"
     return _no_negative_zero(f"{value:.{decimals}f}")
+
+
+def utc_text(stamp: str | None) -> str:
+    """An ISO 8601 UTC time stamp shown to the second: '2026-11-20 09:58:00 UTC' ('-' for
+    none; text that is not a time stamp is returned as it is)."""
+    from datetime import UTC, datetime
+
+    if not stamp or stamp == "-":
+        return "-"
+    try:
+        t = datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
+    except ValueError:
+        return str(stamp)
+    if t.tzinfo is not None:
+        t = t.astimezone(UTC)
+    return t.strftime("%Y-%m-%d %H:%M:%S UTC")

@@ -24,6 +24,30 @@ table.mono td { font-family: "DejaVu Sans Mono", monospace; }
 figure { margin: 1em 0; } figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
 figcaption { color: #555; font-size: 0.85em; }
 nav ol { columns: 2; }
+.scroll { overflow-x: auto; max-width: 100%; -webkit-overflow-scrolling: touch; }
+.facts { font-weight: bold; margin: 0.6em 0 0.3em; }
+.verdict { background: #e6f4ea; border-left: 4px solid #2a7; padding: 0.5em 0.8em;
+           font-weight: bold; }
+.refusal { background: #fde2e1; border-left: 4px solid #c00; color: #b00; padding: 0.5em 0.8em;
+           font-weight: bold; }
+.lab-banner { position: sticky; top: 0; z-index: 10; background: #c00; color: #fff;
+             font-weight: bold; text-align: center; padding: 0.35em 0.5em;
+             letter-spacing: 0.05em; margin: 0 -1em; }
+.trace { color: #555; font-size: 0.8em; margin: 0.2em 0; }
+table.tall td { height: 2.4em; }
+@media (max-width: 600px) { body { margin: 0.5em auto; } nav ol { columns: 1; }
+  table { font-size: 0.78em; } }
+@media print {
+  body { max-width: none; margin: 0; padding: 0; font-size: 10pt; }
+  .lab-banner { position: fixed; top: 0; left: 0; right: 0; margin: 0; }
+  body.sim { padding-top: 2.2em; }
+  nav { display: none; }
+  h2, h3 { break-after: avoid; page-break-after: avoid; }
+  table, figure, .caption, tr { break-inside: avoid; page-break-inside: avoid; }
+  thead { display: table-header-group; }
+  .scroll { overflow: visible; }
+  figure img { max-width: 100%; }
+}
 """
 
 
@@ -57,7 +81,8 @@ def _anchor(title: str) -> str:
 def _paragraph(p: Paragraph) -> str:
     if p.kind == "heading":
         return f"<h3>{escape(p.text)}</h3>"
-    cls = f' class="{p.kind}"' if p.kind in ("note", "warning") else ""
+    cls = (f' class="{p.kind}"' if p.kind in ("note", "warning", "facts", "verdict", "refusal")
+           else "")
     return f"<p{cls}>{_math(p.text)}</p>"
 
 
@@ -70,10 +95,11 @@ def _table(t: Table) -> str:
         cells = "".join(f'<td class="{a}">{escape(c)}</td>' for c, a in zip(row, align,
                                                                              strict=True))
         body.append(f'<tr class="marked">{cells}</tr>' if mark else f"<tr>{cells}</tr>")
-    cls = ' class="mono"' if t.mono else ""
+    names = [n for n, on in (("mono", t.mono), ("tall", t.tall)) if on]
+    cls = f' class="{" ".join(names)}"' if names else ""
     caption = f'<p class="caption">{_math(t.caption)}</p>' if t.caption else ""
-    return (f"<h3>{escape(t.title)}</h3><table{cls}><thead><tr>{head}</tr></thead>"
-            f"<tbody>{''.join(body)}</tbody></table>{caption}")
+    return (f'<h3>{escape(t.title)}</h3><div class="scroll"><table{cls}><thead><tr>{head}'
+            f"</tr></thead><tbody>{''.join(body)}</tbody></table></div>{caption}")
 
 
 def _figure(f: Figure) -> str:
@@ -96,14 +122,37 @@ def _section(s: Section) -> str:
     return "\n".join(parts)
 
 
+SIMULATED_TEXT = ("SIMULATED DATA \u2014 this run came from the simulated lab, not from a "
+                  "measurement of a real robot")
+
+
+def trace_text(report: Report) -> str:
+    """'Report ID ... · generated ... · software ...' (the PDF's footer, the HTML's head)."""
+    t = report.trace
+    parts = [f"Report ID {t.report_id}" if t.report_id else "",
+             f"generated {t.generated_utc}" if t.generated_utc else "", t.software]
+    return " \u00b7 ".join(p for p in parts if p)
+
+
 def render_html(report: Report) -> str:
-    """The report as an HTML document (UTF-8 text)."""
+    """The report as an HTML document (UTF-8 text): the result block first, the contents
+    after the summary; a SIMULATED DATA banner on every screen (sticky) and printed page
+    (fixed) when the data are simulated."""
     nav = "".join(f'<li><a href="#{_anchor(s.title)}">{escape(s.title)}</a></li>'
                   for s in report.sections)
-    body = "\n".join(_section(s) for s in report.sections)
+    sections = [_section(s) for s in report.sections]
+    nav_html = f"<nav><h3>Contents</h3><ol>{nav}</ol></nav>"
+    body = "\n".join(sections[:1] + [nav_html] + sections[1:])
+    sim = (f'<div class="lab-banner" role="note">{escape(SIMULATED_TEXT)}</div>'
+           if report.simulated else "")
+    trace = escape(trace_text(report))
+    body_class = ' class="sim"' if report.simulated else ""
     return (
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-        f"<title>{escape(report.title)}</title><style>{CSS}</style></head><body>"
+        "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
+        f"<title>{escape(report.title)}</title><style>{CSS}</style></head>"
+        f"<body{body_class}>{sim}"
         f"<h1>{escape(report.title)}</h1><p class=\"subtitle\">{escape(report.subtitle)}</p>"
-        f"<nav><ol>{nav}</ol></nav>\n{body}\n</body></html>\n"
+        f"<p class=\"trace\">{trace}</p>\n{body}\n"
+        f"<footer><p class=\"trace\">{trace}</p></footer></body></html>\n"
     )

@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib.metadata
 from dataclasses import dataclass, field
 
-from analysis.report.formatting import fixed
+from analysis.report.formatting import fixed, utc_text
 from analysis.report.model import Paragraph, Table
 
 VERSIONED = ("robot-stiffness-campaign", "numpy", "scipy", "pandas", "pin", "matplotlib", "fpdf2")
@@ -34,6 +34,13 @@ class CampaignInfo:
         flags, repeatability_mm, drift_mm, wrench_error_N, tracker_sigma_mm, line).
     flag_counts : flag -> number of rows.
     notes : remarks from reading the input (hash mismatch, dropped line, ...).
+    campaign : the protocol's ``[campaign] name`` ('' unknown).
+    simulated : the run came from the simulated lab (metadata ``fake``/``fake_lab``).
+    tests_sha256, plan_sha256 : SHA-256 of the run's tests.csv and plan.csv ('' unknown).
+    instrument_records : one dict per instrument: role, model, serial, calibration_date,
+        calibration_due, certificate, driver, address (protocol keys, device reports).
+    repeatability_mm : tests.csv line -> repeatability (mm) of that row.
+    report_id : the report ID stamped into results.json ('' before).
     """
 
     source: str
@@ -58,6 +65,18 @@ class CampaignInfo:
     flagged: list[dict] = field(default_factory=list)
     flag_counts: dict[str, int] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    campaign: str = ""
+    simulated: bool = False
+    tests_sha256: str = ""
+    plan_sha256: str = ""
+    instrument_records: list[dict] = field(default_factory=list)
+    repeatability_mm: dict[int, float] = field(default_factory=dict)
+    report_id: str = ""
+
+    def input_hashes(self) -> dict[str, str]:
+        """Name -> SHA-256 of each input file (for the report ID)."""
+        return {"tests": self.tests_sha256 or self.measurements_sha256,
+                "plan": self.plan_sha256, "protocol": self.protocol_sha256}
 
     @property
     def partial(self) -> bool:
@@ -90,17 +109,20 @@ def partial_text(info: CampaignInfo) -> str:
 def summary_table(info: CampaignInfo) -> Table:
     """Key facts of the campaign, one per row."""
     rows = [
+        *([["campaign", info.campaign]] if info.campaign else []),
         ["source", f"{info.source}: {info.location}"],
         ["robot", info.robot],
         ["tool", info.tool],
         ["status", info.status + (f" ({info.reason})" if info.reason else "")],
-        ["started / ended (UTC)", f"{info.started_utc} / {info.ended_utc}"],
+        ["started / ended", f"{utc_text(info.started_utc)} / {utc_text(info.ended_utc)}"],
         ["operator", info.operator],
         *([["protocol", info.protocol_file], ["protocol SHA-256", info.protocol_sha256]]
           if info.source == "run" or info.protocol_sha256 not in ("", "-") else
           [["protocol", "none (imported measurements)"]]),
         *([["measurements SHA-256", info.measurements_sha256]]
           if info.measurements_sha256 else []),
+        *([["tests.csv SHA-256", info.tests_sha256]] if info.tests_sha256 else []),
+        *([["plan SHA-256", info.plan_sha256]] if info.plan_sha256 else []),
         *[[f"load case {i + 1}", f"{text} ({n} test(s))"]
           for i, (text, n) in enumerate(info.wrenches)],
         ["test rows", f"{info.n_rows} recorded ({info.n_ok} ok, {info.n_failed} failed)"
@@ -108,12 +130,40 @@ def summary_table(info: CampaignInfo) -> Table:
     ]
     for role, text in info.instruments.items():
         rows.append([f"instrument: {role}", text])
+    if info.simulated:  # said only when true: a real run's report never says "simulated"
+        rows.append(["data", "SIMULATED DATA from the simulated lab (metadata fake), not a "
+                     "measurement of a real robot"])
     if info.software:
         rows.append(["software (acquisition)",
                      ", ".join(f"{k} {v}" for k, v in info.software.items())])
     rows.append(["software (analysis)",
                  ", ".join(f"{k} {v}" for k, v in analysis_versions().items())])
     return Table("Campaign", ["item", "value"], rows, widths=[1, 3.2])
+
+
+INSTRUMENT_KEYS = ("model", "serial", "calibration_date", "calibration_due", "certificate")
+
+
+def instrument_table(info: CampaignInfo) -> Table | None:
+    """Instruments with model, serial and calibration (None when nothing is known)."""
+    if not info.instrument_records:
+        return None
+    rows = [[r.get("role", "-"), *[str(r.get(k) or "-") for k in INSTRUMENT_KEYS]]
+            for r in info.instrument_records]
+    return Table("Instruments and calibration",
+                 ["role", "model", "serial", "calibrated on", "calibration due",
+                  "certificate"], rows,
+                 caption="From the protocol's [instruments.<role>] keys model, serial, "
+                 "calibration_date, calibration_due and certificate; a serial the device "
+                 "reported at connection is shown when the protocol gives none. '-': not "
+                 "given.", widths=[1, 1.4, 1.1, 1.1, 1.1, 1.4])
+
+
+def approval_table() -> Table:
+    """Blank fields for the signatures of the analyst, the checker and the approver."""
+    rows = [[role, "", "", ""] for role in ("analysed by", "checked by", "approved by")]
+    return Table("Approval", ["role", "name", "signature", "date"], rows,
+                 widths=[1, 1.6, 1.6, 0.9], tall=True)
 
 
 def quality_blocks(info: CampaignInfo) -> list:

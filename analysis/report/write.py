@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from analysis.errors import InputError
+from analysis.output_files import make_dir, write_bytes, write_text
 from analysis.report.html import render_html
 from analysis.report.model import Report
 from analysis.report.pdf import render_pdf
@@ -12,12 +13,11 @@ from analysis.report.pdf import render_pdf
 
 def write_report(report: Report, out_dir: str | Path) -> dict[str, Path]:
     """Render ``report`` to HTML and PDF in ``out_dir``; returns the paths by name."""
-    out = Path(out_dir)
+    out = make_dir(out_dir)
     try:
-        out.mkdir(parents=True, exist_ok=True)
         paths = {"html": out / "report.html", "pdf": out / "report.pdf"}
-        paths["html"].write_text(render_html(report), encoding="utf-8")
-        paths["pdf"].write_bytes(render_pdf(report))
+        write_text(paths["html"], render_html(report))
+        write_bytes(paths["pdf"], render_pdf(report))
     except OSError as err:
         raise InputError(f"cannot write the report: {err.strerror}", where=str(out)) from err
     return paths

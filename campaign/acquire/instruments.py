@@ -94,6 +94,14 @@ class Instruments:
             out[role] = d
         return out
 
+    def mark(self, test_id: int | None, repeat: int | None, attempt: int | None,
+             phase: str) -> None:
+        """Tell the simulated lab (if any) which test and phase the readings belong to,
+        so each is drawn from its own seeded generator (no effect on hardware)."""
+        if self.lab is not None:
+            self.lab.mark(*(0 if v is None else int(v) for v in (test_id, repeat, attempt)),
+                          phase)
+
     def read_point(self) -> np.ndarray:
         """One position (m, tracker frame) of the tool for settling detection."""
         if self.tracker.reflectors:
@@ -209,6 +217,10 @@ def open_instruments(protocol: Protocol, fake: bool, time_scale: float | None = 
         if lab is not None:
             lab.stop()
         raise InputError(str(err), where=protocol.where("instruments", role)) from err
+    if lab is not None:
+        guard = lab.window_guard(drivers["force_torque"])
+        if guard is not None:
+            built["force_torque"].window_guard = guard
     return Instruments(robot=built["robot"], ft=built["force_torque"], tracker=built["pose"],
                        load=built["load"], drivers=drivers, lab=lab, operator=operator,
                        sensor_mount=sensor_mount(protocol), clients=clients)

@@ -9,6 +9,7 @@ atomically (temporary file, fsync, rename, fsync of the directory).
 from __future__ import annotations
 
 import csv
+import errno
 import fcntl
 import hashlib
 import io
@@ -24,6 +25,7 @@ import pandas as pd
 
 from analysis.errors import InputError
 from analysis.identification.measurements import CSV_COLUMNS
+from analysis.output_files import SymlinkRefused, refuse_link, refuse_links_in, replacing
 
 FORMAT_VERSION = 1
 METADATA = "metadata.json"
@@ -85,8 +87,14 @@ def atomic_write(path: Path, text: str) -> None:
     ------
     WriteFailure
         The file could not be written (the old content is left in place).
+    SymlinkRefused
+        ``path`` is a symbolic link (never replaced, never written through).
     """
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    refuse_link(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as err:  # an unwritable or read-only directory, a full disk
+        raise WriteFailure(path, err) from err
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
@@ -128,7 +136,7 @@ class Appender:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self._fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        self._fd = _open_no_follow(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT)
 
     def write(self, text: str) -> None:
         """Append ``text`` (whole lines); :class:`WriteFailure` if it cannot be written.
@@ -159,7 +167,22 @@ class Appender:
             self._fd = -1
 
 
-def _require_empty(path: Path) -> None:
+def _open_no_follow(path: Path, flags: int) -> int:
+    """``os.open`` that never follows a symbolic link; :class:`SymlinkRefused` for a
+    link, :class:`WriteFailure` when the file cannot be opened (read-only, permissions)."""
+    try:
+        return os.open(path, flags | os.O_NOFOLLOW, 0o644)
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            raise SymlinkRefused(path) from None
+        raise WriteFailure(path, err) from err
+
+
+def require_new_run_dir(path: Path) -> None:
+    """Refuse ``path`` as a new run directory: a symbolic link (dangling or not), a file,
+    a non-empty directory."""
+    if os.path.islink(path):
+        raise SymlinkRefused(path)
     if path.exists() and (not path.is_dir() or any(path.iterdir())):
         raise InputError("run directory exists and is not empty; use --resume to "
                          "continue it, or choose another --out", where=str(path))
@@ -278,7 +301,7 @@ class RunDir:
         processes creating the same run only one rename succeeds.
         """
         path = Path(path)
-        _require_empty(path)
+        require_new_run_dir(path)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             _remove_stale_creations(path)
@@ -322,6 +345,7 @@ class RunDir:
         that tests.csv names each (test_id, repeat) once; then cuts partial last lines.
         """
         path = Path(path)
+        refuse_links_in(path)  # before anything is read, repaired or appended to
         meta_path = path / METADATA
         if not meta_path.is_file():
             raise InputError("not a run directory (no metadata.json)", where=str(path))
@@ -356,7 +380,7 @@ class RunDir:
 
     def _lock(self) -> None:
         """Hold an exclusive lock on the run (released by the kernel even on kill -9)."""
-        fd = os.open(self.path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = _open_no_follow(self.path / LOCK, os.O_RDWR | os.O_CREAT)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -377,10 +401,16 @@ class RunDir:
             self._tests.write(",".join(TEST_COLUMNS) + "\n")
 
     def close(self) -> None:
+        """Close the files and release the lock; ``.lock`` is removed (while still held,
+        so no other process is between its lock and our removal)."""
         for app in (self._samples, self._tests, self._events):
             if app is not None:
                 app.close()
         if self._lock_fd >= 0:
+            try:
+                os.unlink(self.path / LOCK)
+            except OSError:
+                pass  # a read-only directory: the empty file stays, harmless
             os.close(self._lock_fd)  # closing the descriptor releases the lock
             self._lock_fd = -1
 
@@ -496,11 +526,13 @@ def read_samples(path: Path) -> pd.DataFrame:
 
 
 def export_parquet(path: Path) -> None:
-    """Parquet exports of tests.csv and samples.jsonl, each written atomically."""
+    """Parquet exports of tests.csv and samples.jsonl, each written atomically.
+
+    A failed export (disk full, ...) leaves no temporary file behind.
+    """
     path = Path(path)
     for name, frame in (("tests.parquet", read_tests(path)),
                         ("samples.parquet", read_samples(path))):
-        tmp = path / f".{name}.tmp"
-        frame.to_parquet(tmp, index=False)
-        os.replace(tmp, path / name)
+        with replacing(path / name) as tmp:
+            frame.to_parquet(tmp, index=False)
     _fsync_dir(path)

@@ -142,6 +142,8 @@ class Runner:
 
     def _phase(self, phase: str, **live: Any) -> None:
         self.ctx["phase"] = phase
+        self.inst.mark(self.ctx.get("test_id"), self.ctx.get("repeat"), self.ctx.get("attempt"),
+                       phase)
         self.run_dir.event({"t_utc": utc(), "event": "phase", "phase": phase,
                             "session": self.run_dir.session,
                             **{k: self.ctx.get(k) for k in ("test_id", "repeat", "attempt")}})
@@ -209,7 +211,10 @@ class Runner:
         try:
             self.run_dir.set_status(status, reason, **extra)
         except WriteFailure as err:
-            reason += f"; metadata.json still says running ({err})"
+            reason = "; ".join(filter(None, [reason, f"metadata.json still says running "
+                                                      f"({err}): --resume records it"]))
+            # the appended files are still open: the status goes into events.jsonl at least
+            self._record("status", status=status, reason=reason)
         return status, reason
 
     def _make_safe(self, status: str) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import getpass
 import hashlib
+import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,7 +24,15 @@ from campaign.acquire.checks import limits_for
 from campaign.acquire.instruments import open_instruments
 from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
 from campaign.acquire.progress import Reporter
-from campaign.acquire.rundir import PLAN, TESTS, RunDir, WriteFailure, export_parquet
+from campaign.acquire.rundir import (
+    PLAN,
+    TESTS,
+    RunDir,
+    WriteFailure,
+    export_parquet,
+    read_tests,
+    require_new_run_dir,
+)
 from campaign.acquire.runner import Runner, RunSettings, utc
 from campaign.acquire.settle import SettleRule, rule_for
 from campaign.plan_output import load_plan
@@ -57,6 +66,9 @@ class Outcome:
     run_dir: Path | None
     ok: int = 0
     failed: int = 0
+    #: False when the Parquet exports could not be written (the run is complete in its
+    #: text tables; the command then exits with status 1)
+    exported: bool = True
 
 
 def software_versions() -> dict[str, str]:
@@ -88,15 +100,18 @@ def write_tests_sidecar(run_path: Path, protocol: Protocol, robot: Any) -> None:
     from campaign.tests_meta import sidecar_path, sidecar_record, write_sidecar
 
     csv_path = Path(run_path) / TESTS
-    if sidecar_path(csv_path).exists():
-        return
+    if os.path.lexists(sidecar_path(csv_path)):
+        return  # a link there is refused by RunDir.open
     record = sidecar_record(
         robot_key=protocol.campaign.robot, robot_name=robot.name,
         tool_xyz_mm=protocol.tool.xyz_mm, tool_rpy_deg=protocol.tool.rpy_deg,
         tool_mass_kg=protocol.tool.mass_kg, noise=noise_from_protocol(protocol),
         noise_source=protocol_noise_source(protocol), csv_name=TESTS,
         protocol_sha256=_sha(protocol.text))
-    write_sidecar(csv_path, record)
+    try:
+        write_sidecar(csv_path, record)
+    except OSError as err:
+        raise WriteFailure(sidecar_path(csv_path), err) from err
 
 
 def base_metadata(protocol: Protocol, plan_text: str, plan_source: Path, robot: Any,
@@ -152,6 +167,8 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
     if opts.time_scale is not None and not opts.time_scale > 0:
         raise InputError("time scale must be positive", where="--time-scale")
     run: RunDir | None = None
+    if out is not None and resume is None:
+        require_new_run_dir(out)  # before anything is connected
     if resume is not None:
         run = RunDir.open(resume)
         try:
@@ -172,6 +189,9 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         robot = protocol_robot(protocol)
         tests = planned_tests(protocol, plan, robot, where=where_plan)
         done = run.finished() if run is not None else set()
+        if run is not None and all((t.test_id, r) in done for t in tests
+                                   for r in range(1, t.repeats + 1)):
+            return _nothing_to_resume(run, reporter)
         rule = _settle_rule(protocol, 1.0, opts.settle_scale)  # robot time, for the estimate
         say(dry_run_text(tests, robot, protocol, done,
                          settle_s=(rule.window - 1) * rule.interval))
@@ -225,7 +245,8 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         inst.close()
         if run is not None:
             run.close()
-    outcome = Outcome(status, reason, run.path, counts["ok"], counts["failed"])
+    outcome = Outcome(status, reason, run.path, counts["ok"], counts["failed"],
+                      exported=counts.get("exported", 1) == 1)
     reporter.finish(status, reason, {"run_dir": str(run.path), "ok": outcome.ok,
                                      "failed": outcome.failed})
     return outcome
@@ -260,6 +281,50 @@ def _run_session(run: RunDir, inst: Any, robot: Any, tests: list, protocol: Prot
     try:
         export_parquet(run.path)
     except (OSError, ValueError) as err:
-        reporter.message(f"could not write the Parquet exports ({err}); campaign analyze "
-                         "writes them when missing")
+        # the measurements are all in tests.csv and samples.jsonl: said in the final
+        # line (even with --quiet) and in metadata.json, and the command exits with 1
+        counts["exported"] = 0
+        why = err.strerror if isinstance(err, OSError) and err.strerror else err
+        note = (f"the Parquet exports could not be written ({why}); every measurement is "
+                "in tests.csv and samples.jsonl, and campaign analyze writes the exports "
+                "when there is room")
+        reason = f"{reason}; {note}" if reason else note
+        try:
+            run.set_status(status, reason, parquet_exported=False)
+        except (WriteFailure, InputError):
+            pass
     return status, reason
+
+
+def _nothing_to_resume(run: RunDir, reporter: Reporter) -> Outcome:
+    """``--resume`` of a run whose planned tests are all in tests.csv: nothing is started.
+
+    Missing Parquet exports are written, and the status becomes ``complete`` if a
+    session ended before saying so (or ``parquet_exported`` true once the exports are
+    there); no instrument is connected, nothing moves.
+    """
+    meta = run.metadata
+    exported, why = True, ""
+    try:
+        if not all((run.path / n).is_file() for n in ("tests.parquet", "samples.parquet")):
+            try:
+                export_parquet(run.path)
+            except (OSError, ValueError) as err:
+                exported = False
+                why = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
+        if meta.get("status") != "complete" or (exported and meta.get("parquet_exported")
+                                                is False):
+            extra: dict[str, Any] = {"parquet_exported": exported}
+            if meta.get("status") != "complete":
+                extra["ended_utc"] = utc()
+            run.set_status("complete", "", **extra)
+        statuses = read_tests(run.path)["status"].astype(str)
+    finally:
+        run.close()
+    ok, failed = int((statuses == "ok").sum()), int((statuses != "ok").sum())
+    reason = (f"nothing to resume: all {ok + failed} planned measurements are in tests.csv; "
+              "nothing connected, nothing moved")
+    if not exported:
+        reason += f"; the Parquet exports are still missing ({why})"
+    reporter.finish("complete", reason, {"run_dir": str(run.path), "ok": ok, "failed": failed})
+    return Outcome("complete", reason, run.path, ok, failed, exported=exported)

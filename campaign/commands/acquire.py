@@ -57,9 +57,10 @@ def acquire(
     if out is not None and resume is not None:
         raise InputError("--out and --resume exclude each other: a resumed run stays in its "
                          "directory", where="campaign acquire")
-    if out is not None and out.exists() and any(out.iterdir()):
-        raise InputError("run directory exists and is not empty; use --resume to continue "
-                         "it, or choose another --out", where=str(out))
+    if out is not None:
+        from campaign.acquire.rundir import require_new_run_dir
+
+        require_new_run_dir(out)
     reporter = make_reporter(quiet, json_lines)
     say = (lambda s: reporter.message(s)) if json_lines else typer.echo
     if quiet:
@@ -77,11 +78,17 @@ def acquire(
 
     opts = AcquireOptions(fake=fake, assume_yes=yes, dry_run=dry_run, time_scale=time_scale,
                           operator=operator)
+    from campaign.acquire.rundir import WriteFailure
+
     try:
         outcome = run_acquire(plan, out, resume, opts, reporter, say=say, ask=ask)
+    except WriteFailure as err:  # the run's own record cannot be opened (read-only, ...)
+        reporter.close()
+        typer.echo(f"error: {err}; nothing moved", err=True)
+        raise typer.Exit(1) from None
     finally:
         reporter.close()
-    if outcome.status not in ("complete", "dry-run"):
+    if outcome.status not in ("complete", "dry-run") or not outcome.exported:
         raise typer.Exit(1)
 
 

@@ -86,6 +86,7 @@ def _instrument_text(spec) -> str:
 
 def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
     from analysis.report.summary import CampaignInfo
+    from campaign.report_trace import run_trace
 
     meta = run.metadata
     tool = tool.text()
@@ -110,7 +111,7 @@ def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
         software={str(k): str(v) for k, v in (meta.get("software") or {}).items()},
         n_planned=run.n_planned, n_rows=len(run.tests), n_ok=len(run.ok),
         n_failed=run.n_failed, flagged=flagged, flag_counts=run.flag_counts(),
-        notes=list(run.notes),
+        notes=list(run.notes), **run_trace(run, protocol),
     )
 
 
@@ -162,9 +163,6 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
     from campaign.tests_meta import read_sidecar
 
     run = read_run(run_dir)
-    for note in run.notes:  # the loud ones also go to the terminal
-        if note.startswith("WARNING"):
-            typer.echo(note, err=True)
     protocol = load_protocol(run.protocol_path) if run.protocol_path else None
     if protocol is not None:
         t = protocol.tool
@@ -188,8 +186,15 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
         if meta is not None and meta.noise is not None:
             noise, noise_source = meta.noise, meta.noise_source
         robot_source = "run metadata robot.key"
-        run.notes.append(f"no protocol copy in the run: robot from the metadata, tool "
-                         f"{tool.source}, noise from {noise_source}")
+        deleted = (" (metadata.json records its protocol_sha256: it was deleted)"
+                   if run.metadata.get("protocol_sha256") else "")
+        run.notes.append(f"WARNING: no protocol copy in the run{deleted}: robot from the "
+                         f"metadata robot.key {key!r}, tool {tool.source}, noise from "
+                         f"{noise_source}; restore the protocol copy to analyse with its "
+                         "figures")
+    for note in run.notes:  # the loud ones also go to the terminal
+        if note.startswith("WARNING"):
+            typer.echo(note, err=True)
     info = _run_info(run, robot.name, protocol, tool)
     true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
     extras = {"protocol": protocol, "true_k": None if true_k is None else np.asarray(true_k,
@@ -350,19 +355,41 @@ def _poses(robot, protocol, pose_args: list[str], q_tests: np.ndarray, labels) -
 
 def _wrench(protocol, text: str | None, w_tests: np.ndarray,
             noise: NoiseModel) -> tuple[np.ndarray, str]:
-    if text:
+    if text is not None:
         return parse_floats(text, "--wrench", 6), "--wrench"
     if protocol is not None and protocol.report.wrench is not None:
         return np.asarray(protocol.report.wrench, float), "protocol [report] wrench"
-    if protocol is not None:
-        return protocol.wrenches()[0], f"first load case '{protocol.load_cases[0].name}'"
     from analysis.report.quantities import load_cases
+
+    if protocol is not None:
+        from analysis.report.test_table import match_load_cases
+
+        cases = _load_cases(protocol, w_tests, noise)
+        used = sorted(set(match_load_cases(w_tests, cases, noise.force_sigma,
+                                           noise.moment_sigma).tolist()) - {-1})
+        i = used[0] if used else 0
+        return protocol.wrenches()[i], (
+            f"load case '{protocol.load_cases[i].name}', the first one tested" if used else
+            f"first load case '{protocol.load_cases[0].name}' (no test matches a load case)")
 
     # not the first test's measured wrench: its noise would show as a load component
     w, n = load_cases(w_tests, noise.force_sigma, noise.moment_sigma)[0]
     return w, (f"load case 1 of the imported tests: mean of its {n} measured wrench(es) "
                f"rounded to the noise sigmas ({noise.force_sigma:g} N, "
                f"{noise.moment_sigma:g} N m); --wrench to choose another")
+
+
+def _load_cases(protocol, w_tests: np.ndarray, noise: NoiseModel) -> list:
+    """The planned load cases (protocol), or those of the imported tests (CSV)."""
+    from analysis.report.test_table import LoadCase
+
+    if protocol is not None:
+        return [LoadCase(c.name, c.method, w) for c, w in zip(protocol.load_cases,
+                                                              protocol.wrenches(), strict=True)]
+    from analysis.report.quantities import load_cases
+
+    return [LoadCase(f"load case {i + 1}", "as measured", w) for i, (w, _) in
+            enumerate(load_cases(w_tests, noise.force_sigma, noise.moment_sigma))]
 
 
 def _map_fixed(protocol, n: int, q_poses: np.ndarray):
@@ -392,7 +419,9 @@ def _frozen_heap():
         gc.unfreeze()
 
 
-def _print(console: Console, result, paths: dict) -> None:
+def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
+    """The result's table, warnings (but the first ``printed``, on the terminal already)
+    and files."""
     from rich.markup import escape
 
     from analysis.report.formatting import interval_kNm, k_kNm
@@ -412,7 +441,7 @@ def _print(console: Console, result, paths: dict) -> None:
             row.append("-" if raw is None else k_kNm(raw))
         table.add_row(*row)
     console.print(table)
-    for w in result.warnings:
+    for w in result.warnings[printed:]:
         console.print(f"[yellow]warning:[/yellow] {escape(w)}")
     for w in result.misfit_accepted:
         console.print(f"[red]ACCEPTED WITH --accept-misfit:[/red] {escape(w)}")
@@ -479,6 +508,9 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
                                      "(the keys of results.json, SI units) instead of "
                                      "the tables."),
+        force: bool = typer.Option(False, "--force", help="Replace a non-empty output "
+                                   "directory: its contents as a whole, nothing of the "
+                                   "earlier analysis is kept."),
     ) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report.
 
@@ -489,12 +521,14 @@ def register(app: typer.Typer) -> None:
         (the sidecar; else the flange centre) unless --tool-xyz-mm/--tool-rpy-deg
         give it. A result the data do not support (misfit, too good, k more than
         10 x from the model's nominal, a negative k, a tool point the residuals
-        contradict) is refused unless --accept-misfit.
+        contradict) is refused unless --accept-misfit. A non-empty output directory
+        (an earlier analysis) is refused unless --force, which replaces it as a whole.
         """
+        from analysis.identification.data_fingerprint import fingerprint
         from analysis.identification.estimate import identify, parse_joints
         from analysis.identification.measurements import TestArrays, to_arrays
         from analysis.identification.plausibility import problems
-        from analysis.identification.result import write_results
+        from analysis.output_files import check_output_dir, replaced_dir
 
         gc.freeze()  # what was just imported joins the frozen objects (see _frozen_heap)
         method, covariance, robust = str(method), str(covariance), str(robust)
@@ -508,11 +542,14 @@ def register(app: typer.Typer) -> None:
             if robot:
                 raise InputError("a run names its robot in its protocol; drop --robot",
                                  where="--robot")
+            check_output_dir(out or run_dir / "analysis", force, "--out",
+                             replaces="replace its contents")
             table, model, noise, info, extras = _from_run(run_dir, tool_xyz_mm, tool_rpy_deg)
             out = out or run_dir / "analysis"
         else:
             if out is None:
                 raise InputError("--measurements needs --out DIR", where="--out")
+            check_output_dir(out, force, "--out", replaces="replace its contents")
             table, model, noise, info, extras = _from_csv(measurements, robot, tip,
                                                           tool_xyz_mm, tool_rpy_deg)
         protocol = extras["protocol"]
@@ -522,6 +559,8 @@ def register(app: typer.Typer) -> None:
         noise_source = extras["noise_source"] + (
             f"; overridden by {', '.join(overridden)}" if overridden else "")
         joint_list = parse_joints(joints)
+        if report and trials < 10:
+            raise InputError("need at least 10 trials", where="--trials")
         assumptions = _assumptions(model, extras, noise, noise_source, method, covariance,
                                    joint_list, robust)
         # with --json, stdout carries the JSON document only
@@ -537,6 +576,10 @@ def register(app: typer.Typer) -> None:
                               noise=noise, covariance=covariance, robust=robust,
                               holdout_radius=np.radians(_holdout_deg(protocol)[0]))
         result.assumptions = assumptions
+        # what the run's reader warned about (a damaged run) stays with the result
+        early = [n.removeprefix("WARNING: ") for n in info.notes if n.startswith("WARNING")]
+        result.warnings[:0] = early
+        result.tests_data = fingerprint(tests)
         if measurements is not None and extras["tool"].source.startswith("none given"):
             result.warnings.insert(0, (
                 "no tool point given: P assumed at the flange centre; if the displacements "
@@ -556,53 +599,69 @@ def register(app: typer.Typer) -> None:
                 "the report then say so)", where=str(run_dir or measurements))
         result.misfit_accepted = refused
         _release_freed_heap()  # the identification's freed pages, before the writer's
-        paths = write_results(result, out)
-        from analysis.identification.model_export import export_model  # model.toml, K_X
-
-        paths.update(export_model(result, model, out, tests, info))
-        if report:
-            # the report makes figures: matplotlib is imported only here
-            from analysis.report.build import ReportInputs, build_report
-            from analysis.report.write import write_report
-
-            gc.freeze()
-
-            if trials < 10:
-                raise InputError("need at least 10 trials", where="--trials")
-            labels = list(dict.fromkeys(tests.pose.tolist()))
-            w, w_source = _wrench(protocol, wrench, tests.w, noise)
-            if protocol is None:
-                from analysis.report.build import wrench_text
-                from analysis.report.quantities import load_cases
-
-                info.wrenches = [(wrench_text(c), n) for c, n in
-                                 load_cases(tests.w, noise.force_sigma, noise.moment_sigma)]
-            nominal, label = model.nominal_stiffness, "nominal (robot model)"
-            nominal_source = (model.sources or {}).get(
-                "stiffness", "the robot file's [stiffness] (its [sources] give no reference)")
-            if nominal is None and protocol is not None and protocol.campaign.prior_stiffness:
-                nominal, label = np.asarray(protocol.campaign.prior_stiffness), "prior (protocol)"
-                nominal_source = f"protocol {Path(protocol.path).name} [campaign] " \
-                    "prior_stiffness"
-            inputs = ReportInputs(
-                robot=model, tests=tests, info=info, noise=noise, wrench=w,
-                wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
-                nominal=None if nominal is None else np.asarray(nominal, float),
-                nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
-                map_fixed=_map_fixed(protocol, model.n, tests.q[
-                    [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
-                trials=trials)
-            with stage("report: maps, K_X, Monte-Carlo robustness, figures"):
-                built = build_report(result, inputs)
-            with stage("report: HTML and PDF"):
-                paths.update(write_report(built, out))
-        summary = {"run": str(run_dir) if run_dir else None, "partial": info.partial,
-                   "status": info.status, "failed_rows": info.n_failed}
-        (Path(out) / "analysis.json").write_text(json.dumps(summary, indent=2) + "\n")
+        # everything is written into a new directory that replaces ``out`` as a whole at
+        # the end: a refused or failed analysis leaves the earlier one untouched
+        with replaced_dir(out, force, "--out") as new:
+            paths = _write_outputs(result, model, new, tests, info, report, trials, protocol,
+                                   wrench, noise, pose, extras, run_dir)
+        paths = {k: out / Path(p).relative_to(new) for k, p in paths.items()}
         if as_json:
-            for w in result.warnings:  # still on the terminal, beside the JSON on stdout
-                typer.echo(f"warning: {w}", err=True)
-            print_json({**json.loads((Path(out) / "results.json").read_text()),
+            summary = json.loads((out / "analysis.json").read_text())
+            for w in result.warnings[len(early):]:  # still on the terminal, beside the JSON
+                typer.echo(f"warning: {w}", err=True)  # (the run's were printed on reading)
+            print_json({**json.loads((out / "results.json").read_text()),
                         "files": {k: str(v) for k, v in paths.items()}, **summary})
             return
-        _print(console, result, paths)
+        _print(console, result, paths, printed=len(early))
+
+
+def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: int,
+                   protocol, wrench, noise, pose, extras, run_dir) -> dict[str, Path]:
+    """Write results.json, residuals.csv, model.toml, the report and analysis.json into
+    ``out`` (a new directory); returns the paths of the main files by name."""
+    from analysis.identification.result import write_results
+    from analysis.output_files import write_text
+
+    paths = write_results(result, out)
+    from analysis.identification.model_export import export_model  # model.toml, K_X
+    from analysis.report.traceability import stamp_results
+
+    paths.update(export_model(result, model, out, tests, info))
+    info.report_id = stamp_results(paths["results"], info.input_hashes())
+    if report:
+        # the report makes figures: matplotlib is imported only here
+        from analysis.report.build import ReportInputs, build_report
+        from analysis.report.write import write_report
+
+        gc.freeze()
+        labels = list(dict.fromkeys(tests.pose.tolist()))
+        w, w_source = _wrench(protocol, wrench, tests.w, noise)
+        if protocol is None:
+            from analysis.report.build import wrench_text
+            from analysis.report.quantities import load_cases
+
+            info.wrenches = [(wrench_text(c), n) for c, n in
+                             load_cases(tests.w, noise.force_sigma, noise.moment_sigma)]
+        nominal, label = model.nominal_stiffness, "nominal (robot model)"
+        nominal_source = (model.sources or {}).get(
+            "stiffness", "the robot file's [stiffness] (its [sources] give no reference)")
+        if nominal is None and protocol is not None and protocol.campaign.prior_stiffness:
+            nominal, label = np.asarray(protocol.campaign.prior_stiffness), "prior (protocol)"
+            nominal_source = f"protocol {Path(protocol.path).name} [campaign] " \
+                "prior_stiffness"
+        inputs = ReportInputs(
+            robot=model, tests=tests, info=info, noise=noise, wrench=w,
+            wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
+            nominal=None if nominal is None else np.asarray(nominal, float),
+            nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
+            map_fixed=_map_fixed(protocol, model.n, tests.q[
+                [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
+            trials=trials, load_cases=_load_cases(protocol, tests.w, noise))
+        with stage("report: maps, K_X, Monte-Carlo robustness, figures"):
+            built = build_report(result, inputs)
+        with stage("report: HTML and PDF"):
+            paths.update(write_report(built, out))
+    summary = {"run": str(run_dir) if run_dir else None, "partial": info.partial,
+               "status": info.status, "failed_rows": info.n_failed}
+    write_text(Path(out) / "analysis.json", json.dumps(summary, indent=2) + "\n")
+    return paths

@@ -3,10 +3,10 @@
 ``campaign compensate --robot MODEL --path PATH.csv --out DIR`` writes
 ``DIR/compensated.csv`` (input columns, predicted deflection of P with 95 %
 bounds, compensated joints ``q1_cmd_deg..q6_cmd_deg``, residual),
-``DIR/deflection.png``, ``DIR/summary.json`` and a robot program (KRL
-``comp_path.src/.dat`` for KUKA models, URScript ``comp_path.script`` for UR
-models). ``--verify-fake --protocol P`` replays both paths on the simulated
-lab. Formats: ``docs/use.md``.
+``DIR/deflection.png``, ``DIR/summary.json`` and a robot program (``--program``;
+by default KRL ``comp_path.src/.dat`` for KUKA models, URScript ``comp_path.script``
+for UR, RAPID ``comp_path.mod`` for ABB, TP ``COMP_PATH.LS`` for FANUC models).
+``--verify-fake --protocol P`` replays both paths on the simulated lab. Formats: ``docs/use.md``.
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ import numpy as np
 import typer
 
 from analysis.errors import InputError
-from campaign.cli_common import WrenchFrame, output_dir
+from campaign.cli_common import Program, WrenchFrame, output_dir
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
-def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> dict:
+def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> tuple:
     from campaign.verify_fake import run_on_fake_lab
 
     check = run_on_fake_lab(protocol, robot, pin.q, pc.comp.q_cmd, pin.w, readings)
@@ -39,7 +39,7 @@ def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> dict:
              f"{1e3 * s['max_m']:.4f}), RMS {1e3 * s['rms_rad']:.4f} mrad (max "
              f"{1e3 * s['max_rad']:.4f})")
     echo(f"  after / before (RMS translation): {100 * stats['ratio_rms_translation']:.1f} %")
-    return stats
+    return stats, check
 
 
 def register(app: typer.Typer) -> None:
@@ -70,6 +70,9 @@ def register(app: typer.Typer) -> None:
                                       "(with --verify-fake)."),
         readings: int = typer.Option(1, help="Probe readings averaged per point "
                                      "(--verify-fake)."),
+        program: Program = typer.Option(
+            "auto", help="Robot program of the compensated path: krl, urscript, rapid, "
+            "fanuc-ls, none, or auto (by robot)."),
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
                                    "(its files are replaced)."),
     ) -> None:
@@ -90,13 +93,17 @@ def register(app: typer.Typer) -> None:
         if r.n != 6:
             raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
         k = stiffness_option(r, joint_stiffness)
-        cov = None if joint_stiffness else r.compliance_covariance
+        cov = None if joint_stiffness is not None else r.compliance_covariance
         w_const = None if wrench is None else parse_floats(wrench, "--wrench", 6)
         pin = read_path(path, r, controller, w_const, str(wrench_frame))
         pc = compensate_path(r, pin.q, k, pin.w, cov, pin.line, str(path), min_inv_kappa)
         output_dir(out, force)
         table = co.output_table(pin.frame, pc, r, controller)
-        table.to_csv(out / "compensated.csv", index=False)
+        from analysis.output_files import make_dir, replacing, write_text
+
+        make_dir(out)
+        with replacing(out / "compensated.csv") as tmp:
+            table.to_csv(tmp, index=False)
         convention = "pendant" if controller else "model"
         assumptions = [
             f"robot {r.name} from {r.source_file or robot}",
@@ -111,12 +118,10 @@ def register(app: typer.Typer) -> None:
         ]
         summ = co.summary(pc, pin.line)
         summ["assumptions"] = assumptions
-        files = [out / "compensated.csv",
-                 co.plot(pc, out / "deflection.png", f"{r.name}: deflection of P along "
-                         f"{path.name}")]
+        files = [out / "compensated.csv"]
         files += co.robot_program(r, pc.comp.q_cmd, out, [
             f"Compensated path from {path.name} ({len(pin.q)} points), campaign compensate",
-            f"Robot model: {r.name}"])
+            f"Robot model: {r.name}", f"Wrench: {pin.wrench_source}"], str(program))
         echo = typer.echo
         for a in assumptions:
             echo(f"assumption: {a}")
@@ -130,9 +135,13 @@ def register(app: typer.Typer) -> None:
              f"uncertainty {1e3 * t['after_upper95_max']:.4f} mm")
         echo(f"worst point: line {summ['worst_point']['line']} "
              f"({1e3 * summ['worst_point']['deflection_m']:.4f} mm)")
+        check = None
         if verify_fake:
-            summ["verify_fake"] = _verify(protocol, r, pin, pc, readings, echo)
-        (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n")
+            summ["verify_fake"], check = _verify(protocol, r, pin, pc, readings, echo)
+        # drawn after the verification: the measured errors go on the same plot
+        files.insert(1, co.plot(pc, out / "deflection.png", f"{r.name}: deflection of P "
+                                f"along {path.name}", check))
+        write_text(out / "summary.json", json.dumps(summ, indent=2) + "\n")
         files.append(out / "summary.json")
         for f in files:
             echo(f"wrote {f}")

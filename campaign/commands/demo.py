@@ -33,6 +33,11 @@ def demo(
     if not PROTOCOL.is_file():
         raise InputError("the built-in protocol is missing from this installation",
                          where=str(PROTOCOL))
+    from analysis.output_files import refuse_link
+
+    refuse_link(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a directory", where=str(out))
     if out.exists() and any(out.iterdir()):
         raise InputError("demo directory exists and is not empty; choose another --out",
                          where=str(out))

@@ -92,8 +92,9 @@ def register(app: typer.Typer) -> None:
         robot: str | None = typer.Option(None, "--robot", help="Robot model (default kr240-2)."),
         instruments: str | None = typer.Option(None, "--instruments", help="Comma-separated "
                                                "fakes to start (default: all)."),
-        can_interface: str | None = typer.Option(None, "--can-interface", help="python-can "
-                                                 "interface of the Net CAN fake."),
+        can_interface: str | None = typer.Option(None, "--can-interface", help="Where the "
+                                                 "Net CAN fake sits: socketcand (a server on "
+                                                 "127.0.0.1, default) or virtual (in-process)."),
     ) -> None:
         """Start fake instruments on loopback that speak the real protocols."""
         if not fake:

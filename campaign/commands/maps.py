@@ -82,7 +82,7 @@ def register(app: typer.Typer) -> None:
             table = joint_space_map(r, grid, k, w, length)
         bound_cols = []
         if upper_bound:
-            if r.compliance_covariance is None or joint_stiffness:
+            if r.compliance_covariance is None or joint_stiffness is not None:
                 raise InputError("--deflection-upper-bound needs an identified model "
                                  "(model.toml from campaign analyze) and no --joint-stiffness",
                                  where="--deflection-upper-bound")
@@ -91,27 +91,36 @@ def register(app: typer.Typer) -> None:
             table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
                 r, grid.poses(), k, w, r.compliance_covariance).ravel()
             bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
+        from analysis.output_files import make_dir, replacing, write_text
+
+        make_dir(out)
         data = out / f"map_joint_space.{fmt}"
-        if fmt == "parquet":
-            table.to_parquet(data, index=False)
-        else:
-            table.to_csv(data, index=False)
+        with replacing(data) as tmp:
+            if fmt == "parquet":
+                table.to_parquet(tmp, index=False)
+            else:
+                table.to_csv(tmp, index=False)
         zones = [
             (z.name, tuple(np.degrees(z.ranges[1])), tuple(np.degrees(z.ranges[2])))
             for z in r.zones
             if 1 in z.ranges and 2 in z.ranges
         ]
         fixed_deg = np.degrees(grid.fixed)
-        others = ", ".join(f"theta{j + 1} = {fixed_deg[j]:g}" for j in range(r.n)
+        others = ", ".join(f"$\\theta_{j + 1}$ = {fixed_deg[j]:g}" for j in range(r.n)
                            if j not in (1, 2))
+        from analysis.report.build import wrench_text
+
+        under = f", under {wrench_text(w)}"  # what the v_p, v_r and deflection maps depend on
         with stage("plots"):
             for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"),
                               ("v_r_deg", "v_r"), *bound_cols):
                 label = LABELS.get(col, "95 % upper bound of |dp| (mm), identified model")
+                load = "" if col == "inv_kappa_F" else under.lstrip(", ") + ", "
                 plot_joint_map(table, col, out / f"{name}_joint.png",
-                               f"{r.name}: {label}\n({others} deg)", zones=zones)
+                               f"{r.name}: {label}\n{load}{others} deg", zones=zones)
                 plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
-                                   f"{r.name}: {label} over the workspace\n({others} deg)")
+                                   f"{r.name}: {label} over the workspace\n{load}{others} "
+                                   "deg\n(the largest value shown where poses overlap)")
         ok = ~table["singular"]
         summary = {
             "robot": r.name,
@@ -129,7 +138,7 @@ def register(app: typer.Typer) -> None:
         if bound_cols:
             summary["max_deflection_upper95_mm"] = float(
                 table.loc[ok, "deflection_upper95_mm"].max())
-        (out / "map_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        write_text(out / "map_summary.json", json.dumps(summary, indent=2) + "\n")
         if as_json:
             print_json({**summary, "files": sorted(str(p) for p in out.iterdir())})
             return

@@ -64,6 +64,11 @@ def register(app: typer.Typer) -> None:
             None, help="Worker processes of the local Dask cluster (default: the CPU count); "
             "0 runs in this process without Dask."),
         chunk: int = typer.Option(None, help="Placements per task (default: automatic)."),
+        max_evaluations: float = typer.Option(
+            None, help="Largest search allowed, in evaluations (placement x point x tool "
+            "angle x configuration); default 1e8, no limit with --scheduler."),
+        max_memory_gib: float = typer.Option(
+            2.0, help="Largest memory for the per-placement results (GiB)."),
         runner_ups: int = typer.Option(5, help="Runner-up placements listed."),
         program: Program = typer.Option(
             "auto", help="Robot program of the path: krl, urscript, none, or auto (by robot)."),
@@ -72,10 +77,12 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Search the workpiece placement and tool angles that minimise P's deflection."""
         args = dict(locals())
-        from campaign.cli_common import output_dir
+        from campaign.cli_common import output_dir, writing_into
         from campaign.place_run import PlaceOptions, run_place
 
         output_dir(args.pop("out"), args.pop("force"))
         args["out"] = out
         args["objective"], args["program"] = str(objective), str(program)
-        run_place(PlaceOptions(**args))
+        options = PlaceOptions(**args)
+        with writing_into(out):  # a refused search leaves no --out directory behind
+            run_place(options)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli_common import Strategy, output_dir, print_json, stage
+from campaign.cli_common import Strategy, output_dir, print_json, stage, writing_into
 
 
 def plan(
@@ -50,7 +50,8 @@ def plan(
     with stage(f"candidate evaluation and {strategy} design ({candidates} candidates)"):
         result = make_plan(proto, strategy=str(strategy), seed=seed, candidates=candidates,
                            tests=tests, weights=wts)
-    with stage("writing the plan" + ("" if no_figure else " and plan_map.png")):
+    with stage("writing the plan" + ("" if no_figure else " and plan_map.png")), \
+            writing_into(out):
         path = write_plan(result, out, figure=not no_figure)
     if as_json:
         summary = json.loads((out / "summary.json").read_text())

@@ -9,6 +9,9 @@ from rich.table import Table
 
 from campaign.cli_common import print_json
 
+#: how messages name the positional argument of ``campaign robots NAME``
+NAME_WHERE = "NAME (argument of campaign robots)"
+
 
 def robot_dict(r) -> dict:
     """A robot model as JSON (SI units, radians; the keys' suffixes say so)."""
@@ -45,7 +48,7 @@ def register(app: typer.Typer) -> None:
                 print_json({"robots": [{"key": key, **robot_dict(load_robot(key))}
                                        for key in builtin_names()]})
             else:
-                print_json(robot_dict(load_robot(name, tip)))
+                print_json(robot_dict(load_robot(name, tip, where=NAME_WHERE)))
             return
         if name is None:
             table = Table(title="Built-in robot models")
@@ -58,7 +61,7 @@ def register(app: typer.Typer) -> None:
                               str(len(r.zones)))
             console.print(table)
             return
-        r = load_robot(name, tip)
+        r = load_robot(name, tip, where=NAME_WHERE)
         table = Table(title=f"{r.name} ({r.source_file})",
                       caption="angles in the model convention; pendant angle = sign q + "
                       "offset (+ coupling)")

@@ -249,14 +249,20 @@ def register(app: typer.Typer) -> None:
         }
         written = []
         if out is not None:
-            try:
-                out.mkdir(parents=True, exist_ok=True)
-            except OSError as err:
-                raise InputError(f"cannot create directory: {err}", where=str(out)) from err
-            summary.to_csv(out / "robustness.csv", index=False)
+            from analysis.output_files import make_dir, replacing, write_text
+
+            make_dir(out)
+            with replacing(out / "robustness.csv") as tmp:
+                summary.to_csv(tmp, index=False)
+            nz = noise.describe()
             plot_study(summary, out / "robustness.png",
-                       f"{r.name}: mean +- std of identified k ({method}, {trials} trials)")
-            (out / "robustness.json").write_text(json.dumps(settings, indent=2) + "\n")
+                       f"{r.name}: identified k against the number of tests ({method}, "
+                       f"{trials} trials per point)",
+                       f"noise per component: translation {nz['translation_sigma_um']:.3g} "
+                       f"\u00b5m, rotation {nz['rotation_sigma_urad']:.3g} \u00b5rad, force "
+                       f"{nz['force_sigma_N']:.3g} N, moment {nz['moment_sigma_Nm']:.3g} N m; "
+                       "x at the top: not identifiable")
+            write_text(out / "robustness.json", json.dumps(settings, indent=2) + "\n")
             written = [out / "robustness.csv", out / "robustness.png", out / "robustness.json"]
             for path in written:
                 console.print(f"wrote {path}", markup=False, highlight=False)

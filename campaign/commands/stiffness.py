@@ -8,7 +8,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from analysis.errors import SingularPoseError
+from analysis.errors import InputError, SingularPoseError
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -59,6 +59,21 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
     }
 
 
+def check_limits(robot, q: np.ndarray, controller: bool) -> None:
+    """Refuse joint angles (rad, model convention) outside the limits, naming the joint."""
+    out = (q < robot.lower - 1e-12) | (q > robot.upper + 1e-12)
+    if not np.any(out):
+        return
+    j = int(np.flatnonzero(out)[0])
+    typed = (f" (typed {np.degrees(robot.to_controller(q)[j]):.4g} deg in the pendant "
+             "convention)") if controller else ""
+    raise InputError(
+        f"q{j + 1} = {np.degrees(q[j]):.4g} deg{typed} is outside the joint limits "
+        f"[{np.degrees(robot.lower[j]):g}, {np.degrees(robot.upper[j]):g}] deg of "
+        f"{robot.name} (model convention); add --ignore-limits to compute anyway",
+        where="--q")
+
+
 def register(app: typer.Typer) -> None:
     @app.command("stiffness")
     def stiffness(
@@ -78,20 +93,25 @@ def register(app: typer.Typer) -> None:
             "(default: the paper's worst case 2200 N, 400 N m on each axis)."
         ),
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
+        ignore_limits: bool = typer.Option(
+            False, "--ignore-limits", help="Accept joint angles outside the robot's limits."),
     ) -> None:
         """Kinematic Jacobian, K_C (eq. 8), K_X with and without K_C (eqs. 6, 12), deflection."""
         # analysis.* pulls in pinocchio: imported when the command runs, not at start-up
-        from analysis.kinetostatics.equilibrium import displacement_screw
+        from analysis.kinetostatics.equilibrium import solve_deflection
         from analysis.kinetostatics.maps import WORST_CASE_WRENCH
         from analysis.kinetostatics.stiffness import (
             cartesian_stiffness,
             complementary_stiffness_from_state,
             deflection,
         )
-        from analysis.model.kinematics import chain_state, jacobian_from_state
+        from analysis.kinetostatics.validity import check_small_displacement
+        from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference
 
         r, tool = robot_and_tool(robot, tip, tool_xyz_mm, tool_rpy_deg)
         qr = r.check_q(joint_angles_option(r, q, controller), where="--q")
+        if not ignore_limits:
+            check_limits(r, qr, controller)
         k = stiffness_option(r, joint_stiffness)
         w = wrench_option(wrench, WORST_CASE_WRENCH)
         state = chain_state(r, qr)
@@ -111,7 +131,9 @@ def register(app: typer.Typer) -> None:
                       "the compliance J (K_theta - K_C)^-1 J^T and the deflections are defined")
             undefined = {"K_X": reason, "K_X_without_K_C": reason}
         lin = deflection(J, k, w, K_C)
-        exact = displacement_screw(r, qr, k, w)
+        dq = solve_deflection(r, qr, k, w)
+        exact = pose_difference(state.tip, chain_state(r, qr + dq).tip)
+        check_small_displacement(r, dq, exact)
         result = {
             "robot": r.name,
             "tool": tool.describe(),
@@ -133,7 +155,7 @@ def register(app: typer.Typer) -> None:
                 "deflection": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation vector)",
             },
         }
-        cov_x = None if joint_stiffness else r.compliance_covariance
+        cov_x = None if joint_stiffness is not None else r.compliance_covariance
         if cov_x is not None:
             result["uncertainty"] = _intervals(r, qr, k, w, J, cov_x)
         if as_json:

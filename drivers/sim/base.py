@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import threading
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from drivers.sim.world import World
 
@@ -26,6 +28,8 @@ class FakeServer(ABC):
         self.url = ""
         self.stopping = threading.Event()
         self._threads: list[threading.Thread] = []
+        #: held while a streaming fake makes and sends one sample
+        self.send_lock = threading.Lock()
 
     def _spawn(self, target, name: str) -> None:
         t = threading.Thread(target=target, daemon=True, name=f"fake-{self.driver}-{name}")
@@ -47,6 +51,15 @@ class FakeServer(ABC):
 
     def _close(self) -> None:  # noqa: B027 - optional hook, nothing to release by default
         """Release sockets/fds (called from :meth:`stop`)."""
+
+    @contextmanager
+    def window(self) -> Iterator[None]:
+        """A client's averaging window opens: no sample is sent while the client drops
+        what is buffered, and the samples after it are numbered from 0 again
+        (:meth:`drivers.sim.noise.NoiseStreams.new_window`)."""
+        with self.send_lock:
+            yield
+            self.world.noise_streams.new_window(self.device)
 
     def fault(self, name: str) -> bool:
         """Consume one occurrence of fault ``name`` armed on this device."""

@@ -14,6 +14,9 @@ Each request is one JSON object on one line; each reply is one JSON object
 - ``fault`` with ``device`` (driver name), ``fault`` (see :mod:`drivers.sim.faults`)
   and ``count`` (-1: until cleared); ``clear_faults`` with optional ``device``;
   ``take_fault`` with ``device`` and ``fault`` -> ``armed`` (used by the UR fake)
+- ``mark`` with ``context`` (a list of non-negative integers and names, e.g.
+  ``[test, repeat, attempt, "phase"]``): the readings that follow draw their noise
+  from (seed, instrument, context, sample) (:mod:`drivers.sim.noise`)
 - ``truth`` -> ``stiffness``, ``tool_pose``, ``nominal_tool_pose``, ``deflection``,
   ``base_in_tracker``, ``sensor_mount`` (what the simulation knows; for tests)
 - ``shutdown``: stop the lab
@@ -64,6 +67,14 @@ def handle_command(world: World, req: dict[str, Any], addresses: dict[str, str],
             return {"ok": True, "armed": world.faults.take(str(req["device"]), str(req["fault"]))}
         if cmd == "clear_faults":
             world.faults.clear(req.get("device"))
+            return {"ok": True}
+        if cmd == "mark":
+            context = req.get("context", [])
+            if not isinstance(context, list) or not all(
+                    isinstance(c, str) or (isinstance(c, int) and not isinstance(c, bool)
+                                           and c >= 0) for c in context):
+                raise ValueError("mark: context must be a list of names and integers >= 0")
+            world.noise_streams.mark(*context)
             return {"ok": True}
         if cmd == "truth":
             return {"ok": True, "stiffness": world.k.tolist(),

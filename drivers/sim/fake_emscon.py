@@ -89,14 +89,14 @@ class FakeEmscon(TcpFake):
     def _result(self) -> bytes:
         s = self.world.settings
         if self.mode == "6dof":
-            T = self.world.tracker_pose()
+            T = self.world.tracker_pose(self.device)
             xyz, q = T[:3, 3] * 1000, matrix_to_quat(T[:3, :3])
             result = encode_packet(DT_PROBE_STATIONARY, encode_probe(
                 0, xyz, q, std=np.full(3, s.tracker_noise * 1000),
                 std_angles=np.full(3, s.tracker_angle_noise)), self.header)
             stream = encode_packet(DT_PROBE_POS, encode_probe_position(xyz, q), self.header)
         else:
-            p = self.world.tracker_point() * 1000
+            p = self.world.tracker_point(source=self.device) * 1000
             std = np.full(3, s.tracker_noise * 1000)
             result = encode_packet(DT_SINGLE, encode_single(0, p, std), self.header)
             stream = encode_packet(DT_REFLECTOR_POS, REFLECTOR_POS_BODY.pack(0, *p), self.header)

@@ -95,7 +95,7 @@ class FakeFT300(FakeServer):
     def register(self, address: int) -> int | None:
         """Value (uint16) of one register of the map, None outside it."""
         if address in FT_REGISTERS:
-            counts = self.world.sensor_wrench() / SCALE
+            counts = self.world.sensor_wrench(self.device) / SCALE
             return _int16(counts)[address - FT_REGISTERS.start]
         if address in ACCEL_REGISTERS:
             # an accelerometer at rest reads +1 g along the upward vertical
@@ -115,7 +115,7 @@ class FakeFT300(FakeServer):
             return encode_exception(slave, function, ILLEGAL_DATA_VALUE)
         if function in (3, 4) and first in FT_REGISTERS and first + count <= FT_REGISTERS.stop:
             # one sample for the whole block, as the sensor latches its registers
-            counts = _int16(self.world.sensor_wrench() / SCALE)
+            counts = _int16(self.world.sensor_wrench(self.device) / SCALE)
             return encode_read_reply(slave, function, counts[first - 180:first - 180 + count])
         values = [self.register(a) for a in range(first, first + count)]
         if any(v is None for v in values):
@@ -184,7 +184,7 @@ class FakeFT300(FakeServer):
     def _frame(self) -> bytes:
         if self._last is not None and self.world.faults.active(self.device, "frozen"):
             return self._last
-        self._last = encode_stream_frame(self.world.sensor_wrench())
+        self._last = encode_stream_frame(self.world.sensor_wrench(self.device))
         return self._last
 
     def _run(self) -> None:
@@ -214,13 +214,14 @@ class FakeFT300(FakeServer):
             if time.monotonic() < next_t:
                 continue
             next_t += period
-            frame = self._frame()
-            if self.fault("drop"):
-                continue
-            if self.fault("bad_crc"):
-                frame = frame[:14] + bytes([frame[14] ^ 0x5A, frame[15]])
-            elif self.fault("garbage"):
-                frame = os.urandom(int(self.world.rng.integers(1, 40)))
-            self._send(frame)
+            with self.send_lock:  # a client's window opens between two frames
+                frame = self._frame()
+                if self.fault("drop"):
+                    continue
+                if self.fault("bad_crc"):
+                    frame = frame[:14] + bytes([frame[14] ^ 0x5A, frame[15]])
+                elif self.fault("garbage"):
+                    frame = os.urandom(int(self.world.rng.integers(1, 40)))
+                self._send(frame)
         os.close(self.master)
         os.close(self.slave)

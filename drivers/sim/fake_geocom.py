@@ -59,7 +59,7 @@ def respond(fake: FakeServer, line: bytes, send: Callable[[bytes], None]) -> boo
         if fake.fault("beam_lost"):
             send(encode_reply(RC_ANGLE_ONLY, 0, 0, 0, 0, 0, 0, 0, 0, trid=trid))
             return True
-        e, n, h = world.tracker_point()
+        e, n, h = world.tracker_point(source=fake.device)
         reply = encode_reply(0, f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0,
                              f"{e:.7f}", f"{n:.7f}", f"{h:.7f}", 0, trid=trid)
         if fake.fault("late"):

@@ -48,8 +48,9 @@ class FakeKukaVarProxy(TcpFake):
         super().__init__(world)
         self.url = f"socket://{self.host}:{self.port}"
         self.max_speed = max_speed
+        q0 = kvp.format_axis(world.joint_angles(self.device))
         self.vars = {"STIFF_GO": "FALSE", "STIFF_STOP": "FALSE", "STIFF_VEL": "10",
-                     "STIFF_ACC": "10", "STIFF_TARGET": kvp.format_axis(world.joint_angles()),
+                     "STIFF_ACC": "10", "STIFF_TARGET": q0,
                      "$OV_PRO": "100", "$MODE_OP": "#AUT", "$PRO_STATE1": "#P_ACTIVE",
                      "$ACT_TOOL": "1", "$ACT_BASE": "0", "$KR_SERIALNO": "240002",
                      "$TOOL": krl.frame(self._tool_frame()), "$BASE": krl.frame(np.eye(4))}
@@ -80,7 +81,7 @@ class FakeKukaVarProxy(TcpFake):
 
     def _pos_act(self) -> str:
         robot = self.world.robot
-        q_ctrl = self.world.joint_angles()
+        q_ctrl = self.world.joint_angles(self.device)
         q_deg = np.degrees(q_ctrl)
         q = robot.from_controller(q_ctrl)
         s = chain_state(robot, q)
@@ -96,7 +97,7 @@ class FakeKukaVarProxy(TcpFake):
         if key == "PING":
             return "PONG"
         if key in ("$AXIS_ACT", "$AXIS_ACT_MEAS"):
-            return krl.e6axis(np.degrees(self.world.joint_angles()))
+            return krl.e6axis(np.degrees(self.world.joint_angles(self.device)))
         if key in ("$POS_ACT", "$POS_ACT_MES"):
             return self._pos_act()
         moving = self.world.moving()

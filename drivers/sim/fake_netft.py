@@ -91,7 +91,7 @@ class FakeNetFT(FakeServer):
         elif cmd == CMD_STOP:
             self._peer = None
         elif cmd == CMD_SET_BIAS:
-            self._bias = self.world.sensor_wrench()
+            self._bias = self.world.sensor_wrench(self.device)
 
     def _record(self) -> bytes:
         self._seq = (self._seq + 1) & 0xFFFFFFFF
@@ -99,7 +99,7 @@ class FakeNetFT(FakeServer):
         if self._last_counts is not None and self.world.faults.active(self.device, "frozen"):
             counts = self._last_counts
         else:
-            w = self.world.sensor_wrench() - self._bias
+            w = self.world.sensor_wrench(self.device) - self._bias
             scale = np.array([self.cpf] * 3 + [self.cpt] * 3, float)
             counts = tuple(int(v) for v in np.clip(np.round(w * scale), -2**31, 2**31 - 1))
         self._last_counts = counts
@@ -129,20 +129,25 @@ class FakeNetFT(FakeServer):
             now = time.monotonic()
             while now >= next_t and self._peer is not None:
                 next_t += period
-                pkt = self._record()
-                if self.fault("drop"):
-                    continue
-                if self.fault("garbage"):
-                    size = int(self.world.rng.integers(1, 80))
-                    pkt = os.urandom(size + (size % 36 == 0))  # never record-sized
-                elif self.fault("late") and self._old is not None:
-                    self.sock.sendto(pkt, self._peer)
-                    pkt = self._old
-                self._old = pkt if len(pkt) == 36 else self._old
-                try:
-                    self.sock.sendto(pkt, self._peer)
-                except OSError:
-                    self._peer = None
+                with self.send_lock:  # a client's window opens between two records
+                    self._send_record()
             if next_t < now - 1.0:
                 next_t = now
         self.sock.close()
+
+    def _send_record(self) -> None:
+        """Make the next record and send it (or what a fault makes of it)."""
+        pkt = self._record()
+        if self.fault("drop"):
+            return
+        if self.fault("garbage"):
+            size = int(self.world.rng.integers(1, 80))
+            pkt = os.urandom(size + (size % 36 == 0))  # never record-sized
+        elif self.fault("late") and self._old is not None:
+            self.sock.sendto(pkt, self._peer)
+            pkt = self._old
+        self._old = pkt if len(pkt) == 36 else self._old
+        try:
+            self.sock.sendto(pkt, self._peer)
+        except OSError:
+            self._peer = None

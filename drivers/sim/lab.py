@@ -30,8 +30,22 @@ from drivers.sim.world import World
 
 
 def robot_fake_name(robot: str) -> str:
-    """Which robot fake serves ``robot``: ``ur`` for UR models, else ``kuka-kvp``."""
-    return "ur" if robot.strip().lower().startswith("ur") else "kuka-kvp"
+    """Which robot fake serves ``robot``: ``ur`` for UR models, ``fanuc-rmi`` for FANUC
+    and ``abb-rws`` for ABB models (by the model's name), else ``kuka-kvp``."""
+    key = robot.strip().lower()
+    if key.startswith("ur"):
+        return "ur"
+    try:
+        from analysis.model.robots import load_robot
+
+        name = load_robot(robot).name.lower()
+    except Exception:  # an unreadable robot fails later, where the world loads it
+        name = key
+    if "fanuc" in name:
+        return "fanuc-rmi"
+    if name.startswith("abb") or "irb" in name:
+        return "abb-rws"
+    return "kuka-kvp"
 
 
 class Lab:
@@ -63,12 +77,7 @@ class Lab:
         if name == "ati-netcan":
             from drivers.sim.fake_netcan import FakeNetCAN
 
-            try:
-                return FakeNetCAN(self.world, interface=self.settings.can_interface)
-            except Exception as err:  # python-can backends raise assorted errors
-                self.notes.append(f"ati-netcan fake not started ({self.settings.can_interface}: "
-                                  f"{err}); use can_interface='virtual' in-process")
-                return None
+            return FakeNetCAN(self.world, interface=self.settings.can_interface)
         if name == "emscon":
             from drivers.sim.fake_emscon import FakeEmscon
 
@@ -81,6 +90,14 @@ class Lab:
             from drivers.sim.fake_kvp import FakeKukaVarProxy
 
             return FakeKukaVarProxy(self.world)
+        if name == "fanuc-rmi":
+            from drivers.sim.fake_rmi import FakeRMI
+
+            return FakeRMI(self.world)
+        if name in ("abb-rws", "abb-rws2"):
+            from drivers.sim.fake_rws import FakeRWS
+
+            return FakeRWS(self.world, version=1 if name == "abb-rws" else 2)
         raise ValueError(f"no fake for {name!r}")
 
     def start(self) -> dict[str, str]:
@@ -96,13 +113,17 @@ class Lab:
                 if name == "ur":
                     self._start_ur()
                     continue
-            fake = self._make(name)
-            if fake is None:
-                continue
-            fake.start()
-            self.fakes.append(fake)
-            self.addresses[fake.driver] = fake.url
+                if name == "abb-rws":  # an ABB arm: IRC5 (RobotWare 6) and OmniCore (7)
+                    self._add(self._make("abb-rws2"))
+            self._add(self._make(name))
         return self.addresses
+
+    def _add(self, fake: FakeServer | None) -> None:
+        if fake is None:
+            return
+        fake.start()
+        self.fakes.append(fake)
+        self.addresses[fake.driver] = fake.url
 
     def _start_ur(self) -> None:
         root = str(Path(__file__).resolve().parents[2])
@@ -119,6 +140,16 @@ class Lab:
             self.notes.append("ur fake did not start")
             return
         self.addresses["ur"] = line.split("=", 1)[1]
+
+    def window_guard(self, driver: str):
+        """The context a client of fake ``driver`` enters when it opens an averaging window
+        (:meth:`drivers.sim.base.FakeServer.window`), or None when no such fake runs."""
+        return next((fake.window for fake in self.fakes if fake.driver == driver), None)
+
+    def mark(self, *context: object) -> None:
+        """Tell the simulation what the client does now (test, repeat, attempt, phase):
+        the noise of each reading is drawn from (seed, instrument, context, sample)."""
+        self.world.noise_streams.mark(*context)
 
     def wait(self) -> None:
         """Block until a ``shutdown`` control command (or :meth:`stop`)."""

@@ -11,7 +11,8 @@ from analysis.errors import InputError
 #: True joint stiffness of the KR240-2 (N m/rad), Dumas et al. 2011, Table 2.
 KR240_STIFFNESS = (1409800.0, 400760.0, 935280.0, 360000.0, 370000.0, 380000.0)
 
-#: Every fake the lab can start; "robot" picks ``ur`` for UR robots, else ``kuka-kvp``.
+#: Every fake the lab can start; "robot" picks ``ur`` for UR robots, ``fanuc-rmi`` for FANUC,
+#: ``abb-rws`` and ``abb-rws2`` (RobotWare 6 and 7) for ABB, else ``kuka-kvp``.
 ALL_INSTRUMENTS = ("ati-netft", "robotiq-ft300", "ati-netcan", "emscon", "geocom", "robot")
 
 
@@ -59,8 +60,9 @@ class LabSettings:
     tracker_yaw : float
         Rotation (rad) about the vertical of the robot base frame seen from the tracker.
     can_interface : str
-        python-can interface for the Net CAN fake (``udp_multicast`` across processes,
-        ``virtual`` inside one process).
+        Where the Net CAN fake sits: ``socketcand`` (a socketcand server on
+        127.0.0.1, reachable from other processes) or ``virtual`` (python-can's
+        in-process bus). Both stay on this host.
     """
 
     robot: str = "kr240-2"
@@ -87,7 +89,7 @@ class LabSettings:
     tool_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     tracker_position: tuple[float, float, float] = (-3.0, 1.0, -0.5)
     tracker_yaw: float = 0.5
-    can_interface: str = "udp_multicast"
+    can_interface: str = "socketcand"
 
     def __post_init__(self) -> None:
         if self.time_scale <= 0:
@@ -105,6 +107,10 @@ class LabSettings:
         if unknown:
             raise InputError(f"unknown instruments {sorted(unknown)}; known: "
                              f"{', '.join(ALL_INSTRUMENTS)}", where="instruments")
+        if self.can_interface not in ("socketcand", "virtual"):
+            raise InputError(f"CAN interface {self.can_interface!r} of the Net CAN fake: use "
+                             "socketcand or virtual (both stay on this host)",
+                             where="can_interface")
         if len(self.reflectors) < 3:
             raise InputError("need at least three reflectors", where="reflectors")
 

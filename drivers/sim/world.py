@@ -6,7 +6,15 @@ equilibrium ``K_theta dq = J(q + dq)^T w`` with the lab's true joint stiffness
 (:func:`analysis.kinetostatics.equilibrium.solve_deflection`), reached by an exponential
 settling with time constant ``settle_time / time_scale`` (wall-clock seconds).
 Joint encoders sit on the motor side, so the reported joint angles do not
-include the elastic deflection, as on a real robot.
+include the elastic deflection, as on a real robot. The settling is taken as
+over :data:`SETTLED_AFTER` time constants after a change (a residual of
+e^-6 = 0.25 % of the step, below the tracker noise at the lab's loads): from
+then on the state is exactly the equilibrium, so readings taken after a
+settling detection do not depend on when they were taken.
+
+Noise comes from :class:`drivers.sim.noise.NoiseStreams`: one generator per
+(seed, instrument, context, sample), so a seeded campaign reads the same
+numbers whatever the order in which the fakes' threads run.
 
 All quantities SI: m, rad, N, N m. Thread-safe (one re-entrant lock).
 """
@@ -23,7 +31,11 @@ from analysis.model.kinematics import tool_pose
 from analysis.model.robots import load_robot, with_tool
 from drivers.frames import matrix_to_rotvec, rotvec_to_matrix
 from drivers.sim.faults import Faults
+from drivers.sim.noise import NoiseStreams
 from drivers.sim.settings import LabSettings
+
+#: time constants after a change from which the settling is over (state = equilibrium)
+SETTLED_AFTER = 6.0
 
 
 class World:
@@ -37,7 +49,9 @@ class World:
         self.k = np.asarray(settings.true_joint_stiffness, dtype=float)
         if self.k.shape != (n,):
             raise ValueError(f"{self.robot.name} has {n} joints, stiffness has {self.k.size}")
+        #: generator of the fault injections' garbage only (not of measurement noise)
         self.rng = np.random.default_rng(settings.seed)
+        self.noise_streams = NoiseStreams(settings.seed)
         self.faults = Faults()
         self._lock = threading.RLock()
         if settings.home is not None:
@@ -76,9 +90,10 @@ class World:
         return self.settings.settle_time / self.settings.time_scale
 
     def _deflection(self, now: float) -> np.ndarray:
-        if self.tau <= 0:
+        elapsed = now - self._t_change
+        if self.tau <= 0 or elapsed >= SETTLED_AFTER * self.tau:
             return self._dq_to.copy()
-        a = 1.0 - np.exp(-(now - self._t_change) / self.tau)
+        a = 1.0 - np.exp(-elapsed / self.tau)
         return self._dq_from + (self._dq_to - self._dq_from) * a
 
     def _retarget(self) -> None:
@@ -133,12 +148,16 @@ class World:
         """True while a commanded motion is still under way."""
         return time.monotonic() < self._motion_end
 
-    def joint_angles(self) -> np.ndarray:
-        """Reported joint angles (rad, controller convention): motor side, no deflection."""
+    def joint_angles(self, source: str = "encoders") -> np.ndarray:
+        """Reported joint angles (rad, controller convention): motor side, no deflection.
+
+        ``source`` names the noise stream (the fake reading them).
+        """
         with self._lock:
             q = self._q_cmd.copy()
-            if self.settings.encoder_noise:
-                q += self.rng.normal(0, self.settings.encoder_noise, q.shape)
+        if self.settings.encoder_noise:
+            rng = self.noise_streams.generator(source)
+            q += rng.normal(0, self.settings.encoder_noise, q.shape)
         return q
 
     def nominal_tool_pose(self) -> np.ndarray:
@@ -162,8 +181,11 @@ class World:
         with self._lock:
             return self._load.copy()
 
-    def sensor_wrench(self) -> np.ndarray:
-        """Noisy wrench seen by the F/T sensor: sensor frame, sensor origin (N, N m)."""
+    def sensor_wrench(self, source: str = "force_torque") -> np.ndarray:
+        """Noisy wrench seen by the F/T sensor: sensor frame, sensor origin (N, N m).
+
+        ``source`` names the noise stream (the fake reading it).
+        """
         with self._lock:
             T = self.true_tool_pose() @ self.sensor_mount
             R, o = T[:3, :3], T[:3, 3]
@@ -172,33 +194,35 @@ class World:
             m_o = m_p + np.cross(p - o, f_b)
             w = np.concatenate([R.T @ f_b, R.T @ m_o])
             s = self.settings
-            w += np.concatenate([self.rng.normal(0, s.force_noise, 3),
-                                 self.rng.normal(0, s.torque_noise, 3)])
+        rng = self.noise_streams.generator(source)
+        w += np.concatenate([rng.normal(0, s.force_noise, 3), rng.normal(0, s.torque_noise, 3)])
         return w
 
-    def tracker_point(self, target: str | None = None) -> np.ndarray:
-        """Noisy position (m, tracker frame) of the aimed (or named) reflector."""
+    def tracker_point(self, target: str | None = None, source: str = "tracker") -> np.ndarray:
+        """Noisy position (m, tracker frame) of the aimed (or named) reflector.
+
+        ``source`` names the noise stream (the fake reading it).
+        """
         with self._lock:
             name = target or self.aimed
             r = np.append(self.reflectors[name], 1.0)
             p = (self.base_in_tracker @ self.true_tool_pose() @ r)[:3]
-            return p + self.rng.normal(0, self.settings.tracker_noise, 3)
+        return p + self.noise_streams.generator(source).normal(0, self.settings.tracker_noise, 3)
 
-    def tracker_pose(self) -> np.ndarray:
-        """Noisy 6-DoF probe pose of the tool frame in the tracker frame."""
+    def tracker_pose(self, source: str = "tracker") -> np.ndarray:
+        """Noisy 6-DoF probe pose of the tool frame in the tracker frame.
+
+        ``source`` names the noise stream (the fake reading it).
+        """
         with self._lock:
             T = self.base_in_tracker @ self.true_tool_pose()
-            s = self.settings
-            dR = rotvec_to_matrix(self.rng.normal(0, s.tracker_angle_noise, 3))
-            T = T.copy()
-            T[:3, :3] = dR @ T[:3, :3]
-            T[:3, 3] += self.rng.normal(0, s.tracker_noise, 3)
-            return T
-
-    def noise(self, sigma: float, size: int) -> np.ndarray:
-        """Draw from the world's seeded generator (thread-safe)."""
-        with self._lock:
-            return self.rng.normal(0, sigma, size)
+        s = self.settings
+        rng = self.noise_streams.generator(source)
+        dR = rotvec_to_matrix(rng.normal(0, s.tracker_angle_noise, 3))
+        T = T.copy()
+        T[:3, :3] = dR @ T[:3, :3]
+        T[:3, 3] += rng.normal(0, s.tracker_noise, 3)
+        return T
 
     def state(self) -> dict:
         """JSON-able snapshot for the control channel."""

@@ -285,8 +285,8 @@ def test_creation_killed_midway_leaves_nothing_to_resume_and_the_name_free(tmp_p
     assert len(stale) == 1 and (stale[0] / "plan.csv").is_file()
     run = RunDir.create(out, {"fake": True}, "protocol.toml", "x = 1\n", "test\n")
     run.close()
-    assert sorted(p.name for p in out.iterdir()) == [
-        ".lock", "events.jsonl", "metadata.json", "plan.csv", "protocol.toml", "samples.jsonl",
+    assert sorted(p.name for p in out.iterdir()) == [  # .lock removed at close
+        "events.jsonl", "metadata.json", "plan.csv", "protocol.toml", "samples.jsonl",
         "tests.csv"]
     assert not list(tmp_path.glob(".run.creating-*"))  # the stale one was removed
 
@@ -313,3 +313,263 @@ def test_two_creations_of_one_run_directory_exclude_each_other(tmp_path, monkeyp
     assert (out / "protocol.toml").read_text() == "x = 1\n"
     assert not list(tmp_path.glob(".run.creating-*"))  # the loser cleaned up
     assert temp_names and temp_names[0].startswith(".run.creating-")
+
+
+# -- writing: links, read-only and full disks, finished runs ---------------------------------
+
+def _tree(path: Path) -> dict[str, str]:
+    """Every entry of a directory tree: links as their target, files by SHA-256."""
+    import os
+
+    out = {}
+    for p in sorted([path, *path.rglob("*")]) if os.path.lexists(path) else []:
+        key = str(p.relative_to(path))
+        if p.is_symlink():
+            out[key] = "-> " + os.readlink(p)
+        elif p.is_file():
+            out[key] = hashlib.sha256(p.read_bytes()).hexdigest()
+        else:
+            out[key] = "dir"
+    return out
+
+
+def _one_line_error(code: int, captured, status: int, message: str) -> None:
+    err = captured.err
+    assert code == status, err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert "Traceback" not in err + captured.out
+    assert message in err, err
+
+
+@pytest.fixture
+def outside(tmp_path) -> Path:
+    d = tmp_path / "outside"
+    (d / "dir").mkdir(parents=True)
+    (d / "victim.txt").write_text("not yours\n")
+    return d
+
+
+def test_one_run_leaves_no_lock_behind(one_run):
+    assert not (one_run / ".lock").exists()
+    assert not [p for p in one_run.iterdir() if p.name.endswith(".tmp")]
+
+
+@pytest.mark.parametrize("target", ["victim.txt", "missing", "dir"])
+def test_acquire_out_onto_a_link_is_refused_before_anything_starts(kr240_plan, tmp_path,
+                                                                    capsys, outside, target):
+    link = tmp_path / "run"
+    link.symlink_to(outside / target)
+    before = _tree(outside)
+    code = main(["acquire", "--plan", str(kr240_plan), "--out", str(link), "--fake", "--yes",
+                 "--quiet"])
+    _one_line_error(code, capsys.readouterr(), 2, f"run: is a symbolic link (to "
+                    f"{outside / target}); refusing to write through it")
+    assert _tree(outside) == before and not (outside / "missing").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["outside", "run"]
+
+
+@pytest.mark.parametrize("name", ["tests.csv", "samples.jsonl", "events.jsonl", ".lock",
+                                  "metadata.json", "tests.meta.json", "samples.parquet"])
+def test_resume_refuses_a_link_in_the_run_and_writes_nothing(run_copy, capsys, outside, name):
+    import os
+
+    if os.path.lexists(run_copy / name):
+        (run_copy / name).unlink()
+    (run_copy / name).symlink_to(outside / "victim.txt")
+    before, outside_before = _tree(run_copy), _tree(outside)
+    code, err = run_cli(capsys, "acquire", "--resume", str(run_copy), "--fake", "--yes",
+                        "--quiet")
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"error: {run_copy / name}: is a symbolic link")
+    assert _tree(run_copy) == before and _tree(outside) == outside_before
+
+
+def test_analyze_run_refuses_a_linked_analysis_directory_or_file(run_copy, capsys, outside):
+    (run_copy / "analysis").symlink_to(outside / "dir")
+    before = _tree(outside)
+    code, err = run_cli(capsys, "analyze", str(run_copy), "--no-report")
+    assert code == 2 and err == (f"error: {run_copy / 'analysis'}: is a symbolic link (to "
+                                 f"{outside / 'dir'}); refusing to write through it: remove "
+                                 "the link or give another path\n")
+    (run_copy / "analysis").unlink()
+    (run_copy / "analysis").mkdir()
+    (run_copy / "analysis" / "report.html").symlink_to(outside / "victim.txt")
+    code, err = run_cli(capsys, "analyze", str(run_copy), "--no-report", "--force")
+    assert code == 2 and "analysis/report.html: is a symbolic link" in err
+    assert err.count("\n") == 1
+    assert _tree(outside) == before
+    assert sorted(p.name for p in (run_copy / "analysis").iterdir()) == ["report.html"]
+
+
+def test_analyze_of_a_run_refuses_its_earlier_analysis_unless_force(run_copy, capsys):
+    assert run_cli(capsys, "analyze", str(run_copy), "--no-report")[0] == 0
+    results = run_copy / "analysis" / "results.json"
+    first = results.read_bytes()
+    code, err = run_cli(capsys, "analyze", str(run_copy), "--no-report")
+    assert code == 2 and err.count("\n") == 1
+    assert "not empty; choose another or add --force to replace its contents" in err
+    assert results.read_bytes() == first
+    assert run_cli(capsys, "analyze", str(run_copy), "--no-report", "--force")[0] == 0
+    assert not [p for p in run_copy.iterdir() if p.name.startswith(".analysis.")]
+
+
+def test_resuming_a_complete_run_starts_nothing_and_asks_nothing(run_copy, capsys,
+                                                                 monkeypatch):
+    import io
+    import sys
+
+    import campaign.acquire.session as session
+
+    def no_lab(*args, **kwargs):
+        raise AssertionError("the lab was started for a complete run")
+
+    monkeypatch.setattr(session, "open_instruments", no_lab)
+    monkeypatch.setattr(sys, "stdin", io.StringIO(""))  # a question would be refused
+    before = _digest(run_copy)
+    code = main(["acquire", "--resume", str(run_copy), "--fake", "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert captured.out == ""  # the final line goes to stderr with --quiet
+    assert captured.err == (f"run complete: nothing to resume: all 4 planned measurements are "
+                            f"in tests.csv; nothing connected, nothing moved (4 ok, 0 failed) "
+                            f"-> {run_copy}\n")
+    assert _digest(run_copy) == before and not (run_copy / ".lock").exists()
+
+
+def test_a_finished_run_that_still_says_running_is_completed_without_motion(run_copy, capsys,
+                                                                            monkeypatch):
+    import campaign.acquire.session as session
+
+    monkeypatch.setattr(session, "open_instruments", lambda *a, **k: 1 / 0)
+    meta = json.loads((run_copy / "metadata.json").read_text())
+    (run_copy / "metadata.json").write_text(json.dumps(dict(meta, status="running")))
+    (run_copy / "samples.parquet").unlink()
+    code = main(["acquire", "--resume", str(run_copy), "--fake", "--yes", "--quiet"])
+    assert code == 0 and "nothing to resume" in capsys.readouterr().err
+    assert json.loads((run_copy / "metadata.json").read_text())["status"] == "complete"
+    assert (run_copy / "samples.parquet").is_file()
+
+
+def test_resume_on_a_read_only_file_system_is_one_line_and_exit_1(run_copy, capsys,
+                                                                  monkeypatch):
+    import errno
+    import os
+
+    from campaign.acquire import rundir
+
+    real_open = os.open
+
+    def read_only_open(path, flags, *args, **kwargs):
+        if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(rundir.os, "open", read_only_open)
+    before = _tree(run_copy)
+    code = main(["acquire", "--resume", str(run_copy), "--fake", "--yes", "--quiet"])
+    _one_line_error(code, capsys.readouterr(), 1,
+                    f"error: cannot write .lock in {run_copy}: Read-only file system; "
+                    "nothing moved")
+    assert _tree(run_copy) == before
+
+
+def _small_plan(kr240_plan, tmp_path) -> Path:
+    import pandas as pd
+
+    plan = tmp_path / "plan"
+    shutil.copytree(kr240_plan, plan)
+    df = pd.read_csv(plan / "plan.csv", dtype={"zone": str, "load_case": str, "method": str})
+    df.iloc[:2].assign(repeats=1).to_csv(plan / "plan.csv", index=False)
+    return plan
+
+
+def test_a_run_directory_made_unwritable_mid_run_is_one_line_and_exit_1(kr240_plan, tmp_path,
+                                                                        capsys, monkeypatch):
+    import errno
+    import os
+    import tempfile
+
+    from campaign.acquire import rundir
+
+    plan = _small_plan(kr240_plan, tmp_path)
+    out = tmp_path / "run"
+    real_mkstemp, real_row = tempfile.mkstemp, rundir.RunDir.test_row
+    state = {"rows": 0}
+
+    def test_row(self, row):
+        real_row(self, row)
+        state["rows"] += 1
+
+    def mkstemp(*args, **kwargs):
+        if state["rows"]:  # after the first test: chmod a-w on the run directory
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), kwargs.get("dir"))
+        return real_mkstemp(*args, **kwargs)
+
+    monkeypatch.setattr(rundir.RunDir, "test_row", test_row)
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    code = main(["acquire", "--plan", str(plan), "--out", str(out), "--fake", "--yes",
+                 "--quiet", "--time-scale", "100"])
+    captured = capsys.readouterr()
+    assert code == 1
+    assert "Traceback" not in captured.out + captured.err and captured.out == ""
+    line = captured.err
+    assert line.count("\n") == 1 and line.startswith("run complete: metadata.json still says")
+    assert f"metadata.json still says running (cannot write metadata.json in {out}: " \
+           "Permission denied): --resume records it" in line
+    assert "the Parquet exports could not be written" in line
+    # what could be recorded is: every row, and the status in events.jsonl
+    assert finished_rows(out) == 2
+    last = json.loads((out / "events.jsonl").read_text().splitlines()[-1])
+    assert last["event"] == "status" and last["status"] == "complete"
+    assert json.loads((out / "metadata.json").read_text())["status"] == "running"
+    assert not [p.name for p in out.iterdir() if ".tmp" in p.name or p.name == ".lock"]
+
+
+def finished_rows(run: Path) -> int:
+    from campaign.acquire.rundir import finished_tests
+
+    return len(finished_tests(run))
+
+
+def test_a_full_disk_at_the_parquet_export_leaves_no_temporary_and_says_so(kr240_plan,
+                                                                           tmp_path, capsys,
+                                                                           monkeypatch):
+    import errno
+    import os
+
+    import pandas as pd
+
+    plan = _small_plan(kr240_plan, tmp_path)
+    out = tmp_path / "run"
+    real = pd.DataFrame.to_parquet
+
+    def to_parquet(self, path, *args, **kwargs):
+        if Path(path).name.startswith(".samples.parquet."):
+            Path(path).write_bytes(b"PAR1 half")
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(self, path, *args, **kwargs)
+
+    monkeypatch.setattr(pd.DataFrame, "to_parquet", to_parquet)
+    code = main(["acquire", "--plan", str(plan), "--out", str(out), "--fake", "--yes",
+                 "--quiet", "--time-scale", "100"])
+    captured = capsys.readouterr()
+    assert code == 1 and captured.out == "" and "Traceback" not in captured.err
+    assert captured.err.count("\n") == 1
+    assert captured.err.startswith("run complete: the Parquet exports could not be written "
+                                   "(No space left on device); every measurement "
+                                   "is in tests.csv and samples.jsonl")
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["status"] == "complete" and meta["parquet_exported"] is False
+    assert "Parquet exports could not be written" in meta["reason"]
+    assert not (out / "samples.parquet").exists()
+    assert not [p.name for p in out.iterdir() if ".tmp" in p.name]
+    assert finished_rows(out) == 2 and (out / "samples.jsonl").stat().st_size > 0
+    monkeypatch.setattr(pd.DataFrame, "to_parquet", real)
+    # space is back: a resume writes the exports without starting anything
+    code = main(["acquire", "--resume", str(out), "--fake", "--yes", "--quiet"])
+    assert code == 0 and "nothing to resume" in capsys.readouterr().err
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["status"] == "complete" and meta["parquet_exported"] is True
+    assert meta["reason"] == ""
+    assert len(pd.read_parquet(out / "samples.parquet")) == sum(
+        1 for _ in (out / "samples.jsonl").open())

@@ -59,7 +59,8 @@ def test_exception_leaves_inherit_builtins():
 def test_registry_lists_builtins_and_loads_a_class():
     names = registry.available_drivers()
     for name in ("ati-netft", "robotiq-ft300", "ati-netcan", "emscon", "geocom", "ur",
-                 "kuka-kvp", "manual", "manual-load", "lab-load"):
+                 "kuka-kvp", "fanuc-rmi", "abb-rws", "abb-rws2", "manual", "manual-load",
+                 "lab-load"):
         assert name in names
     cls = registry.load_driver_class("ati-netft")
     assert cls.__name__ == "NetFTSensor"

@@ -140,3 +140,26 @@ def test_protocol_that_is_not_utf8_is_refused_in_one_line(tmp_path, capsys):
     assert main(["lab", "--fake", "--protocol", str(utf16)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "UTF-16" in err and str(utf16) in err
+
+
+@pytest.mark.parametrize("robot, driver, scheme", [("r2000ic", "fanuc-rmi", "rmi://"),
+                                                   ("irb6640", "abb-rws", "rws://")])
+def test_lab_robot_option_starts_the_brand_fake(robot, driver, scheme):
+    proc, addresses = _start(["--fake", "--robot", robot, "--instruments", "robot",
+                              "--time-scale", "200"])
+    try:
+        assert addresses[driver].startswith(scheme), addresses
+        assert "kuka-kvp" not in addresses
+        if driver == "abb-rws":  # an ABB arm: a RobotWare 6 and a RobotWare 7 controller
+            assert addresses["abb-rws2"].startswith("rws2://Admin:robotics@127.0.0.1:")
+            assert addresses["abb-rws2"].endswith("?insecure=1")
+        with open_driver(driver, addresses[driver]) as drv:
+            q = drv.read_joints().value
+        with LabClient(addresses["control"]) as client:
+            np.testing.assert_allclose(q, client.call("state")["q"], atol=1e-6)
+            client.call("shutdown")
+        assert proc.wait(timeout=20) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

@@ -54,8 +54,8 @@ def test_controller_angles_option(capsys):
         (["stiffness", "--robot", "kr240-2", "--q", "0,0,x,0,0,0"], "item 3 ('x')"),
         (["stiffness", "--robot", "kr240-2", "--q", "0,0,inf,0,0,0"], "finite"),
         (["stiffness", "--robot", "ur5e", "--q", "0,0,0,0,0,0"], "--joint-stiffness"),
-        (["stiffness", "--robot", "kr240-2", "--q", "10,-80,70,-30,60,20", "--wrench",
-          "1e7,0,0,0,0,0"], "nonlinear equilibrium"),
+        (["stiffness", "--robot", "kr240-2", "--q", "10,-80,70,-30,60,20", "--ignore-limits",
+          "--wrench", "1e7,0,0,0,0,0"], "nonlinear equilibrium"),
         (["maps", "--robot", "kr240-2", "--out", "/tmp/x", "--step", "0"], "--step"),
     ],
 )
@@ -95,3 +95,26 @@ def test_maps_on_robot_without_length_computes_it(tmp_path, capsys):
     table = pd.read_parquet(tmp_path / "map_joint_space.parquet")
     assert table["singular"].any()  # UR at theta3 = 0 is stretched: elbow singular
     assert not table[["v_p", "v_r_deg", "inv_kappa_F"]].isna().any().any()
+
+
+STIFF = ["stiffness", "--robot", "kr240-2"]
+Q = ["--q", "0,30,-170,45,45,45"]
+
+
+@pytest.mark.parametrize("args, message", [
+    ([*STIFF, *Q, "--wrench", ""], "--wrench: empty value: expected 6 comma-separated"),
+    ([*STIFF, *Q, "--wrench", " "], "--wrench: empty value"),
+    ([*STIFF, *Q, "--joint-stiffness", ""], "--joint-stiffness: empty value"),
+    ([*STIFF, "--q", "0,,30,-170,45,45,45"], "--q: item 2 is empty"),
+    ([*STIFF, "--q", "0,30,-170,45,45,45,"], "--q: item 7 is empty"),
+    ([*STIFF, *Q, "--wrench", "1,2,,3,4,5"], "--wrench: item 3 is empty"),
+    (["maps", "--robot", "kr240-2", "--out", "OUT", "--wrench", ""], "--wrench: empty value"),
+    (["maps", "--robot", "kr240-2", "--out", "OUT", "--joint-stiffness", ""],
+     "--joint-stiffness: empty value"),
+])
+def test_empty_items_are_refused(tmp_path, capsys, args, message):
+    """An empty option or item is a typo: refused, never a default or a dropped item."""
+    from tests.refusal import assert_refused
+
+    args = [str(tmp_path / "out") if a == "OUT" else a for a in args]
+    assert_refused(capsys, args, message, watch=[tmp_path])

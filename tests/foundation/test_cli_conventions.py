@@ -35,8 +35,8 @@ def test_version(capsys):
     ("plan", ["d-optimal|e-optimal|zones-random"]),
     ("robustness", ["ols|wls|exact", "reflectors|probe"]),
     ("maps", ["parquet|csv"]),
-    ("compensate", ["base|tool"]),
-    ("place", ["max|rms|compliance", "auto|krl|urscript|none"]),
+    ("compensate", ["base|tool", "auto|krl|urscript|rapid|fanuc-ls|none"]),
+    ("place", ["max|rms|compliance", "auto|krl|urscript|rapid|fanuc-ls|none"]),
 ])
 def test_help_lists_the_choices(capsys, monkeypatch, command, listed):
     monkeypatch.setenv("COLUMNS", "250")  # one option per line in rich's help box

@@ -35,7 +35,8 @@ def fd_jacobian(robot, q, h=1e-6):
 
 
 def test_builtins_present():
-    assert set(ROBOTS) == {"kr240-2", "fanuc-s420f", "puma560", "ur5e", "ur10e"}
+    assert set(ROBOTS) == {"kr240-2", "fanuc-s420f", "puma560", "ur5e", "ur10e", "irb6640",
+                           "r2000ic"}
 
 
 @pytest.mark.parametrize("name", ROBOTS)

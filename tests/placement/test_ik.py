@@ -10,7 +10,8 @@ from analysis.model.kinematics import tool_pose
 from analysis.model.robots import builtin_names, load_robot, with_tool
 
 EXPECTED_KIND = {"kr240-2": "spherical_wrist", "fanuc-s420f": "spherical_wrist",
-                 "puma560": "spherical_wrist", "ur5e": "parallel_axes", "ur10e": "parallel_axes"}
+                 "puma560": "spherical_wrist", "ur5e": "parallel_axes", "ur10e": "parallel_axes",
+                 "irb6640": "spherical_wrist", "r2000ic": "spherical_wrist"}
 
 
 def _angle_gap(a, b):

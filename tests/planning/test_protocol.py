@@ -202,3 +202,28 @@ def test_yaml_semantic_error_names_line(tmp_path):
         make_plan(load_protocol(path), candidates=300)
     line = _line_of(text, "min_inv_kappa_F:")
     assert f"{path}:{line}: thresholds.min_inv_kappa_F" in str(err.value)
+
+
+@pytest.mark.parametrize(("old", "new", "key", "words"), [
+    ("force_N = [0, 2200, 2200]", "force_N = [-1e300, 2200, 2200]", "load_cases[0].force_N[0]",
+     "-1e+300 N is implausible: expected |value| <= 100000 N"),
+    ("moment_N_m = [200, 200, 0]", "moment_N_m = [200, 2e9, 0]", "load_cases[0].moment_N_m[1]",
+     "2e+09 N m is implausible"),
+    ("max_force_N = 3200", "max_force_N = 1e300", "safety.max_force_N", "implausible"),
+    ("xyz_mm = [0, 0, 0]", "xyz_mm = [0, 0, 1e200]", "tool.xyz_mm[2]", "1e+200 mm is implausible"),
+    ("mass_kg = 0", "mass_kg = 1e30", "tool.mass_kg", "less than or equal to 10000"),
+    ("noise = { force_N = 0.5,", "noise = { force_N = 1e300,",
+     "instruments.force_torque.noise.force_N", "less than or equal to 10000"),
+    ("fixed_deg = { q1 = 0,", "fixed_deg = { q1 = 1e300,", "sampling.fixed_deg.q1",
+     "1e+300 deg is implausible"),
+])
+def test_implausible_numbers_refused_by_plan(tmp_path, capsys, old, new, key, words):
+    """One line naming file, line and key; exit 2; no warning; nothing written."""
+    from tests.refusal import assert_refused
+
+    path, text = _variant(tmp_path, old, new)
+    assert text.count(new) == 1
+    line = _line_of(text, new)
+    err = assert_refused(capsys, ["plan", "--protocol", path, "--out", tmp_path / "out"],
+                         f"{path}:{line}: {key}: ", watch=[tmp_path])
+    assert words in err and "inf" not in err

@@ -46,6 +46,8 @@ def test_tracker_noise_three_times_declared_is_named(setup):
     notes = _notes(res)
     assert len(notes) == 1 and notes[0].startswith("translation residuals are")
     assert "tracker noise looks too small" in notes[0]
+    # the option by its current name, not the hidden old --sigma-translation-um
+    assert notes[0].endswith("the options --translation-sigma-um)") and "--sigma-" not in notes[0]
     ratio = float(notes[0].split(" are ")[1].split(" times")[0])
     assert 2.4 < ratio < 3.6
 
@@ -56,6 +58,7 @@ def test_rotation_noise_declared_four_times_too_large_is_named(setup):
     notes = _notes(res)
     assert len(notes) == 1 and notes[0].startswith("rotation residuals")
     assert "too large" in notes[0]
+    assert "--rotation-sigma-urad" in notes[0] and "--sigma-" not in notes[0]
 
 
 def test_cli_noise_options_reach_the_model():

@@ -84,13 +84,18 @@ def _cell(v) -> str:
 
 
 def write_run(path: Path, rows: list[dict], status: str = "complete", reason: str = "",
-              truncate_last: bool = False, protocol_extra: str = "") -> Path:
+              truncate_last: bool = False, protocol_extra: str = "", fake: bool = True,
+              pose_keys: str = "") -> Path:
     """Write a run directory with ``rows`` as ``tests.csv``; returns ``path``.
 
-    ``protocol_extra`` is appended to the protocol copy (e.g. a ``[report]`` table).
+    ``protocol_extra`` is appended to the protocol copy (e.g. a ``[report]`` table),
+    ``pose_keys`` (TOML lines) added to its ``[instruments.pose]`` table. ``fake``: the
+    run came from the simulated lab (metadata ``fake`` and ``fake_lab``); False: neither.
     """
     path.mkdir(parents=True, exist_ok=True)
     text = PROTOCOL.read_text() + protocol_extra
+    if pose_keys:
+        text = text.replace("[instruments.pose]\n", f"[instruments.pose]\n{pose_keys}\n", 1)
     (path / "protocol.toml").write_text(text)
     meta = {
         "format_version": 1, "status": status, "reason": reason,
@@ -108,7 +113,8 @@ def write_run(path: Path, rows: list[dict], status: str = "complete", reason: st
         },
         "software": {"stiffness-campaign": "0.1.0", "numpy": np.__version__},
         "plan_file": "plan.csv", "n_planned_tests": 5, "repeats": REPEATS,
-        "fake_lab": {"true_joint_stiffness": TRUE_K.tolist()},
+        "fake": fake,
+        "fake_lab": {"true_joint_stiffness": TRUE_K.tolist()} if fake else None,
     }
     (path / "metadata.json").write_text(json.dumps(meta, indent=2))
     lines = [",".join(HEADER)] + [",".join(_cell(r[c]) for c in HEADER) for r in rows]

@@ -46,8 +46,9 @@ def test_csv_import_writes_the_same_result_keys_and_a_report(tmp_path, rows):
                  str(out), "--method", "exact", "--trials", "20"]) == 0
     res = json.loads((out / "results.json").read_text())
     direct = analyze_table(read_csv(csv), load_robot("kr240-2"), method="exact").to_dict()
-    # campaign analyze adds K_X at the tested poses and the model file (docs/use.md)
-    assert list(res) == [*direct, "cartesian_stiffness", "model_file"]
+    # campaign analyze adds K_X at the tested poses and the model file (docs/use.md), and
+    # the report ID (docs/report.md)
+    assert list(res) == [*direct, "cartesian_stiffness", "model_file", "report_id"]
     np.testing.assert_allclose(res["joint_stiffness_Nm_per_rad"],
                                direct["joint_stiffness_Nm_per_rad"], rtol=1e-9)
     html = (out / "report.html").read_text(encoding="utf-8")

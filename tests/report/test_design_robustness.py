@@ -44,6 +44,25 @@ def test_spread_at_the_campaign_size_meets_its_standard_errors(tmp_path, rows):
     at_4n = curve[curve["n_tests"] == 4 * n].sort_values("joint")["relative_std"].to_numpy()
     np.testing.assert_allclose(at_4n / at_n, 0.5, rtol=0.2)
     assert np.all(np.abs(curve["relative_bias"]) < 0.05)
+    # a well-conditioned design: the robust spread (IQR / 1.349) agrees with the std, and
+    # the quartiles bracket the median
+    big = curve[curve["n_tests"] >= n]
+    assert big["identifiable"].all()
+    np.testing.assert_allclose(big["robust_sigma"], big["relative_std"], rtol=0.25)
+    assert np.all(big["relative_q25"] < big["relative_bias"])
+    assert np.all(big["relative_bias"] < big["relative_q75"])
+
+
+def test_a_design_lost_in_the_noise_is_marked_not_identifiable():
+    """A load a thousand times too small leaves deflections far below the noise: every n
+    is 'not identifiable' (shown as such in the report, not as a number)."""
+    robot = load_robot("kr240-2")
+    noise = NoiseModel(translation_sigma_override=SIGMA[0], rotation_sigma_override=SIGMA[3],
+                       force_sigma=0.5, moment_sigma=0.05)
+    q = np.radians([[0, 40, -200, 45, 45, 45], [20, 80, -220, 30, 60, -30]])
+    w = np.array([[0, 2.2, 2.2, 0.2, 0.2, 0.0], [2.2, 0, 2.2, 0.2, -0.2, 0.0]])
+    curve = design_robustness(robot, q, w, TRUE_K, noise, range(6), tests=(3, 10), trials=40)
+    assert not curve["identifiable"].any()
 
 
 def test_too_few_trials_is_refused(rows):

@@ -20,7 +20,7 @@ from report_html import ReportPage
 from report_runs import TRUE_K
 
 from analysis.report.build import SECTION_TITLES
-from analysis.report.figures import HEIGHT, WIDTH
+from analysis.report.figures import PIXELS
 from analysis.report.formatting import interval_kNm, k_kNm
 from campaign.cli import main
 
@@ -59,7 +59,7 @@ def test_results_json_matches_the_simulated_truth(complete):
 
 def test_html_table_holds_the_identified_values_and_intervals(complete):
     res, doc = complete["results"], complete["html"]
-    table = doc.tables["Identified joint stiffness"]
+    table = doc.tables["Stiffness with standard errors and reference values"]
     header, rows = table[0], table[1:]
     assert header[:3] == ["joint", "k (kN m/rad)", "95% interval (kN m/rad)"]
     assert len(rows) == 6
@@ -84,7 +84,9 @@ def test_html_is_self_contained_with_plots_of_the_expected_size(complete):
         assert src.startswith("data:image/png;base64,")
         png = base64.b64decode(src.split(",", 1)[1])
         assert png[:8] == b"\x89PNG\r\n\x1a\n"
-        assert struct.unpack(">II", png[16:24]) == (WIDTH, HEIGHT)
+        # 300 px per inch: >= 300 ppi printed at the PDF's 150 mm width
+        assert struct.unpack(">II", png[16:24]) == PIXELS
+        assert PIXELS[0] / (150 / 25.4) >= 300
         import matplotlib.image as mpimg
 
         pixels = mpimg.imread(io.BytesIO(png))
@@ -114,8 +116,8 @@ def test_html_residuals_validation_and_kx(complete):
     assert [r[0] for r in val[1:]] == ["P1", "P2", "P3", "P4", "P5"]
     assert all(0.2 < float(r[4]) < 3 for r in val[1:])
     kx = doc.tables["K_X at pose 1 (command line), with K_C"]
-    assert kx[0][1:7] == ["x (/mm)", "y (/mm)", "z (/mm)", "rx (/mrad)", "ry (/mrad)",
-                          "rz (/mrad)"]
+    assert kx[0][1:7] == ["\u03b4x (per mm)", "\u03b4y (per mm)", "\u03b4z (per mm)",
+                          "\u03b4rx (per mrad)", "\u03b4ry (per mrad)", "\u03b4rz (per mrad)"]
     m = np.array([[float(v) for v in r[1:7]] for r in kx[1:]])
     # independent: K_X of eq. 6 at the --pose with the identified k, scaled to N/mm, N m/mrad
     from report_runs import PROTOCOL
@@ -131,8 +133,15 @@ def test_html_residuals_validation_and_kx(complete):
     k = np.array(res["joint_stiffness_Nm_per_rad"])
     K = 1e-3 * cartesian_stiffness(jacobian(robot, q), k, complementary_stiffness(robot, q, w))
     np.testing.assert_allclose(m, K, rtol=1e-3, atol=1e-3 * np.abs(K).max())
-    principal = np.array([float(r[8]) for r in kx[1:]])
-    assert np.all(np.diff(principal[:3]) <= 0) and np.all(np.diff(principal[3:]) <= 0)
+    table = doc.tables["Principal stiffnesses at pose 1 (command line)"]
+    assert [r[0] for r in table[1:]] == ["pure force (N/mm)", "pure moment (N m/mrad)"]
+    principal = np.array([[float(v) for v in r[1:]] for r in table[1:]])
+    assert np.all(np.diff(principal, axis=1) <= 0)  # largest first
+    # independent: inverse eigenvalues of the blocks of K_X^-1
+    C = np.linalg.inv(K)
+    for row, sl in zip(principal, (slice(0, 3), slice(3, 6)), strict=True):
+        np.testing.assert_allclose(row, np.sort(1 / np.linalg.eigvalsh(C[sl, sl]))[::-1],
+                                   rtol=2e-3)
     # no SI e-notation and no round-off residue in the engineering table
     assert not any("e" in c for r in kx[1:] for c in r[1:])
     effect = doc.tables["Effect of K_C (the load's geometric stiffness)"]
@@ -149,16 +158,21 @@ def test_pdf_pages_and_numbers(complete):
     assert 6 <= n <= 12
     for i, text in enumerate(pages, start=1):
         assert f"page {i} of {n}" in text
-    # each section starts a page, in order
-    starts = [next(i for i, t in enumerate(pages) if f"{s + 1}. {title}" in t)
+    # the sections flow in order (no page per section: fewer pages than sections + 2)
+    # (headings with notation are drawn with a subscript: compared without "_" and spaces)
+    def squeeze(text):
+        return re.sub(r"[\s_]", "", text)
+
+    starts = [next(i for i, t in enumerate(pages) if squeeze(f"{s + 1}. {title}") in squeeze(t))
               for s, title in enumerate(SECTION_TITLES)]
     assert starts == sorted(starts) and starts[0] == 0
-    ident = _flat(pages[starts[1]])
+    assert len(set(starts)) < len(starts)  # two sections share a page somewhere
+    ident = _flat(" ".join(pages[starts[1]:starts[1] + 2]))
     for j in range(6):
         k = res["joint_stiffness_Nm_per_rad"][j]
         assert k_kNm(k) in ident
         assert interval_kNm(*res["ci95_Nm_per_rad"][j]) in ident
-    assert "saturation, retried" in _flat(pages[0])
+    assert "saturation, retried" in _flat(" ".join(pages[:starts[1] + 1]))  # in the summary
 
 
 def test_aborted_run_is_analysed_and_says_partial(aborted_run):
@@ -166,7 +180,7 @@ def test_aborted_run_is_analysed_and_says_partial(aborted_run):
     assert _analyze([str(aborted_run), "--no-report"]) == 0
     assert json.loads((out / "results.json").read_text())["n_tests"] == 12
     assert json.loads((out / "analysis.json").read_text())["partial"] is True
-    assert _analyze([str(aborted_run), "--trials", "20"]) == 0
+    assert _analyze([str(aborted_run), "--trials", "20", "--force"]) == 0
     html = (out / "report.html").read_text(encoding="utf-8")
     assert "PARTIAL RUN (status aborted: interrupted by the operator (Ctrl-C))" in html
     assert "12 test row(s) that finished ok of 15 planned" in html

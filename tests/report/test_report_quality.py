@@ -66,7 +66,7 @@ def test_labels_read_as_a_user_expects(run_report):
     assert "Pose pose" not in text and "pose pose" not in text
     assert "(0 %)" not in text
     assert "K_X^-1" not in text and "J^-T" not in text  # formulas not in ASCII
-    table = run_report["page"].tables["Identified joint stiffness"]
+    table = run_report["page"].tables["Stiffness with standard errors and reference values"]
     assert table[0][6] == "k/nominal - 1 (%)"
     # where the nominal values come from: the robot file's [sources] stiffness
     assert "Nominal values: Dumas et al. 2011 Table 2" in text
@@ -77,7 +77,8 @@ def test_labels_read_as_a_user_expects(run_report):
 def test_kx_in_engineering_units_with_the_kc_effect(run_report):
     tables = run_report["page"].tables
     kx = [t for title, t in tables.items() if title.startswith("K_X at ")]
-    assert kx and all(t[0][1] == "x (/mm)" and t[0][4] == "rx (/mrad)" for t in kx)
+    assert kx and all(t[0][1] == "\u03b4x (per mm)" and t[0][4] == "\u03b4rx (per mrad)"
+                      for t in kx)
     assert "Effect of K_C (the load's geometric stiffness)" in tables
     assert not any("(SI)" in title for title in tables)  # no near-identical SI pair
 

@@ -148,6 +148,8 @@ def test_displacements_in_m_instead_of_mm_are_refused(tmp_path, rows, capsys):
     assert main(args) == 2
     err = capsys.readouterr().err
     assert "too good to be true" in err and "displacements typed in m instead of mm" in err
+    # the noise options by their current names (the old --sigma-* ones are hidden)
+    assert "--translation-sigma-um, --rotation-sigma-urad" in err and "--sigma-" not in err
     assert "implausible stiffness" in err and "--accept-misfit" in err
     assert not (tmp_path / "o" / "results.json").exists()
     assert main([*args, "--accept-misfit"]) == 0

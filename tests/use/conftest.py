@@ -26,17 +26,19 @@ def write_tests_csv(path, seed: int = 3, k=TRUE_K) -> None:
     frame.to_csv(path, index=False)
 
 
+#: the simulation's own noise figures: the defaults are larger, and a chi-square far
+#: below its degrees of freedom is refused as "too good to be true"
+SIGMAS = ["--translation-sigma-um", f"{1e6 * NOISE.displacement_sigma[0]:.6g}",
+          "--rotation-sigma-urad", f"{1e6 * NOISE.displacement_sigma[3]:.6g}",
+          "--force-sigma-N", "1e-9", "--moment-sigma-Nm", "1e-9"]
+
+
 def analyze(tmp, name: str, extra=(), seed: int = 3, k=TRUE_K):
     csv = tmp / f"{name}.csv"
     write_tests_csv(csv, seed, k)
     out = tmp / name
-    # the simulation's own noise figures: the defaults are larger, and a chi-square far
-    # below its degrees of freedom is refused as "too good to be true"
-    sigmas = ["--translation-sigma-um", f"{1e6 * NOISE.displacement_sigma[0]:.6g}",
-              "--rotation-sigma-urad", f"{1e6 * NOISE.displacement_sigma[3]:.6g}",
-              "--force-sigma-N", "1e-9", "--moment-sigma-Nm", "1e-9"]
     assert main(["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--out",
-                 str(out), "--no-report", *sigmas, *extra]) == 0
+                 str(out), "--no-report", *SIGMAS, *extra]) == 0
     return out
 
 

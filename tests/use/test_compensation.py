@@ -177,3 +177,60 @@ def test_fake_lab_verification_on_the_demo(tmp_path):
     assert check["before"]["rms_m"] > 1e-3  # the load deflects the arm by millimetres
     assert check["ratio_rms_translation"] <= 0.10
     assert check["after"]["rms_rad"] <= 0.10 * check["before"]["rms_rad"]
+
+
+# --- bad-input corpus (issue 20): refusals with one line, nothing written ---
+
+
+def _corpus_path(tmp_path, header_extra=""):
+    robot = load_robot("kr240-2")
+    csv = tmp_path / "p.csv"
+    _write_path(csv, np.degrees(_path_points(robot, 4, seed=4)))
+    if header_extra:
+        lines = csv.read_text().splitlines()
+        csv.write_text("\n".join([lines[0] + header_extra,
+                                  *(row + ",0" for row in lines[1:])]) + "\n")
+    return csv
+
+
+def test_duplicated_joint_column_refused(tmp_path, capsys):
+    """pandas would read the second q1_deg as q1_deg.1 and use the first: a guess."""
+    from tests.refusal import assert_refused
+
+    csv = _corpus_path(tmp_path, ",q1_deg")
+    assert pd.read_csv(csv).columns[-1] == "q1_deg.1"  # what pandas makes of it
+    assert_refused(capsys, ["compensate", "--robot", "kr240-2", "--path", csv, "--out",
+                            tmp_path / "o", "--wrench", "0,1000,0,0,0,0"],
+                   f"{csv}:1: column 'q1_deg' appears more than once", watch=[tmp_path])
+
+
+@pytest.mark.parametrize("wrench, message", [
+    ("", "--wrench: empty value"), ("0,1000,,0,0,0", "--wrench: item 3 is empty")])
+def test_empty_wrench_refused(tmp_path, capsys, wrench, message):
+    from tests.refusal import assert_refused
+
+    csv = _corpus_path(tmp_path)
+    assert_refused(capsys, ["compensate", "--robot", "kr240-2", "--path", csv, "--out",
+                            tmp_path / "o", "--wrench", wrench], message, watch=[tmp_path])
+
+
+def test_second_tool_point_on_a_flange_model_refused(tmp_path, capsys):
+    """docs/use.md: a model.toml's P is the run's tool point; with P at the flange a tool
+    option is a second tool point and is refused (the same one, 0,0,0, is accepted)."""
+    from tests.refusal import assert_refused
+    from tests.use.test_model_file import _with_identification
+
+    model = _with_identification(tmp_path, 1e-15 * np.eye(6))
+    csv = _corpus_path(tmp_path)
+    base = ["compensate", "--robot", model, "--path", csv, "--wrench", "0,1000,0,0,0,0"]
+    for tool in (["--tool-xyz-mm", "0,0,100"], ["--tool-rpy-deg", "0,30,0"]):
+        assert_refused(capsys, [*base, "--out", tmp_path / "o", *tool],
+                       f"{model}: this identified model (model.toml) has P at the flange",
+                       watch=[tmp_path])
+    assert_refused(capsys, ["stiffness", "--robot", model, "--q", "15,50,-195,30,40,20",
+                            "--tool-xyz-mm", "0,0,100"], "a second tool point (xyz [0.0, "
+                   "0.0, 100.0] mm, rpy [0.0, 0.0, 0.0] deg) is refused", watch=[tmp_path])
+    assert main([*base, "--out", str(tmp_path / "same"), "--tool-xyz-mm", "0,0,0"]) == 0
+    # the nominal built-in model takes a tool point
+    assert main([*base[:2], "kr240-2", *base[3:], "--out", str(tmp_path / "nominal"),
+                 "--tool-xyz-mm", "0,0,100"]) == 0

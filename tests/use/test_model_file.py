@@ -147,3 +147,48 @@ def test_bad_identification_table_is_refused_with_its_line(identified, tmp_path)
                    .replace(one_two, "joints_identified = [\n    1,"))
     with pytest.raises(InputError, match="joint 2 is nominal but has a non-zero covariance"):
         load_robot_file(bad)
+
+
+def _with_identification(tmp_path, cov: np.ndarray):
+    """The built-in KR240-2 file with an [identification] table holding ``cov``."""
+    from analysis.model.robots import builtin_files
+
+    text = builtin_files()["kr240-2"].read_text()
+    rows = ",\n  ".join("[" + ", ".join(repr(float(v)) for v in row) + "]" for row in cov)
+    text += ('\n[identification]\nquantity = "compliance"\n'
+             'covariance_unit = "(rad/(N m))^2"\n'
+             f"covariance = [\n  {rows}\n]\n"
+             "joints_identified = [1, 2, 3, 4, 5, 6]\nmethod = \"exact\"\nn_tests = 15\n"
+             'source_run = "hand-made"\ndate = "2026-12-01T00:00:00Z"\n')
+    path = tmp_path / "model.toml"
+    path.write_text(text)
+    return path
+
+
+def test_indefinite_covariance_is_refused(tmp_path, capsys):
+    """C = 2b I - b 11^T: symmetric, diagonal b > 0, eigenvalues 2b (x5) and -4b."""
+    from tests.refusal import assert_refused
+
+    b = 1e-15
+    cov = 2 * b * np.eye(6) - b * np.ones((6, 6))
+    assert np.allclose(np.diag(cov), b) and np.isclose(np.linalg.eigvalsh(cov)[0], -4 * b)
+    path = _with_identification(tmp_path, cov)
+    err = assert_refused(capsys, ["stiffness", "--robot", path, "--q", "15,50,-195,30,40,20",
+                                  "--json"],
+                         "identification.covariance: Value error, covariance is not positive "
+                         "semi-definite", watch=[tmp_path])
+    line = next(i for i, t in enumerate(path.read_text().splitlines(), 1)
+                if t.startswith("covariance = "))
+    assert f"model.toml:{line}: " in err and "-4e-15 (rad/(N m))^2" in err
+    assert "correlation matrix: -4" in err
+    # the same matrix made positive semi-definite (b 11^T + b I) is accepted, and so is
+    # a singular one (b 11^T: rank 1, eigenvalues 6b and 0 up to round-off)
+    for ok in (b * np.ones((6, 6)) + b * np.eye(6), b * np.ones((6, 6))):
+        _with_identification(tmp_path, ok)
+        assert np.array_equal(load_robot_file(path).compliance_covariance, ok)
+    # a joint with zero variance and a non-zero covariance is indefinite too
+    bad = b * np.eye(6)
+    bad[0, 0], bad[0, 1], bad[1, 0] = 0.0, b / 2, b / 2
+    _with_identification(tmp_path, bad)
+    with pytest.raises(InputError, match="joint 1 has zero variance but a non-zero"):
+        load_robot_file(path)
