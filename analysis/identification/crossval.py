@@ -60,6 +60,8 @@ from analysis.model.robot_model import RobotModel
 EXACT_REFITS_MAX = 50
 #: folds per chunk of the per-fold p x p algebra (bounds its temporaries)
 FOLD_CHUNK = 8192
+#: tests per sub-block of the total-uncertainty sums (their (b, 6, 6) temporaries)
+SUB_BLOCK = 2000
 ONE_STEP_NOTE = ("one Gauss-Newton step from the full-data estimate (more than "
                  f"{EXACT_REFITS_MAX} poses)")
 
@@ -477,12 +479,15 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         C = (J * xt[:, None, :]) @ np.swapaxes(J, -1, -2)  # J diag(x) J^T
         cov_t = residual_covariance(noise, C, w)
         sig = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
-        total.add(f, whitening(cov_t, meas), F, err, meas)
-        if meat is not None:  # ols: A^T Sigma A of the tests, per fold
-            Ab = np.where(meas[..., None], np.asarray(Aw[sl], dtype=float), 0.0)
-            AtSA = np.einsum("mri,mrs,msj->mij", Ab, cov_t, Ab)[:, total.iu[0], total.iu[1]]
-            for a in range(AtSA.shape[1]):
-                meat[:, a] += np.bincount(f, AtSA[:, a], P)
+        for u in range(0, len(f), SUB_BLOCK):  # the check's per-test temporaries: small
+            v = slice(u, u + SUB_BLOCK)
+            total.add(f[v], whitening(cov_t[v], meas[v]), F[v], err[v], meas[v])
+            if meat is not None:  # ols: A^T Sigma A of the tests, per fold
+                Ab = np.where(meas[v][..., None], F[v], 0.0)
+                AtSA = np.einsum("mri,mrs,msj->mij", Ab, cov_t[v], Ab)[:, total.iu[0],
+                                                                       total.iu[1]]
+                for a in range(AtSA.shape[1]):
+                    meat[:, a] += np.bincount(f[v], AtSA[:, a], P)
         sq[0] += np.bincount(f, np.sum(err[:, :3] ** 2, axis=1), P)
         sq[1] += np.bincount(f, np.sum(err[:, 3:] ** 2, axis=1), P)
         sq[2] += np.bincount(f, np.sum((err / sig) ** 2, axis=1), P)
