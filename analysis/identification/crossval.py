@@ -41,6 +41,7 @@ from analysis.identification.fitting import (
 )
 from analysis.identification.holdout_check import (
     CLUSTER_DEG,
+    PARAMETER_TERM_MAX_POSES,
     PredictiveSums,
     flag_columns,
     holdout_folds,
@@ -445,7 +446,10 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     exact_model = method == "exact" or (linear_shift is not None and offset is None)
     x = np.zeros((P, 6))
     x[:, cols] = x_p
-    if Linv is not None:
+    if P > PARAMETER_TERM_MAX_POSES:
+        # the refit's parameter term is below 1/P of the noise term: left out
+        total, meat = PredictiveSums(P, p, parameter=False), None
+    elif Linv is not None:
         # a fit whitened by its own covariances: the held-out poses' F^T W F are the
         # folds' parts of its normal matrix, D R^T S_h R D (no per-fold sums of their own)
         def normal(h):

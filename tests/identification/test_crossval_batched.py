@@ -105,3 +105,22 @@ def test_ols_folds_corrected_by_the_full_shift_are_close_to_their_own(kr240, w_e
                                rtol=5e-3)
     np.testing.assert_allclose(shifted["rms_normalized_total"], own["rms_normalized_total"],
                                rtol=5e-3)
+
+
+def test_parameter_term_left_out_for_many_folds(kr240, w_eff, monkeypatch):
+    """Above PARAMETER_TERM_MAX_POSES folds V = Sigma (the refit's covariance is left
+    out): q can only grow (V >= Sigma). Measured on sqrt(q/n), OLS at w_eff, one test per
+    pose: at most +22 % with 60 poses (asserted < 25 %), +6 % with 300, +1.6 % (median
+    +0.2 %) with 1000, the threshold."""
+    from analysis.identification import crossval
+    from analysis.identification.robustness import sample_poses
+
+    noise = NoiseModel()
+    q = sample_poses(kr240, 60, np.random.default_rng(3), min_inverse_condition=0.3)
+    tests = simulate(kr240, q, w_eff, kr240.nominal_stiffness, noise=noise, seed=5)
+    joints = tuple(range(6))
+    full = leave_one_pose_out(kr240, tests, "ols", joints, noise)
+    monkeypatch.setattr(crossval, "PARAMETER_TERM_MAX_POSES", 10)
+    noise_only = leave_one_pose_out(kr240, tests, "ols", joints, noise)
+    ratio = noise_only["rms_normalized_total"] / full["rms_normalized_total"]
+    assert np.all(ratio >= 1 - 1e-9) and np.all(ratio < 1.25), ratio.max()
