@@ -66,6 +66,26 @@ def load_command(name: str, module: str) -> TyperCommand:
     if command is None:
         raise LookupError(f"campaign.commands.{module} does not register a command {name!r}; "
                           "fix LAZY_COMMANDS in campaign/cli.py")
+    return escape_help(command)
+
+
+def escape_help(command):
+    """``command`` with rich markup escaped in its help and its parameters' help, once.
+
+    typer renders help texts as rich markup, which would read the protocol's
+    ``[tool]`` or ``[fake_lab]`` as style tags and drop them from ``--help``; a
+    help text here is plain text, so every ``[`` is escaped. Returns ``command``.
+    """
+    from rich.markup import escape
+
+    if getattr(command, "_help_escaped", False):
+        return command
+    if command.help:
+        command.help = escape(command.help)
+    for param in command.params:
+        if getattr(param, "help", None):
+            param.help = escape(param.help)
+    command._help_escaped = True
     return command
 
 
@@ -85,7 +105,8 @@ class _LazyGroup(TyperGroup):
         for name, (module, help_line) in LAZY_COMMANDS.items():
             # a command registered eagerly under the same name wins
             self.commands.setdefault(name, _Placeholder(name, module, help_line))
-        self.commands = dict(sorted(self.commands.items()))
+        self.commands = {name: escape_help(command)
+                         for name, command in sorted(self.commands.items())}
 
     def resolve_command(self, ctx, args):
         placeholder = self.commands.get(args[0]) if args else None
@@ -145,6 +166,17 @@ def _is_equilibrium_error(err: Exception) -> bool:
     return isinstance(err, EquilibriumError)
 
 
+def _error(text: str) -> None:
+    """An error message on stderr: one line for logs and scripts; on a terminal, wrapped
+    at word boundaries to its width (the terminal itself would cut words in two)."""
+    import shutil
+
+    from campaign.cli_common import wrap_text
+
+    width = shutil.get_terminal_size().columns if sys.stderr.isatty() else None
+    typer.echo(wrap_text(text, width), err=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit status."""
     app = build_app()
@@ -154,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(status, int) and status:
             return status
     except InputError as err:
-        typer.echo(f"error: {err}", err=True)
+        _error(f"error: {err}")
         return 2
     except typer.Abort:
         typer.echo("aborted", err=True)
@@ -172,8 +204,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except Exception as err:
         if type(err).__name__ == "EquilibriumError" and _is_equilibrium_error(err):
-            typer.echo(f"error: nonlinear equilibrium: {err}; reduce the wrench or check the "
-                       "joint stiffness", err=True)
+            _error(f"error: nonlinear equilibrium: {err}; reduce the wrench or check the "
+                   "joint stiffness")
             return 2
         # Usage errors of the click layer under typer carry their own message and code.
         if hasattr(err, "show") and isinstance(getattr(err, "exit_code", None), int):

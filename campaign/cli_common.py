@@ -15,6 +15,13 @@ from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 
+#: Panels of ``--help`` shared by the commands: options grouped in panels keep each
+#: panel's columns narrow, so option names stay whole and descriptions readable at 80
+#: columns (typer's ``rich_help_panel``).
+PANEL_ROBOT = "Robot, tool point and load"
+PANEL_NOISE = "Noise figures (per measured component of one test row)"
+PANEL_OUTPUT = "Output"
+
 
 class Method(StrEnum):
     """Estimator of the joint compliances (analysis.identification.estimate.METHODS)."""
@@ -74,6 +81,13 @@ class Program(StrEnum):
     none = "none"
 
 
+#: ``--program`` in --help: a short metavar, the choices in words (as one word,
+#: ``<auto|krl|urscript|rapid|fanuc-ls|none>`` folds mid-word at 80 columns)
+PROGRAM_METAVAR = "<program>"
+PROGRAM_CHOICES = ("auto (default: by robot), krl (KUKA), urscript (UR), rapid (ABB), "
+                   "fanuc-ls (FANUC), none")
+
+
 class RotationSource(StrEnum):
     reflectors = "reflectors"
     probe = "probe"
@@ -120,6 +134,69 @@ def writing_into(out: Path):
     from analysis.output_files import created_dir
 
     return created_dir(out)
+
+
+def text_width(stream=None) -> int | None:
+    """Columns at which text for a person is wrapped on ``stream`` (default stdout).
+
+    A terminal's own width; else ``$COLUMNS`` when set; else None: pipes and
+    files keep whole lines (one message, one line, for logs and scripts).
+    """
+    import os
+    import shutil
+    import sys
+
+    stream = sys.stdout if stream is None else stream
+    try:
+        if stream.isatty():
+            return shutil.get_terminal_size().columns
+    except (AttributeError, ValueError, OSError):
+        pass
+    columns = os.environ.get("COLUMNS", "")
+    return int(columns) if columns.isdigit() and int(columns) > 0 else None
+
+
+def wrap_text(text: str, width: int | None, hang: int = 2) -> str:
+    """``text`` with each line longer than ``width`` wrapped at spaces, never inside a word.
+
+    Continuation lines are indented ``hang`` columns more than their line's own
+    indentation, so a wrapped item still reads as one item; ``width`` None
+    leaves the text as it is. A word longer than the line stays whole.
+    """
+    import textwrap
+
+    if not width:
+        return text
+    out = []
+    for line in text.split("\n"):
+        if len(line) <= width:
+            out.append(line)
+            continue
+        lead = line[: len(line) - len(line.lstrip())]
+        out.extend(textwrap.wrap(line.strip(), width=width, initial_indent=lead,
+                                 subsequent_indent=lead + " " * hang, break_long_words=False,
+                                 break_on_hyphens=False) or [line])
+    return "\n".join(out)
+
+
+def echo(text: str = "", err: bool = False, nl: bool = True) -> None:
+    """``typer.echo`` of text for a person, wrapped at word boundaries to :func:`text_width`."""
+    import sys
+
+    import typer
+
+    typer.echo(wrap_text(text, text_width(sys.stderr if err else sys.stdout)), err=err, nl=nl)
+
+
+def print_wrapped(console, text: str, style: str | None = None) -> None:
+    """Print plain ``text`` (never read as markup) on a rich ``console``, wrapped at word
+    boundaries to the console's width with hanging indentation (:func:`wrap_text`)."""
+    from rich.text import Text
+
+    # the style on the Text, not on print(): under a live panel, print's style would also
+    # colour the panel redrawn after the line
+    console.print(Text(wrap_text(text, console.width), style=style or ""), highlight=False,
+                  soft_wrap=True)
 
 
 @contextmanager

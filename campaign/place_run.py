@@ -148,6 +148,7 @@ def build_problem(o: PlaceOptions, console: Console):
     from analysis.placement.evaluate import Problem
     from analysis.placement.grid import PlacementGrid
     from analysis.placement.path import read_part_path
+    from analysis.report.formatting import k_kNm
     from campaign.options import parse_floats, robot_option, stiffness_option
 
     if o.objective not in OBJECTIVE_UNITS:
@@ -231,7 +232,7 @@ def build_problem(o: PlaceOptions, console: Console):
     G = PlacementGrid(1e-3 * xs, 1e-3 * ys, 1e-3 * zs, np.radians(yaws))
     assumptions += [
         f"robot {robot.name}: inverse kinematics {solver.kind}; P = the robot file's tool point",
-        f"joint stiffness {np.round(k, 1).tolist()} N m/rad",
+        f"joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN m/rad",
         "search model: linear compliance without K_C, dX = J K_theta^-1 J^T w; the best "
         "placement is re-checked with the nonlinear equilibrium with K_C",
         f"characteristic length L = {length:.4f} m ({how}); singular below 1/kappa_F = "
@@ -394,6 +395,37 @@ def _run(problem, G, o: PlaceOptions, console: Console):
             cluster.close()
 
 
+#: the search box's dimensions as (grid key, option, unit, full turn)
+BOX_DIMENSIONS = (("x_mm", "--x-mm", "mm", None), ("y_mm", "--y-mm", "mm", None),
+                  ("z_mm", "--z-mm", "mm", None), ("yaw_deg", "--yaw-deg", "deg", 360.0))
+
+
+def edge_warnings(grids: dict, index: int) -> list[str]:
+    """One sentence per dimension where placement ``index`` lies on the search box's edge.
+
+    ``grids`` maps x_mm, y_mm, z_mm, yaw_deg to their grid values (mm, deg);
+    ``index`` is a row of the placements, laid out x, y, z, yaw (C order). A
+    best placement on an edge may have a better one just outside the box; a
+    dimension with one value, or a yaw grid covering a full turn, has no edge.
+    """
+    shape = tuple(len(grids[key]) for key, *_ in BOX_DIMENSIONS)
+    at = np.unravel_index(int(index), shape)
+    notes = []
+    for i, (key, option, unit, turn) in zip(at, BOX_DIMENSIONS, strict=True):
+        values = np.asarray(grids[key], dtype=float)
+        if values.size < 2 or i not in (0, values.size - 1):
+            continue
+        step = values[1] - values[0]
+        if turn is not None and values[-1] - values[0] + step >= turn - 1e-9:
+            continue
+        end = "lower" if i == 0 else "upper"
+        notes.append(f"the best placement is on the {end} edge of {option} "
+                     f"({key.split('_')[0]} = {values[i]:g} {unit}, range {values[0]:g}.."
+                     f"{values[-1]:g} {unit}): a better one may lie outside the box; widen "
+                     f"{option}")
+    return notes
+
+
 def _placement_dict(p: np.ndarray) -> dict:
     return {"x_mm": round(1e3 * p[0], 6), "y_mm": round(1e3 * p[1], 6),
             "z_mm": round(1e3 * p[2], 6), "yaw_deg": round(float(np.degrees(p[3])), 9)}
@@ -403,14 +435,15 @@ def run_place(o: PlaceOptions) -> None:
     """The whole command; raises InputError on bad input or when nothing is feasible."""
     from analysis.placement.details import path_details
     from analysis.placement.search import evaluate_chunk
+    from campaign.cli_common import print_wrapped
 
     console = Console()
     robot, problem, G, grids, assumptions, part = build_problem(o, console)
     size = search_size(problem, G)
     check_size(size, o)
     N, evaluations = size.points, size.evaluations
-    console.print(f"search: {size.text()}")
-    console.print(probe(problem, G, size, _workers(o)))
+    print_wrapped(console, f"search: {size.text()}")
+    print_wrapped(console, probe(problem, G, size, _workers(o)))
     t0 = time.perf_counter()
     res, how = _run(problem, G, o, console)
     elapsed = time.perf_counter() - t0
@@ -479,29 +512,35 @@ def run_place(o: PlaceOptions) -> None:
         "run": {"where": how, "seconds": round(elapsed, 3),
                 "evaluations_per_second": round(evaluations / max(elapsed, 1e-9))},
         "assumptions": assumptions,
+        "warnings": edge_warnings(grids, best),
     }
     # allow_nan=False: NaN or inf are not JSON; a non-finite number is a bug, not output
     write_text(o.out / "placement.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
     _plots(o, problem, G, res, grids, best, details, center_details, unit, scale, robot)
     programs = _programs(o, robot, details)
     for line in assumptions:
-        console.print(f"[dim]assumed:[/dim] {line}")
+        print_wrapped(console, f"assumed: {line}")
     p = summary["placement"]
-    console.print(f"best placement x = {p['x_mm']:g} mm, y = {p['y_mm']:g} mm, z = "
+    nonlinear = summary["objective_nonlinear"]
+    check = ("" if nonlinear is None else
+             f" (nonlinear equilibrium with K_C: {nonlinear:.4g} {unit})")
+    print_wrapped(console, f"best placement x = {p['x_mm']:g} mm, y = {p['y_mm']:g} mm, z = "
                   f"{p['z_mm']:g} mm, yaw = {p['yaw_deg']:g} deg; {o.objective} = "
-                  f"{summary['objective']:.4g} {unit} (nonlinear check: "
-                  f"{summary['objective_nonlinear']})")
+                  f"{summary['objective']:.4g} {unit}{check}")
+    for note in summary["warnings"]:
+        print_wrapped(console, f"warning: {note}", style="yellow")
     if summary["improvement_over_center"] is not None:
-        console.print(f"centre of the box: {summary['center_objective']:.4g} {unit} "
+        print_wrapped(console, f"centre of the box: {summary['center_objective']:.4g} {unit} "
                       f"(x {summary['improvement_over_center']:.3g} better at the best)")
     elif summary["center_objective"] is not None:
-        console.print(f"centre of the box: {summary['center_objective']:.4g} {unit}")
+        print_wrapped(console, f"centre of the box: {summary['center_objective']:.4g} {unit}")
     else:
-        console.print(f"centre of the box infeasible: {summary['center_infeasible_reason']}")
-    console.print(f"{infeasible.size} of {len(G)} placements infeasible"
+        print_wrapped(console, "centre of the box infeasible: "
+                      f"{summary['center_infeasible_reason']}")
+    print_wrapped(console, f"{infeasible.size} of {len(G)} placements infeasible"
                   + (": " + "; ".join(f"{v} {k}" for k, v in by_reason.items())
                      if by_reason else ""))
-    console.print(f"wrote placement.json, path_joints.csv, plots{programs} to {o.out}/ "
+    print_wrapped(console, f"wrote placement.json, path_joints.csv, plots{programs} to {o.out}/ "
                   f"({elapsed:.2f} s, {how})")
 
 

@@ -121,6 +121,8 @@ def summary_dict(plan: Plan) -> dict:
 
 def summary_text(plan: Plan) -> str:
     """Human-readable summary: candidates, rejections, predicted standard errors of k."""
+    from analysis.report.formatting import k_kNm, sig
+
     s = summary_dict(plan)
     c = s["candidates"]
     lines = [
@@ -134,15 +136,17 @@ def summary_text(plan: Plan) -> str:
         f"log det M: design {s['design']['log_det']:.3f}, random zone design "
         f"{s['random_zone_design']['log_det']:.3f}",
         "",
-        "predicted standard error of k (first order, N m/rad and % of the prior)",
+        "predicted standard error of k (first order, kN m/rad and % of the prior)",
         f"{'joint':>5} {'k prior':>12} {'design':>12} {'%':>7} {'random':>12} {'%':>7} "
         f"{'ratio':>6}",
     ]
     for r in s["predicted_standard_errors"]:
+        design, random = (sig(r[f"se_{k}_N_m_per_rad"] / 1e3, 4, zeros=True)
+                          for k in ("design", "random"))
         lines.append(
-            f"{r['joint']:>5} {r['k_prior_N_m_per_rad']:>12.0f} "
-            f"{r['se_design_N_m_per_rad']:>12.1f} {r['se_design_percent']:>7.3f} "
-            f"{r['se_random_N_m_per_rad']:>12.1f} {r['se_random_percent']:>7.3f} "
+            f"{r['joint']:>5} {k_kNm(r['k_prior_N_m_per_rad']):>12} "
+            f"{design:>12} {r['se_design_percent']:>7.3f} "
+            f"{random:>12} {r['se_random_percent']:>7.3f} "
             f"{r['random_over_design']:>6.2f}"
         )
     lines += _criterion_lines(s)
@@ -157,7 +161,8 @@ def _criterion_lines(s: dict) -> list[str]:
                   f"{n['rotation_sigma_urad']:.2f} urad, F/T {n['force_sigma_N']:.3g} N + "
                   f"{n['force_relative_percent']:.3g} % of |f|, {n['moment_sigma_Nm']:.3g} N m + "
                   f"{n['moment_relative_percent']:.3g} % of |m|, encoders "
-                  f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg (every source in the predictions)"]
+                  f"{np.radians(n['joint_sigma_deg']) * 1e6:.3g} urad (every source in the "
+                  "predictions)"]
         if s["noise_defaults_used"]:
             lines.append("not declared in the protocol, defaults used: "
                          + "; ".join(s["noise_defaults_used"]))

@@ -1,19 +1,27 @@
 """Progress of a run: a live rich panel, quiet mode, or JSON lines for scripts.
 
 The runner calls :meth:`Reporter.phase` at every phase change (with the live
-wrench and deflection when known), :meth:`Reporter.event` for what also goes
-to ``events.jsonl`` (tests done, retries, faults), and :meth:`Reporter.finish`
-once. Units shown: deg, N, mm, s.
+wrench and deflection when known; None until the test at hand measured them),
+:meth:`Reporter.event` for what also goes to ``events.jsonl`` (tests done,
+retries, faults), and :meth:`Reporter.finish` once, with the whole run's counts
+(:func:`campaign.acquire.ending.ending`). Units shown: deg, N, N m, mm, s;
+joint angles in the controller (pendant) convention, as in the safety list.
 """
 
 from __future__ import annotations
 
 import json
+import signal
 import sys
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any, TextIO
 
 import numpy as np
+
+from campaign.acquire.ending import final_lines
 
 
 class Reporter:
@@ -56,7 +64,33 @@ class Reporter:
 def _fmt_vec(v: Any, scale: float, digits: int) -> str:
     if v is None:
         return "-"
-    return "[" + " ".join(f"{x * scale:.{digits}f}" for x in np.asarray(v, float)) + "]"
+    cells = (f"{x * scale:.{digits}f}" for x in np.asarray(v, float))
+    # a rounded zero has no sign
+    return "[" + " ".join(c[1:] if c.startswith("-") and not c.strip("-0.") else c
+                          for c in cells) + "]"
+
+
+@contextmanager
+def interrupt_after() -> Iterator[None]:
+    """Hold a Ctrl-C back until the block ends, then raise it (main thread only).
+
+    Drawing the live panel is several writes; a KeyboardInterrupt between them
+    leaves a half-drawn frame whose height the panel no longer knows, and the
+    closing lines land in the middle of it. Nothing is held back when SIGINT
+    is not Python's default handler (e.g. ignored while the runner makes safe).
+    """
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    hit: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: hit.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if hit:
+        raise KeyboardInterrupt
 
 
 class QuietReporter(Reporter):
@@ -67,9 +101,8 @@ class QuietReporter(Reporter):
         self.stream = stream or sys.stderr
 
     def finish(self, status: str, reason: str, summary: dict[str, Any]) -> None:
-        print(f"run {status}{': ' + reason if reason else ''} ({summary.get('ok', 0)} ok, "
-              f"{summary.get('failed', 0)} failed) -> {summary.get('run_dir', '')}",
-              file=self.stream)
+        for line in final_lines(status, reason, summary):
+            print(line, file=self.stream)
 
 
 class JsonReporter(Reporter):
@@ -113,36 +146,49 @@ def _plain(value: Any) -> Any:
 class RichReporter(Reporter):
     """A live panel: test, pose, phase, wrench, deflection, elapsed and remaining time."""
 
-    def __init__(self) -> None:
+    def __init__(self, console=None) -> None:
         super().__init__()
         from rich.console import Console
         from rich.live import Live
 
-        self.console = Console(stderr=True)
+        self.console = console or Console(stderr=True)
         self.live: Live | None = None
         self._live_class = Live
 
     def start(self, info: dict[str, Any]) -> None:
         super().start(info)
-        # started only now: the dry run and the confirmation prompt come before
-        self.live = self._live_class(console=self.console, refresh_per_second=8,
+        # started only now: the dry run and the confirmation prompt come before. Drawn
+        # from this thread only (no refresh thread), each frame whole (interrupt_after).
+        self.live = self._live_class(console=self.console, auto_refresh=False,
                                      transient=True)
-        self.live.start()
+        with interrupt_after():
+            self.live.start()
 
     def _render(self):
         from rich.table import Table
+        from rich.text import Text
 
         s = self.state
         t = Table.grid(padding=(0, 2))
         t.add_column(style="bold")
         t.add_column()
-        t.add_row("run", str(s.get("run_dir", "")))
+        t.add_row("run", Text(str(s.get("run_dir", ""))))
         t.add_row("test", f"{s.get('test_id', '-')} (repeat {s.get('repeat', '-')}, attempt "
                           f"{s.get('attempt', '-')})  {s.get('done', 0)}/{s.get('total', 0)} done")
-        t.add_row("pose", f"{s.get('pose', '-')}  q = {_fmt_vec(s.get('q_deg'), 1, 2)} deg")
+        t.add_row("pose", Text(str(s.get("pose", "-"))))
+        t.add_row("q (deg)", f"{_fmt_vec(s.get('q_ctrl_deg'), 1, 2)} controller convention")
         t.add_row("phase", str(s.get("phase", "-")))
-        t.add_row("wrench", f"{_fmt_vec(s.get('wrench'), 1, 1)} N, N m")
-        t.add_row("deflection", f"{_fmt_vec(s.get('deflection_mm'), 1, 3)} mm")
+        wrench, planned = s.get("wrench"), s.get("wrench_planned")
+        if wrench is None and planned is not None:
+            text = f"{_fmt_vec(planned, 1, 1)} N, N m (planned)"
+        elif wrench is None:
+            text = "- (not measured yet in this test)"
+        else:
+            text = f"{_fmt_vec(wrench, 1, 1)} N, N m"
+        t.add_row("wrench", text)
+        deflection = s.get("deflection_mm")
+        t.add_row("deflection", "- (not measured yet in this test)" if deflection is None
+                  else f"{_fmt_vec(deflection, 1, 3)} mm")
         rem = self.remaining()
         t.add_row("time", f"{self.elapsed():.1f} s elapsed, "
                           f"{'?' if rem is None else f'{rem:.0f}'} s remaining")
@@ -151,28 +197,37 @@ class RichReporter(Reporter):
     def phase(self, **state: Any) -> None:
         super().phase(**state)
         if self.live is not None:
-            self.live.update(self._render())
+            with interrupt_after():
+                self.live.update(self._render(), refresh=True)
+
+    def _print(self, text: str, style: str | None = None) -> None:
+        """A line above the panel (plain text: never read as markup), wrapped at words."""
+        from campaign.cli_common import print_wrapped
+
+        with interrupt_after():
+            print_wrapped(self.console, text, style=style)
 
     def event(self, record: dict[str, Any]) -> None:
         kind = record.get("event")
         if kind == "test_done":
             flags = record.get("flags") or ""
-            self.console.print(f"test {record['test_id']} repeat {record['repeat']}: "
-                               f"{record['status']}{' [' + flags + ']' if flags else ''}")
+            self._print(f"test {record['test_id']} repeat {record['repeat']}: "
+                        f"{record['status']}{' [' + flags + ']' if flags else ''}")
         elif kind in ("retry", "fault", "abort", "interrupt"):
-            self.console.print(f"[yellow]{kind}[/]: {record.get('reason', '')}")
+            self._print(f"{kind}: {record.get('reason', '')}", style="yellow")
 
     def message(self, text: str) -> None:
-        self.console.print(text)
+        self._print(text)
 
     def finish(self, status: str, reason: str, summary: dict[str, Any]) -> None:
         self.close()
-        colour = "green" if status == "complete" else "red"
-        self.console.print(f"[{colour}]run {status}[/]{': ' + reason if reason else ''} "
-                           f"({summary.get('ok', 0)} ok, {summary.get('failed', 0)} failed, "
-                           f"{self.elapsed():.1f} s) -> {summary.get('run_dir', '')}")
+        lines = final_lines(status, reason, summary, self.elapsed())
+        self._print(lines[0], style="green" if status == "complete" else "red")
+        for line in lines[1:]:
+            self._print(line, style="bold" if "STILL" in line or "NOT" in line else None)
 
     def close(self) -> None:
-        if self.live is not None:
-            self.live.stop()
-            self.live = None
+        live, self.live = self.live, None
+        if live is not None:
+            with interrupt_after():
+                live.stop()

@@ -299,7 +299,8 @@ class Runner:
 
     # -- one measurement ---------------------------------------------------------------------
     def _move(self, q_model: np.ndarray, phase: str) -> np.ndarray:
-        self._phase(phase, q_deg=np.rad2deg(q_model))
+        self._phase(phase, q_deg=np.rad2deg(q_model),
+                    q_ctrl_deg=np.rad2deg(self.robot.to_controller(q_model)))
         reached = self.inst.robot.move_joints(self.robot.to_controller(q_model),
                                               self.motion.speed, self.motion.acceleration)
         self._sample(phase, "robot", "joint_angles", "rad", "controller", reached.value,
@@ -330,6 +331,8 @@ class Runner:
 
     def _measure(self, test: PlannedTest, repeat: int) -> dict[str, Any]:
         inst = self.inst
+        # the previous test's readings are not this one's: blank until measured
+        self.reporter.phase(wrench=None, wrench_planned=None, deflection_mm=None)
         self._move(test.q_approach, "approach")
         q = self._move(test.q, "move")
         T_fk = tool_pose(self.robot, q)
@@ -341,7 +344,7 @@ class Runner:
         R = base_in_tracker_rotation(P0.value, T_fk)
         ref_point = self._reflector_point(P0.value)
 
-        self._phase("apply_load", load_case=test.load_case, wrench=test.wrench)
+        self._phase("apply_load", load_case=test.load_case, wrench_planned=test.wrench)
         self.load_applied = True  # set first: a half-applied load must be removed too
         inst.load.apply(LoadCase(test.load_case, test.wrench))
         self._event("load_applied", load_case=test.load_case)

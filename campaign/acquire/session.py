@@ -21,6 +21,7 @@ from typing import Any
 
 from analysis.errors import InputError
 from campaign.acquire.checks import limits_for
+from campaign.acquire.ending import ending
 from campaign.acquire.instruments import open_instruments
 from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
 from campaign.acquire.progress import Reporter
@@ -231,6 +232,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
             except WriteFailure:
                 pass
     except BaseException as err:
+        interrupted = isinstance(err, KeyboardInterrupt) and run is not None
         if run is not None and run.metadata.get("status") == "running":
             try:
                 if isinstance(err, KeyboardInterrupt):
@@ -240,15 +242,21 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
                     run.set_status("failed", f"{type(err).__name__}: {err}", ended_utc=utc())
             except WriteFailure:
                 pass  # the original error says more than a second failed write
-        raise
+        if not interrupted:
+            raise
+        # Ctrl-C outside the runner (connecting, exporting): the run is recorded as
+        # aborted; the operator still gets the closing lines and the resume command
+        status, reason = "aborted", "interrupted by the operator (Ctrl-C)"
     finally:
         inst.close()
         if run is not None:
             run.close()
     outcome = Outcome(status, reason, run.path, counts["ok"], counts["failed"],
                       exported=counts.get("exported", 1) == 1)
-    reporter.finish(status, reason, {"run_dir": str(run.path), "ok": outcome.ok,
-                                     "failed": outcome.failed})
+    total = sum(t.repeats for t in tests)
+    reporter.finish(status, reason, {**ending(run.path, run.session, status, opts.fake, total),
+                                     "ok_this_session": outcome.ok,
+                                     "failed_this_session": outcome.failed})
     return outcome
 
 
@@ -326,5 +334,6 @@ def _nothing_to_resume(run: RunDir, reporter: Reporter) -> Outcome:
               "nothing connected, nothing moved")
     if not exported:
         reason += f"; the Parquet exports are still missing ({why})"
-    reporter.finish("complete", reason, {"run_dir": str(run.path), "ok": ok, "failed": failed})
+    reporter.finish("complete", reason, {"run_dir": str(run.path), "ok": ok, "failed": failed,
+                                         "done": ok + failed, "total": ok + failed})
     return Outcome("complete", reason, run.path, ok, failed, exported=exported)

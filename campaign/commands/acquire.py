@@ -9,6 +9,7 @@ from pathlib import Path
 import typer
 
 from analysis.errors import InputError
+from campaign.cli_common import echo
 
 
 def make_reporter(quiet: bool, json_lines: bool):
@@ -62,7 +63,7 @@ def acquire(
 
         require_new_run_dir(out)
     reporter = make_reporter(quiet, json_lines)
-    say = (lambda s: reporter.message(s)) if json_lines else typer.echo
+    say = (lambda s: reporter.message(s)) if json_lines else echo
     if quiet:
         def say(s: str) -> None:
             pass
@@ -70,7 +71,7 @@ def acquire(
         # a person is asked to confirm: the motion list and the question go to stderr,
         # whatever the output mode (stdout stays machine-readable)
         def say(s: str) -> None:
-            typer.echo(s, err=True)
+            echo(s, err=True)
 
     def ask(prompt: str) -> str:
         typer.echo(prompt, err=True, nl=False)

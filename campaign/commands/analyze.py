@@ -21,7 +21,17 @@ from rich.table import Table as RichTable
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.cli_common import Covariance, Method, Robust, print_json, stage
+from campaign.cli_common import (
+    PANEL_NOISE,
+    PANEL_OUTPUT,
+    Covariance,
+    Method,
+    Robust,
+    echo,
+    print_json,
+    print_wrapped,
+    stage,
+)
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -38,6 +48,11 @@ from campaign.run_noise import noise_from_protocol, protocol_noise_source
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
 DEFAULT_TRIALS = 200
+
+#: panels of --help (campaign.cli_common)
+_INPUT = "Input and tool point"
+_FIT = "Estimation and checks"
+_REPORT = "Report"
 
 
 # kept importable from here (tests and older scripts import it from this module)
@@ -139,13 +154,15 @@ def _tool_problem(result, model, tests, noise, method: str, tool) -> list[str]:
     assumed = tool.source.startswith("none given")
     limit = tool_check.P_ASSUMED if assumed else tool_check.P_GIVEN
     if check.p_value < limit:
-        k = ", ".join("-" if not np.isfinite(v) else f"{v:.4g}" for v in check.k_moved)
+        from analysis.report.formatting import k_kNm
+
+        k = ", ".join("-" if not np.isfinite(v) else k_kNm(v) for v in check.k_moved)
         if assumed:
             return [f"a missing tool point: no tool point was given, P was taken at the flange "
-                    f"centre, and {check.text()}; with P there k would be about [{k}] N m/rad. "
+                    f"centre, and {check.text()}; with P there k would be about [{k}] kN m/rad. "
                     "Give --tool-xyz-mm/--tool-rpy-deg (--tool-xyz-mm 0,0,0 if P really is "
                     "the flange centre)"]
-        return [f"wrong tool point? {check.text()}; with P there k would be about [{k}] N m/rad. "
+        return [f"wrong tool point? {check.text()}; with P there k would be about [{k}] kN m/rad. "
                 f"Check the tool point ({tool.source})"]
     if check.p_value < tool_check.P_WARN:
         result.warnings.append(f"tool point: {check.text()} (not significant enough to refuse)")
@@ -194,7 +211,7 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None):
                          "figures")
     for note in run.notes:  # the loud ones also go to the terminal
         if note.startswith("WARNING"):
-            typer.echo(note, err=True)
+            echo(note, err=True)
     info = _run_info(run, robot.name, protocol, tool)
     true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
     extras = {"protocol": protocol, "true_k": None if true_k is None else np.asarray(true_k,
@@ -326,14 +343,14 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"{n['rotation_sigma_urad']:.3g} urad, force {n['force_sigma_N']:.3g} N + "
         f"{n['force_relative_percent']:.3g} % of |f|, moment {n['moment_sigma_Nm']:.3g} N m + "
         f"{n['moment_relative_percent']:.3g} % of |m|, encoders "
-        f"{n['joint_sigma_deg'] * 1e3:.3g} mdeg ({n['source']})",
+        f"{np.radians(n['joint_sigma_deg']) * 1e6:.3g} urad ({n['source']})",
         f"  method: {a['method']}; covariance {a['covariance']}; joints {a['joints']}",
         f"  robust fitting: {a['robust']}",
         f"  wrench errors in variables: {a['wrench_errors_in_variables']}",
         f"  poses: {a['poses']}",
         f"  {a['validation_folds']}",
     ):
-        console.print(line, markup=False, highlight=False)
+        print_wrapped(console, line)
 
 
 def _poses(robot, protocol, pose_args: list[str], q_tests: np.ndarray, labels) -> list:
@@ -422,13 +439,11 @@ def _frozen_heap():
 def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
     """The result's table, warnings (but the first ``printed``, on the terminal already)
     and files."""
-    from rich.markup import escape
-
     from analysis.report.formatting import interval_kNm, k_kNm
 
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
     bias = result.linear_bias
-    cols = ["joint", "k (kN m/rad)", f"{result.confidence:.0%} interval (kN m/rad)"]
+    cols = ["joint", "k (kN m/rad)", f"{100 * result.confidence:g} % interval (kN m/rad)"]
     if bias is not None:  # ols/wls: the raw linear estimate beside the corrected one
         cols.append(f"raw {result.method}, linearisation bias not corrected (kN m/rad)")
     for col in cols:
@@ -442,11 +457,11 @@ def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
         table.add_row(*row)
     console.print(table)
     for w in result.warnings[printed:]:
-        console.print(f"[yellow]warning:[/yellow] {escape(w)}")
+        print_wrapped(console, f"warning: {w}", style="yellow")
     for w in result.misfit_accepted:
-        console.print(f"[red]ACCEPTED WITH --accept-misfit:[/red] {escape(w)}")
+        print_wrapped(console, f"ACCEPTED WITH --accept-misfit: {w}", style="red")
     for name, p in paths.items():
-        console.print(f"{name}: {p}")
+        print_wrapped(console, f"{name}: {p}")
 
 
 def register(app: typer.Typer) -> None:
@@ -454,63 +469,79 @@ def register(app: typer.Typer) -> None:
     @_frozen_heap()
     def analyze(
         run_dir: Path = typer.Argument(None, help="Run directory written by campaign acquire."),
-        measurements: Path = typer.Option(None, help="Tests CSV file (public import format)."),
-        robot: str = typer.Option(None, help="Robot of --measurements: built-in, file or URDF."),
-        tip: str = typer.Option(None, help="Tool frame of a URDF."),
-        out: Path = typer.Option(None, help="Output directory (default RUN_DIR/analysis)."),
+        measurements: Path = typer.Option(None, help="Tests CSV file (public import format).",
+            rich_help_panel=_INPUT),
+        robot: str = typer.Option(None, help="Robot of --measurements: built-in, file or URDF.",
+            rich_help_panel=_INPUT),
+        tip: str = typer.Option(None, help="Tool frame of a URDF.", rich_help_panel=_INPUT),
+        out: Path = typer.Option(None, help="Output directory (default RUN_DIR/analysis).",
+            rich_help_panel=PANEL_OUTPUT),
         method: Method = typer.Option(DEFAULT_METHOD, help="Estimator: ols (the paper's "
                                       "linear least squares), wls (weighted), exact "
-                                      "(Gauss-Newton on the nonlinear equilibrium)."),
-        joints: str = typer.Option(None, help="Joints to identify, e.g. 1,2,3 (others rigid)."),
+                                      "(Gauss-Newton on the nonlinear equilibrium).",
+            rich_help_panel=_FIT),
+        joints: str = typer.Option(None, help="Joints to identify, e.g. 1,2,3 (others rigid).",
+            rich_help_panel=_FIT),
         robust: Robust = typer.Option(
             "none", help="Robust fit for campaigns with glitches: none (the Gaussian fit), "
             "huber (c = 1.345) or tukey (c = 4.685) IRLS on the whitened residuals; the "
-            "down-weighted rows are reported. Needs --method exact or wls."),
+            "down-weighted rows are reported. Needs --method exact or wls.", rich_help_panel=_FIT),
         covariance: Covariance = typer.Option(
             "model", help="model (the noise figures are known) or residual (scaled by the "
-            "reduced chi-square)."),
+            "reduced chi-square).", rich_help_panel=_FIT),
         pose: list[str] = typer.Option(  # noqa: B008 (typer's way of a repeatable option)
-            [], help="Joint angles (deg, model convention) where K_X is reported; repeatable."),
+            [], help="Joint angles (deg, model convention) where K_X is reported; repeatable.",
+            rich_help_panel=_REPORT),
         wrench: str = typer.Option(
             None, help="fx,fy,fz (N), mx,my,mz (N m) at P, base frame, for the predicted "
-            "deflection (default: protocol [report] wrench or first load case)."),
+            "deflection (default: protocol [report] wrench or first load case).",
+            rich_help_panel=_REPORT),
         trials: int = typer.Option(DEFAULT_TRIALS, help="Monte-Carlo trials per point of "
-                                   "the robustness curve."),
-        report: bool = typer.Option(True, "--report/--no-report", help="Write the report."),
+                                   "the robustness curve.", rich_help_panel=_REPORT),
+        report: bool = typer.Option(True, "--report/--no-report", help="Write the report.",
+            rich_help_panel=_REPORT),
         translation_sigma_um: float = typer.Option(
             None, "--translation-sigma-um",
-            help="Override: sigma of one measured displacement component (um)."),
+            help="Override: sigma of one measured displacement component (um).",
+            rich_help_panel=PANEL_NOISE),
         rotation_sigma_urad: float = typer.Option(
             None, "--rotation-sigma-urad",
-            help="Override: sigma of one measured rotation component (urad)."),
+            help="Override: sigma of one measured rotation component (urad).",
+            rich_help_panel=PANEL_NOISE),
         old_translation: float = typer.Option(None, "--sigma-translation-um", hidden=True),
         old_rotation: float = typer.Option(None, "--sigma-rotation-urad", hidden=True),
         force_sigma_n: float = typer.Option(
-            None, "--force-sigma-N", help="Override: sigma of a force component (N)."),
+            None, "--force-sigma-N", help="Override: sigma of a force component (N).",
+            rich_help_panel=PANEL_NOISE),
         moment_sigma_nm: float = typer.Option(
-            None, "--moment-sigma-Nm", help="Override: sigma of a moment component (N m)."),
+            None, "--moment-sigma-Nm", help="Override: sigma of a moment component (N m).",
+            rich_help_panel=PANEL_NOISE),
         joint_sigma_urad: float = typer.Option(
-            None, help="Override: sigma of a joint angle reading, encoders (urad)."),
+            None, help="Override: sigma of a joint angle reading, encoders (urad).",
+            rich_help_panel=PANEL_NOISE),
         force_pct: float = typer.Option(
             None, "--force-pct", help="F/T force noise in % of |f| of the reading, in "
-                                      "quadrature with --force-sigma-N."),
+                                      "quadrature with --force-sigma-N.",
+            rich_help_panel=PANEL_NOISE),
         moment_pct: float = typer.Option(
             None, "--moment-pct", help="F/T moment noise in % of |m| of the reading, in "
-                                       "quadrature with --moment-sigma-Nm."),
+                                       "quadrature with --moment-sigma-Nm.",
+            rich_help_panel=PANEL_NOISE),
         tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP + " Overrides the "
-                                        "protocol's or the sidecar's tool."),
-        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
+                                        "protocol's or the sidecar's tool.",
+            rich_help_panel=_INPUT),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP, rich_help_panel=_INPUT),
         accept_misfit: bool = typer.Option(
             False, "--accept-misfit", help="Write the result even when the checks refuse it "
             "(misfit, too good to be true, k > 10 x from nominal, negative k, a tool point the "
             "residuals contradict); results.json and the "
-            "report then say so."),
+            "report then say so.", rich_help_panel=_FIT),
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
                                      "(the keys of results.json, SI units) instead of "
-                                     "the tables."),
+                                     "the tables.", rich_help_panel=PANEL_OUTPUT),
         force: bool = typer.Option(False, "--force", help="Replace a non-empty output "
                                    "directory: its contents as a whole, nothing of the "
-                                   "earlier analysis is kept."),
+                                   "earlier analysis is kept.", rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report.
 
@@ -608,7 +639,7 @@ def register(app: typer.Typer) -> None:
         if as_json:
             summary = json.loads((out / "analysis.json").read_text())
             for w in result.warnings[len(early):]:  # still on the terminal, beside the JSON
-                typer.echo(f"warning: {w}", err=True)  # (the run's were printed on reading)
+                echo(f"warning: {w}", err=True)  # (the run's were printed on reading)
             print_json({**json.loads((out / "results.json").read_text()),
                         "files": {k: str(v) for k, v in paths.items()}, **summary})
             return

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from campaign.cli_common import echo
+
 
 def register(app: typer.Typer) -> None:
     @app.command("compare")
@@ -22,7 +24,7 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
     ) -> None:
         """Per joint: k_B - k_A with its interval, z score and verdict."""
-        from analysis.identification.compare import compare, level_text, load_campaign
+        from analysis.identification.compare import compare, load_campaign
         from analysis.identification.compare_plot import check_plot_path, plot_comparison
 
         if plot is not None:
@@ -40,26 +42,33 @@ def register(app: typer.Typer) -> None:
             result["report"] = {k: str(v) for k, v in files.items()}
         if as_json:
             for note in result["notes"]:
-                typer.echo(f"note: {note}", err=True)
+                echo(f"note: {note}", err=True)
             typer.echo(json.dumps(result, indent=2))
             return
-        typer.echo(f"{result['robot']}: B = {result['B']}")
-        typer.echo(f"  vs A = {result['A']}")
-        typer.echo("k in kN m/rad; interval of k_B - k_A at the verdict's level,")
-        typer.echo(f"  {level_text(result)}")
-        typer.echo(f"{'joint':>5} {'k_A':>8} {'k_B':>8} {'diff %':>7} {'interval':>17} "
-                   f"{'z':>6}  verdict")
-        for r in result["joints"]:
-            lo, hi = (v / 1e3 for v in r["interval_difference_Nm_per_rad"])
-            typer.echo(f"{'k' + str(r['joint']):>5} {r['k_A_Nm_per_rad'] / 1e3:8.2f} "
-                       f"{r['k_B_Nm_per_rad'] / 1e3:8.2f} {100 * r['relative_difference']:7.2f}"
-                       f" {f'[{lo:.2f}, {hi:.2f}]':>17} {r['z']:6.2f}  {r['verdict']}"
-                       + (" (borderline)" if "note" in r else ""))
-        typer.echo(f"verdict: changed when |z| > {result['critical_z']:.3f} (two-sided); "
-                   "z > 0: B stiffer")
-        for note in result["notes"]:
-            typer.echo(f"note: {note}")
-        if plot is not None:
-            typer.echo(f"wrote {plot}")
-        for path in (result.get("report") or {}).values():
-            typer.echo(f"wrote {path}")
+        for line in compare_lines(result):
+            echo(line)
+
+
+def compare_lines(result: dict) -> list[str]:
+    """The comparison as text lines of at most 80 columns (stiffness in kN m/rad, 5
+    digits; the interval of k_B - k_A at the verdict's level, 4 digits)."""
+    from analysis.identification.compare import level_text
+    from analysis.report.formatting import k_kNm, percent, sig
+
+    lines = [f"{result['robot']}: B = {result['B']}", f"  vs A = {result['A']}",
+             "k in kN m/rad; diff = (k_B - k_A) / k_A; interval of k_B - k_A at the "
+             f"verdict's level, {level_text(result)}",
+             f"{'':3} {'k_A':>8} {'k_B':>8} {'diff %':>7} {'interval':>17} {'z':>6}  verdict"]
+    for r in result["joints"]:
+        lo, hi = (sig(v / 1e3, 4) for v in r["interval_difference_Nm_per_rad"])
+        lines.append(f"{'k' + str(r['joint']):3} {k_kNm(r['k_A_Nm_per_rad']):>8} "
+                     f"{k_kNm(r['k_B_Nm_per_rad']):>8} {percent(r['relative_difference']):>7} "
+                     f"{f'[{lo}, {hi}]':>17} {sig(r['z'], 3):>6}  {r['verdict']}"
+                     + (" (borderline)" if "note" in r else ""))
+    lines.append(f"verdict: changed when |z| > {result['critical_z']:.3f} (two-sided); "
+                 "z > 0: B stiffer")
+    lines += [f"note: {note}" for note in result["notes"]]
+    if result.get("plot"):
+        lines.append(f"wrote {result['plot']}")
+    lines += [f"wrote {path}" for path in (result.get("report") or {}).values()]
+    return lines

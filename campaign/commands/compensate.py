@@ -18,7 +18,13 @@ import numpy as np
 import typer
 
 from analysis.errors import InputError
-from campaign.cli_common import Program, WrenchFrame, output_dir
+from campaign.cli_common import (
+    PROGRAM_CHOICES,
+    PROGRAM_METAVAR,
+    Program,
+    WrenchFrame,
+    output_dir,
+)
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
@@ -47,8 +53,8 @@ def register(app: typer.Typer) -> None:
     def compensate_cmd(
         robot: str = typer.Option(..., help="Robot: model.toml from campaign analyze, a "
                                   "built-in name, a robot file or a URDF."),
-        path: Path = typer.Option(..., help="CSV: q1_deg..q6_deg per point, optional "
-                                  "fx_N,fy_N,fz_N,mx_Nm,my_Nm,mz_Nm."),
+        path: Path = typer.Option(..., help="CSV: q1_deg .. q6_deg per point, optional "
+                                  "fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm."),
         out: Path = typer.Option(..., help="Output directory."),
         tip: str = typer.Option(None, help="Tool frame of a URDF."),
         tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
@@ -71,8 +77,8 @@ def register(app: typer.Typer) -> None:
         readings: int = typer.Option(1, help="Probe readings averaged per point "
                                      "(--verify-fake)."),
         program: Program = typer.Option(
-            "auto", help="Robot program of the compensated path: krl, urscript, rapid, "
-            "fanuc-ls, none, or auto (by robot)."),
+            "auto", metavar=PROGRAM_METAVAR, help="Robot program of the compensated path, "
+            "one of: " + PROGRAM_CHOICES + "."),
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
                                    "(its files are replaced)."),
     ) -> None:
@@ -122,17 +128,20 @@ def register(app: typer.Typer) -> None:
         files += co.robot_program(r, pc.comp.q_cmd, out, [
             f"Compensated path from {path.name} ({len(pin.q)} points), campaign compensate",
             f"Robot model: {r.name}", f"Wrench: {pin.wrench_source}"], str(program))
-        echo = typer.echo
+        from campaign.cli_common import echo
         for a in assumptions:
             echo(f"assumption: {a}")
         t, rr = summ["translation_m"], summ["rotation_rad"]
+        bound = ("" if cov is None else
+                 f" (95 % upper bound max {1e3 * t['before_upper95_max']:.4f} mm)")
         echo(f"{summ['points']} points; deflection before: max {1e3 * t['before']['max']:.4f} "
-             f"mm, RMS {1e3 * t['before']['rms']:.4f} mm (95 % upper bound max "
-             f"{1e3 * t['before_upper95_max']:.4f} mm); rotation max "
+             f"mm, RMS {1e3 * t['before']['rms']:.4f} mm{bound}; rotation max "
              f"{1e3 * rr['before']['max']:.4f} mrad")
-        echo(f"after compensation (model): max residual {1e6 * summ['max_residual_m']:.3g} um, "
-             f"{1e6 * summ['max_residual_rad']:.3g} urad; 95 % upper bound from the stiffness "
-             f"uncertainty {1e3 * t['after_upper95_max']:.4f} mm")
+        # the residuals are Newton's round-off (refused above 1 um / 1 urad): 3 decimals
+        after = ("" if cov is None else f"; 95 % upper bound from the stiffness uncertainty "
+                 f"{1e3 * t['after_upper95_max']:.4f} mm")
+        echo(f"after compensation (model): max residual {1e6 * summ['max_residual_m']:.3f} um, "
+             f"{1e6 * summ['max_residual_rad']:.3f} urad{after}")
         echo(f"worst point: line {summ['worst_point']['line']} "
              f"({1e3 * summ['worst_point']['deflection_m']:.4f} mm)")
         check = None

@@ -41,7 +41,9 @@ def demo(
     if out.exists() and any(out.iterdir()):
         raise InputError("demo directory exists and is not empty; choose another --out",
                          where=str(out))
-    say = (lambda s: None) if quiet else typer.echo
+    from campaign.cli_common import echo
+
+    say = (lambda s: None) if quiet else echo
     t0 = time.monotonic()
     protocol = load_protocol(PROTOCOL)
     say(f"1/3 plan: {protocol.campaign.name}")
@@ -56,12 +58,12 @@ def demo(
     finally:
         reporter.close()
     if outcome.status != "complete":
-        typer.echo(f"acquisition {outcome.status}: {outcome.reason}", err=True)
+        echo(f"acquisition {outcome.status}: {outcome.reason}", err=True)
         raise typer.Exit(1)
     say("3/3 analyze the run")
     analyze_run(out / "run", report)
-    typer.echo(f"demo done in {time.monotonic() - t0:.0f} s: plan {out / 'plan'}, run "
-               f"{out / 'run'}, analysis {out / 'run' / 'analysis'}")
+    echo(f"demo done in {time.monotonic() - t0:.0f} s: plan {out / 'plan'}, run "
+         f"{out / 'run'}, analysis {out / 'run' / 'analysis'}")
 
 
 def analyze_run(run_dir: Path, report: bool) -> None:

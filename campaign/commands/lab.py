@@ -60,12 +60,14 @@ def _describe(settings: Any, probe: bool) -> list[str]:
     """What the lab simulates, one line each (printed on stderr)."""
     import math
 
-    k = ", ".join(f"{v:,.0f}" for v in settings.true_joint_stiffness)
+    from analysis.report.formatting import k_kNm
+
+    k = ", ".join(k_kNm(v) for v in settings.true_joint_stiffness)
     return [
         f"robot {settings.robot}, tool xyz_mm "
         f"{[round(v * 1e3, 3) for v in settings.tool_xyz]}, rpy_deg "
         f"{[round(math.degrees(v), 3) for v in settings.tool_rpy]}",
-        f"true joint stiffness (N m/rad): {k}",
+        f"true joint stiffness (kN m/rad): {k}",
         f"noise: tracker {settings.tracker_noise * 1e6:g} um, probe rotation "
         f"{settings.tracker_angle_noise * 1e6:g} urad, force {settings.force_noise:g} N, "
         f"torque {settings.torque_noise:g} N m, encoders {settings.encoder_noise * 1e6:g} urad",
@@ -129,10 +131,13 @@ def register(app: typer.Typer) -> None:
                         fake_server.mode = "6dof"
             for name, url in addresses.items():
                 typer.echo(f"{name}={url}")
+            # name=url lines stay whole (scripts read them); these are for people
+            from campaign.cli_common import echo
+
             for line in _describe(settings, probe):
-                typer.echo(f"lab: {line}", err=True)
+                echo(f"lab: {line}", err=True)
             for note in sim.notes:
-                typer.echo(f"note: {note}", err=True)
+                echo(f"note: {note}", err=True)
             typer.echo("ready")
             sim.wait()
         except KeyboardInterrupt:

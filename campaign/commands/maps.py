@@ -10,7 +10,15 @@ import typer
 from rich.console import Console
 
 from analysis.errors import InputError
-from campaign.cli_common import TableFormat, output_dir, print_json, stage
+from campaign.cli_common import (
+    PANEL_OUTPUT,
+    PANEL_ROBOT,
+    TableFormat,
+    output_dir,
+    print_json,
+    print_wrapped,
+    stage,
+)
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -20,35 +28,51 @@ from campaign.options import (
     wrench_option,
 )
 
+#: what --deflection-upper-bound maps, said when it is used
+BOUND_TEXT = ("deflection upper bound: |dp| + 1.96 sd(|dp|), the 95 % upper bound of |dp| "
+              "(linear model with K_C, the maps' model), sd from the identified compliances' "
+              "covariance (the robot file's [identification]) by the delta method along dp")
+
+#: panel of --help (campaign.cli_common)
+_GRID = "Map grid"
+
 
 def register(app: typer.Typer) -> None:
     @app.command("maps")
     def maps(
-        robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
-        out: Path = typer.Option(..., help="Output directory."),
-        tip: str = typer.Option(None, help="Tool frame of a URDF."),
-        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
-        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
-        step: float = typer.Option(1.0, help="Grid step (deg)."),
+        robot: str = typer.Option(..., help="Built-in name, robot file or URDF.",
+            rich_help_panel=PANEL_ROBOT),
+        out: Path = typer.Option(..., help="Output directory.", rich_help_panel=PANEL_OUTPUT),
+        tip: str = typer.Option(None, help="Tool frame of a URDF.", rich_help_panel=PANEL_ROBOT),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP, rich_help_panel=PANEL_ROBOT),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP, rich_help_panel=PANEL_ROBOT),
+        step: float = typer.Option(1.0, help="Grid step (deg).", rich_help_panel=_GRID),
         fixed: str = typer.Option(
             None, help="Other joints q1..q6 in degrees (model convention); entries 2 and 3 "
-            "are ignored. Default: theta1 = 0, theta4..6 = 45 deg as in the paper."
+            "are ignored. Default: theta1 = 0, theta4..6 = 45 deg as in the paper.",
+            rich_help_panel=_GRID
         ),
-        joint_stiffness: str = typer.Option(None, help="k1,...,k6 (N m/rad)."),
+        joint_stiffness: str = typer.Option(None, help="k1,...,k6 (N m/rad).",
+            rich_help_panel=PANEL_ROBOT),
         wrench: str = typer.Option(
-            None, help="fx,fy,fz (N), mx,my,mz (N m); default the paper's worst case."
+            None, help="fx,fy,fz (N), mx,my,mz (N m); default the paper's worst case.",
+            rich_help_panel=PANEL_ROBOT
         ),
         length: float = typer.Option(
-            None, help="Characteristic length L (m); default the model's, else computed."
+            None, help="Characteristic length L (m); default the model's, else computed.",
+            rich_help_panel=_GRID
         ),
-        fmt: TableFormat = typer.Option("parquet", "--format", help="Map table format."),
+        fmt: TableFormat = typer.Option("parquet", "--format", help="Map table format.",
+            rich_help_panel=PANEL_OUTPUT),
         upper_bound: bool = typer.Option(
             False, "--deflection-upper-bound", help="Also map the 95 % upper bound of the "
-            "deflection |dp| from the identified model's covariance (model.toml)."),
+            "deflection |dp| from the identified model's covariance (model.toml).",
+            rich_help_panel=_GRID),
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
-                                   "(its map files are replaced)."),
+                                   "(its map files are replaced).", rich_help_panel=PANEL_OUTPUT),
         as_json: bool = typer.Option(False, "--json", help="Print map_summary.json (SI "
-                                     "units) instead of the text summary."),
+                                     "units) instead of the text summary.",
+            rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
         # pinocchio, scipy, pandas and matplotlib: imported when the command runs
@@ -76,7 +100,15 @@ def register(app: typer.Typer) -> None:
                 length, _, _ = characteristic_length(r)
             how = "computed (minimum condition number of J_N over posture and L)"
         output_dir(out, force)
-        console.print(f"characteristic length L = {length:.4f} m ({how})")
+        from analysis.report.formatting import k_kNm
+        from campaign.commands.stiffness import WORST_CASE_TEXT, vector_text
+
+        w_source = "--wrench" if wrench else WORST_CASE_TEXT
+        print_wrapped(console, f"wrench w = {vector_text(w[:3], 6, False)} N, "
+                      f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
+        print_wrapped(console, f"joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN m/rad ("
+                      + ("--joint-stiffness" if joint_stiffness else "the robot model's") + ")")
+        print_wrapped(console, f"characteristic length L = {length:.4f} m ({how})")
         grid = GridSpec.from_limits(r, np.radians(step), fixed_q)
         with stage(f"map of {r.name} ({step:g} deg grid)"):
             table = joint_space_map(r, grid, k, w, length)
@@ -91,6 +123,7 @@ def register(app: typer.Typer) -> None:
             table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
                 r, grid.poses(), k, w, r.compliance_covariance).ravel()
             bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
+            print_wrapped(console, BOUND_TEXT)
         from analysis.output_files import make_dir, replacing, write_text
 
         make_dir(out)
@@ -133,18 +166,28 @@ def register(app: typer.Typer) -> None:
             "max_v_r_deg": float(table.loc[ok, "v_r_deg"].max()),
             "max_inv_kappa_F": float(table["inv_kappa_F"].max()),
             "wrench_N_Nm": w.tolist(),
+            "wrench_source": w_source,
             "joint_stiffness_Nm_per_rad": k.tolist(),
         }
         if bound_cols:
             summary["max_deflection_upper95_mm"] = float(
                 table.loc[ok, "deflection_upper95_mm"].max())
+            summary["deflection_upper95_method"] = BOUND_TEXT
         write_text(out / "map_summary.json", json.dumps(summary, indent=2) + "\n")
         if as_json:
             print_json({**summary, "files": sorted(str(p) for p in out.iterdir())})
             return
-        console.print(
+        print_wrapped(console,
             f"{len(table)} poses, {summary['singular_nodes']} singular; "
             f"max v_p = {summary['max_v_p']:.4f}, max v_r = {summary['max_v_r_deg']:.4f} deg, "
             f"max 1/kappa_F = {summary['max_inv_kappa_F']:.3f}"
         )
-        console.print(f"wrote {data} and PNG plots to {out}/")
+        if bound_cols:
+            with_kc = table.loc[ok]
+            at = with_kc["deflection_upper95_mm"].idxmax()
+            print_wrapped(console, f"95 % upper bound of |dp|: at most "
+                          f"{summary['max_deflection_upper95_mm']:.4g} mm over the grid (at "
+                          f"theta2 = {with_kc.loc[at, 'theta2_deg']:.4g} deg, theta3 = "
+                          f"{with_kc.loc[at, 'theta3_deg']:.4g} deg); column "
+                          "deflection_upper95_mm and deflection_upper95_*.png")
+        print_wrapped(console, f"wrote {data} and PNG plots to {out}/")

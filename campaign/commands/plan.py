@@ -6,30 +6,48 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli_common import Strategy, output_dir, print_json, stage, writing_into
+from campaign.cli_common import (
+    PANEL_OUTPUT,
+    Strategy,
+    echo,
+    output_dir,
+    print_json,
+    stage,
+    writing_into,
+)
+
+#: panels of --help (campaign.cli_common)
+_DESIGN = "Design"
 
 
 def plan(
     protocol: Path = typer.Option(..., "--protocol", "-p", help="Protocol file (.toml/.yaml)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output directory of the plan."),
     strategy: Strategy = typer.Option(
-        "worst-joint", "--strategy",
-        help="worst-joint: smallest largest relative standard error of k (no joint worse than "
-             "the median random zone design); weighted: smallest --weights-weighted sum of the "
-             "relative standard errors; d-optimal (max log det of the information), e-optimal "
-             "(max smallest eigenvalue) or zones-random (random poses in the zones)."
+        "worst-joint", "--strategy", metavar="<strategy>",  # the choices are in the help:
+        # as one word they would fold mid-word at 80 columns
+        help="One of: worst-joint (default): smallest largest relative standard error of k "
+             "(no joint worse than the median random zone design); weighted: smallest "
+             "--weights-weighted sum of the relative standard errors; d-optimal (max log det "
+             "of the information); e-optimal (max smallest eigenvalue); zones-random "
+             "(random poses in the zones).", rich_help_panel=_DESIGN,
     ),
     weights: str = typer.Option(None, "--weights",
                                 help="Weights of the joints' relative standard errors, "
-                                     "comma-separated (with --strategy weighted)."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the candidate draw and random design."),
-    candidates: int = typer.Option(10000, "--candidates", help="Candidate poses drawn."),
-    tests: int = typer.Option(None, "--tests", help="Test poses (default: the protocol's)."),
-    no_figure: bool = typer.Option(False, "--no-figure", help="Skip plan_map.png."),
+                                     "comma-separated (with --strategy weighted).",
+        rich_help_panel=_DESIGN),
+    seed: int = typer.Option(0, "--seed", help="Seed of the candidate draw and random design.",
+        rich_help_panel=_DESIGN),
+    candidates: int = typer.Option(10000, "--candidates", help="Candidate poses drawn.",
+        rich_help_panel=_DESIGN),
+    tests: int = typer.Option(None, "--tests", help="Test poses (default: the protocol's).",
+        rich_help_panel=_DESIGN),
+    no_figure: bool = typer.Option(False, "--no-figure", help="Skip plan_map.png.",
+        rich_help_panel=PANEL_OUTPUT),
     force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
-                               "(its plan files are replaced)."),
+                               "(its plan files are replaced).", rich_help_panel=PANEL_OUTPUT),
     as_json: bool = typer.Option(False, "--json", help="Print summary.json (SI units) "
-                                 "instead of the text summary."),
+                                 "instead of the text summary.", rich_help_panel=PANEL_OUTPUT),
 ) -> None:
     """Plan the tests: candidate poses in the zones, thresholds, optimal design.
 
@@ -57,8 +75,8 @@ def plan(
         summary = json.loads((out / "summary.json").read_text())
         print_json({**summary, "plan_file": str(path)})
         return
-    typer.echo(summary_text(result), nl=False)
-    typer.echo(f"plan written to {path}")
+    echo(summary_text(result), nl=False)
+    echo(f"plan written to {path}")
 
 
 def register(app: typer.Typer) -> None:

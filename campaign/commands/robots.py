@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
-from campaign.cli_common import print_json
+from analysis.report.formatting import k_kNm
+from campaign.cli_common import print_json, print_wrapped
 
 #: how messages name the positional argument of ``campaign robots NAME``
 NAME_WHERE = "NAME (argument of campaign robots)"
@@ -56,20 +58,20 @@ def register(app: typer.Typer) -> None:
                 table.add_column(col)
             for key in builtin_names():
                 r = load_robot(key)
-                table.add_row(key, r.name, r.convention,
+                table.add_row(key, escape(r.name), r.convention,
                               "yes" if r.nominal_stiffness is not None else "no",
                               str(len(r.zones)))
             console.print(table)
             return
         r = load_robot(name, tip, where=NAME_WHERE)
-        table = Table(title=f"{r.name} ({r.source_file})",
+        table = Table(title=escape(f"{r.name} ({r.source_file})"),
                       caption="angles in the model convention; pendant angle = sign q + "
                       "offset (+ coupling)")
         for col in ("joint", "lower (deg)", "upper (deg)", "pendant (deg)",
                     "nominal k (kN m/rad)"):
             table.add_column(col, justify="right")
         for j in range(r.n):
-            k = "-" if r.nominal_stiffness is None else f"{r.nominal_stiffness[j] / 1e3:,.2f}"
+            k = "-" if r.nominal_stiffness is None else k_kNm(r.nominal_stiffness[j])
             table.add_row(
                 str(j + 1), f"{np.degrees(r.lower[j]):.1f}", f"{np.degrees(r.upper[j]):.1f}",
                 f"{int(r.controller_sign[j]):+d} q {np.degrees(r.controller_offset[j]):+.1f}"
@@ -79,15 +81,17 @@ def register(app: typer.Typer) -> None:
             )
         console.print(table)
         L = r.characteristic_length
-        console.print(f"characteristic length: {'not given' if L is None else f'{L:.3f} m'}")
+        print_wrapped(console,
+                      f"characteristic length: {'not given' if L is None else f'{L:.3f} m'}")
         for zone in r.zones:
             ranges = ", ".join(
                 f"q{j + 1} {np.degrees(a):.0f}..{np.degrees(b):.0f} deg"
                 for j, (a, b) in zone.ranges.items()
             )
-            console.print(f"{zone.name}: {ranges}")
+            print_wrapped(console, f"{zone.name}: {ranges}")
+        # the robot file's own text: plain (never read as markup), wrapped under its label
         if r.notes:
-            console.print(f"[bold]note[/bold]: {r.notes}")
+            print_wrapped(console, f"note: {r.notes}")
         for key, text in r.sources.items():
-            console.print(f"[bold]source[/bold] {key}: {text}")
+            print_wrapped(console, f"source {key}: {text}")
 

@@ -11,7 +11,14 @@ from rich.console import Console
 from rich.table import Table
 
 from analysis.errors import InputError
-from campaign.cli_common import Method, RotationSource, print_json
+from campaign.cli_common import (
+    PANEL_NOISE,
+    PANEL_OUTPUT,
+    PANEL_ROBOT,
+    Method,
+    RotationSource,
+    print_json,
+)
 from campaign.commands.analyze import DEFAULT_METHOD
 from campaign.options import (
     TOOL_RPY_HELP,
@@ -65,6 +72,10 @@ def noise_from_options(
         encoder_resolution=scaled(encoder_resolution_deg, np.pi / 180.0),
     )
 
+
+#: panel of --help (campaign.cli_common)
+_STUDY = "Monte-Carlo study"
+_TRACKER = "Rotation measurement"
 
 #: a mean further than this many Monte-Carlo standard errors from the truth is a bias
 BIAS_SIGMAS = 4.0
@@ -147,48 +158,63 @@ def _print(console: Console, summary, title: str) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("robustness")
     def robustness(
-        robot: str = typer.Option(..., help="Built-in name, robot file or URDF."),
-        tip: str = typer.Option(None, help="Tool frame of a URDF."),
-        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP),
-        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP),
+        robot: str = typer.Option(..., help="Built-in name, robot file or URDF.",
+            rich_help_panel=PANEL_ROBOT),
+        tip: str = typer.Option(None, help="Tool frame of a URDF.", rich_help_panel=PANEL_ROBOT),
+        tool_xyz_mm: str = typer.Option(None, help=TOOL_XYZ_HELP, rich_help_panel=PANEL_ROBOT),
+        tool_rpy_deg: str = typer.Option(None, help=TOOL_RPY_HELP, rich_help_panel=PANEL_ROBOT),
         joint_stiffness: str = typer.Option(
-            None, help="True k1,...,k6 (N m/rad); default the model's nominal values."),
+            None, help="True k1,...,k6 (N m/rad); default the model's nominal values.",
+            rich_help_panel=PANEL_ROBOT),
         wrench: str = typer.Option(
             None, help="fx,fy,fz (N), mx,my,mz (N m) at P, base frame; default the paper's "
-            "w_eff = 0,2200,2200,200,200,0."),
-        tests: str = typer.Option("1..20", help="Numbers of tests, e.g. 1..20 or 1,2,5,10."),
-        trials: int = typer.Option(1000, help="Monte-Carlo trials per number of tests."),
+            "w_eff = 0,2200,2200,200,200,0.", rich_help_panel=PANEL_ROBOT),
+        tests: str = typer.Option("1..20", help="Numbers of tests, e.g. 1..20 or 1,2,5,10.",
+            rich_help_panel=_STUDY),
+        trials: int = typer.Option(1000, help="Monte-Carlo trials per number of tests.",
+            rich_help_panel=_STUDY),
         method: Method = typer.Option(
             DEFAULT_METHOD, help="exact (the default, as campaign analyze: nonlinear, ~100 x "
             "slower than the linear fits), ols (the paper's estimator as in its Fig. 7, "
-            "without the linearisation-bias correction of campaign analyze), or wls."),
-        seed: int = typer.Option(0, help="Random seed."),
-        pool_size: int = typer.Option(2000, help="Poses drawn from the zones and simulated."),
+            "without the linearisation-bias correction of campaign analyze), or wls.",
+            rich_help_panel=_STUDY),
+        seed: int = typer.Option(0, help="Random seed.", rich_help_panel=_STUDY),
+        pool_size: int = typer.Option(2000, help="Poses drawn from the zones and simulated.",
+            rich_help_panel=_STUDY),
         min_dexterity: float = typer.Option(
-            0.2, help="Minimum 1/kappa_F of the normalized Jacobian of a drawn pose."),
+            0.2, help="Minimum 1/kappa_F of the normalized Jacobian of a drawn pose.",
+            rich_help_panel=_STUDY),
         translation_sigma_um: float = typer.Option(
             None, "--translation-sigma-um",
-            help="Override: sigma of one displacement component (um)."),
+            help="Override: sigma of one displacement component (um).",
+            rich_help_panel=PANEL_NOISE),
         rotation_sigma_urad: float = typer.Option(
             None, "--rotation-sigma-urad", help="Override: sigma of one rotation component "
-            "(urad)."),
+            "(urad).", rich_help_panel=PANEL_NOISE),
         old_translation: float = typer.Option(None, "--sigma-translation-um", hidden=True),
         old_rotation: float = typer.Option(None, "--sigma-rotation-urad", hidden=True),
         rotation_source: RotationSource = typer.Option(
-            None, help="reflectors (3 reflectors on the tool, default) or probe (6-DoF)."),
+            None, help="reflectors (3 reflectors on the tool, default) or probe (6-DoF).",
+            rich_help_panel=_TRACKER),
         reflector_radius_mm: float = typer.Option(
-            None, help="Circumradius of the reflector triangle (mm), default 100."),
+            None, help="Circumradius of the reflector triangle (mm), default 100.",
+            rich_help_panel=PANEL_NOISE),
         tracker_distance_m: float = typer.Option(
-            None, help="Tracker-to-tool distance (m), default 3."),
+            None, help="Tracker-to-tool distance (m), default 3.", rich_help_panel=PANEL_NOISE),
         force_sigma_n: float = typer.Option(
-            None, "--force-sigma-N", help="Sigma of a force component (N), default 15.6."),
+            None, "--force-sigma-N", help="Sigma of a force component (N), default 15.6.",
+            rich_help_panel=PANEL_NOISE),
         moment_sigma_nm: float = typer.Option(
-            None, "--moment-sigma-Nm", help="Sigma of a moment component (N m), default 2.5."),
+            None, "--moment-sigma-Nm", help="Sigma of a moment component (N m), default 2.5.",
+            rich_help_panel=PANEL_NOISE),
         encoder_resolution_deg: float = typer.Option(
-            None, help="Joint encoder resolution (deg), default 0.001."),
-        out: Path = typer.Option(None, help="Directory for robustness.csv/.png/.json."),
+            None, help="Joint encoder resolution (deg), default 0.001.",
+            rich_help_panel=PANEL_NOISE),
+        out: Path = typer.Option(None, help="Directory for robustness.csv/.png/.json.",
+            rich_help_panel=PANEL_OUTPUT),
         as_json: bool = typer.Option(False, "--json", help="Print the settings and the "
-                                     "table as JSON (SI units) instead of the table."),
+                                     "table as JSON (SI units) instead of the table.",
+            rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Spread of the identified joint stiffness against the number of tests.
 
@@ -221,6 +247,17 @@ def register(app: typer.Typer) -> None:
                                    reflector_radius_mm, tracker_distance_m, force_sigma_n,
                                    moment_sigma_nm, encoder_resolution_deg)
         console = Console(stderr=as_json)
+        from analysis.report.formatting import k_kNm
+        from campaign.cli_common import print_wrapped
+        from campaign.commands.stiffness import vector_text
+
+        w_source = "--wrench" if wrench else ("default: the paper's w_eff (eq. 22); --wrench "
+                                              "to choose another")
+        print_wrapped(console, f"wrench w = {vector_text(w[:3], 6, False)} N, "
+                      f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
+        print_wrapped(console, f"true joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN "
+                      "m/rad (" + ("--joint-stiffness" if joint_stiffness else
+                                   "the robot model's") + ")")
         with Progress(TextColumn("{task.description}"), BarColumn(),
                       TextColumn("{task.completed}/{task.total} identifications"),
                       TimeRemainingColumn(), console=console, transient=True) as progress:
@@ -232,18 +269,18 @@ def register(app: typer.Typer) -> None:
         if not as_json:
             _print(console, summary,
                    f"{r.name}: relative spread of k ({method}, {trials} trials)")
-        console.print(method_note(method), markup=False, highlight=False)
+        print_wrapped(console, method_note(method))
         notes = bias_notes(summary, method)
         lin = linear_bias_note(summary, method)
         if lin is not None:
             notes.insert(0, lin)
         for note in notes:
-            console.print(f"note: {note}", markup=False, highlight=False)
+            print_wrapped(console, f"note: {note}")
         settings = {
             "robot": r.name, "joint_stiffness_Nm_per_rad": k.tolist(),
-            "wrench_N_Nm": w.tolist(), "tests": counts, "trials": trials,
-            "method": method, "method_note": method_note(method), "seed": seed,
-            "pool_size": pool_size,
+            "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts,
+            "trials": trials, "method": method, "method_note": method_note(method),
+            "seed": seed, "pool_size": pool_size,
             "min_inverse_condition": min_dexterity, "noise": noise.describe(),
             "notes": notes,
         }
@@ -265,7 +302,7 @@ def register(app: typer.Typer) -> None:
             write_text(out / "robustness.json", json.dumps(settings, indent=2) + "\n")
             written = [out / "robustness.csv", out / "robustness.png", out / "robustness.json"]
             for path in written:
-                console.print(f"wrote {path}", markup=False, highlight=False)
+                print_wrapped(console, f"wrote {path}")
         if as_json:
             print_json({**settings, "results": summary.to_dict(orient="records"),
                         "files": [str(p) for p in written]})

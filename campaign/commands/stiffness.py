@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 
 from analysis.errors import InputError, SingularPoseError
+from campaign.cli_common import print_wrapped
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -19,10 +20,43 @@ from campaign.options import (
 )
 
 
+def matrix_lines(M: np.ndarray, digits: int = 5) -> list[str]:
+    """Rows of ``M`` with ``digits`` significant digits, in columns wide enough for every entry.
+
+    Round-off (below 1e-9 of the largest entry) is shown as 0, never '-0'; a
+    matrix whose entries span beyond 1e-3..1e5 is shown in one exponent style.
+    """
+    from analysis.report.formatting import clean, sig
+
+    a = clean(M)
+    big = np.abs(a[a != 0])
+    if big.size and (big.max() >= 1e5 or big.min() < 1e-3):
+        def cell(v):
+            return "0" if v == 0 else f"{v:.{digits - 1}e}"
+    else:
+        def cell(v):
+            return sig(v, digits)
+    cells = [[cell(v) for v in row] for row in a]
+    width = max(len(c) for row in cells for c in row)
+    return ["  " + " ".join(f"{c:>{width}}" for c in row) for row in cells]
+
+
+def vector_text(values, digits: int = 4, zeros: bool = True) -> str:
+    """``[a, b, c]`` with ``digits`` significant digits and round-off shown as 0.
+
+    ``zeros`` keeps trailing zeros (``4.000``: a measured-looking value); without,
+    ``30`` rather than ``30.000`` (typed inputs: angles, wrench).
+    """
+    from analysis.report.formatting import clean, eng, sig
+
+    fmt = eng if zeros else sig
+    return "[" + ", ".join(fmt(float(v), digits) for v in clean(values)) + "]"
+
+
 def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
     console.print(f"[bold]{title}[/bold] ({unit})")
-    for row in M:
-        console.print("  " + " ".join(f"{v: .4e}" for v in row))
+    for line in matrix_lines(M):
+        console.print(line, markup=False, highlight=False)
 
 
 def _intervals(r, q, k, w, J, cov_x) -> dict:
@@ -46,9 +80,9 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
         chain_state(r, q), w)))
     return {
         "confidence": 0.95,
-        "deflection_nonlinear_sd": pred.sd.tolist(),
-        "deflection_nonlinear_lo95": lo.tolist(),
-        "deflection_nonlinear_hi95": hi.tolist(),
+        "deflection_nonlinear_sd_m_rad": pred.sd.tolist(),
+        "deflection_nonlinear_lo95_m_rad": lo.tolist(),
+        "deflection_nonlinear_hi95_m_rad": hi.tolist(),
         "K_X_diag_se": se.tolist(),
         "K_X_diag_lo95": (K_X - Z95 * se).tolist(),
         "K_X_diag_hi95": (K_X + Z95 * se).tolist(),
@@ -57,6 +91,11 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
                   "k_j^2 dq_j at the loaded pose (exact for the linear model without K_C); "
                   "K_X is linear in k, cov(k) from cov(x) by the delta method",
     }
+
+
+#: what the default wrench is, said wherever it is used (campaign stiffness, campaign maps)
+WORST_CASE_TEXT = ("default: the paper's worst case, 2200 N and 400 N m along every base "
+                   "axis; --wrench to choose another")
 
 
 def check_limits(robot, q: np.ndarray, controller: bool) -> None:
@@ -114,6 +153,10 @@ def register(app: typer.Typer) -> None:
             check_limits(r, qr, controller)
         k = stiffness_option(r, joint_stiffness)
         w = wrench_option(wrench, WORST_CASE_WRENCH)
+        k_source = ("--joint-stiffness" if joint_stiffness else
+                    "the identified model's values" if r.compliance_covariance is not None
+                    else "the model's nominal values")
+        w_source = "--wrench" if wrench else WORST_CASE_TEXT
         state = chain_state(r, qr)
         J = jacobian_from_state(state)
         K_C = complementary_stiffness_from_state(state, w)
@@ -139,20 +182,23 @@ def register(app: typer.Typer) -> None:
             "tool": tool.describe(),
             "q_rad": qr.tolist(),
             "joint_stiffness_Nm_per_rad": k.tolist(),
+            "joint_stiffness_source": k_source,
             "wrench_N_Nm": w.tolist(),
-            "J": J.tolist(),
-            "K_C": K_C.tolist(),
+            "wrench_source": w_source,
+            "J_m_rad_per_rad": J.tolist(),
+            "K_C_Nm_per_rad": K_C.tolist(),
             "K_X": None if K_X is None else K_X.tolist(),
             "K_X_without_K_C": None if K_X0 is None else K_X0.tolist(),
             "undefined": undefined,
-            "deflection": lin.tolist(),
-            "deflection_without_K_C": deflection(J, k, w).tolist(),
-            "deflection_nonlinear": exact.tolist(),
+            "deflection_m_rad": lin.tolist(),
+            "deflection_without_K_C_m_rad": deflection(J, k, w).tolist(),
+            "deflection_nonlinear_m_rad": exact.tolist(),
             "units": {
-                "J": "rows 1-3 m/rad, rows 4-6 rad/rad; base axes at P",
-                "K_C": "N m/rad",
-                "K_X": "N/m | N/rad ; N | N m/rad blocks, base frame at P",
-                "deflection": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation vector)",
+                "J_m_rad_per_rad": "rows 1-3 m/rad, rows 4-6 rad/rad; base axes at P",
+                "K_C_Nm_per_rad": "N m/rad",
+                "K_X": "N/m | N/rad ; N | N m/rad blocks, base frame at P (as results.json)",
+                "deflection_*_m_rad": "[dx, dy, dz] m, [rx, ry, rz] rad (small rotation "
+                                      "vector)",
             },
         }
         cov_x = None if joint_stiffness is not None else r.compliance_covariance
@@ -161,32 +207,36 @@ def register(app: typer.Typer) -> None:
         if as_json:
             typer.echo(json.dumps(result, indent=2))
             return
+        from analysis.report.formatting import k_kNm
+
         console = Console()
-        console.print(f"[bold]{r.name}[/bold]  q = {np.degrees(qr).round(3).tolist()} deg "
-                      "(model convention)")
-        console.print(f"tool: {tool.text()}")
-        console.print(f"k = {k.tolist()} N m/rad;  w = {w.tolist()} N, N m")
+        print_wrapped(console, f"{r.name}  q = {vector_text(np.degrees(qr), 6, zeros=False)} "
+                      "deg (model convention)")
+        print_wrapped(console, f"tool: {tool.text()}")
+        print_wrapped(console, f"k = [{', '.join(k_kNm(v) for v in k)}] kN m/rad ({k_source})")
+        print_wrapped(console, f"w = {vector_text(w[:3], 6, False)} N, "
+                      f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
         _matrix(console, "J", J, "rows 1-3 m/rad, rows 4-6 rad/rad")
-        _matrix(console, "K_C", K_C, "N m/rad")
+        _matrix(console, "K_C", K_C / 1e3, "kN m/rad")
         if K_X is None:
-            console.print(f"[bold]K_X[/bold] (with and without K_C): undefined: "
-                          f"{undefined['K_X']}")
+            print_wrapped(console, f"K_X (with and without K_C): undefined: {undefined['K_X']}")
         else:
             _matrix(console, "K_X with K_C", K_X, "N/m, N/rad, N, N m/rad blocks")
             _matrix(console, "K_X without K_C", K_X0, "same units")
         console.print("[bold]deflection of P[/bold] (mm, mrad)")
         for label, d in (("with K_C", lin), ("without K_C", deflection(J, k, w)),
                          ("nonlinear equilibrium", exact)):
-            console.print(f"  {label:22s} dp = {np.round(1e3 * d[:3], 4).tolist()} mm, "
-                          f"dr = {np.round(1e3 * d[3:], 4).tolist()} mrad")
+            print_wrapped(console, f"  {label:22s} dp = {vector_text(1e3 * d[:3])} mm, "
+                          f"dr = {vector_text(1e3 * d[3:])} mrad")
         if cov_x is not None:
             u = result["uncertainty"]
-            lo = np.array(u["deflection_nonlinear_lo95"])
-            hi = np.array(u["deflection_nonlinear_hi95"])
+            lo = np.array(u["deflection_nonlinear_lo95_m_rad"])
+            hi = np.array(u["deflection_nonlinear_hi95_m_rad"])
             console.print("[bold]95 % intervals[/bold] (identified model, delta method)")
-            console.print(f"  dp from {np.round(1e3 * lo[:3], 4).tolist()} to "
-                          f"{np.round(1e3 * hi[:3], 4).tolist()} mm")
-            console.print(f"  dr from {np.round(1e3 * lo[3:], 4).tolist()} to "
-                          f"{np.round(1e3 * hi[3:], 4).tolist()} mrad")
-            half = np.round(1.96 * np.array(u["K_X_diag_se"]), 1).tolist()
-            console.print(f"  diag(K_X) +- {half} (SI)")
+            print_wrapped(console, f"  dp from {vector_text(1e3 * lo[:3])} to "
+                          f"{vector_text(1e3 * hi[:3])} mm")
+            print_wrapped(console, f"  dr from {vector_text(1e3 * lo[3:])} to "
+                          f"{vector_text(1e3 * hi[3:])} mrad")
+            half = 1.96 * np.array(u["K_X_diag_se"])
+            print_wrapped(console, f"  diag(K_X) +- {vector_text(half[:3])} N/m, "
+                          f"{vector_text(half[3:])} N m/rad")

@@ -431,8 +431,8 @@ def test_resuming_a_complete_run_starts_nothing_and_asks_nothing(run_copy, capsy
     assert code == 0, captured.err
     assert captured.out == ""  # the final line goes to stderr with --quiet
     assert captured.err == (f"run complete: nothing to resume: all 4 planned measurements are "
-                            f"in tests.csv; nothing connected, nothing moved (4 ok, 0 failed) "
-                            f"-> {run_copy}\n")
+                            f"in tests.csv; nothing connected, nothing moved (4/4 measurements: "
+                            f"4 ok, 0 failed) -> {run_copy}\n")
     assert _digest(run_copy) == before and not (run_copy / ".lock").exists()
 
 

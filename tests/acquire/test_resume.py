@@ -127,8 +127,8 @@ def test_ctrl_c_stops_unloads_records_and_resumes(kr240_plan, make_variant, tmp_
             break
         time.sleep(0.002)
     proc.send_signal(signal.SIGINT)
-    proc.wait(timeout=30)
-    assert proc.returncode == 1, proc.stderr.read()
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 1, err
     meta = json.loads((run / "metadata.json").read_text())
     assert meta["status"] == "aborted" and "Ctrl-C" in meta["reason"]
     events = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
@@ -136,12 +136,22 @@ def test_ctrl_c_stops_unloads_records_and_resumes(kr240_plan, make_variant, tmp_
     stop = kinds.index("interrupt")
     assert "load_removed" in kinds[stop:]  # automated (simulated operator): load taken off
     done = finished_tests(run)
+    # the last lines: the whole run's count, what the records say of the robot and the
+    # load, and the command that resumes
+    last = err.strip().splitlines()[-3:]
+    assert last[0].startswith(f"run aborted: interrupted by the operator (Ctrl-C) "
+                              f"({len(done)}/3 measurements: {len(done)} ok, 0 failed)")
+    assert last[1] == "after the stop: robot stopped; load removed"
+    assert last[2] == f"to continue: campaign acquire --resume {run} --fake"
     proc = _start(["--resume", str(run)])
-    proc.wait(timeout=60)
-    assert proc.returncode == 0, proc.stderr.read()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
     tests = pd.read_csv(run / "tests.csv")
     keys = list(zip(tests.test_id, tests.repeat, strict=True))
     assert sorted(keys) == [(1, 1), (2, 1), (3, 1)] and done <= set(keys)
+    # after the resume the count is the whole run's, not this session's
+    assert err.strip().splitlines()[-1].startswith(
+        "run complete (3/3 measurements: 3 ok, 0 failed)"), err
 
 
 def test_a_run_is_written_by_one_process_at_a_time(tmp_path):

@@ -109,7 +109,8 @@ def test_lab_simulates_the_protocol(path):
         err = proc.stderr.read()
         assert "Traceback" not in err, err
         k_line = next(line for line in err.splitlines() if "true joint stiffness" in line)
-        assert f"{protocol.fake_lab.true_joint_stiffness[0]:,.0f}" in k_line
+        assert "(kN m/rad)" in k_line  # the one format of k on the terminal
+        assert f" {protocol.fake_lab.true_joint_stiffness[0] / 1e3:.5g}" in k_line
         assert f"tool xyz_mm {[float(v) for v in protocol.tool.xyz_mm]}" in err
     finally:
         if proc.poll() is None:

@@ -27,16 +27,18 @@ def test_stiffness_json_matches_library(capsys):
                         "--wrench", "0,2200,2200,200,200,0", "--json"], capsys)
     assert code == 0
     data = json.loads(out)
-    assert {"J", "K_C", "K_X", "deflection"} <= data.keys()
+    assert {"J_m_rad_per_rad", "K_C_Nm_per_rad", "K_X", "deflection_m_rad"} <= data.keys()
+    assert data["wrench_source"] == "--wrench"
     r = load_robot("kr240-2")
     q = np.radians([0, 30, 10, 45, 45, 45])
     w = np.array([0, 2200, 2200, 200, 200, 0.0])
     K_X = cartesian_stiffness(jacobian(r, q), r.nominal_stiffness,
                               complementary_stiffness(r, q, w))
     np.testing.assert_allclose(np.array(data["K_X"]), K_X, rtol=1e-12)
-    np.testing.assert_allclose(np.array(data["J"]), jacobian(r, q), atol=1e-15)
+    np.testing.assert_allclose(np.array(data["J_m_rad_per_rad"]), jacobian(r, q), atol=1e-15)
     # deflection is K_X^-1 w
-    np.testing.assert_allclose(np.array(data["deflection"]), np.linalg.solve(K_X, w), rtol=1e-9)
+    np.testing.assert_allclose(np.array(data["deflection_m_rad"]), np.linalg.solve(K_X, w),
+                               rtol=1e-9)
 
 
 def test_controller_angles_option(capsys):

@@ -32,11 +32,15 @@ def test_version(capsys):
 
 @pytest.mark.parametrize("command, listed", [
     ("analyze", ["ols|wls|exact", "model|residual"]),
-    ("plan", ["d-optimal|e-optimal|zones-random"]),
+    # plan lists its five strategies in the help text (as one word they fold at 80 columns)
+    ("plan", ["worst-joint (default)", "weighted:", "d-optimal", "e-optimal", "zones-random"]),
     ("robustness", ["ols|wls|exact", "reflectors|probe"]),
     ("maps", ["parquet|csv"]),
-    ("compensate", ["base|tool", "auto|krl|urscript|rapid|fanuc-ls|none"]),
-    ("place", ["max|rms|compliance", "auto|krl|urscript|rapid|fanuc-ls|none"]),
+    # --program lists its choices in words (as one word they fold at 80 columns)
+    ("compensate", ["base|tool", "auto (default: by robot), krl (KUKA), urscript (UR), "
+                    "rapid (ABB), fanuc-ls (FANUC), none"]),
+    ("place", ["max|rms|compliance", "auto (default: by robot), krl (KUKA), urscript (UR), "
+               "rapid (ABB), fanuc-ls (FANUC), none"]),
 ])
 def test_help_lists_the_choices(capsys, monkeypatch, command, listed):
     monkeypatch.setenv("COLUMNS", "250")  # one option per line in rich's help box
@@ -179,3 +183,16 @@ def test_map_fixed_joints_one_rule():
     assert m.from_protocol == (0,) and m.from_poses == (3, 4, 5)
     assert m.values_text() == "\u03b81 = 5, \u03b84 = -90, \u03b85 = 80, \u03b86 = 20 deg"
     assert "\u03b84, \u03b85, \u03b86 the median of the tested poses" in m.rule_text()
+
+
+def test_robustness_says_its_default_wrench(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    code, out, err = run(["robustness", "--robot", "kr240-2", "--tests", "5", "--trials",
+                          "10", "--pool-size", "100", "--json"], capsys)
+    assert code == 0
+    data = json.loads(out)
+    assert data["wrench_N_Nm"] == [0, 2200, 2200, 200, 200, 0]
+    assert data["wrench_source"].startswith("default: the paper's w_eff (eq. 22)")
+    flat = " ".join(_plain(err).split())
+    assert "wrench w = [0, 2200, 2200] N, [200, 200, 0] N m at P, base frame (default: the " \
+           "paper's w_eff (eq. 22); --wrench to choose another)" in flat

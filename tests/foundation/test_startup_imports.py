@@ -147,7 +147,7 @@ def test_stiffness_imports_pinocchio_but_not_scipy_pandas_matplotlib():
     assert [s for s in out.splitlines() if s.startswith("LOADED=")] == ["LOADED=stiffness"]
     # and it did the work: the nonlinear deflection is there and non-zero
     data = json.loads(out[: out.index("LOADED=")])
-    assert any(abs(v) > 1e-6 for v in data["deflection_nonlinear"][:3])
+    assert any(abs(v) > 1e-6 for v in data["deflection_nonlinear_m_rad"][:3])
 
 
 def test_plan_command_strategies_match_the_planner():

@@ -25,17 +25,17 @@ def test_kuka_home_pose_reports_what_is_defined(capsys):
     assert out["K_X"] is None and out["K_X_without_K_C"] is None
     assert "J is singular" in out["undefined"]["K_X"] and "needs J^-1" in out["undefined"]["K_X"]
     q = np.array(out["q_rad"])
-    J = np.array(out["J"])
+    J = np.array(out["J_m_rad_per_rad"])
     np.testing.assert_allclose(J, jacobian(robot, q), atol=1e-12)
     assert np.linalg.matrix_rank(J, tol=1e-9) == 5
     w = np.array(out["wrench_N_Nm"])
     K_C = complementary_stiffness(robot, q, w)
-    np.testing.assert_allclose(out["K_C"], K_C, atol=1e-9)
+    np.testing.assert_allclose(out["K_C_Nm_per_rad"], K_C, atol=1e-9)
     # deflection cross-check: J (K_theta - K_C)^-1 J^T w, solved independently
     k = np.array(out["joint_stiffness_Nm_per_rad"])
     dq = np.linalg.lstsq(np.diag(k) - K_C, J.T @ w, rcond=None)[0]
-    np.testing.assert_allclose(out["deflection"], J @ dq, rtol=1e-9, atol=1e-15)
-    assert np.all(np.isfinite(out["deflection_nonlinear"]))
+    np.testing.assert_allclose(out["deflection_m_rad"], J @ dq, rtol=1e-9, atol=1e-15)
+    assert np.all(np.isfinite(out["deflection_nonlinear_m_rad"]))
     assert main(["stiffness", "--robot", "kr240-2", "--q", "0,-90,90,0,0,0",
                  "--controller-angles"]) == 0
     text = capsys.readouterr().out
@@ -53,10 +53,10 @@ def test_tool_options_move_P(capsys):
     robot = load_robot("ur10e")
     R = chain_state(robot, np.array(flange["q_rad"])).tip[:3, :3]
     r = R @ np.array([0.010, -0.020, 0.120])
-    Jf = np.array(flange["J"])
+    Jf = np.array(flange["J_m_rad_per_rad"])
     expected = Jf.copy()
     expected[:3] = Jf[:3] + np.cross(Jf[3:].T, r).T
-    np.testing.assert_allclose(tool["J"], expected, atol=1e-12)
+    np.testing.assert_allclose(tool["J_m_rad_per_rad"], expected, atol=1e-12)
 
 
 def test_equilibrium_failure_is_one_line(capsys):
@@ -94,9 +94,9 @@ def test_ignore_limits_computes_at_the_wrapped_pose(capsys):
     args = ["--q", "999,30,-170,45,45,45", "--ignore-limits"]
     out = _json(capsys, "--robot", "kr240-2", *args)
     ref = _json(capsys, "--robot", "kr240-2", "--q", "-81,30,-170,45,45,45")
-    np.testing.assert_allclose(out["J"], ref["J"], atol=1e-12)
-    np.testing.assert_allclose(out["deflection_nonlinear"], ref["deflection_nonlinear"],
-                               rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(out["J_m_rad_per_rad"], ref["J_m_rad_per_rad"], atol=1e-12)
+    np.testing.assert_allclose(out["deflection_nonlinear_m_rad"],
+                               ref["deflection_nonlinear_m_rad"], rtol=1e-9, atol=1e-15)
 
 
 @pytest.mark.parametrize("scale", [1.0, 3.0, 6.0, 10.0, 20.0])

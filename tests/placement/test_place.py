@@ -73,10 +73,10 @@ def test_outputs_recomputed_from_path_joints(tmp_path, capsys):
                      "--wrench", ",".join(f"{v:.12f}" for v in w)])
         data = json.loads(capsys.readouterr().out)
         assert code == 0
-        ref = np.array(data["deflection_without_K_C"][:3]) * 1e3
+        ref = np.array(data["deflection_without_K_C_m_rad"][:3]) * 1e3
         row = np.array([float(rows[i][c]) for c in ("dx_mm", "dy_mm", "dz_mm")])
         np.testing.assert_allclose(row, ref, rtol=1e-7, atol=1e-9)
-        nl = np.array(data["deflection_nonlinear"][:3]) * 1e3
+        nl = np.array(data["deflection_nonlinear_m_rad"][:3]) * 1e3
         row_nl = np.array([float(rows[i][c]) for c in
                            ("dx_nonlinear_mm", "dy_nonlinear_mm", "dz_nonlinear_mm")])
         np.testing.assert_allclose(row_nl, nl, rtol=1e-7, atol=1e-9)
@@ -183,3 +183,32 @@ def test_dask_local_cluster_equals_local_run():
     for field in ("value", "config", "angle", "reason", "point"):
         np.testing.assert_array_equal(getattr(remote, field), getattr(local, field))
     assert np.isfinite(local.value).sum() > 0 and np.isinf(local.value).sum() > 0
+
+
+def test_edge_of_the_box_is_warned_and_the_nonlinear_check_has_a_unit(tmp_path, capsys):
+    from campaign.place_run import edge_warnings
+
+    capsys.readouterr()
+    code, out = _place(tmp_path)
+    assert code == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((out / "placement.json").read_text())
+    p, space = summary["placement"], summary["search_space"]
+    on_edge = [key for key in ("x_mm", "y_mm") if p[key] in (space[key][0], space[key][-1])]
+    assert len(summary["warnings"]) == len(on_edge)
+    flat = " ".join(printed.split())
+    for key in on_edge:
+        assert f"edge of --{key.replace('_', '-')}" in flat
+    nl = summary["objective_nonlinear"]
+    assert f"nonlinear equilibrium with K_C: {nl:.4g} mm" in flat
+    assert repr(nl) not in printed  # no 16-digit float
+    # the rule itself: x, y, z, yaw grids, C order; a full turn of yaw has no edge
+    grids = {"x_mm": np.array([0.0, 100, 200]), "y_mm": np.array([0.0, 50]),
+             "z_mm": np.array([300.0]), "yaw_deg": np.arange(0.0, 360, 90)}
+    assert edge_warnings(grids, np.ravel_multi_index((1, 0, 0, 3), (3, 2, 1, 4))) == [
+        "the best placement is on the lower edge of --y-mm (y = 0 mm, range 0..50 mm): a "
+        "better one may lie outside the box; widen --y-mm"]
+    assert edge_warnings(grids, np.ravel_multi_index((2, 1, 0, 0), (3, 2, 1, 4)))[0].startswith(
+        "the best placement is on the upper edge of --x-mm (x = 200 mm")
+    grids["yaw_deg"] = np.array([-30.0, 0, 30])
+    assert "--yaw-deg" in edge_warnings(grids, np.ravel_multi_index((1, 0, 0, 2), (3, 2, 1, 3)))[1]

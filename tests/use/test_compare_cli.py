@@ -199,3 +199,24 @@ def test_a_row_where_the_interval_and_the_z_test_part_is_marked():
     # far from the border: no note
     out = compare(campaign("a", 1.0, 0.01), campaign("b", 1.1, 0.01), alpha)
     assert "note" not in out["joints"][0] and out["joints"][0]["z"] > 0
+
+
+def test_compare_rows_fit_80_columns(identified, tmp_path, capsys, monkeypatch):
+    """The text table at 80 columns: every row on one line, k in kN m/rad as in --json."""
+    same = analyze(tmp_path, "same80", seed=11)
+    capsys.readouterr()
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["compare", str(identified), str(same)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    # only a path longer than the line may overflow: it is never split
+    assert all(len(line) <= 80 or len(line.split()) == 1 for line in lines), lines
+    assert main(["compare", str(identified), str(same), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    rows = [line.split() for line in lines if line.lstrip().startswith("k") and "[" in line]
+    assert len(rows) == len(data["joints"]) == 6
+    for row, joint in zip(rows, data["joints"], strict=True):
+        assert row[0] == f"k{joint['joint']}"
+        assert float(row[1]) == pytest.approx(joint["k_A_Nm_per_rad"] / 1e3, rel=1e-4)
+        assert float(row[2]) == pytest.approx(joint["k_B_Nm_per_rad"] / 1e3, rel=1e-4)
+        assert float(row[3]) == pytest.approx(100 * joint["relative_difference"], abs=0.006)
+        assert " ".join(row[7:]) == joint["verdict"]

@@ -42,8 +42,9 @@ def test_stiffness_command_reads_the_model_and_reports_intervals(identified, cap
     res = json.loads((identified / "results.json").read_text())
     assert out["joint_stiffness_Nm_per_rad"] == res["joint_stiffness_Nm_per_rad"]
     u = out["uncertainty"]
-    d = np.array(out["deflection_nonlinear"])
-    lo, hi = np.array(u["deflection_nonlinear_lo95"]), np.array(u["deflection_nonlinear_hi95"])
+    d = np.array(out["deflection_nonlinear_m_rad"])
+    lo = np.array(u["deflection_nonlinear_lo95_m_rad"])
+    hi = np.array(u["deflection_nonlinear_hi95_m_rad"])
     assert np.all(lo < d) and np.all(d < hi)
     assert np.allclose((lo + hi) / 2, d, rtol=1e-12, atol=1e-15)
     kx = np.diag(np.array(out["K_X"]))
@@ -53,8 +54,11 @@ def test_stiffness_command_reads_the_model_and_reports_intervals(identified, cap
     assert "uncertainty" not in json.loads(capsys.readouterr().out)
 
 
-def test_maps_reads_the_model_and_maps_the_upper_bound(identified, tmp_path):
+def test_maps_reads_the_model_and_maps_the_upper_bound(identified, tmp_path, capsys,
+                                                       monkeypatch):
     out = tmp_path / "maps"
+    monkeypatch.setenv("COLUMNS", "80")
+    capsys.readouterr()
     assert main(["maps", "--robot", str(identified / "model.toml"), "--out", str(out),
                  "--step", "10", "--format", "csv", "--deflection-upper-bound"]) == 0
     import pandas as pd
@@ -63,6 +67,17 @@ def test_maps_reads_the_model_and_maps_the_upper_bound(identified, tmp_path):
     ok = ~table["singular"]
     assert np.all(table.loc[ok, "deflection_upper95_mm"] > table.loc[ok, "deflection_mm"])
     assert (out / "deflection_upper95_joint.png").is_file()
+    # said aloud: the wrench used (the default worst case) and what the bound is, with its
+    # largest value over the grid
+    printed = " ".join(capsys.readouterr().out.split())
+    assert "wrench w = [2200, 2200, 2200] N, [400, 400, 400] N m at P, base frame " \
+           "(default: the paper's worst case" in printed
+    assert "|dp| + 1.96 sd(|dp|)" in printed
+    top = table.loc[ok, "deflection_upper95_mm"].max()
+    assert f"at most {top:.4g} mm over the grid" in printed
+    summary = json.loads((out / "map_summary.json").read_text())
+    assert summary["max_deflection_upper95_mm"] == pytest.approx(top, rel=1e-9)
+    assert summary["wrench_source"].startswith("default: the paper's worst case")
     assert main(["maps", "--robot", "kr240-2", "--out", str(out), "--step", "10",
                  "--deflection-upper-bound"]) == 2
 
