@@ -302,6 +302,7 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
         "poses": (f"tests whose joint angles agree to within "
                   f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
                   "encoder sigmas) are at one pose"),
+        "validation_folds": _folds_text(extras.get("protocol")),
         "conventions": CONVENTIONS,
     }
 
@@ -313,6 +314,22 @@ def _release_freed_heap() -> None:
     from analysis.identification.per_test import release_freed_heap
 
     release_freed_heap()
+
+
+def _holdout_deg(protocol) -> tuple[float, str]:
+    """Poses closer than this (deg) are held out together, and where that comes from."""
+    from analysis.identification.holdout_check import CLUSTER_DEG
+
+    if protocol is not None:
+        return (float(protocol.thresholds.min_pose_separation_deg),
+                f"protocol {Path(protocol.path).name} [thresholds] min_pose_separation_deg")
+    return CLUSTER_DEG, "default, the planner's default minimum pose separation"
+
+
+def _folds_text(protocol) -> str:
+    deg, source = _holdout_deg(protocol)
+    return (f"held-out validation: poses within {deg:g} deg of each other (joint space) are "
+            f"held out together ({source})")
 
 
 def _print_assumptions(console: Console, a: dict) -> None:
@@ -331,6 +348,7 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"  robust fitting: {a['robust']}",
         f"  wrench errors in variables: {a['wrench_errors_in_variables']}",
         f"  poses: {a['poses']}",
+        f"  {a['validation_folds']}",
     ):
         print_wrapped(console, line)
 
@@ -424,11 +442,19 @@ def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
     from analysis.report.formatting import interval_kNm, k_kNm
 
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
-    for col in ("joint", "k (kN m/rad)", f"{100 * result.confidence:g} % interval (kN m/rad)"):
+    bias = result.linear_bias
+    cols = ["joint", "k (kN m/rad)", f"{100 * result.confidence:g} % interval (kN m/rad)"]
+    if bias is not None:  # ols/wls: the raw linear estimate beside the corrected one
+        cols.append(f"raw {result.method}, linearisation bias not corrected (kN m/rad)")
+    for col in cols:
         table.add_column(col, justify="right")
     for j in range(6):
-        table.add_row(f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
-                      if np.isfinite(result.k[j]) else "-")
+        row = [f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
+               if np.isfinite(result.k[j]) else "-"]
+        if bias is not None:
+            raw = bias["raw_joint_stiffness_Nm_per_rad"][j]
+            row.append("-" if raw is None else k_kNm(raw))
+        table.add_row(*row)
     console.print(table)
     for w in result.warnings[printed:]:
         print_wrapped(console, f"warning: {w}", style="yellow")
@@ -578,7 +604,8 @@ def register(app: typer.Typer) -> None:
             del table
             _release_freed_heap()
             result = identify(model, tests, method=method, joints=joint_list,
-                              noise=noise, covariance=covariance, robust=robust)
+                              noise=noise, covariance=covariance, robust=robust,
+                              holdout_radius=np.radians(_holdout_deg(protocol)[0]))
         result.assumptions = assumptions
         # what the run's reader warned about (a damaged run) stays with the result
         early = [n.removeprefix("WARNING: ") for n in info.notes if n.startswith("WARNING")]
@@ -591,7 +618,11 @@ def register(app: typer.Typer) -> None:
                 "(a tool error need not show in the chi-square, it shows in k)"))
         refused = problems(result, model.nominal_stiffness)
         _release_freed_heap()  # the identification's freed pages, before the checks
-        refused += _tool_problem(result, model, tests, noise, method, extras["tool"])
+        # a linear fit whose bias was corrected is a compliance of the exact model: its
+        # residuals are the exact model's (as in the chi-square)
+        corrected = (result.linear_bias or {}).get("reliable", False)
+        refused += _tool_problem(result, model, tests, noise,
+                                 "exact" if corrected else method, extras["tool"])
         if refused and not accept_misfit:
             raise InputError(
                 "refused, the data do not support this stiffness: " + " | ".join(refused)

@@ -19,6 +19,7 @@ from campaign.cli_common import (
     RotationSource,
     print_json,
 )
+from campaign.commands.analyze import DEFAULT_METHOD
 from campaign.options import (
     TOOL_RPY_HELP,
     TOOL_XYZ_HELP,
@@ -115,6 +116,35 @@ def bias_notes(summary, method: str) -> list[str]:
     return notes
 
 
+def method_note(method: str) -> str:
+    """Which estimator the study uses, and whether that is the default of ``analyze``."""
+    if method == "exact":
+        return ("method: exact (Gauss-Newton on the nonlinear equilibrium), the default, as "
+                "in campaign analyze")
+    return (f"method: {method} (the linear model of the paper's eqs. 16-21"
+            + (", its Fig. 7 study" if method == "ols" else "")
+            + "), raw: without the linearisation-bias correction campaign analyze makes; "
+            f"the default is {DEFAULT_METHOD}")
+
+
+def linear_bias_note(summary, method: str) -> str | None:
+    """For ols/wls: how far the mean is biased by the linear model, per joint, and why.
+
+    The size is the median over noise-free campaigns of the study's designs
+    (``linearisation_bias_relative``), the median over the numbers of tests."""
+    if method not in ("ols", "wls"):
+        return None
+    parts = []
+    for j, s in summary.groupby("joint"):
+        v = s["linearisation_bias_relative"].dropna()
+        if len(v):
+            parts.append(f"k{j} {100 * float(np.median(v)):+.2f} %")
+    return (f"{method}: the mean is biased by the linearisation, the linear model A x fitted to "
+            "finite displacements of the nonlinear equilibrium at this wrench (noise-free "
+            f"campaigns of the same designs: {', '.join(parts)}); campaign analyze corrects "
+            "this bias, --method exact has none")
+
+
 def _print(console: Console, summary, title: str) -> None:
     table = Table(title=title)
     table.add_column("tests", justify="right")
@@ -144,7 +174,9 @@ def register(app: typer.Typer) -> None:
         trials: int = typer.Option(1000, help="Monte-Carlo trials per number of tests.",
             rich_help_panel=_STUDY),
         method: Method = typer.Option(
-            "ols", help="ols (the paper's estimator), wls, or exact (nonlinear, ~100 x slower).",
+            DEFAULT_METHOD, help="exact (the default, as campaign analyze: nonlinear, ~100 x "
+            "slower than the linear fits), ols (the paper's estimator as in its Fig. 7, "
+            "without the linearisation-bias correction of campaign analyze), or wls.",
             rich_help_panel=_STUDY),
         seed: int = typer.Option(0, help="Random seed.", rich_help_panel=_STUDY),
         pool_size: int = typer.Option(2000, help="Poses drawn from the zones and simulated.",
@@ -237,13 +269,18 @@ def register(app: typer.Typer) -> None:
         if not as_json:
             _print(console, summary,
                    f"{r.name}: relative spread of k ({method}, {trials} trials)")
+        print_wrapped(console, method_note(method))
         notes = bias_notes(summary, method)
+        lin = linear_bias_note(summary, method)
+        if lin is not None:
+            notes.insert(0, lin)
         for note in notes:
             print_wrapped(console, f"note: {note}")
         settings = {
             "robot": r.name, "joint_stiffness_Nm_per_rad": k.tolist(),
-            "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts, "trials": trials,
-            "method": method, "seed": seed, "pool_size": pool_size,
+            "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts,
+            "trials": trials, "method": method, "method_note": method_note(method),
+            "seed": seed, "pool_size": pool_size,
             "min_inverse_condition": min_dexterity, "noise": noise.describe(),
             "notes": notes,
         }
