@@ -31,6 +31,7 @@ import numpy as np
 from analysis.identification.linear_model import design_block
 from analysis.identification.noise import NoiseModel, residual_covariance
 from campaign.design import greedy_exchange, information, random_design
+from campaign.separation import Separation, blocked
 
 GUARD_PENALTY = 10.0
 BLOCK = 4096  # poses per block of candidate_information
@@ -147,13 +148,15 @@ def exchange(
     guard: np.ndarray | None = None,
     max_passes: int = 20,
     rel_tol: float = 1e-6,
+    sep: Separation | None = None,
 ) -> tuple[np.ndarray, float]:
     """Exchange passes from ``start`` minimising :func:`objective` (one candidate per group).
 
     Each slot in turn is swapped for the allowed candidate that gives the
     smallest criterion, evaluated exactly over all candidates (batched
     inverses of n x n matrices); stops when a pass improves nothing by more
-    than ``rel_tol``. Returns sorted picks and their criterion.
+    than ``rel_tol``. ``sep``: the poses' minimum separation (:mod:`campaign.separation`).
+    Returns sorted picks and their criterion.
     """
     chosen = [int(c) for c in start]
     M = F[chosen].sum(axis=0)
@@ -163,8 +166,10 @@ def exchange(
         for slot in range(len(chosen)):
             base = M - F[chosen[slot]]
             others = [c for j, c in enumerate(chosen) if j != slot]
-            allowed = ~np.isin(group, group[others]) if others else np.ones(len(F), bool)
+            allowed = ~blocked(group, others, sep) if others else np.ones(len(F), bool)
             idx = _screen(base, F, allowed, kind, weights, guard)
+            if not idx.size:
+                continue
             score = objective(base + F[idx], kind, weights, guard)
             j = int(np.argmin(score))
             if score[j] < current * (1 - rel_tol):
@@ -203,11 +208,12 @@ def _screen(base, F, allowed, kind, weights, guard, top: int = SCREEN) -> np.nda
 
 
 def random_reference(
-    F: np.ndarray, group: np.ndarray, zone: np.ndarray, n: int, seed: int, designs: int = 201
+    F: np.ndarray, group: np.ndarray, zone: np.ndarray, n: int, seed: int, designs: int = 201,
+    sep: Separation | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Relative se (designs, n_joints) of seeded random zone designs, and their per-joint median."""
     rel = np.stack([
-        relative_se(F[random_design(group, zone, n, seed + 1000 + i)].sum(axis=0))
+        relative_se(F[random_design(group, zone, n, seed + 1000 + i, sep)].sum(axis=0))
         for i in range(designs)
     ])
     return rel, np.median(rel, axis=0)
@@ -222,6 +228,7 @@ def choose(
     kind: str = "worst",
     weights: np.ndarray | None = None,
     starts: int = 4,
+    sep: Separation | None = None,
 ) -> np.ndarray:
     """Picks (n,) minimising the criterion: exchange from the D-optimal design and random starts.
 
@@ -229,13 +236,13 @@ def choose(
     designs (:func:`random_reference`), so no joint ends up worse than the
     paper's practice. Deterministic for a given seed.
     """
-    guard = (GUARD_FRACTION * random_reference(F, group, zone, n, seed)[1]
+    guard = (GUARD_FRACTION * random_reference(F, group, zone, n, seed, sep=sep)[1]
              if kind == "worst" else None)
-    inits = [greedy_exchange(F, group, n, kind="d")]
-    inits += [random_design(group, zone, n, seed + 17 + i) for i in range(starts - 1)]
+    inits = [greedy_exchange(F, group, n, kind="d", sep=sep)]
+    inits += [random_design(group, zone, n, seed + 17 + i, sep) for i in range(starts - 1)]
     best, best_score = inits[0], np.inf
     for init in inits:
-        picks, score = exchange(F, group, init, kind, weights, guard)
+        picks, score = exchange(F, group, init, kind, weights, guard, sep=sep)
         if score < best_score:
             best, best_score = picks, score
     return best

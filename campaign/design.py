@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.identification.linear_model import design_block
+from campaign.separation import Separation, blocked
 
 
 def scaled_blocks(
@@ -145,6 +146,7 @@ def greedy_exchange(
     kind: str = "d",
     max_passes: int = 20,
     rel_tol: float = 1e-6,
+    sep: Separation | None = None,
 ) -> np.ndarray:
     """Choose n candidates maximising the criterion of the summed information.
 
@@ -162,6 +164,8 @@ def greedy_exchange(
     kind : ``"d"`` (D-optimal, log det) or ``"e"`` (E-optimal, smallest eigenvalue).
     max_passes, rel_tol : exchange passes stop after ``max_passes`` or when no swap
         improves the criterion by more than ``rel_tol`` (relative).
+    sep : also keep the chosen poses apart by its minimum joint-space separation
+        (:mod:`campaign.separation`); raises ValueError when the candidates run out.
 
     Returns
     -------
@@ -175,16 +179,18 @@ def greedy_exchange(
     free = np.ones(F.shape[0], dtype=bool)
     for _ in range(n):
         best, _score = _best(M, F, free, kind)
+        if best < 0:
+            raise ValueError(f"cannot choose {n} poses this far apart from the candidates")
         chosen.append(best)
         M = M + F[best]
-        free &= group != group[best]
+        free &= ~blocked(group, [best], sep)
     current = float(criterion(M, kind))
     for _ in range(max_passes):
         improved = False
         for slot in range(n):
             base = M - F[chosen[slot]]
             others = [c for j, c in enumerate(chosen) if j != slot]
-            allowed = ~np.isin(group, group[others]) if others else np.ones(len(F), bool)
+            allowed = ~blocked(group, others, sep) if others else np.ones(len(F), bool)
             best, score = _best(base, F, allowed, kind)
             if score > current + rel_tol * max(1.0, abs(current)):
                 chosen[slot] = best
@@ -196,12 +202,14 @@ def greedy_exchange(
     return np.sort(np.array(chosen, dtype=int))
 
 
-def random_design(group: np.ndarray, zone: np.ndarray, n: int, seed: int) -> np.ndarray:
+def random_design(group: np.ndarray, zone: np.ndarray, n: int, seed: int,
+                  sep: Separation | None = None) -> np.ndarray:
     """The paper's practice: n distinct poses drawn at random, cycling through the zones.
 
     Parameters
     ----------
     group : (N,) pose of each candidate; zone : (N,) zone index of each candidate.
+    sep : also keep the poses apart by its minimum separation (:mod:`campaign.separation`).
     Returns (n,) sorted candidate indices (one candidate per pose, chosen at random).
 
     Each pick is uniform over the zone's candidates whose pose is not used yet. It is
@@ -225,9 +233,13 @@ def random_design(group: np.ndarray, zone: np.ndarray, n: int, seed: int) -> np.
         i += 1
         draws = rng.integers(0, len(zone), _DRAWS)
         hits = draws[zone[draws] == z]
-        pick = next((int(j) for j in hits if int(group[j]) not in used), None)
+        pick = next((int(j) for j in hits if int(group[j]) not in used
+                     and (sep is None or not sep.conflicts(int(j), picked))), None)
         if pick is None:  # none of the draws landed: scan (rare, or the zone is used up)
-            idx = np.flatnonzero((zone == z) & ~np.isin(group, list(used)))
+            free = ~np.isin(group, list(used))
+            if sep is not None and picked:
+                free &= ~sep.blocked(picked)
+            idx = np.flatnonzero((zone == z) & free)
             if idx.size == 0:
                 stalled += 1
                 continue

@@ -30,6 +30,7 @@ from campaign.protocol_robot import (
     sampling_boxes,
 )
 from campaign.run_noise import noise_from_protocol
+from campaign.separation import Separation
 
 __all__ = ["COLUMNS", "STRATEGIES", "Design", "Plan", "make_plan", "read_plan", "write_plan"]
 
@@ -249,14 +250,26 @@ def make_plan(
               "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows}
     n = protocol.campaign.tests
     zone = cand.zone[pose]
-    rand = random_design(group, zone, n, seed)
-    if strategy == "zones-random":
-        picks = rand
-    elif strategy in ("worst-joint", "weighted"):
-        picks = choose(F, group, zone, n, seed,
-                       kind="worst" if strategy == "worst-joint" else "weighted", weights=weights)
-    else:
-        picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e")
+    sep_deg = protocol.thresholds.min_pose_separation_deg
+    sep = Separation(cand.q[pose], group, sep_deg * DEG)
+    try:
+        rand = random_design(group, zone, n, seed, sep)
+        if strategy == "zones-random":
+            picks = rand
+        elif strategy in ("worst-joint", "weighted"):
+            picks = choose(F, group, zone, n, seed,
+                           kind="worst" if strategy == "worst-joint" else "weighted",
+                           weights=weights, sep=sep)
+        else:
+            picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e",
+                                    sep=sep)
+        reference = random_reference(F, group, zone, n, seed, sep=sep)[1]
+    except ValueError as err:
+        raise InputError(
+            f"cannot choose {n} poses at least {sep_deg:g} deg apart (joint space) from "
+            f"{len(np.unique(group))} candidate poses ({err}); lower "
+            "min_pose_separation_deg, widen the zones or draw more --candidates",
+            where=protocol.where("thresholds", "min_pose_separation_deg")) from err
     chosen = _design(inputs, picks)
     return Plan(
         protocol=protocol,
@@ -271,7 +284,7 @@ def make_plan(
         sigma=sigma,
         length=length,
         noise=noise,
-        random_median_se=k_prior * random_reference(F, group, zone, n, seed)[1],
+        random_median_se=k_prior * reference,
         case_contributions=case_contributions(
             inputs, chosen, [c.name for c in protocol.load_cases]),
         weights=weights,

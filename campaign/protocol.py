@@ -37,6 +37,7 @@ from analysis.file_errors import (
     toml_line,
     yaml_line,
 )
+from campaign.separation import DEFAULT_MIN_SEPARATION_DEG
 
 DEG = math.pi / 180.0
 
@@ -234,6 +235,8 @@ class ThresholdSpec(_Strict):
     min_inv_kappa_F: float = Field(default=0.0, ge=0, le=1)
     max_v_p: float = Field(default=1.0, gt=0)
     max_v_r_deg: float = Field(default=180.0, gt=0)
+    #: smallest joint-space distance between two planned poses (campaign.separation)
+    min_pose_separation_deg: float = Field(default=DEFAULT_MIN_SEPARATION_DEG, ge=0, le=360)
 
 
 class SafetySpec(_Strict):

@@ -39,7 +39,16 @@ from analysis.identification.fitting import (
     fit,
     fit_exact,
 )
+from analysis.identification.holdout_check import (
+    CLUSTER_DEG,
+    PARAMETER_TERM_MAX_POSES,
+    PredictiveSums,
+    flag_columns,
+    holdout_folds,
+    predictive_statistic,
+)
 from analysis.identification.linear_model import design_block
+from analysis.identification.lsq import sandwich_and_residual_variance, whitening
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.identification.poses import group_names, pose_groups, pose_tolerance
@@ -52,6 +61,8 @@ from analysis.model.robot_model import RobotModel
 EXACT_REFITS_MAX = 50
 #: folds per chunk of the per-fold p x p algebra (bounds its temporaries)
 FOLD_CHUNK = 8192
+#: tests per sub-block of the total-uncertainty sums (their (b, 6, 6) temporaries)
+SUB_BLOCK = 2000
 ONE_STEP_NOTE = ("one Gauss-Newton step from the full-data estimate (more than "
                  f"{EXACT_REFITS_MAX} poses)")
 
@@ -71,8 +82,53 @@ def leave_one_pose_out(
     full_fit=None,
     group: np.ndarray | None = None,
     fold_sums=None,
+    linear_shift: tuple[np.ndarray, np.ndarray] | None = None,
+    cluster_rad: float | None = None,
 ) -> pd.DataFrame | None:
-    """Table of held-out prediction errors, or None with fewer than 3 distinct poses.
+    """Table of held-out prediction errors, or None with fewer than 3 folds.
+
+    The folds are the poses, those within ``cluster_rad`` (rad, ||dq|| over the joints;
+    default :data:`~analysis.identification.holdout_check.CLUSTER_DEG`) of each other
+    held out together (:func:`~analysis.identification.holdout_check.holdout_folds`);
+    ``group``: the folds if the caller has them (:func:`holdout_folds` of the poses).
+    Columns ``poses_held_out`` (poses in the fold) and a note where it is more than one;
+    ``held_out_pose`` names the fold by its labels joined with '+'. See
+    :func:`_leave_out` for the rest.
+    """
+    if group is None:
+        radius = CLUSTER_DEG * np.pi / 180.0 if cluster_rad is None else cluster_rad
+        poses = pose_groups(tests.q, pose_tolerance(noise))
+        group = holdout_folds(tests.q, poses, radius)
+    else:
+        poses = pose_groups(tests.q, pose_tolerance(noise))
+    table = _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits,
+                       full_fit, group, fold_sums, linear_shift)
+    if table is None:
+        return None
+    # poses per fold: distinct (fold, pose) pairs counted per fold (one each when there
+    # are as many folds as poses: folds are unions of poses)
+    n_folds = int(group.max(initial=-1)) + 1
+    n_poses = int(poses.max(initial=-1)) + 1
+    if n_folds == n_poses:
+        count = np.ones(n_folds, dtype=int)
+    else:
+        pairs = np.unique(group.astype(np.int64) * n_poses + poses)
+        count = np.bincount(pairs // n_poses, minlength=n_folds)
+    table["poses_held_out"] = count.astype(int)
+    table["note"] = [
+        "; ".join(t for t in (n, f"{c} poses within {_deg(cluster_rad)} of each other held "
+                              "out together") if t) if c > 1 else n
+        for n, c in zip(table["note"], count, strict=True)]
+    return table
+
+
+def _deg(radius: float | None) -> str:
+    return f"{CLUSTER_DEG if radius is None else radius * 180.0 / np.pi:g} deg"
+
+
+def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, full_fit,
+               group, fold_sums, linear_shift) -> pd.DataFrame | None:
+    """The table of :func:`leave_one_pose_out` over the folds ``group`` (m,) ints.
 
     ``batched=False`` refits from scratch for every pose (the reference path).
     ``max_exact_refits`` (default :data:`EXACT_REFITS_MAX`): with more poses than
@@ -82,14 +138,24 @@ def leave_one_pose_out(
     tests' pose groups (:func:`~analysis.identification.poses.pose_groups`) if the caller
     has them. ``fold_sums``: the per-pose sums of a streamed exact ``full_fit``
     (:class:`FinalPassSums`, made in its final pass).
+    ``linear_shift``: for ols/wls whose linearisation bias was corrected
+    (:mod:`analysis.identification.linear_bias`), (shift, M) of the full-data correction
+    (x_c - x_hat (p,), and its propagation (p, p)): each fold's estimate is then
+    corrected too and predicted with the exact model -- by its own correction up to
+    :data:`EXACT_REFITS_MAX` poses, beyond by the full-data shift (the note says so).
+
+    Besides the RMS errors and ``rms_normalized`` (errors over the measurement sigma),
+    each pose gets the check against the prediction's total uncertainty (noise plus the
+    refit's parameter uncertainty) and its flag (:mod:`analysis.identification.holdout_check`).
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
-    if group is None:
-        group = pose_groups(tests.q, pose_tolerance(noise))
     names = group_names(tests.pose, group)
     if len(names) < 3:
         return None
+    per_fold_correction = linear_shift is not None and len(names) <= max_exact_refits
+    if per_fold_correction:
+        batched = False  # each fold is refitted and corrected (the reference path)
     if batched and method == "ols":
         try:
             check_tests(robot, tests, joints)  # row checks hold for every subset then
@@ -101,8 +167,21 @@ def leave_one_pose_out(
             else:
                 J = jacobian(robot, tests.q)
                 A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
-            return _downdate_batched(robot, tests, group, names, joints, noise, A, tests.d,
-                                     np.zeros(len(joints)), method)
+            offset, rhs, shift = None, tests.d, linear_shift
+            if linear_shift is not None and full_fit is not None:
+                # the full fit's linearisation error of each test, e = f(x_c) - A x_c (its
+                # prediction is f(x_c) once corrected): each fold's least squares of d - e
+                # is its own estimate less its own bias G_h e (to first order), and its
+                # prediction A x_h + e; no model evaluation per fold
+                offset = (full_fit.predicted, full_fit.x + linear_shift[0])
+                rhs = _LessOffset(tests.d, A, *offset)
+                shift = (np.zeros(len(joints)), linear_shift[1])
+            table = _downdate_batched(robot, tests, group, names, joints, noise, A, rhs,
+                                      np.zeros(len(joints)), method, linear_shift=shift,
+                                      offset=offset)
+            if linear_shift is not None:
+                table["note"] = [n or SHIFT_NOTE for n in table["note"]]
+            return table
     start = None
     if batched and method == "exact":
         try:
@@ -123,42 +202,92 @@ def leave_one_pose_out(
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
+    cols = list(joints)
+    p = len(cols)
+    total = PredictiveSums(len(names), p)
+    C_folds = np.full((len(names), p, p), np.nan)
     for g, label in enumerate(names):
         held = group == g
         train, test = tests.subset(~held), tests.subset(held)
         row = {"held_out_pose": label, "n_tests": int(held.sum())}
+        note = ""
         try:
             check_tests(robot, train, joints, noise)
             J = jacobian(robot, train.q)
-            A = design_block(J, train.w)[..., list(joints)] * train.measured[..., None]
+            A = design_block(J, train.w)[..., cols] * train.measured[..., None]
             check_identifiable(A, joints)
             if start is not None:
-                x_p = fit_exact(robot, train, joints, noise, start).x
+                f_fold = fit_exact(robot, train, joints, noise, start)
             else:
-                x_p = fit(robot, train, joints, noise, method).x
+                f_fold = fit(robot, train, joints, noise, method)
+            x_p = f_fold.x
+            C_fold, _ = sandwich_and_residual_variance(f_fold.A, f_fold.cov, f_fold.bread,
+                                                       f_fold.Linv)
+            exact_model = method == "exact"
+            if linear_shift is not None:
+                from analysis.identification.linear_bias import correct_linear_bias
+
+                corr = correct_linear_bias(robot, train, joints, f_fold,
+                                           np.sqrt(np.diag(C_fold)), method)
+                if corr.reliable:
+                    x_p, exact_model = corr.x, True
+                    C_fold = corr.propagation @ C_fold @ corr.propagation.T
+                else:
+                    note = f"fold's linearisation bias not corrected: {corr.reason}"
         except InputError as err:
             rows.append({**row, "rms_translation_m": np.nan, "rms_rotation_rad": np.nan,
                          "rms_normalized": np.nan, "note": str(err)})
             continue
         x = np.zeros(6)
-        x[list(joints)] = x_p
-        if method == "exact":
-            pred, _ = model_displacement(robot, test.q, x, test.w, with_jacobian=False)
-        else:
-            pred = np.einsum("mrj,j->mr", design_block(jacobian(robot, test.q), test.w), x)
-        err = np.where(test.measured, test.d - pred, np.nan)
+        x[cols] = x_p
         Jt = jacobian(robot, test.q)
+        if exact_model:
+            pred, D = model_displacement(robot, test.q, x, test.w)
+            F = D[..., cols]
+        else:
+            F = design_block(Jt, test.w)[..., cols]
+            pred = F @ x_p
+        err = np.where(test.measured, test.d - pred, np.nan)
         C = np.einsum("...ij,j,...kj->...ik", Jt, x, Jt)
-        sig = np.sqrt(np.diagonal(residual_covariance(noise, C, test.w), axis1=-2, axis2=-1))
+        cov_t = residual_covariance(noise, C, test.w)
+        sig = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
         norm = err / sig
+        total.add(np.full(test.m, g), whitening(cov_t, test.measured), F, err, test.measured)
+        C_folds[g] = C_fold
         rows.append({
             **row,
             "rms_translation_m": _rms(err[:, :3][test.measured[:, :3]]),
             "rms_rotation_rad": _rms(err[:, 3:][test.measured[:, 3:]]),
             "rms_normalized": _rms(norm[test.measured]),
-            "note": "",
+            "note": note,
         })
-    return pd.DataFrame(rows)
+    return _with_total(pd.DataFrame(rows), total, lambda h: C_folds[h])
+
+
+SHIFT_NOTE = ("linearisation bias of the fold corrected with the full fit's linearisation "
+              f"error of each test (more than {EXACT_REFITS_MAX} poses)")
+
+
+class _LessOffset:
+    """``d - (f - A x_c)`` (m, 6) made a block of tests at a time when sliced: the
+    displacements less the full fit's linearisation error (no (m, 6) copy)."""
+
+    def __init__(self, d, A, f, x_c) -> None:
+        self.d, self.A, self.f, self.x_c = d, A, f, x_c
+
+    def __getitem__(self, sl):
+        return self.d[sl] - (self.f[sl] - np.asarray(self.A[sl]) @ self.x_c)
+
+
+def _with_total(table: pd.DataFrame, total: PredictiveSums, covariance) -> pd.DataFrame:
+    """``table`` with the columns of the check against the prediction's total uncertainty
+    (:func:`analysis.identification.holdout_check.flag_columns`); folds without a
+    prediction (NaN RMS) get NaN and no flag."""
+    q = predictive_statistic(total, covariance)
+    q[~np.isfinite(table["rms_normalized"].to_numpy(dtype=float))] = np.nan
+    for name, col in flag_columns(q, total.n).items():
+        table[name] = col
+    return table
 
 
 def _system_of(fit):
@@ -181,8 +310,8 @@ def _system_of(fit):
 
 
 def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
-                      dq0=None, Linv=None, system=None, sums=None, shift=None
-                      ) -> pd.DataFrame:
+                      dq0=None, Linv=None, system=None, sums=None, shift=None,
+                      linear_shift=None, offset=None) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
 
     ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the design and right-hand side: for ols the
@@ -196,10 +325,21 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     ``system``: (R, c, scale) of the column-scaled whitened system if the caller has it
     (:func:`_system_of`: two passes saved), and ``sums`` the per-fold sums of the
     whitened system at x0 - ``shift`` (:class:`FoldSums` of a :class:`FinalPassSums`:
-    no pass over the tests for the folds' estimates; with ``system``). Each fold's
+    no pass over the tests for the folds' estimates; with ``system``; their ``held`` and
+    ``score`` are released once used). Each fold's
     estimate is then corrected for the
     wrench noise in the regressor like the fits (:mod:`analysis.identification.eiv`), with
-    the fold's S and (A^T W A)^-1 (``Linv`` None for ols).
+    the fold's S and (A^T W A)^-1 (``Linv`` None for ols). ``linear_shift``: (shift, M)
+    of an ols fit's linearisation-bias correction, added to every fold's estimate (the
+    prediction is then the exact model's, and the folds' covariances are M C M^T).
+    ``offset``: (f (m, 6), x_c (p,)) the exact model's values of every test at the full
+    corrected estimate x_c: the folds' predictions are then the linear ones plus the
+    full fit's linearisation error f - A x_c (its change between x_c and a fold's
+    estimate is second order: ~1 % of a change of ~se/x) instead of the model's.
+
+    The folds' covariances for the total-uncertainty check: (A^T W A)_-h^-1 for a fit
+    whitened by its own covariances, the sandwich bread_-h meat_-h bread_-h for ols
+    (meat summed per fold in the prediction pass).
     """
     from scipy.linalg import solve_triangular
 
@@ -297,8 +437,29 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         z[h] = np.linalg.solve(np.eye(p) - S[h], (c - t[h])[..., None])[..., 0]
     x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
     x_p[ok] = _fold_eiv(held, R, scale, S, x_p, ok)
+    # the folds' scores and errors-in-variables parts are used up (17 + 5 MB at 1e5 poses):
+    # let them go before the prediction pass (the folds' Gram matrices stay, in S)
+    held = t = None
+    sums.held = sums.score = None
+    if linear_shift is not None:
+        x_p = x_p + linear_shift[0]
+    exact_model = method == "exact" or (linear_shift is not None and offset is None)
     x = np.zeros((P, 6))
     x[:, cols] = x_p
+    if P > PARAMETER_TERM_MAX_POSES:
+        # the refit's parameter term is below 1/P of the noise term: left out
+        total, meat = PredictiveSums(P, p, parameter=False), None
+    elif Linv is not None:
+        # a fit whitened by its own covariances: the held-out poses' F^T W F are the
+        # folds' parts of its normal matrix, D R^T S_h R D (no per-fold sums of their own)
+        def normal(h):
+            return scale[:, None] * (R.T @ S[h] @ R) * scale[None, :]
+
+        total = PredictiveSums(P, p, normal=normal)
+        meat = None
+    else:  # ols: A^T Sigma A per fold for the sandwich (float32: 8 MB at 1e5 poses)
+        total = PredictiveSums(P, p)
+        meat = np.zeros((P, len(total.iu[0])), dtype=np.float32)
     # held-out prediction errors, summed per fold (test blocks bound the memory)
     sq = np.zeros((3, P))  # squared errors: translation, rotation, normalised
     failed = np.zeros(P, dtype=bool)
@@ -306,7 +467,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         sl = slice(s, s + TEST_BLOCK)
         f, q, w, meas = fold[sl], tests.q[sl], tests.w[sl], tests.measured[sl]
         xt = x[f]  # the held-out estimate used for each test
-        if method == "exact":
+        if exact_model:
             unloaded: dict = {}
             pred, _, good, _ = model_displacement_state(
                 robot, q, xt, w, with_jacobian=False, dq0=None if dq0 is None else dq0[sl],
@@ -315,10 +476,27 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
             failed |= np.bincount(f, ~good, P) > 0
         else:
             J = jacobian(robot, q)
-            pred = np.einsum("mrj,mj->mr", design_block(J, w), xt)
+        # the linear model's A for F of the prediction's parameter term also for the exact
+        # model (their difference, ~1 % of the deflection, moves that term by ~1 %; the
+        # model's Jacobian would cost its derivatives for every test)
+        F = design_block(J, w)[..., cols]
+        if not exact_model:
+            pred = np.einsum("mrj,mj->mr", F, x_p[f])
+            if offset is not None:  # + the linearisation error at the full estimate
+                pred += offset[0][sl] - F @ offset[1]
         err = np.where(meas, tests.d[sl] - pred, 0.0)
         C = (J * xt[:, None, :]) @ np.swapaxes(J, -1, -2)  # J diag(x) J^T
-        sig = np.sqrt(np.diagonal(residual_covariance(noise, C, w), axis1=-2, axis2=-1))
+        cov_t = residual_covariance(noise, C, w)
+        sig = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
+        for u in range(0, len(f), SUB_BLOCK):  # the check's per-test temporaries: small
+            v = slice(u, u + SUB_BLOCK)
+            total.add(f[v], whitening(cov_t[v], meas[v]), F[v], err[v], meas[v])
+            if meat is not None:  # ols: A^T Sigma A of the tests, per fold
+                Ab = np.where(meas[v][..., None], F[v], 0.0)
+                AtSA = np.einsum("mri,mrs,msj->mij", Ab, cov_t[v], Ab)[:, total.iu[0],
+                                                                       total.iu[1]]
+                for a in range(AtSA.shape[1]):
+                    meat[:, a] += np.bincount(f[v], AtSA[:, a], P)
         sq[0] += np.bincount(f, np.sum(err[:, :3] ** 2, axis=1), P)
         sq[1] += np.bincount(f, np.sum(err[:, 3:] ** 2, axis=1), P)
         sq[2] += np.bincount(f, np.sum((err / sig) ** 2, axis=1), P)
@@ -332,12 +510,27 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
         notes[h] = ("the equilibrium has no solution at this fold's estimate for a held-out "
                     "test (wrench too large for these compliances)")
     rms[:, ~ok] = np.nan
-    return pd.DataFrame({
+    table = pd.DataFrame({
         "held_out_pose": list(labels),
         "n_tests": np.bincount(fold, minlength=P).astype(int),
         "rms_translation_m": rms[0], "rms_rotation_rad": rms[1], "rms_normalized": rms[2],
         "note": notes,
     })
+    Rinv = np.linalg.inv(R)
+    meat_total = None if meat is None else PackedSym(meat.astype(float), p).total()
+
+    def covariance(h):  # the folds' covariances (len(h), p, p), NaN for folds not fitted
+        with np.errstate(all="ignore"):
+            bread = (Rinv @ np.linalg.solve(np.eye(p) - S[h], np.broadcast_to(
+                Rinv.T, (len(h), p, p)))) / (scale[:, None] * scale[None, :])
+        if meat is not None:
+            bread = bread @ (meat_total - PackedSym(meat, p)[h].astype(float)) @ bread
+        if linear_shift is not None:
+            bread = linear_shift[1] @ bread @ linear_shift[1].T
+        bread[~ok[h]] = np.nan
+        return bread
+
+    return _with_total(table, total, covariance)
 
 
 class FoldSums:

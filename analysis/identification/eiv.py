@@ -33,8 +33,9 @@ shift (~1e-8 of x).
 
 Joint-angle (encoder) noise enters A through J(q_m) the same way, with
 relative size ``(sigma_q * d ln J / dq)^2 ~ (5e-6)^2``: measured on 1e5 simulated
-KR240-2 tests, switching it off moves no (k - k_true) / se by more than 0.01, so
-it is not corrected. Displacement noise does not enter A.
+KR240-2 tests, switching it off moves no (k - k_true) / se by more than 0.01; its
+bias is estimated and added to the intervals as a systematic term by
+:mod:`analysis.identification.encoder_eiv`. Displacement noise does not enter A.
 
 Units: J rows m/rad (translations) and rad/rad (rotations); W the inverse of the
 residual covariance (1/m^2, 1/rad^2; identity for OLS); S has the units of

@@ -176,8 +176,8 @@ def _beyond(t: np.ndarray, mask: np.ndarray, threshold: float) -> np.ndarray:
 
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
-                  scale: float, threshold: float, t_first: np.ndarray | None = None
-                  ) -> np.ndarray:
+                  scale: float, threshold: float, t_first: np.ndarray | None = None,
+                  bias_se: np.ndarray | None = None) -> np.ndarray:
     """(m, 6) bool: residuals beyond ``threshold``, found one at a time.
 
     A gross error pulls the fit towards itself and inflates the residuals of
@@ -186,6 +186,9 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
     aside, the rest is refitted and tested again (a sequential, Grubbs-like
     procedure), at most :data:`MAX_OUTLIERS` times or while equations remain.
     ``t_first``: the (m, 6) studentized residuals of ``first`` if the caller has them.
+    ``bias_se`` (p,): for a linear fit whose linearisation bias was corrected, the
+    standard errors of ``first``; each refit is then corrected too and its residuals
+    are those of the exact model at the corrected estimate, as for ``first``.
 
     Above :data:`OUTLIERS_AT_ONCE_ABOVE` measured components, each round sets aside
     every residual beyond the threshold (largest |t| first, within the same budget)
@@ -226,6 +229,11 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
         try:
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
                                      tests.d[i, c])
+            if bias_se is not None:
+                from analysis.identification.linear_bias import correct_linear_bias
+
+                correct_linear_bias(robot, rest, joints, current, bias_se, method,
+                                    in_place=True)
             t = None  # its 48 MB (1e6 tests) before the next
             t = _studentized_matrix(rest, current, scale)
         except InputError:
@@ -306,6 +314,25 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
     return fit(robot, rest, joints, noise, method)
 
 
+def _validation_flags(validation: pd.DataFrame, named: int = 5) -> list[str]:
+    """A warning naming the held-out poses beyond the limit of the total-uncertainty check
+    (:mod:`analysis.identification.holdout_check`), or nothing."""
+    beyond = validation[validation["beyond_limit"].to_numpy(dtype=bool)]
+    if not len(beyond):
+        return []
+    from analysis.identification.holdout_check import HOLDOUT_FAMILY_LEVEL
+
+    worst = beyond.sort_values("rms_normalized_total", ascending=False).head(named)
+    text = ", ".join(f"pose {r.held_out_pose} at {r.rms_normalized_total:.2f} (limit "
+                     f"{r.limit_normalized_total:.2f}, p = {r.p_value_total:.2g})"
+                     for r in worst.itertuples())
+    more = f" and {len(beyond) - named} more" if len(beyond) > named else ""
+    return [f"{len(beyond)} held-out pose(s) predicted worse than their total uncertainty "
+            f"(noise and the refit's parameter uncertainty; Sidak, "
+            f"{HOLDOUT_FAMILY_LEVEL:.0%} family-wise over {len(validation)} poses): "
+            f"{text}{more}; the model or the data of these poses is suspect"]
+
+
 #: residual tables of more rows than this are held in memory only for the tests with the
 #: largest |studentized| residuals (:class:`ResidualRows`; results.json lists 1000 rows and
 #: the report 200 tests); the whole table is written to residuals.csv block by block
@@ -324,6 +351,7 @@ def identify(
     validate: bool = True,
     confidence: float = 0.95,
     robust: str = "none",
+    holdout_radius: float | None = None,
 ) -> IdentificationResult:
     """Identify joint stiffness from tests; see the module docstring for the estimators.
 
@@ -342,6 +370,10 @@ def identify(
         (:mod:`analysis.identification.robust`). The chi-square, the noise-ratio notes
         and the validation then use the components kept (weight >= 0.5); the
         ``outlier`` column marks the ones down-weighted below it.
+    holdout_radius : poses closer than this (rad, ||dq|| over the joints) are held out
+        together in the validation; default
+        :data:`analysis.identification.holdout_check.CLUSTER_DEG` (the planner's default
+        minimum separation; a run passes its protocol's).
     """
     from threadpoolctl import threadpool_limits
 
@@ -350,11 +382,11 @@ def identify(
     # (measured: TSQR of 6e5 x 7 rows 0.02-0.06 s in one thread, 0.13-0.36 s in two)
     with threadpool_limits(limits=1):
         return _identify(robot, tests, method, joints, noise, covariance, cond_limit,
-                         outlier_level, validate, confidence, robust)
+                         outlier_level, validate, confidence, robust, holdout_radius)
 
 
 def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outlier_level,
-              validate, confidence, robust) -> IdentificationResult:
+              validate, confidence, robust, holdout_radius) -> IdentificationResult:
     """:func:`identify` in the calling thread's BLAS thread limit."""
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}",
@@ -378,6 +410,12 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
 
     group = pose_groups(tests.q, pose_tolerance(noise))  # once: 1-2 s at 1e6 tests
     check_tests(robot, tests, joints, noise, group=group)
+    from analysis.identification.holdout_check import CLUSTER_DEG, holdout_folds
+
+    if holdout_radius is None:
+        holdout_radius = np.radians(CLUSTER_DEG)
+    # the validation's folds: the poses, nearby ones together
+    fold = holdout_folds(tests.q, group, holdout_radius) if validate else group
     design = _design(robot, tests, joints)
     cond = check_identifiable(design[1], joints, cond_limit)
     warnings: list[str] = []
@@ -412,8 +450,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             # made in the pass that forms the final system (no passes of their own)
             from analysis.identification.crossval import FinalPassSums
 
-            folds = int(group.max(initial=-1)) + 1
-            sums = FinalPassSums(tests, joints, noise, group if validate and folds >= 3
+            folds = int(fold.max(initial=-1)) + 1
+            sums = FinalPassSums(tests, joints, noise, fold if validate and folds >= 3
                                  else None, folds)
         # the first Gauss-Newton weights are WLS's first ones (both at the OLS estimate)
         chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"],
@@ -429,6 +467,18 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
 
     if tests.m > per_test.LAZY_TESTS:
         per_test.release_freed_heap()  # the fit's freed pages, before the validation
+    corr = None
+    if method in ("ols", "wls"):
+        # the linear model's bias corrected (before the validation, which corrects its folds
+        # too); where reliable, the residuals (chi-square, outliers, notes) are those of the
+        # exact model at the corrected estimate
+        from analysis.identification.linear_bias import correct_linear_bias
+        from analysis.identification.lsq import sandwich
+
+        # chosen.predicted becomes f(x_c) in place where the correction is reliable
+        corr = correct_linear_bias(robot, tests, joints, chosen, np.sqrt(np.diag(
+            sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv))), method,
+            in_place=True)
     # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
     # start for the held-out tests) are let go before the per-test statistics are made
     validation = None
@@ -440,7 +490,12 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
         validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
                                         full_fit=chosen if rob is None else None,
-                                        group=group, fold_sums=sums)
+                                        group=fold, cluster_rad=holdout_radius,
+                                        fold_sums=sums,
+                                        linear_shift=None if corr is None or not corr.reliable
+                                        else (corr.x - corr.x_raw, corr.propagation))
+    if validation is not None:
+        warnings += _validation_flags(validation)
     sums = None
     if chosen.R is not None:
         chosen.deflection = None  # 48 MB at 1e6 tests, not used beyond the validation
@@ -514,14 +569,31 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         crit = critical_value(confidence, dof)
     cov_x = cov_x * scale
     se_x = np.sqrt(np.diag(cov_x))
-    ci = stiffness_interval(chosen.x, se_x, crit)
+    x_out = chosen.x  # the raw linear estimate for ols/wls (the outlier refits start there)
+    bias = None
+    # systematic terms added to the interval's half-width of x (rad/(N m))
+    widen = np.zeros(len(joints))
     if method in ("ols", "wls"):
-        from analysis.identification.linear_bias import bias_decision, linearisation_bias
+        from analysis.identification.linear_bias import summary
 
-        widen, note = bias_decision(method, joints, linearisation_bias(
-            robot, tests, joints, chosen.x, chosen.estimator, chosen.predicted), se_x)
-        ci = stiffness_interval(chosen.x, se_x + widen / crit, crit)
-        warnings.append(note)
+        se_raw = se_x
+        if corr.reliable:
+            x_out = corr.x
+            cov_x = corr.propagation @ cov_x @ corr.propagation.T
+            se_x = np.sqrt(np.diag(cov_x))
+        else:  # the raw estimate, its interval widened by |b| where b is known
+            widen += np.where(np.isfinite(corr.bias), np.abs(corr.bias), 0.0)
+        bias = summary(corr, se_raw, se_x)
+        warnings.append(bias["note"])
+    from analysis.identification import encoder_eiv
+
+    b_q = encoder_eiv.encoder_bias(robot, tests, joints, x_out, noise)
+    widen += np.abs(b_q)
+    encoder = encoder_eiv.summary(joints, x_out, b_q, se_x, noise,
+                                  min(tests.m, encoder_eiv.MAX_TESTS))
+    if max(encoder["bias_in_standard_errors"][j] for j in joints) >= EIV_WARN_SE:
+        warnings.append(encoder["note"])
+    ci = stiffness_interval(x_out, se_x + widen / crit, crit)
     eiv = None
     if chosen.eiv_shift is not None:
         from analysis.identification.eiv import shift_summary
@@ -536,7 +608,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                         "not match the noise model; check the noise figures or use "
                         "covariance='residual'")
     for idx, j in enumerate(joints):
-        if chosen.x[idx] - crit * se_x[idx] <= 0:
+        if x_out[idx] - crit * se_x[idx] <= 0:
             warnings.append(f"joint {j + 1}: the {confidence:.0%} interval of its compliance "
                             "reaches 0, the data do not bound k from above")
 
@@ -544,7 +616,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     t = _studentize(tests, chosen.predicted, var_r, scale)  # in var_r's array
     var_r = None
     if rob is None:
-        flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t)
+        flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t,
+                              bias_se=se_raw if bias is not None and bias["reliable"] else None)
     else:
         flags = tests.measured & ~kept
     if tests.m > per_test.LAZY_TESTS:
@@ -570,7 +643,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             f"{n_flagged} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
             f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
     result = IdentificationResult.build(
-        robot=robot.name, method=method, joints=joints, x=chosen.x, cov_x=cov_x, ci=ci,
+        robot=robot.name, method=method, joints=joints, x=x_out, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,
         condition_number_weighted=float(scaled_condition(Aw)), tests=tests, n_equations=n_eq,
         dof=dof, chi2_reduced=chi2_red, p_value=p_value, residuals=residuals,
@@ -580,6 +653,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     )
     result.residual_rows = rows
     result.wrench_eiv = eiv
+    result.linear_bias = bias
+    result.encoder_eiv = encoder
     if rob is not None:
         result.robust = rob.describe()
     result.validation = validation

@@ -1,6 +1,6 @@
 """Checks that an identified stiffness is believable before anyone uses it.
 
-Three checks, each a refusal unless the user accepts the result anyway
+Checks, each a refusal unless the user accepts the result anyway
 (``campaign analyze --accept-misfit``):
 
 * **misfit**: the reduced chi-square says the model does not explain the data,
@@ -19,6 +19,9 @@ Three checks, each a refusal unless the user accepts the result anyway
   joint pushes back, so the signs of the data disagree with the model, most
   often the wrench given as the reaction the sensor feels instead of the load
   applied to the robot;
+* **linearisation bias not correctable** (``ols``, ``wls``): the correction of the
+  linear model's bias is unreliable (:mod:`analysis.identification.linear_bias`), so
+  the raw, biased estimate is all there is;
 * **far from nominal**: an identified k differs from the robot model's nominal
   stiffness by more than :data:`NOMINAL_FACTOR` either way (only where the
   model has one): a unit error of the displacements or the wrench, or a
@@ -132,6 +135,12 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
             f"too good to be true: the residuals are far smaller than the noise figures "
             f"({chi2}, P(chi2 <= observed) = {low:.2g} < {MISFIT_P:g}); likely causes: "
             f"{_causes(CAUSES_TOO_GOOD)}")
+    bias = result.linear_bias
+    if bias is not None and not bias["reliable"]:
+        out.append(
+            f"linearisation bias: {result.method} is biased by the linear model at these "
+            f"loads and the correction is unreliable ({bias['reason']}); use --method exact "
+            "(the nonlinear equilibrium fit)")
     negative = _negative_joints(result)
     if negative:
         out.append(

@@ -284,6 +284,13 @@ class IdentificationResult:
     wrench_eiv : the correction for the wrench noise in the regressor
         (:func:`analysis.identification.eiv.shift_summary`), None when not applied;
         results.json ``wrench_errors_in_variables``.
+    linear_bias : ols/wls only, the linearisation-bias correction
+        (:func:`analysis.identification.linear_bias.summary`: raw and corrected k, the
+        bias in standard errors, whether the correction is reliable); None for exact.
+        results.json ``linearisation_bias``.
+    encoder_eiv : the bias of the encoder noise in J, added to the intervals as a
+        systematic term (:func:`analysis.identification.encoder_eiv.summary`);
+        results.json ``encoder_errors_in_variables``.
     tests_data : fingerprint of the tests analysed
         (:func:`analysis.identification.data_fingerprint.fingerprint`), filled by the
         caller; results.json ``tests_data`` (``campaign compare`` refuses campaigns that
@@ -321,6 +328,8 @@ class IdentificationResult:
     robust: dict | None = None
     residual_rows: ResidualRows | None = None
     wrench_eiv: dict | None = None
+    linear_bias: dict | None = None
+    encoder_eiv: dict | None = None
     tests_data: dict | None = None
 
     @classmethod
@@ -408,6 +417,8 @@ class IdentificationResult:
             "noise": self.noise.describe(),
             "robust": self.robust,
             "wrench_errors_in_variables": self.wrench_eiv,
+            "linearisation_bias": self.linear_bias,
+            "encoder_errors_in_variables": self.encoder_eiv,
             "warnings": self.warnings,
             "tests_data": self.tests_data,
             **residual_summary(self.residuals, rows=self.residual_rows),
@@ -422,12 +433,14 @@ VALIDATION_LISTED = 200
 
 
 def worst_poses(validation: pd.DataFrame, listed: int = VALIDATION_LISTED) -> pd.DataFrame:
-    """The ``listed`` rows of ``validation`` of largest RMS error / sigma (NaN, i.e. folds
-    that could not be fitted, first), largest first; all rows in order when there are
-    no more than ``listed``."""
+    """The ``listed`` rows of ``validation`` of largest RMS error over the prediction's total
+    uncertainty (or over sigma in a table without it; NaN, i.e. folds that could not be
+    fitted, first), largest first; all rows in order when there are no more than
+    ``listed``."""
     if len(validation) <= listed:
         return validation
-    key = validation["rms_normalized"].to_numpy(dtype=float)
+    col = "rms_normalized_total" if "rms_normalized_total" in validation else "rms_normalized"
+    key = validation[col].to_numpy(dtype=float)
     key = np.where(np.isfinite(key), key, np.inf)
     return validation.iloc[np.argsort(-key, kind="stable")[:listed]]
 
@@ -456,10 +469,24 @@ def validation_summary(validation: pd.DataFrame | None, listed: int = VALIDATION
         "rms_translation_m_pooled": pooled("rms_translation_m"),
         "rms_rotation_rad_pooled": pooled("rms_rotation_rad"),
     }
+    if "rms_normalized_total" in validation:
+        from analysis.identification.holdout_check import HOLDOUT_FAMILY_LEVEL, LIMIT_TEXT
+
+        tot = validation["rms_normalized_total"].to_numpy(dtype=float)
+        ok = np.isfinite(tot)
+        beyond = validation["beyond_limit"].to_numpy(dtype=bool)
+        summary.update({
+            "rms_normalized_total_median": float(np.median(tot[ok])) if ok.any() else None,
+            "rms_normalized_total_max": float(np.max(tot[ok])) if ok.any() else None,
+            "n_beyond_limit": int(beyond.sum()),
+            "poses_beyond_limit": [str(v) for v in validation["held_out_pose"][beyond]][:100],
+            "limit_family_level": HOLDOUT_FAMILY_LEVEL,
+            "limit": LIMIT_TEXT,
+        })
     rows = worst_poses(validation, listed)
     which = (f"all {len(validation)} held-out poses" if len(rows) == len(validation) else
              f"the {listed} of {len(validation)} held-out poses with the largest RMS error / "
-             "sigma (folds not fitted first); every pose is in validation.csv")
+             "total uncertainty (folds not fitted first); every pose is in validation.csv")
     return {"validation": _records(rows), "validation_listed": which,
             "validation_summary": summary}
 

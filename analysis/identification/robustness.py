@@ -22,9 +22,11 @@ How a trial is simulated
   pool's dJ/dq (error O(sigma_q^2), below 1e-10 relative).
 * Identification is batched over trials (:mod:`analysis.identification.batch_lsq`, batch
   on the last axis): per-test whitening by Cholesky factors and QR by
-  modified Gram-Schmidt, ``ols`` (the paper's estimator, default) or
-  ``wls``; or ``exact``: batched Gauss-Newton on the equilibrium
-  (:mod:`analysis.identification.gauss_newton`) from the OLS start, about 100 times slower,
+  modified Gram-Schmidt, ``ols`` (the paper's estimator, without the
+  linearisation-bias correction of ``campaign analyze``: the study as the paper
+  made it) or ``wls``; or ``exact`` (default, as in ``campaign analyze``): batched
+  Gauss-Newton on the equilibrium (:mod:`analysis.identification.gauss_newton`) from
+  the OLS start, about 100 times slower,
   which removes the linearisation bias the linear fits show at large loads.
 """
 
@@ -327,7 +329,30 @@ def identify_exact_batch(
     return gn.x.T, se.T
 
 
-def _summary_rows(n: int, x: np.ndarray, se: np.ndarray, k_true, joints) -> list[dict]:
+def noise_free_bias(pool: PosePool, draw: Draw, noise: NoiseModel, method: str,
+                    joints: Sequence[int], k_true: np.ndarray) -> np.ndarray:
+    """(p,) median over the drawn campaigns of k / k_true - 1 of the linear ``method``
+    fitted to their noise-free data (the pool's exact displacements, exact wrench and
+    joint angles): the linearisation bias of the linear model at this wrench, alone.
+    ``noise`` only weights WLS. NaN for a joint no campaign identifies."""
+    n, T = draw.idx.shape
+    clean = Draw(draw.idx, np.zeros_like(draw.dq),
+                 np.broadcast_to(pool.w[:, None, None], (6, n, T)).copy(),
+                 pool.d[:, draw.idx])
+    x, _ = identify_batch(measured_jacobians(pool, clean), clean.w, clean.d, noise, method,
+                          tuple(joints), with_se=False)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = np.where(x > 0, 1.0 / x, np.nan) / k_true[list(joints), None] - 1.0
+    out = np.full(len(joints), np.nan)
+    for c in range(len(joints)):
+        good = rel[c][np.isfinite(rel[c])]
+        if good.size:
+            out[c] = float(np.median(good))
+    return out
+
+
+def _summary_rows(n: int, x: np.ndarray, se: np.ndarray, k_true, joints,
+                  bias: np.ndarray | None = None) -> list[dict]:
     x, se = x.T, se.T  # (T, p)
     rows = []
     with np.errstate(invalid="ignore"):
@@ -350,6 +375,7 @@ def _summary_rows(n: int, x: np.ndarray, se: np.ndarray, k_true, joints) -> list
             "trials": int(x.shape[0]),
             "trials_rejected": int((~ok).sum()),
             "trials_failed": int((~np.all(np.isfinite(x), axis=1)).sum()),
+            "linearisation_bias_relative": np.nan if bias is None else float(bias[c]),
         })
     return rows
 
@@ -361,7 +387,7 @@ def robustness_study(
     tests: Sequence[int] = range(1, 21),
     trials: int = 1000,
     noise: NoiseModel | None = None,
-    method: str = "ols",
+    method: str = "exact",
     seed: int = 0,
     pool_size: int = 2000,
     min_inverse_condition: float = MIN_INVERSE_CONDITION,
@@ -371,8 +397,9 @@ def robustness_study(
 
     Returns one row per (n_tests, joint): k_true, mean, std (ddof 1), relative
     std (std / k_true), median, IQR, the median noise-model prediction of the
-    std (delta method), the std of the compliance, trials, and trials rejected
-    (some x <= 0 or not finite: excluded from the statistics of k).
+    std (delta method), the std of the compliance, trials, trials rejected
+    (some x <= 0 or not finite: excluded from the statistics of k), and for ols/wls
+    the linearisation bias (:func:`noise_free_bias`, NaN for exact).
     ``progress(trials_done)`` is called after each chunk.
     """
     noise = noise or NoiseModel()
@@ -397,6 +424,7 @@ def robustness_study(
     for n in tests:
         chunk = max(1, (EXACT_CHUNK_TESTS if method == "exact" else TRIAL_CHUNK_TESTS) // n)
         xs, ses = [], []
+        bias = None
         done = 0
         while done < trials:
             t = min(chunk, trials - done)
@@ -411,12 +439,16 @@ def robustness_study(
                     sub = slice(0, min(t, SE_TRIALS))
                     ses.append(identify_batch(J[..., sub], draw.w[..., sub], draw.d[..., sub],
                                               noise, method, joints)[1])
+                    # and the linear model's own bias, on the same campaigns without noise
+                    bias = noise_free_bias(pool, Draw(draw.idx[:, sub], draw.dq[..., sub],
+                                                      draw.w[..., sub], draw.d[..., sub]),
+                                           noise, method, joints, k_true)
             xs.append(x)
             done += t
             if progress is not None:
                 progress(t)
         rows += _summary_rows(n, np.concatenate(xs, axis=1), np.concatenate(ses, axis=1), k_true,
-                              joints)
+                              joints, bias)
     return pd.DataFrame(rows)
 
 

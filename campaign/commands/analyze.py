@@ -67,6 +67,7 @@ def _print_assumptions(console: Console, a: dict) -> None:
         f"  robust fitting: {a['robust']}",
         f"  wrench errors in variables: {a['wrench_errors_in_variables']}",
         f"  poses: {a['poses']}",
+        f"  {a['validation_folds']}",
     ):
         print_wrapped(console, line)
 
@@ -77,11 +78,19 @@ def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
     from analysis.report.formatting import interval_kNm, k_kNm
 
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
-    for col in ("joint", "k (kN m/rad)", f"{100 * result.confidence:g} % interval (kN m/rad)"):
+    bias = result.linear_bias
+    cols = ["joint", "k (kN m/rad)", f"{100 * result.confidence:g} % interval (kN m/rad)"]
+    if bias is not None:  # ols/wls: the raw linear estimate beside the corrected one
+        cols.append(f"raw {result.method}, linearisation bias not corrected (kN m/rad)")
+    for col in cols:
         table.add_column(col, justify="right")
     for j in range(6):
-        table.add_row(f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
-                      if np.isfinite(result.k[j]) else "-")
+        row = [f"k{j + 1}", k_kNm(result.k[j]), interval_kNm(*result.ci[j])
+               if np.isfinite(result.k[j]) else "-"]
+        if bias is not None:
+            raw = bias["raw_joint_stiffness_Nm_per_rad"][j]
+            row.append("-" if raw is None else k_kNm(raw))
+        table.add_row(*row)
     console.print(table)
     for w in result.warnings[printed:]:
         print_wrapped(console, f"warning: {w}", style="yellow")

@@ -19,6 +19,7 @@ from campaign.cli_common import (
     print_json,
     print_wrapped,
 )
+from campaign.jobs.analyze import DEFAULT_METHOD
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
 
@@ -73,7 +74,9 @@ def register(app: typer.Typer) -> None:
         trials: int = typer.Option(1000, help="Monte-Carlo trials per number of tests.",
             rich_help_panel=_STUDY),
         method: Method = typer.Option(
-            "ols", help="ols (the paper's estimator), wls, or exact (nonlinear, ~100 x slower).",
+            DEFAULT_METHOD, help="exact (the default, as campaign analyze: nonlinear, ~100 x "
+            "slower than the linear fits), ols (the paper's estimator as in its Fig. 7, "
+            "without the linearisation-bias correction of campaign analyze), or wls.",
             rich_help_panel=_STUDY),
         seed: int = typer.Option(0, help="Random seed.", rich_help_panel=_STUDY),
         pool_size: int = typer.Option(2000, help="Poses drawn from the zones and simulated.",
@@ -146,6 +149,7 @@ def register(app: typer.Typer) -> None:
         if not as_json:
             _print(console, summary, f"{settings['robot']}: relative spread of k "
                    f"({settings['method']}, {trials} trials)")
+        print_wrapped(console, settings["method_note"])
         for note in settings["notes"]:
             print_wrapped(console, f"note: {note}")
         for path in result.files:

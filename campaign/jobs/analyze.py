@@ -352,8 +352,25 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
         "poses": (f"tests whose joint angles agree to within "
                   f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
                   "encoder sigmas) are at one pose"),
+        "validation_folds": _folds_text(extras.get("protocol")),
         "conventions": CONVENTIONS,
     }
+
+
+def _holdout_deg(protocol) -> tuple[float, str]:
+    """Poses closer than this (deg) are held out together, and where that comes from."""
+    from analysis.identification.holdout_check import CLUSTER_DEG
+
+    if protocol is not None:
+        return (float(protocol.thresholds.min_pose_separation_deg),
+                f"protocol {Path(protocol.path).name} [thresholds] min_pose_separation_deg")
+    return CLUSTER_DEG, "default, the planner's default minimum pose separation"
+
+
+def _folds_text(protocol) -> str:
+    deg, source = _holdout_deg(protocol)
+    return (f"held-out validation: poses within {deg:g} deg of each other (joint space) are "
+            f"held out together ({source})")
 
 
 def _release_freed_heap() -> None:
@@ -560,7 +577,8 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         del table
         _release_freed_heap()
         result = identify(model, tests, method=method, joints=joint_list,
-                          noise=noise, covariance=covariance, robust=robust)
+                          noise=noise, covariance=covariance, robust=robust,
+                          holdout_radius=np.radians(_holdout_deg(protocol)[0]))
     result.assumptions = assumptions
     # what the run's reader warned about (a damaged run) stays with the result
     early = [n.removeprefix("WARNING: ") for n in info.notes if n.startswith("WARNING")]
@@ -573,7 +591,11 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
             "(a tool error need not show in the chi-square, it shows in k)"))
     refused = problems(result, model.nominal_stiffness)
     _release_freed_heap()  # the identification's freed pages, before the checks
-    refused += _tool_problem(result, model, tests, noise, method, extras["tool"])
+    # a linear fit whose bias was corrected is a compliance of the exact model: its
+    # residuals are the exact model's (as in the chi-square)
+    corrected = (result.linear_bias or {}).get("reliable", False)
+    refused += _tool_problem(result, model, tests, noise,
+                             "exact" if corrected else method, extras["tool"])
     if refused and not o.accept_misfit:
         raise InputError(
             "refused, the data do not support this stiffness: " + " | ".join(refused)

@@ -13,6 +13,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from campaign.cli_common import Method, RotationSource
+from campaign.jobs.analyze import DEFAULT_METHOD
 from campaign.jobs.common import joint_stiffness, robot_and_tool, wrench
 
 #: a mean further than this many Monte-Carlo standard errors from the truth is a bias
@@ -40,7 +41,7 @@ class RobustnessOptions:
     wrench_N_Nm: Sequence[float] | None = None
     tests: Sequence[int] = tuple(range(1, 21))
     trials: int = 1000
-    method: Method = Method.ols
+    method: Method = Method(DEFAULT_METHOD)
     seed: int = 0
     pool_size: int = 2000
     min_dexterity: float = 0.2
@@ -129,6 +130,35 @@ def bias_notes(summary, method: str) -> list[str]:
     return notes
 
 
+def method_note(method: str) -> str:
+    """Which estimator the study uses, and whether that is the default of ``analyze``."""
+    if method == "exact":
+        return ("method: exact (Gauss-Newton on the nonlinear equilibrium), the default, as "
+                "in campaign analyze")
+    return (f"method: {method} (the linear model of the paper's eqs. 16-21"
+            + (", its Fig. 7 study" if method == "ols" else "")
+            + "), raw: without the linearisation-bias correction campaign analyze makes; "
+            f"the default is {DEFAULT_METHOD}")
+
+
+def linear_bias_note(summary, method: str) -> str | None:
+    """For ols/wls: how far the mean is biased by the linear model, per joint, and why.
+
+    The size is the median over noise-free campaigns of the study's designs
+    (``linearisation_bias_relative``), the median over the numbers of tests."""
+    if method not in ("ols", "wls"):
+        return None
+    parts = []
+    for j, s in summary.groupby("joint"):
+        v = s["linearisation_bias_relative"].dropna()
+        if len(v):
+            parts.append(f"k{j} {100 * float(np.median(v)):+.2f} %")
+    return (f"{method}: the mean is biased by the linearisation, the linear model A x fitted to "
+            "finite displacements of the nonlinear equilibrium at this wrench (noise-free "
+            f"campaigns of the same designs: {', '.join(parts)}); campaign analyze corrects "
+            "this bias, --method exact has none")
+
+
 def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None,
         started: Callable[[int], Any] | None = None,
         note: Callable[[str], None] = lambda text: None) -> RobustnessResult:
@@ -179,10 +209,14 @@ def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None
             r, k, w, counts, o.trials, noise, method=method, seed=o.seed,
             pool_size=o.pool_size, min_inverse_condition=o.min_dexterity, progress=advance)
     notes = bias_notes(summary, method)
+    lin = linear_bias_note(summary, method)
+    if lin is not None:
+        notes.insert(0, lin)
     settings = {
         "robot": r.name, "joint_stiffness_Nm_per_rad": k.tolist(),
-        "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts, "trials": o.trials,
-        "method": method, "seed": o.seed, "pool_size": o.pool_size,
+        "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts,
+        "trials": o.trials, "method": method, "method_note": method_note(method),
+        "seed": o.seed, "pool_size": o.pool_size,
         "min_inverse_condition": o.min_dexterity, "noise": noise.describe(),
         "notes": notes,
     }

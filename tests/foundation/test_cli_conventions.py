@@ -122,7 +122,7 @@ def test_plan_json_and_no_silent_overwrite(tmp_path, capsys):
 
 def test_robustness_lists_its_files_and_explains_the_k3_bias(tmp_path, capsys):
     code, out, err = run(["robustness", "--robot", "kr240-2", "--tests", "10,20", "--trials",
-                          "200", "--out", str(tmp_path)], capsys)
+                          "200", "--out", str(tmp_path), "--method", "ols"], capsys)
     assert code == 0
     text = " ".join(_plain(out).split())
     for name in ("robustness.csv", "robustness.png", "robustness.json"):
@@ -133,6 +133,21 @@ def test_robustness_lists_its_files_and_explains_the_k3_bias(tmp_path, capsys):
     assert "1/x transformation explains about +0.0" in text and "--method exact" in text
     saved = json.loads((tmp_path / "robustness.json").read_text())
     assert any(n.startswith("k3:") for n in saved["notes"])
+    # it says which method, that ols is the raw linear fit, and how biased its mean is
+    assert "method: ols" in text and "the default is exact" in text
+    lin = re.search(r"biased by the linearisation.*?k3 \+(\d\.\d\d) %", text)
+    assert lin and 0.8 < float(lin.group(1)) < 1.5
+    assert saved["method_note"].startswith("method: ols")
+
+
+def test_robustness_defaults_to_the_method_of_analyze(capsys):
+    code, out, _ = run(["robustness", "--robot", "kr240-2", "--tests", "5", "--trials", "20",
+                        "--json"], capsys)
+    assert code == 0
+    saved = json.loads(out)
+    assert saved["method"] == "exact" and "the default, as in campaign analyze" in \
+        saved["method_note"]
+    assert not any("linearisation" in n for n in saved["notes"])
 
 
 def test_clean_numbers():

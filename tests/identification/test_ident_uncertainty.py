@@ -106,7 +106,11 @@ def test_identify_reports_the_batched_covariance(kr240, random_designs):
                                rtol=1e-6)
     se_x = np.sqrt(np.diag(res.cov_x))
     np.testing.assert_allclose(res.se_k, se_x / res.x**2, rtol=1e-12)
-    np.testing.assert_allclose(res.ci[:, 0], 1 / (res.x + 1.959963984540054 * se_x), rtol=1e-12)
+    # the encoder noise's bias in J is added as a systematic term (~1e-9 of x here)
+    b_q = np.abs(res.encoder_eiv["bias_of_compliance_rad_per_Nm"])
+    assert np.all(b_q < 1e-8 * res.x)
+    np.testing.assert_allclose(res.ci[:, 0], 1 / (res.x + 1.959963984540054 * se_x + b_q),
+                               rtol=1e-12)
 
 
 def test_stiffness_interval_maps_the_compliance_interval():

@@ -105,8 +105,10 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
     # validation: same folds, same figures (one Gauss-Newton step per fold for exact)
     va, vb = ref.validation, res.validation
     assert list(va["held_out_pose"]) == list(vb["held_out_pose"]) and len(va) == 80
-    for col in ("rms_translation_m", "rms_rotation_rad", "rms_normalized"):
+    for col in ("rms_translation_m", "rms_rotation_rad", "rms_normalized",
+                "rms_normalized_total", "limit_normalized_total"):
         np.testing.assert_allclose(vb[col], va[col], rtol=1e-8, err_msg=col)
+    assert list(va["beyond_limit"]) == list(vb["beyond_limit"])
     assert list(va["note"]) == list(vb["note"])
     # results.json: the same listed rows, histogram and validation summary
     ja, jb = (json.loads((tmp_path / d / "results.json").read_text()) for d in ("ref", "res"))
@@ -126,8 +128,8 @@ def test_validation_beyond_the_listed_poses_is_summarised(kr240, campaign, monke
     out = result_module.validation_summary(res.validation, listed=10)
     listed = pd.DataFrame(out["validation"])
     assert len(listed) == 10 and "10 of 80" in out["validation_listed"]
-    worst = res.validation["rms_normalized"].nlargest(10)
-    np.testing.assert_allclose(listed["rms_normalized"], worst.to_numpy())
+    worst = res.validation["rms_normalized_total"].nlargest(10)
+    np.testing.assert_allclose(listed["rms_normalized_total"], worst.to_numpy())
     summary = out["validation_summary"]
     v = res.validation
     assert summary["rms_normalized_max"] == pytest.approx(v["rms_normalized"].max())

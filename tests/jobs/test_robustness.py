@@ -13,10 +13,12 @@ from tests.jobs.conftest import cli_error, cli_json
 
 def test_robustness_same_table_from_cli_and_api(ws, client):
     doc = cli_json(ws, "robustness", "--robot", "kr240-2", "--tests", "4,8", "--trials", "30",
-                   "--pool-size", "60", "--seed", "2", "--translation-sigma-um", "25",
-                   "--encoder-resolution-deg", "0.002", "--out", "cli")
+                   "--pool-size", "60", "--seed", "2", "--method", "ols",
+                   "--translation-sigma-um", "25", "--encoder-resolution-deg", "0.002",
+                   "--out", "cli")
     answer = client.post("/api/jobs/robustness", json={
         "robot": "kr240-2", "tests": [8, 4], "trials": 30, "pool_size": 60, "seed": 2,
+        "method": "ols",
         "translation_sigma_m": 25e-6, "encoder_resolution_rad": float(np.radians(0.002)),
         "out": "api"})
     assert answer.status_code == 200, answer.text

@@ -58,6 +58,8 @@ def coverage(robot, q, wrenches, k_true, method, scale, trials, seed, noise=NOIS
             res = identify(robot, tests, method=method, noise=noise, validate=False)
         except InputError:
             continue
+        if res.linear_bias is not None and not res.linear_bias["reliable"]:
+            continue  # refused by the plausibility checks (campaign analyze)
         ci = res.ci
         given += 1
         hits += (ci[:, 0] <= k_true) & (k_true <= ci[:, 1])

@@ -26,7 +26,7 @@ def test_assumptions_wrap_with_a_hanging_indent(tmp_path, capsys, monkeypatch):
     items = [line for line in block if not line.startswith("    ")]
     assert [item.split(":")[0].strip() for item in items] == [
         "robot", "tool point P", "noise per test row", "method", "robust fitting",
-        "wrench errors in variables", "poses"]
+        "wrench errors in variables", "poses", "held-out validation"]
     assert len(block) > len(items)  # some items wrapped, under their own indent
     # the wrapped noise item keeps every word whole
     noise = " ".join(" ".join(block).split()).split("noise per test row: ")[1]
