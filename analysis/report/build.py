@@ -181,8 +181,10 @@ def residual_table(result: IdentificationResult) -> Table:
     n_rows = len(all_res) if full is None else full.n_rows
     if n_tests > REPORT_TESTS_LISTED:
         t = np.abs(all_res["studentized"].to_numpy(dtype=float))
-        key = np.where(np.isfinite(t), t, -1.0) + np.where(
-            all_res["outlier"].to_numpy(dtype=bool), np.inf, 0.0)
+        marked = all_res["outlier"].to_numpy(dtype=bool)
+        if "set_aside" in all_res:
+            marked = marked | all_res["set_aside"].to_numpy(dtype=bool)
+        key = np.where(np.isfinite(t), t, -1.0) + np.where(marked, np.inf, 0.0)
         worst = all_res["test"].to_numpy()[np.argsort(-key, kind="stable")]
         keep = pd.unique(worst)[:REPORT_TESTS_LISTED]
         res = all_res[all_res["test"].isin(keep)]
@@ -193,6 +195,7 @@ def residual_table(result: IdentificationResult) -> Table:
         for _, r in group.iterrows():
             value = 1e6 * r["residual"]
             star = " *" if r["outlier"] else ""
+            star += " \u2020" if r.get("set_aside", False) and not r["outlier"] else ""
             flag |= bool(r["outlier"])
             cells[r["component"]] = f"{value:.1f}{star}"
         first = group.iloc[0]
@@ -203,11 +206,13 @@ def residual_table(result: IdentificationResult) -> Table:
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
     mark = (f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} (Sidak, "
-            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {n_rows} residuals), flagged by "
-            "the sequential test (largest first, refit after each)"
-            if result.robust is None else
-            f"* down-weighted below {result.robust['reported_below_weight']:g} by the "
-            f"{result.robust['method']} fit (see the robust fitting table)")
+            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {n_rows} residuals) at the fit "
+            "reported; \u2020 set aside by the "
+            + ("sequential outlier test (largest first, refit after each)"
+               if result.robust is None else
+               f"{result.robust['method']} fit (down-weighted below "
+               f"{result.robust['reported_below_weight']:g}, see the robust fitting table)")
+            + " but within the threshold")
     return Table("Residuals (measured - model) per test and component", cols, rows, marked,
                  caption=f"{mark}; highlighted rows hold one. 'line': row of the input table."
                  + ("" if res is all_res and full is None else
@@ -492,12 +497,12 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         *([rms_table] if rms_table is not None else []),
         figures.stiffness_bars(result.k, result.ci, inp.nominal, inp.nominal_label,
                                result.confidence)])
-    flagged, beyond = outlier_counts(result)
+    flagged, aside = outlier_counts(result)
     resid_sec = Section(SECTION_TITLES[2], [
         residual_table(result), figures.residual_plot(
             result.residuals, result.outlier_threshold,
             None if result.residual_rows is None else result.residual_rows.n_tests,
-            flagged=flagged, beyond=beyond),
+            flagged=flagged, set_aside=aside, robust=result.robust is not None),
         *robust_blocks(result), *validation_blocks(result)])
     defl_sec = Section(SECTION_TITLES[4], [
         Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "

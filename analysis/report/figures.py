@@ -340,13 +340,16 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
 
 
 def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None = None,
-                  flagged: int | None = None, beyond: int | None = None) -> Figure:
-    """Studentized residual per test and component; the flagged outliers circled in red,
-    residuals beyond the threshold the procedure did not set aside marked with a cross.
+                  flagged: int | None = None, set_aside: int | None = None,
+                  robust: bool = False) -> Figure:
+    """Studentized residual per test and component; the outliers (``outlier``: |t| beyond
+    ``threshold``, exactly the points outside the dashed lines) circled in red, the
+    residuals the fit set aside (``set_aside``) marked with a cross.
 
     ``n_tests``: the campaign's number of tests when ``residuals`` holds only the rows of
     the tests with the largest residuals (the caption then says so). ``flagged``,
-    ``beyond``: counts over the whole campaign (default: those of ``residuals``)."""
+    ``set_aside``: counts over the whole campaign (default: those of ``residuals``);
+    ``robust``: a robust fit, whose set-aside rows are its down-weighted ones."""
     fig, ax = _new(legend_below=True)
     tests = residuals["test"].to_numpy()
     for comp, marker in COMPONENT_MARKERS.items():
@@ -356,14 +359,15 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
                     mfc="none", label=comp, linestyle="none")
     out = residuals["outlier"].to_numpy(dtype=bool)
     t_all = residuals["studentized"].to_numpy(dtype=float)
-    over = np.isfinite(t_all) & (np.abs(t_all) > threshold)
+    aside = (residuals["set_aside"].to_numpy(dtype=bool) if "set_aside" in residuals
+             else out)
+    what = "down-weighted" if robust else "set aside by the outlier test"
     if out.any():
         ax.plot(tests[out] + 1, t_all[out], "o", ms=11, mfc="none",
-                mec="red", mew=1.5, label="flagged outlier")
-    rest = over & ~out
-    if rest.any():
-        ax.plot(tests[rest] + 1, t_all[rest], "x", ms=9, color="darkorange", mew=1.5,
-                label="beyond, not set aside")
+                mec="red", mew=1.5, label="outlier")
+    if (aside != out).any() and aside.any():
+        ax.plot(tests[aside] + 1, t_all[aside], "x", ms=9, color="darkorange", mew=1.5,
+                label=what)
     for s in (-threshold, threshold):
         ax.axhline(s, color="red", ls="--", lw=1, zorder=3)
     ax.axhline(0, color="k", lw=0.8)
@@ -379,17 +383,15 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
              f" Shown: the {residuals['test'].nunique()} of {n_tests} tests holding the "
              "largest |studentized| residuals (outliers first); every test is in "
              "residuals.csv.")
-    from analysis.identification.estimate import MAX_OUTLIERS
-
     n_flag = int(out.sum()) if flagged is None else flagged
-    n_over = int(over.sum()) if beyond is None else beyond
-    how = (f"{n_over} residual(s) of the fit beyond the dashed lines at \u00b1{threshold:.2f}; "
-           f"{n_flag} flagged as outliers (circled in red)")
-    if n_over != n_flag:
-        how += (f". The outlier test sets aside the largest |t| and refits, one at a time, "
-                f"at most {MAX_OUTLIERS + 1} residuals: after the refits some residuals "
-                "beyond the line in this first fit fall inside it, or the budget is spent; "
-                "crosses: beyond the line, not set aside")
+    n_aside = int(aside.sum()) if set_aside is None else set_aside
+    how = (f"{n_flag} outlier(s): residuals beyond the dashed lines at "
+           f"\u00b1{threshold:.2f}, circled in red (column outlier of residuals.csv)")
+    if n_aside != n_flag:
+        how += (f"; {n_aside} {what} (crosses, column set_aside)"
+                + ("" if robust else
+                   ": the test sets aside the largest |t| and refits, one at a time, within "
+                   "its budget; k and its intervals are those of the fit drawn"))
     return _png(fig, "residuals", f"Studentized residuals of the fit; {how}." + shown)
 
 
