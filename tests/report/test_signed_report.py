@@ -62,6 +62,18 @@ def real(tmp_path_factory):
     return {**_read(run / "analysis"), "run": run}
 
 
+@pytest.fixture(scope="module")
+def misfit(tmp_path_factory):
+    rows = simulated_rows(seed=4)
+    offset = np.random.default_rng(7).normal(scale=0.5, size=(5, 3))  # mm, per pose
+    for r in rows:
+        for c, key in enumerate(("dx_mm", "dy_mm", "dz_mm")):
+            r[key] += offset[r["test_id"] - 1, c]
+    run = write_run(tmp_path_factory.mktemp("signed") / "misfit", rows)
+    assert main(["analyze", str(run), "--trials", "10", "--accept-misfit"]) == 0
+    return {**_read(run / "analysis"), "run": run}
+
+
 def test_k_values_and_verdict_open_the_html_and_page_one(sim):
     res, page = sim["results"], sim["page"]
     first_table = next(iter(page.tables))
@@ -165,21 +177,67 @@ def test_every_test_row_is_listed_with_residuals_before_and_after(sim):
         assert 0.4 * 1e6 * s < identified <= nominal * 1.05 < 2.5 * 1e6 * s
 
 
-def test_outlier_flags_equal_the_count_beyond_the_threshold(real):
-    res = real["results"]
-    resid = pd.read_csv(real["out"] / "residuals.csv")
+def _circled(monkeypatch, resid: pd.DataFrame, threshold: float) -> tuple[int, int, str]:
+    """(points circled as outliers, points crossed as set aside, caption) of the
+    report's residual figure drawn from ``resid``."""
+    import analysis.report.figures as figures
+
+    drawn = {}
+    real_png = figures._png
+    monkeypatch.setattr(figures, "_png", lambda fig, name, caption: (
+        drawn.setdefault("fig", fig), real_png(fig, name, caption))[1])
+    fig = figures.residual_plot(resid, threshold)
+    lines = {ln.get_label(): len(ln.get_xdata()) for ax in drawn["fig"].axes
+             for ln in ax.get_lines()}
+    return (lines.get("outlier", 0), lines.get("set aside by the outlier test", 0),
+            fig.caption)
+
+
+def _check_outliers(run: dict, monkeypatch) -> int:
+    res = run["results"]
+    resid = pd.read_csv(run["out"] / "residuals.csv")
     threshold = res["outlier_threshold_studentized"]
     beyond = int((resid["studentized"].abs() > threshold).sum())
     flagged = int(resid["outlier"].sum())
-    assert beyond >= 1 and flagged >= 1
-    table = real["page"].tables["Residuals (measured - model) per test and component"]
+    assert flagged == beyond
+    assert (resid["outlier"] == (resid["studentized"].abs() > threshold)).all()
+    aside = int(resid["set_aside"].sum())
+    table = run["page"].tables["Residuals (measured - model) per test and component"]
     stars = sum(c.endswith(" *") for r in table[1:] for c in r)
     assert stars == flagged
-    caption = next(alt for alt, _ in real["page"].figures if alt.startswith("Studentized"))
-    assert f"{beyond} residual(s) of the fit beyond the dashed lines at \u00b1{threshold:.2f}" \
-        in caption and f"{flagged} flagged as outliers" in caption
-    assert f"{flagged} outlier(s) (|studentized residual| > {threshold:.2f}: {beyond})" \
-        in real["pages"][0]
+    circled, crossed, caption = _circled(monkeypatch, resid, threshold)
+    assert circled == flagged and crossed == (aside if aside != flagged else 0)
+    shown = next(alt for alt, _ in run["page"].figures if alt.startswith("Studentized"))
+    assert f"{flagged} outlier(s): residuals beyond the dashed lines at " \
+        f"\u00b1{threshold:.2f}, circled in red" in shown
+    assert caption.split(" Shown:")[0] in shown
+    verdict = f"{flagged} outlier(s) (|studentized residual| > {threshold:.2f})"
+    assert verdict in run["pages"][0] and verdict in run["text"]
+    return aside
+
+
+def test_outlier_flags_equal_the_count_beyond_the_threshold(real, monkeypatch):
+    """An injected gross error: every residual beyond the threshold is an outlier, the
+    sequential test's set-aside rows are their own column."""
+    aside = _check_outliers(real, monkeypatch)
+    resid = pd.read_csv(real["out"] / "residuals.csv")
+    # the glitch (line 8's dz, 11 sigma) is set aside and beyond the threshold
+    line = sorted(resid["line"].unique())[7]
+    glitch = resid[(resid["line"] == line) & (resid["component"] == "dz")]
+    assert glitch["set_aside"].all() and glitch["outlier"].all() and aside >= 1
+
+
+def test_outliers_of_a_misfit_run_agree_with_the_figure(misfit, monkeypatch):
+    """A campaign simulated with a wrong model (a 0.5 mm offset per pose the joint
+    model cannot explain), accepted with --accept-misfit: more residuals beyond the
+    threshold than the sequential test's budget sets aside."""
+    from analysis.identification.estimate import MAX_OUTLIERS
+
+    assert misfit["results"]["misfit_accepted"]["accepted"]
+    aside = _check_outliers(misfit, monkeypatch)
+    resid = pd.read_csv(misfit["out"] / "residuals.csv")
+    assert int(resid["outlier"].sum()) > aside and aside <= MAX_OUTLIERS + 1
+    assert f", {aside} set aside by the outlier test" in misfit["pages"][0]
 
 
 def test_red_is_for_failures_only(sim):
@@ -365,8 +423,9 @@ def test_map_labels_have_no_literal_underscore():
 
 def test_compare_writes_a_report_naming_both_runs(sim, real, tmp_path, capsys):
     out = tmp_path / "cmp"
+    plot = tmp_path / "compare.pdf"
     assert main(["compare", str(sim["out"]), str(real["out"]), "--report", str(out),
-                 "--json"]) == 0
+                 "--plot", str(plot), "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
     page = ReportPage()
     page.feed((out / "report.html").read_text(encoding="utf-8"))
@@ -388,7 +447,19 @@ def test_compare_writes_a_report_naming_both_runs(sim, real, tmp_path, capsys):
         half = res["critical_z"] * np.hypot(r["se_A_Nm_per_rad"], r["se_B_Nm_per_rad"]) / 1e3
         assert hi - lo == pytest.approx(2 * half, rel=2e-3, abs=2e-3)
     pages = [p.extract_text() for p in PdfReader(out / "report.pdf").pages]
-    assert all("SIMULATED DATA" in p for p in pages)  # A came from the simulated lab
+    # A came from the simulated lab, B did not: the banner names A, not "this run"
+    assert all("SIMULATED DATA" in p and "run A (" in p and "this run" not in p
+               for p in [re.sub(r"\s+", " ", p) for p in pages])
+    assert "run A (" in (out / "report.html").read_text(encoding="utf-8").split(
+        'class="lab-banner"')[1].split("</div>")[0]
+    # the plot of --plot names A and B with their dates and robots
+    drawn = re.sub(r"\s+", " ", PdfReader(plot).pages[0].extract_text())
+    for label, run in (("A", sim), ("B", real)):
+        # no campaign name in these runs' metadata: the run directory's name
+        assert f"{label}: {run['run'].name}, measured 2026-11-20 09:58:00 UTC" in drawn, drawn
+        assert "KR240" in drawn.split(f"{label}: ")[1]
+    assert "(simulated)" in drawn.split("A: ")[1].split("B: ")[0]
+    assert "(simulated)" not in drawn.split("B: ")[1]
 
 
 def test_a_failed_row_makes_the_verdict_a_warning(complete_run, tmp_path):
