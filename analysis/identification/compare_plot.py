@@ -80,7 +80,7 @@ def plot_comparison(result: dict, path: Path) -> Path:
     ax.set_xticks(x, [f"$k_{r['joint']}$" for r in rows])
     ax.set_ylabel(f"$(k_B - k_A)/k_A$ (%), {level:.4g} % interval")
     ax.set_title(f"{result['robot']}: B vs A (red: changed); intervals at {level:.4g} % = "
-                 f"1 - α/{len(rows)}, α {result['alpha']:g} (Bonferroni)\n"
+                 f"1 - alpha/{len(rows)}, alpha {result['alpha']:g} (Bonferroni)\n"
                  + "\n".join(run_names(result)), fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()

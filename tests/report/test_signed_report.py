@@ -12,6 +12,7 @@ import json
 import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -23,6 +24,7 @@ from report_runs import SIGMA, simulated_rows, write_run
 from analysis.report.formatting import interval_kNm, k_kNm, sig
 from campaign.cli import main
 
+ROOT = Path(__file__).resolve().parents[2]
 POSE_KEYS = ('model = "Leica AT960-MR"\nserial = "LT-777"\ncalibration_date = 2026-03-14\n'
              'calibration_due = 2027-03-14\ncertificate = "CAL-2026-0412"')
 
@@ -272,6 +274,60 @@ def test_figure_texts_have_no_literal_underscore(monkeypatch, tmp_path, rows):
         for text in f.texts:
             plain = re.sub(r"\$[^$]*\$", "", text)  # mathtext may use _ for subscripts
             assert "_" not in plain, (f.name, text)
+
+
+def _part_path(path):
+    with path.open("w") as fh:
+        fh.write("x_mm,y_mm,z_mm,ax,ay,az\n")
+        for a in np.linspace(0, 2 * np.pi, 12, endpoint=False):
+            fh.write(f"{80 * np.cos(a):.6f},{80 * np.sin(a):.6f},0,0,0,-1\n")
+    return path
+
+
+#: the pictures of compensate, place and robustness, small enough for a test (seconds)
+OTHER_PICTURES = {
+    "compensate": lambda tmp: ["compensate", "--robot", "kr240-2", "--path",
+                               str(ROOT / "examples" / "kr240-2_path.csv"), "--out",
+                               str(tmp / "c"), "--wrench", "0,1000,-1500,100,50,0"],
+    "place": lambda tmp: ["place", "--robot", "kr240-2", "--path",
+                          str(_part_path(tmp / "part.csv")), "--out", str(tmp / "p"),
+                          "--x-mm", "1400..1800", "--y-mm", "-200..200", "--z-mm", "200",
+                          "--x-step-mm", "200", "--y-step-mm", "200",
+                          "--tool-angle-step-deg", "30", "--config", "-1,-1,-1",
+                          "--wrench", "0,0,-1000,0,0,0", "--workers", "0"],
+    "robustness": lambda tmp: ["robustness", "--robot", "kr240-2", "--tests", "3,6",
+                               "--trials", "20", "--out", str(tmp / "r")],
+}
+
+
+@pytest.mark.parametrize("command", sorted(OTHER_PICTURES))
+def test_other_pictures_have_no_literal_underscore(command, monkeypatch, tmp_path):
+    """Every text drawn in the PNGs of compensate, place and robustness (titles, axes,
+    legends, colour bars): no underscore outside mathtext, except inside a file name
+    (``kr240-2_path.csv`` is that file's name, not a subscript)."""
+    from matplotlib.figure import Figure as MplFigure
+    from matplotlib.text import Text
+
+    drawn = []
+    real_save = MplFigure.savefig
+
+    def save(fig, *args, **kwargs):
+        drawn.append([t.get_text() for t in fig.findobj(match=Text)
+                      if t.get_visible() and t.get_text().strip()])
+        return real_save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(MplFigure, "savefig", save)
+    assert main(OTHER_PICTURES[command](tmp_path)) == 0
+    assert drawn, command
+    words = 0
+    for texts in drawn:
+        assert any(re.search("[a-z]{3}", t) for t in texts)  # titles and labels, not ticks
+        for text in texts:
+            plain = re.sub(r"\$[^$]*\$", "", text)
+            plain = re.sub(r"\S+\.(csv|toml|json)\b", "", plain)  # file names
+            assert "_" not in plain, (command, text)
+            words += len(plain.split())
+    assert words > 10
 
 
 @pytest.mark.skipif(shutil.which("pdftoppm") is None,
