@@ -144,15 +144,28 @@ def coinciding(t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str],
     return [[labels[i] for i in g] for g in groups if len(g) > 1]
 
 
-def _coincide_text(deg: np.ndarray, labels: list[str], ax) -> str:
-    """Caption words for poses that nearly coincide on the map ('' if none)."""
+def coinciding_on(ax, x_deg: np.ndarray, y_deg: np.ndarray,
+                  labels: list[str]) -> tuple[float, list[list[str]]]:
+    """(tolerance in deg, groups of labels): poses within :data:`COINCIDE_PT` points of
+    each other on ``ax`` (its x scale, at the figure's size) -- their markers overlap."""
     x0, x1 = ax.get_xlim()
-    tol = COINCIDE_PT / 72.0 * abs(x1 - x0) / (ax.get_position().width * SIZE_IN[0])
-    groups = coinciding(deg[:, 1], deg[:, 2], labels, tol)
+    width_in = ax.get_position().width * ax.figure.get_figwidth()
+    tol = COINCIDE_PT / 72.0 * abs(x1 - x0) / width_in
+    return tol, coinciding(np.asarray(x_deg), np.asarray(y_deg), labels, tol)
+
+
+def coinciding_words(tol: float, groups: list[list[str]]) -> str:
+    """'Nearly coinciding on this map (within 1.2 deg; ...): 4, 5.' ('' if no group)."""
     if not groups:
         return ""
-    return (" Nearly coinciding on this map (within " + f"{tol:.2g} deg; labels set apart "
+    return ("Nearly coinciding on this map (within " + f"{tol:.2g} deg; labels set apart "
             "with leader lines): " + "; ".join(", ".join(g) for g in groups) + ".")
+
+
+def _coincide_text(deg: np.ndarray, labels: list[str], ax) -> str:
+    """Caption words for poses that nearly coincide on the map ('' if none)."""
+    words = coinciding_words(*coinciding_on(ax, deg[:, 1], deg[:, 2], labels))
+    return f" {words}" if words else ""
 
 
 def _png(fig, name: str, caption: str) -> Figure:

@@ -451,6 +451,42 @@ def test_pose_labels_never_overlap_and_near_poses_are_listed(which):
     assert "Nearly coinciding on this map" in fig.caption and "4, 5" in fig.caption
 
 
+def test_plan_map_lists_coinciding_poses_and_sets_their_labels_apart(monkeypatch, tmp_path):
+    """plan_map.png: two planned poses 0.1 deg apart are listed under the title and
+    their labels (the report's placement) overlap neither each other nor the others."""
+    import analysis.output_files as output_files
+    from campaign.plan_map import draw_plan_map
+    from campaign.planner import make_plan
+
+    plan = make_plan(_kr_protocol(), "d-optimal", seed=5, candidates=2000)
+    chosen = np.unique(plan.chosen.pose)
+    q = plan.candidates.q
+    q[chosen[1], 1:3] = q[chosen[0], 1:3] + np.radians([0.1, -0.1])
+    drawn = {}
+    monkeypatch.setattr(output_files, "save_figure",
+                        lambda fig, path, **kw: drawn.setdefault("fig", fig))
+    draw_plan_map(plan, tmp_path / "plan_map.png")
+    fig = drawn["fig"]
+    title = fig.axes[0].get_title()
+    assert "Nearly coinciding on this map (within" in title and "): 1, 2." in title
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)  # the figure was closed after saving
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    boxes = [tuple(t.get_window_extent(renderer).extents) for t in fig.pose_labels]
+    assert len(boxes) == len(chosen)
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            assert not _boxes_overlap(boxes[i], boxes[j]), (i + 1, j + 1)
+
+
+def _kr_protocol():
+    from campaign.protocol import load_protocol
+
+    return load_protocol(ROOT / "protocols" / "kr240-2.toml")
+
+
 def test_time_stamps_are_shown_to_the_second():
     from analysis.report.formatting import utc_text
 
