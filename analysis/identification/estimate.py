@@ -85,6 +85,7 @@ from analysis.identification.uncertainty import (
     stiffness_interval,
 )
 from analysis.model.robot_model import RobotModel
+from analysis.report.formatting import level
 
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
@@ -329,7 +330,7 @@ def _validation_flags(validation: pd.DataFrame, named: int = 5) -> list[str]:
     more = f" and {len(beyond) - named} more" if len(beyond) > named else ""
     return [f"{len(beyond)} held-out pose(s) predicted worse than their total uncertainty "
             f"(noise and the refit's parameter uncertainty; Sidak, "
-            f"{HOLDOUT_FAMILY_LEVEL:.0%} family-wise over {len(validation)} poses): "
+            f"{level(HOLDOUT_FAMILY_LEVEL)} family-wise over {len(validation)} poses): "
             f"{text}{more}; the model or the data of these poses is suspect"]
 
 
@@ -609,7 +610,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                         "covariance='residual'")
     for idx, j in enumerate(joints):
         if x_out[idx] - crit * se_x[idx] <= 0:
-            warnings.append(f"joint {j + 1}: the {confidence:.0%} interval of its compliance "
+            warnings.append(f"joint {j + 1}: the {level(confidence)} interval of its compliance "
                             "reaches 0, the data do not bound k from above")
 
     threshold = outlier_threshold(n_eq, outlier_level)
@@ -653,7 +654,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                       "to all the data, whose k is reported")
         warnings.append(
             f"{n_flagged} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
-            f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}{rounds}")
+            f"{level(outlier_level)} family-wise over {n_eq} residuals): {where}{more}{rounds}")
     result = IdentificationResult.build(
         robot=robot.name, method=method, joints=joints, x=x_out, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,

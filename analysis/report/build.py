@@ -26,6 +26,7 @@ from analysis.report.formatting import (
     fixed,
     interval_kNm,
     k_kNm,
+    level,
     percent,
     sig,
 )
@@ -116,7 +117,7 @@ def map_fixed_of(inp: ReportInputs) -> MapFixed:
 
 def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
     """k, interval, standard error, comparison with the nominal (and true) values."""
-    conf = f"{result.confidence:.0%}"
+    conf = f"{level(result.confidence)}"
     short = inp.nominal_label.split(" (")[0]  # "nominal" or "prior"
     cols = ["joint", "k (kN m/rad)", f"{conf} interval (kN m/rad)", "se (kN m/rad)",
             "se/k (%)", f"{inp.nominal_label} (kN m/rad)", f"k/{short} - 1 (%)",
@@ -206,7 +207,7 @@ def residual_table(result: IdentificationResult) -> Table:
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
     mark = (f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} (Sidak, "
-            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {n_rows} residuals) at the fit "
+            f"{level(OUTLIER_FAMILY_LEVEL)} family-wise over {n_rows} residuals) at the fit "
             "reported; \u2020 set aside by the "
             + ("sequential outlier test (largest first, refit after each)"
                if result.robust is None else
@@ -475,7 +476,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
                       for j in ident)
     answer = Paragraph(
         f"Joints {', '.join(str(j + 1) for j in ident)} identified from {result.n_tests} "
-        f"tests; {result.confidence:.0%} intervals relative to k: {spans}. Under {wt} "
+        f"tests; {level(result.confidence)} intervals relative to k: {spans}. Under {wt} "
         f"({inp.wrench_source}) the predicted deflection of P over the (\u03b8\u2082, "
         f"\u03b8\u2083) map ranges from {eng(d.min(), 3)} to {eng(d.max(), 3)} mm (median "
         f"{eng(float(np.median(d)), 3)} mm)." if d.size else "")

@@ -19,6 +19,7 @@ import pandas as pd
 # figure list to close; savefig renders with Agg.
 from matplotlib.figure import Figure as MplFigure
 
+from analysis.report.formatting import level
 from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
@@ -328,7 +329,7 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     hi_drawn = np.where(finite_hi, hi, top)
     yerr = np.vstack([y - lo, hi_drawn - y])[:, ok]
     ax.errorbar(joints[ok], y[ok], yerr=yerr, fmt="o", capsize=6, color="tab:blue",
-                label=f"identified, {confidence:.0%} interval")
+                label=f"identified, {level(confidence)} interval")
     unbounded = ok & ~finite_hi
     if unbounded.any():
         ax.plot(joints[unbounded], hi_drawn[unbounded], "^", color="tab:blue",
@@ -349,7 +350,7 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     short = nominal_label.split(" (")[0]
     what = (f"as k / {short} \u2212 1 in % (the {nominal_label} is the 0 line)" if relative
             else "in kN m/rad")
-    return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals, {what}.")
+    return _png(fig, "stiffness", f"Identified k with {level(confidence)} intervals, {what}.")
 
 
 def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None = None,

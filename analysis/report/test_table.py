@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.measurements import COMPONENTS, TestArrays
-from analysis.report.formatting import MICRO, fixed, sig
+from analysis.report.formatting import MICRO, fixed, level, sig
 from analysis.report.model import Table
 
 #: the table lists at most this many tests (every test is in residuals.csv)
@@ -148,7 +148,7 @@ def tests_table(robot, tests: TestArrays, result, cases: list[LoadCase], noise,
          f"residual, {nominal_short} model ({u})", f"residual, identified ({u})"], out,
         caption="One row per test identified from, in the order of the input ('line': its "
         "row in the input table). Load case: the planned case whose force and moment the "
-        f"measured wrench matches within {LOAD_MATCH_RELATIVE:.0%} plus 5 noise sigmas "
+        f"measured wrench matches within {level(LOAD_MATCH_RELATIVE)} plus 5 noise sigmas "
         "('-': none). Residual: norm of measured - predicted translation and rotation of P, "
         f"under the {nominal_short} stiffness (nonlinear equilibrium) and under the "
         "identified one." + listed,

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.result import IdentificationResult
-from analysis.report.formatting import fixed, interval_kNm, k_kNm, percent, sig
+from analysis.report.formatting import fixed, interval_kNm, k_kNm, level, percent, sig
 from analysis.report.model import Paragraph, Table
 
 #: RMS error / sigma of a held-out pose above which the verdict warns, when the
@@ -149,7 +149,7 @@ def relative_interval(k: float, lo: float, hi: float) -> str:
 def result_table(result: IdentificationResult, nominal: np.ndarray | None,
                  nominal_label: str) -> Table:
     """k with its interval (absolute and relative to k) and the reference value."""
-    conf = f"{result.confidence:.0%}"
+    conf = f"{level(result.confidence)}"
     short = nominal_label.split(" (")[0]
     rows = []
     for j in range(6):

@@ -79,7 +79,7 @@ def misfit(tmp_path_factory):
 def test_k_values_and_verdict_open_the_html_and_page_one(sim):
     res, page = sim["results"], sim["page"]
     first_table = next(iter(page.tables))
-    assert first_table == "Result: joint stiffness k with 95% intervals"
+    assert first_table == "Result: joint stiffness k with 95 % intervals"
     table = page.tables[first_table]
     text_before_contents = sim["text"].split("Contents")[0]
     chi2 = f"\u03c7\u00b2/\u03bd {sig(res['chi2_reduced'], 3)}"
@@ -240,6 +240,18 @@ def test_outliers_of_a_misfit_run_agree_with_the_figure(misfit, monkeypatch):
     resid = pd.read_csv(misfit["out"] / "residuals.csv")
     assert int(resid["outlier"].sum()) > aside and aside <= MAX_OUTLIERS + 1
     assert f", {aside} set aside by the outlier test" in misfit["pages"][0]
+
+
+def test_one_percent_format_as_the_terminal(sim, real, misfit):
+    """'95 %' with a space, as the terminal prints it, in every text of the HTML and PDF
+    (tables, captions, warnings, verdict) and in results.json's warnings."""
+    for run in (sim, real, misfit):
+        html = re.sub(r"<style>.*?</style>", "", run["html"], flags=re.S)  # CSS: 100%
+        html = re.sub(r"<img [^>]*>", "", html)  # the figures' base64 data
+        words = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
+        for text in [words, *run["pages"], *run["results"]["warnings"]]:
+            assert not re.search(r"\d%", text), re.search(r".{40}\d%.{20}", text)
+        assert "95 % interval" in words
 
 
 def test_red_is_for_failures_only(sim):
