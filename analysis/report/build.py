@@ -190,13 +190,16 @@ def residual_table(result: IdentificationResult) -> Table:
         keep = pd.unique(worst)[:REPORT_TESTS_LISTED]
         res = all_res[all_res["test"].isin(keep)]
     rows, marked = [], []
+    daggers = 0
     for test, group in res.groupby("test", sort=True):
         cells = {c: "-" for c in COMPONENTS}
         flag = False
         for _, r in group.iterrows():
             value = 1e6 * r["residual"]
             star = " *" if r["outlier"] else ""
-            star += " \u2020" if r.get("set_aside", False) and not r["outlier"] else ""
+            if r.get("set_aside", False) and not r["outlier"]:
+                star += " \u2020"
+                daggers += 1
             flag |= bool(r["outlier"])
             cells[r["component"]] = f"{value:.1f}{star}"
         first = group.iloc[0]
@@ -208,12 +211,14 @@ def residual_table(result: IdentificationResult) -> Table:
             f"ry ({ur})", f"rz ({ur})"]
     mark = (f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} (Sidak, "
             f"{level(OUTLIER_FAMILY_LEVEL)} family-wise over {n_rows} residuals) at the fit "
-            "reported; \u2020 set aside by the "
-            + ("sequential outlier test (largest first, refit after each)"
-               if result.robust is None else
-               f"{result.robust['method']} fit (down-weighted below "
-               f"{result.robust['reported_below_weight']:g}, see the robust fitting table)")
-            + " but within the threshold")
+            "reported" + ("" if not daggers else
+                          "; \u2020 set aside by the "
+                          + ("sequential outlier test (largest first, refit after each)"
+                             if result.robust is None else
+                             f"{result.robust['method']} fit (down-weighted below "
+                             f"{result.robust['reported_below_weight']:g}, see the robust "
+                             "fitting table)")
+                          + " but within the threshold"))
     return Table("Residuals (measured - model) per test and component", cols, rows, marked,
                  caption=f"{mark}; highlighted rows hold one. 'line': row of the input table."
                  + ("" if res is all_res and full is None else

@@ -158,10 +158,11 @@ def tests_table(robot, tests: TestArrays, result, cases: list[LoadCase], noise,
     before = rms_pair(res_nom)
     after = rms_pair(res_id[: len(res_nom)])
     sig_t, sig_r = noise.translation_sigma, noise.rotation_sigma
-    rows = [["translation (\u00b5m)", fixed(1e6 * before[0], 2), fixed(1e6 * after[0], 2),
-             fixed(1e6 * sig_t, 2)],
-            ["rotation (\u00b5rad)", fixed(1e6 * before[1], 2), fixed(1e6 * after[1], 2),
-             fixed(1e6 * sig_r, 2)]]
+    # 3 significant digits, as the noise figures of the Assumptions table ("36.7 um")
+    rows = [["translation (\u00b5m)", *(sig(1e6 * v, 3, zeros=True)
+                                         for v in (before[0], after[0], sig_t))],
+            ["rotation (\u00b5rad)", *(sig(1e6 * v, 3, zeros=True)
+                                        for v in (before[1], after[1], sig_r))]]
     rms = Table(f"Residual RMS: {nominal_short} model against identified",
                 ["component", f"{nominal_short} stiffness", "identified stiffness",
                  "noise sigma of one component"], rows,
