@@ -284,7 +284,8 @@ class IdentificationResult:
     chi2_reduced, p_value : goodness of fit against the noise model.
     residuals : table, one row per test and measured component: test, line,
         pose, component, unit (m or rad), measured, predicted, residual, sigma,
-        studentized, outlier.
+        studentized, outlier (|t| beyond outlier_threshold), set_aside (the rows the
+        sequential outlier test set aside, or a robust fit down-weighted).
     linear : {"ols": x (p,), "wls": x (p,)} linear-model compliances of the
         identified joints, for comparison (results.json: k per joint, 6 entries).
     change_vs_linear : {name: (6,) relative change of k, chosen vs that linear fit}.
