@@ -198,6 +198,8 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
                          settle_s=(rule.window - 1) * rule.interval))
         if opts.dry_run:
             say("dry run: nothing connected, nothing moved")
+            if run is not None:  # a dry run in a long-lived process must not keep the lock
+                run.close()
             return Outcome("dry-run", "", resume)
         lab_scale = None
         if opts.fake:
