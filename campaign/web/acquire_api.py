@@ -310,7 +310,7 @@ def state(run: str | None = Query(None, max_length=1000), ws: Path = Depends(wor
 
 @router.get("/events")
 async def events(run: str | None = Query(None, max_length=1000),
-                 offset: int = Query(0, ge=0), ws: Path = Depends(workspace)):
+                 offset: int = Query(0, ge=0, le=2**62), ws: Path = Depends(workspace)):
     """Server-sent events: the events file's new lines (``id``: byte offset after each);
     the stream ends when the job has ended and every line is sent."""
     run_dir = _run_of(ws, run)

@@ -181,6 +181,7 @@ def test_browser_start_reload_reattach_abort(server, workspace):
         page.on("pageerror", lambda e: errors.append(str(e)))
         page.goto(server)
         page.click("#tab-acquire")
+        page.wait_for_selector("#acq-plan", state="visible")
         page.fill("#acq-plan", "plan")
         page.fill("#acq-out", "gui-run")
         page.fill("#acq-scale", "10")
@@ -194,6 +195,7 @@ def test_browser_start_reload_reattach_abort(server, workspace):
         assert page.locator("#acq-total").text_content() == "3"
         page.reload()
         page.click("#tab-acquire")
+        page.wait_for_selector("#acq-plan", state="visible")
         page.wait_for_function("() => document.querySelector('#acq-running').textContent"
                                " === 'running'", timeout=30_000)
         assert page.locator("#acq-run").text_content() == "gui-run"

@@ -122,6 +122,10 @@
   function resume() { begin("/api/acquire/resume", { run: acq.run, ...options() }); }
 
   async function attach() {
+    // the tab works before app.js has read its API (it adds the same listener later)
+    el("tab-acquire").addEventListener("click", () => {
+      if (typeof showView === "function") showView("acquire");
+    });
     el("acq-dry").addEventListener("click", dryRun);
     el("acq-start").addEventListener("click", start);
     el("acq-abort").addEventListener("click", abortRun);
