@@ -24,6 +24,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -49,6 +50,8 @@ STAGES = {"approach": "approach", "move": "approach", "settle_unloaded_before": 
           "settle_loaded": "settle", "loaded": "measure", "remove_load": "unload",
           "settle_unloaded_after": "unload", "unloaded_after": "unload"}
 _children: dict[int, subprocess.Popen] = {}  # reaped here while this server lives
+#: one check-then-spawn at a time (two tabs starting the same run at once)
+_starting = threading.Lock()
 
 
 class DryRunRequest(BaseModel):
@@ -197,11 +200,16 @@ def _check_safety(fake: bool, confirm: bool) -> None:
 @router.post("/start")
 def start(req: StartRequest, ws: Path = Depends(workspace)) -> dict:
     """Preflight (the dry run), then start a new run in its own process; answers at once."""
+    _check_safety(req.fake, req.confirm)
+    plan, out = inside(ws, req.plan, "plan"), inside(ws, req.out, "out")
+    with _starting:
+        return _start(ws, req, plan, out)
+
+
+def _start(ws: Path, req: StartRequest, plan: Path, out: Path) -> dict:
     from campaign.acquire.rundir import require_new_run_dir
     from campaign.jobs.acquire import AcquireJobOptions
 
-    _check_safety(req.fake, req.confirm)
-    plan, out = inside(ws, req.plan, "plan"), inside(ws, req.out, "out")
     if _record_path(ws, out).exists() and _alive(_read(ws, out).get("pid")):
         raise HTTPException(409, f"{req.out}: an acquisition is writing this run")
     call(ws, lambda: _Done(require_new_run_dir(out)))
@@ -214,10 +222,15 @@ def start(req: StartRequest, ws: Path = Depends(workspace)) -> dict:
 @router.post("/resume")
 def resume(req: ResumeRequest, ws: Path = Depends(workspace)) -> dict:
     """Continue a partial run from its first unfinished test, in its own process."""
-    from campaign.jobs.acquire import AcquireJobOptions
-
     _check_safety(req.fake, req.confirm)
     run_dir = inside(ws, req.run, "run")
+    with _starting:
+        return _resume(ws, req, run_dir)
+
+
+def _resume(ws: Path, req: ResumeRequest, run_dir: Path) -> dict:
+    from campaign.jobs.acquire import AcquireJobOptions
+
     if not (run_dir / "metadata.json").is_file():
         raise HTTPException(400, f"run: {req.run!r} is not a run directory (no metadata.json)")
     if _alive(_read(ws, run_dir).get("pid")) or _locked(run_dir):

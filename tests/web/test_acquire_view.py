@@ -101,6 +101,9 @@ def test_start_state_stream_abort_resume(client, workspace):
     pid = r.json()["pid"]
     s = _wait(client, "run", _load_applied)
     assert s["running"] and s["pid"] == pid and s["total"] == 3
+    import os
+
+    assert os.getsid(pid) == pid != os.getsid(0)  # its own session: the server's end is not its
     assert len(s["live"]["wrench_planned"] or s["live"]["wrench"]) == 6
     # a second start into the run being written, and a resume of it: refused
     again = client.post("/api/acquire/start", json={"plan": "plan", "out": "run"})
@@ -208,6 +211,14 @@ def test_browser_start_reload_reattach_abort(server, workspace):
         assert state["status"] == "aborted"
         kinds = _events(workspace, "gui-run")
         assert "load_removed" in kinds[kinds.index("interrupt"):]
+        rows = (workspace / "gui-run" / "tests.csv").read_text().splitlines()
+        if len(rows) > 1:  # the table's first row: tests.csv's numbers (N, um)
+            head, first = rows[0].split(","), rows[1].split(",")
+            cells = page.locator("#acq-tests tbody tr").first.locator("td").all_text_contents()
+            row = dict(zip(head, first, strict=True))
+            assert cells[3] == ", ".join(f"{float(row[c]):.1f}" for c in ("fx_N", "fy_N", "fz_N"))
+            assert cells[5] == ", ".join(f"{float(row[c]) * 1000:.0f}"
+                                         for c in ("dx_mm", "dy_mm", "dz_mm"))
         shown = page.locator("#acq-done").text_content()
         assert int(shown) == len((workspace / "gui-run" / "tests.csv").read_text()
                                  .splitlines()) - 1
