@@ -29,21 +29,23 @@ NOISE = NoiseModel(translation_sigma_override=30e-6, rotation_sigma_override=40e
 @dataclass(frozen=True)
 class Glitches:
     """Gross errors added to a campaign: each test, independently with probability
-    ``fraction``, gets one; half of them (at random) on the tracker, one displacement
+    ``fraction``, gets one; a share ``tracker`` of them (half by default, at random) on the
+    tracker, one displacement
     component (drawn uniformly of the 6) off by ``size`` of its sigma (30 um / 40 urad), the
-    other half on the F/T sensor, one wrench component off by ``size`` of that component's
+    others on the F/T sensor, one wrench component off by ``size`` of that component's
     sigma at the reading (0.5 N + 0.5 %, 0.05 N m + 0.5 %); the sign at random. Drawn from
     a generator of its own, so a glitched campaign is the clean one plus its glitches."""
 
     fraction: float = 0.1
     size: float = 20.0
+    tracker: float = 0.5
 
     def add(self, rng, dm, wm, ww, noise):
         """(dm, wm) with the glitches added (copies); ``ww`` the true wrenches."""
         dm, wm = dm.copy(), wm.copy()
         m = dm.shape[0]
         hit = rng.random(m) < self.fraction
-        tracker = rng.random(m) < 0.5
+        tracker = rng.random(m) < self.tracker
         comp = rng.integers(0, 6, m)
         sign = np.where(rng.random(m) < 0.5, -1.0, 1.0)
         rows = np.arange(m)
