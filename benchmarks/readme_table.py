@@ -273,10 +273,20 @@ def _generic(f: Fig) -> tuple[str, str, str, str]:
     return ("(no description in readme_table.py)", json.dumps(f.figures), "?", "?")
 
 
+def _gui_sensitivity(f: Fig) -> tuple[str, str, str, str]:
+    return (f"sensitivity explorer of `campaign gui`: {f['moves']} slider moves, "
+            f"{num(f['trials'])} trials ({f['method']}), API round trip over loopback",
+            f"median {f['round_trip_ms_median']} ms, p90 {f['round_trip_ms_p90']} ms wall",
+            f"the job in-process {f['job_ms_median']} ms (numbers equal: max relative "
+            f"difference {f['max_rel_diff']}). Timed: {f['timing']}",
+            f"HTTP + JSON {f['overhead_ms_median']} ms")
+
+
 ROWS: dict[str, Callable[[Fig], tuple[str, str, str, str]]] = {
     "maps": _maps, "identification": _identification, "large_import": _large_import,
     "planner": _planner, "compensate": _compensate, "place": _place,
     "fake_campaign": _fake_campaign, "startup": _startup, "csv_io": _csv_io,
+    "gui_sensitivity": _gui_sensitivity,
 }
 
 

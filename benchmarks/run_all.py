@@ -59,6 +59,7 @@ QUICK: dict[str, list[str]] = {
     "place": ["--placements", "4", "--sample", "50", "--repeat", "2"],
     "startup": ["--repeats", "2"],
     "csv_io": ["--sizes", "2000", "--write-tests", "2000", "--repeat", "1"],
+    "gui_sensitivity": ["--repeat", "1"],
 }
 
 

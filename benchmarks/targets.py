@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 ISSUE_13 = "issue 13"
+ISSUE_23 = "issue 23"
 MET, MISSED, NOT_MEASURED = "met", "NOT MET", "not measured"
 
 _OPS: dict[str, Callable[[float, float], bool]] = {
@@ -86,6 +87,10 @@ def _map_05(f: dict) -> bool:
     return f.get("grid_step_deg") == 0.5 and f.get("threads") == 1
 
 TARGETS: tuple[Target, ...] = (
+    Target("gui_sensitivity", "slider move: API round trip at 1,000 trials, ms p90", _when(
+        lambda f: f["trials"] == 1000, lambda f: f["round_trip_ms_p90"]), "<=", 300,
+        f"{ISSUE_23} ('a slider move updates the figures within 300 ms at 1,000 trials'; "
+        "the page adds its drawing, a few ms)", "--trials 1000 (the default)"),
     Target("maps", "batched kernel, us CPU/pose", _when(
         _map_05, lambda f: f["batched_cpu_us_per_pose"]), "<=", 2.5,
         f"{ISSUE_13}: single-threaded, 0.5 deg KR240-2 map", "the 0.5 deg map, threads=1"),

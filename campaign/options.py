@@ -181,3 +181,14 @@ def stiffness_option(robot: RobotModel, text: str | None) -> np.ndarray:
 def wrench_option(text: str | None, default: np.ndarray) -> np.ndarray:
     """``--wrench fx,fy,fz,mx,my,mz`` in N and N m (base frame, at P)."""
     return default.copy() if text is None else parse_floats(text, "--wrench", 6)
+
+
+def numbers_option(text: str | None, where: str) -> list[float] | None:
+    """A comma-separated option as typed, for a job's options record (None when not given).
+
+    The count is checked by the job, which knows the robot (an empty text stays
+    empty so that the job's message names the count expected).
+    """
+    if text is None:
+        return None
+    return [] if not text.strip() else parse_floats(text, where).tolist()

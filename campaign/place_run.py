@@ -48,41 +48,43 @@ MAX_AXIS_VALUES = 1_000_000
 
 @dataclass
 class PlaceOptions:
-    """The command-line options of ``campaign place``, as typed (mm, deg)."""
+    """The options of ``campaign place``, as the command line takes them (mm, deg; ranges
+    as ``A..B`` texts, lists as comma-separated texts); the defaults are the command's."""
 
     robot: str
     path: Path
     out: Path
-    tip: str | None
-    tool_xyz_mm: str | None
-    tool_rpy_deg: str | None
     x_mm: str
     y_mm: str
     z_mm: str
-    yaw_deg: str
-    x_step_mm: float
-    y_step_mm: float
-    z_step_mm: float
-    yaw_step_deg: float
-    tool_angle_deg: str
-    tool_angle_step_deg: float
-    max_joint_step_deg: float
-    config: str
-    limit_margin_deg: float
-    min_inv_kappa: float
-    length: float | None
-    keep_out_mm: str | None
-    objective: str
-    upper_bound: bool
-    wrench: str | None
-    joint_stiffness: str | None
-    scheduler: str | None
-    workers: int | None
-    chunk: int | None
-    runner_ups: int
-    program: str
+    tip: str | None = None
+    tool_xyz_mm: str | None = None
+    tool_rpy_deg: str | None = None
+    yaw_deg: str = "0"
+    x_step_mm: float = 100.0
+    y_step_mm: float = 100.0
+    z_step_mm: float = 100.0
+    yaw_step_deg: float = 15.0
+    tool_angle_deg: str = "-180..180"
+    tool_angle_step_deg: float = 10.0
+    max_joint_step_deg: float = 10.0
+    config: str = "any"
+    limit_margin_deg: float = 2.0
+    min_inv_kappa: float = 0.05
+    length: float | None = None
+    keep_out_mm: str | None = None
+    objective: str = "max"
+    upper_bound: bool = False
+    wrench: str | None = None
+    joint_stiffness: str | None = None
+    scheduler: str | None = None
+    workers: int | None = None
+    chunk: int | None = None
+    runner_ups: int = 5
+    program: str = "auto"
     max_evaluations: float | None = None
     max_memory_gib: float = 2.0
+    force: bool = False  # write into a non-empty out (its files are replaced)
 
 
 def parse_range(text: str, where: str) -> tuple[float, float]:
@@ -431,13 +433,14 @@ def _placement_dict(p: np.ndarray) -> dict:
             "z_mm": round(1e3 * p[2], 6), "yaw_deg": round(float(np.degrees(p[3])), 9)}
 
 
-def run_place(o: PlaceOptions) -> None:
-    """The whole command; raises InputError on bad input or when nothing is feasible."""
+def run_place(o: PlaceOptions, console: Console | None = None) -> dict:
+    """The whole search; returns placement.json's document; raises InputError on bad input
+    or when nothing is feasible. ``console`` gets the progress and summary lines."""
     from analysis.placement.details import path_details
     from analysis.placement.search import evaluate_chunk
     from campaign.cli_common import print_wrapped
 
-    console = Console()
+    console = console or Console()
     robot, problem, G, grids, assumptions, part = build_problem(o, console)
     size = search_size(problem, G)
     check_size(size, o)
@@ -542,6 +545,7 @@ def run_place(o: PlaceOptions) -> None:
                      if by_reason else ""))
     print_wrapped(console, f"wrote placement.json, path_joints.csv, plots{programs} to {o.out}/ "
                   f"({elapsed:.2f} s, {how})")
+    return summary
 
 
 def _write_path_csv(path: Path, robot, d, part, problem) -> None:

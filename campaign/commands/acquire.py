@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import typer
@@ -50,18 +49,8 @@ def acquire(
     Exit status: 0 complete, 1 aborted or failed (the run directory says why and can be
     resumed with --resume), 2 bad input or a plan refused by the safety checks.
     """
-    from campaign.acquire.session import AcquireOptions
-    from campaign.acquire.session import acquire as run_acquire
+    from campaign.jobs.acquire import AcquireJobOptions, run
 
-    if resume is None and out is None and plan is not None and not dry_run:
-        out = Path("runs") / time.strftime("run-%Y%m%d-%H%M%S", time.gmtime())
-    if out is not None and resume is not None:
-        raise InputError("--out and --resume exclude each other: a resumed run stays in its "
-                         "directory", where="campaign acquire")
-    if out is not None:
-        from campaign.acquire.rundir import require_new_run_dir
-
-        require_new_run_dir(out)
     reporter = make_reporter(quiet, json_lines)
     say = (lambda s: reporter.message(s)) if json_lines else echo
     if quiet:
@@ -77,19 +66,12 @@ def acquire(
         typer.echo(prompt, err=True, nl=False)
         return sys.stdin.readline()  # "" at end of input: refused
 
-    opts = AcquireOptions(fake=fake, assume_yes=yes, dry_run=dry_run, time_scale=time_scale,
-                          operator=operator)
-    from campaign.acquire.rundir import WriteFailure
-
-    try:
-        outcome = run_acquire(plan, out, resume, opts, reporter, say=say, ask=ask)
-    except WriteFailure as err:  # the run's own record cannot be opened (read-only, ...)
-        reporter.close()
-        typer.echo(f"error: {err}; nothing moved", err=True)
-        raise typer.Exit(1) from None
-    finally:
-        reporter.close()
-    if outcome.status not in ("complete", "dry-run") or not outcome.exported:
+    result = run(AcquireJobOptions(plan, out, resume, fake, yes, dry_run, time_scale, operator),
+                 reporter, say=say, ask=ask)
+    if result.error is not None:
+        typer.echo(f"error: {result.error}", err=True)
+        raise typer.Exit(1)
+    if not result.succeeded:
         raise typer.Exit(1)
 
 

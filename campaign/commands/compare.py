@@ -24,22 +24,9 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print JSON (SI units)."),
     ) -> None:
         """Per joint: k_B - k_A with its interval, z score and verdict."""
-        from analysis.identification.compare import compare, load_campaign
-        from analysis.identification.compare_plot import check_plot_path, plot_comparison
+        from campaign.jobs.compare import CompareOptions, run
 
-        if plot is not None:
-            check_plot_path(plot)
-        result = compare(load_campaign(a), load_campaign(b), alpha)
-        if plot is not None:
-            plot_comparison(result, plot)
-            result["plot"] = str(plot)
-        if report is not None:  # the report: both runs named, verdict first
-            from analysis.report.compare_report import build_compare_report, run_facts
-            from analysis.report.write import write_report
-
-            files = write_report(build_compare_report(
-                result, run_facts("A", result["A"]), run_facts("B", result["B"])), report)
-            result["report"] = {k: str(v) for k, v in files.items()}
+        result = run(CompareOptions(a, b, alpha, plot, report)).comparison
         if as_json:
             for note in result["notes"]:
                 echo(f"note: {note}", err=True)

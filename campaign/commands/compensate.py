@@ -11,30 +11,17 @@ for UR, RAPID ``comp_path.mod`` for ABB, TP ``COMP_PATH.LS`` for FANUC models).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-import numpy as np
 import typer
 
-from analysis.errors import InputError
-from campaign.cli_common import (
-    PROGRAM_CHOICES,
-    PROGRAM_METAVAR,
-    Program,
-    WrenchFrame,
-    output_dir,
-)
+from campaign.cli_common import PROGRAM_CHOICES, PROGRAM_METAVAR, Program, WrenchFrame, echo
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 
-def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> tuple:
-    from campaign.verify_fake import run_on_fake_lab
-
-    check = run_on_fake_lab(protocol, robot, pin.q, pc.comp.q_cmd, pin.w, readings)
-    stats = check.stats()
-    ident = np.asarray(robot.nominal_stiffness, float) / check.true_k - 1.0
-    stats["model_vs_true_stiffness_relative"] = ident.tolist()
+def _verify_text(stats: dict, readings: int, echo) -> None:
+    """The replay on the simulated lab: model vs true stiffness, measured errors."""
+    ident = stats["model_vs_true_stiffness_relative"]
     echo("verification on the simulated lab (world driven directly, settled statics; "
          f"{readings} probe reading(s) per point):")
     echo("  model k / true k - 1: " + ", ".join(f"k{j + 1} {100 * v:+.2f} %"
@@ -45,7 +32,6 @@ def _verify(protocol: Path, robot, pin, pc, readings: int, echo) -> tuple:
              f"{1e3 * s['max_m']:.4f}), RMS {1e3 * s['rms_rad']:.4f} mrad (max "
              f"{1e3 * s['max_rad']:.4f})")
     echo(f"  after / before (RMS translation): {100 * stats['ratio_rms_translation']:.1f} %")
-    return stats, check
 
 
 def register(app: typer.Typer) -> None:
@@ -83,74 +69,32 @@ def register(app: typer.Typer) -> None:
                                    "(its files are replaced)."),
     ) -> None:
         """Predict the deflection of P along a path and compute the compensated joints."""
-        from analysis.kinetostatics.path_compensation import compensate_path
-        from campaign import compensate_output as co
-        from campaign.options import parse_floats, robot_option, stiffness_option
-        from campaign.path_file import read_path
+        from campaign.jobs.compensate import CompensateOptions, run
+        from campaign.options import numbers_option
 
-        if verify_fake and protocol is None:
-            raise InputError("--verify-fake needs --protocol P (the lab to simulate)",
-                             where="--protocol")
-        if readings < 1:
-            raise InputError("expected at least 1 reading", where="--readings")
-        if not min_inv_kappa > 0:
-            raise InputError("expected a positive number", where="--min-inv-kappa")
-        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
-        if r.n != 6:
-            raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
-        k = stiffness_option(r, joint_stiffness)
-        cov = None if joint_stiffness is not None else r.compliance_covariance
-        w_const = None if wrench is None else parse_floats(wrench, "--wrench", 6)
-        pin = read_path(path, r, controller, w_const, str(wrench_frame))
-        pc = compensate_path(r, pin.q, k, pin.w, cov, pin.line, str(path), min_inv_kappa)
-        output_dir(out, force)
-        table = co.output_table(pin.frame, pc, r, controller)
-        from analysis.output_files import make_dir, replacing, write_text
-
-        make_dir(out)
-        with replacing(out / "compensated.csv") as tmp:
-            table.to_csv(tmp, index=False)
-        convention = "pendant" if controller else "model"
-        assumptions = [
-            f"robot {r.name} from {r.source_file or robot}",
-            "joint stiffness: " + ("--joint-stiffness" if joint_stiffness else
-                                   "identified (model.toml)" if r.identification else
-                                   "nominal (robot file)"),
-            "uncertainty: " + ("covariance of the identified compliances, delta method"
-                               if cov is not None else "none (no covariance in the model)"),
-            f"wrench: {pin.wrench_source}",
-            "deflection: nonlinear equilibrium K dq = J(q + dq)^T w, base frame at P",
-            f"joints: {convention} convention in and out; programs in the pendant convention",
-        ]
-        summ = co.summary(pc, pin.line)
-        summ["assumptions"] = assumptions
-        files = [out / "compensated.csv"]
-        files += co.robot_program(r, pc.comp.q_cmd, out, [
-            f"Compensated path from {path.name} ({len(pin.q)} points), campaign compensate",
-            f"Robot model: {r.name}", f"Wrench: {pin.wrench_source}"], str(program))
-        from campaign.cli_common import echo
-        for a in assumptions:
+        result = run(CompensateOptions(
+            robot, path, out, tip, numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
+            numbers_option(tool_rpy_deg, "--tool-rpy-deg"), controller,
+            numbers_option(wrench, "--wrench"), wrench_frame,
+            numbers_option(joint_stiffness, "--joint-stiffness"), min_inv_kappa, verify_fake,
+            protocol, readings, program, force))
+        summ = result.summary
+        for a in summ["assumptions"]:
             echo(f"assumption: {a}")
         t, rr = summ["translation_m"], summ["rotation_rad"]
-        bound = ("" if cov is None else
+        bound = ("" if not result.uncertainty else
                  f" (95 % upper bound max {1e3 * t['before_upper95_max']:.4f} mm)")
         echo(f"{summ['points']} points; deflection before: max {1e3 * t['before']['max']:.4f} "
              f"mm, RMS {1e3 * t['before']['rms']:.4f} mm{bound}; rotation max "
              f"{1e3 * rr['before']['max']:.4f} mrad")
         # the residuals are Newton's round-off (refused above 1 um / 1 urad): 3 decimals
-        after = ("" if cov is None else f"; 95 % upper bound from the stiffness uncertainty "
-                 f"{1e3 * t['after_upper95_max']:.4f} mm")
+        after = ("" if not result.uncertainty else f"; 95 % upper bound from the stiffness "
+                 f"uncertainty {1e3 * t['after_upper95_max']:.4f} mm")
         echo(f"after compensation (model): max residual {1e6 * summ['max_residual_m']:.3f} um, "
              f"{1e6 * summ['max_residual_rad']:.3f} urad{after}")
         echo(f"worst point: line {summ['worst_point']['line']} "
              f"({1e3 * summ['worst_point']['deflection_m']:.4f} mm)")
-        check = None
-        if verify_fake:
-            summ["verify_fake"], check = _verify(protocol, r, pin, pc, readings, echo)
-        # drawn after the verification: the measured errors go on the same plot
-        files.insert(1, co.plot(pc, out / "deflection.png", f"{r.name}: deflection of P "
-                                f"along {path.name}", check))
-        write_text(out / "summary.json", json.dumps(summ, indent=2) + "\n")
-        files.append(out / "summary.json")
-        for f in files:
+        if "verify_fake" in summ:
+            _verify_text(summ["verify_fake"], readings, echo)
+        for f in result.files:
             echo(f"wrote {f}")

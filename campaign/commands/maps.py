@@ -2,36 +2,21 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import typer
 from rich.console import Console
 
-from analysis.errors import InputError
 from campaign.cli_common import (
     PANEL_OUTPUT,
     PANEL_ROBOT,
     TableFormat,
-    output_dir,
     print_json,
     print_wrapped,
     stage,
 )
-from campaign.options import (
-    TOOL_RPY_HELP,
-    TOOL_XYZ_HELP,
-    parse_floats,
-    robot_option,
-    stiffness_option,
-    wrench_option,
-)
-
-#: what --deflection-upper-bound maps, said when it is used
-BOUND_TEXT = ("deflection upper bound: |dp| + 1.96 sd(|dp|), the 95 % upper bound of |dp| "
-              "(linear model with K_C, the maps' model), sd from the identified compliances' "
-              "covariance (the robot file's [identification]) by the delta method along dp")
+from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
 #: panel of --help (campaign.cli_common)
 _GRID = "Map grid"
@@ -75,119 +60,33 @@ def register(app: typer.Typer) -> None:
             rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
-        # pinocchio, scipy, pandas and matplotlib: imported when the command runs
-        from analysis.kinetostatics.dexterity import characteristic_length
-        from analysis.kinetostatics.map_plots import LABELS, plot_cartesian_map, plot_joint_map
-        from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, joint_space_map
+        from campaign.jobs.maps import MapsOptions, run
+
+        def rad(text: str | None, where: str) -> list[float] | None:
+            deg = numbers_option(text, where)
+            return None if deg is None else np.radians(deg).tolist()
+
+        si = numbers_option
 
         console = Console(stderr=as_json)
-        fmt = str(fmt)
-        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
-        if step <= 0 or not np.isfinite(step):
-            raise InputError("expected a positive step in degrees", where="--step")
-        if fmt not in ("parquet", "csv"):
-            raise InputError("expected parquet or csv", where="--format")
-        k = stiffness_option(r, joint_stiffness)
-        w = wrench_option(wrench, WORST_CASE_WRENCH)
-        fixed_q = None if fixed is None else np.radians(parse_floats(fixed, "--fixed", r.n))
-        if length is not None and not length > 0:
-            raise InputError("expected a positive length in m", where="--length")
-        how = "given on the command line"
-        if length is None and r.characteristic_length is not None:
-            length, how = r.characteristic_length, "from the robot model"
-        elif length is None:
-            with stage("characteristic length"):
-                length, _, _ = characteristic_length(r)
-            how = "computed (minimum condition number of J_N over posture and L)"
-        output_dir(out, force)
-        from analysis.report.formatting import k_kNm
-        from campaign.commands.stiffness import WORST_CASE_TEXT, vector_text
-
-        w_source = "--wrench" if wrench else WORST_CASE_TEXT
-        print_wrapped(console, f"wrench w = {vector_text(w[:3], 6, False)} N, "
-                      f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
-        print_wrapped(console, f"joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN m/rad ("
-                      + ("--joint-stiffness" if joint_stiffness else "the robot model's") + ")")
-        print_wrapped(console, f"characteristic length L = {length:.4f} m ({how})")
-        grid = GridSpec.from_limits(r, np.radians(step), fixed_q)
-        with stage(f"map of {r.name} ({step:g} deg grid)"):
-            table = joint_space_map(r, grid, k, w, length)
-        bound_cols = []
-        if upper_bound:
-            if r.compliance_covariance is None or joint_stiffness is not None:
-                raise InputError("--deflection-upper-bound needs an identified model "
-                                 "(model.toml from campaign analyze) and no --joint-stiffness",
-                                 where="--deflection-upper-bound")
-            from analysis.kinetostatics.uncertainty import linear_deflection_upper_bound
-
-            table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
-                r, grid.poses(), k, w, r.compliance_covariance).ravel()
-            bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
-            print_wrapped(console, BOUND_TEXT)
-        from analysis.output_files import make_dir, replacing, write_text
-
-        make_dir(out)
-        data = out / f"map_joint_space.{fmt}"
-        with replacing(data) as tmp:
-            if fmt == "parquet":
-                table.to_parquet(tmp, index=False)
-            else:
-                table.to_csv(tmp, index=False)
-        zones = [
-            (z.name, tuple(np.degrees(z.ranges[1])), tuple(np.degrees(z.ranges[2])))
-            for z in r.zones
-            if 1 in z.ranges and 2 in z.ranges
-        ]
-        fixed_deg = np.degrees(grid.fixed)
-        others = ", ".join(f"$\\theta_{j + 1}$ = {fixed_deg[j]:g}" for j in range(r.n)
-                           if j not in (1, 2))
-        from analysis.report.build import wrench_text
-
-        under = f", under {wrench_text(w)}"  # what the v_p, v_r and deflection maps depend on
-        with stage("plots"):
-            for col, name in (("inv_kappa_F", "inv_kappa_F"), ("v_p", "v_p"),
-                              ("v_r_deg", "v_r"), *bound_cols):
-                label = LABELS.get(col, "95 % upper bound of |dp| (mm), identified model")
-                load = "" if col == "inv_kappa_F" else under.lstrip(", ") + ", "
-                plot_joint_map(table, col, out / f"{name}_joint.png",
-                               f"{r.name}: {label}\n{load}{others} deg", zones=zones)
-                plot_cartesian_map(table, col, out / f"{name}_cartesian.png",
-                                   f"{r.name}: {label} over the workspace\n{load}{others} "
-                                   "deg\n(the largest value shown where poses overlap)")
-        ok = ~table["singular"]
-        summary = {
-            "robot": r.name,
-            "characteristic_length_m": length,
-            "characteristic_length_method": how,
-            "grid_step_deg": step,
-            "nodes": int(len(table)),
-            "singular_nodes": int((~ok).sum()),
-            "max_v_p": float(table.loc[ok, "v_p"].max()),
-            "max_v_r_deg": float(table.loc[ok, "v_r_deg"].max()),
-            "max_inv_kappa_F": float(table["inv_kappa_F"].max()),
-            "wrench_N_Nm": w.tolist(),
-            "wrench_source": w_source,
-            "joint_stiffness_Nm_per_rad": k.tolist(),
-        }
-        if bound_cols:
-            summary["max_deflection_upper95_mm"] = float(
-                table.loc[ok, "deflection_upper95_mm"].max())
-            summary["deflection_upper95_method"] = BOUND_TEXT
-        write_text(out / "map_summary.json", json.dumps(summary, indent=2) + "\n")
+        result = run(MapsOptions(
+            robot, out, tip, si(tool_xyz_mm, "--tool-xyz-mm"),
+            si(tool_rpy_deg, "--tool-rpy-deg"), float(np.radians(step)), rad(fixed, "--fixed"),
+            si(joint_stiffness, "--joint-stiffness"), si(wrench, "--wrench"), length, fmt,
+            upper_bound, force), stage=stage, note=lambda text: print_wrapped(console, text))
+        s = result.summary
         if as_json:
-            print_json({**summary, "files": sorted(str(p) for p in out.iterdir())})
+            print_json(result.to_json())
             return
         print_wrapped(console,
-            f"{len(table)} poses, {summary['singular_nodes']} singular; "
-            f"max v_p = {summary['max_v_p']:.4f}, max v_r = {summary['max_v_r_deg']:.4f} deg, "
-            f"max 1/kappa_F = {summary['max_inv_kappa_F']:.3f}"
+            f"{s['nodes']} poses, {s['singular_nodes']} singular; "
+            f"max v_p = {s['max_v_p']:.4f}, max v_r = {s['max_v_r_deg']:.4f} deg, "
+            f"max 1/kappa_F = {s['max_inv_kappa_F']:.3f}"
         )
-        if bound_cols:
-            with_kc = table.loc[ok]
-            at = with_kc["deflection_upper95_mm"].idxmax()
+        if result.bound_at_deg is not None:
+            t2, t3 = result.bound_at_deg
             print_wrapped(console, f"95 % upper bound of |dp|: at most "
-                          f"{summary['max_deflection_upper95_mm']:.4g} mm over the grid (at "
-                          f"theta2 = {with_kc.loc[at, 'theta2_deg']:.4g} deg, theta3 = "
-                          f"{with_kc.loc[at, 'theta3_deg']:.4g} deg); column "
+                          f"{s['max_deflection_upper95_mm']:.4g} mm over the grid (at "
+                          f"theta2 = {t2:.4g} deg, theta3 = {t3:.4g} deg); column "
                           "deflection_upper95_mm and deflection_upper95_*.png")
-        print_wrapped(console, f"wrote {data} and PNG plots to {out}/")
+        print_wrapped(console, f"wrote {result.data_file} and PNG plots to {out}/")

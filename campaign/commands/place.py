@@ -112,13 +112,9 @@ def register(app: typer.Typer) -> None:
                                    "(its files are replaced).", rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Search the workpiece placement and tool angles that minimise P's deflection."""
-        args = dict(locals())
-        from campaign.cli_common import output_dir, writing_into
-        from campaign.place_run import PlaceOptions, run_place
+        options = dict(locals())  # the option names are PlaceOptions' fields
+        from rich.console import Console
 
-        output_dir(args.pop("out"), args.pop("force"))
-        args["out"] = out
-        args["objective"], args["program"] = str(objective), str(program)
-        options = PlaceOptions(**args)
-        with writing_into(out):  # a refused search leaves no --out directory behind
-            run_place(options)
+        from campaign.jobs.place import PlaceOptions, run
+
+        run(PlaceOptions(**options), console=Console())

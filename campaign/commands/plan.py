@@ -6,15 +6,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli_common import (
-    PANEL_OUTPUT,
-    Strategy,
-    echo,
-    output_dir,
-    print_json,
-    stage,
-    writing_into,
-)
+from campaign.cli_common import PANEL_OUTPUT, Strategy, echo, print_json, stage
 
 #: panels of --help (campaign.cli_common)
 _DESIGN = "Design"
@@ -55,28 +47,17 @@ def plan(
     copy, OUT/plan_map.png and OUT/summary.txt/json, and prints the predicted
     standard error of every joint stiffness beside that of a random zone design.
     """
-    import json
+    from campaign.jobs.plan import PlanOptions, run
+    from campaign.options import numbers_option
 
-    from campaign.options import parse_floats
-    from campaign.plan_output import summary_text
-    from campaign.planner import make_plan, write_plan
-    from campaign.protocol import load_protocol
-
-    proto = load_protocol(protocol)
-    output_dir(out, force)
-    wts = None if weights is None else parse_floats(weights, "--weights")
-    with stage(f"candidate evaluation and {strategy} design ({candidates} candidates)"):
-        result = make_plan(proto, strategy=str(strategy), seed=seed, candidates=candidates,
-                           tests=tests, weights=wts)
-    with stage("writing the plan" + ("" if no_figure else " and plan_map.png")), \
-            writing_into(out):
-        path = write_plan(result, out, figure=not no_figure)
+    wts = numbers_option(weights, "--weights")
+    result = run(PlanOptions(protocol, out, strategy, wts, seed, candidates, tests,
+                             not no_figure, force), stage=stage)
     if as_json:
-        summary = json.loads((out / "summary.json").read_text())
-        print_json({**summary, "plan_file": str(path)})
+        print_json(result.to_json())
         return
-    echo(summary_text(result), nl=False)
-    echo(f"plan written to {path}")
+    echo(result.text, nl=False)
+    echo(f"plan written to {result.plan_file}")
 
 
 def register(app: typer.Typer) -> None:

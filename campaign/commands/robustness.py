@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -18,15 +17,10 @@ from campaign.cli_common import (
     Method,
     RotationSource,
     print_json,
+    print_wrapped,
 )
-from campaign.commands.analyze import DEFAULT_METHOD
-from campaign.options import (
-    TOOL_RPY_HELP,
-    TOOL_XYZ_HELP,
-    robot_option,
-    stiffness_option,
-    wrench_option,
-)
+from campaign.jobs.analyze import DEFAULT_METHOD
+from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
 
 def parse_tests(text: str) -> list[int]:
@@ -44,106 +38,12 @@ def parse_tests(text: str) -> list[int]:
                 out.add(int(part))
         except ValueError as err:
             raise InputError(f"{part!r} is not a count or a range a..b", where="--tests") from err
-    if not out or min(out) < 1:
-        raise InputError("numbers of tests must be >= 1", where="--tests")
-    if max(out) > 200:
-        raise InputError("at most 200 tests per campaign", where="--tests")
-    return sorted(out)
-
-
-def noise_from_options(
-    sigma_translation_um, sigma_rotation_urad, rotation_source, reflector_radius_mm,
-    tracker_distance_m, force_sigma_N, moment_sigma_Nm, encoder_resolution_deg,
-):
-    """NoiseModel with the command-line overrides (units as labelled)."""
-    from analysis.identification.noise import NoiseModel
-
-    def scaled(v, f):
-        return None if v is None else v * f
-
-    return NoiseModel().with_overrides(
-        translation_sigma_override=scaled(sigma_translation_um, 1e-6),
-        rotation_sigma_override=scaled(sigma_rotation_urad, 1e-6),
-        rotation_source=rotation_source,
-        reflector_radius=scaled(reflector_radius_mm, 1e-3),
-        tracker_distance=tracker_distance_m,
-        force_sigma=force_sigma_N,
-        moment_sigma=moment_sigma_Nm,
-        encoder_resolution=scaled(encoder_resolution_deg, np.pi / 180.0),
-    )
+    return sorted(out)  # the job refuses none, < 1 and too many
 
 
 #: panel of --help (campaign.cli_common)
 _STUDY = "Monte-Carlo study"
 _TRACKER = "Rotation measurement"
-
-#: a mean further than this many Monte-Carlo standard errors from the truth is a bias
-BIAS_SIGMAS = 4.0
-
-
-def bias_notes(summary, method: str) -> list[str]:
-    """One sentence per joint whose Monte-Carlo mean is off the truth beyond its spread.
-
-    Beyond its spread: ``|mean - k_true| > BIAS_SIGMAS * std / sqrt(trials)`` (the
-    Monte-Carlo standard error of the mean) at every number of tests. The 1/x
-    transformation explains a bias of about +(std/k)^2 (Jensen, second order);
-    what is left is the estimator's own bias (for ols/wls: the linear model
-    fitted to data from the nonlinear equilibrium).
-    """
-    import numpy as np
-
-    notes = []
-    for j, s in summary.groupby("joint"):
-        good = s[s["trials"] - s["trials_rejected"] > 1]
-        if good.empty:
-            continue
-        rel = good["mean_Nm_per_rad"] / good["k_true_Nm_per_rad"] - 1.0
-        se = good["std_Nm_per_rad"] / np.sqrt(good["trials"] - good["trials_rejected"]) \
-            / good["k_true_Nm_per_rad"]
-        if not np.all(np.abs(rel) > BIAS_SIGMAS * se):
-            continue
-        jensen = float(np.median(good["relative_std"] ** 2))
-        lo, hi = 100 * float(rel.min()), 100 * float(rel.max())
-        cause = ("the linear model (eqs. 16-21) fitted to displacements from the nonlinear "
-                 "equilibrium; --method exact removes it" if method in ("ols", "wls")
-                 else "the nonlinear estimator at this noise (finite-sample bias)")
-        span = f"{lo:+.2f} %" if f"{lo:+.2f}" == f"{hi:+.2f}" else f"{lo:+.2f} to {hi:+.2f} %"
-        notes.append(
-            f"k{j}: the mean is {span} from the true value at every number "
-            f"of tests, beyond {BIAS_SIGMAS:g} Monte-Carlo standard errors; the 1/x "
-            f"transformation explains about {100 * jensen:+.3f} % ((std/k)^2), the rest is "
-            f"the bias of {cause}.")
-    return notes
-
-
-def method_note(method: str) -> str:
-    """Which estimator the study uses, and whether that is the default of ``analyze``."""
-    if method == "exact":
-        return ("method: exact (Gauss-Newton on the nonlinear equilibrium), the default, as "
-                "in campaign analyze")
-    return (f"method: {method} (the linear model of the paper's eqs. 16-21"
-            + (", its Fig. 7 study" if method == "ols" else "")
-            + "), raw: without the linearisation-bias correction campaign analyze makes; "
-            f"the default is {DEFAULT_METHOD}")
-
-
-def linear_bias_note(summary, method: str) -> str | None:
-    """For ols/wls: how far the mean is biased by the linear model, per joint, and why.
-
-    The size is the median over noise-free campaigns of the study's designs
-    (``linearisation_bias_relative``), the median over the numbers of tests."""
-    if method not in ("ols", "wls"):
-        return None
-    parts = []
-    for j, s in summary.groupby("joint"):
-        v = s["linearisation_bias_relative"].dropna()
-        if len(v):
-            parts.append(f"k{j} {100 * float(np.median(v)):+.2f} %")
-    return (f"{method}: the mean is biased by the linearisation, the linear model A x fitted to "
-            "finite displacements of the nonlinear equilibrium at this wrench (noise-free "
-            f"campaigns of the same designs: {', '.join(parts)}); campaign analyze corrects "
-            "this bias, --method exact has none")
-
 
 def _print(console: Console, summary, title: str) -> None:
     table = Table(title=title)
@@ -223,86 +123,56 @@ def register(app: typer.Typer) -> None:
         come from the nonlinear equilibrium; normal noise on displacement,
         wrench and joint angles; identification as in the paper (eqs. 16-21).
         """
-        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-        from analysis.identification.robustness import W_EFF, plot_study, robustness_study
         from campaign.commands.analyze import _alias
+        from campaign.jobs.robustness import RobustnessOptions, run
 
-        method = str(method)
-        rotation_source = None if rotation_source is None else str(rotation_source)
+        def scaled(v, f):
+            return None if v is None else v * f
+
         sigma_translation_um = _alias(translation_sigma_um, old_translation,
                                       "--translation-sigma-um")
         sigma_rotation_urad = _alias(rotation_sigma_urad, old_rotation, "--rotation-sigma-urad")
-        r = robot_option(robot, tip, tool_xyz_mm, tool_rpy_deg)
-        k = stiffness_option(r, joint_stiffness)
-        w = wrench_option(wrench, W_EFF)
-        counts = parse_tests(tests)
-        if trials < 2:
-            raise InputError("need at least 2 trials", where="--trials")
-        if method not in ("ols", "wls", "exact"):
-            raise InputError(f"expected ols, wls or exact, got {method!r}", where="--method")
-        if pool_size < 10:
-            raise InputError("need at least 10 poses", where="--pool-size")
-        noise = noise_from_options(sigma_translation_um, sigma_rotation_urad, rotation_source,
-                                   reflector_radius_mm, tracker_distance_m, force_sigma_n,
-                                   moment_sigma_nm, encoder_resolution_deg)
+        options = RobustnessOptions(
+            robot, tip, numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
+            numbers_option(tool_rpy_deg, "--tool-rpy-deg"),
+            numbers_option(joint_stiffness, "--joint-stiffness"),
+            numbers_option(wrench, "--wrench"), parse_tests(tests), trials, method, seed,
+            pool_size, min_dexterity, scaled(sigma_translation_um, 1e-6),
+            scaled(sigma_rotation_urad, 1e-6), rotation_source,
+            scaled(reflector_radius_mm, 1e-3), tracker_distance_m, force_sigma_n,
+            moment_sigma_nm, scaled(encoder_resolution_deg, np.pi / 180.0), out)
         console = Console(stderr=as_json)
-        from analysis.report.formatting import k_kNm
-        from campaign.cli_common import print_wrapped
-        from campaign.commands.stiffness import vector_text
-
-        w_source = "--wrench" if wrench else ("default: the paper's w_eff (eq. 22); --wrench "
-                                              "to choose another")
-        print_wrapped(console, f"wrench w = {vector_text(w[:3], 6, False)} N, "
-                      f"{vector_text(w[3:], 6, False)} N m at P, base frame ({w_source})")
-        print_wrapped(console, f"true joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN "
-                      "m/rad (" + ("--joint-stiffness" if joint_stiffness else
-                                   "the robot model's") + ")")
-        with Progress(TextColumn("{task.description}"), BarColumn(),
-                      TextColumn("{task.completed}/{task.total} identifications"),
-                      TimeRemainingColumn(), console=console, transient=True) as progress:
-            task = progress.add_task("Monte-Carlo", total=trials * len(counts))
-            summary = robustness_study(
-                r, k, w, counts, trials, noise, method=method, seed=seed, pool_size=pool_size,
-                min_inverse_condition=min_dexterity,
-                progress=lambda t: progress.advance(task, t))
+        bar = _Bar(console)
+        result = run(options, progress=bar.advance, started=bar.start,
+                     note=lambda text: print_wrapped(console, text))
+        summary, settings = result.table, result.settings
         if not as_json:
-            _print(console, summary,
-                   f"{r.name}: relative spread of k ({method}, {trials} trials)")
-        print_wrapped(console, method_note(method))
-        notes = bias_notes(summary, method)
-        lin = linear_bias_note(summary, method)
-        if lin is not None:
-            notes.insert(0, lin)
-        for note in notes:
+            _print(console, summary, f"{settings['robot']}: relative spread of k "
+                   f"({settings['method']}, {trials} trials)")
+        print_wrapped(console, settings["method_note"])
+        for note in settings["notes"]:
             print_wrapped(console, f"note: {note}")
-        settings = {
-            "robot": r.name, "joint_stiffness_Nm_per_rad": k.tolist(),
-            "wrench_N_Nm": w.tolist(), "wrench_source": w_source, "tests": counts,
-            "trials": trials, "method": method, "method_note": method_note(method),
-            "seed": seed, "pool_size": pool_size,
-            "min_inverse_condition": min_dexterity, "noise": noise.describe(),
-            "notes": notes,
-        }
-        written = []
-        if out is not None:
-            from analysis.output_files import make_dir, replacing, write_text
-
-            make_dir(out)
-            with replacing(out / "robustness.csv") as tmp:
-                summary.to_csv(tmp, index=False)
-            nz = noise.describe()
-            plot_study(summary, out / "robustness.png",
-                       f"{r.name}: identified k against the number of tests ({method}, "
-                       f"{trials} trials per point)",
-                       f"noise per component: translation {nz['translation_sigma_um']:.3g} "
-                       f"\u00b5m, rotation {nz['rotation_sigma_urad']:.3g} \u00b5rad, force "
-                       f"{nz['force_sigma_N']:.3g} N, moment {nz['moment_sigma_Nm']:.3g} N m; "
-                       "x at the top: not identifiable")
-            write_text(out / "robustness.json", json.dumps(settings, indent=2) + "\n")
-            written = [out / "robustness.csv", out / "robustness.png", out / "robustness.json"]
-            for path in written:
-                print_wrapped(console, f"wrote {path}")
+        for path in result.files:
+            print_wrapped(console, f"wrote {path}")
         if as_json:
-            print_json({**settings, "results": summary.to_dict(orient="records"),
-                        "files": [str(p) for p in written]})
+            print_json(result.to_json())
+
+
+class _Bar:
+    """The Monte-Carlo progress bar of the command line (on ``console``; transient)."""
+
+    def __init__(self, console: Console) -> None:
+        self.console, self.progress, self.task, self.done = console, None, None, 0
+
+    def start(self, total: int):
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+        self.progress = Progress(TextColumn("{task.description}"), BarColumn(),
+                                 TextColumn("{task.completed}/{task.total} identifications"),
+                                 TimeRemainingColumn(), console=self.console, transient=True)
+        self.task = self.progress.add_task("Monte-Carlo", total=total)
+        return self.progress
+
+    def advance(self, done: int, total: int) -> None:
+        self.progress.advance(self.task, done - self.done)
+        self.done = done

@@ -1,0 +1,254 @@
+"""The sensitivity explorer's job (the paper's Figs. 6 and 7, live).
+
+Given a robot, the poses of the tests, the wrench of each test and one
+standard deviation per error source, it simulates ``trials`` noisy campaigns
+and identifies each (the project's Monte-Carlo of a design,
+:mod:`analysis.identification.design_simulation`), then reports per joint
+the spread of the identified k (median, quartiles, a few individual trial
+sets: the paper's broken lines) beside the planner's predicted standard
+error (:func:`campaign.criteria.candidate_information`, the same noise model).
+
+Poses: ``zones`` draws ``n_tests`` poses in the robot's zones (the paper's
+Table 4 for the KR240-2) with 1/kappa_F >= 0.2, the first ``n_tests`` of a
+seeded draw of :data:`ZONE_POOL`, so that moving the number of tests adds or
+removes poses and keeps the others; ``plan`` and ``typed`` take the given
+poses in order, cycling when ``n_tests`` exceeds them. SI throughout.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from analysis.errors import InputError
+
+METHODS = ("ols", "wls", "exact")
+POSE_SOURCES = ("zones", "plan", "typed")
+MAX_TESTS = 200
+MAX_TRIALS = 20_000
+ZONE_POOL = 200  # poses drawn once from the zones; the tests are its first n_tests
+SETS_SHOWN = 5  # individual trial sets returned (the paper's broken lines)
+CURVE_TESTS = 40  # the predicted spread is drawn for 1 .. max(this, n_tests) tests
+
+
+@dataclass(frozen=True)
+class ErrorSources:
+    """One standard deviation per error source (SI; ``None``: the noise model's default).
+
+    translation_sigma (m) and rotation_sigma (rad): one component of a measured
+    displacement; force_sigma (N), moment_sigma (N m): one wrench component;
+    force_relative, moment_relative: part proportional to the reading (0.01 = 1 %);
+    encoder_resolution (rad): joint encoder resolution (sigma = resolution / sqrt 12).
+    reflector_radius (m): circumradius of the three-reflector triangle the rotation is
+    fitted from; used when rotation_sigma is None (the noise model's reflector fit).
+    """
+
+    translation_sigma: float | None = None
+    rotation_sigma: float | None = None
+    force_sigma: float | None = None
+    moment_sigma: float | None = None
+    force_relative: float | None = None
+    moment_relative: float | None = None
+    encoder_resolution: float | None = None
+    reflector_radius: float | None = None
+
+    def noise(self):
+        """The :class:`NoiseModel` with these figures."""
+        from analysis.identification.noise import NoiseModel
+
+        return NoiseModel().with_overrides(
+            translation_sigma_override=self.translation_sigma,
+            rotation_sigma_override=self.rotation_sigma,
+            force_sigma=self.force_sigma, moment_sigma=self.moment_sigma,
+            force_relative=self.force_relative, moment_relative=self.moment_relative,
+            encoder_resolution=self.encoder_resolution, reflector_radius=self.reflector_radius)
+
+
+@dataclass(frozen=True)
+class SensitivityOptions:
+    """What the explorer simulates.
+
+    robot : built-in name or a robot file path (the web face resolves it in the workspace).
+    poses : ``zones``, ``plan`` (``plan_dir``) or ``typed`` (``q`` (t, n) rad, model convention).
+    wrench : (6,) N, N m at P, base frame, every test; None: the plan's per test, else the
+        paper's w_eff. joint_stiffness : (n,) true k (N m/rad); None: the model's nominal.
+    """
+
+    robot: str = "kr240-2"
+    poses: str = "zones"
+    plan_dir: Path | None = None
+    q: np.ndarray | None = None
+    wrench: np.ndarray | None = None
+    joint_stiffness: np.ndarray | None = None
+    errors: ErrorSources = field(default_factory=ErrorSources)
+    n_tests: int = 10
+    method: str = "ols"
+    trials: int = 1000
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class JointSpread:
+    """One joint's identified k over the trials (N m/rad)."""
+
+    joint: int
+    k_true: float
+    median: float
+    q25: float
+    q75: float
+    predicted_se: float  # the planner's prediction (inf: not identifiable)
+    std: float  # sample std over the accepted trials
+    rejected: int  # trials with a compliance <= 0 or not finite
+
+
+@dataclass(frozen=True)
+class SensitivityResult:
+    """Per joint spreads, the first trial sets (sets[s][j], N m/rad, NaN if rejected), the
+    poses (q (n_tests, n) rad) and wrenches (n_tests, 6) simulated, the noise figures, and
+    the planner's relative standard error of each k against the number of tests
+    (curve_se[i, j] for curve_tests[i] tests, inf where not identifiable: Fig. 7)."""
+
+    robot: str
+    method: str
+    trials: int
+    n_tests: int
+    joints: list[JointSpread]
+    sets: list[list[float]]
+    q: np.ndarray
+    wrench: np.ndarray
+    noise: dict
+    curve_tests: np.ndarray
+    curve_se: np.ndarray
+
+    def to_dict(self) -> dict:
+        """JSON-ready (SI; NaN and inf as None)."""
+        def num(v):
+            return float(v) if np.isfinite(v) else None
+
+        return {
+            "robot": self.robot, "method": self.method, "trials": self.trials,
+            "n_tests": self.n_tests,
+            "joints": [{"joint": j.joint, "k_true_Nm_per_rad": j.k_true,
+                        "median_Nm_per_rad": num(j.median), "q25_Nm_per_rad": num(j.q25),
+                        "q75_Nm_per_rad": num(j.q75),
+                        "predicted_se_Nm_per_rad": num(j.predicted_se),
+                        "std_Nm_per_rad": num(j.std), "rejected": j.rejected}
+                       for j in self.joints],
+            "sets_Nm_per_rad": [[num(v) for v in s] for s in self.sets],
+            "q_deg": np.degrees(self.q).round(6).tolist(),
+            "wrench_N_Nm": self.wrench.tolist(),
+            "noise": self.noise,
+            "curve_tests": self.curve_tests.tolist(),
+            "curve_relative_se": [[num(v) for v in row] for row in self.curve_se],
+        }
+
+
+def _check(o: SensitivityOptions) -> None:
+    if o.method not in METHODS:
+        raise InputError(f"expected one of {', '.join(METHODS)}, got {o.method!r}",
+                         where="method")
+    if o.poses not in POSE_SOURCES:
+        raise InputError(f"expected one of {', '.join(POSE_SOURCES)}, got {o.poses!r}",
+                         where="poses")
+    if not 1 <= o.n_tests <= MAX_TESTS:
+        raise InputError(f"must be 1 to {MAX_TESTS}, got {o.n_tests}", where="n_tests")
+    if not 2 <= o.trials <= MAX_TRIALS:
+        raise InputError(f"must be 2 to {MAX_TRIALS}, got {o.trials}", where="trials")
+
+
+def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """(q (count, n) rad, the plan's wrenches (count, 6) or None): the tests in order."""
+    if o.poses == "zones":
+        from analysis.identification.robustness import sample_poses
+
+        q = sample_poses(robot, max(ZONE_POOL, count), np.random.default_rng(o.seed))
+        return q[:count], None
+    if o.poses == "plan":
+        if o.plan_dir is None:
+            raise InputError("poses 'plan' needs a plan directory", where="plan")
+        from campaign.plan_output import read_plan
+
+        _, df = read_plan(o.plan_dir)
+        q = np.radians(df[[f"q{j}_model_deg" for j in range(1, robot.n + 1)]].to_numpy(float))
+        w = df[["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m"]].to_numpy(float)
+        idx = np.arange(count) % len(q)
+        return q[idx], w[idx]
+    q = None if o.q is None else np.asarray(o.q, dtype=float)
+    if q is None or q.ndim != 2 or q.shape[0] < 1 or q.shape[1] != robot.n \
+            or not np.all(np.isfinite(q)):
+        raise InputError(f"typed poses need rows of {robot.n} finite joint angles", where="q")
+    out = (q < robot.lower - 1e-9) | (q > robot.upper + 1e-9)
+    if out.any():
+        i, j = (int(v) for v in np.argwhere(out)[0])
+        raise InputError(
+            f"pose {i + 1}: q{j + 1} = {np.degrees(q[i, j]):.6g} deg is outside the joint "
+            f"limits [{np.degrees(robot.lower[j]):.6g}, {np.degrees(robot.upper[j]):.6g}] deg",
+            where="q")
+    return q[np.arange(count) % len(q)], None
+
+
+def predicted_relative_se(robot, q, w, k, noise) -> np.ndarray:
+    """(t, n): the planner's relative standard error of each k for the first 1, 2, ..., t
+    of the tests (q (t, n) rad, w (t, 6) N, N m), one row each; inf where not identified."""
+    from analysis.identification.robustness import jacobian_derivative
+    from analysis.model.kinematics import jacobian
+    from campaign.criteria import candidate_information, relative_se
+
+    F = candidate_information(jacobian(robot, q), w, noise, k, 1, jacobian_derivative(robot, q))
+    return relative_se(np.cumsum(F, axis=0))
+
+
+def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
+    """Simulate and identify ``o.trials`` campaigns; ``robot`` (a loaded model) skips loading."""
+    from analysis.identification.design_simulation import identify_campaigns, simulate_campaigns
+    from analysis.identification.robustness import W_EFF
+
+    _check(o)
+    if robot is None:
+        from analysis.model.robots import load_robot
+
+        robot = load_robot(o.robot, where="robot")
+    if o.joint_stiffness is not None:
+        k = np.asarray(o.joint_stiffness, dtype=float)
+        if k.shape != (robot.n,) or not np.all(np.isfinite(k)) or np.any(k <= 0):
+            raise InputError(f"expected {robot.n} positive values (N m/rad)",
+                             where="joint_stiffness")
+    elif robot.nominal_stiffness is None:
+        raise InputError(f"{robot.name} has no published joint stiffness: give it",
+                         where="joint_stiffness")
+    else:
+        k = np.asarray(robot.nominal_stiffness, dtype=float)
+    noise = o.errors.noise()
+    count = max(CURVE_TESTS, o.n_tests)
+    q, plan_w = _poses(o, robot, count)
+    if o.wrench is not None:
+        w = np.asarray(o.wrench, dtype=float)
+        if w.shape != (6,) or not np.all(np.isfinite(w)) or not np.any(w):
+            raise InputError("expected 6 finite numbers, not all zero (N, N m)", where="wrench")
+        w = np.broadcast_to(w, (len(q), 6)).copy()
+    else:
+        w = plan_w if plan_w is not None else np.broadcast_to(W_EFF, (len(q), 6)).copy()
+    curve = predicted_relative_se(robot, q, w, k, noise)
+    q, w = q[:o.n_tests], w[:o.n_tests]
+    rng = np.random.default_rng(o.seed + 1)
+    sim = simulate_campaigns(robot, q, w, k, noise, 1, o.trials, rng)
+    with np.errstate(all="ignore"):
+        x = identify_campaigns(robot, sim, noise, 1.0 / k, o.method)  # (T, n)
+        ok = np.isfinite(x) & (x > 0)
+        kk = np.where(ok, 1.0 / np.where(ok, x, 1.0), np.nan)
+    se = curve[o.n_tests - 1] * k
+    joints = []
+    for j in range(robot.n):
+        v = kk[ok[:, j], j]
+        q25, q50, q75 = np.percentile(v, [25, 50, 75]) if len(v) else (np.nan,) * 3
+        joints.append(JointSpread(
+            joint=j + 1, k_true=float(k[j]), median=float(q50), q25=float(q25),
+            q75=float(q75), predicted_se=float(se[j]),
+            std=float(np.std(v, ddof=1)) if len(v) > 1 else float("nan"),
+            rejected=int((~ok[:, j]).sum())))
+    return SensitivityResult(
+        robot=robot.name, method=o.method, trials=o.trials, n_tests=o.n_tests, joints=joints,
+        sets=kk[:SETS_SHOWN].tolist(), q=q, wrench=w, noise=noise.describe(),
+        curve_tests=np.arange(1, count + 1), curve_se=curve)

@@ -1,0 +1,85 @@
+"""Starting the GUI server: bind the socket, print the URL with its token, serve.
+
+The socket is bound before uvicorn starts, so that a port in use is one clear
+line and ``--port 0`` (any free port) still prints the right URL.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import webbrowser
+from dataclasses import dataclass
+from pathlib import Path
+
+from analysis.errors import InputError
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8765
+
+
+@dataclass(frozen=True)
+class GuiOptions:
+    """How to serve: workspace directory, address, and remote access (password)."""
+
+    workspace: Path
+    host: str = DEFAULT_HOST
+    port: int = DEFAULT_PORT
+    open_browser: bool = True
+    allow_remote: bool = False
+    password: str | None = None
+
+
+def bind(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on (host, port); InputError when the address is taken."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host.strip("[]"), port))
+    except OSError as err:
+        sock.close()
+        raise InputError(f"cannot listen on {host}:{port} ({err.strerror}); choose another "
+                         "--port (0: any free port)", where="--port") from err
+    sock.listen(64)
+    sock.set_inheritable(True)
+    return sock
+
+
+def url_of(sock: socket.socket, token: str) -> str:
+    """The address to open, with the access token."""
+    host, port = sock.getsockname()[:2]
+    shown = f"[{host}]" if ":" in host else host
+    return f"http://{shown}:{port}/?token={token}"
+
+
+def make_server(options: GuiOptions, token: str):
+    """(uvicorn.Server, bound socket) for ``options``; refuses a non-loopback host without
+    --allow-remote and a password."""
+    import uvicorn
+
+    from campaign.web.app import create_app
+    from campaign.web.security import check_bind
+
+    if not 0 <= options.port <= 65535:
+        raise InputError(f"expected 0 to 65535, got {options.port}", where="--port")
+    check_bind(options.host, options.allow_remote, options.password)
+    sock = bind(options.host, options.port)
+    try:
+        app = create_app(options.workspace, token, options.password if options.allow_remote
+                         else None)
+    except BaseException:
+        sock.close()
+        raise
+    config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off")
+    return uvicorn.Server(config), sock
+
+
+def serve(options: GuiOptions, token: str, announce) -> None:
+    """Serve until Ctrl-C; ``announce(url)`` is called once the socket listens."""
+    server, sock = make_server(options, token)
+    url = url_of(sock, token)
+    announce(url)
+    if options.open_browser:
+        threading.Timer(0.5, webbrowser.open, args=(url,)).start()
+    server.run(sockets=[sock])

@@ -1,0 +1,49 @@
+"""Take the README's screenshots of ``campaign gui`` (system Chromium via Playwright).
+
+Usage: ``python docs/gui_screenshots.py WORKSPACE`` with a workspace holding a plan,
+a run and an analysis (``campaign demo --out WORKSPACE``); writes
+``docs/gui_sensitivity.png`` and ``docs/gui_runs.png``.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def main(workspace: str) -> None:
+    from playwright.sync_api import sync_playwright
+
+    from campaign.web.server import GuiOptions, make_server, url_of
+
+    token = "screenshot-token-0123456789"
+    srv, sock = make_server(GuiOptions(workspace=Path(workspace), port=0), token)
+    threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True).start()
+    while not srv.started:
+        time.sleep(0.01)
+    docs = Path(__file__).resolve().parent
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=["--no-sandbox"])
+        page = browser.new_page(viewport={"width": 1240, "height": 980})
+        page.goto(url_of(sock, token))
+        page.wait_for_selector("#row-k6")
+        slider = page.locator("#s-n_tests")
+        slider.focus()
+        for _ in range(5):
+            slider.press("ArrowRight")
+        page.wait_for_function("() => document.body.dataset.shown === JSON.stringify(body())")
+        page.screenshot(path=docs / "gui_sensitivity.png", full_page=True)
+        page.click("#tab-runs")
+        page.wait_for_selector("#runs-table")
+        page.set_viewport_size({"width": 1240, "height": 430})
+        page.screenshot(path=docs / "gui_runs.png")
+        browser.close()
+    srv.should_exit = True
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])

@@ -1,0 +1,80 @@
+"""Fixtures of the jobs' tests: a web app over the jobs router in a workspace, the CLI."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+fastapi = pytest.importorskip("fastapi", reason="fastapi is not installed (pip install fastapi)")
+pytest.importorskip("httpx", reason="httpx is not installed (pip install httpx)")
+
+
+@pytest.fixture
+def ws(tmp_path) -> Path:
+    """The workspace directory (the CLI runs with it as its working directory)."""
+    d = tmp_path / "ws"
+    d.mkdir()
+    return d
+
+
+@pytest.fixture
+def client(ws):
+    """A TestClient on an app built here: the jobs router over the workspace ``ws``."""
+    from fastapi import FastAPI
+    from fastapi.testclient import TestClient
+
+    from campaign.web.api_jobs import router
+
+    app = FastAPI()
+    app.state.workspace = ws
+    app.include_router(router)
+    return TestClient(app)
+
+
+def cli(ws: Path, *args: str) -> subprocess.CompletedProcess:
+    """``campaign ARGS`` run in the workspace ``ws`` (relative paths as the API's)."""
+    return subprocess.run([sys.executable, "-m", "campaign", *args], cwd=ws,
+                          capture_output=True, text=True, timeout=240, env=os.environ.copy())
+
+
+def cli_json(ws: Path, *args: str) -> dict:
+    proc = cli(ws, *args, "--json")
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def cli_error(ws: Path, *args: str) -> str:
+    """The one line of a refused command (without 'error: '); its status must be 2."""
+    proc = cli(ws, *args)
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    return lines[0].removeprefix("error: ")
+
+
+@pytest.fixture(scope="session")
+def analyses(tmp_path_factory) -> tuple[Path, Path]:
+    """Two analysis directories (results.json, model.toml) of simulated KR240-2 campaigns,
+    B measured with its joint 2 10 % stiffer (written by ``campaign analyze`` from CSVs)."""
+    from tests.use._campaigns import TRUE_K
+    from tests.use.conftest import analyze
+
+    tmp = tmp_path_factory.mktemp("jobs-analyses")
+    k_b = TRUE_K.copy()
+    k_b[1] *= 1.10
+    return analyze(tmp, "A", seed=3), analyze(tmp, "B", seed=4, k=k_b)
+
+
+@pytest.fixture
+def campaigns(ws, analyses) -> tuple[str, str]:
+    """The two analyses copied into the workspace: their relative paths."""
+    import shutil
+
+    for src in analyses:
+        shutil.copytree(src, ws / src.name)
+    return tuple(src.name for src in analyses)

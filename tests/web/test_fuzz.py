@@ -1,0 +1,178 @@
+"""Fuzz of the GUI's API from its own OpenAPI document: no 500, nothing written.
+
+Every operation of ``/openapi.json`` is called with bodies drawn from its request
+schema (:func:`from_schema`: each property's types, enums and bounds, and values just
+outside them) and with arbitrary JSON; the answer must be a
+2xx or 4xx, and no file may appear or change outside the workspace (nor inside:
+these routes only read). Bounded: the trials and tests maxima are lowered in the
+schema the bodies are drawn from, so that one example costs milliseconds.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import re
+from urllib.parse import quote
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+BOUNDS = {"trials": 40, "n_tests": 12}  # fuzz-time maxima (the API allows more)
+
+
+def _resolve(node, components):
+    if isinstance(node, dict):
+        if "$ref" in node:
+            return _resolve(components[node["$ref"].rsplit("/", 1)[-1]], components)
+        return {k: _resolve(v, components) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_resolve(v, components) for v in node]
+    return node
+
+
+def _operations(doc):
+    comps = doc.get("components", {}).get("schemas", {})
+    for path, ops in doc["paths"].items():
+        for method, op in ops.items():
+            body = op.get("requestBody", {}).get("content", {}).get("application/json")
+            schema = None if body is None else _resolve(body["schema"], comps)
+            if schema is not None:
+                schema = copy.deepcopy(schema)
+                for key, hi in BOUNDS.items():
+                    if key in schema.get("properties", {}):
+                        schema["properties"][key]["maximum"] = hi
+            query = {p["name"]: _resolve(p.get("schema", {}), comps)
+                     for p in op.get("parameters", []) if p.get("in") == "query"}
+            yield path, method, schema, query
+
+
+def _snapshot(root):
+    out = {}
+    for d, _, files in os.walk(root):
+        for f in files:
+            p = os.path.join(d, f)
+            st_ = os.lstat(p)
+            out[p] = (st_.st_size, st_.st_mtime_ns)
+    return out
+
+
+def from_schema(schema: dict) -> st.SearchStrategy:
+    """Values for a JSON schema of the OpenAPI document: in and just out of its bounds."""
+    if "anyOf" in schema:
+        return st.one_of([from_schema(s) for s in schema["anyOf"]])
+    if "enum" in schema:
+        return st.sampled_from(schema["enum"]) | st.text(max_size=6)
+    t = schema.get("type")
+    if t == "null":
+        return st.none()
+    if t in ("number", "integer"):
+        lo, hi = schema.get("minimum"), schema.get("maximum")
+        edge = [v for v in (lo, hi) if v is not None]
+        inside = (st.integers(lo, hi) if t == "integer" else
+                  st.floats(lo, hi, allow_nan=False, allow_infinity=False))
+        return inside | st.sampled_from(edge + [v + d for v in edge for d in (-1, 1)] or [0])
+    if t == "string":
+        return st.text(max_size=40) | st.sampled_from(
+            ["plan", "robot.toml", "kr240-2", "../x", "/etc", "plan/../..", "a" * 300])
+    if t == "boolean":
+        return st.booleans()
+    if t == "array":
+        return st.lists(from_schema(schema.get("items", {})),
+                        max_size=min(8, schema.get("maxItems", 8) + 1))
+    if t == "object" or "properties" in schema:
+        props = schema.get("properties", {})
+        return st.fixed_dictionaries({}, optional={k: from_schema(v) for k, v in props.items()})
+    return JSON
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.integers()
+                    | st.floats(allow_nan=False, allow_infinity=False)
+                    | st.text(max_size=20),
+                    lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=8), c,
+                                                                         max_size=4),
+                    max_leaves=10)
+
+
+#: the read-only routes of this face: they must not write, even inside the workspace
+READ_ONLY = ("/api/sensitivity", "/api/runs", "/api/session")
+SEGMENT = st.text(max_size=30) | st.sampled_from(
+    ["..", "%2e%2e", "/etc/passwd", "a" * 300, "plan/note.txt", "plan/plan.csv", "plan",
+     "plan/../../x", "robot.toml", "plan/note.txt/.."])
+
+
+def _fuzz(client, path, method, body, query, examples) -> dict[int, int]:
+    """Call the operation with examples of ``body`` (None: no body), of its path
+    parameters and of its query parameters (``query``: name -> schema); count the
+    answers by status."""
+    seen: dict[int, int] = {}
+    names = re.findall(r"{(\w+)}", path)
+
+    @settings(max_examples=examples, deadline=None, database=None,
+              suppress_health_check=list(HealthCheck))
+    @given(data=st.fixed_dictionaries({"body": body if body is not None else st.none(),
+                                       "params": st.fixed_dictionaries(
+                                           {n: SEGMENT for n in names}),
+                                       "query": st.fixed_dictionaries({}, optional={
+                                           n: SEGMENT if q.get("type") == "string"
+                                           else from_schema(q) for n, q in query.items()})}))
+    def call(data):
+        url = path
+        for n, v in data["params"].items():
+            url = url.replace("{" + n + "}", quote(v, safe=""))
+        kwargs = {} if body is None else {"json": data["body"]}
+        if data["query"]:
+            kwargs["params"] = {k: v for k, v in data["query"].items() if v is not None}
+        r = client.request(method.upper(), url, **kwargs)
+        assert r.status_code < 500, (url, data, r.text)
+        seen[r.status_code] = seen.get(r.status_code, 0) + 1
+
+    call()
+    return seen
+
+
+def _outside(snapshot: dict, workspace) -> dict:
+    return {p: v for p, v in snapshot.items() if not p.startswith(str(workspace) + os.sep)}
+
+
+def test_fuzz_api_from_openapi(client, workspace):
+    doc = client.get("/openapi.json").json()
+    ops = sorted(_operations(doc), key=lambda op: not op[0].startswith(READ_ONLY))
+    assert any(m == "post" for _, m, _, _ in ops)
+    assert any(q for *_, q in ops)  # /api/runs/file?path=
+    (workspace / "plan" / "note.txt").write_text("a file to find")
+    before = _snapshot(workspace.parent)
+    for path, method, schema, query in ops:
+        mine = path.startswith(READ_ONLY)
+        body = None if schema is None else st.one_of(from_schema(schema), JSON)
+        seen = _fuzz(client, path, method, body, query,
+                     150 if mine and (body is not None or query) else 25)
+        if path == "/api/sensitivity":
+            # the drawn bodies reach the job, not only the validation
+            assert seen.get(200, 0) >= 5 and seen.get(422, 0) >= 5, (path, seen)
+        if path == "/api/runs/file":
+            assert seen.get(200, 0) >= 1 and seen.get(422, 0) >= 5, (path, seen)
+        if mine:
+            assert _snapshot(workspace.parent) == before, path
+    assert _outside(_snapshot(workspace.parent), workspace) == _outside(before, workspace)
+
+
+@pytest.mark.parametrize("text", ["a" * 300, "x/" * 120, "\x00", "plan/\x00", "..", "./..",
+                                  "plan//..//..", "C:/Windows", "~root", "\\..\\x"])
+def test_odd_paths_are_422(client, text):
+    for field in ("plan", "robot"):
+        body = {"trials": 5, "n_tests": 2, field: text}
+        if field == "plan":
+            body["poses"] = "plan"
+        r = client.post("/api/sensitivity", json=body)
+        assert r.status_code == 422, (field, text, r.text)
+
+
+@pytest.mark.parametrize("raw", ['{"translation_sigma_um": Infinity}', '{"trials": NaN}',
+                                 '{"wrench_N_Nm": [0, 1e999, 0, 0, 0, 0]}', "{", "[]", "null",
+                                 '{"q_deg": [[NaN]], "poses": "typed"}'])
+def test_non_finite_and_broken_json_are_422(client, raw):
+    r = client.post("/api/sensitivity", content=raw,
+                    headers={"Content-Type": "application/json"})
+    assert r.status_code == 422, r.text
