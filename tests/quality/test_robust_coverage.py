@@ -90,6 +90,6 @@ def test_robust_coverage_every_cell(setup, robust, method, scale, glitches):
     robot, q, W, k = setup
     cov, given = coverage(robot, q, W, k, method, scale, 1000, seed=3, robust=robust,
                           glitches=glitches)
-    # wls at twice the loads: 1-4 % refused (linearisation-bias correction unreliable)
+    # wls at twice the loads: 1-4 % refused (the reweighting does not settle in 50 iterations)
     assert given >= 950
     assert np.all(np.abs(cov - 0.95) <= 0.03), cov
