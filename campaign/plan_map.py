@@ -80,12 +80,21 @@ def draw_plan_map(plan, path: Path) -> None:
         if handle.get_label().startswith("candidates"):
             handle.set_markersize(6)
     fig.tight_layout()
+    # poses whose markers overlap at this size: listed under the title (the labels are
+    # set apart with leader lines, as on the report's maps)
+    from analysis.report.figures import coinciding_on, coinciding_words
+
+    labels = [str(i + 1) for i in range(len(chosen))]
+    near = coinciding_words(*coinciding_on(ax, cand.q[chosen, 1] / DEG,
+                                           cand.q[chosen, 2] / DEG, labels))
+    if near:
+        ax.set_title(ax.get_title() + "\n" + near, fontsize=9)
+        fig.tight_layout()
     # numbered once the layout is final: each label where it hides no other and no pose
     # (a leader line when moved away), inside the axes (never on the title)
     from analysis.output_files import save_figure
     from analysis.report.figures import place_labels
 
-    place_labels(ax, cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG,
-                 [str(i + 1) for i in range(len(chosen))], 7 / 2 + 1)
+    place_labels(ax, cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG, labels, 7 / 2 + 1)
     save_figure(fig, path, metadata={"Software": None})
     plt.close(fig)

@@ -35,6 +35,27 @@ def check_plot_path(path: Path, option: str = "--plot") -> Path:
     return path
 
 
+def run_names(result: dict) -> list[str]:
+    """'A: campaign, measured DATE, ROBOT (simulated)' for A and B: the facts of each
+    side's results.json and run metadata (``analysis.report.compare_report.run_facts``),
+    else its path."""
+    from analysis.report.compare_report import run_facts
+
+    out = []
+    for label in ("A", "B"):
+        source = str(result.get(label, "-"))
+        try:
+            f = run_facts(label, source)
+        except (OSError, ValueError):
+            out.append(f"{label}: {source}")
+            continue
+        name = f.campaign or Path(f.results).parent.parent.name or f.results
+        date = f", measured {f.started}" if f.started and f.started != "-" else ""
+        out.append(f"{label}: {name}{date}, {f.robot}" + (" (simulated)" if f.simulated
+                                                          else ""))
+    return out
+
+
 def plot_comparison(result: dict, path: Path) -> Path:
     """Write the plot to ``path`` (through a temporary file beside it: nothing is left
     behind on failure). Intervals at the verdict's level (``result['interval_level']``)."""
@@ -56,10 +77,11 @@ def plot_comparison(result: dict, path: Path) -> Path:
     ax.axhline(0, color="black", lw=0.8)
     ax.errorbar(x, rel, yerr=[rel - lo, hi - rel], fmt="none", ecolor="black", capsize=4)
     ax.scatter(x, rel, c=colors, zorder=3)
-    ax.set_xticks(x, [f"k{r['joint']}" for r in rows])
-    ax.set_ylabel(f"(k_B - k_A) / k_A (%), {level:.4g} % interval")
+    ax.set_xticks(x, [f"$k_{r['joint']}$" for r in rows])
+    ax.set_ylabel(f"$(k_B - k_A)/k_A$ (%), {level:.4g} % interval")
     ax.set_title(f"{result['robot']}: B vs A (red: changed); intervals at {level:.4g} % = "
-                 f"1 - alpha/{len(rows)}, alpha {result['alpha']:g} (Bonferroni)", fontsize=9)
+                 f"1 - alpha/{len(rows)}, alpha {result['alpha']:g} (Bonferroni)\n"
+                 + "\n".join(run_names(result)), fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)

@@ -85,6 +85,7 @@ from analysis.identification.uncertainty import (
     stiffness_interval,
 )
 from analysis.model.robot_model import RobotModel
+from analysis.report.formatting import level
 
 METHODS = ("ols", "wls", "exact")
 DEFAULT_METHOD = "exact"
@@ -329,7 +330,7 @@ def _validation_flags(validation: pd.DataFrame, named: int = 5) -> list[str]:
     more = f" and {len(beyond) - named} more" if len(beyond) > named else ""
     return [f"{len(beyond)} held-out pose(s) predicted worse than their total uncertainty "
             f"(noise and the refit's parameter uncertainty; Sidak, "
-            f"{HOLDOUT_FAMILY_LEVEL:.0%} family-wise over {len(validation)} poses): "
+            f"{level(HOLDOUT_FAMILY_LEVEL)} family-wise over {len(validation)} poses): "
             f"{text}{more}; the model or the data of these poses is suspect"]
 
 
@@ -609,7 +610,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                         "covariance='residual'")
     for idx, j in enumerate(joints):
         if x_out[idx] - crit * se_x[idx] <= 0:
-            warnings.append(f"joint {j + 1}: the {confidence:.0%} interval of its compliance "
+            warnings.append(f"joint {j + 1}: the {level(confidence)} interval of its compliance "
                             "reaches 0, the data do not bound k from above")
 
     threshold = outlier_threshold(n_eq, outlier_level)
@@ -623,7 +624,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     if tests.m > per_test.LAZY_TESTS:
         per_test.release_freed_heap()  # the passes' freed pages, before the residual table
     rows = ResidualRows(tests, chosen.predicted, sigma, t, flags,
-                        None if rob is None else rob.weights)
+                        None if rob is None else rob.weights, threshold=threshold)
     if n_eq > RESIDUAL_ROWS_HELD:
         residuals = rows.frame(rows.worst_tests(RESIDUALS_LISTED))
     else:
@@ -631,7 +632,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     if rob is not None:
         warnings.append(rob.summary())
     flagged = residuals[residuals["outlier"]]
-    n_flagged = int((flags & tests.measured).sum())
+    n_flagged = rows.n_beyond() if rows is not None else len(flagged)
+    n_set_aside = int((flags & tests.measured).sum())
     if n_flagged and rob is None:
         where = ", ".join(
             f"test {r.test + 1} line {r.line} (pose {r.pose}) {r.component} "
@@ -639,9 +641,20 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
             for r in flagged.reindex(flagged["studentized"].abs().sort_values(
                 ascending=False).index).head(5).itertuples())
         more = f" and {n_flagged - 5} more" if n_flagged > 5 else ""
+        rounds = ""
+        if n_set_aside != n_flagged:
+            aside = residuals[residuals["set_aside"]]
+            named = ", ".join(f"line {r.line} (pose {r.pose}) {r.component}"
+                              for r in aside.reindex(aside["studentized"].abs().sort_values(
+                                  ascending=False).index).head(5).itertuples())
+            rounds = (f"; the sequential test (largest |t| first, refit after each) set aside "
+                      f"{n_set_aside}" + (f": {named}" if named else "")
+                      + (" and more" if n_set_aside > 5 else "")
+                      + " (column set_aside); the rest are beyond the threshold in the fit "
+                      "to all the data, whose k is reported")
         warnings.append(
             f"{n_flagged} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
-            f"{outlier_level:.0%} family-wise over {n_eq} residuals): {where}{more}")
+            f"{level(outlier_level)} family-wise over {n_eq} residuals): {where}{more}{rounds}")
     result = IdentificationResult.build(
         robot=robot.name, method=method, joints=joints, x=x_out, cov_x=cov_x, ci=ci,
         confidence=confidence, covariance=covariance, condition_number=cond,

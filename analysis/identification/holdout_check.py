@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from analysis.report.formatting import level
+
 #: family-wise level of the held-out-pose flag (Sidak over the poses validated)
 HOLDOUT_FAMILY_LEVEL = 0.01
 #: poses closer than this (deg, ||dq|| over the joints) are held out together; the
@@ -40,7 +42,7 @@ CLUSTER_MAX_POSES = 20_000
 LIMIT_TEXT = (
     "a held-out pose is flagged (beyond_limit) when q = e^T (Sigma + F C F^T)^-1 e of its n "
     "measured components exceeds the chi-square(n) quantile at 1 - a, a = 1 - (1 - "
-    f"{HOLDOUT_FAMILY_LEVEL:g})^(1/P) over the P poses (Sidak, {HOLDOUT_FAMILY_LEVEL:.0%} "
+    f"{HOLDOUT_FAMILY_LEVEL:g})^(1/P) over the P poses (Sidak, {level(HOLDOUT_FAMILY_LEVEL)} "
     "family-wise); limit_normalized_total = sqrt(quantile / n)")
 
 

@@ -36,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.identification.result import IdentificationResult
+from analysis.report.formatting import level
 
 #: probability below which the chi-square test refuses (either tail)
 MISFIT_P = 1e-6
@@ -126,7 +127,7 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
         out.append(
             f"misfit hidden by the robust fit: {rob['method']} down-weighted "
             f"{len(rob['down_weighted'])} of {result.n_equations} components below weight "
-            f"{rob['reported_below_weight']:g} (more than {MAX_DOWN_WEIGHTED:.0%}; glitches are "
+            f"{rob['reported_below_weight']:g} (more than {level(MAX_DOWN_WEIGHTED)}; glitches are "
             f"a few rows); likely causes, most likely first: {_causes(CAUSES_MISFIT)}; worst "
             f"rows: {worst_rows(result)}")
     low = chi2_lower_tail(result)
@@ -144,7 +145,7 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
     negative = _negative_joints(result)
     if negative:
         out.append(
-            f"negative stiffness: {'; '.join(negative)} (the whole {result.confidence:.0%} "
+            f"negative stiffness: {'; '.join(negative)} (the whole {level(result.confidence)} "
             f"interval of the compliance is below zero); likely causes, most likely first: "
             f"{_causes(CAUSES_NEGATIVE)}")
     if nominal is not None:

@@ -98,7 +98,11 @@ class ResidualRows:
     ``tests`` the tests analysed; ``predicted``, ``sigma`` (model sigma of each
     component, or a :class:`~analysis.identification.per_test.PerTestSigma` made for the
     tests written; else
-    component), ``t`` (studentized residual) (m, 6); ``flags`` (m, 6) bool, outliers;
+    component), ``t`` (studentized residual) (m, 6); ``flags`` (m, 6) bool, the residuals
+    the fit set aside (the sequential outlier test's refits, or a robust fit's
+    down-weighted ones): column ``set_aside``; ``threshold``: the stated outlier
+    threshold, column ``outlier`` = |t| beyond it (so the ``outlier`` rows are exactly
+    the residuals beyond the threshold, whatever the procedure set aside);
     ``weights`` (m, 6) robust weights or None. A 1e6-test campaign has 6e6 rows (~0.4 GB
     as a DataFrame): its full table is only ever made in blocks, for residuals.csv.
     """
@@ -109,6 +113,7 @@ class ResidualRows:
     t: np.ndarray
     flags: np.ndarray
     weights: np.ndarray | None = None
+    threshold: float = float("inf")
 
     def __post_init__(self) -> None:
         # pose labels as category codes and the categoricals' dtypes, once (every block of
@@ -132,7 +137,7 @@ class ResidualRows:
 
     #: the columns of the table, in order
     COLUMNS = ("test", "line", "pose", "component", "unit", "measured", "predicted",
-               "residual", "sigma", "studentized", "outlier")
+               "residual", "sigma", "studentized", "outlier", "set_aside")
 
     @property
     def names(self) -> list[str]:
@@ -161,11 +166,29 @@ class ResidualRows:
             "residual": measured - predicted, "sigma": (
                 self.sigma[i, c] if isinstance(self.sigma, np.ndarray)
                 else self.sigma.take(idx)[k, c]),  # made for these tests
-            "studentized": self.t[i, c], "outlier": self.flags[i, c].astype(bool),
+            "studentized": self.t[i, c], "outlier": self.beyond(i, c),
+            "set_aside": self.flags[i, c].astype(bool),
         }
         if self.weights is not None:
             out["weight"] = self.weights[i, c]
         return out
+
+    def beyond(self, i, c) -> np.ndarray:
+        """bool: |studentized residual| of rows (i, c) beyond :attr:`threshold` (NaN: no)."""
+        with np.errstate(invalid="ignore"):
+            return np.abs(self.t[i, c]) > self.threshold
+
+    def n_beyond(self, block: int = 1 << 16) -> int:
+        """Measured residuals with |studentized| beyond :attr:`threshold` (all rows)."""
+        with np.errstate(invalid="ignore"):
+            return int(sum(int(np.sum(self.tests.measured[s:s + block]
+                                      & (np.abs(self.t[s:s + block]) > self.threshold)))
+                           for s in range(0, self.tests.m, block)))
+
+    def marked(self, rows=slice(None)) -> np.ndarray:
+        """(m, 6) bool of the tests ``rows``: beyond the threshold or set aside."""
+        with np.errstate(invalid="ignore"):
+            return self.flags[rows] | (np.abs(self.t[rows]) > self.threshold)
 
     def frame(self, which: np.ndarray | slice = slice(None)) -> pd.DataFrame:
         """:meth:`columns` as a DataFrame."""
@@ -187,7 +210,7 @@ class ResidualRows:
         finite), outliers first."""
         key = np.abs(self.t[rows])  # one array, edited in place
         key[~np.isfinite(key)] = -1.0
-        key[self.flags[rows]] = np.inf
+        key[self.marked(rows)] = np.inf
         key[~self.tests.measured[rows]] = -np.inf
         return key
 
@@ -201,7 +224,7 @@ class ResidualRows:
             cand = np.concatenate([top, 6 * s + np.arange(key.size)])
             values = np.concatenate([self._flat_key(top), key])
             top = cand[_largest(values, rows)]
-        out = np.flatnonzero((self.flags & self.tests.measured).reshape(-1))
+        out = np.flatnonzero((self.marked() & self.tests.measured).reshape(-1))
         t = np.abs(np.nan_to_num(self.t.reshape(-1)[out]))
         top_out = out[_largest(t, rows)]
         return np.unique(np.concatenate([top, top_out]) // 6)
@@ -211,7 +234,7 @@ class ResidualRows:
         i, c = np.divmod(flat, 6)
         key = np.abs(self.t[i, c])
         key[~np.isfinite(key)] = -1.0
-        key[self.flags[i, c]] = np.inf
+        key[self.flags[i, c] | self.beyond(i, c)] = np.inf
         key[~self.tests.measured[i, c]] = -np.inf
         return key
 
@@ -261,7 +284,8 @@ class IdentificationResult:
     chi2_reduced, p_value : goodness of fit against the noise model.
     residuals : table, one row per test and measured component: test, line,
         pose, component, unit (m or rad), measured, predicted, residual, sigma,
-        studentized, outlier.
+        studentized, outlier (|t| beyond outlier_threshold), set_aside (the rows the
+        sequential outlier test set aside, or a robust fit down-weighted).
     linear : {"ols": x (p,), "wls": x (p,)} linear-model compliances of the
         identified joints, for comparison (results.json: k per joint, 6 entries).
     change_vs_linear : {name: (6,) relative change of k, chosen vs that linear fit}.
@@ -524,8 +548,10 @@ def residual_summary(residuals: pd.DataFrame, listed: int = RESIDUALS_LISTED,
         out["residuals_listed"] = f"all {len(residuals)} rows"
         out["residuals"] = _records(residuals)
         return out
-    key = np.where(finite, np.abs(t), -1.0) + np.where(
-        residuals["outlier"].to_numpy(dtype=bool), np.inf, 0.0)
+    marked = residuals["outlier"].to_numpy(dtype=bool)
+    if "set_aside" in residuals:
+        marked = marked | residuals["set_aside"].to_numpy(dtype=bool)
+    key = np.where(finite, np.abs(t), -1.0) + np.where(marked, np.inf, 0.0)
     top = np.argsort(-key, kind="stable")[:listed]
     out["residuals_listed"] = (f"the {listed} of {total} rows with the largest "
                                "|studentized| (outliers first); every row is in residuals.csv")

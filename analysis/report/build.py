@@ -26,6 +26,7 @@ from analysis.report.formatting import (
     fixed,
     interval_kNm,
     k_kNm,
+    level,
     percent,
     sig,
 )
@@ -116,7 +117,7 @@ def map_fixed_of(inp: ReportInputs) -> MapFixed:
 
 def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
     """k, interval, standard error, comparison with the nominal (and true) values."""
-    conf = f"{result.confidence:.0%}"
+    conf = f"{level(result.confidence)}"
     short = inp.nominal_label.split(" (")[0]  # "nominal" or "prior"
     cols = ["joint", "k (kN m/rad)", f"{conf} interval (kN m/rad)", "se (kN m/rad)",
             "se/k (%)", f"{inp.nominal_label} (kN m/rad)", f"k/{short} - 1 (%)",
@@ -181,18 +182,24 @@ def residual_table(result: IdentificationResult) -> Table:
     n_rows = len(all_res) if full is None else full.n_rows
     if n_tests > REPORT_TESTS_LISTED:
         t = np.abs(all_res["studentized"].to_numpy(dtype=float))
-        key = np.where(np.isfinite(t), t, -1.0) + np.where(
-            all_res["outlier"].to_numpy(dtype=bool), np.inf, 0.0)
+        marked = all_res["outlier"].to_numpy(dtype=bool)
+        if "set_aside" in all_res:
+            marked = marked | all_res["set_aside"].to_numpy(dtype=bool)
+        key = np.where(np.isfinite(t), t, -1.0) + np.where(marked, np.inf, 0.0)
         worst = all_res["test"].to_numpy()[np.argsort(-key, kind="stable")]
         keep = pd.unique(worst)[:REPORT_TESTS_LISTED]
         res = all_res[all_res["test"].isin(keep)]
     rows, marked = [], []
+    daggers = 0
     for test, group in res.groupby("test", sort=True):
         cells = {c: "-" for c in COMPONENTS}
         flag = False
         for _, r in group.iterrows():
             value = 1e6 * r["residual"]
             star = " *" if r["outlier"] else ""
+            if r.get("set_aside", False) and not r["outlier"]:
+                star += " \u2020"
+                daggers += 1
             flag |= bool(r["outlier"])
             cells[r["component"]] = f"{value:.1f}{star}"
         first = group.iloc[0]
@@ -203,11 +210,15 @@ def residual_table(result: IdentificationResult) -> Table:
     cols = ["test", "pose", "line", f"dx ({u})", f"dy ({u})", f"dz ({u})", f"rx ({ur})",
             f"ry ({ur})", f"rz ({ur})"]
     mark = (f"* outlier: |studentized residual| > {result.outlier_threshold:.2f} (Sidak, "
-            f"{OUTLIER_FAMILY_LEVEL:.0%} family-wise over {n_rows} residuals), flagged by "
-            "the sequential test (largest first, refit after each)"
-            if result.robust is None else
-            f"* down-weighted below {result.robust['reported_below_weight']:g} by the "
-            f"{result.robust['method']} fit (see the robust fitting table)")
+            f"{level(OUTLIER_FAMILY_LEVEL)} family-wise over {n_rows} residuals) at the fit "
+            "reported" + ("" if not daggers else
+                          "; \u2020 set aside by the "
+                          + ("sequential outlier test (largest first, refit after each)"
+                             if result.robust is None else
+                             f"{result.robust['method']} fit (down-weighted below "
+                             f"{result.robust['reported_below_weight']:g}, see the robust "
+                             "fitting table)")
+                          + " but within the threshold"))
     return Table("Residuals (measured - model) per test and component", cols, rows, marked,
                  caption=f"{mark}; highlighted rows hold one. 'line': row of the input table."
                  + ("" if res is all_res and full is None else
@@ -470,7 +481,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
                       for j in ident)
     answer = Paragraph(
         f"Joints {', '.join(str(j + 1) for j in ident)} identified from {result.n_tests} "
-        f"tests; {result.confidence:.0%} intervals relative to k: {spans}. Under {wt} "
+        f"tests; {level(result.confidence)} intervals relative to k: {spans}. Under {wt} "
         f"({inp.wrench_source}) the predicted deflection of P over the (\u03b8\u2082, "
         f"\u03b8\u2083) map ranges from {eng(d.min(), 3)} to {eng(d.max(), 3)} mm (median "
         f"{eng(float(np.median(d)), 3)} mm)." if d.size else "")
@@ -492,12 +503,12 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         *([rms_table] if rms_table is not None else []),
         figures.stiffness_bars(result.k, result.ci, inp.nominal, inp.nominal_label,
                                result.confidence)])
-    flagged, beyond = outlier_counts(result)
+    flagged, aside = outlier_counts(result)
     resid_sec = Section(SECTION_TITLES[2], [
         residual_table(result), figures.residual_plot(
             result.residuals, result.outlier_threshold,
             None if result.residual_rows is None else result.residual_rows.n_tests,
-            flagged=flagged, beyond=beyond),
+            flagged=flagged, set_aside=aside, robust=result.robust is not None),
         *robust_blocks(result), *validation_blocks(result)])
     defl_sec = Section(SECTION_TITLES[4], [
         Paragraph(f"User wrench at P, base frame: {wt} ({inp.wrench_source}). Prediction "

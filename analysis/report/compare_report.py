@@ -91,12 +91,24 @@ def comparison_figure(result: dict, a: RunFacts, b: RunFacts) -> Figure:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2,
               frameon=False)
-    figures._title(ax, f"B: {b.campaign or b.results} ({b.started[:10]})  vs  A: "
-                   f"{a.campaign or a.results} ({a.started[:10]})", fontsize=7.5)
+    figures._title(ax, "\n".join(f"{f.label}: {f.campaign or f.results} ({f.started[:10]}, "
+                                  f"{f.robot}{', simulated' if f.simulated else ''})"
+                                  for f in (a, b)), fontsize=7.5)
     return figures._png(fig, "comparison", "Relative difference of each k, B against A, with "
                         f"its interval at the verdict's level ({100 * level:.3g} %: "
                         f"alpha {result['alpha']:g} shared over {len(rows)} joints); red: "
                         "changed.")
+
+
+def simulated_text(a: RunFacts, b: RunFacts) -> str:
+    """The SIMULATED DATA banner naming the simulated run(s) ("" when neither is)."""
+    sim = [f for f in (a, b) if f.simulated]
+    if not sim:
+        return ""
+    which = ("both runs (A and B) came" if len(sim) == 2 else
+             f"run {sim[0].label} ({sim[0].campaign or sim[0].results}) came")
+    return (f"SIMULATED DATA \u2014 {which} from the simulated lab, not from a measurement "
+            "of a real robot")
 
 
 def build_compare_report(result: dict, a: RunFacts, b: RunFacts) -> Report:
@@ -141,4 +153,5 @@ def build_compare_report(result: dict, a: RunFacts, b: RunFacts) -> Report:
     title = f"Joint stiffness of {a.robot}: B against A"
     return Report(title, f"A: {a.results} \u00b7 B: {b.results}", [section],
                   simulated=a.simulated or b.simulated,
+                  simulated_text=simulated_text(a, b),
                   trace=Trace("", utc_now_text(), software_text()))

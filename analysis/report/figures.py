@@ -19,6 +19,7 @@ import pandas as pd
 # figure list to close; savefig renders with Agg.
 from matplotlib.figure import Figure as MplFigure
 
+from analysis.report.formatting import level
 from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
@@ -144,15 +145,28 @@ def coinciding(t2_deg: np.ndarray, t3_deg: np.ndarray, labels: list[str],
     return [[labels[i] for i in g] for g in groups if len(g) > 1]
 
 
-def _coincide_text(deg: np.ndarray, labels: list[str], ax) -> str:
-    """Caption words for poses that nearly coincide on the map ('' if none)."""
+def coinciding_on(ax, x_deg: np.ndarray, y_deg: np.ndarray,
+                  labels: list[str]) -> tuple[float, list[list[str]]]:
+    """(tolerance in deg, groups of labels): poses within :data:`COINCIDE_PT` points of
+    each other on ``ax`` (its x scale, at the figure's size) -- their markers overlap."""
     x0, x1 = ax.get_xlim()
-    tol = COINCIDE_PT / 72.0 * abs(x1 - x0) / (ax.get_position().width * SIZE_IN[0])
-    groups = coinciding(deg[:, 1], deg[:, 2], labels, tol)
+    width_in = ax.get_position().width * ax.figure.get_figwidth()
+    tol = COINCIDE_PT / 72.0 * abs(x1 - x0) / width_in
+    return tol, coinciding(np.asarray(x_deg), np.asarray(y_deg), labels, tol)
+
+
+def coinciding_words(tol: float, groups: list[list[str]]) -> str:
+    """'Nearly coinciding on this map (within 1.2 deg; ...): 4, 5.' ('' if no group)."""
     if not groups:
         return ""
-    return (" Nearly coinciding on this map (within " + f"{tol:.2g} deg; labels set apart "
+    return ("Nearly coinciding on this map (within " + f"{tol:.2g} deg; labels set apart "
             "with leader lines): " + "; ".join(", ".join(g) for g in groups) + ".")
+
+
+def _coincide_text(deg: np.ndarray, labels: list[str], ax) -> str:
+    """Caption words for poses that nearly coincide on the map ('' if none)."""
+    words = coinciding_words(*coinciding_on(ax, deg[:, 1], deg[:, 2], labels))
+    return f" {words}" if words else ""
 
 
 def _png(fig, name: str, caption: str) -> Figure:
@@ -315,7 +329,7 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     hi_drawn = np.where(finite_hi, hi, top)
     yerr = np.vstack([y - lo, hi_drawn - y])[:, ok]
     ax.errorbar(joints[ok], y[ok], yerr=yerr, fmt="o", capsize=6, color="tab:blue",
-                label=f"identified, {confidence:.0%} interval")
+                label=f"identified, {level(confidence)} interval")
     unbounded = ok & ~finite_hi
     if unbounded.any():
         ax.plot(joints[unbounded], hi_drawn[unbounded], "^", color="tab:blue",
@@ -336,17 +350,20 @@ def stiffness_bars(k: np.ndarray, ci: np.ndarray, nominal: np.ndarray | None,
     short = nominal_label.split(" (")[0]
     what = (f"as k / {short} \u2212 1 in % (the {nominal_label} is the 0 line)" if relative
             else "in kN m/rad")
-    return _png(fig, "stiffness", f"Identified k with {confidence:.0%} intervals, {what}.")
+    return _png(fig, "stiffness", f"Identified k with {level(confidence)} intervals, {what}.")
 
 
 def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None = None,
-                  flagged: int | None = None, beyond: int | None = None) -> Figure:
-    """Studentized residual per test and component; the flagged outliers circled in red,
-    residuals beyond the threshold the procedure did not set aside marked with a cross.
+                  flagged: int | None = None, set_aside: int | None = None,
+                  robust: bool = False) -> Figure:
+    """Studentized residual per test and component; the outliers (``outlier``: |t| beyond
+    ``threshold``, exactly the points outside the dashed lines) circled in red, the
+    residuals the fit set aside (``set_aside``) marked with a cross.
 
     ``n_tests``: the campaign's number of tests when ``residuals`` holds only the rows of
     the tests with the largest residuals (the caption then says so). ``flagged``,
-    ``beyond``: counts over the whole campaign (default: those of ``residuals``)."""
+    ``set_aside``: counts over the whole campaign (default: those of ``residuals``);
+    ``robust``: a robust fit, whose set-aside rows are its down-weighted ones."""
     fig, ax = _new(legend_below=True)
     tests = residuals["test"].to_numpy()
     for comp, marker in COMPONENT_MARKERS.items():
@@ -356,14 +373,15 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
                     mfc="none", label=comp, linestyle="none")
     out = residuals["outlier"].to_numpy(dtype=bool)
     t_all = residuals["studentized"].to_numpy(dtype=float)
-    over = np.isfinite(t_all) & (np.abs(t_all) > threshold)
+    aside = (residuals["set_aside"].to_numpy(dtype=bool) if "set_aside" in residuals
+             else out)
+    what = "down-weighted" if robust else "set aside by the outlier test"
     if out.any():
         ax.plot(tests[out] + 1, t_all[out], "o", ms=11, mfc="none",
-                mec="red", mew=1.5, label="flagged outlier")
-    rest = over & ~out
-    if rest.any():
-        ax.plot(tests[rest] + 1, t_all[rest], "x", ms=9, color="darkorange", mew=1.5,
-                label="beyond, not set aside")
+                mec="red", mew=1.5, label="outlier")
+    if (aside != out).any() and aside.any():
+        ax.plot(tests[aside] + 1, t_all[aside], "x", ms=9, color="darkorange", mew=1.5,
+                label=what)
     for s in (-threshold, threshold):
         ax.axhline(s, color="red", ls="--", lw=1, zorder=3)
     ax.axhline(0, color="k", lw=0.8)
@@ -379,17 +397,15 @@ def residual_plot(residuals: pd.DataFrame, threshold: float, n_tests: int | None
              f" Shown: the {residuals['test'].nunique()} of {n_tests} tests holding the "
              "largest |studentized| residuals (outliers first); every test is in "
              "residuals.csv.")
-    from analysis.identification.estimate import MAX_OUTLIERS
-
     n_flag = int(out.sum()) if flagged is None else flagged
-    n_over = int(over.sum()) if beyond is None else beyond
-    how = (f"{n_over} residual(s) of the fit beyond the dashed lines at \u00b1{threshold:.2f}; "
-           f"{n_flag} flagged as outliers (circled in red)")
-    if n_over != n_flag:
-        how += (f". The outlier test sets aside the largest |t| and refits, one at a time, "
-                f"at most {MAX_OUTLIERS + 1} residuals: after the refits some residuals "
-                "beyond the line in this first fit fall inside it, or the budget is spent; "
-                "crosses: beyond the line, not set aside")
+    n_aside = int(aside.sum()) if set_aside is None else set_aside
+    how = (f"{n_flag} outlier(s): residuals beyond the dashed lines at "
+           f"\u00b1{threshold:.2f}, circled in red (column outlier of residuals.csv)")
+    if n_aside != n_flag:
+        how += (f"; {n_aside} {what} (crosses, column set_aside)"
+                + ("" if robust else
+                   ": the test sets aside the largest |t| and refits, one at a time, within "
+                   "its budget; k and its intervals are those of the fit drawn"))
     return _png(fig, "residuals", f"Studentized residuals of the fit; {how}." + shown)
 
 

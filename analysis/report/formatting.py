@@ -88,6 +88,14 @@ def percent(value: float | None, digits: int = 2) -> str:
     return text if any(c in "123456789" for c in text) else text[1:]
 
 
+def level(value: float) -> str:
+    """A probability as a percentage the way the terminal writes it: a space before the
+    sign, at most 4 significant digits ('95 %', '1 %', '99.17 %')."""
+    if value is None or not math.isfinite(value):
+        return "-"
+    return f"{100 * value:.4g} %"
+
+
 def fixed(value: float | None, decimals: int) -> str:
     """Fixed-point number; '-' for None/NaN."""
     if value is None or not math.isfinite(value):

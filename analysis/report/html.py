@@ -143,7 +143,8 @@ def render_html(report: Report) -> str:
     sections = [_section(s) for s in report.sections]
     nav_html = f"<nav><h3>Contents</h3><ol>{nav}</ol></nav>"
     body = "\n".join(sections[:1] + [nav_html] + sections[1:])
-    sim = (f'<div class="lab-banner" role="note">{escape(SIMULATED_TEXT)}</div>'
+    sim = (f'<div class="lab-banner" role="note">'
+           f'{escape(report.simulated_text or SIMULATED_TEXT)}</div>'
            if report.simulated else "")
     trace = escape(trace_text(report))
     body_class = ' class="sim"' if report.simulated else ""

@@ -111,7 +111,8 @@ class Report:
     """Title, a one-line status (partial run, flags) and the sections.
 
     ``simulated``: the data came from the simulated lab; every page and screen then
-    carries a SIMULATED DATA banner. ``trace``: the footer's facts.
+    carries a SIMULATED DATA banner (``simulated_text``, e.g. naming which of two compared
+    runs is simulated). ``trace``: the footer's facts.
     """
 
     title: str
@@ -120,3 +121,5 @@ class Report:
     banner: list[str] = field(default_factory=list)
     simulated: bool = False
     trace: Trace = field(default_factory=Trace)
+    #: the banner's text when ``simulated`` (default: ``html.SIMULATED_TEXT``, "this run")
+    simulated_text: str = ""

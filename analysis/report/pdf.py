@@ -31,10 +31,12 @@ def _font_dir() -> Path:
 
 
 class _Doc(FPDF):
-    def __init__(self, title: str, simulated: bool = False, trace: str = "") -> None:
+    def __init__(self, title: str, simulated: bool = False, trace: str = "",
+                 simulated_text: str = "") -> None:
         super().__init__(orientation="P", unit="mm", format="A4")
         self.report_title = title
         self.simulated = simulated
+        self.simulated_text = simulated_text
         self.trace = trace
         self.table_header = None  # draws the current table's header after a page break
         fonts = _font_dir()
@@ -55,7 +57,12 @@ class _Doc(FPDF):
         self.set_text_color(255)
         self.set_font("DejaVu", "B", 9)
         self.set_xy(MARGIN, 5)
-        self.cell(self.w - 2 * MARGIN, SIM_BAND - 2, SIMULATED_TEXT, align="C", fill=True)
+        text = self.simulated_text or SIMULATED_TEXT
+        size = 9.0
+        while size > 6 and self.get_string_width(text) > self.w - 2 * MARGIN - 2:
+            size -= 0.5
+            self.set_font("DejaVu", "B", size)
+        self.cell(self.w - 2 * MARGIN, SIM_BAND - 2, text, align="C", fill=True)
         self.set_text_color(0)
         self.set_xy(MARGIN, self.t_margin)
 
@@ -294,7 +301,7 @@ def render_pdf(report: Report) -> bytes:
     band at its top when the data are simulated)."""
     from analysis.report.html import trace_text
 
-    doc = _Doc(report.title, report.simulated, trace_text(report))
+    doc = _Doc(report.title, report.simulated, trace_text(report), report.simulated_text)
     doc.add_page()
     doc.set_font("DejaVu", "B", 17)
     doc.multi_cell(0, 8, report.title, new_x="LMARGIN", new_y="NEXT")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.measurements import COMPONENTS, TestArrays
-from analysis.report.formatting import MICRO, fixed, sig
+from analysis.report.formatting import MICRO, fixed, level, sig
 from analysis.report.model import Table
 
 #: the table lists at most this many tests (every test is in residuals.csv)
@@ -148,7 +148,7 @@ def tests_table(robot, tests: TestArrays, result, cases: list[LoadCase], noise,
          f"residual, {nominal_short} model ({u})", f"residual, identified ({u})"], out,
         caption="One row per test identified from, in the order of the input ('line': its "
         "row in the input table). Load case: the planned case whose force and moment the "
-        f"measured wrench matches within {LOAD_MATCH_RELATIVE:.0%} plus 5 noise sigmas "
+        f"measured wrench matches within {level(LOAD_MATCH_RELATIVE)} plus 5 noise sigmas "
         "('-': none). Residual: norm of measured - predicted translation and rotation of P, "
         f"under the {nominal_short} stiffness (nonlinear equilibrium) and under the "
         "identified one." + listed,
@@ -158,10 +158,11 @@ def tests_table(robot, tests: TestArrays, result, cases: list[LoadCase], noise,
     before = rms_pair(res_nom)
     after = rms_pair(res_id[: len(res_nom)])
     sig_t, sig_r = noise.translation_sigma, noise.rotation_sigma
-    rows = [["translation (\u00b5m)", fixed(1e6 * before[0], 2), fixed(1e6 * after[0], 2),
-             fixed(1e6 * sig_t, 2)],
-            ["rotation (\u00b5rad)", fixed(1e6 * before[1], 2), fixed(1e6 * after[1], 2),
-             fixed(1e6 * sig_r, 2)]]
+    # 3 significant digits, as the noise figures of the Assumptions table ("36.7 um")
+    rows = [["translation (\u00b5m)", *(sig(1e6 * v, 3, zeros=True)
+                                         for v in (before[0], after[0], sig_t))],
+            ["rotation (\u00b5rad)", *(sig(1e6 * v, 3, zeros=True)
+                                        for v in (before[1], after[1], sig_r))]]
     rms = Table(f"Residual RMS: {nominal_short} model against identified",
                 ["component", f"{nominal_short} stiffness", "identified stiffness",
                  "noise sigma of one component"], rows,

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.result import IdentificationResult
-from analysis.report.formatting import fixed, interval_kNm, k_kNm, percent, sig
+from analysis.report.formatting import fixed, interval_kNm, k_kNm, level, percent, sig
 from analysis.report.model import Paragraph, Table
 
 #: RMS error / sigma of a held-out pose above which the verdict warns, when the
@@ -93,15 +93,16 @@ def held_out(result: IdentificationResult) -> HeldOut | None:
 
 
 def outlier_counts(result: IdentificationResult) -> tuple[int, int]:
-    """(residuals flagged as outliers, residuals with |studentized| beyond the threshold)."""
+    """(outliers: residuals with |studentized| beyond the stated threshold at the fit
+    reported, i.e. the ``outlier`` rows; residuals the fit set aside: ``set_aside``)."""
     rows = result.residual_rows
     if rows is not None:  # the whole table as arrays: (m, 6), NaN where not measured
-        t, flags = np.abs(rows.t[rows.tests.measured]), rows.flags[rows.tests.measured]
-    else:
-        t = np.abs(result.residuals["studentized"].to_numpy(dtype=float))
-        flags = result.residuals["outlier"].to_numpy(dtype=bool)
+        return rows.n_beyond(), int((rows.flags & rows.tests.measured).sum())
+    res = result.residuals
+    t = np.abs(res["studentized"].to_numpy(dtype=float))
     beyond = int(np.sum(np.isfinite(t) & (t > result.outlier_threshold)))
-    return int(np.asarray(flags, dtype=bool).sum()), beyond
+    aside = res["set_aside"] if "set_aside" in res else res["outlier"]
+    return beyond, int(aside.to_numpy(dtype=bool).sum())
 
 
 @dataclass
@@ -114,18 +115,20 @@ class Verdict:
 
 def verdict(result: IdentificationResult, notes: list[str]) -> Verdict:
     """The one-line verdict; ``notes``: the run's own warnings (partial run, failed rows)."""
-    flagged, beyond = outlier_counts(result)
+    flagged, aside = outlier_counts(result)
+    what = "down-weighted" if result.robust is not None else "set aside by the outlier test"
     stats = (f"\u03c7\u00b2/\u03bd {sig(result.chi2_reduced, 3)}, p {sig(result.p_value, 2)}; "
              f"{flagged} outlier(s) (|studentized residual| > "
-             f"{fixed(result.outlier_threshold, 2)}: {beyond})")
+             f"{fixed(result.outlier_threshold, 2)})"
+             + (f", {aside} {what}" if aside != flagged else ""))
     ho = held_out(result)
     stats += f"; {ho.text}" if ho is not None else "; no held-out check (fewer than 3 poses)"
     if result.misfit_accepted:
         return Verdict("refusal", "ACCEPTED DESPITE A REFUSAL (--accept-misfit): "
                        + " | ".join(result.misfit_accepted) + f". {stats}.")
     problems = list(notes)
-    if flagged or beyond:
-        problems.append(f"{max(flagged, beyond)} residual(s) beyond the outlier threshold")
+    if flagged:
+        problems.append(f"{flagged} residual(s) beyond the outlier threshold")
     if ho is not None and ho.flagged:
         problems.append("held-out " + ", ".join(ho.flagged) + " beyond the limit")
     problems += result.warnings
@@ -146,7 +149,7 @@ def relative_interval(k: float, lo: float, hi: float) -> str:
 def result_table(result: IdentificationResult, nominal: np.ndarray | None,
                  nominal_label: str) -> Table:
     """k with its interval (absolute and relative to k) and the reference value."""
-    conf = f"{result.confidence:.0%}"
+    conf = f"{level(result.confidence)}"
     short = nominal_label.split(" (")[0]
     rows = []
     for j in range(6):

@@ -61,7 +61,7 @@ def test_html_table_holds_the_identified_values_and_intervals(complete):
     res, doc = complete["results"], complete["html"]
     table = doc.tables["Stiffness with standard errors and reference values"]
     header, rows = table[0], table[1:]
-    assert header[:3] == ["joint", "k (kN m/rad)", "95% interval (kN m/rad)"]
+    assert header[:3] == ["joint", "k (kN m/rad)", "95 % interval (kN m/rad)"]
     assert len(rows) == 6
     for j, row in enumerate(rows):
         k = res["joint_stiffness_Nm_per_rad"][j]

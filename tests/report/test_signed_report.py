@@ -12,6 +12,7 @@ import json
 import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -23,6 +24,7 @@ from report_runs import SIGMA, simulated_rows, write_run
 from analysis.report.formatting import interval_kNm, k_kNm, sig
 from campaign.cli import main
 
+ROOT = Path(__file__).resolve().parents[2]
 POSE_KEYS = ('model = "Leica AT960-MR"\nserial = "LT-777"\ncalibration_date = 2026-03-14\n'
              'calibration_due = 2027-03-14\ncertificate = "CAL-2026-0412"')
 
@@ -62,10 +64,22 @@ def real(tmp_path_factory):
     return {**_read(run / "analysis"), "run": run}
 
 
+@pytest.fixture(scope="module")
+def misfit(tmp_path_factory):
+    rows = simulated_rows(seed=4)
+    offset = np.random.default_rng(7).normal(scale=0.5, size=(5, 3))  # mm, per pose
+    for r in rows:
+        for c, key in enumerate(("dx_mm", "dy_mm", "dz_mm")):
+            r[key] += offset[r["test_id"] - 1, c]
+    run = write_run(tmp_path_factory.mktemp("signed") / "misfit", rows)
+    assert main(["analyze", str(run), "--trials", "10", "--accept-misfit"]) == 0
+    return {**_read(run / "analysis"), "run": run}
+
+
 def test_k_values_and_verdict_open_the_html_and_page_one(sim):
     res, page = sim["results"], sim["page"]
     first_table = next(iter(page.tables))
-    assert first_table == "Result: joint stiffness k with 95% intervals"
+    assert first_table == "Result: joint stiffness k with 95 % intervals"
     table = page.tables[first_table]
     text_before_contents = sim["text"].split("Contents")[0]
     chi2 = f"\u03c7\u00b2/\u03bd {sig(res['chi2_reduced'], 3)}"
@@ -165,21 +179,79 @@ def test_every_test_row_is_listed_with_residuals_before_and_after(sim):
         assert 0.4 * 1e6 * s < identified <= nominal * 1.05 < 2.5 * 1e6 * s
 
 
-def test_outlier_flags_equal_the_count_beyond_the_threshold(real):
-    res = real["results"]
-    resid = pd.read_csv(real["out"] / "residuals.csv")
+def _circled(monkeypatch, resid: pd.DataFrame, threshold: float) -> tuple[int, int, str]:
+    """(points circled as outliers, points crossed as set aside, caption) of the
+    report's residual figure drawn from ``resid``."""
+    import analysis.report.figures as figures
+
+    drawn = {}
+    real_png = figures._png
+    monkeypatch.setattr(figures, "_png", lambda fig, name, caption: (
+        drawn.setdefault("fig", fig), real_png(fig, name, caption))[1])
+    fig = figures.residual_plot(resid, threshold)
+    lines = {ln.get_label(): len(ln.get_xdata()) for ax in drawn["fig"].axes
+             for ln in ax.get_lines()}
+    return (lines.get("outlier", 0), lines.get("set aside by the outlier test", 0),
+            fig.caption)
+
+
+def _check_outliers(run: dict, monkeypatch) -> int:
+    res = run["results"]
+    resid = pd.read_csv(run["out"] / "residuals.csv")
     threshold = res["outlier_threshold_studentized"]
     beyond = int((resid["studentized"].abs() > threshold).sum())
     flagged = int(resid["outlier"].sum())
-    assert beyond >= 1 and flagged >= 1
-    table = real["page"].tables["Residuals (measured - model) per test and component"]
+    assert flagged == beyond
+    assert (resid["outlier"] == (resid["studentized"].abs() > threshold)).all()
+    aside = int(resid["set_aside"].sum())
+    table = run["page"].tables["Residuals (measured - model) per test and component"]
     stars = sum(c.endswith(" *") for r in table[1:] for c in r)
     assert stars == flagged
-    caption = next(alt for alt, _ in real["page"].figures if alt.startswith("Studentized"))
-    assert f"{beyond} residual(s) of the fit beyond the dashed lines at \u00b1{threshold:.2f}" \
-        in caption and f"{flagged} flagged as outliers" in caption
-    assert f"{flagged} outlier(s) (|studentized residual| > {threshold:.2f}: {beyond})" \
-        in real["pages"][0]
+    circled, crossed, caption = _circled(monkeypatch, resid, threshold)
+    assert circled == flagged and crossed == (aside if aside != flagged else 0)
+    shown = next(alt for alt, _ in run["page"].figures if alt.startswith("Studentized"))
+    assert f"{flagged} outlier(s): residuals beyond the dashed lines at " \
+        f"\u00b1{threshold:.2f}, circled in red" in shown
+    assert caption.split(" Shown:")[0] in shown
+    verdict = f"{flagged} outlier(s) (|studentized residual| > {threshold:.2f})"
+    assert verdict in run["pages"][0] and verdict in run["text"]
+    return aside
+
+
+def test_outlier_flags_equal_the_count_beyond_the_threshold(real, monkeypatch):
+    """An injected gross error: every residual beyond the threshold is an outlier, the
+    sequential test's set-aside rows are their own column."""
+    aside = _check_outliers(real, monkeypatch)
+    resid = pd.read_csv(real["out"] / "residuals.csv")
+    # the glitch (line 8's dz, 11 sigma) is set aside and beyond the threshold
+    line = sorted(resid["line"].unique())[7]
+    glitch = resid[(resid["line"] == line) & (resid["component"] == "dz")]
+    assert glitch["set_aside"].all() and glitch["outlier"].all() and aside >= 1
+
+
+def test_outliers_of_a_misfit_run_agree_with_the_figure(misfit, monkeypatch):
+    """A campaign simulated with a wrong model (a 0.5 mm offset per pose the joint
+    model cannot explain), accepted with --accept-misfit: more residuals beyond the
+    threshold than the sequential test's budget sets aside."""
+    from analysis.identification.estimate import MAX_OUTLIERS
+
+    assert misfit["results"]["misfit_accepted"]["accepted"]
+    aside = _check_outliers(misfit, monkeypatch)
+    resid = pd.read_csv(misfit["out"] / "residuals.csv")
+    assert int(resid["outlier"].sum()) > aside and aside <= MAX_OUTLIERS + 1
+    assert f", {aside} set aside by the outlier test" in misfit["pages"][0]
+
+
+def test_one_percent_format_as_the_terminal(sim, real, misfit):
+    """'95 %' with a space, as the terminal prints it, in every text of the HTML and PDF
+    (tables, captions, warnings, verdict) and in results.json's warnings."""
+    for run in (sim, real, misfit):
+        html = re.sub(r"<style>.*?</style>", "", run["html"], flags=re.S)  # CSS: 100%
+        html = re.sub(r"<img [^>]*>", "", html)  # the figures' base64 data
+        words = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
+        for text in [words, *run["pages"], *run["results"]["warnings"]]:
+            assert not re.search(r"\d%", text), re.search(r".{40}\d%.{20}", text)
+        assert "95 % interval" in words
 
 
 def test_red_is_for_failures_only(sim):
@@ -214,6 +286,60 @@ def test_figure_texts_have_no_literal_underscore(monkeypatch, tmp_path, rows):
         for text in f.texts:
             plain = re.sub(r"\$[^$]*\$", "", text)  # mathtext may use _ for subscripts
             assert "_" not in plain, (f.name, text)
+
+
+def _part_path(path):
+    with path.open("w") as fh:
+        fh.write("x_mm,y_mm,z_mm,ax,ay,az\n")
+        for a in np.linspace(0, 2 * np.pi, 12, endpoint=False):
+            fh.write(f"{80 * np.cos(a):.6f},{80 * np.sin(a):.6f},0,0,0,-1\n")
+    return path
+
+
+#: the pictures of compensate, place and robustness, small enough for a test (seconds)
+OTHER_PICTURES = {
+    "compensate": lambda tmp: ["compensate", "--robot", "kr240-2", "--path",
+                               str(ROOT / "examples" / "kr240-2_path.csv"), "--out",
+                               str(tmp / "c"), "--wrench", "0,1000,-1500,100,50,0"],
+    "place": lambda tmp: ["place", "--robot", "kr240-2", "--path",
+                          str(_part_path(tmp / "part.csv")), "--out", str(tmp / "p"),
+                          "--x-mm", "1400..1800", "--y-mm", "-200..200", "--z-mm", "200",
+                          "--x-step-mm", "200", "--y-step-mm", "200",
+                          "--tool-angle-step-deg", "30", "--config", "-1,-1,-1",
+                          "--wrench", "0,0,-1000,0,0,0", "--workers", "0"],
+    "robustness": lambda tmp: ["robustness", "--robot", "kr240-2", "--tests", "3,6",
+                               "--trials", "20", "--out", str(tmp / "r")],
+}
+
+
+@pytest.mark.parametrize("command", sorted(OTHER_PICTURES))
+def test_other_pictures_have_no_literal_underscore(command, monkeypatch, tmp_path):
+    """Every text drawn in the PNGs of compensate, place and robustness (titles, axes,
+    legends, colour bars): no underscore outside mathtext, except inside a file name
+    (``kr240-2_path.csv`` is that file's name, not a subscript)."""
+    from matplotlib.figure import Figure as MplFigure
+    from matplotlib.text import Text
+
+    drawn = []
+    real_save = MplFigure.savefig
+
+    def save(fig, *args, **kwargs):
+        drawn.append([t.get_text() for t in fig.findobj(match=Text)
+                      if t.get_visible() and t.get_text().strip()])
+        return real_save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(MplFigure, "savefig", save)
+    assert main(OTHER_PICTURES[command](tmp_path)) == 0
+    assert drawn, command
+    words = 0
+    for texts in drawn:
+        assert any(re.search("[a-z]{3}", t) for t in texts)  # titles and labels, not ticks
+        for text in texts:
+            plain = re.sub(r"\$[^$]*\$", "", text)
+            plain = re.sub(r"\S+\.(csv|toml|json)\b", "", plain)  # file names
+            assert "_" not in plain, (command, text)
+            words += len(plain.split())
+    assert words > 10
 
 
 @pytest.mark.skipif(shutil.which("pdftoppm") is None,
@@ -337,6 +463,42 @@ def test_pose_labels_never_overlap_and_near_poses_are_listed(which):
     assert "Nearly coinciding on this map" in fig.caption and "4, 5" in fig.caption
 
 
+def test_plan_map_lists_coinciding_poses_and_sets_their_labels_apart(monkeypatch, tmp_path):
+    """plan_map.png: two planned poses 0.1 deg apart are listed under the title and
+    their labels (the report's placement) overlap neither each other nor the others."""
+    import analysis.output_files as output_files
+    from campaign.plan_map import draw_plan_map
+    from campaign.planner import make_plan
+
+    plan = make_plan(_kr_protocol(), "d-optimal", seed=5, candidates=2000)
+    chosen = np.unique(plan.chosen.pose)
+    q = plan.candidates.q
+    q[chosen[1], 1:3] = q[chosen[0], 1:3] + np.radians([0.1, -0.1])
+    drawn = {}
+    monkeypatch.setattr(output_files, "save_figure",
+                        lambda fig, path, **kw: drawn.setdefault("fig", fig))
+    draw_plan_map(plan, tmp_path / "plan_map.png")
+    fig = drawn["fig"]
+    title = fig.axes[0].get_title()
+    assert "Nearly coinciding on this map (within" in title and "): 1, 2." in title
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)  # the figure was closed after saving
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    boxes = [tuple(t.get_window_extent(renderer).extents) for t in fig.pose_labels]
+    assert len(boxes) == len(chosen)
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            assert not _boxes_overlap(boxes[i], boxes[j]), (i + 1, j + 1)
+
+
+def _kr_protocol():
+    from campaign.protocol import load_protocol
+
+    return load_protocol(ROOT / "protocols" / "kr240-2.toml")
+
+
 def test_time_stamps_are_shown_to_the_second():
     from analysis.report.formatting import utc_text
 
@@ -365,8 +527,9 @@ def test_map_labels_have_no_literal_underscore():
 
 def test_compare_writes_a_report_naming_both_runs(sim, real, tmp_path, capsys):
     out = tmp_path / "cmp"
+    plot = tmp_path / "compare.pdf"
     assert main(["compare", str(sim["out"]), str(real["out"]), "--report", str(out),
-                 "--json"]) == 0
+                 "--plot", str(plot), "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
     page = ReportPage()
     page.feed((out / "report.html").read_text(encoding="utf-8"))
@@ -388,7 +551,19 @@ def test_compare_writes_a_report_naming_both_runs(sim, real, tmp_path, capsys):
         half = res["critical_z"] * np.hypot(r["se_A_Nm_per_rad"], r["se_B_Nm_per_rad"]) / 1e3
         assert hi - lo == pytest.approx(2 * half, rel=2e-3, abs=2e-3)
     pages = [p.extract_text() for p in PdfReader(out / "report.pdf").pages]
-    assert all("SIMULATED DATA" in p for p in pages)  # A came from the simulated lab
+    # A came from the simulated lab, B did not: the banner names A, not "this run"
+    assert all("SIMULATED DATA" in p and "run A (" in p and "this run" not in p
+               for p in [re.sub(r"\s+", " ", p) for p in pages])
+    assert "run A (" in (out / "report.html").read_text(encoding="utf-8").split(
+        'class="lab-banner"')[1].split("</div>")[0]
+    # the plot of --plot names A and B with their dates and robots
+    drawn = re.sub(r"\s+", " ", PdfReader(plot).pages[0].extract_text())
+    for label, run in (("A", sim), ("B", real)):
+        # no campaign name in these runs' metadata: the run directory's name
+        assert f"{label}: {run['run'].name}, measured 2026-11-20 09:58:00 UTC" in drawn, drawn
+        assert "KR240" in drawn.split(f"{label}: ")[1]
+    assert "(simulated)" in drawn.split("A: ")[1].split("B: ")[0]
+    assert "(simulated)" not in drawn.split("B: ")[1]
 
 
 def test_a_failed_row_makes_the_verdict_a_warning(complete_run, tmp_path):
