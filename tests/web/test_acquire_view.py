@@ -171,7 +171,7 @@ def server(workspace):
     thread.join(10)
 
 
-def test_browser_start_reload_reattach_abort(server, workspace):
+def test_browser_start_reload_reattach_abort_resume(server, workspace):
     chromium = Path("/usr/bin/chromium")
     if not chromium.exists():
         pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
@@ -222,5 +222,12 @@ def test_browser_start_reload_reattach_abort(server, workspace):
         shown = page.locator("#acq-done").text_content()
         assert int(shown) == len((workspace / "gui-run" / "tests.csv").read_text()
                                  .splitlines()) - 1
+        # resume the partial run from the page: it completes, every test measured once
+        page.fill("#acq-scale", "50")
+        page.click("#acq-resume")
+        page.wait_for_function("() => document.querySelector('#acq-status').textContent"
+                               " === 'complete'", timeout=60_000)
+        assert page.locator("#acq-done").text_content() == "3"
+        assert page.locator("#acq-tests tbody tr").count() == 3
         browser.close()
         assert not errors, errors
