@@ -71,13 +71,15 @@ async function loadRobot() {
     `convention (${r.convention}), limits from ${r.source_file ? r.source_file.split("/").pop() : "the model"}`;
   const box = u$("use-joints");
   for (const el of box.querySelectorAll("label")) el.remove();
-  const start = r.lower_rad.map((lo, j) => Math.min(Math.max(0, lo), r.upper_rad[j]));
+  // where the sliders start: the first zone's centre, other joints a quarter of the way
+  // from the middle of their range to its top (off the wrist singularity at 0)
+  const start = r.lower_rad.map((lo, j) => (lo + r.upper_rad[j]) / 2 + (r.upper_rad[j] - lo) / 8);
   const zone = (r.zones || [])[0];
   if (zone) {
     for (const [key, [a, b]] of Object.entries(zone.ranges_rad)) start[Number(key.slice(1)) - 1] = (a + b) / 2;
   }
   for (let j = 0; j < r.joints; j++) {
-    const lo = r.lower_rad[j] / DEG, hi = r.upper_rad[j] / DEG;
+    const lo = Number((r.lower_rad[j] / DEG).toFixed(6)), hi = Number((r.upper_rad[j] / DEG).toFixed(6));
     const l = document.createElement("label");
     l.className = "slider";
     l.innerHTML = `<span>q${j + 1} (deg) [${fmt(lo)}, ${fmt(hi)}]</span>` +
@@ -94,7 +96,7 @@ async function loadRobot() {
       const clamped = Math.min(Math.max(v, lo), hi);  // the limits are enforced here too
       n.value = String(clamped);
       s.value = String(clamped);
-      u$("use-status").textContent = clamped !== v ? `q${j + 1} held at its limit ${fmt(clamped)} deg` : "";
+      u$("use-limit").textContent = clamped !== v ? `q${j + 1} held at its limit ${fmt(clamped)} deg` : "";
       scheduleStiffness();
     });
   }
@@ -117,7 +119,10 @@ async function runStiffness() {
   const view = u$("view-use");
   view.dataset.busy = "1";
   try {
-    const body = { robot: u$("use-robot").value, q_rad: qDeg.map((v) => v * DEG),
+    // the limits in deg are rounded on the page: the angles sent are held inside the model's
+    const lo = use.robot.lower_rad, hi = use.robot.upper_rad;
+    const body = { robot: u$("use-robot").value,
+                   q_rad: qDeg.map((v, j) => Math.min(Math.max(v * DEG, lo[j]), hi[j])),
                    wrench_N_Nm: wrenchOf("use-w") };
     const res = await usePost("/api/jobs/stiffness", body);
     u$("use-error").textContent = "";
@@ -284,7 +289,9 @@ async function runCompare() {
 async function refreshFiles() {
   const f = await useGet("/api/use/files");
   const robots = [...f.builtin.map((n) => [n, `${n} (built-in)`]), ...f.models.map((m) => [m, m])];
+  const first = !u$("use-robot").options.length;
   fillSelect(u$("use-robot"), robots, true);
+  if (first && f.builtin.includes("kr240-2")) u$("use-robot").value = "kr240-2";
   const models = [...f.models.map((m) => [m, m]), ...f.builtin.map((n) => [n, `${n} (built-in, nominal k)`])];
   fillSelect(u$("comp-robot"), models, true);
   fillSelect(u$("comp-path"), f.paths.map((p) => [p, p]), true);
