@@ -255,6 +255,7 @@ function showCompensation(res, t) {
   if (use.plot) use.plot.destroy();
   box.innerHTML = "";
   use.plot = new uPlot({ width: 760, height: 300, series, bands, legend: { live: true },
+                         scales: { x: { time: false } },
                          axes: [{ label: "path point" }, { label: "deflection (mm)", size: 60 }] }, data, box);
 }
 
