@@ -237,6 +237,37 @@ def test_compensation_shows_the_jobs_numbers(page, ws):
     text = page.evaluate("async (p) => (await fetch('/api/use/program?path=' + "
                          "encodeURIComponent(p))).text()", src)
     assert text == (ws / src).read_text()
+    # the same output directory again, without "replace": the job's one line beside the form
+    page.click("#comp-run")
+    page.wait_for_selector("#view-use[data-comp='error']", timeout=30_000)
+    err = page.inner_text("#comp-error")
+    assert "comp-page" in err and "\n" not in err and str(ws) not in err
+    with pytest.raises(Exception) as refused:
+        run(CompensateOptions(robot=str(ws / "A/model.toml"), path=ws / "path.csv",
+                              out=ws / "comp-page", wrench_N_Nm=[500, 0, -1000, 0, 20, 0]))
+    assert err == str(refused.value).replace(f"{ws}/", "")
+
+
+def test_a_new_wrench_gives_the_jobs_numbers(page, ws):
+    page.select_option("#use-robot", "kr240-2")
+    page.wait_for_function("() => !document.getElementById('use-robot-info')"
+                           ".textContent.includes('model.toml')")
+    box = page.locator("#use-w-fz")
+    box.fill("-500")
+    box.press("Enter")
+    page.locator("#q5-deg").fill("40")
+    page.locator("#q5-deg").press("Enter")
+    q = _settled(page)
+    from campaign.jobs.stiffness import StiffnessOptions, run
+
+    res = run(StiffnessOptions(robot="kr240-2", q_rad=np.radians(q).tolist(),
+                               wrench_N_Nm=[0, 0, -500, 0, 200, 0]))
+    for i, name in enumerate(["dx", "dy", "dz", "rx", "ry", "rz"]):
+        _close(page.inner_text(f"#use-d-{name}"), 1e3 * res.deflection_nonlinear_m_rad[i])
+    _close(page.inner_text("#use-kx-t-22"), res.K_X[2][2] / 1e3)
+    box.fill("-2000")
+    box.press("Enter")
+    _settled(page)
 
 
 def test_compare_shows_the_jobs_numbers(page, ws):
