@@ -144,6 +144,11 @@ def test_slider_moves_show_the_stiffness_jobs_numbers(page, ws):
         slider.press("ArrowRight")
     q = _settled(page)
     assert q[1] == pytest.approx(q_before[1] + 3.0)  # 6 steps of 0.5 deg
+    from analysis.model.robots import load_robot
+
+    pendant = np.degrees(load_robot("kr240-2").to_controller(np.radians(q)))
+    shown = [float(v) for v in re.findall(r"A\d (-?[\d.]+)", page.inner_text("#use-pendant"))]
+    assert np.allclose(shown, pendant, rtol=1e-4, atol=1e-9), (shown, pendant)
     _check_pose(page, ws, "kr240-2")
     # an identified model: the deflection with its 95 % interval from the covariance
     page.select_option("#use-robot", "A/model.toml")

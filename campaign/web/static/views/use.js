@@ -100,7 +100,18 @@ async function loadRobot() {
       scheduleStiffness();
     });
   }
+  const pendant = document.createElement("label");
+  pendant.innerHTML = `<span>pendant (controller) convention</span><output id="use-pendant"></output>`;
+  box.appendChild(pendant);
   scheduleStiffness();
+}
+
+function showPendant(qDeg) {
+  // q_ctrl = (diag(sign) + coupling) q_model + offset, as the model file defines it
+  const r = use.robot;
+  const out = qDeg.map((_, i) => r.controller_offset_rad[i] / DEG + qDeg.reduce(
+    (acc, q, j) => acc + ((i === j ? r.controller_sign[i] : 0) + r.controller_coupling[i][j]) * q, 0));
+  u$("use-pendant").textContent = out.map((v, i) => `A${i + 1} ${fmt(v)}`).join(", ") + " deg";
 }
 
 function poseDeg() {
@@ -116,6 +127,7 @@ async function runStiffness() {
   if (use.inflight) { use.dirty = true; return; }
   use.inflight = true; use.dirty = false;
   const qDeg = poseDeg();
+  showPendant(qDeg);
   const view = u$("view-use");
   view.dataset.busy = "1";
   try {
