@@ -86,15 +86,18 @@ def page(ws):
 
 
 def _settled(page) -> list[float]:
-    """Wait until the page shows the job's answer for the joints now set; those joints (deg)."""
+    """Wait until the page shows the job's answer for the joints and wrench now set; those
+    joints (deg)."""
     page.wait_for_function(
         "() => { const v = document.getElementById('view-use');"
-        " return !v.dataset.busy && v.dataset.shownQ === JSON.stringify(useView.poseDeg()); }",
+        " return !v.dataset.busy && v.dataset.shownQ === JSON.stringify(useView.poseDeg())"
+        " && v.dataset.shownW === JSON.stringify(useView.wrench()); }",
         timeout=20_000)
     page.wait_for_timeout(150)  # a debounced request still pending would show as busy
     page.wait_for_function(
         "() => { const v = document.getElementById('view-use');"
-        " return !v.dataset.busy && v.dataset.shownQ === JSON.stringify(useView.poseDeg()); }")
+        " return !v.dataset.busy && v.dataset.shownQ === JSON.stringify(useView.poseDeg())"
+        " && v.dataset.shownW === JSON.stringify(useView.wrench()); }")
     return json.loads(page.get_attribute("#view-use", "data-shown-q"))
 
 
@@ -258,11 +261,13 @@ def test_a_new_wrench_gives_the_jobs_numbers(page, ws):
     page.wait_for_function("() => !document.getElementById('use-robot-info')"
                            ".textContent.includes('model.toml')")
     box = page.locator("#use-w-fz")
-    box.fill("-500")
-    box.press("Enter")
     page.locator("#q5-deg").fill("40")
     page.locator("#q5-deg").press("Enter")
+    _settled(page)
+    box.fill("-500")  # the wrench alone changes: the page asks the job again
+    box.press("Enter")
     q = _settled(page)
+    assert json.loads(page.get_attribute("#view-use", "data-shown-w"))[2] == -500
     from campaign.jobs.stiffness import StiffnessOptions, run
 
     res = run(StiffnessOptions(robot="kr240-2", q_rad=np.radians(q).tolist(),

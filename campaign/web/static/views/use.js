@@ -128,6 +128,7 @@ async function runStiffness() {
   use.inflight = true; use.dirty = false;
   const qDeg = poseDeg();
   showPendant(qDeg);
+  let wrenchShown = null;
   const view = u$("view-use");
   view.dataset.busy = "1";
   try {
@@ -136,6 +137,7 @@ async function runStiffness() {
     const body = { robot: u$("use-robot").value,
                    q_rad: qDeg.map((v, j) => Math.min(Math.max(v * DEG, lo[j]), hi[j])),
                    wrench_N_Nm: wrenchOf("use-w") };
+    wrenchShown = body.wrench_N_Nm;
     const res = await usePost("/api/jobs/stiffness", body);
     u$("use-error").textContent = "";
     showStiffness(res);
@@ -146,6 +148,7 @@ async function runStiffness() {
     use.inflight = false;
     use.calls += 1;
     view.dataset.shownQ = JSON.stringify(qDeg);
+    view.dataset.shownW = JSON.stringify(wrenchShown);
     view.dataset.busy = "";
     if (use.dirty) runStiffness();
   }
@@ -329,6 +332,6 @@ async function startUse() {
 }
 
 // for the tests and the screenshot script: what the page shows, nothing to change it
-window.useView = { poseDeg, state: use };
+window.useView = { poseDeg, wrench: () => wrenchOf("use-w"), state: use };
 startUse().catch((err) => { u$("use-error").textContent = String(err.message || err); });
 })();
