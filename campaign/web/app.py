@@ -24,6 +24,8 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.sensitivity_api",
     "campaign.web.runs_api",
     "campaign.web.api_jobs",
+    "campaign.web.plan_api",
+    "campaign.web.analyze_api",
 )
 
 STATIC = Path(__file__).parent / "static"
