@@ -65,7 +65,8 @@ def analyze_run(request: Request, body: AnalyzeRequest):
     r = result.results
     joints = [{"joint": j, "k_Nm_per_rad": k, "ci95_Nm_per_rad": ci, "se_Nm_per_rad": se}
               for j, k, ci, se in zip(r["joints_identified"], r["joint_stiffness_Nm_per_rad"],
-                                      r["ci95_Nm_per_rad"], r["standard_error_Nm_per_rad"])]
+                                      r["ci95_Nm_per_rad"], r["standard_error_Nm_per_rad"],
+                                      strict=True)]
     files = {name: str(Path(p).resolve().relative_to(ws.resolve()))
              for name, p in result.files.items() if Path(p).is_file()}
     return JSONResponse(json_ready({
