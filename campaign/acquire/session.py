@@ -129,6 +129,8 @@ def base_metadata(protocol: Protocol, plan_text: str, plan_source: Path, robot: 
     meta: dict[str, Any] = {
         "started_utc": utc(), "ended_utc": None,
         "operator": opts.operator or getpass.getuser(),
+        # a login name is not a person's name: the report says which it is
+        "operator_source": "--operator" if opts.operator else "OS user (no --operator given)",
         "campaign": protocol.campaign.name,
         "protocol_file": _protocol_copy_name(protocol), "protocol_source": protocol.path,
         "protocol_sha256": _sha(protocol.text),

@@ -169,7 +169,7 @@ def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
         instruments={k: _instrument_text(v) for k, v in (meta.get("instruments") or {}).items()},
         started_utc=str(meta.get("started_utc") or "-"), ended_utc=str(meta.get("ended_utc")
                                                                        or "-"),
-        operator=str(meta.get("operator") or "-"), status=run.status, reason=run.reason,
+        operator=_operator_text(meta), status=run.status, reason=run.reason,
         protocol_file=str(meta.get("protocol_file") or run.protocol_path or "-"),
         protocol_sha256=run.protocol_sha256 or str(meta.get("protocol_sha256") or "-"),
         software={str(k): str(v) for k, v in (meta.get("software") or {}).items()},
@@ -612,3 +612,13 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     return AnalyzeResult(json.loads((out / "results.json").read_text()),
                          json.loads((out / "analysis.json").read_text()), paths, result,
                          len(early), assumptions)
+
+
+def _operator_text(meta: dict) -> str:
+    """The operator recorded in metadata.json, saying when it is only the OS login name (a
+    run recorded without --operator; older runs do not say where the name came from)."""
+    name = str(meta.get("operator") or "-")
+    source = meta.get("operator_source")
+    if name != "-" and source and source != "--operator":
+        return f"{name} ({source})"
+    return name

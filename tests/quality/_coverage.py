@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from analysis.errors import InputError
@@ -24,6 +26,37 @@ NOISE = NoiseModel(translation_sigma_override=30e-6, rotation_sigma_override=40e
                    moment_relative=0.005)
 
 
+@dataclass(frozen=True)
+class Glitches:
+    """Gross errors added to a campaign: each test, independently with probability
+    ``fraction``, gets one; a share ``tracker`` of them (half by default, at random) on the
+    tracker, one displacement
+    component (drawn uniformly of the 6) off by ``size`` of its sigma (30 um / 40 urad), the
+    others on the F/T sensor, one wrench component off by ``size`` of that component's
+    sigma at the reading (0.5 N + 0.5 %, 0.05 N m + 0.5 %); the sign at random. Drawn from
+    a generator of its own, so a glitched campaign is the clean one plus its glitches."""
+
+    fraction: float = 0.1
+    size: float = 20.0
+    tracker: float = 0.5
+
+    def add(self, rng, dm, wm, ww, noise):
+        """(dm, wm) with the glitches added (copies); ``ww`` the true wrenches."""
+        dm, wm = dm.copy(), wm.copy()
+        m = dm.shape[0]
+        hit = rng.random(m) < self.fraction
+        tracker = rng.random(m) < self.tracker
+        comp = rng.integers(0, 6, m)
+        sign = np.where(rng.random(m) < 0.5, -1.0, 1.0)
+        rows = np.arange(m)
+        d_sig = np.broadcast_to(noise.displacement_sigma, dm.shape)
+        w_sig = noise.wrench_sigma_at(ww)
+        t, f = hit & tracker, hit & ~tracker
+        dm[rows[t], comp[t]] += sign[t] * self.size * d_sig[rows[t], comp[t]]
+        wm[rows[f], comp[f]] += sign[f] * self.size * w_sig[rows[f], comp[f]]
+        return dm, wm
+
+
 def campaign_setup(protocol_path, poses: int = 5, seed: int = 0):
     """(robot, q (poses, 6) rad, wrenches (3, 6), k_true (6,)) of the protocol's zones."""
     protocol = load_protocol(protocol_path)
@@ -39,12 +72,18 @@ def campaign_setup(protocol_path, poses: int = 5, seed: int = 0):
     return robot, cand.q[pick], protocol.wrenches(), k_true
 
 
-def coverage(robot, q, wrenches, k_true, method, scale, trials, seed, noise=NOISE):
-    """(coverage (6,) over the results given, results given) of 95 % intervals of k."""
+def coverage(robot, q, wrenches, k_true, method, scale, trials, seed, noise=NOISE,
+             robust="none", glitches: Glitches | None = None):
+    """(coverage (6,) over the results given, results given) of 95 % intervals of k.
+
+    ``robust``: "none", "huber" or "tukey" (``identify(..., robust=)``); ``glitches``:
+    gross errors added to every campaign (:class:`Glitches`), none by default.
+    """
     qq = np.repeat(q, len(wrenches), axis=0)
     ww = np.tile(wrenches * scale, (len(q), 1))
     d = displacement_screw(robot, qq, k_true, ww)
     rng = np.random.default_rng(seed)
+    glitch_rng = np.random.default_rng([seed, 1])
     hits = np.zeros(6)
     given = 0
     labels = np.repeat([f"P{i}" for i in range(len(q))], len(wrenches))
@@ -52,10 +91,13 @@ def coverage(robot, q, wrenches, k_true, method, scale, trials, seed, noise=NOIS
         wm = ww + rng.normal(size=ww.shape) * noise.wrench_sigma_at(ww)
         dm = d + rng.normal(size=d.shape) * noise.displacement_sigma
         qm = qq + rng.normal(size=qq.shape) * noise.joint_sigma
+        if glitches is not None:
+            dm, wm = glitches.add(glitch_rng, dm, wm, ww, noise)
         tests = TestArrays(pose=labels, q=qm, w=wm, d=dm, measured=np.ones(d.shape, bool),
                            line=np.arange(len(qq)) + 2)
         try:
-            res = identify(robot, tests, method=method, noise=noise, validate=False)
+            res = identify(robot, tests, method=method, noise=noise, validate=False,
+                           robust=robust)
         except InputError:
             continue
         if res.linear_bias is not None and not res.linear_bias["reliable"]:
