@@ -24,9 +24,14 @@ router = APIRouter(prefix="/api/plan", tags=["plan"])
 SHIPPED = Path(__file__).resolve().parents[2] / "protocols"
 #: the keys of the form: dotted key, label with its unit (the protocol's own units)
 FIELDS: tuple[tuple[str, str], ...] = (
+    ("campaign.name", "campaign name"),
     ("campaign.robot", "robot (built-in name or robot file)"),
     ("campaign.tests", "number of tests (poses)"),
     ("campaign.repeats", "repeats per test"),
+    ("tool.xyz_mm", "tool point x,y,z in the flange frame (mm)"),
+    ("tool.rpy_deg", "tool frame roll,pitch,yaw (deg)"),
+    ("tool.mass_kg", "tool mass (kg)"),
+    ("instruments.force_torque.mount_xyz_mm", "F/T sensor origin in the tool frame (mm)"),
     ("loads.selection", "load selection (per-pose or all)"),
     ("load_cases.0.name", "first load case: name"),
     ("load_cases.0.force_N", "first load case: force fx,fy,fz (N)"),
@@ -38,7 +43,11 @@ FIELDS: tuple[tuple[str, str], ...] = (
     ("thresholds.min_inv_kappa_F", "minimum 1/kappa_F"),
     ("thresholds.max_v_p", "maximum v_p"),
     ("thresholds.max_v_r_deg", "maximum v_r (deg)"),
+    ("sampling.use_robot_zones", "sample the robot's zones (true/false)"),
     ("safety.joint_margin_deg", "joint margin (deg)"),
+    ("safety.max_joint_speed_deg_s", "maximum joint speed (deg/s)"),
+    ("safety.max_joint_acceleration_deg_s2", "maximum joint acceleration (deg/s\u00b2)"),
+    ("safety.approach_offset_mm", "approach offset (mm)"),
 )
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
@@ -96,6 +105,8 @@ def _set(doc, key: str, value) -> bool:
 def _text(value) -> str:
     if value is None:
         return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
     if isinstance(value, list):
         return ",".join(_text(v) for v in value)
     return str(value)
@@ -116,6 +127,12 @@ def _parse(text: str, like):
             return float(t)
     except ValueError:
         return t
+    if like is None:  # a key the protocol does not have: a number, a list, else text
+        for parse in (int, float, lambda v: [float(x) for x in v.split(",")]):
+            try:
+                return parse(t)
+            except ValueError:
+                pass
     return t
 
 

@@ -37,7 +37,9 @@ def _cli_message(tmp_path: Path, key_line: str, bad_line: str) -> str:
 
 def test_plan_endpoint_writes_the_plan_and_protocol(client, workspace):
     r = client.post("/api/plan/run", json={"values": {"campaign.tests": "4",
-                    "instruments.pose.noise.translation_um": "40"}, "candidates": 300,
+                    "instruments.pose.noise.translation_um": "40",
+                    "tool.xyz_mm": "0, 0, 120", "sampling.use_robot_zones": "true",
+                    "safety.max_joint_speed_deg_s": "12"}, "candidates": 300,
                     "name": "p4"})
     assert r.status_code == 200, r.text
     d = r.json()
@@ -47,6 +49,12 @@ def test_plan_endpoint_writes_the_plan_and_protocol(client, workspace):
     assert d["summary"]["predicted_standard_errors"] == summary["predicted_standard_errors"]
     saved = (workspace / "protocols" / "p4.toml").read_text()
     assert "translation_um = 40" in saved and "tests = 4" in saved
+    import tomllib
+
+    doc = tomllib.loads(saved)
+    assert doc["tool"]["xyz_mm"] == [0.0, 0.0, 120.0]
+    assert doc["safety"]["max_joint_speed_deg_s"] == 12.0
+    assert doc["sampling"]["use_robot_zones"] is True
     assert "plans/p4/plan_map.png" in d["files"]
     # the saved protocol is offered as a starting point
     assert "protocols/p4.toml" in client.get("/api/plan/protocols").json()["workspace"]
