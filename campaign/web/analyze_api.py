@@ -61,6 +61,7 @@ def analyze_run(request: Request, body: AnalyzeRequest):
     except FileExistsError as err:
         return JSONResponse({"detail": str(err).replace(f"{ws}/", ""), "refused": []},
                             status_code=409)
+    # the run's own notes (partial run, failed rows) are shown beside it from analysis.json
     v = verdict(result.identification, [])
     r = result.results
     joints = [{"joint": j, "k_Nm_per_rad": k, "ci95_Nm_per_rad": ci, "se_Nm_per_rad": se}
@@ -72,4 +73,5 @@ def analyze_run(request: Request, body: AnalyzeRequest):
     return JSONResponse(json_ready({
         "verdict": {"kind": v.kind, "text": v.text}, "joints": joints,
         "method": r.get("method"), "robust": r.get("robust"),
-        "misfit_accepted": r.get("misfit_accepted"), "files": files}))
+        "misfit_accepted": r.get("misfit_accepted"), "files": files,
+        "run": {k: result.summary.get(k) for k in ("status", "partial", "failed_rows")}}))

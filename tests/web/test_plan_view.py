@@ -128,6 +128,7 @@ def test_analyze_endpoint_equals_results_json(demo_ws):
     assert [j["ci95_Nm_per_rad"] for j in d["joints"]] == res["ci95_Nm_per_rad"]
     assert d["verdict"]["kind"] in ("verdict", "warning") and "p " in d["verdict"]["text"]
     assert d["files"]["results"] == "run/analysis/results.json"
+    assert d["run"] == {"status": "complete", "partial": False, "failed_rows": 0}
     assert c.post("/api/analyze/run", json={"run_dir": "../x"}).status_code == 400
     assert c.post("/api/analyze/run", json={"run_dir": "run", "method": "x"}).status_code == 422
 
@@ -263,6 +264,7 @@ def test_page_analyzes_a_run_and_shows_results_json(open_page, demo_ws):
         assert float(row.locator("td.lo").inner_text()) == pytest.approx(lo / 1e3, abs=0.051)
         assert float(row.locator("td.hi").inner_text()) == pytest.approx(hi / 1e3, abs=0.051)
     assert "p " in page.locator("#an-verdict").inner_text()
+    assert page.locator("#an-status").inner_text().startswith("run run: complete")
     link = page.locator("#an-links a", has_text="report.html")
     r = page.request.get(link.evaluate("a => a.href"))
     assert r.status == 200 and "<html" in r.text().lower()

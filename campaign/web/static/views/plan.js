@@ -178,6 +178,11 @@ async function anRun() {
   pvEl("an-links").innerHTML = [anLink(d.files, "report.html", "report.html"),
     anLink(d.files, "report.pdf", "report.pdf"), anLink(d.files, "results.json", "results.json")]
     .filter((x) => x).join(" ");
+  const run = d.run || {};
+  pvEl("an-status").textContent = `run ${body.run_dir}: ${run.status}` +
+    (run.partial ? " (PARTIAL RUN: fewer tests than planned)" : "") +
+    (run.failed_rows ? `, ${run.failed_rows} failed test row(s)` : "") +
+    `; ${d.method}, robust ${body.robust}`;
   pvEl("an-force").checked = true;  // the next run of this view re-analyses
   document.body.dataset.analyze = "done";
 }
