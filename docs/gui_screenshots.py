@@ -2,7 +2,9 @@
 
 Usage: ``python docs/gui_screenshots.py WORKSPACE`` with a workspace holding a plan,
 a run and an analysis (``campaign demo --out WORKSPACE``); writes
-``docs/gui_sensitivity.png``, ``docs/gui_runs.png`` and ``docs/gui_plan.png`` (the
+``docs/gui_sensitivity.png``, ``docs/gui_runs.png``, ``docs/gui_use.png`` (the Use view:
+K_X at a pose and the compensation of ``examples/kr240-2_path.csv``, copied into the
+workspace as ``kr240-2_path.csv`` when it is not there) and ``docs/gui_plan.png`` (the
 Plan & Analyze view after a plan and a re-analysis of the workspace's run ``run``).
 """
 
@@ -42,9 +44,43 @@ def main(workspace: str) -> None:
         page.wait_for_selector("#runs-table")
         page.set_viewport_size({"width": 1240, "height": 430})
         page.screenshot(path=docs / "gui_runs.png")
+        use_view(page, Path(workspace), docs)
         _plan_and_analyze(page, docs)
         browser.close()
     srv.should_exit = True
+
+
+def use_view(page, workspace: Path, docs: Path) -> None:
+    """The Use view: one slider move, then the compensation of the example path."""
+    import shutil
+
+    path = workspace / "kr240-2_path.csv"
+    if not path.exists():
+        shutil.copy(docs.parent / "examples" / "kr240-2_path.csv", path)
+    page.set_viewport_size({"width": 1240, "height": 980})
+    page.click("#tab-use")
+    page.wait_for_selector("#view-use[data-ready='1']")
+    models = page.eval_on_selector_all("#use-robot option", "os => os.map(o => o.value)")
+    model = next((m for m in models if m.endswith("model.toml")), None)
+    if model:
+        page.select_option("#use-robot", model)
+        page.wait_for_function("(m) => document.getElementById('use-robot-info')"
+                               ".textContent.includes('model.toml')", arg=model)
+    slider = page.locator("#q2")
+    slider.focus()
+    for _ in range(4):
+        slider.press("ArrowRight")
+    page.wait_for_function("() => { const v = document.getElementById('view-use'); return "
+                           "!v.dataset.busy && v.dataset.shownQ === "
+                           "JSON.stringify(useView.poseDeg()); }")
+    page.select_option("#comp-path", "kr240-2_path.csv")
+    if model:
+        page.select_option("#comp-robot", model)
+    page.fill("#comp-out", "compensation-screenshot")
+    page.check("#comp-force")
+    page.click("#comp-run")
+    page.wait_for_selector("#view-use[data-comp='done']", timeout=60_000)
+    page.screenshot(path=docs / "gui_use.png", full_page=True)
 
 
 def _plan_and_analyze(page, docs: Path) -> None:

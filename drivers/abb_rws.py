@@ -41,6 +41,7 @@ from drivers.errors import (
 )
 from drivers.readings import Pose
 from drivers.roles import RobotController
+from drivers.safety import check_reached
 
 MIN_TIME = 0.5  # s, the RAPID module's own floor for stiff_time
 
@@ -224,10 +225,7 @@ class ABBRWSRobot(RobotController):
             if polls % 20 == 0 and self.execution_state() != "running":
                 raise DeviceFault(f"{self.base}: RAPID stopped during the motion")
             time.sleep(self.poll)
-        reached = self._read_joints()
-        if np.max(np.abs(reached - q)) > np.deg2rad(0.05):
-            raise DeviceFault(f"robot stopped {np.rad2deg(np.max(np.abs(reached - q))):.3f} "
-                              "deg away from the target")
+        check_reached(self._read_joints(), q)
 
     def _stop_quietly(self) -> None:
         try:

@@ -41,6 +41,7 @@ from drivers.errors import (
 )
 from drivers.readings import Pose
 from drivers.roles import RobotController
+from drivers.safety import check_reached
 
 
 class _Link:
@@ -254,10 +255,7 @@ class FanucRMIRobot(RobotController):
             raise DeviceTimeout(f"motion not finished after {self.motion_timeout} s; "
                                 "stopped (FRC_Abort)") from None
         self._seq = seq + 1  # a refused instruction takes no sequence number
-        reached = self._read_joints()
-        if np.max(np.abs(reached - q)) > np.deg2rad(0.05):
-            raise DeviceFault(f"robot stopped {np.rad2deg(np.max(np.abs(reached - q))):.3f} "
-                              "deg away from the target")
+        check_reached(self._read_joints(), q)
 
     def _stop_after_timeout(self) -> None:
         try:

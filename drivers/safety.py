@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from drivers.errors import SafetyRefusal
+from drivers.errors import DeviceFault, SafetyRefusal
 
 
 def check_joint_targets(
@@ -116,3 +116,15 @@ def check_force(wrench: np.ndarray, max_force: float, max_moment: float | None =
         m = float(np.linalg.norm(w[3:6]))
         if not np.isfinite(m) or m > max_moment:
             raise SafetyRefusal(f"moment {m:.1f} N m above the limit {max_moment:.1f} N m: stop")
+
+
+#: how far (rad) a robot may stop from its joint target and the motion still count as done
+REACHED_TOLERANCE = float(np.deg2rad(0.05))
+
+
+def check_reached(reached: np.ndarray, target: np.ndarray) -> None:
+    """Raise DeviceFault when the joints ``reached`` (rad) are more than REACHED_TOLERANCE
+    from ``target`` (rad) on any axis: a motion the controller ended short is not a pose."""
+    off = float(np.max(np.abs(np.asarray(reached, float) - np.asarray(target, float))))
+    if off > REACHED_TOLERANCE:
+        raise DeviceFault(f"robot stopped {np.rad2deg(off):.3f} deg away from the target")

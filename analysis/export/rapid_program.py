@@ -15,18 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
+from analysis.export.robot_programs import check_targets  # one check for every program
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
 NO_AXIS = "9E+09"
-
-
-def _targets(q: np.ndarray, where: str) -> np.ndarray:
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    if q.ndim != 2 or q.shape[1] != 6 or q.shape[0] == 0:
-        raise InputError(f"expected (points, 6) joint targets, got shape {q.shape}", where=where)
-    if not np.all(np.isfinite(q)):
-        raise InputError("joint targets must be finite", where=where)
-    return q
 
 
 def write_rapid(path: str | Path, name: str, q_pendant_deg: np.ndarray,
@@ -43,7 +35,7 @@ def write_rapid(path: str | Path, name: str, q_pendant_deg: np.ndarray,
     for value, what in ((speed, "speeddata"), (zone, "zonedata")):
         if not re.match(r"^[A-Za-z][A-Za-z0-9_]*$", value):
             raise InputError(f"{value!r} is not a RAPID {what} name", where=f"RAPID {what}")
-    q = _targets(q_pendant_deg, "RAPID targets")
+    q = check_targets(q_pendant_deg, "RAPID targets")
     n = len(q)
     ext = ",".join([NO_AXIS] * 6)
     rows = [f"[[{','.join(f'{v:.5f}' for v in row)}],[{ext}]]" for row in q]

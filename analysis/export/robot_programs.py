@@ -23,7 +23,8 @@ from analysis.output_files import make_dir, write_text
 _KRL_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,23}$")
 
 
-def _targets(q: np.ndarray, where: str) -> np.ndarray:
+def check_targets(q: np.ndarray, where: str) -> np.ndarray:
+    """``q`` as a (points, 6) array of finite joint targets, else an InputError at ``where``."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q.ndim != 2 or q.shape[1] != 6 or q.shape[0] == 0:
         raise InputError(f"expected (points, 6) joint targets, got shape {q.shape}", where=where)
@@ -49,7 +50,7 @@ def write_krl(directory: str | Path, name: str, q_pendant_deg: np.ndarray,
                          "or _, at most 24 characters)", where="program name")
     if not 0 < velocity_percent <= 100:
         raise InputError("expected 0 < velocity <= 100 %", where="velocity_percent")
-    q = _targets(q_pendant_deg, "KRL targets")
+    q = check_targets(q_pendant_deg, "KRL targets")
     out = make_dir(directory)
     n = len(q)
     upper = name.upper()
@@ -88,7 +89,7 @@ def write_urscript(path: str | Path, name: str, q_rad: np.ndarray,
     for value, what in ((speed_rad_s, "speed"), (acceleration_rad_s2, "acceleration")):
         if not value > 0:
             raise InputError(f"expected a positive {what}", where=f"URScript {what}")
-    q = _targets(q_rad, "URScript targets")
+    q = check_targets(q_rad, "URScript targets")
     lines = [f"def {name}():", *("  " + c for c in _comments(comments, "#")),
              f"  # {len(q)} joint targets (rad, controller convention); check at low speed first"]
     for row in q:

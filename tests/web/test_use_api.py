@@ -1,0 +1,35 @@
+"""``/api/use``: the Use view's file lists and program files, inside the workspace only."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+ROOT = Path(__file__).parents[2]
+
+
+def test_files_lists_models_paths_and_analyses(client, workspace, tmp_path):
+    shutil.copy(ROOT / "examples" / "kr240-2_path.csv", workspace / "p.csv")
+    (workspace / "an").mkdir()
+    (workspace / "an" / "results.json").write_text("{}")
+    (workspace / "an" / "compensated.csv").write_text("point,q1_deg,q1_cmd_deg\n1,0,0\n")
+    outside = tmp_path / "outside.csv"
+    outside.write_text("q1_deg\n0\n")
+    os.symlink(outside, workspace / "link.csv")
+    got = client.get("/api/use/files").json()
+    assert "kr240-2" in got["builtin"]
+    assert got["models"] == ["robot.toml"]  # the plan's protocol.toml is not a robot
+    assert got["paths"] == ["p.csv"]  # not a compensation's output, not a link out
+    assert got["analyses"] == ["an"]
+
+
+def test_program_files_only_inside_the_workspace(client, workspace):
+    (workspace / "c").mkdir()
+    (workspace / "c" / "comp_path.src").write_text("DEF comp_path()\nEND\n")
+    r = client.get("/api/use/program", params={"path": "c/comp_path.src"})
+    assert r.status_code == 200 and r.text == "DEF comp_path()\nEND\n"
+    for bad in ("../x.src", "/etc/passwd", "robot.toml", "c/none.src"):
+        r = client.get("/api/use/program", params={"path": bad})
+        assert r.status_code in (400, 422), (bad, r.status_code)
+        assert "path" in r.json()["detail"] or r.json().get("where") == "path"
