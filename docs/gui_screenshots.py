@@ -2,9 +2,10 @@
 
 Usage: ``python docs/gui_screenshots.py WORKSPACE`` with a workspace holding a plan,
 a run and an analysis (``campaign demo --out WORKSPACE``); writes
-``docs/gui_sensitivity.png``, ``docs/gui_runs.png`` and ``docs/gui_use.png`` (the Use view:
+``docs/gui_sensitivity.png``, ``docs/gui_runs.png``, ``docs/gui_use.png`` (the Use view:
 K_X at a pose and the compensation of ``examples/kr240-2_path.csv``, copied into the
-workspace as ``kr240-2_path.csv`` when it is not there).
+workspace as ``kr240-2_path.csv`` when it is not there) and ``docs/gui_plan.png`` (the
+Plan & Analyze view after a plan and a re-analysis of the workspace's run ``run``).
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ def main(workspace: str) -> None:
         page.set_viewport_size({"width": 1240, "height": 430})
         page.screenshot(path=docs / "gui_runs.png")
         use_view(page, Path(workspace), docs)
+        _plan_and_analyze(page, docs)
         browser.close()
     srv.should_exit = True
 
@@ -79,6 +81,24 @@ def use_view(page, workspace: Path, docs: Path) -> None:
     page.click("#comp-run")
     page.wait_for_selector("#view-use[data-comp='done']", timeout=60_000)
     page.screenshot(path=docs / "gui_use.png", full_page=True)
+
+
+def _plan_and_analyze(page, docs: Path) -> None:
+    page.set_viewport_size({"width": 1240, "height": 980})
+    page.click("#tab-plan")
+    page.wait_for_function("() => document.body.dataset.planview === 'ready'")
+    page.fill("#plan-candidates", "1000")
+    page.click("#plan-run")
+    page.wait_for_function("() => document.body.dataset.plan === 'done'", timeout=120_000)
+    page.wait_for_function("() => document.getElementById('plan-map').naturalWidth > 0")
+    if page.locator("#an-run option[value='run']").count():
+        page.select_option("#an-run", "run")
+        page.select_option("#an-method", "wls")
+        page.check("#an-force")
+        page.click("#an-run-btn")
+        page.wait_for_function("() => document.body.dataset.analyze !== 'running'",
+                               timeout=180_000)
+    page.screenshot(path=docs / "gui_plan.png", full_page=True)
 
 
 if __name__ == "__main__":

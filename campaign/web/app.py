@@ -26,6 +26,8 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.api_jobs",
     "campaign.web.use_api",
     "campaign.web.acquire_api",
+    "campaign.web.plan_api",
+    "campaign.web.analyze_api",
 )
 
 STATIC = Path(__file__).parent / "static"
