@@ -5,7 +5,13 @@ a run and an analysis (``campaign demo --out WORKSPACE``); writes
 ``docs/gui_sensitivity.png``, ``docs/gui_runs.png``, ``docs/gui_use.png`` (the Use view:
 K_X at a pose and the compensation of ``examples/kr240-2_path.csv``, copied into the
 workspace as ``kr240-2_path.csv`` when it is not there) and ``docs/gui_plan.png`` (the
-Plan & Analyze view after a plan and a re-analysis of the workspace's run ``run``).
+Plan & Analyze view after a plan and a re-analysis of the workspace's run ``run``) and
+``docs/gui_acquire.png`` (the Acquire view after a dry run and a complete acquisition of
+the workspace's plan ``plan`` on the simulated lab, time x 200, into
+``acquire-screenshot``).
+
+``python docs/gui_screenshots.py WORKSPACE VIEW ...`` takes only those views' screenshots
+(names: sensitivity, runs, use, plan, acquire).
 """
 
 from __future__ import annotations
@@ -18,7 +24,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def main(workspace: str) -> None:
+VIEWS = ("sensitivity", "runs", "use", "plan", "acquire")
+
+
+def main(workspace: str, views: tuple[str, ...] = VIEWS) -> None:
     from playwright.sync_api import sync_playwright
 
     from campaign.web.server import GuiOptions, make_server, url_of
@@ -34,18 +43,25 @@ def main(workspace: str) -> None:
         page = browser.new_page(viewport={"width": 1240, "height": 980})
         page.goto(url_of(sock, token))
         page.wait_for_selector("#row-k6")
-        slider = page.locator("#s-n_tests")
-        slider.focus()
-        for _ in range(5):
-            slider.press("ArrowRight")
-        page.wait_for_function("() => document.body.dataset.shown === JSON.stringify(body())")
-        page.screenshot(path=docs / "gui_sensitivity.png", full_page=True)
-        page.click("#tab-runs")
-        page.wait_for_selector("#runs-table")
-        page.set_viewport_size({"width": 1240, "height": 430})
-        page.screenshot(path=docs / "gui_runs.png")
-        use_view(page, Path(workspace), docs)
-        _plan_and_analyze(page, docs)
+        if "sensitivity" in views:
+            slider = page.locator("#s-n_tests")
+            slider.focus()
+            for _ in range(5):
+                slider.press("ArrowRight")
+            page.wait_for_function(
+                "() => document.body.dataset.shown === JSON.stringify(body())")
+            page.screenshot(path=docs / "gui_sensitivity.png", full_page=True)
+        if "runs" in views:
+            page.click("#tab-runs")
+            page.wait_for_selector("#runs-table")
+            page.set_viewport_size({"width": 1240, "height": 430})
+            page.screenshot(path=docs / "gui_runs.png")
+        if "use" in views:
+            use_view(page, Path(workspace), docs)
+        if "plan" in views:
+            _plan_and_analyze(page, docs)
+        if "acquire" in views:
+            _acquire(page, docs)
         browser.close()
     srv.should_exit = True
 
@@ -101,5 +117,24 @@ def _plan_and_analyze(page, docs: Path) -> None:
     page.screenshot(path=docs / "gui_plan.png", full_page=True)
 
 
+def _acquire(page, docs: Path) -> None:
+    """The Acquire view: a dry run, then the workspace's plan on the simulated lab."""
+    page.set_viewport_size({"width": 1240, "height": 980})
+    page.click("#tab-acquire")
+    page.wait_for_selector("#acq-plan", state="visible")
+    page.fill("#acq-plan", "plan")
+    page.fill("#acq-out", "acquire-screenshot")
+    page.fill("#acq-scale", "200")
+    page.click("#acq-dry")
+    page.wait_for_selector("#acq-motions li")
+    page.click("#acq-start")
+    page.wait_for_function("() => document.querySelector('#acq-status').textContent"
+                           " === 'complete'", timeout=300_000)
+    page.screenshot(path=docs / "gui_acquire.png", full_page=True)
+
+
 if __name__ == "__main__":
-    main(sys.argv[1])
+    unknown = set(sys.argv[2:]) - set(VIEWS)
+    if len(sys.argv) < 2 or unknown:
+        sys.exit(f"usage: gui_screenshots.py WORKSPACE [VIEW ...] with VIEW in {VIEWS}")
+    main(sys.argv[1], tuple(sys.argv[2:]) or VIEWS)
