@@ -64,8 +64,11 @@ class _Link:
         except OSError as err:
             raise ConnectionFailed(f"{self.where}: {err}") from err
 
-    def receive(self, timeout: float) -> dict[str, Any]:
+    def receive(self, timeout: float, said: float | None = None) -> dict[str, Any]:
+        """The next packet within ``timeout`` (s); a timeout's message names ``said`` (s),
+        the caller's whole wait, when given (not the part of it left for this packet)."""
         deadline = time.monotonic() + timeout
+        said = timeout if said is None else said
         while True:
             end = self.buf.find(b"\r\n")
             if end >= 0:
@@ -78,12 +81,12 @@ class _Link:
                 raise ProtocolError(f"{self.where}: no CR LF within {rmi.MAX_PACKET} bytes")
             left = deadline - time.monotonic()
             if left <= 0:
-                raise DeviceTimeout(f"{self.where}: no answer within {timeout:g} s")
+                raise DeviceTimeout(f"{self.where}: no answer within {said:g} s")
             self.sock.settimeout(left)
             try:
                 chunk = self.sock.recv(4096)
             except TimeoutError as err:
-                raise DeviceTimeout(f"{self.where}: no answer within {timeout:g} s") from err
+                raise DeviceTimeout(f"{self.where}: no answer within {said:g} s") from err
             except OSError as err:
                 raise ConnectionFailed(f"{self.where}: {err}") from err
             if not chunk:
@@ -173,7 +176,7 @@ class FanucRMIRobot(RobotController):
         link = self._link
         deadline = time.monotonic() + timeout
         while True:
-            packet = link.receive(max(deadline - time.monotonic(), 1e-3))
+            packet = link.receive(max(deadline - time.monotonic(), 1e-3), said=timeout)
             fam, got = rmi.kind(packet)
             if fam == "Communication" and got == "FRC_Terminate":
                 self._drop()
