@@ -97,7 +97,7 @@ def replacing(path: Path | str) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it over ``path``.
 
     For writers that take a file name (matplotlib, pandas, ...). The temporary
-    name keeps the suffix of ``path`` (``.NAME.XXXX.tmp.png``), for writers that
+    name keeps the suffix of ``path`` (``.NAME.<random>.tmp.png``), for writers that
     choose the format from it. Refuses a ``path`` that is a symbolic link or a
     directory; the temporary file is removed if anything fails.
     """
@@ -138,7 +138,7 @@ def replaced_dir(out: Path | str, force: bool, where: str = "--out") -> Iterator
     """Yield a new empty directory beside ``out`` that replaces ``out`` as a whole on success.
 
     ``out`` is refused when it is a symbolic link, or a non-empty directory
-    without ``force``. The new directory (``.NAME.new-XXXX``) is renamed to
+    without ``force``. The new directory (``.NAME.new-<random>``) is renamed to
     ``out`` once the body succeeds (the old ``out``, if any, is moved aside and
     removed), so nothing of an earlier output remains beside the new files; if
     the body fails, the new directory is removed and ``out`` is left as it was.

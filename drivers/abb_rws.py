@@ -219,19 +219,13 @@ class ABBRWSRobot(RobotController):
         while rws.parse_bool(self.read_symbol("stiff_go")):
             polls += 1
             if time.monotonic() > deadline:
-                self._stop_quietly()
+                self.stop_quietly()
                 raise DeviceTimeout(f"motion not finished after {self.motion_timeout} s; "
                                     "RAPID stopped")
             if polls % 20 == 0 and self.execution_state() != "running":
                 raise DeviceFault(f"{self.base}: RAPID stopped during the motion")
             time.sleep(self.poll)
         check_reached(self._read_joints(), q)
-
-    def _stop_quietly(self) -> None:
-        try:
-            self.stop()
-        except DriverError:
-            pass
 
     def _stop(self) -> None:
         self._request("POST", self.dialect.rapid("stop"),

@@ -254,17 +254,11 @@ class FanucRMIRobot(RobotController):
         try:
             self._exchange(packet, self.motion_timeout)
         except DeviceTimeout:
-            self._stop_after_timeout()
+            self.stop_quietly()
             raise DeviceTimeout(f"motion not finished after {self.motion_timeout} s; "
                                 "stopped (FRC_Abort)") from None
         self._seq = seq + 1  # a refused instruction takes no sequence number
         check_reached(self._read_joints(), q)
-
-    def _stop_after_timeout(self) -> None:
-        try:
-            self.stop()
-        except DriverError:
-            pass
 
     def _stop(self) -> None:
         self.command("FRC_Abort")

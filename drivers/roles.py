@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from drivers.errors import DeviceFault, DeviceTimeout
+from drivers.errors import DeviceFault, DeviceTimeout, DriverError
 from drivers.readings import JointAngles, Point, Pose, Wrench, average_wrench
 
 
@@ -109,6 +109,14 @@ class RobotController(Driver):
     def stop(self) -> None:
         """Stop any motion now."""
         self._stop()
+
+    def stop_quietly(self) -> None:
+        """Stop any motion now, ignoring a DriverError: for a driver that is about to raise
+        the error that made it stop (a timed-out motion), which must not be hidden."""
+        try:
+            self._stop()
+        except DriverError:
+            pass
 
     @abstractmethod
     def _read_joints(self) -> np.ndarray: ...
