@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import threading
 import time
 from pathlib import Path
 
@@ -152,23 +151,6 @@ def test_start_state_stream_abort_resume(client, workspace):
         assert 0 <= t["repeatability_mm"] < 0.5
         for f in ("fx_N", "fy_N", "fz_N"):  # the lab applies the planned force to 1 N
             assert abs(t[f] - p[f]) < 1.0, (f, t[f], p[f])
-
-
-@pytest.fixture
-def server(workspace):
-    from campaign.web.server import GuiOptions, make_server, url_of
-
-    token = "browser-token-0123456789"
-    srv, sock = make_server(GuiOptions(workspace=workspace, port=0, open_browser=False), token)
-    thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    for _ in range(200):
-        if srv.started:
-            break
-        time.sleep(0.02)
-    yield url_of(sock, token)
-    srv.should_exit = True
-    thread.join(10)
 
 
 def test_browser_start_reload_reattach_abort_resume(server, workspace):

@@ -7,8 +7,6 @@ compare the numbers on the page with the job's own result for the same settings.
 
 from __future__ import annotations
 
-import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -19,25 +17,6 @@ if not CHROMIUM.exists():
                 allow_module_level=True)
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="browser tests need pip install playwright")
-
-
-@pytest.fixture
-def server(workspace):
-    """(base URL, token) of a GUI server on 127.0.0.1 serving ``workspace``."""
-    from campaign.web.server import GuiOptions, make_server, url_of
-
-    token = "browser-token-0123456789"
-    srv, sock = make_server(GuiOptions(workspace=workspace, port=0, open_browser=False), token)
-    thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    for _ in range(200):
-        if srv.started:
-            break
-        time.sleep(0.02)
-    assert sock.getsockname()[0] == "127.0.0.1"
-    yield url_of(sock, token)
-    srv.should_exit = True
-    thread.join(10)
 
 
 @pytest.fixture
