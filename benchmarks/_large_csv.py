@@ -19,8 +19,13 @@ from analysis.kinetostatics.equilibrium import displacement_screw
 from analysis.model.robots import load_robot
 
 
-def simulated_tests(n: int, per_pose: int = 10, seed: int = 0):
-    """(pose labels, q rad, w N/N m, d m/rad) of n tests (noisy, as measured)."""
+def simulated_tests(n: int, per_pose: int = 10, seed: int = 0, noise: NoiseModel | None = None):
+    """(pose labels, q rad, w N/N m, d m/rad) of n tests (noisy, as measured).
+
+    ``noise``: the instruments' figures the readings are drawn with (default
+    :class:`NoiseModel()`); a zero figure leaves that reading exact and the other draws
+    unchanged (the same random numbers are drawn whatever the figures).
+    """
     robot = load_robot("kr240-2")
     rng = np.random.default_rng(seed)
     n_poses = max(3, -(-n // per_pose))
@@ -36,7 +41,7 @@ def simulated_tests(n: int, per_pose: int = 10, seed: int = 0):
     for s in range(0, n, 50_000):
         sl = slice(s, min(n, s + 50_000))
         d[sl] = displacement_screw(robot, q[sl], robot.nominal_stiffness, w[sl])
-    noise = NoiseModel()
+    noise = NoiseModel() if noise is None else noise
     d = d + rng.normal(size=d.shape) * noise.displacement_sigma
     w = w + rng.normal(size=w.shape) * noise.wrench_sigma
     q = q + rng.normal(size=q.shape) * noise.joint_sigma
