@@ -87,7 +87,8 @@ def campaign(n: int, seed: int, sources: tuple[str, ...] = SOURCES) -> dict:
             "cpu_s": round(time.process_time() - t0, 2)}
 
 
-def antithetic_pair(n: int, seed: int, sources: tuple[str, ...] = SOURCES) -> dict:
+def antithetic_pair(n: int, seed: int, sources: tuple[str, ...] = SOURCES,
+                    fitted: NoiseModel | None = None) -> dict:
     """The campaign of :func:`campaign` and its mirror (every noise draw negated), fitted.
 
     ``z_pair`` = ((k+ + k-)/2 - k_true) / se: the terms of the error that are odd in the
@@ -95,9 +96,11 @@ def antithetic_pair(n: int, seed: int, sources: tuple[str, ...] = SOURCES) -> di
     errors-in-variables attenuation, relative size ~(sigma_w/|w|)^2 at every N) remain,
     with a scatter ~0.02 se: a bias is seen in a few pairs at a small N, where it would
     take hundreds of single campaigns. ``rel_pair`` = (k+ + k-)/(2 k_true) - 1.
+    ``fitted``: the noise model of the fit, if not the one matching ``sources``.
     """
     t0 = time.process_time()
     simulated_noise, fitted_noise = noise_models(sources)
+    fitted_noise = fitted_noise if fitted is None else fitted
     robot = load_robot("kr240-2")
     simulate = _simulation()
     exact = NoiseModel(translation_sigma_override=0.0, rotation_sigma_override=0.0,
