@@ -59,7 +59,7 @@ def test_plan_endpoint_writes_the_plan_and_protocol(client, workspace):
     # the saved protocol is offered as a starting point
     assert "protocols/p4.toml" in client.get("/api/plan/protocols").json()["workspace"]
     form = client.get("/api/plan/form", params={"source": "protocols/p4.toml"}).json()
-    assert {f["key"]: f["value"] for f in form["fields"]}["campaign.tests"] == "4"
+    assert form["values"]["campaign.tests"] == "4"
 
 
 @pytest.mark.parametrize("key,line,bad", [
