@@ -117,10 +117,11 @@ def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
 
 
 def robot_path(ws: Path, robot: str, field: str = "robot") -> str:
-    """A robot given by name stays a name; one given as a file is a workspace path."""
-    if Path(robot).suffix.lower() in (".urdf", ".toml", ".yaml", ".yml"):
-        return str(inside(ws, robot, field))
-    return robot  # a built-in name (an unknown one is refused by the job, naming the field)
+    """A robot given by name stays a name; one given as a file (a URDF as
+    ``FILE.urdf#FRAME`` too) is a workspace path (see campaign.web.robots_api)."""
+    from campaign.web.robots_api import resolve_robot
+
+    return resolve_robot(ws, robot, field)
 
 
 @router.post("/robots")

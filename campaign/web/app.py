@@ -28,6 +28,7 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.acquire_api",
     "campaign.web.plan_api",
     "campaign.web.analyze_api",
+    "campaign.web.robots_api",
 )
 
 STATIC = Path(__file__).parent / "static"

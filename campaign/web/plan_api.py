@@ -104,8 +104,19 @@ def form(request: Request, source: str = Query("kr240-2.toml", max_length=300)):
         return _error(str(err), "source")
     except FormError as err:
         return _error(f"source: {source}: {err}", "source")
-    return {"source": source, "fields": [f.to_dict() for f in form_fields()],
+    return {"source": source, "fields": [_suggest(f.to_dict(), request) for f in form_fields()],
             "values": values}
+
+
+def _suggest(field: dict, request: Request) -> dict:
+    """campaign.robot: the pickers' robots, files named relative to ``protocols/`` (where
+    the form saves the protocol; a robot file is read relative to its protocol)."""
+    if field["key"] == "campaign.robot":
+        from campaign.web.robots_api import robot_choices
+
+        field["suggestions"] = [c.value if c.kind == "builtin" else f"../{c.value}"
+                                for c in robot_choices(request.app.state.workspace)]
+    return field
 
 
 def _problems(text: str, keys: list[str]) -> list[dict]:
