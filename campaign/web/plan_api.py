@@ -128,18 +128,14 @@ def _problems(text: str, keys: list[str]) -> list[dict]:
             for line in text.splitlines() if line.strip()]
 
 
-@router.post("/run")
-def run_plan(request: Request, body: PlanRequest):
-    """Save the form as ``protocols/NAME.toml`` and plan it into ``plans/NAME`` (replacing
-    a plan of that name); the answer: summary.json, the plan's rows, the zone map's data."""
+def _save(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONResponse:
+    """Write the form as ``protocols/NAME.toml``: (its path, the form's keys), or the
+    refusal naming the field."""
     import tomli_w
 
     from analysis.errors import InputError
-    from campaign.cli_common import Strategy
-    from campaign.jobs.plan import PlanOptions, run
     from campaign.web.protocol_form import FormError, build_document, field_keys, form_values
 
-    ws = Path(request.app.state.workspace)
     if not NAME.match(body.name):
         return _error("name: letters, digits, '.', '_' and '-' only", "name")
     try:
@@ -149,34 +145,74 @@ def run_plan(request: Request, body: PlanRequest):
     except FormError as err:
         return _error(f"source: {body.source}: {err}", "source")
     values.update(body.values)
+    keys = field_keys(values)
     try:
         doc = build_document(values)
     except FormError as err:
-        known = field_keys(values)
-        return _error(str(err), err.key if err.key in known else None)
-    try:
-        strategy = Strategy(body.strategy)
-    except ValueError:
-        return _error(f"strategy: {body.strategy!r} is not one of {', '.join(_strategies())}",
-                      "strategy")
+        return _error(str(err), err.key if err.key in keys else None)
     for sub in ("protocols", "plans"):
         if (ws / sub).is_symlink():
             return _error(f"{sub}: a symbolic link; refused", "name")
         (ws / sub).mkdir(exist_ok=True)
     proto = ws / "protocols" / f"{body.name}.toml"
-    out = ws / "plans" / body.name
-    for p in (proto, out):
+    for p in (proto, ws / "plans" / body.name):
         if p.is_symlink():
             return _error(f"{p.relative_to(ws)}: a symbolic link; refused", "name")
     source = body.source.replace("\n", " ").splitlines()[0] if body.source else ""
     proto.write_text(f"# edited in campaign gui from {source}\n" + tomli_w.dumps(doc))
+    return proto, keys
+
+
+def _refusal(ws: Path, err: Exception, keys: list[str]) -> JSONResponse:
+    text = str(err).replace(f"{ws}/", "")
+    problems = _problems(text, keys)
+    return _error(text, problems[0]["field"] if problems else None, problems=problems)
+
+
+@router.post("/save")
+def save_protocol(request: Request, body: PlanRequest):
+    """Save the form as ``protocols/NAME.toml`` and read it back with the protocol reader
+    (``load_protocol``: schema, units, safety limits, drivers and addresses); the
+    answer: the saved path, or the reader's message per field."""
+    from analysis.errors import InputError
+    from campaign.protocol import load_protocol
+
+    ws = Path(request.app.state.workspace)
+    saved = _save(ws, body)
+    if isinstance(saved, JSONResponse):
+        return saved
+    proto, keys = saved
+    try:
+        load_protocol(proto)
+    except InputError as err:
+        return _refusal(ws, err, keys)
+    return {"protocol": str(proto.relative_to(ws))}
+
+
+@router.post("/run")
+def run_plan(request: Request, body: PlanRequest):
+    """Save the form as ``protocols/NAME.toml`` and plan it into ``plans/NAME`` (replacing
+    a plan of that name); the answer: summary.json, the plan's rows, the zone map's data."""
+    from analysis.errors import InputError
+    from campaign.cli_common import Strategy
+    from campaign.jobs.plan import PlanOptions, run
+
+    ws = Path(request.app.state.workspace)
+    try:
+        strategy = Strategy(body.strategy)
+    except ValueError:
+        return _error(f"strategy: {body.strategy!r} is not one of {', '.join(_strategies())}",
+                      "strategy")
+    saved = _save(ws, body)
+    if isinstance(saved, JSONResponse):
+        return saved
+    proto, keys = saved
+    out = ws / "plans" / body.name
     try:
         result = run(PlanOptions(protocol=proto, out=out, strategy=strategy, seed=body.seed,
                                  candidates=body.candidates, force=True, map_points=True))
     except InputError as err:
-        text = str(err).replace(f"{ws}/", "")
-        problems = _problems(text, field_keys(values))
-        return _error(text, problems[0]["field"] if problems else None, problems=problems)
+        return _refusal(ws, err, keys)
     except Exception as err:
         if type(err).__name__ == "EquilibriumError":
             return _error(f"nonlinear equilibrium: {err}; reduce the wrench", None)

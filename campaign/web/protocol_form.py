@@ -373,13 +373,15 @@ def build_document(values: dict[str, str]) -> dict:
 
 
 def field_keys(values: dict[str, str]) -> list[str]:
-    """The expanded keys of the form holding ``values`` (every field of every row)."""
+    """The expanded keys of the form holding ``values``: every field of every row, and
+    each row and role itself (``load_cases[2]``: what a check of the whole row names)."""
     fields = form_fields()
     rows = {name: sorted({int(m.group(1)) for k in values
                           for m in [re.match(rf"{name}\[(\d+)\]", k)] if m}) for name in ROWS}
     roles = {name: sorted({k.split(".")[1] for k in values if k.startswith(name + ".")})
              for name in ROLES}
-    out = []
+    out = [f"{name}[{i}]" for name in ROWS for i in rows[name]]  # a row's own checks
+    out += [f"{name}.{r}" for name in ROLES for r in roles[name]]
     for f in fields:
         if "[*]" in f.key:
             name = f.key.split("[", 1)[0]

@@ -86,10 +86,14 @@ function pvFieldRow(f, key, value) {
   span.title = `${key}: ${f.kind}${f.size ? " of " + f.size : ""}. ${f.help}`;
   row.appendChild(span);
   row.appendChild(pvInput(f, key, value));
+  row.appendChild(pvMsg());
+  return row;
+}
+
+function pvMsg() {
   const msg = document.createElement("small");
   msg.className = "pv-msg"; msg.setAttribute("role", "alert");
-  row.appendChild(msg);
-  return row;
+  return msg;
 }
 
 function pvButton(text, cls, onClick) {
@@ -126,8 +130,10 @@ function planRender(values) {
       pvRows(values, section).forEach((id, i) => {
         const block = document.createElement("div");
         block.className = "pv-block"; block.dataset.row = String(i);
+        block.dataset.key = `${section}[${i}]`;
         const h = document.createElement("h4"); h.textContent = `${ROW_SECTIONS[section]} ${i + 1} (${section}[${i}])`;
         block.appendChild(h);
+        block.appendChild(pvMsg());
         for (const f of fields) {
           const key = f.key.replace("[*]", `[${i}]`);
           block.appendChild(pvFieldRow(f, key, values[f.key.replace("[*]", `[${id}]`)]));
@@ -142,8 +148,10 @@ function planRender(values) {
       for (const role of pvRoles(values, section)) {
         const block = document.createElement("div");
         block.className = "pv-block"; block.dataset.role = role;
+        block.dataset.key = `${section}.${role}`;
         const h = document.createElement("h4"); h.textContent = `${section}.${role}`;
         block.appendChild(h);
+        block.appendChild(pvMsg());
         for (const f of fields) {
           const key = f.key.replace(".*.", `.${role}.`);
           block.appendChild(pvFieldRow(f, key, values[key]));
@@ -221,16 +229,16 @@ function planClearMessages() {
   for (const m of document.querySelectorAll("#view-plan .pv-bad")) m.classList.remove("pv-bad");
 }
 
-async function planRun() {
+async function planRun(saveOnly) {
   planClearMessages();
-  pvEl("plan-status").textContent = "planning\u2026";
+  pvEl("plan-status").textContent = saveOnly ? "saving\u2026" : "planning\u2026";
   document.body.dataset.plan = "running";
-  const [ok, d] = await pvPost("/api/plan/run", planBody());
+  const [ok, d] = await pvPost(saveOnly ? "/api/plan/save" : "/api/plan/run", planBody());
   if (!ok) {
     const rest = [];
     for (const p of d.problems || [{ field: d.field, detail: d.detail }]) {
-      const row = p.field && document.querySelector(`#view-plan label[data-key="${CSS.escape(p.field)}"]`);
-      const msg = row && row.querySelector(".pv-msg");
+      const row = p.field && document.querySelector(`#view-plan :is(label, div)[data-key="${CSS.escape(p.field)}"]`);
+      const msg = row && row.querySelector(":scope > .pv-msg");
       if (msg) {
         msg.textContent = msg.textContent ? `${msg.textContent}\n${p.detail}` : p.detail;
         row.classList.add("pv-bad");
@@ -241,6 +249,11 @@ async function planRun() {
     if (first) first.scrollIntoView({ block: "center" });
     pvEl("plan-status").textContent = "";
     document.body.dataset.plan = "error";
+    return;
+  }
+  if (saveOnly) {
+    pvEl("plan-status").textContent = `saved ${d.protocol}; the protocol reader accepts it`;
+    document.body.dataset.plan = "saved";
     return;
   }
   planShow(d);
@@ -471,7 +484,8 @@ async function pvStart() {
     pvEl("plan-strategy").appendChild(o);
   }
   pvEl("plan-source").addEventListener("change", planLoadForm);
-  pvEl("plan-run").addEventListener("click", planRun);
+  pvEl("plan-run").addEventListener("click", () => planRun(false));
+  pvEl("plan-save").addEventListener("click", () => planRun(true));
   pvEl("plan-target").addEventListener("change", () => { if (pv.last) planPlotSe(pv.last.summary); });
   pvEl("an-run-btn").addEventListener("click", anRun);
   pvEl("an-refresh").addEventListener("click", anLoadRuns);
