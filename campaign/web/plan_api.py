@@ -53,9 +53,11 @@ def _error(text: str, field: str | None = None, status: int = 400,
 def _source(ws: Path, source: str) -> Path:
     from campaign.web.security import inside_workspace
 
-    if "/" not in source and (SHIPPED / source).is_file():
-        return SHIPPED / source
-    return inside_workspace(ws, source, "source")
+    try:
+        shipped = "/" not in source and (SHIPPED / source).is_file()
+    except (OSError, ValueError):  # a name too long, a NUL byte: no shipped protocol
+        shipped = False
+    return SHIPPED / source if shipped else inside_workspace(ws, source, "source")
 
 
 @router.get("/protocols")
@@ -87,7 +89,7 @@ def _document(ws: Path, source: str) -> dict:
         return tomllib.loads(text)
     except OSError as err:
         raise InputError(f"cannot read: {err.strerror}", where=source) from None
-    except tomllib.TOMLDecodeError as err:
+    except (tomllib.TOMLDecodeError, ValueError) as err:  # ValueError: a 4300-digit int
         raise InputError(f"not TOML: {err}", where=source) from None
 
 

@@ -244,7 +244,7 @@ def parse_value(key: str, kind: str, text: str):
     if kind == "table":
         try:
             return tomllib.loads(f"v = {t}")["v"]
-        except tomllib.TOMLDecodeError as err:
+        except (tomllib.TOMLDecodeError, ValueError) as err:  # ValueError: a 4300-digit int
             raise FormError(key, f"expected an inline table such as {{ q1 = 0, q4 = 45 }}: "
                                  f"{err}") from None
     return t

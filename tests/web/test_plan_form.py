@@ -284,3 +284,29 @@ def test_page_shows_each_message_beside_its_field(plan_page, tmp_path):
     page.wait_for_function("() => document.body.dataset.plan === 'saved'", timeout=30_000)
     assert json.loads(json.dumps(page.locator("#plan-status").inner_text())).startswith(
         "saved protocols/plan-gui.toml")
+
+
+def test_any_typed_text_is_saved_or_refused_never_a_500(client):
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    from campaign.web.protocol_form import field_keys
+
+    form = client.get("/api/plan/form").json()["values"]
+    keys = field_keys(form) + ["load_cases[7].name", "instruments.new.driver", "zones[0].name",
+                               "instruments.pose.options.reflectors_mm", "campaign.x[1]"]
+    texts = st.text(max_size=30) | st.sampled_from(
+        ["{ a = 1 }", "{ q1 = [1, 2] }", "1e999", "9" * 5000, "2026-02-30", "[1, 2, 3]",
+         "true", "-0", "{ P = [0, 0, 0], R1 = [1, 0, 0], R2 = [0, 1, 0] }", '"', "\x00"])
+
+    @settings(max_examples=80, deadline=None, database=None,
+              suppress_health_check=list(HealthCheck))
+    @given(st.dictionaries(st.sampled_from(keys), texts, max_size=5), st.booleans())
+    def call(values, complete):
+        r = client.post("/api/plan/save", json={"values": values, "complete": complete,
+                                                "name": "fz"})
+        assert r.status_code in (200, 400, 422), r.text
+        if r.status_code == 400:
+            assert r.json()["detail"]
+
+    call()
