@@ -85,8 +85,14 @@ function pvFieldRow(f, key, value) {
   span.textContent = `${leaf}${f.unit ? " (" + f.unit + ")" : ""}${f.required ? " *" : ""}`;
   span.title = `${key}: ${f.kind}${f.size ? " of " + f.size : ""}. ${f.help}`;
   row.appendChild(span);
-  row.appendChild(pvInput(f, key, value));
+  const input = pvInput(f, key, value);
+  row.appendChild(input);
   row.appendChild(pvMsg());
+  // "keys with a value only" hides the empty optional fields (the reader's defaults)
+  const mark = () => row.classList.toggle("pv-empty", !f.required && input.value.trim() === "");
+  input.addEventListener("input", mark);
+  input.addEventListener("change", mark);
+  mark();
   return row;
 }
 
@@ -321,7 +327,7 @@ function planPlotSe(s) {
       { label: "target (% of k)", stroke: "#b00020", dash: [6, 4], width: 1.5, points: { show: false },
         value: (u, v) => (v === null ? "\u2013" : v + " %") }],
     axes: [{ label: "joint", values: (u, v) => v.map((t) => (Number.isInteger(t) ? `k${t}` : "")) },
-           { label: "predicted standard error of k (% of the prior k)", size: 60 }],
+           { label: "predicted se of k (% of prior k)", size: 60 }],
   }, data);
 }
 
@@ -486,6 +492,8 @@ async function pvStart() {
   pvEl("plan-source").addEventListener("change", planLoadForm);
   pvEl("plan-run").addEventListener("click", () => planRun(false));
   pvEl("plan-save").addEventListener("click", () => planRun(true));
+  pvEl("plan-compact").addEventListener("change", () =>
+    pvEl("plan-fields").classList.toggle("pv-compact", pvEl("plan-compact").checked));
   pvEl("plan-target").addEventListener("change", () => { if (pv.last) planPlotSe(pv.last.summary); });
   pvEl("an-run-btn").addEventListener("click", anRun);
   pvEl("an-refresh").addEventListener("click", anLoadRuns);
