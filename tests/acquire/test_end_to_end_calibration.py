@@ -15,7 +15,7 @@ import pytest
 from analysis.identification.estimate import analyze_table
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
-from campaign.commands.analyze import _noise_from_protocol
+from campaign.cli.commands.analyze import _noise_from_protocol
 from campaign.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot

@@ -132,7 +132,7 @@ def register(app: typer.Typer) -> None:
             for name, url in addresses.items():
                 typer.echo(f"{name}={url}")
             # name=url lines stay whole (scripts read them); these are for people
-            from campaign.cli_common import echo
+            from campaign.cli.common import echo
 
             for line in _describe(settings, probe):
                 echo(f"lab: {line}", err=True)

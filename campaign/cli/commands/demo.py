@@ -25,7 +25,7 @@ def demo(
 ) -> None:
     """Plan, acquire on the simulated lab and analyse the KR240-2 campaign (Dumas et al. 2011)."""
     from campaign.acquire.session import AcquireOptions, acquire
-    from campaign.commands.acquire import make_reporter
+    from campaign.cli.commands.acquire import make_reporter
     from campaign.plan_output import summary_text
     from campaign.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
@@ -41,7 +41,7 @@ def demo(
     if out.exists() and any(out.iterdir()):
         raise InputError("demo directory exists and is not empty; choose another --out",
                          where=str(out))
-    from campaign.cli_common import echo
+    from campaign.cli.common import echo
 
     say = (lambda s: None) if quiet else echo
     t0 = time.monotonic()
@@ -69,7 +69,7 @@ def demo(
 def analyze_run(run_dir: Path, report: bool) -> None:
     """``campaign analyze RUN_DIR`` when it exists, else the identification of tests.csv."""
     try:
-        import campaign.commands.analyze  # noqa: F401
+        import campaign.cli.commands.analyze  # noqa: F401
         import campaign.run_reader  # noqa: F401
     except ImportError:
         _analyze_table(run_dir)
