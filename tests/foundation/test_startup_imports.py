@@ -152,7 +152,7 @@ def test_stiffness_imports_pinocchio_but_not_scipy_pandas_matplotlib():
 
 def test_plan_command_strategies_match_the_planner():
     from campaign.cli.common import Strategy
-    from campaign.planner import STRATEGIES
+    from campaign.planning.planner import STRATEGIES
 
     # the CLI's enum is kept apart from the planner (which pulls in pandas) and must agree
     assert tuple(s.value for s in Strategy) == STRATEGIES

@@ -13,7 +13,7 @@ import typer
 
 from analysis.errors import InputError
 
-PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "kr240-2.toml"
+PROTOCOL = Path(__file__).resolve().parents[3] / "protocols" / "kr240-2.toml"
 
 
 def demo(
@@ -26,8 +26,8 @@ def demo(
     """Plan, acquire on the simulated lab and analyse the KR240-2 campaign (Dumas et al. 2011)."""
     from campaign.acquire.session import AcquireOptions, acquire
     from campaign.cli.commands.acquire import make_reporter
-    from campaign.plan_output import summary_text
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.plan_output import summary_text
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     if not PROTOCOL.is_file():
@@ -70,7 +70,7 @@ def analyze_run(run_dir: Path, report: bool) -> None:
     """``campaign analyze RUN_DIR`` when it exists, else the identification of tests.csv."""
     try:
         import campaign.cli.commands.analyze  # noqa: F401
-        import campaign.run_reader  # noqa: F401
+        import campaign.run_format.reader  # noqa: F401
     except ImportError:
         _analyze_table(run_dir)
         return
