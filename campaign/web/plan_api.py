@@ -21,7 +21,7 @@ from pydantic import BaseModel, Field
 
 router = APIRouter(prefix="/api/plan", tags=["plan"])
 
-SHIPPED = Path(__file__).resolve().parents[2] / "protocols"
+SHIPPED = Path(__file__).resolve().parents[1] / "protocols"  # package data
 #: the keys of the form: dotted key, label with its unit (the protocol's own units)
 FIELDS: tuple[tuple[str, str], ...] = (
     ("campaign.name", "campaign name"),
