@@ -15,7 +15,7 @@ import pytest
 
 COMMANDS = Path(__file__).parents[2] / "campaign" / "cli" / "commands"
 JOBS = ("plan", "acquire", "analyze", "stiffness", "maps", "robustness", "compensate",
-        "compare", "place", "robots", "demo")
+        "compare", "place", "robots", "demo", "lab")
 #: what a face may import from analysis/: its error class and presentation helpers
 PRESENTATION = {"analysis.errors", "analysis.report.formatting",
                 "analysis.identification.compare"}  # level_text: the verdict's wording
