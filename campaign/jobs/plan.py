@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from campaign.cli_common import Strategy
+from campaign.cli.common import Strategy
 from campaign.jobs.common import Stage, floats, no_stage
 
 
@@ -20,7 +20,7 @@ class PlanOptions:
     seed: seed of the candidate draw and random design; candidates: candidate poses drawn;
     tests: test poses (None: the protocol's); figure: draw plan_map.png;
     force: write into a non-empty ``out`` (its plan files are replaced);
-    map_points: also return the zone map's data (:func:`campaign.plan_map.map_points`)."""
+    map_points: also return the zone map's data (:func:`campaign.planning.plan_map.map_points`)."""
 
     protocol: Path
     out: Path
@@ -52,7 +52,7 @@ class PlanResult:
 def run(o: PlanOptions, stage: Stage = no_stage) -> PlanResult:
     """Load the protocol, plan and write the plan directory (removed again on failure)."""
     from analysis.output_files import check_output_dir, created_dir
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     proto = load_protocol(Path(o.protocol))
@@ -68,7 +68,7 @@ def run(o: PlanOptions, stage: Stage = no_stage) -> PlanResult:
         path = write_plan(plan, out, figure=o.figure)
     points = None
     if o.map_points:
-        from campaign.plan_map import map_points
+        from campaign.planning.plan_map import map_points
 
         points = map_points(plan)
     return PlanResult(json.loads((out / "summary.json").read_text()),

@@ -23,7 +23,7 @@ from pydantic import BaseModel, Field
 
 router = APIRouter(prefix="/api/plan", tags=["plan"])
 
-SHIPPED = Path(__file__).resolve().parents[2] / "protocols"
+SHIPPED = Path(__file__).resolve().parents[1] / "protocols"  # package data
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
@@ -73,7 +73,7 @@ def protocols(request: Request) -> dict:
 
 
 def _strategies() -> list[str]:
-    from campaign.cli_common import Strategy
+    from campaign.cli.common import Strategy
 
     return [s.value for s in Strategy]
 
@@ -196,7 +196,7 @@ def run_plan(request: Request, body: PlanRequest):
     """Save the form as ``protocols/NAME.toml`` and plan it into ``plans/NAME`` (replacing
     a plan of that name); the answer: summary.json, the plan's rows, the zone map's data."""
     from analysis.errors import InputError
-    from campaign.cli_common import Strategy
+    from campaign.cli.common import Strategy
     from campaign.jobs.plan import PlanOptions, run
 
     ws = Path(request.app.state.workspace)
@@ -221,7 +221,7 @@ def run_plan(request: Request, body: PlanRequest):
         raise
     import pandas as pd
 
-    from campaign.cli_common import json_ready
+    from campaign.cli.common import json_ready
 
     rows = pd.read_csv(out / "plan.csv").to_dict(orient="records")
     return JSONResponse(json_ready({

@@ -23,7 +23,7 @@ import pytest
 from tests.web.conftest import TOKEN  # noqa: F401  (the fixtures' token)
 
 CHROMIUM = Path("/usr/bin/chromium")
-SHIPPED = Path(__file__).parents[2] / "protocols"
+SHIPPED = Path(__file__).parents[2] / "campaign" / "protocols"
 
 
 def _schema_leaves(schema: dict, node: dict, path: str, out: set[str]) -> None:
