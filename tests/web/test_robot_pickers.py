@@ -149,6 +149,7 @@ def test_sensitivity_api_on_a_urdf_equals_the_job(client, urdf_ws):
 def test_plan_form_plans_a_urdf_robot(client, urdf_ws):
     values = {"campaign.robot": "../robots/arm.urdf#tool0", "campaign.tests": "4",
               "campaign.prior_stiffness": ", ".join(map(str, K)),
+              "campaign.characteristic_length_mm": "800",
               "sampling.use_robot_zones": "false", "sampling.fixed_deg": "{ q1 = 0 }",
               "zones[0].name": "front", "zones[0].ranges_deg": "{ q2 = [-60, 0], q3 = [20, 90] }",
               "thresholds.min_inv_kappa_F": "0.05", "thresholds.max_v_p": "0.5",
@@ -227,3 +228,12 @@ def _noise(shown: dict) -> dict:
         force_relative=get("force_percent", 0.01), moment_relative=get("moment_percent", 0.01),
         encoder_resolution=get("encoder_resolution_deg", np.pi / 180),
         reflector_radius=get("reflector_radius_mm", 1e-3))}
+
+
+def test_use_views_robot_job_takes_a_picker_urdf(client, urdf_ws):
+    r = client.post("/api/jobs/robots", json={"name": "robots/arm.urdf#tool0"})
+    assert r.status_code == 200, r.text
+    d = r.json()
+    assert (d["name"], d["joints"], d["convention"]) == ("arm", 6, "urdf")
+    assert d["lower_rad"] == [-2.9] * 6 and d["upper_rad"] == [2.9] * 6
+    assert client.post("/api/jobs/robots", json={"name": "../arm.urdf#tool0"}).status_code == 400
