@@ -110,9 +110,26 @@ def form(request: Request, source: str = Query("kr240-2.toml", max_length=300)):
             "values": values}
 
 
+def _shipped_addresses() -> list[str]:
+    """The instrument addresses of the shipped protocols (examples of each scheme)."""
+    out = set()
+    for path in SHIPPED.glob("*.toml"):
+        try:
+            doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        for spec in (doc.get("instruments") or {}).values():
+            if isinstance(spec, dict) and isinstance(spec.get("address"), str):
+                out.add(spec["address"])
+    return sorted(out)
+
+
 def _suggest(field: dict, request: Request) -> dict:
     """campaign.robot: the pickers' robots, files named relative to ``protocols/`` (where
-    the form saves the protocol; a robot file is read relative to its protocol)."""
+    the form saves the protocol; a robot file is read relative to its protocol);
+    addresses: the shipped protocols' (one per driver and scheme)."""
+    if field["key"] == "instruments.*.address":
+        field["suggestions"] = _shipped_addresses()
     if field["key"] == "campaign.robot":
         from campaign.web.robots_api import robot_choices
 

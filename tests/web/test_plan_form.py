@@ -83,6 +83,19 @@ def test_shipped_protocols_round_trip_through_the_form(client, workspace, name):
     assert again["values"] == form["values"]
 
 
+def test_a_plan_directorys_protocol_fills_the_form(client, workspace):
+    """The workspace's protocol files are offered (a plan's copy too) and fill the form."""
+    listed = client.get("/api/plan/protocols").json()
+    assert "plan/protocol.toml" in listed["workspace"]
+    got = client.get("/api/plan/form", params={"source": "plan/protocol.toml"}).json()
+    want = client.get("/api/plan/form", params={"source": "kr240-2.toml"}).json()
+    assert got["values"] == want["values"] and len(got["values"]) == 56
+    assert got["values"]["load_cases[3].name"] == "eq22-down"
+    assert got["values"]["instruments.pose.noise.rotation_urad"] == "20"
+    bad = client.get("/api/plan/form", params={"source": "plan/plan.csv"})
+    assert bad.status_code == 400 and bad.json()["field"] == "source"
+
+
 def _cli_message(tmp_path: Path, line: str, bad: str) -> str:
     """What ``campaign plan`` says of kr240-2.toml with ``line`` replaced, without FILE:LINE."""
     from analysis.errors import InputError

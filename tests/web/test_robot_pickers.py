@@ -74,6 +74,13 @@ def test_pickers_offer_builtin_files_and_urdf_frames(client, urdf_ws):
     form = client.get("/api/plan/form").json()
     robot = next(f for f in form["fields"] if f["key"] == "campaign.robot")
     assert "../robots/arm.urdf#tool0" in robot["suggestions"] and "kr240-2" in robot["suggestions"]
+    address = next(f for f in form["fields"] if f["key"] == "instruments.*.address")
+    assert {"socket://192.168.1.10:700", "manual://", "ur://192.168.1.20"} <= set(
+        address["suggestions"])
+    driver = next(f for f in form["fields"] if f["key"] == "instruments.*.driver")
+    from drivers.registry import available_drivers
+
+    assert driver["suggestions"] == sorted(available_drivers())
 
 
 def test_upload_reads_with_the_cli_reader_and_refuses_bad_files(client, workspace):
