@@ -16,12 +16,12 @@ leaves the key out (the reader's default applies).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import re
 import tomllib
 import types
 import typing
-from dataclasses import dataclass, field
 
 from pydantic import BaseModel
 
@@ -45,7 +45,7 @@ class FormError(ValueError):
         super().__init__(f"{key}: {message}")
 
 
-@dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True)
 class FormField:
     """One leaf key of the protocol.
 
@@ -65,7 +65,7 @@ class FormField:
     required: bool = False
     default: str = ""
     help: str = ""
-    suggestions: tuple[str, ...] = field(default=())
+    suggestions: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         return {"key": self.key, "section": self.section, "kind": self.kind,
@@ -137,8 +137,9 @@ def _model_fields(model: type[BaseModel], prefix: str, section: str, optional_pa
                             "tool frame): three or more reflectors of the pose instrument")
 
 
-def form_fields() -> list[FormField]:
-    """Every leaf key of the protocol schema, in the schema's order."""
+def form_fields(suggest: bool = True) -> list[FormField]:
+    """Every leaf key of the protocol schema, in the schema's order (``suggest``: with the
+    driver registry's names as the driver field's suggestions)."""
     from campaign.protocol import Protocol
 
     out: list[FormField] = []
@@ -156,7 +157,7 @@ def form_fields() -> list[FormField]:
         else:  # a top-level scalar key (none today): a field of its own section
             kind, size, choices = _kind(annotation)
             out.append(FormField(key=name, section=name, kind=kind, size=size, choices=choices))
-    return _suggest(out)
+    return _suggest(out) if suggest else out
 
 
 def _suggest(fields: list[FormField]) -> list[FormField]:
@@ -170,7 +171,7 @@ def _suggest(fields: list[FormField]) -> list[FormField]:
     out = []
     for f in fields:
         if f.key == "instruments.*.driver":
-            f = FormField(**{**f.__dict__, "suggestions": drivers})
+            f = dataclasses.replace(f, suggestions=drivers)
         out.append(f)
     return out
 
@@ -291,7 +292,7 @@ def form_values(doc: dict) -> dict[str, str]:
     Raises FormError for a key of ``doc`` that no field holds (an unknown key: the
     reader would refuse it too, naming it).
     """
-    fields = {f.key: f for f in form_fields()}
+    fields = {f.key: f for f in form_fields(suggest=False)}
     out: dict[str, str] = {}
     entries = [("", doc)]
     for name in ROWS:
@@ -338,7 +339,7 @@ def build_document(values: dict[str, str]) -> dict:
     Raises FormError naming a key that is no field of the form, or a table value that
     is not TOML.
     """
-    fields = {f.key: f for f in form_fields()}
+    fields = {f.key: f for f in form_fields(suggest=False)}
     doc: dict = {}
     rows: dict[str, dict[int, dict]] = {name: {} for name in ROWS}
     # shorter keys first: ``options`` before ``options.reflectors_mm``
@@ -375,7 +376,7 @@ def build_document(values: dict[str, str]) -> dict:
 def field_keys(values: dict[str, str]) -> list[str]:
     """The expanded keys of the form holding ``values``: every field of every row, and
     each row and role itself (``load_cases[2]``: what a check of the whole row names)."""
-    fields = form_fields()
+    fields = form_fields(suggest=False)
     rows = {name: sorted({int(m.group(1)) for k in values
                           for m in [re.match(rf"{name}\[(\d+)\]", k)] if m}) for name in ROWS}
     roles = {name: sorted({k.split(".")[1] for k in values if k.startswith(name + ".")})

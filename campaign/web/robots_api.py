@@ -55,7 +55,7 @@ def _walk(ws: Path):
     seen = 0
     for root, dirs, files in os.walk(ws, followlinks=False):
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-        for name in sorted(files):
+        for name in sorted(f for f in files if not f.startswith(".")):  # .upload-*: partial
             seen += 1
             if seen > MAX_FILES:
                 return
