@@ -26,6 +26,7 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.api_jobs",
     "campaign.web.use_api",
     "campaign.web.acquire_api",
+    "campaign.web.acquire_map_api",
     "campaign.web.plan_api",
     "campaign.web.analyze_api",
 )
