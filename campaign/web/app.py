@@ -29,6 +29,7 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.acquire_map_api",
     "campaign.web.plan_api",
     "campaign.web.analyze_api",
+    "campaign.web.analyze_plots_api",
 )
 
 STATIC = Path(__file__).parent / "static"

@@ -38,13 +38,13 @@
     m.xs = m.points.map((p) => p.x);
     if (m.plot) { m.plot.destroy(); m.plot = null; }
     const series = [{ label: `theta${map.axes[0]} (deg)` },
-      { label: `candidates passing the thresholds (${map.candidates.count})`, paths: () => null,
+      { label: `candidates passing the thresholds (${map.candidates.count})`, paths: () => null, stroke: "#8fb3c8",
         points: { show: true, size: 3, stroke: "#8fb3c8", fill: "#8fb3c8", width: 0 } }];
     for (const [, label, colour, size] of STATUS) {
-      series.push({ label, paths: () => null,
+      series.push({ label, paths: () => null, stroke: "#24344d", fill: colour,
                     points: { show: true, size, stroke: "#24344d", fill: colour, width: 1.5 } });
     }
-    series.push({ label: "being measured", paths: () => null,
+    series.push({ label: "being measured", paths: () => null, stroke: "#d95f02",
                   points: { show: true, size: 20, stroke: "#d95f02", fill: "rgba(217,95,2,0.15)", width: 3 } });
     const opts = {
       width: 620, height: 440, scales: { x: { time: false } }, series,
