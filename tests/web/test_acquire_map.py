@@ -19,7 +19,7 @@ pytestmark = pytest.mark.timeout(120)
 PROTOCOL = Path(__file__).parents[2] / "protocols" / "kr240-2.toml"
 CHROMIUM = Path("/usr/bin/chromium")
 #: the simulated lab's clock runs this much faster than the wall clock
-FAST = 120.0
+FAST = 200.0
 
 
 @pytest.fixture(scope="module")
@@ -234,5 +234,16 @@ def test_browser_map_marks_the_finished_poses(server, workspace, planned):
         assert page.locator("#acq-trace-r").text_content() == ", ".join(
             f"{float(last[c]):.4f}" for c in ("rx_mrad", "ry_mrad", "rz_mrad"))
         assert int(page.locator("#acq-trace-readings").text_content()) >= 1
+        # hover a chosen pose: its number and joint angles (deg), as plan.csv has them
+        rows = list(csv.DictReader(open(run / "plan.csv")))
+        for r in rows:
+            x, y = page.evaluate("""(q) => { const u = window.acqMap.state.plot;
+                return [u.valToPos(q[0], 'x'), u.valToPos(q[1], 'y')]; }""",
+                                 [float(r["q2_model_deg"]), float(r["q3_model_deg"])])
+            page.locator("#acq-map .u-over").hover(position={"x": x, "y": y})
+            info = page.locator("#acq-map-info").text_content()
+            q = ", ".join(f"{float(r[f'q{j}_model_deg']):.3f}" for j in range(1, 7))
+            assert info.startswith(f"pose {r['pose']} (") and info.endswith(
+                f"done): q1..q6 = {q} deg"), info
         browser.close()
         assert not errors, errors
