@@ -47,7 +47,7 @@
     series.push({ label: "being measured", paths: () => null, stroke: "#d95f02",
                   points: { show: true, size: 20, stroke: "#d95f02", fill: "rgba(217,95,2,0.15)", width: 3 } });
     const opts = {
-      width: 620, height: 440, scales: { x: { time: false } }, series,
+      width: 560, height: 420, scales: { x: { time: false } }, series,
       legend: { live: false },
       cursor: { drag: { x: true, y: true, uni: 30 }, points: { show: false } },
       axes: [{ label: `theta${map.axes[0]} (deg, model convention)` },
@@ -172,7 +172,7 @@
     const cols = [t.t_s, ...t.d_mm];
     if (!m.trace) {
       m.trace = new uPlot({
-        width: 560, height: 260, scales: { x: { time: false } },
+        width: 520, height: 260, scales: { x: { time: false } },
         series: [{ label: "t (s)" },
           { label: "dx (mm)", stroke: "#1b9e77", width: 1.5, points: { show: true, size: 4 } },
           { label: "dy (mm)", stroke: "#d95f02", width: 1.5, points: { show: true, size: 4 } },
