@@ -33,6 +33,8 @@ router = APIRouter(prefix="/api/acquire", tags=["acquire-map"])
 TAIL = 1 << 16
 #: the line that opens a test (or its retry) in the events file
 OPENS = b'"phase": "approach"'
+#: most candidates drawn again for a map (the GUI's planner draws at most 100,000)
+MAX_DRAWN = 200_000
 
 
 class _Map:
@@ -71,6 +73,7 @@ def _summary_of(ws: Path, run_dir: Path | None, plan_dir: Path) -> tuple[dict, s
         try:
             meta = json.loads((run_dir / "metadata.json").read_text())
             source = Path(meta["plan_source"])
+            source = source if source.is_absolute() else ws / source
         except (OSError, ValueError, KeyError, TypeError):
             return {}, "the run's metadata.json names no plan_source"
         try:
@@ -96,6 +99,8 @@ def _map(ws: Path, run_dir: Path | None, plan_dir: Path) -> _Map:
         seed, drawn = int(summary["seed"]), int(summary["candidates"]["drawn"])
     except (KeyError, TypeError, ValueError):
         seed = drawn = None
+    if drawn is not None and not 0 < drawn <= MAX_DRAWN:
+        seed, drawn, why = None, None, f"summary.json draws {drawn} (over {MAX_DRAWN})"
     data = plan_map_data(protocol, plan, seed, drawn)
     out = data.to_json()
     if why and seed is None:
@@ -138,6 +143,8 @@ def pose_progress(plan_rows: list[dict], rows: list[dict]) -> list[dict]:
     ``rows``: tests.csv records (``test_id``, ``repeat``, ``status``). A pose is
     ``done`` when each (test, repeat) the plan asks of it has a row and all are ``ok``.
     """
+    from campaign.plan_output import MAX_REPEATS
+
     got: dict[tuple[int, int], str] = {}
     for r in rows:
         with contextlib.suppress(TypeError, ValueError):
@@ -147,9 +154,11 @@ def pose_progress(plan_rows: list[dict], rows: list[dict]) -> list[dict]:
         e = poses.setdefault(str(p["pose"]), {"pose": str(p["pose"]), "tests": [],
                                                "rows_planned": 0, "rows_done": 0,
                                                "rows_failed": 0})
-        test = int(p["test"])
+        test, repeats = int(p["test"]), int(p["repeats"])
+        if not 1 <= repeats <= MAX_REPEATS:
+            raise ValueError(f"test {test}: repeats {repeats} outside 1..{MAX_REPEATS}")
         e["tests"].append(test)
-        for rep in range(1, int(p["repeats"]) + 1):
+        for rep in range(1, repeats + 1):
             e["rows_planned"] += 1
             status = got.get((test, rep))
             if status is not None:

@@ -104,6 +104,8 @@ def test_pose_progress_counts_every_test_and_repeat():
     assert got == {"1": ("partial", 3, 4), "2": ("failed", 1, 1), "3": ("pending", 0, 1)}
     rows.append({"test_id": "2", "repeat": "2", "status": "ok"})
     assert pose_progress(plan, rows)[0]["status"] == "done"
+    with pytest.raises(ValueError, match="repeats 1000000000 outside 1..1000"):
+        pose_progress([{"test": 1, "pose": "1", "repeats": 10**9}], [])
 
 
 def test_trace_follows_the_last_test_of_the_events():
