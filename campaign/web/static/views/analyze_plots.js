@@ -28,6 +28,9 @@
     }
     ap.data = d;
     box.hidden = false;
+    const robust = d.robust && typeof d.robust === "object" ? d.robust.method || "robust" : d.robust || "none";
+    el("an-plots-note").textContent = `plots of ${run}/analysis as written (method ${d.method}, ` +
+      `robust ${robust}): residuals.csv and results.json`;
     residualPlot(d);
     validationPlot(d);
     box.dataset.run = run;
