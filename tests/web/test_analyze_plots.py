@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import shutil
 from pathlib import Path
 
 import pytest
@@ -38,7 +39,14 @@ def analysed(tmp_path_factory) -> Path:
     df.assign(repeats=1).to_csv(ws / "plan" / "plan.csv", index=False)
     acquire(AcquireJobOptions(plan=ws / "plan", out=ws / "run", fake=True, assume_yes=True,
                               time_scale=300.0), say=lambda s: None)
-    analyze(AnalyzeOptions(run_dir=ws / "run", method=Method("ols"), report=False))
+    # run2: the same tests with a gross error (dz of the 5th test +0.5 mm), accepted
+    shutil.copytree(ws / "run", ws / "run2", ignore=shutil.ignore_patterns("*.parquet"))
+    tests = pd.read_csv(ws / "run2" / "tests.csv")
+    tests.loc[4, "dz_mm"] += 0.5
+    tests.to_csv(ws / "run2" / "tests.csv", index=False)
+    for run, accept in (("run", False), ("run2", True)):
+        analyze(AnalyzeOptions(run_dir=ws / run, method=Method("ols"), report=False,
+                               accept_misfit=accept))
     return ws
 
 
@@ -47,13 +55,13 @@ def workspace(analysed) -> Path:
     return analysed
 
 
-def _residuals_csv(ws: Path) -> list[dict]:
-    with open(ws / "run" / "analysis" / "residuals.csv", newline="") as f:
+def _residuals_csv(ws: Path, run: str = "run") -> list[dict]:
+    with open(ws / run / "analysis" / "residuals.csv", newline="") as f:
         return list(csv.DictReader(f))
 
 
-def _results(ws: Path) -> dict:
-    return json.loads((ws / "run" / "analysis" / "results.json").read_text())
+def _results(ws: Path, run: str = "run") -> dict:
+    return json.loads((ws / run / "analysis" / "results.json").read_text())
 
 
 def test_plots_are_the_analysis_files(client, analysed):
@@ -79,6 +87,15 @@ def test_plots_are_the_analysis_files(client, analysed):
             assert got[k] == want[k], k
         assert got["held_out_pose"] == str(want["held_out_pose"])
     assert d["validation_limit"] == res["validation_summary"]["limit"]
+    # the run with a gross error: its outlier and the poses beyond the limit, as written
+    d = client.get("/api/analyze/plots", params={"run_dir": "run2"}).json()
+    res, rows = _results(analysed, "run2"), _residuals_csv(analysed, "run2")
+    flagged = [i for i, x in enumerate(rows) if x["outlier"] == "True"]
+    assert flagged and [i for i, v in enumerate(d["residuals"]["outlier"]) if v] == flagged
+    assert all(rows[i]["component"] == "dz" for i in flagged)
+    beyond = [v["held_out_pose"] for v in d["validation"] if v["beyond_limit"]]
+    assert beyond and beyond == [str(p) for p in res["validation_summary"]
+                                 ["poses_beyond_limit"]]
 
 
 def test_plots_refusals(client, analysed, tmp_path, monkeypatch):
@@ -142,6 +159,17 @@ def test_page_plots_after_an_analysis_and_a_reanalysis(server, analysed):
                                timeout=90_000)
         page.wait_for_function("() => document.getElementById('an-plots').dataset.ready")
         _check(page, analysed, "wls")
+        page.select_option("#an-run", "run2")  # the run with a gross error (accepted)
+        page.wait_for_function("() => document.getElementById('an-plots').dataset.run"
+                               " === 'run2'")
+        got = _check(page, analysed, "ols", "run2")
+        assert got["outliers"] >= 1 and got["beyond"] >= 1
+        assert page.locator("#an-val-fig").get_attribute("data-beyond") == ",".join(
+            str(p) for p in _results(analysed, "run2")["validation_summary"]
+            ["poses_beyond_limit"])
+        page.select_option("#an-run", "run")
+        page.wait_for_function("() => document.getElementById('an-plots').dataset.run"
+                               " === 'run'")
         # hover: the row under the cursor, its values as in residuals.csv
         page.locator("#an-res-fig .u-over").hover(position={"x": 5, "y": 100})
         info = page.locator("#an-res-info").text_content()
@@ -154,8 +182,8 @@ def test_page_plots_after_an_analysis_and_a_reanalysis(server, analysed):
         assert not errors, errors
 
 
-def _check(page, ws: Path, method: str) -> None:
-    res, rows = _results(ws), _residuals_csv(ws)
+def _check(page, ws: Path, method: str, run: str = "run") -> dict:
+    res, rows = _results(ws, run), _residuals_csv(ws, run)
     assert res["method"] == method
     got = _plotted(page)
     t = [x["studentized"] for x in res["residuals"]]
@@ -171,3 +199,4 @@ def _check(page, ws: Path, method: str) -> None:
     assert got["noise"] == [v["rms_normalized"] for v in val]
     assert got["beyond"] == sum(bool(v["beyond_limit"]) for v in val)
     assert all(math.isfinite(x) for x in got["total"])
+    return got
