@@ -111,6 +111,7 @@ def _plan_and_analyze(page, docs: Path) -> None:
         page.select_option("#an-run", "run")
         page.select_option("#an-method", "wls")
         page.check("#an-force")
+        page.evaluate("() => { document.getElementById('an-plots').dataset.ready = ''; }")
         page.click("#an-run-btn")
         page.wait_for_function("() => document.body.dataset.analyze !== 'running'",
                                timeout=180_000)

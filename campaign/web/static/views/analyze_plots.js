@@ -14,12 +14,13 @@
   function micro(v, unit) { return v === null ? "\u2013" : `${(v * 1e6).toFixed(2)} ${unit === "rad" ? "\u00b5rad" : "\u00b5m"}`; }
 
   async function load(run) {
+    const seq = ap.seq = (ap.seq || 0) + 1;  // only the newest request's answer is drawn
     ap.asked = run;
     const box = el("an-plots");
     if (!run) { box.hidden = true; return; }
     const r = await fetch(`/api/analyze/plots?run_dir=${encodeURIComponent(run)}`, { credentials: "same-origin" });
     const d = await r.json();
-    if (ap.asked !== run) return;
+    if (ap.seq !== seq) return;
     if (!r.ok) {
       box.hidden = true;
       box.dataset.ready = "";
@@ -75,7 +76,7 @@
     el("an-res-fig").dataset.points = String(n);
     el("an-res-fig").dataset.max = worst < 0 ? "" : String(Math.abs(res.studentized[worst]));
     const opts = {
-      width: 620, height: 340, scales: { x: { time: false } }, series, legend: { live: false },
+      width: 560, height: 320, scales: { x: { time: false } }, series, legend: { live: false },
       cursor: { drag: { x: true, y: true, uni: 30 }, points: { show: false } },
       axes: [{ label: "residual row of residuals.csv (test by test, component by component)" },
              { label: "studentized residual", size: 55 }],
@@ -119,7 +120,7 @@
     box.dataset.points = String(v.length);
     box.dataset.beyond = beyond.join(",");
     const opts = {
-      width: 560, height: 340, series, legend: { live: false },
+      width: 500, height: 320, series, legend: { live: false },
       scales: { x: { time: false, range: (u, lo, hi) => (lo <= 1 && hi >= v.length ?
                   [0.5, v.length + 0.5] : [lo, hi]) },
                 y: { range: (u, lo, hi) => [0, Math.max(hi, 1) * 1.1] } },
