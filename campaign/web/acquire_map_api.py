@@ -3,7 +3,7 @@
 Read from the files only (a reload, another tab or a restarted server shows the same):
 
 - ``GET /map?run=RUN`` (or ``?plan=PLAN``): the plan's zone map, as the planner draws it
-  (:mod:`campaign.plan_map_data`): zones, candidates passing the thresholds and the
+  (:mod:`campaign.planning.map_data`): zones, candidates passing the thresholds and the
   chosen poses with their joint angles (deg) and test ids. A run's own copies of the
   protocol and ``plan.csv`` give the poses; the candidates are drawn again with the seed
   and count of the plan directory's ``summary.json`` (``metadata.json`` ``plan_source``,
@@ -90,8 +90,8 @@ def _summary_of(ws: Path, run_dir: Path | None, plan_dir: Path) -> tuple[dict, s
 
 
 def _map(ws: Path, run_dir: Path | None, plan_dir: Path) -> _Map:
-    from campaign.plan_map_data import plan_map_data
-    from campaign.plan_output import read_plan
+    from campaign.planning.map_data import plan_map_data
+    from campaign.planning.plan_output import read_plan
 
     protocol, plan = read_plan(run_dir or plan_dir)
     summary, why = _summary_of(ws, run_dir, plan_dir)
@@ -143,7 +143,7 @@ def pose_progress(plan_rows: list[dict], rows: list[dict]) -> list[dict]:
     ``rows``: tests.csv records (``test_id``, ``repeat``, ``status``). A pose is
     ``done`` when each (test, repeat) the plan asks of it has a row and all are ``ok``.
     """
-    from campaign.plan_output import MAX_REPEATS
+    from campaign.planning.plan_output import MAX_REPEATS
 
     got: dict[tuple[int, int], str] = {}
     for r in rows:

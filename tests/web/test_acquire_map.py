@@ -28,7 +28,7 @@ def planned(tmp_path_factory):
     2 repeats)."""
     import pandas as pd
 
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     plan = make_plan(load_protocol(PROTOCOL), candidates=400, seed=3)

@@ -4,7 +4,7 @@ The map is the planner's: theta_2 against theta_3 (model convention), the zones 
 boxes, the candidate poses passing the thresholds, and the chosen poses numbered as in
 ``plan.csv``'s ``pose`` column. The plan directory keeps the chosen poses only; the
 candidates are drawn again from the protocol with the seed and count ``summary.json``
-recorded (:func:`campaign.candidates.sample` is seeded, so the same draw), and the
+recorded (:func:`campaign.planning.candidates.sample` is seeded, so the same draw), and the
 chosen poses are checked to be among them. Angles are returned in deg (the edge).
 """
 
@@ -95,8 +95,8 @@ def plan_map_data(protocol: Protocol, plan: pd.DataFrame, seed: int | None,
 
 def _passing_candidates(protocol: Protocol, robot, boxes, seed: int, drawn: int
                         ) -> np.ndarray:
-    """The candidate draw of :func:`campaign.planner.make_plan`, those passing (deg)."""
-    from campaign.candidates import evaluate, sample
+    """The candidate draw of :func:`campaign.planning.planner.make_plan`, those passing (deg)."""
+    from campaign.planning.candidates import evaluate, sample
     from campaign.protocol_robot import characteristic_length, prior_stiffness
 
     q, zone = sample(boxes, drawn, seed)
