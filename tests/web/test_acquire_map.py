@@ -75,6 +75,20 @@ def test_map_candidates_are_the_planners(client, workspace, planned):
     assert d["axes"] == [2, 3]
 
 
+def test_map_of_an_edited_plan_says_its_poses_are_not_candidates(client, workspace):
+    import pandas as pd
+
+    df = pd.read_csv(workspace / "plan" / "plan.csv")
+    df.loc[0, "q2_model_deg"] += 0.01  # 0.01 deg off its candidate
+    df.to_csv(workspace / "plan" / "plan.csv", index=False)
+    d = client.get("/api/acquire/map", params={"plan": "plan"}).json()
+    assert "not among the candidates" in d["note"]
+    first = next(c for c in d["chosen"] if c["tests"] == [int(df.loc[0, "test"])])
+    assert first["candidate"] is None and first["q_deg"][1] == pytest.approx(
+        df.loc[0, "q2_model_deg"])
+    assert all(c["candidate"] is not None for c in d["chosen"] if c is not first)
+
+
 def test_map_without_summary_and_refusals(client, workspace):
     (workspace / "plan" / "summary.json").unlink()
     d = client.get("/api/acquire/map", params={"plan": "plan"}).json()
