@@ -84,6 +84,8 @@ def leave_one_pose_out(
     fold_sums=None,
     linear_shift: tuple[np.ndarray, np.ndarray] | None = None,
     cluster_rad: float | None = None,
+    poses: np.ndarray | None = None,
+    J=None,
 ) -> pd.DataFrame | None:
     """Table of held-out prediction errors, or None with fewer than 3 folds.
 
@@ -93,16 +95,17 @@ def leave_one_pose_out(
     ``group``: the folds if the caller has them (:func:`holdout_folds` of the poses).
     Columns ``poses_held_out`` (poses in the fold) and a note where it is more than one;
     ``held_out_pose`` names the fold by its labels joined with '+'. See
-    :func:`_leave_out` for the rest.
+    :func:`_leave_out` for the rest. ``poses``: the tests' pose groups
+    (:func:`~analysis.identification.poses.pose_groups`) and ``J`` their Jacobians
+    (:func:`~analysis.identification.fitting.jacobian_blocks`), if the caller has them.
     """
+    if poses is None:
+        poses = pose_groups(tests.q, pose_tolerance(noise))
     if group is None:
         radius = CLUSTER_DEG * np.pi / 180.0 if cluster_rad is None else cluster_rad
-        poses = pose_groups(tests.q, pose_tolerance(noise))
         group = holdout_folds(tests.q, poses, radius)
-    else:
-        poses = pose_groups(tests.q, pose_tolerance(noise))
     table = _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits,
-                       full_fit, group, fold_sums, linear_shift)
+                       full_fit, group, fold_sums, linear_shift, J, poses)
     if table is None:
         return None
     # poses per fold: distinct (fold, pose) pairs counted per fold (one each when there
@@ -127,7 +130,8 @@ def _deg(radius: float | None) -> str:
 
 
 def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, full_fit,
-               group, fold_sums, linear_shift) -> pd.DataFrame | None:
+               group, fold_sums, linear_shift, J=None,
+               poses=None) -> pd.DataFrame | None:
     """The table of :func:`leave_one_pose_out` over the folds ``group`` (m,) ints.
 
     ``batched=False`` refits from scratch for every pose (the reference path).
@@ -158,7 +162,8 @@ def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, f
         batched = False  # each fold is refitted and corrected (the reference path)
     if batched and method == "ols":
         try:
-            check_tests(robot, tests, joints)  # row checks hold for every subset then
+            # row checks hold for every subset then
+            check_tests(robot, tests, joints, group=poses)
         except InputError:
             batched = False
         else:
@@ -186,7 +191,7 @@ def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, f
     if batched and method == "exact":
         try:
             full = full_fit if full_fit is not None else fit(robot, tests, joints, noise,
-                                                             method)
+                                                             method, J=J)
             start = full.x
         except InputError:
             start = None
@@ -198,7 +203,7 @@ def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, f
             table = _downdate_batched(robot, tests, group, names, joints, noise, full.A,
                                       resid, full.x, method, dq0=full.deflection,
                                       Linv=full.Linv, system=_system_of(full), sums=sums,
-                                      shift=full.eiv_shift)
+                                      shift=full.eiv_shift, J=J)
             table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
             return table
     rows = []
@@ -311,7 +316,7 @@ def _system_of(fit):
 
 def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
                       dq0=None, Linv=None, system=None, sums=None, shift=None,
-                      linear_shift=None, offset=None) -> pd.DataFrame:
+                      linear_shift=None, offset=None, J=None) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
 
     ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the design and right-hand side: for ols the
@@ -336,6 +341,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     corrected estimate x_c: the folds' predictions are then the linear ones plus the
     full fit's linearisation error f - A x_c (its change between x_c and a fold's
     estimate is second order: ~1 % of a change of ~se/x) instead of the model's.
+    ``J``: the tests' Jacobians if the caller has them.
 
     The folds' covariances for the total-uncertainty check: (A^T W A)_-h^-1 for a fit
     whitened by its own covariances, the sandwich bread_-h meat_-h bread_-h for ols
@@ -343,7 +349,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     """
     from scipy.linalg import solve_triangular
 
-    from analysis.identification.fitting import _jacobian
+    from analysis.identification.fitting import jacobian_blocks
     from analysis.identification.lsq import TEST_BLOCK, TallR
 
     cols = list(joints)
@@ -384,7 +390,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     else:
         # U = (Linv A / scale) R^-1 per test, summed per fold in one pass, with the folds'
         # part of the wrench errors-in-variables S
-        J = _jacobian(robot, tests.q)
+        J = jacobian_blocks(robot, tests.q) if J is None else J
         sig2 = noise.wrench_sigma_at(tests.w) ** 2
         sums = FoldSums(P, cols)
         for sl in blocks:

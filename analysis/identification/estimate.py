@@ -51,13 +51,13 @@ from analysis.identification.fitting import (  # noqa: F401 (re-exported: the pu
     _design,
     _fit_covariances,
     _full,
-    _jacobian,
     _linear_estimator,
     check_identifiable,
     check_tests,
     fit,
     fit_exact,
     fit_linear,
+    jacobian_blocks,
 )
 from analysis.identification.lsq import (
     TEST_BLOCK,
@@ -178,7 +178,7 @@ def _beyond(t: np.ndarray, mask: np.ndarray, threshold: float) -> np.ndarray:
 
 def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: Fit,
                   scale: float, threshold: float, t_first: np.ndarray | None = None,
-                  bias_se: np.ndarray | None = None) -> np.ndarray:
+                  bias_se: np.ndarray | None = None, J=None) -> np.ndarray:
     """(m, 6) bool: residuals beyond ``threshold``, found one at a time.
 
     A gross error pulls the fit towards itself and inflates the residuals of
@@ -197,7 +197,8 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
     (else the largest alone): a residual's leverage is then of order p / n, so setting
     one aside barely moves the others' t, and a round per residual would cost a pass
     over every test each. The rounds go on until the rest of the residuals are within
-    the threshold, as one at a time.
+    the threshold, as one at a time. ``J``: the tests' Jacobians
+    (:func:`~analysis.identification.fitting.jacobian_blocks`) if the caller has them.
     """
     flags = np.zeros(tests.measured.shape, dtype=bool)
     current = first
@@ -229,7 +230,7 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
         rest = TestArrays(tests.pose, tests.q, tests.w, tests.d, keep, tests.line)
         try:
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
-                                     tests.d[i, c])
+                                     tests.d[i, c], J)
             if bias_se is not None:
                 from analysis.identification.linear_bias import correct_linear_bias
 
@@ -258,7 +259,7 @@ DOWNDATE_MAX_LEVERAGE = 0.5
 
 
 def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fit,
-                   i, c, d_ic) -> Fit:
+                   i, c, d_ic, J=None) -> Fit:
     """The fit of ``method`` to ``rest``: ``prev``'s data without component(s) (i, c).
 
     ``i``, ``c``: a test and a component, or equal-length arrays of them; ``d_ic``: the
@@ -274,13 +275,14 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
     ``x' = x - bread' a (d - a^T x)``; the same least-squares solution, at O(p^2)
     instead of a pass over 6m rows (full refit when some h > :data:`DOWNDATE_MAX_LEVERAGE`).
     Exact: Gauss-Newton warm-started at prev's estimate (same minimum, fewer iterations
-    than from OLS). WLS: full refit.
+    than from OLS). WLS: full refit. ``J``: the Jacobians of ``rest`` (the same joint
+    angles as ``prev``'s tests) if the caller has them.
     """
     rows = list(zip(np.atleast_1d(i).tolist(), np.atleast_1d(c).tolist(),
                     np.atleast_1d(d_ic).astype(float).tolist(), strict=True))
     if method == "ols" and prev.Linv is None:
         x, bread, shift = prev.x, prev.bread, prev.eiv_shift
-        J = _jacobian(robot, rest.q)
+        J = jacobian_blocks(robot, rest.q) if J is None else J
         for ti, ci, di in rows:
             a = np.array(prev.A[ti, ci], dtype=float)
             g = bread @ a
@@ -311,8 +313,8 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
             return Fit(x=x, A=prev.A, cov=cov, predicted=apply(prev.A, x),
                        iterations=0, bread=bread, Linv=None, eiv_shift=shift)
     if method == "exact":
-        return fit_exact(robot, rest, joints, noise, start=prev.x)
-    return fit(robot, rest, joints, noise, method)
+        return fit_exact(robot, rest, joints, noise, start=prev.x, J=J)
+    return fit(robot, rest, joints, noise, method, J=J)
 
 
 def _validation_flags(validation: pd.DataFrame, named: int = 5) -> list[str]:
@@ -418,6 +420,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     # the validation's folds: the poses, nearby ones together
     fold = holdout_folds(tests.q, group, holdout_radius) if validate else group
     design = _design(robot, tests, joints)
+    J = design[0]  # every fit below is at these joint angles: J made once
     cond = check_identifiable(design[1], joints, cond_limit)
     warnings: list[str] = []
     if not tests.has_rotations and any(j >= 3 for j in joints):
@@ -457,12 +460,12 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         # the first Gauss-Newton weights are WLS's first ones (both at the OLS estimate)
         chosen = fit_exact(robot, tests, joints, noise, start=linear_x["ols"],
                            first_whitening=first or None, sums=sums,
-                           defer_shift=sums is not None)
+                           defer_shift=sums is not None, J=J)
     del first
     rob = None
     kept = tests.measured
     if robust != "none":
-        rob = robust_fit(robot, tests, joints, noise, method, robust, start=chosen.x)
+        rob = robust_fit(robot, tests, joints, noise, method, robust, start=chosen.x, J=J)
         chosen = rob.fit
         kept = rob.kept(tests.measured)
 
@@ -492,6 +495,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         validation = leave_one_pose_out(robot, valid_tests, method, joints, noise,
                                         full_fit=chosen if rob is None else None,
                                         group=fold, cluster_rad=holdout_radius,
+                                        poses=group, J=J,
                                         fold_sums=sums,
                                         linear_shift=None if corr is None or not corr.reliable
                                         else (corr.x - corr.x_raw, corr.propagation))
@@ -618,7 +622,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     var_r = None
     if rob is None:
         flags = flag_outliers(robot, tests, joints, noise, method, chosen, scale, threshold, t,
-                              bias_se=se_raw if bias is not None and bias["reliable"] else None)
+                              bias_se=se_raw if bias is not None and bias["reliable"] else None,
+                              J=J)
     else:
         flags = tests.measured & ~kept
     if tests.m > per_test.LAZY_TESTS:
@@ -671,9 +676,7 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     if rob is not None:
         result.robust = rob.describe()
     result.validation = validation
-    from analysis.identification.fitting import _J_CACHE
-
-    _J_CACHE.clear()  # J is not needed after the identification (0.3 GB at 1e6 tests)
+    result.pose_group = group
     return result
 
 

@@ -100,45 +100,33 @@ def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
         )
 
 
-#: the last Jacobian computed by :func:`_jacobian` (the fit, the outlier refits and the
-#: checks of one identification all need J at the same joint angles)
-_J_CACHE: dict = {}
-
-
-def _jacobian(robot: RobotModel, q: np.ndarray):
-    """J(q) (m, 6, 6), reused while the robot and the bytes of q are the same.
+def jacobian_blocks(robot: RobotModel, q: np.ndarray):
+    """J(q) (m, 6, 6) of the tests' joint angles ``q`` (m, 6) (rad).
 
     More than :data:`~analysis.identification.per_test.LAZY_TESTS` tests: a
     :class:`~analysis.identification.per_test.PerTestJacobian`, made block by block
-    when sliced (0.3 GB not held at 1e6 tests).
+    when sliced (0.3 GB not held at 1e6 tests). An identification makes it once
+    (:attr:`analysis.identification.problem.IdentificationProblem.jacobian`) and passes
+    it to every fit of the same joint angles.
     """
-    import hashlib
-
     q = np.asarray(q, dtype=float)
-    digest = hashlib.blake2b(digest_size=16)
-    for s in range(0, q.shape[0], 1 << 16):  # by blocks: no copy of a large q
-        digest.update(np.ascontiguousarray(q[s:s + (1 << 16)]).tobytes())
-    key = (id(robot), q.shape, digest.digest())
-    if _J_CACHE.get("key") != key or _J_CACHE.get("robot") is not robot:
-        _J_CACHE.clear()
-        if q.ndim == 2 and q.shape[0] > per_test.LAZY_TESTS:
-            J = PerTestJacobian(robot, q)
-        else:
-            # in blocks of tests: the chain state of many poses at once is ~2.6 kB per pose
-            J = np.empty((*q.shape[:-1], 6, q.shape[-1]))
-            for s in range(0, q.shape[0], lsq.TEST_BLOCK):
-                J[s:s + lsq.TEST_BLOCK] = jacobian(robot, q[s:s + lsq.TEST_BLOCK])
-        _J_CACHE.update(key=key, robot=robot, J=J)
-    return _J_CACHE["J"]
+    if q.ndim == 2 and q.shape[0] > per_test.LAZY_TESTS:
+        return PerTestJacobian(robot, q)
+    # in blocks of tests: the chain state of many poses at once is ~2.6 kB per pose
+    J = np.empty((*q.shape[:-1], 6, q.shape[-1]))
+    for s in range(0, q.shape[0], lsq.TEST_BLOCK):
+        J[s:s + lsq.TEST_BLOCK] = jacobian(robot, q[s:s + lsq.TEST_BLOCK])
+    return J
 
 
-def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...]):
+def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...], J=None):
     """J (m, 6, 6) and the design A (m, 6, p) of ``joints`` (zero rows where not measured).
 
     A is filled block by block: no (m, 6, 6) temporaries beside J. For a large campaign
-    both are made when sliced (:mod:`analysis.identification.per_test`).
+    both are made when sliced (:mod:`analysis.identification.per_test`). ``J``: the
+    tests' :func:`jacobian_blocks` if the caller has it.
     """
-    J = _jacobian(robot, tests.q)
+    J = jacobian_blocks(robot, tests.q) if J is None else J
     cols = list(joints)
     if is_lazy(J):
         return J, PerTestDesign(J, tests.w, tests.measured, cols)
@@ -247,19 +235,21 @@ def _wrench_eiv(noise, J, tests, joints, x, bread, Linv, S=None):
 
 
 def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=None,
-               eiv: bool = True, design=None, first_whitening: dict | None = None) -> Fit:
+               eiv: bool = True, design=None, first_whitening: dict | None = None,
+               J=None) -> Fit:
     """OLS (``weighted=False``) or WLS fit of the linear model (eqs. 16-18).
 
     WLS only: ``weights`` (m, 6) robust weights (:func:`_covariances`; ``cov`` of the
     result is then the weighted one), ``start`` (p,) compliances to evaluate the first
     weights at instead of the OLS estimate. ``eiv``: correct the bias of the wrench
     noise in the regressor (:mod:`analysis.identification.eiv`). ``design``: (J, A) of
-    :func:`_design` for these tests and joints, if the caller has them.
+    :func:`_design` for these tests and joints, if the caller has them; else ``J``, the
+    tests' :func:`jacobian_blocks`, if the caller has it.
     ``first_whitening``: a dict that receives ``x`` and ``Linv``, the compliances and
     the whitening of the first WLS pass (an exact fit started at the same x needs the
     same whitening first).
     """
-    J, A = _design(robot, tests, joints) if design is None else design
+    J, A = _design(robot, tests, joints, J) if design is None else design
     if weighted and start is not None:
         x = np.asarray(start, dtype=float)  # no OLS solve: the weights start at ``start``
     else:
@@ -292,7 +282,7 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
 
 def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
               eiv: bool = True, first_whitening: dict | None = None, sums=None,
-              defer_shift: bool = False) -> Fit:
+              defer_shift: bool = False, J=None) -> Fit:
     """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,).
 
     ``weights`` (m, 6): robust weights (:func:`_covariances`); ``cov`` of the result is
@@ -308,13 +298,14 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     that forms the final system (the errors-in-variables S comes from it);
     ``defer_shift``: ``predicted`` is left None, for the caller to make from ``A`` (the
     model Jacobian, whose blocks come with the model's values) and move by A eiv_shift in
-    a pass of its own (``predicted_shifted`` False).
+    a pass of its own (``predicted_shifted`` False). ``J``: the tests'
+    :func:`jacobian_blocks` if the caller has it.
     """
     Linv0 = None
     if (first_whitening and weights is None
             and np.array_equal(first_whitening["x"], np.asarray(start, dtype=float))):
         Linv0 = first_whitening["Linv"]
-    J = _jacobian(robot, tests.q)
+    J = jacobian_blocks(robot, tests.q) if J is None else J
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
                       weights=weights, J=J, Linv0=Linv0, rows=sums, values=not defer_shift)
     if not gn.valid:
@@ -338,11 +329,11 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
 
 
 
-def fit(robot, tests, joints, noise, method) -> Fit:
-    """Fit by ``method`` (ols, wls, exact)."""
+def fit(robot, tests, joints, noise, method, J=None) -> Fit:
+    """Fit by ``method`` (ols, wls, exact); ``J``: the tests' :func:`jacobian_blocks`."""
     if method == "ols":
-        return fit_linear(robot, tests, joints, noise, weighted=False)
+        return fit_linear(robot, tests, joints, noise, weighted=False, J=J)
     if method == "wls":
-        return fit_linear(robot, tests, joints, noise, weighted=True)
-    start = fit_linear(robot, tests, joints, noise, weighted=False).x
-    return fit_exact(robot, tests, joints, noise, start)
+        return fit_linear(robot, tests, joints, noise, weighted=True, J=J)
+    start = fit_linear(robot, tests, joints, noise, weighted=False, J=J).x
+    return fit_exact(robot, tests, joints, noise, start, J=J)

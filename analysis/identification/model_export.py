@@ -181,7 +181,9 @@ def cartesian_stiffness_at_tests(result: IdentificationResult, robot: RobotModel
     cov_k = stiffness_covariance(k, cov_x)
     from analysis.identification.poses import pose_groups, pose_tolerance
 
-    group = pose_groups(tests.q, pose_tolerance(result.noise))
+    group = result.pose_group
+    if group is None or len(group) != tests.m:
+        group = pose_groups(tests.q, pose_tolerance(result.noise))
     _, first = np.unique(group, return_index=True)  # groups are numbered by appearance
     listed = first[:POSES_LISTED]
     poses = []

@@ -319,6 +319,9 @@ class IdentificationResult:
         (:func:`analysis.identification.data_fingerprint.fingerprint`), filled by the
         caller; results.json ``tests_data`` (``campaign compare`` refuses campaigns that
         share tests).
+    pose_group : (m,) the pose index of each test
+        (:func:`analysis.identification.poses.pose_groups`), for the writers that group
+        the same tests (not written).
     """
 
     robot: str
@@ -355,6 +358,7 @@ class IdentificationResult:
     linear_bias: dict | None = None
     encoder_eiv: dict | None = None
     tests_data: dict | None = None
+    pose_group: np.ndarray | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,

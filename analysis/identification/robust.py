@@ -150,8 +150,10 @@ def _sigma(noise, J, x_p, tests: TestArrays, joints) -> np.ndarray:
     return np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1))
 
 
-def _weighted_fit(robot, tests: TestArrays, joints, noise, method, weights, start) -> Fit:
-    """One fit by ``method`` with ``weights`` (zero weights leave the fit)."""
+def _weighted_fit(robot, tests: TestArrays, joints, noise, method, weights, start,
+                  J) -> Fit:
+    """One fit by ``method`` with ``weights`` (zero weights leave the fit); ``J``: the
+    tests' Jacobians (:func:`~analysis.identification.fitting.jacobian_blocks`)."""
     keep = tests.measured & (weights > 0)
     sub = TestArrays(tests.pose, tests.q, tests.w, np.where(keep, tests.d, np.nan), keep,
                      tests.line)
@@ -161,8 +163,8 @@ def _weighted_fit(robot, tests: TestArrays, joints, noise, method, weights, star
                          where="--robust")
     w = np.where(keep, weights, 1.0)
     if method == "exact":
-        return fit_exact(robot, sub, joints, noise, start=start, weights=w)
-    return fit_linear(robot, sub, joints, noise, weighted=True, weights=w, start=start)
+        return fit_exact(robot, sub, joints, noise, start=start, weights=w, J=J)
+    return fit_linear(robot, sub, joints, noise, weighted=True, weights=w, start=start, J=J)
 
 
 def _model(robot, tests, joints, method, x_p, J, A_lin):
@@ -180,7 +182,7 @@ def _model(robot, tests, joints, method, x_p, J, A_lin):
 def _irls(robot, tests, joints, noise, method, weight_fn, c, x, weights, J, A_lin):
     """Reweight until the weights move by <= WEIGHT_TOL; returns x, weights, r, iterations."""
     for it in range(1, MAX_ITER + 1):
-        f = _weighted_fit(robot, tests, joints, noise, method, weights, x)
+        f = _weighted_fit(robot, tests, joints, noise, method, weights, x, J)
         x = f.x
         pred, _ = _model(robot, tests, joints, method, x, J, A_lin)
         r = np.where(tests.measured, (tests.d - pred) / _sigma(noise, J, x, tests, joints),
@@ -200,10 +202,12 @@ def _irls(robot, tests, joints, noise, method, weight_fn, c, x, weights, J, A_li
 
 
 def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method: str,
-               robust: str, start: np.ndarray) -> RobustFit:
+               robust: str, start: np.ndarray, J=None) -> RobustFit:
     """Huber or Tukey IRLS around the fit ``method`` ("wls" or "exact") from ``start`` (p,).
 
-    See the module docstring for the weights, the scale and the covariance.
+    See the module docstring for the weights, the scale and the covariance. ``J``: the
+    tests' Jacobians (:func:`~analysis.identification.fitting.jacobian_blocks`) if the
+    caller has them.
     """
     if robust not in ("huber", "tukey"):
         raise InputError(f"unknown robust estimator {robust!r}: expected one of "
@@ -211,7 +215,7 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
     if method not in ("wls", "exact"):
         raise InputError("robust fitting weights the residuals whitened by the noise model: "
                          "use --method exact (or wls), not ols", where="--robust")
-    J, A_lin = _design(robot, tests, joints)
+    J, A_lin = _design(robot, tests, joints, J)
     ones = np.ones(tests.measured.shape)
     x, weights, r, n_it = _irls(robot, tests, joints, noise, method, huber_weight, HUBER_C,
                                 np.asarray(start, dtype=float), ones, J, A_lin)
@@ -223,7 +227,7 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
                                     start_w, J, A_lin)
         n_it += more
     # the final fit at the converged weights: its G is the weighted estimator
-    final = _weighted_fit(robot, tests, joints, noise, method, weights, x)
+    final = _weighted_fit(robot, tests, joints, noise, method, weights, x, J)
     # G's columns of components with weight 0 are zero: they do not enter x
     pred, A = _model(robot, tests, joints, method, final.x, J, A_lin)
     cov = _covariances(noise, J, _full(final.x, joints), tests.measured, tests.w)

@@ -55,7 +55,6 @@ def _streamed(monkeypatch):
     # J, the design and the model Jacobian are made when sliced instead of held
     monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
     monkeypatch.setattr(crossval, "FOLD_CHUNK", 7)  # the folds' algebra in chunks
-    fitting._J_CACHE.clear()
 
 
 @pytest.mark.parametrize("method", ["ols", "exact"])
@@ -66,7 +65,7 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
     _streamed(monkeypatch)
     from analysis.identification.per_test import PerTestJacobian
 
-    assert isinstance(fitting._jacobian(kr240, campaign.q), PerTestJacobian)
+    assert isinstance(fitting.jacobian_blocks(kr240, campaign.q), PerTestJacobian)
     res = identify(kr240, campaign, method, noise=NOISE)
     write_results(res, tmp_path / "res")
     assert ref.residual_rows is None and res.residual_rows is not None
@@ -145,9 +144,9 @@ def test_blockwise_covariances_with_a_held_jacobian(kr240, campaign, method, mon
     the residual sigmas made block by block (and for the rows of the residual table)."""
     ref = identify(kr240, campaign, method, noise=NOISE)
     monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
-    fitting._J_CACHE.clear()
     res = identify(kr240, campaign, method, noise=NOISE)
-    assert not isinstance(fitting._jacobian(kr240, campaign.q), per_test.PerTestJacobian)
+    assert not isinstance(fitting.jacobian_blocks(kr240, campaign.q),
+                          per_test.PerTestJacobian)
     np.testing.assert_allclose(res.x, ref.x, rtol=1e-9)
     for col in ("sigma", "studentized", "predicted"):
         np.testing.assert_allclose(res.residuals[col], ref.residuals[col], rtol=1e-7,
