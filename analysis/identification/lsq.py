@@ -153,6 +153,12 @@ WHITEN_BLOCK = 4_096
 TALL_ROWS = 192_000
 
 
+def blocks_of_tests(m: int, block: int | None = None) -> list[slice]:
+    """Slices of ``block`` (default :data:`TEST_BLOCK`) consecutive tests covering 0..m."""
+    block = TEST_BLOCK if block is None else block
+    return [slice(s, s + block) for s in range(0, m, block)]
+
+
 class TallR:
     """Triangular factor of a tall matrix fed by blocks of rows (TSQR).
 

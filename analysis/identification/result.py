@@ -299,7 +299,7 @@ class IdentificationResult:
     misfit_accepted : refusals of :mod:`analysis.identification.plausibility`
         overridden by the user (``--accept-misfit``); empty when none.
     residual_rows : None when ``residuals`` holds every row; for large campaigns
-        (:data:`analysis.identification.estimate.RESIDUAL_ROWS_HELD`) ``residuals`` holds
+        (:data:`analysis.identification.outliers.RESIDUAL_ROWS_HELD`) ``residuals`` holds
         only the rows of the tests with the largest |studentized| residuals (outliers
         first) and this holds the whole table as arrays (residuals.csv, histogram).
     robust : None for the Gaussian fit, else the robust fit's summary

@@ -69,11 +69,9 @@ P = "analysis.identification."
 #: the block sizes the streamed case shrinks, each where it is read (old and new layouts)
 STREAMED = {
     "TALL_ROWS": (600, [P + "lsq", P + "linalg.lsq"]),
-    "TEST_BLOCK": (97, [P + "lsq", P + "linalg.lsq", P + "estimate", P + "pipeline",
-                        P + "statistics", P + "checks.statistics"]),
+    "TEST_BLOCK": (97, [P + "lsq", P + "linalg.lsq", P + "estimate"]),
     "ROW_BLOCK": (50, [P + "lsq", P + "linalg.lsq"]),
-    "RESIDUAL_ROWS_HELD": (100, [P + "estimate", P + "pipeline", P + "statistics",
-                                 P + "checks.statistics"]),
+    "RESIDUAL_ROWS_HELD": (100, [P + "estimate", P + "outliers", P + "checks.outliers"]),
     "EVAL_BLOCK": (101, [P + "gauss_newton", P + "estimators.gauss_newton"]),
     "LAZY_TESTS": (300, [P + "per_test", P + "streaming.per_test"]),
     "FOLD_CHUNK": (7, [P + "crossval", P + "validation.crossval"]),

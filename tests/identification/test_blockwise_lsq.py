@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from analysis.identification import lsq
-from analysis.identification.estimate import fit
-from analysis.identification.fitting import _full
+from analysis.identification.fitting import _full, fit
 from analysis.identification.lsq import (
     block_diag_apply,
     per_test_diagonal,

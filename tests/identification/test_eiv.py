@@ -166,7 +166,8 @@ def test_the_correction_is_a_warning_only_where_it_moves_k(kr240, zone_poses, w_
     """Always in results.json; among the warnings only from 0.1 se on: a 15-test campaign
     with the default F/T figures (~1e-2 se) has none, 400 tests with ten times the noise
     (several se) have it."""
-    from analysis.identification.estimate import EIV_WARN_SE, identify
+    from analysis.identification.estimate import identify
+    from analysis.identification.intervals import EIV_WARN_SE
 
     q = zone_poses[np.arange(15) % len(zone_poses)]
     small = identify(kr240, simulate(kr240, q, w_eff, kr240.nominal_stiffness, NoiseModel(),

@@ -8,7 +8,7 @@ import pytest
 
 from analysis.errors import InputError
 from analysis.identification.batch_lsq import cholesky, forward_substitute, mgs_lstsq
-from analysis.identification.estimate import fit_linear
+from analysis.identification.fitting import fit_linear
 from analysis.identification.linear_model import design_block
 from analysis.identification.lsq import block_diag_apply
 from analysis.identification.measurements import TestArrays

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification import crossval, estimate, fitting, gauss_newton, lsq, per_test
+from analysis.identification import crossval, fitting, gauss_newton, lsq, outliers, per_test
 from analysis.identification.estimate import identify
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
@@ -49,8 +49,7 @@ def _streamed(monkeypatch):
     monkeypatch.setattr(lsq, "TALL_ROWS", 600)
     monkeypatch.setattr(lsq, "TEST_BLOCK", 97)
     monkeypatch.setattr(lsq, "ROW_BLOCK", 50)
-    monkeypatch.setattr(estimate, "TEST_BLOCK", 97)
-    monkeypatch.setattr(estimate, "RESIDUAL_ROWS_HELD", 100)
+    monkeypatch.setattr(outliers, "RESIDUAL_ROWS_HELD", 100)
     monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
     # J, the design and the model Jacobian are made when sliced instead of held
     monkeypatch.setattr(per_test, "LAZY_TESTS", 300)

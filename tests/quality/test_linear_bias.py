@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification.estimate import fit_linear, identify
+from analysis.identification.estimate import identify
+from analysis.identification.fitting import fit_linear
 from analysis.identification.linear_bias import linearisation_bias
 from analysis.identification.measurements import TestArrays
 from analysis.identification.noise import NoiseModel

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from report_runs import write_csv, write_run
 
-import analysis.identification.estimate as identification
+import analysis.identification.problem as identification
 from analysis.identification.estimate import analyze_table
 from analysis.identification.measurements import read_csv
 from analysis.model.robots import load_robot

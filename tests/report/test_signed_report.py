@@ -233,7 +233,7 @@ def test_outliers_of_a_misfit_run_agree_with_the_figure(misfit, monkeypatch):
     """A campaign simulated with a wrong model (a 0.5 mm offset per pose the joint
     model cannot explain), accepted with --accept-misfit: more residuals beyond the
     threshold than the sequential test's budget sets aside."""
-    from analysis.identification.estimate import MAX_OUTLIERS
+    from analysis.identification.outliers import MAX_OUTLIERS
 
     assert misfit["results"]["misfit_accepted"]["accepted"]
     aside = _check_outliers(misfit, monkeypatch)
