@@ -3,7 +3,7 @@
 Read: for each size N (default 1e5 and 1e6 tests; the files of :mod:`_large_csv`,
 kept and reused with ``--data DIR``) three fresh processes, each started from a
 small launcher (CPU user + system and peak RSS of that one child from
-``os.wait4``), import what ``campaign analyze`` imports (``campaign.cli``, the
+``os.wait4``), import what ``campaign analyze`` imports (``campaign.cli.app``, the
 identification, pyarrow), then
 
 * ``arrow``: read the file with ``read_test_arrays`` (Arrow's streaming CSV reader
@@ -48,7 +48,7 @@ READER = r"""
 import hashlib, json, sys
 import numpy as np
 import pyarrow.csv  # noqa: F401
-import campaign.cli  # noqa: F401
+import campaign.cli.app  # noqa: F401
 import analysis.identification.estimate  # noqa: F401
 import analysis.identification.result  # noqa: F401
 from analysis.identification.measurements import read_csv, read_test_arrays, to_arrays

@@ -50,7 +50,7 @@ from _launcher import Launcher  # noqa: E402
 
 BIN = Path(sys.executable).parent
 CAMPAIGN = [str(BIN / "campaign")] if (BIN / "campaign").exists() else [
-    sys.executable, "-m", "campaign.cli"]
+    sys.executable, "-m", "campaign"]
 
 
 def best(launcher: Launcher, args: list[str], repeat: int) -> dict:

@@ -24,7 +24,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.cli_common import Covariance, Method, Robust
+from campaign.cli.common import Covariance, Method, Robust
 from campaign.jobs.common import Stage, floats, no_stage, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
@@ -150,7 +150,7 @@ def _instrument_text(spec) -> str:
 
 def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
     from analysis.report.summary import CampaignInfo
-    from campaign.report_trace import run_trace
+    from campaign.run_format.trace import run_trace
 
     meta = run.metadata
     tool = tool.text()
@@ -226,8 +226,8 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
     """
     from campaign.protocol import load_protocol
     from campaign.protocol_robot import protocol_robot
-    from campaign.run_reader import read_run
-    from campaign.tests_meta import read_sidecar
+    from campaign.run_format.reader import read_run
+    from campaign.run_format.tests_meta import read_sidecar
 
     run = read_run(run_dir)
     protocol = load_protocol(run.protocol_path) if run.protocol_path else None
@@ -288,7 +288,7 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     becomes a table)."""
     from analysis.identification.measurements import read_test_arrays
     from analysis.report.summary import CampaignInfo
-    from campaign.tests_meta import read_sidecar
+    from campaign.run_format.tests_meta import read_sidecar
 
     meta = read_sidecar(path)
     notes = []
@@ -332,7 +332,7 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
                  covariance: str, joints, robust: str = "none") -> dict:
     """What the analysis rests on (results.json ``assumptions``, the terminal, the report)."""
     from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, pose_tolerance
-    from campaign.tests_meta import CONVENTIONS
+    from campaign.run_format.tests_meta import CONVENTIONS
 
     tool: ToolPoint = extras["tool"]
     return {

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from campaign.cli_common import Strategy
+from campaign.cli.common import Strategy
 from campaign.jobs.common import Stage, floats, no_stage
 
 
@@ -49,7 +49,7 @@ class PlanResult:
 def run(o: PlanOptions, stage: Stage = no_stage) -> PlanResult:
     """Load the protocol, plan and write the plan directory (removed again on failure)."""
     from analysis.output_files import check_output_dir, created_dir
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     proto = load_protocol(Path(o.protocol))

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli_common import Method, RotationSource
+from campaign.cli.common import Method, RotationSource
 from campaign.jobs.analyze import DEFAULT_METHOD
 from campaign.jobs.common import joint_stiffness, robot_and_tool, wrench
 

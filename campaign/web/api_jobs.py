@@ -29,7 +29,7 @@ from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
 
 from analysis.errors import InputError
-from campaign.cli_common import json_ready
+from campaign.cli.common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
 from campaign.jobs.analyze import AnalyzeOptions
 from campaign.jobs.compare import CompareOptions

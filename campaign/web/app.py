@@ -24,6 +24,7 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.sensitivity_api",
     "campaign.web.runs_api",
     "campaign.web.api_jobs",
+    "campaign.web.demo_api",
     "campaign.web.use_api",
     "campaign.web.acquire_api",
     "campaign.web.plan_api",

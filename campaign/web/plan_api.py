@@ -21,7 +21,7 @@ from pydantic import BaseModel, Field
 
 router = APIRouter(prefix="/api/plan", tags=["plan"])
 
-SHIPPED = Path(__file__).resolve().parents[2] / "protocols"
+SHIPPED = Path(__file__).resolve().parents[1] / "protocols"  # package data
 #: the keys of the form: dotted key, label with its unit (the protocol's own units)
 FIELDS: tuple[tuple[str, str], ...] = (
     ("campaign.name", "campaign name"),
@@ -147,7 +147,7 @@ def protocols(request: Request) -> dict:
 
 
 def _strategies() -> list[str]:
-    from campaign.cli_common import Strategy
+    from campaign.cli.common import Strategy
 
     return [s.value for s in Strategy]
 
@@ -196,7 +196,7 @@ def run_plan(request: Request, body: PlanRequest):
             return _error(f"{key}: not a key of the form", None)
         if not _set(doc, key, _parse(text, _get(doc, key))):
             return _error(f"{key}: the protocol has no such table", key)
-    from campaign.cli_common import Strategy
+    from campaign.cli.common import Strategy
 
     try:
         strategy = Strategy(body.strategy)
@@ -223,7 +223,7 @@ def run_plan(request: Request, body: PlanRequest):
         raise
     import pandas as pd
 
-    from campaign.cli_common import json_ready
+    from campaign.cli.common import json_ready
 
     rows = pd.read_csv(out / "plan.csv").to_dict(orient="records")
     return JSONResponse(json_ready({

@@ -14,7 +14,7 @@ from analysis.identification.estimate import analyze_table
 from analysis.identification.measurements import read_csv
 from analysis.model.robots import load_robot
 from campaign.cli import main
-from campaign.commands import analyze as analyze_command
+from campaign.cli.commands import analyze as analyze_command
 
 
 class _H3(HTMLParser):
@@ -32,7 +32,7 @@ class _H3(HTMLParser):
 
 
 def test_cli_methods_match_the_identification():
-    from campaign.cli_common import Method
+    from campaign.cli.common import Method
 
     assert analyze_command.METHODS == identification.METHODS
     assert tuple(m.value for m in Method) == identification.METHODS

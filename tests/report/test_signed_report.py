@@ -467,8 +467,8 @@ def test_plan_map_lists_coinciding_poses_and_sets_their_labels_apart(monkeypatch
     """plan_map.png: two planned poses 0.1 deg apart are listed under the title and
     their labels (the report's placement) overlap neither each other nor the others."""
     import analysis.output_files as output_files
-    from campaign.plan_map import draw_plan_map
-    from campaign.planner import make_plan
+    from campaign.planning.plan_map import draw_plan_map
+    from campaign.planning.planner import make_plan
 
     plan = make_plan(_kr_protocol(), "d-optimal", seed=5, candidates=2000)
     chosen = np.unique(plan.chosen.pose)

@@ -18,7 +18,7 @@ from analysis.kinetostatics.uncertainty import predict_deflection
 from analysis.model.kinematics import pin_tool_pose, pose_difference, tool_pose
 from analysis.model.robots import builtin_names, load_robot
 from campaign.cli import main
-from campaign.path_file import Q_COLS, W_COLS
+from campaign.use.path_file import Q_COLS, W_COLS
 
 PROTOCOL = "protocols/kr240-2.toml"
 

@@ -25,7 +25,7 @@ def plan_dir(tmp_path_factory) -> Path:
     """A KR240-2 plan cut to 3 tests of 1 repeat."""
     import pandas as pd
 
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     out = tmp_path_factory.mktemp("acq-plan") / "plan"

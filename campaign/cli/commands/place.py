@@ -10,7 +10,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli_common import (
+from campaign.cli.common import (
     PANEL_OUTPUT,
     PANEL_ROBOT,
     PROGRAM_CHOICES,
@@ -20,7 +20,7 @@ from campaign.cli_common import (
 )
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
-#: panels of --help (campaign.cli_common)
+#: panels of --help (campaign.cli.common)
 _BOX = "Part path and search box"
 _TOOL = "Tool angle"
 _FEASIBLE = "Feasibility"

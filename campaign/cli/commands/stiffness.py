@@ -8,7 +8,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from campaign.cli_common import print_wrapped
+from campaign.cli.common import print_wrapped
 from campaign.numbers_text import matrix_lines, vector_text
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 

@@ -14,7 +14,7 @@ information of the *relative* compliances ``x / x0``; its inverse is their
 covariance, and ``sqrt(diag(M^-1))`` is the relative standard error of each
 k (delta method, ``se_k / k = se_x / x``), evaluated at the prior stiffness.
 
-Criteria (smaller is better here, unlike :func:`campaign.design.criterion`)
+Criteria (smaller is better here, unlike :func:`campaign.planning.design.criterion`)
 --------------------------------------------------------------------------
 ``worst``: the largest relative standard error over the joints (the user's
 question "how well is the worst joint known?"), optionally with guards
@@ -30,8 +30,8 @@ import numpy as np
 
 from analysis.identification.linear_model import design_block
 from analysis.identification.noise import NoiseModel, residual_covariance
-from campaign.design import greedy_exchange, information, random_design
-from campaign.separation import Separation, blocked
+from campaign.planning.design import greedy_exchange, information, random_design
+from campaign.planning.separation import Separation, blocked
 
 GUARD_PENALTY = 10.0
 BLOCK = 4096  # poses per block of candidate_information
@@ -63,7 +63,7 @@ def candidate_information(
     w = np.broadcast_to(np.asarray(wrenches, dtype=float), (*J.shape[:-2], 6))
     if J.ndim == 3 and J.shape[0] > BLOCK:
         # blocks of poses with BLAS on one thread: small products on huge batches
-        # otherwise hit BLAS threading (as campaign.design.information_of_tests)
+        # otherwise hit BLAS threading (as campaign.planning.design.information_of_tests)
         from threadpoolctl import threadpool_limits
 
         out = np.empty((J.shape[0], J.shape[-1], J.shape[-1]))
@@ -155,7 +155,7 @@ def exchange(
     Each slot in turn is swapped for the allowed candidate that gives the
     smallest criterion, evaluated exactly over all candidates (batched
     inverses of n x n matrices); stops when a pass improves nothing by more
-    than ``rel_tol``. ``sep``: the poses' minimum separation (:mod:`campaign.separation`).
+    than ``rel_tol``. ``sep``: the poses' minimum separation (:mod:`campaign.planning.separation`).
     Returns sorted picks and their criterion.
     """
     chosen = [int(c) for c in start]

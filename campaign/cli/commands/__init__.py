@@ -1,7 +1,7 @@
 """CLI sub-commands: each module here exposes ``register(app)``.
 
-Modules are discovered by :func:`campaign.cli.build_app`, so a new command is a
-new file and works as such. Listing it in :data:`campaign.cli.LAZY_COMMANDS`
+Modules are discovered by :func:`campaign.cli.app.build_app`, so a new command is a
+new file and works as such. Listing it in :data:`campaign.cli.app.LAZY_COMMANDS`
 (name, module, one-line help) defers its import until it is invoked. Either
 way a command module imports only light modules at its top (typer, rich,
 numpy, analysis.errors, campaign.options); pandas, scipy, matplotlib,

@@ -81,7 +81,7 @@ def summary(pc: PathCompensation, lines: np.ndarray) -> dict:
 def plot(pc: PathCompensation, path: Path, title: str, measured=None) -> Path:
     """|dp| (mm) and |dr| (mrad) along the path: before (predicted, with its 95 % band) and
     after compensation (the 95 % upper bound from the stiffness uncertainty); with
-    ``measured`` (:class:`campaign.verify_fake.FakeLabCheck`) the errors measured on the
+    ``measured`` (:class:`campaign.use.verify_fake.FakeLabCheck`) the errors measured on the
     simulated lab before and after, as points. The legend is under the plots."""
     import matplotlib
 

@@ -43,7 +43,7 @@ def instrument_records(meta: dict, protocol) -> list[dict]:
 
 
 def run_trace(run, protocol) -> dict:
-    """CampaignInfo keyword arguments of a run (:class:`campaign.run_reader.Run`)."""
+    """CampaignInfo keyword arguments of a run (:class:`campaign.run_format.reader.Run`)."""
     meta = run.metadata
     rep = {}
     if "repeatability_mm" in run.tests:

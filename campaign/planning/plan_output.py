@@ -18,7 +18,7 @@ from analysis.errors import InputError
 from campaign.protocol import Protocol, load_protocol
 
 if TYPE_CHECKING:
-    from campaign.planner import Plan
+    from campaign.planning.planner import Plan
 
 PLAN_FILE = "plan.csv"
 
@@ -200,7 +200,7 @@ def write_plan(plan: Plan, out: str | Path, figure: bool = True) -> Path:
     write_text(out / "summary.json",
                json.dumps(summary_dict(plan), indent=2, sort_keys=True) + "\n")
     if figure:
-        from campaign.plan_map import draw_plan_map
+        from campaign.planning.plan_map import draw_plan_map
 
         draw_plan_map(plan, out / "plan_map.png")
     return csv_path

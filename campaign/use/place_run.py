@@ -438,7 +438,7 @@ def run_place(o: PlaceOptions, console: Console | None = None) -> dict:
     or when nothing is feasible. ``console`` gets the progress and summary lines."""
     from analysis.placement.details import path_details
     from analysis.placement.search import evaluate_chunk
-    from campaign.cli_common import print_wrapped
+    from campaign.cli.common import print_wrapped
 
     console = console or Console()
     robot, problem, G, grids, assumptions, part = build_problem(o, console)

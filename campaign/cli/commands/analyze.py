@@ -17,7 +17,7 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from analysis.errors import InputError
-from campaign.cli_common import (
+from campaign.cli.common import (
     PANEL_NOISE,
     PANEL_OUTPUT,
     Covariance,
@@ -38,7 +38,7 @@ from campaign.jobs.analyze import (  # noqa: F401 (importable from here: tests, 
 )
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
-#: panels of --help (campaign.cli_common)
+#: panels of --help (campaign.cli.common)
 _INPUT = "Input and tool point"
 _FIT = "Estimation and checks"
 _REPORT = "Report"

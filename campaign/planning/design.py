@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.identification.linear_model import design_block
-from campaign.separation import Separation, blocked
+from campaign.planning.separation import Separation, blocked
 
 
 def scaled_blocks(
@@ -165,7 +165,7 @@ def greedy_exchange(
     max_passes, rel_tol : exchange passes stop after ``max_passes`` or when no swap
         improves the criterion by more than ``rel_tol`` (relative).
     sep : also keep the chosen poses apart by its minimum joint-space separation
-        (:mod:`campaign.separation`); raises ValueError when the candidates run out.
+        (:mod:`campaign.planning.separation`); raises ValueError when the candidates run out.
 
     Returns
     -------
@@ -209,7 +209,7 @@ def random_design(group: np.ndarray, zone: np.ndarray, n: int, seed: int,
     Parameters
     ----------
     group : (N,) pose of each candidate; zone : (N,) zone index of each candidate.
-    sep : also keep the poses apart by its minimum separation (:mod:`campaign.separation`).
+    sep : also keep the poses apart by its minimum separation (:mod:`campaign.planning.separation`).
     Returns (n,) sorted candidate indices (one candidate per pose, chosen at random).
 
     Each pick is uniform over the zone's candidates whose pose is not used yet. It is

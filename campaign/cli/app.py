@@ -1,6 +1,6 @@
 """The ``campaign`` command line (typer).
 
-Every sub-command lives in its own module of :mod:`campaign.commands` and
+Every sub-command lives in its own module of :mod:`campaign.cli.commands` and
 registers itself with ``register(app)``. The commands of :data:`LAZY_COMMANDS`
 are imported only when invoked (``campaign --help`` lists them from the table),
 so that a command pays only for its own imports; a module not in the table is
@@ -21,10 +21,10 @@ import sys
 import typer
 from typer.core import TyperCommand, TyperGroup
 
-import campaign.commands
+import campaign.cli.commands
 from analysis.errors import InputError
 
-#: Commands imported when invoked: name -> (module of :mod:`campaign.commands`, the line
+#: Commands imported when invoked: name -> (module of :mod:`campaign.cli.commands`, the line
 #: ``campaign --help`` shows = first paragraph of the command's docstring; a test checks
 #: both). A new command module works without an entry here, imported at every start.
 LAZY_COMMANDS: dict[str, tuple[str, str]] = {
@@ -56,18 +56,18 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
 
 
 def load_command(name: str, module: str) -> TyperCommand:
-    """The click command ``name`` registered by ``campaign.commands.<module>``."""
+    """The click command ``name`` registered by ``campaign.cli.commands.<module>``."""
     sub = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
 
     @sub.callback()
     def _group() -> None:
         """A callback keeps the app a group even with one command, so it keeps its name."""
 
-    importlib.import_module(f"campaign.commands.{module}").register(sub)
+    importlib.import_module(f"campaign.cli.commands.{module}").register(sub)
     command = typer.main.get_command(sub).commands.get(name)  # type: ignore[attr-defined]
     if command is None:
-        raise LookupError(f"campaign.commands.{module} does not register a command {name!r}; "
-                          "fix LAZY_COMMANDS in campaign/cli.py")
+        raise LookupError(f"campaign.cli.commands.{module} does not register a command {name!r}; "
+                          "fix LAZY_COMMANDS in campaign/cli/app.py")
     return escape_help(command)
 
 
@@ -118,7 +118,8 @@ class _LazyGroup(TyperGroup):
 
 
 def build_app() -> typer.Typer:
-    """The typer app: :data:`LAZY_COMMANDS`, plus every other module of :mod:`campaign.commands`."""
+    """The typer app: :data:`LAZY_COMMANDS`, plus every other module of
+    :mod:`campaign.cli.commands`."""
     app = typer.Typer(
         name="campaign",
         help="Plan, run and analyse joint-stiffness identification campaigns of serial robots.",
@@ -137,10 +138,10 @@ def build_app() -> typer.Typer:
         """Plan, run and analyse joint-stiffness identification campaigns of serial robots."""
 
     lazy_modules = {module for module, _ in LAZY_COMMANDS.values()}
-    for info in sorted(pkgutil.iter_modules(campaign.commands.__path__), key=lambda m: m.name):
+    for info in sorted(pkgutil.iter_modules(campaign.cli.commands.__path__), key=lambda m: m.name):
         if info.name in lazy_modules:
             continue
-        module = importlib.import_module(f"campaign.commands.{info.name}")
+        module = importlib.import_module(f"campaign.cli.commands.{info.name}")
         register = getattr(module, "register", None)
         if register is not None:
             register(app)
@@ -173,7 +174,7 @@ def _error(text: str) -> None:
     at word boundaries to its width (the terminal itself would cut words in two)."""
     import shutil
 
-    from campaign.cli_common import wrap_text
+    from campaign.cli.common import wrap_text
 
     width = shutil.get_terminal_size().columns if sys.stderr.isatty() else None
     typer.echo(wrap_text(text, width), err=True)

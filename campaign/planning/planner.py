@@ -17,10 +17,11 @@ import pandas as pd
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
 from analysis.model.robot_model import RobotModel
-from campaign.candidates import Candidates, check_enough, evaluate, sample
-from campaign.criteria import candidate_information, choose, random_reference, relative_se
-from campaign.design import criterion, greedy_exchange, random_design
-from campaign.plan_output import COLUMNS, read_plan, write_plan
+from campaign.planning.candidates import Candidates, check_enough, evaluate, sample
+from campaign.planning.criteria import candidate_information, choose, random_reference, relative_se
+from campaign.planning.design import criterion, greedy_exchange, random_design
+from campaign.planning.plan_output import COLUMNS, read_plan, write_plan
+from campaign.planning.separation import Separation
 from campaign.protocol import DEG, Protocol
 from campaign.protocol_robot import (
     SamplingBox,
@@ -30,7 +31,6 @@ from campaign.protocol_robot import (
     sampling_boxes,
 )
 from campaign.run_noise import noise_from_protocol
-from campaign.separation import Separation
 
 __all__ = ["COLUMNS", "STRATEGIES", "Design", "Plan", "make_plan", "read_plan", "write_plan"]
 
@@ -189,7 +189,7 @@ def make_plan(
     protocol : a loaded protocol (:func:`campaign.protocol.load_protocol`).
     strategy : ``worst-joint`` (min the largest relative standard error of k,
         guarded so that no joint is worse than the median random zone design;
-        :mod:`campaign.criteria`), ``weighted`` (min the ``weights``-weighted sum of
+        :mod:`campaign.planning.criteria`), ``weighted`` (min the ``weights``-weighted sum of
         the relative standard errors), ``d-optimal`` (max log det of the
         information matrix), ``e-optimal`` (max smallest eigenvalue) or
         ``zones-random`` (the paper's practice: random poses cycling through the

@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.table import Table
 
 from analysis.errors import InputError
-from campaign.cli_common import (
+from campaign.cli.common import (
     PANEL_NOISE,
     PANEL_OUTPUT,
     PANEL_ROBOT,
@@ -41,7 +41,7 @@ def parse_tests(text: str) -> list[int]:
     return sorted(out)  # the job refuses none, < 1 and too many
 
 
-#: panel of --help (campaign.cli_common)
+#: panel of --help (campaign.cli.common)
 _STUDY = "Monte-Carlo study"
 _TRACKER = "Rotation measurement"
 
@@ -123,7 +123,7 @@ def register(app: typer.Typer) -> None:
         come from the nonlinear equilibrium; normal noise on displacement,
         wrench and joint angles; identification as in the paper (eqs. 16-21).
         """
-        from campaign.commands.analyze import _alias
+        from campaign.cli.commands.analyze import _alias
         from campaign.jobs.robustness import RobustnessOptions, run
 
         def scaled(v, f):

@@ -47,7 +47,7 @@ class Robust(StrEnum):
 
 
 class Strategy(StrEnum):
-    """Test selection of ``campaign plan`` (campaign.planner.STRATEGIES)."""
+    """Test selection of ``campaign plan`` (campaign.planning.planner.STRATEGIES)."""
 
     worst_joint = "worst-joint"
     weighted = "weighted"

@@ -8,7 +8,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from campaign.cli_common import (
+from campaign.cli.common import (
     PANEL_OUTPUT,
     PANEL_ROBOT,
     TableFormat,
@@ -18,7 +18,7 @@ from campaign.cli_common import (
 )
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
-#: panel of --help (campaign.cli_common)
+#: panel of --help (campaign.cli.common)
 _GRID = "Map grid"
 
 
