@@ -16,7 +16,8 @@ Estimators (``method``):
     Cholesky factor; best linear unbiased estimator under the noise model.
 ``exact`` (default)
     Weighted Gauss-Newton on the nonlinear equilibrium model
-    (:mod:`analysis.identification.exact_fit`), started from OLS, with step halving. The
+    (:mod:`analysis.identification.estimators.exact_model`), started from OLS, with step halving.
+    The
     measured displacement is finite, so the linear model is biased by the
     linearisation error (about 1-2 % of the deflection of the KR240-2 under
     the paper's w_eff, the size of the tracker noise); the exact fit removes
@@ -45,19 +46,17 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification import per_test
-from analysis.identification.fitting import check_identifiable, check_tests
-from analysis.identification.lsq import per_test_diagonal, scaled_condition
-from analysis.identification.measurements import TestArrays, to_arrays
-from analysis.identification.noise import NoiseModel
-from analysis.identification.outliers import (
+from analysis.identification.checks.outliers import (
     flag_outliers,
     outlier_threshold,
     outlier_warning,
     residual_table,
     studentize,
 )
-from analysis.identification.per_test import PerTestSigma
+from analysis.identification.estimators.fitting import check_identifiable, check_tests
+from analysis.identification.io.measurements import TestArrays, to_arrays
+from analysis.identification.linalg.lsq import per_test_diagonal, scaled_condition
+from analysis.identification.noise import NoiseModel
 from analysis.identification.problem import (
     COND_LIMIT,
     DEFAULT_METHOD,
@@ -66,6 +65,8 @@ from analysis.identification.problem import (
     IdentifyOptions,
 )
 from analysis.identification.result import IdentificationResult
+from analysis.identification.streaming import per_test
+from analysis.identification.streaming.per_test import PerTestSigma
 from analysis.model.robot_model import RobotModel
 from analysis.report.formatting import level
 
@@ -109,22 +110,22 @@ def identify(
     Parameters
     ----------
     robot : the robot model (6 joints).
-    tests : :class:`analysis.identification.measurements.TestArrays` (SI).
+    tests : :class:`analysis.identification.io.measurements.TestArrays` (SI).
     method : "ols", "wls" or "exact".
     joints : 0-based joints to identify (others rigid); default all six, or
         (0, 1, 2) when no rotation is measured.
     noise : instrument noise model (default :class:`NoiseModel()`).
     covariance : "model" (known sigmas) or "residual" (scaled by reduced chi-square).
     outlier_level : family-wise level of the outlier test
-        (:func:`~analysis.identification.outliers.outlier_threshold`).
+        (:func:`~analysis.identification.checks.outliers.outlier_threshold`).
     validate : run leave-one-pose-out validation (needs >= 3 poses).
     robust : "none" (the Gaussian fit), "huber" or "tukey": IRLS around ``method``
-        (:mod:`analysis.identification.robust`). The chi-square, the noise-ratio notes
+        (:mod:`analysis.identification.estimators.irls`). The chi-square, the noise-ratio notes
         and the validation then use the components kept (weight >= 0.5); the
         ``outlier`` column marks the ones down-weighted below it.
     holdout_radius : poses closer than this (rad, ||dq|| over the joints) are held out
         together in the validation; default
-        :data:`analysis.identification.holdout_check.CLUSTER_DEG` (the planner's default
+        :data:`analysis.identification.validation.holdout_check.CLUSTER_DEG` (the planner's default
         minimum separation; a run passes its protocol's).
 
     The options become an :class:`~analysis.identification.problem.IdentifyOptions`, and
@@ -167,8 +168,8 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
     outcome = _released(outcome)
     if problem.large:
         per_test.release_freed_heap()  # the blocks' freed pages, before the statistics
+    from analysis.identification.checks.noise_check import noise_ratio_notes
     from analysis.identification.intervals import reported_intervals
-    from analysis.identification.noise_check import noise_ratio_notes
     from analysis.identification.statistics import fit_statistics
 
     stats = fit_statistics(problem, outcome)
@@ -208,8 +209,8 @@ def _linear_bias(problem: IdentificationProblem, outcome):
     too); where reliable, the residuals (chi-square, outliers, notes) are those of the
     exact model at the corrected estimate: ``outcome.fit.predicted`` becomes f(x_c) in
     place."""
-    from analysis.identification.linear_bias import correct_linear_bias
-    from analysis.identification.lsq import sandwich
+    from analysis.identification.corrections.linear_bias import correct_linear_bias
+    from analysis.identification.linalg.lsq import sandwich
 
     chosen = outcome.fit
     return correct_linear_bias(problem.robot, problem.tests, problem.joints, chosen,
@@ -222,7 +223,7 @@ def _validation(problem: IdentificationProblem, outcome, corr) -> pd.DataFrame |
     """The leave-one-pose-out table, or None (not asked, or fewer than 3 folds)."""
     if not problem.options.validate:
         return None
-    from analysis.identification.crossval import leave_one_pose_out
+    from analysis.identification.validation.crossval import leave_one_pose_out
 
     tests, kept, rob = problem.tests, outcome.kept, outcome.robust
     # robust: validated on the components the robust fit kept (weight >= 0.5)
@@ -307,11 +308,11 @@ def _result(problem, outcome, stats, iv, cond, residuals, rows, threshold, valid
 
 def _validation_flags(validation: pd.DataFrame, named: int = 5) -> list[str]:
     """A warning naming the held-out poses beyond the limit of the total-uncertainty check
-    (:mod:`analysis.identification.holdout_check`), or nothing."""
+    (:mod:`analysis.identification.validation.holdout_check`), or nothing."""
     beyond = validation[validation["beyond_limit"].to_numpy(dtype=bool)]
     if not len(beyond):
         return []
-    from analysis.identification.holdout_check import HOLDOUT_FAMILY_LEVEL
+    from analysis.identification.validation.holdout_check import HOLDOUT_FAMILY_LEVEL
 
     worst = beyond.sort_values("rms_normalized_total", ascending=False).head(named)
     text = ", ".join(f"pose {r.held_out_pose} at {r.rms_normalized_total:.2f} (limit "
@@ -333,7 +334,7 @@ def analyze_table(
     noise: NoiseModel | None = None,
     **options,
 ) -> IdentificationResult:
-    """Identify from the tidy SI table (:mod:`analysis.identification.measurements`).
+    """Identify from the tidy SI table (:mod:`analysis.identification.io.measurements`).
 
     See :func:`identify`.
     """

@@ -46,7 +46,7 @@ def reported_intervals(problem, outcome, stats, corr) -> Intervals:
     """The intervals of ``outcome``'s fit with ``stats``
     (:class:`~analysis.identification.statistics.FitStatistics`); ``corr``: the
     linearisation-bias correction of a linear fit
-    (:class:`~analysis.identification.linear_bias.BiasCorrection`) or None."""
+    (:class:`~analysis.identification.corrections.linear_bias.BiasCorrection`) or None."""
     options, joints, chosen = problem.options, problem.joints, outcome.fit
     notes: list[str] = []
     scale = 1.0
@@ -65,7 +65,7 @@ def reported_intervals(problem, outcome, stats, corr) -> Intervals:
     # systematic terms added to the interval's half-width of x (rad/(N m))
     widen = np.zeros(len(joints))
     if corr is not None:
-        from analysis.identification.linear_bias import summary
+        from analysis.identification.corrections.linear_bias import summary
 
         se_raw = se_x
         if corr.reliable:
@@ -76,7 +76,7 @@ def reported_intervals(problem, outcome, stats, corr) -> Intervals:
             widen += np.where(np.isfinite(corr.bias), np.abs(corr.bias), 0.0)
         bias = summary(corr, se_raw, se_x)
         notes.append(bias["note"])
-    from analysis.identification import encoder_eiv
+    from analysis.identification.corrections import encoder_eiv
 
     tests, noise = problem.tests, problem.noise
     b_q = encoder_eiv.encoder_bias(problem.robot, tests, joints, x_out, noise)
@@ -88,7 +88,7 @@ def reported_intervals(problem, outcome, stats, corr) -> Intervals:
     ci = stiffness_interval(x_out, se_x + widen / crit, crit)
     eiv = None
     if chosen.eiv_shift is not None:
-        from analysis.identification.eiv import shift_summary
+        from analysis.identification.corrections.wrench_eiv import shift_summary
 
         eiv = shift_summary(joints, chosen.x, chosen.eiv_shift, se_x, noise)
         # always in results.json and the printed assumptions; a warning only where it

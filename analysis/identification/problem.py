@@ -16,10 +16,10 @@ from functools import cached_property
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.fitting import COND_LIMIT
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators.fitting import COND_LIMIT
+from analysis.identification.estimators.irls import ROBUST_METHODS
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
-from analysis.identification.robust import ROBUST_METHODS
 from analysis.model.robot_model import RobotModel
 
 METHODS = ("ols", "wls", "exact")
@@ -40,7 +40,7 @@ class IdentifyOptions:
     number of the column-scaled design; outlier_level: family-wise level of the outlier
     test; validate: leave-one-pose-out validation; confidence: of the intervals;
     holdout_radius: poses closer than this (rad, ||dq|| over the joints) are held out
-    together (None: :data:`analysis.identification.holdout_check.CLUSTER_DEG`).
+    together (None: :data:`analysis.identification.validation.holdout_check.CLUSTER_DEG`).
     """
 
     method: str = DEFAULT_METHOD
@@ -72,7 +72,7 @@ class IdentifyOptions:
         """The held-out radius (rad)."""
         if self.holdout_radius is not None:
             return self.holdout_radius
-        from analysis.identification.holdout_check import CLUSTER_DEG
+        from analysis.identification.validation.holdout_check import CLUSTER_DEG
 
         return float(np.radians(CLUSTER_DEG))
 
@@ -115,9 +115,9 @@ class IdentificationProblem:
 
     @property
     def large(self) -> bool:
-        """More tests than :data:`~analysis.identification.per_test.LAZY_TESTS`: the
+        """More tests than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS`: the
         per-test blocks are made when sliced, the fits stream over them."""
-        from analysis.identification import per_test
+        from analysis.identification.streaming import per_test
 
         return self.tests.m > per_test.LAZY_TESTS
 
@@ -135,15 +135,15 @@ class IdentificationProblem:
         radius of each other together (the poses when not validating)."""
         if not self.options.validate:
             return self.pose_group
-        from analysis.identification.holdout_check import holdout_folds
+        from analysis.identification.validation.holdout_check import holdout_folds
 
         return holdout_folds(self.tests.q, self.pose_group, self.options.radius)
 
     @cached_property
     def jacobian(self):
         """J (m, 6, 6) of the tests' joint angles
-        (:func:`~analysis.identification.fitting.jacobian_blocks`)."""
-        from analysis.identification.fitting import jacobian_blocks
+        (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`)."""
+        from analysis.identification.estimators.fitting import jacobian_blocks
 
         return jacobian_blocks(self.robot, self.tests.q)
 
@@ -151,7 +151,7 @@ class IdentificationProblem:
     def design(self):
         """(J, A): J and the linear model's design (m, 6, p) of the joints, zero rows where
         not measured; :meth:`release_design` lets A go (~0.3 GB at 1e6 tests)."""
-        from analysis.identification.fitting import _design
+        from analysis.identification.estimators.fitting import _design
 
         return _design(self.robot, self.tests, self.joints, self.jacobian)
 

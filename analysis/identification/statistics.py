@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification import lsq
-from analysis.identification.lsq import (
+from analysis.identification.linalg import lsq
+from analysis.identification.linalg.lsq import (
     TallR,
     blocks_of_tests,
     sandwich_and_residual_variance,

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.identification.measurements import COMPONENTS, TestArrays
+from analysis.identification.io.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
 from analysis.identification.result import IdentificationResult

@@ -5,17 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification import outliers
-from analysis.identification.fitting import fit
-from analysis.identification.lsq import sandwich
-from analysis.identification.measurements import TestArrays
-from analysis.identification.noise import NoiseModel
-from analysis.identification.outliers import (
+from analysis.identification.checks import outliers
+from analysis.identification.checks.outliers import (
     _refit_without,
     _studentized_matrix,
     flag_outliers,
     outlier_threshold,
 )
+from analysis.identification.estimators.fitting import fit
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.lsq import sandwich
+from analysis.identification.noise import NoiseModel
 
 from ._sim import simulate
 

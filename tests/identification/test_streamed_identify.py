@@ -19,12 +19,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification import crossval, fitting, gauss_newton, lsq, outliers, per_test
+from analysis.identification.checks import outliers
 from analysis.identification.estimate import identify
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators import fitting, gauss_newton
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg import lsq
 from analysis.identification.noise import NoiseModel
 from analysis.identification.result import write_results
-from analysis.identification.robustness import sample_poses
+from analysis.identification.streaming import per_test
+from analysis.identification.studies.robustness import sample_poses
+from analysis.identification.validation import crossval
 
 from ._sim import simulate
 
@@ -62,7 +66,7 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
     ref = identify(kr240, campaign, method, noise=NOISE)
     write_results(ref, tmp_path / "ref")
     _streamed(monkeypatch)
-    from analysis.identification.per_test import PerTestJacobian
+    from analysis.identification.streaming.per_test import PerTestJacobian
 
     assert isinstance(fitting.jacobian_blocks(kr240, campaign.q), PerTestJacobian)
     res = identify(kr240, campaign, method, noise=NOISE)

@@ -4,7 +4,7 @@ An estimator fits the compliances x (rad/(N m)) of the problem's joints to its t
 (:class:`~analysis.identification.problem.IdentificationProblem`). It does not know the
 campaign's size: the per-test blocks it works on (J, the design, the covariances) are
 held arrays for a small campaign and made when sliced for a large one
-(:mod:`analysis.identification.per_test`), behind the same indexing.
+(:mod:`analysis.identification.streaming.per_test`), behind the same indexing.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ class EstimatorFit:
     linear: the linear fits made on the way ({"ols": x, "wls": x}, rad/(N m)), listed in
     results.json; kept (m, 6) bool: the components the fit rests on (a robust fit's
     weight >= 0.5, else the measured ones); robust: the robust fit
-    (:class:`~analysis.identification.robust.RobustFit`) or None; sums: a streamed
+    (:class:`~analysis.identification.estimators.irls.RobustFit`) or None; sums: a streamed
     exact fit's per-fold sums, made in its final pass
-    (:class:`~analysis.identification.crossval.FinalPassSums`) or None.
+    (:class:`~analysis.identification.validation.crossval.FinalPassSums`) or None.
     """
 
     fit: Fit
@@ -43,7 +43,7 @@ class Estimator(Protocol):
     ``name``: as in results.json ``method`` (the Gaussian fit a robust mode runs
     around); ``robust``: "none" or the robust mode; ``linearised``: the fit is of the
     linear model, whose linearisation bias is corrected afterwards
-    (:mod:`analysis.identification.linear_bias`).
+    (:mod:`analysis.identification.corrections.linear_bias`).
     """
 
     name: str

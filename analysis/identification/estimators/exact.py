@@ -1,13 +1,13 @@
 """The exact fit: weighted Gauss-Newton on the nonlinear equilibrium model.
 
-Started from OLS (:mod:`analysis.identification.gauss_newton`, with step halving); the
+Started from OLS (:mod:`analysis.identification.estimators.gauss_newton`, with step halving); the
 maximum-likelihood estimate under the Gaussian noise model, free of the linear model's
 linearisation bias. A small campaign also gets the WLS fit, for comparison in
 results.json (its first weights are the exact fit's first ones). A large one (more
-than :data:`~analysis.identification.per_test.LAZY_TESTS` tests) is streamed: no WLS
+than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS` tests) is streamed: no WLS
 (two passes over every test for a comparison only), and, for the Gaussian fit, the
 errors-in-variables S and the validation's per-fold sums are made in the pass that
-forms the final system (:class:`~analysis.identification.crossval.FinalPassSums`).
+forms the final system (:class:`~analysis.identification.validation.crossval.FinalPassSums`).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from analysis.identification.estimators.base import EstimatorFit
+from analysis.identification.estimators.fitting import fit_exact, fit_linear
 from analysis.identification.estimators.wls import ols_and_wls
-from analysis.identification.fitting import fit_exact, fit_linear
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,7 @@ class Exact:
         problem.release_design()
         sums = None
         if problem.large and self.final_pass_sums:
-            from analysis.identification.crossval import FinalPassSums
+            from analysis.identification.validation.crossval import FinalPassSums
 
             fold = problem.folds
             n_folds = int(fold.max(initial=-1)) + 1

@@ -1,7 +1,7 @@
 """The Huber robust mode: IRLS with Huber's weights around wls or exact.
 
 Huber's weights (min(1, c/|r|), c = 1.345) keep every component in the fit
-at a reduced weight (:mod:`analysis.identification.robust`).
+at a reduced weight (:mod:`analysis.identification.estimators.irls`).
 """
 
 from __future__ import annotations

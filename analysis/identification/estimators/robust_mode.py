@@ -1,6 +1,6 @@
 """What the robust modes share: IRLS around a Gaussian fit, started at its estimate.
 
-The weights, the scale and the covariance: :mod:`analysis.identification.robust`. The
+The weights, the scale and the covariance: :mod:`analysis.identification.estimators.irls`. The
 chi-square, the noise-ratio notes and the validation then use the components kept
 (weight >= 0.5).
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from analysis.identification.estimators.base import EstimatorFit
-from analysis.identification.robust import robust_fit
+from analysis.identification.estimators.irls import robust_fit
 
 
 def robust_refit(problem, base, mode: str) -> EstimatorFit:

@@ -1,7 +1,7 @@
 """The Tukey robust mode: IRLS with Tukey's weights around wls or exact.
 
 Tukey's biweight ((1 - (r/c)^2)^2 within c = 4.685, else 0), from Huber's solution,
-sets gross errors aside (:mod:`analysis.identification.robust`).
+sets gross errors aside (:mod:`analysis.identification.estimators.irls`).
 """
 
 from __future__ import annotations

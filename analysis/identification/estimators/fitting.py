@@ -2,7 +2,7 @@
 
 ``identify`` (:mod:`analysis.identification.estimate`) chooses among them and
 builds the result; leave-one-pose-out validation
-(:mod:`analysis.identification.crossval`) refits with them. Both import this
+(:mod:`analysis.identification.validation.crossval`) refits with them. Both import this
 module, which imports neither.
 """
 
@@ -11,16 +11,17 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification import lsq, per_test
-from analysis.identification.eiv import corrected, wrench_eiv_matrix
-from analysis.identification.gauss_newton import (
+from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
+from analysis.identification.estimators.gauss_newton import (
     covariances_per_test,
     gauss_newton,
     per_test_covariance,
     whitening_per_test,
 )
-from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import (
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.io.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
+from analysis.identification.linalg import lsq
+from analysis.identification.linalg.lsq import (
     qr_solve,
     scaled_condition,
     stack_matrix,
@@ -29,22 +30,23 @@ from analysis.identification.lsq import (
     whitened_lstsq,
     whitening,
 )
-from analysis.identification.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
 from analysis.identification.noise import NoiseModel
-from analysis.identification.per_test import (
+from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
+from analysis.identification.result import Fit
+from analysis.identification.streaming import per_test
+from analysis.identification.streaming.per_test import (
     PerTestDesign,
     PerTestJacobian,
     apply,
     is_lazy,
 )
-from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
-from analysis.identification.result import Fit
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
 COND_LIMIT = 1e6
 #: refuse when the wrench noise attenuates some compliance by more than this fraction
-#: (:mod:`analysis.identification.eiv`; ~(sigma_w/|w|)^2: loads under ~5x the F/T noise)
+#: (:mod:`analysis.identification.corrections.wrench_eiv`; ~(sigma_w/|w|)^2: loads under ~5x the
+#: F/T noise)
 EIV_LIMIT = 0.05
 
 
@@ -103,8 +105,8 @@ def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
 def jacobian_blocks(robot: RobotModel, q: np.ndarray):
     """J(q) (m, 6, 6) of the tests' joint angles ``q`` (m, 6) (rad).
 
-    More than :data:`~analysis.identification.per_test.LAZY_TESTS` tests: a
-    :class:`~analysis.identification.per_test.PerTestJacobian`, made block by block
+    More than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS` tests: a
+    :class:`~analysis.identification.streaming.per_test.PerTestJacobian`, made block by block
     when sliced (0.3 GB not held at 1e6 tests). An identification makes it once
     (:attr:`analysis.identification.problem.IdentificationProblem.jacobian`) and passes
     it to every fit of the same joint angles.
@@ -123,7 +125,7 @@ def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...], J=Non
     """J (m, 6, 6) and the design A (m, 6, p) of ``joints`` (zero rows where not measured).
 
     A is filled block by block: no (m, 6, 6) temporaries beside J. For a large campaign
-    both are made when sliced (:mod:`analysis.identification.per_test`). ``J``: the
+    both are made when sliced (:mod:`analysis.identification.streaming.per_test`). ``J``: the
     tests' :func:`jacobian_blocks` if the caller has it.
     """
     J = jacobian_blocks(robot, tests.q) if J is None else J
@@ -180,7 +182,7 @@ def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
 def _fit_covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
                      w: np.ndarray | None = None, weights: np.ndarray | None = None):
     """A fit's ``cov``: :func:`_covariances`, or for one large campaign a
-    :class:`~analysis.identification.gauss_newton.PerTestCovariance` made when used."""
+    :class:`~analysis.identification.estimators.gauss_newton.PerTestCovariance` made when used."""
     return per_test_covariance(noise, J, x_full, measured, w, weights)
 
 
@@ -212,7 +214,8 @@ def _full(x_p: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
 def _wrench_eiv(noise, J, tests, joints, x, bread, Linv, S=None):
     """(x_c, bread_c, shift): the fit corrected for the wrench's errors in variables.
 
-    :mod:`analysis.identification.eiv`: ``(N - S) x_c = N x`` with S from each test's
+    :mod:`analysis.identification.corrections.wrench_eiv`: ``(N - S) x_c = N x`` with S from each
+    test's
     wrench covariance (:meth:`NoiseModel.wrench_sigma_at`) and the fit's weights (``S``
     if the caller has it).
     """
@@ -242,7 +245,8 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
     WLS only: ``weights`` (m, 6) robust weights (:func:`_covariances`; ``cov`` of the
     result is then the weighted one), ``start`` (p,) compliances to evaluate the first
     weights at instead of the OLS estimate. ``eiv``: correct the bias of the wrench
-    noise in the regressor (:mod:`analysis.identification.eiv`). ``design``: (J, A) of
+    noise in the regressor (:mod:`analysis.identification.corrections.wrench_eiv`). ``design``: (J,
+    A) of
     :func:`_design` for these tests and joints, if the caller has them; else ``J``, the
     tests' :func:`jacobian_blocks`, if the caller has it.
     ``first_whitening``: a dict that receives ``x`` and ``Linv``, the compliances and
@@ -288,13 +292,13 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     ``weights`` (m, 6): robust weights (:func:`_covariances`); ``cov`` of the result is
     then the weighted one. ``eiv``: solve the estimating equation corrected for the
     wrench noise in the regressor, ``F^T W (d - f(x)) + S x = 0``, by one Newton step
-    from the Gauss-Newton minimum (:mod:`analysis.identification.eiv`).
+    from the Gauss-Newton minimum (:mod:`analysis.identification.corrections.wrench_eiv`).
     ``first_whitening``: {x, Linv} of :func:`fit_linear`'s first WLS pass; used as the
     first iteration's whitening when its x equals ``start`` (the same array
     Gauss-Newton would compute: computed once).
 
     One large (streamed) campaign: ``sums`` a
-    :class:`~analysis.identification.crossval.FinalPassSums` filled in the pass
+    :class:`~analysis.identification.validation.crossval.FinalPassSums` filled in the pass
     that forms the final system (the errors-in-variables S comes from it);
     ``defer_shift``: ``predicted`` is left None, for the caller to make from ``A`` (the
     model Jacobian, whose blocks come with the model's values) and move by A eiv_shift in

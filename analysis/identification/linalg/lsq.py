@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification import batch_lsq
+from analysis.identification.linalg import batch_lsq
 
 
 def column_scale(A: np.ndarray) -> np.ndarray:
@@ -81,7 +81,7 @@ def whitening(cov: np.ndarray, measured: np.ndarray | None = None,
     ``numpy.linalg.LinAlgError`` when a (decoupled) covariance is not positive definite,
     as ``numpy.linalg.cholesky``. Entry-major Cholesky factorisation and triangular
     inverse over blocks of :data:`WHITEN_BLOCK` tests
-    (:mod:`analysis.identification.batch_lsq`): no LAPACK call per 6 x 6 matrix.
+    (:mod:`analysis.identification.linalg.batch_lsq`): no LAPACK call per 6 x 6 matrix.
     """
     cov = np.asarray(cov, dtype=float)
     if cov.ndim == 3 and cov.shape[0] > TEST_BLOCK:
@@ -116,7 +116,7 @@ def lower_inverse(L: np.ndarray) -> np.ndarray:
 
     Forward substitution entry by entry over the whole batch at once
     (``Linv[i, j] = -sum_k L[i, k] Linv[k, j] / L[i, i]``, entry-major arrays,
-    :func:`analysis.identification.batch_lsq.lower_inverse`): ~5x less CPU than an LU
+    :func:`analysis.identification.linalg.batch_lsq.lower_inverse`): ~5x less CPU than an LU
     factorisation per 6 x 6 matrix (numpy.linalg.inv), backward stable like it.
     """
     n = L.shape[-1]
@@ -240,7 +240,7 @@ def whitened_lstsq(A: np.ndarray, r: np.ndarray, Linv: np.ndarray | None = None,
     ``A`` (m, 6, p) per-test design (zero rows where not measured), ``r`` (m, 6)
     right-hand side (0 where not measured), ``Linv`` (m, 6, 6) per-test whitening
     (None: unweighted), W = Linv^T Linv; ``A`` and ``Linv`` may be made when sliced
-    (:mod:`analysis.identification.per_test`). The one place the fits of this package form
+    (:mod:`analysis.identification.streaming.per_test`). The one place the fits of this package form
     their (whitened) systems. The stacked (6m, p) whitened system is never held: the
     TSQR of [Linv A | Linv r] is built test block by test block in one pass
     (:class:`TallR`), and its R column-scaled afterwards (Householder QR's backward error
@@ -324,7 +324,7 @@ def sandwich_and_residual_variance(A: np.ndarray, cov, bread: np.ndarray,
     ``diag(Sigma_i) - 2 diag(A_i G_i Sigma_i)``, is made in the pass that sums the
     sandwich's meat; ``diag(A_i cov_x A_i^T)`` is added once cov_x is known (a pass over
     A only). ``cov`` may be made block by block when sliced
-    (:class:`analysis.identification.gauss_newton.PerTestCovariance`): it is sliced once
+    (:class:`analysis.identification.estimators.gauss_newton.PerTestCovariance`): it is sliced once
     per block of tests.
 
     ``meat`` (p, p): sum A^T W Sigma W A if the caller knows it (a fit whitened by its

@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import TallR, whitening
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.lsq import TallR, whitening
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.model.kinematics import jacobian, tool_pose
 from analysis.model.robot_model import RobotModel
@@ -104,7 +104,7 @@ def _whitened_rows(robot, sub: TestArrays, cols, x, noise, method) -> np.ndarray
     A_lin = design_block(J, w)
     base = np.einsum("mrj,j->mr", A_lin, x)  # the linear model's prediction
     if method == "exact":
-        from analysis.identification.exact_fit import model_displacement
+        from analysis.identification.estimators.exact_model import model_displacement
 
         pred, D = model_displacement(robot, q, x, w)
         A = D[..., cols]

@@ -22,7 +22,7 @@ no standard error by more than a factor 2, so its first-order propagation is
 sound. Beyond, or when the equilibrium cannot be solved at an iterate, or the
 steps do not converge, the correction is unreliable: the raw estimate is kept,
 its interval widened by |b(x_hat)| (when finite), and the result refused
-(:func:`analysis.identification.plausibility.problems`; ``--accept-misfit``
+(:func:`analysis.identification.checks.plausibility.problems`; ``--accept-misfit``
 keeps it, marked).
 """
 
@@ -32,11 +32,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification.exact_fit import model_displacement_masked
-from analysis.identification.gauss_newton import EVAL_BLOCK
-from analysis.identification.lsq import stack_vector
-from analysis.identification.measurements import TestArrays
-from analysis.identification.per_test import apply
+from analysis.identification.estimators.exact_model import model_displacement_masked
+from analysis.identification.estimators.gauss_newton import EVAL_BLOCK
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.lsq import stack_vector
+from analysis.identification.streaming.per_test import apply
 from analysis.model.robot_model import RobotModel
 
 #: the correction is unreliable when || S^-1 B S ||_2 exceeds this (S = diag(se))

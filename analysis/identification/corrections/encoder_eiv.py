@@ -13,7 +13,7 @@ bias of the compliances
     S_q = sum_tests sum_k A_k^T W A_k,   T_q = sum_tests sum_k A^T W A_kk,
     N = sum_tests A^T W A,
 
-an attenuation like the wrench noise's (:mod:`analysis.identification.eiv`), of
+an attenuation like the wrench noise's (:mod:`analysis.identification.corrections.wrench_eiv`), of
 relative order (sigma_q d ln J / dq)^2: ~1e-10 with the default 5 urad encoders.
 It does not fall with the number of tests while the standard error does, so it is
 added to every interval as a systematic term, ``x +- (c se + |b_q|)``
@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import whitening
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.lsq import whitening
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel

@@ -5,11 +5,11 @@ Every trial simulates the exact displacement (nonlinear equilibrium at the
 true stiffness), adds the noise model's normal noise to every row --
 displacement (tracker, reflector fit), wrench (absolute and % of reading),
 joint angles (encoders; the measured Jacobian follows to first order, as in
-:func:`analysis.identification.robustness.measured_jacobians`) -- and
+:func:`analysis.identification.studies.robustness.measured_jacobians`) -- and
 identifies the compliances by the linear model weighted with each row's
 residual covariance at the true compliance (``wls``), by OLS, or by the
 batched exact Gauss-Newton fit (``exact``). Batch on the last axis for the
-linear kernels of :mod:`analysis.identification.batch_lsq`.
+linear kernels of :mod:`analysis.identification.linalg.batch_lsq`.
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification.batch_lsq import mgs_lstsq
-from analysis.identification.gauss_newton import gauss_newton
-from analysis.identification.linear_model import design_block
+from analysis.identification.estimators.gauss_newton import gauss_newton
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.linalg.batch_lsq import mgs_lstsq
 from analysis.identification.noise import NoiseModel, residual_covariance
-from analysis.identification.robustness import jacobian_derivative
+from analysis.identification.studies.robustness import jacobian_derivative
 from analysis.kinetostatics.equilibrium import displacement_screw
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError, SingularPoseError
-from analysis.identification.measurements import TestArrays, to_arrays
+from analysis.identification.io.measurements import TestArrays, to_arrays
 from analysis.identification.result import IdentificationResult
 from analysis.model.robot_model import RobotModel
 

@@ -20,12 +20,12 @@ How a trial is simulated
   noise: d + N(0, sigma_d), w + N(0, sigma_w), q + N(0, sigma_q). The
   measured Jacobian J(q + dq_noise) is evaluated to first order from the
   pool's dJ/dq (error O(sigma_q^2), below 1e-10 relative).
-* Identification is batched over trials (:mod:`analysis.identification.batch_lsq`, batch
+* Identification is batched over trials (:mod:`analysis.identification.linalg.batch_lsq`, batch
   on the last axis): per-test whitening by Cholesky factors and QR by
   modified Gram-Schmidt, ``ols`` (the paper's estimator, without the
   linearisation-bias correction of ``campaign analyze``: the study as the paper
   made it) or ``wls``; or ``exact`` (default, as in ``campaign analyze``): batched
-  Gauss-Newton on the equilibrium (:mod:`analysis.identification.gauss_newton`) from
+  Gauss-Newton on the equilibrium (:mod:`analysis.identification.estimators.gauss_newton`) from
   the OLS start, about 100 times slower,
   which removes the linearisation bias the linear fits show at large loads.
 """
@@ -39,8 +39,8 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.batch_lsq import CHUNK, cholesky, forward_substitute, mgs_lstsq
-from analysis.identification.gauss_newton import gauss_newton
+from analysis.identification.estimators.gauss_newton import gauss_newton
+from analysis.identification.linalg.batch_lsq import CHUNK, cholesky, forward_substitute, mgs_lstsq
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.dexterity import (
     characteristic_length,
@@ -199,7 +199,8 @@ def identify_batch(
     reweight : WLS passes, each re-evaluating the wrench-noise term of the
         weights at the previous estimate (the first from OLS).
 
-    No wrench errors-in-variables correction (:mod:`analysis.identification.eiv`, which
+    No wrench errors-in-variables correction
+    (:mod:`analysis.identification.corrections.wrench_eiv`, which
     ``identify`` applies): at the 5-50 tests of a planned campaign it moves x by a few
     hundredths of a standard error, below what these Monte-Carlo figures resolve.
 

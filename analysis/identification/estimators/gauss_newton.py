@@ -2,7 +2,8 @@
 
 Minimises sum_tests r^T Sigma^-1 r, r = d_measured - f(x), over the joint
 compliances x, where f is the finite displacement of
-:func:`analysis.identification.exact_fit.model_displacement`. The weights Sigma (per test,
+:func:`analysis.identification.estimators.exact_model.model_displacement`. The weights Sigma (per
+test,
 :func:`analysis.identification.noise.residual_covariance`) are re-evaluated at the first
 iterates. Each step solves the whitened linearised problem by QR; a step
 that raises the cost is halved (per campaign) until it does not.
@@ -14,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification import lsq
-from analysis.identification.exact_fit import model_displacement_state
-from analysis.identification.lsq import (
+from analysis.identification.estimators.exact_model import model_displacement_state
+from analysis.identification.linalg import lsq
+from analysis.identification.linalg.lsq import (
     qr_solve,
     stack_matrix,
     stack_vector,
@@ -24,7 +25,7 @@ from analysis.identification.lsq import (
     whitening,
 )
 from analysis.identification.noise import NoiseModel, residual_covariance
-from analysis.identification.per_test import (
+from analysis.identification.streaming.per_test import (
     PerTestBlocks,
     PerTestModelJacobian,
     PerTestWhitening,
@@ -42,7 +43,7 @@ class GaussNewtonFit:
     bool: the model could be evaluated (x and cov_x are NaN where not); dq (..., m, 6)
     the joint deflections of the equilibrium at x (rad), Newton's warm start for
     later solves at nearby compliances; Linv (..., m, 6, 6) the whitening of cov
-    (:func:`analysis.identification.lsq.whitening`); R (p + 1, p + 1) the triangular factor
+    (:func:`analysis.identification.linalg.lsq.whitening`); R (p + 1, p + 1) the triangular factor
     of the final whitened system [Linv F | Linv r] of one streamed campaign, else None."""
 
     x: np.ndarray
@@ -122,7 +123,7 @@ def covariances_per_test(noise, J, x_full, measured, w=None, weights=None,
 
     ``w`` (..., m, 6): the measured wrenches, for wrench noise proportional to the reading.
     ``weights`` (..., m, 6) > 0 where measured: robust weights
-    (:mod:`analysis.identification.robust`); component i's variance is divided by
+    (:mod:`analysis.identification.estimators.irls`); component i's variance is divided by
     weights_i and its correlations kept, Sigma_w = D^-1/2 Sigma D^-1/2 with D = diag(weights).
     One campaign (J (m, 6, 6)) is done in blocks of :data:`EVAL_BLOCK` tests
     (the (m, 6, 6) temporaries of 1e6 tests do not fit in cache).
@@ -149,8 +150,8 @@ class PerTestCovariance(PerTestBlocks):
 
     ``cov[s:e]`` is :func:`covariances_per_test` of those tests (the same numbers as a
     slice of the whole array); the (m, 6, 6) array (0.3 GB at 1e6 tests) is never held.
-    The passes over it (:func:`analysis.identification.lsq.sandwich_and_residual_variance`,
-    the chi-square's whitening, :func:`~analysis.identification.lsq.per_test_diagonal`)
+    The passes over it (:func:`analysis.identification.linalg.lsq.sandwich_and_residual_variance`,
+    the chi-square's whitening, :func:`~analysis.identification.linalg.lsq.per_test_diagonal`)
     take it by blocks of consecutive tests. ``J`` (m, 6, 6) is the Jacobian at the tests'
     joint angles, ``x_full`` (6,) the compliances the covariances are evaluated at.
     """
@@ -265,11 +266,11 @@ class _HeldSystems:
 
 class _StreamedSystems:
     """The linearised systems of :func:`gauss_newton` for one campaign of more than
-    :data:`~analysis.identification.per_test.LAZY_TESTS` tests, never held.
+    :data:`~analysis.identification.streaming.per_test.LAZY_TESTS` tests, never held.
 
     Each evaluation of the model is one pass over blocks of tests that also whitens
     them (at ``system_at``) and accumulates the triangular factor R of the whitened
-    system ``[Linv F | Linv r]`` (:class:`~analysis.identification.lsq.TallR`): the next
+    system ``[Linv F | Linv r]`` (:class:`~analysis.identification.linalg.lsq.TallR`): the next
     step comes from R, and the cost r^T W r is the squared norm of R's last column. F
     and the whitening (0.3 GB each at 1e6 tests) exist a block at a time; the same
     numbers as :class:`_HeldSystems` to rounding.
@@ -295,7 +296,7 @@ class _StreamedSystems:
         block (the caller's per-test sums of the same pass). The model values f are kept
         only with ``keep_f`` (the iterations need the deflections alone, their warm
         start); ``dq_out``: an array to write the deflections into (may be ``dq0``)."""
-        from analysis.identification.exact_fit import model_displacement_state
+        from analysis.identification.estimators.exact_model import model_displacement_state
         from analysis.model.kinematics import jacobian_from_state
 
         c = self.c
@@ -440,22 +441,23 @@ def gauss_newton(
         :func:`covariances_per_test`. The returned ``cov`` and ``cov_x`` are the weighted ones.
     J : (..., m, 6, 6) the Jacobian at q, if the caller has it (computed otherwise).
     Linv0 : the whitening of the covariances at x0 (:func:`covariances_per_test` then
-        :func:`analysis.identification.lsq.whitening`), if the caller has it: the first
+        :func:`analysis.identification.linalg.lsq.whitening`), if the caller has it: the first
         iteration's weights (it is overwritten by the later ones).
-    rows : one campaign of more than :data:`~analysis.identification.per_test.LAZY_TESTS`
+    rows : one campaign of more than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS`
         tests only: a callable given (slice, J, whitening, whitened F, whitened residual)
         of each block of tests in the pass that makes the final system (at the solution and
         its weights), for per-test sums a caller would otherwise make in a pass of its own.
     values : one streamed campaign only: False leaves ``f`` None (48 MB at 1e6 tests not
         held; the caller takes the values from the result's ``F``, which makes them with
-        each block, :meth:`~analysis.identification.per_test.PerTestModelJacobian.values`).
+        each block,
+        :meth:`~analysis.identification.streaming.per_test.PerTestModelJacobian.values`).
 
     One campaign of more than ``LAZY_TESTS`` tests is fitted without holding F or the
     whitening (:class:`_StreamedSystems`); the result's ``F``, ``cov`` and ``Linv`` are
     then made when sliced, and ``R`` is the triangular factor of the final whitened
     system [Linv F | Linv r].
     """
-    from analysis.identification import per_test
+    from analysis.identification.streaming import per_test
 
     cols = list(joints)
     dz = np.where(measured, d, 0.0)

@@ -31,15 +31,23 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.exact_fit import model_displacement, model_displacement_state
-from analysis.identification.fitting import (
+from analysis.identification.estimators.exact_model import (
+    model_displacement,
+    model_displacement_state,
+)
+from analysis.identification.estimators.fitting import (
     COND_LIMIT,
     check_identifiable,
     check_tests,
     fit,
     fit_exact,
 )
-from analysis.identification.holdout_check import (
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.lsq import sandwich_and_residual_variance, whitening
+from analysis.identification.noise import NoiseModel, residual_covariance
+from analysis.identification.poses import group_names, pose_groups, pose_tolerance
+from analysis.identification.validation.holdout_check import (
     CLUSTER_DEG,
     PARAMETER_TERM_MAX_POSES,
     PredictiveSums,
@@ -47,11 +55,6 @@ from analysis.identification.holdout_check import (
     holdout_folds,
     predictive_statistic,
 )
-from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import sandwich_and_residual_variance, whitening
-from analysis.identification.measurements import TestArrays
-from analysis.identification.noise import NoiseModel, residual_covariance
-from analysis.identification.poses import group_names, pose_groups, pose_tolerance
 from analysis.model.kinematics import jacobian, jacobian_from_state
 from analysis.model.robot_model import RobotModel
 
@@ -90,14 +93,14 @@ def leave_one_pose_out(
     """Table of held-out prediction errors, or None with fewer than 3 folds.
 
     The folds are the poses, those within ``cluster_rad`` (rad, ||dq|| over the joints;
-    default :data:`~analysis.identification.holdout_check.CLUSTER_DEG`) of each other
-    held out together (:func:`~analysis.identification.holdout_check.holdout_folds`);
+    default :data:`~analysis.identification.validation.holdout_check.CLUSTER_DEG`) of each other
+    held out together (:func:`~analysis.identification.validation.holdout_check.holdout_folds`);
     ``group``: the folds if the caller has them (:func:`holdout_folds` of the poses).
     Columns ``poses_held_out`` (poses in the fold) and a note where it is more than one;
     ``held_out_pose`` names the fold by its labels joined with '+'. See
     :func:`_leave_out` for the rest. ``poses``: the tests' pose groups
     (:func:`~analysis.identification.poses.pose_groups`) and ``J`` their Jacobians
-    (:func:`~analysis.identification.fitting.jacobian_blocks`), if the caller has them.
+    (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`), if the caller has them.
     """
     if poses is None:
         poses = pose_groups(tests.q, pose_tolerance(noise))
@@ -143,14 +146,15 @@ def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, f
     has them. ``fold_sums``: the per-pose sums of a streamed exact ``full_fit``
     (:class:`FinalPassSums`, made in its final pass).
     ``linear_shift``: for ols/wls whose linearisation bias was corrected
-    (:mod:`analysis.identification.linear_bias`), (shift, M) of the full-data correction
+    (:mod:`analysis.identification.corrections.linear_bias`), (shift, M) of the full-data correction
     (x_c - x_hat (p,), and its propagation (p, p)): each fold's estimate is then
     corrected too and predicted with the exact model -- by its own correction up to
     :data:`EXACT_REFITS_MAX` poses, beyond by the full-data shift (the note says so).
 
     Besides the RMS errors and ``rms_normalized`` (errors over the measurement sigma),
     each pose gets the check against the prediction's total uncertainty (noise plus the
-    refit's parameter uncertainty) and its flag (:mod:`analysis.identification.holdout_check`).
+    refit's parameter uncertainty) and its flag
+    (:mod:`analysis.identification.validation.holdout_check`).
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
@@ -230,7 +234,7 @@ def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, f
                                                        f_fold.Linv)
             exact_model = method == "exact"
             if linear_shift is not None:
-                from analysis.identification.linear_bias import correct_linear_bias
+                from analysis.identification.corrections.linear_bias import correct_linear_bias
 
                 corr = correct_linear_bias(robot, train, joints, f_fold,
                                            np.sqrt(np.diag(C_fold)), method)
@@ -286,7 +290,7 @@ class _LessOffset:
 
 def _with_total(table: pd.DataFrame, total: PredictiveSums, covariance) -> pd.DataFrame:
     """``table`` with the columns of the check against the prediction's total uncertainty
-    (:func:`analysis.identification.holdout_check.flag_columns`); folds without a
+    (:func:`analysis.identification.validation.holdout_check.flag_columns`); folds without a
     prediction (NaN RMS) get NaN and no flag."""
     q = predictive_statistic(total, covariance)
     q[~np.isfinite(table["rms_normalized"].to_numpy(dtype=float))] = np.nan
@@ -324,8 +328,8 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     least-squares refit); for exact the Jacobian and residual at the full-data estimate
     ``x0`` (one Gauss-Newton step per fold), both whitened by ``Linv`` (m, 6, 6) block by
     block (no (m, 6, p) copy). Memory is linear in the number of tests (the factor is
-    built blockwise, :func:`analysis.identification.lsq.tall_r`; ``Aw`` and ``Linv`` may
-    be made when sliced, :mod:`analysis.identification.per_test`). ``dq0`` (m, 6): the
+    built blockwise, :func:`analysis.identification.linalg.lsq.tall_r`; ``Aw`` and ``Linv`` may
+    be made when sliced, :mod:`analysis.identification.streaming.per_test`). ``dq0`` (m, 6): the
     full-data fit's joint deflections (rad), Newton's start for the held-out tests.
     ``system``: (R, c, scale) of the column-scaled whitened system if the caller has it
     (:func:`_system_of`: two passes saved), and ``sums`` the per-fold sums of the
@@ -333,7 +337,8 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     no pass over the tests for the folds' estimates; with ``system``; their ``held`` and
     ``score`` are released once used). Each fold's
     estimate is then corrected for the
-    wrench noise in the regressor like the fits (:mod:`analysis.identification.eiv`), with
+    wrench noise in the regressor like the fits
+    (:mod:`analysis.identification.corrections.wrench_eiv`), with
     the fold's S and (A^T W A)^-1 (``Linv`` None for ols). ``linear_shift``: (shift, M)
     of an ols fit's linearisation-bias correction, added to every fold's estimate (the
     prediction is then the exact model's, and the folds' covariances are M C M^T).
@@ -349,8 +354,8 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     """
     from scipy.linalg import solve_triangular
 
-    from analysis.identification.fitting import jacobian_blocks
-    from analysis.identification.lsq import TEST_BLOCK, TallR
+    from analysis.identification.estimators.fitting import jacobian_blocks
+    from analysis.identification.linalg.lsq import TEST_BLOCK, TallR
 
     cols = list(joints)
     m, p = Aw.shape[0], Aw.shape[-1]
@@ -542,7 +547,8 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
 class FoldSums:
     """Sums per fold of the rows of a whitened system, ``Z`` (b, 6, p) and ``r`` (b, 6) a
     block of tests at a time: ``gram`` = sum Z^T Z and ``held`` the folds' part of the
-    wrench errors-in-variables S (:mod:`analysis.identification.eiv`), both as upper
+    wrench errors-in-variables S (:mod:`analysis.identification.corrections.wrench_eiv`), both as
+    upper
     triangles (P, p (p + 1) / 2) (:class:`PackedSym`), and ``score`` (P, p) = sum Z^T r."""
 
     def __init__(self, n_folds: int, cols: list[int]) -> None:
@@ -556,7 +562,7 @@ class FoldSums:
         """Add the tests of one block: their folds (b,), J (b, 6, 6), whitening Linv
         (b, 6, 6) or None (OLS), measured (b, 6), wrench variances (b, 6), Z and r.
         Returns the block's S per fold present (k, p, p)."""
-        from analysis.identification.eiv import wrench_eiv_matrix
+        from analysis.identification.corrections.wrench_eiv import wrench_eiv_matrix
 
         folds, local = np.unique(fold, return_inverse=True)
         k, iu = len(folds), self.iu
@@ -577,7 +583,7 @@ class FoldSums:
 class FinalPassSums:
     """Sums over the tests made in the pass that forms a streamed exact fit's final system.
 
-    Called by :func:`~analysis.identification.gauss_newton.gauss_newton` with each block
+    Called by :func:`~analysis.identification.estimators.gauss_newton.gauss_newton` with each block
     of tests (slice, J (b, 6, 6), whitening Linv (b, 6, 6), whitened model Jacobian
     Linv F (b, 6, p) and residual Linv r (b, 6)) at the solution and its weights. Holds
     the wrench errors-in-variables ``S`` (p, p) and, with the tests' folds ``fold`` (m,)
@@ -593,7 +599,7 @@ class FinalPassSums:
         self.folds = None  # made at the first block (not held through the iterations)
 
     def __call__(self, sl, J, Linv, LF, Lr) -> None:
-        from analysis.identification.eiv import wrench_eiv_matrix
+        from analysis.identification.corrections.wrench_eiv import wrench_eiv_matrix
 
         t = self.tests
         sig2 = self.noise.wrench_sigma_at(t.w[sl]) ** 2
@@ -648,7 +654,7 @@ def _fold_eiv(held, R, scale, lev, x_p, ok):
     Fold h's normal matrix is ``D R^T (I - lev_h) R D`` (D = diag(scale)) and its S the
     full S less the held-out tests' part ``held`` (P, p, p).
     """
-    from analysis.identification.eiv import corrected
+    from analysis.identification.corrections.wrench_eiv import corrected
 
     p = R.shape[0]
     Rinv = np.linalg.inv(R)

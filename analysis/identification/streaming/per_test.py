@@ -5,7 +5,7 @@ the Jacobian J(q) (m, 6, 6), the design A (m, 6, p) of the linear model, the
 whitening of the residual covariances. At 1e6 tests each is 0.3 GB. Above
 :data:`LAZY_TESTS` tests they are not held: these objects stand in for them, and
 ``obj[s:e]`` computes the rows of tests s..e-1 (the same numbers as a slice of the
-full array). Every pass of :mod:`analysis.identification.lsq` and of the fits
+full array). Every pass of :mod:`analysis.identification.linalg.lsq` and of the fits
 already walks the tests in blocks, so they take either. Recomputing J costs about
 1.3 us per test and pass; holding it would cost 288 bytes per test.
 
@@ -68,7 +68,7 @@ class PerTestBlocks(ABC):
 
     def __array__(self, dtype=None, copy=None):
         """The whole array (small campaigns and tests only: it is what is not held)."""
-        from analysis.identification.lsq import TEST_BLOCK
+        from analysis.identification.linalg.lsq import TEST_BLOCK
 
         out = np.empty(self.shape)
         for s in range(0, self.shape[0], TEST_BLOCK):
@@ -95,14 +95,15 @@ class PerTestJacobian(PerTestBlocks):
 
 class PerTestDesign(PerTestBlocks):
     """The linear model's design A (m, 6, p) of the joints ``cols``, zero rows where not
-    ``measured``: ``design_block(J, w)`` (:mod:`analysis.identification.linear_model`)."""
+    ``measured``: ``design_block(J, w)``
+    (:mod:`analysis.identification.estimators.linear_model`)."""
 
     def __init__(self, J, w: np.ndarray, measured: np.ndarray, cols: list[int]) -> None:
         self.J, self.w, self.measured, self.cols = J, w, measured, list(cols)
         self.shape = (w.shape[0], 6, len(self.cols))
 
     def _make(self, start, stop):
-        from analysis.identification.linear_model import design_block
+        from analysis.identification.estimators.linear_model import design_block
 
         sl = slice(start, stop)
         return design_block(self.J[sl], self.w[sl])[..., self.cols] * self.measured[sl, :, None]
@@ -111,7 +112,8 @@ class PerTestDesign(PerTestBlocks):
 class PerTestSigma(PerTestBlocks):
     """The standard deviation of each residual component (m, 6) (m, rad): the square root of
     the diagonal of per-test covariances ``cov`` (an array, or made when sliced with a
-    ``take`` of integer rows, :class:`~analysis.identification.gauss_newton.PerTestCovariance`)."""
+    ``take`` of integer rows,
+    :class:`~analysis.identification.estimators.gauss_newton.PerTestCovariance`)."""
 
     def __init__(self, cov) -> None:
         self.cov = cov
@@ -151,7 +153,7 @@ def is_lazy(a) -> bool:
 
 def apply(A, x: np.ndarray, block: int | None = None) -> np.ndarray:
     """A x per test: (m, 6) from A (m, 6, p) (array or made when sliced) and x (p,)."""
-    from analysis.identification.lsq import TEST_BLOCK
+    from analysis.identification.linalg.lsq import TEST_BLOCK
 
     block = TEST_BLOCK if block is None else block
     m = A.shape[0]
@@ -163,14 +165,15 @@ def apply(A, x: np.ndarray, block: int | None = None) -> np.ndarray:
 
 class PerTestWhitening(PerTestBlocks):
     """The whitening L^-1 (m, 6, 6) of per-test covariances ``cov`` (array or made when
-    sliced), rows of unmeasured components zero (:func:`analysis.identification.lsq.whitening`)."""
+    sliced), rows of unmeasured components zero
+    (:func:`analysis.identification.linalg.lsq.whitening`)."""
 
     def __init__(self, cov, measured: np.ndarray) -> None:
         self.cov, self.measured = cov, measured
         self.shape = (measured.shape[0], 6, 6)
 
     def _make(self, start, stop):
-        from analysis.identification.lsq import whitening
+        from analysis.identification.linalg.lsq import whitening
 
         return whitening(self.cov[start:stop], self.measured[start:stop])
 
@@ -179,7 +182,7 @@ class PerTestModelJacobian(PerTestBlocks):
     """The exact model's Jacobian F (m, 6, p) with respect to the compliances of the joints
     ``cols`` at ``x_full`` (6,) (rad/(N m)), zero rows where not ``measured``: the
     equilibrium solved again from the deflections ``dq`` (m, 6) (rad) at x_full, which
-    it converges from in one Newton step (:mod:`analysis.identification.exact_fit`), or
+    it converges from in one Newton step (:mod:`analysis.identification.estimators.exact_model`), or
     from its cold start once ``dq`` is set to None."""
 
     def __init__(self, robot, q, w, measured, cols, x_full, dq) -> None:
@@ -188,7 +191,7 @@ class PerTestModelJacobian(PerTestBlocks):
         self.shape = (q.shape[0], 6, len(self.cols))
 
     def _make(self, start, stop):
-        from analysis.identification.exact_fit import model_displacement_state
+        from analysis.identification.estimators.exact_model import model_displacement_state
 
         sl = slice(start, stop)
         # without the deflections (let go after the last full pass) Newton starts cold

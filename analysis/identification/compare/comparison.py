@@ -17,7 +17,7 @@ number of joints compared and the level ``1 - alpha / m`` (Bonferroni):
   method's approximation; a row where they part says so).
 
 Campaigns that share tests are not independent: A and B are refused when their
-results.json ``tests_data`` fingerprints (:mod:`analysis.identification.data_fingerprint`)
+results.json ``tests_data`` fingerprints (:mod:`analysis.identification.io.data_fingerprint`)
 share any test, or when their results are identical to the last digit.
 """
 
@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.compare_io import Campaign, load_campaign  # noqa: F401 (API)
-from analysis.identification.data_fingerprint import shared_rows
+from analysis.identification.compare.load import Campaign, load_campaign  # noqa: F401 (API)
+from analysis.identification.io.data_fingerprint import shared_rows
 
 ALPHA = 0.05
 

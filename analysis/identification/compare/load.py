@@ -27,7 +27,7 @@ class Campaign:
     k, x (n,) stiffness (N m/rad, NaN if not identified) and compliance (rad/(N m));
     cov_x (n, n) compliance covariance ((rad/(N m))^2, zero for joints not identified);
     joints : 0-based identified joints; model : model.toml beside it (mapping) or None;
-    tests_data : results.json ``tests_data`` (:mod:`analysis.identification.data_fingerprint`),
+    tests_data : results.json ``tests_data`` (:mod:`analysis.identification.io.data_fingerprint`),
     None when the file predates it.
     """
 

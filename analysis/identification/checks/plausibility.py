@@ -20,7 +20,7 @@ Checks, each a refusal unless the user accepts the result anyway
   often the wrench given as the reaction the sensor feels instead of the load
   applied to the robot;
 * **linearisation bias not correctable** (``ols``, ``wls``): the correction of the
-  linear model's bias is unreliable (:mod:`analysis.identification.linear_bias`), so
+  linear model's bias is unreliable (:mod:`analysis.identification.corrections.linear_bias`), so
   the raw, biased estimate is all there is;
 * **far from nominal**: an identified k differs from the robot model's nominal
   stiffness by more than :data:`NOMINAL_FACTOR` either way (only where the

@@ -11,7 +11,7 @@ sigma_i the noise model's standard deviation of that component (displacement
 noise plus the wrench noise through the Cartesian compliance at x,
 :func:`analysis.identification.noise.residual_covariance`), and the existing
 weighted fit (WLS or the exact Gauss-Newton fit of
-:mod:`analysis.identification.fitting`) is repeated with component i's
+:mod:`analysis.identification.estimators.fitting`) is repeated with component i's
 variance divided by its weight (correlations within a test kept), until the
 weights stop changing.
 
@@ -47,14 +47,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.fitting import (
+from analysis.identification.estimators.fitting import (
     _covariances,
     _design,
     _full,
     fit_exact,
     fit_linear,
 )
-from analysis.identification.measurements import COMPONENTS, TestArrays
+from analysis.identification.io.measurements import COMPONENTS, TestArrays
 from analysis.identification.result import Fit
 
 ROBUST_METHODS = ("none", "huber", "tukey")
@@ -153,7 +153,7 @@ def _sigma(noise, J, x_p, tests: TestArrays, joints) -> np.ndarray:
 def _weighted_fit(robot, tests: TestArrays, joints, noise, method, weights, start,
                   J) -> Fit:
     """One fit by ``method`` with ``weights`` (zero weights leave the fit); ``J``: the
-    tests' Jacobians (:func:`~analysis.identification.fitting.jacobian_blocks`)."""
+    tests' Jacobians (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`)."""
     keep = tests.measured & (weights > 0)
     sub = TestArrays(tests.pose, tests.q, tests.w, np.where(keep, tests.d, np.nan), keep,
                      tests.line)
@@ -170,11 +170,11 @@ def _weighted_fit(robot, tests: TestArrays, joints, noise, method, weights, star
 def _model(robot, tests, joints, method, x_p, J, A_lin):
     """(m, 6) prediction and (m, 6, p) model Jacobian at x_p for every measured component."""
     if method == "exact":
-        from analysis.identification.exact_fit import model_displacement
+        from analysis.identification.estimators.exact_model import model_displacement
 
         f, F = model_displacement(robot, tests.q, _full(x_p, joints)[None, :], tests.w)
         return f, F[..., list(joints)] * tests.measured[..., None]
-    from analysis.identification.per_test import apply
+    from analysis.identification.streaming.per_test import apply
 
     return apply(A_lin, x_p), A_lin
 
@@ -206,7 +206,7 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
     """Huber or Tukey IRLS around the fit ``method`` ("wls" or "exact") from ``start`` (p,).
 
     See the module docstring for the weights, the scale and the covariance. ``J``: the
-    tests' Jacobians (:func:`~analysis.identification.fitting.jacobian_blocks`) if the
+    tests' Jacobians (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`) if the
     caller has them.
     """
     if robust not in ("huber", "tukey"):

@@ -11,18 +11,18 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.fitting import (
+from analysis.identification.estimators.fitting import (
     _fit_covariances,
     _full,
     fit,
     fit_exact,
     jacobian_blocks,
 )
-from analysis.identification.lsq import blocks_of_tests, sandwich_and_residual_variance
-from analysis.identification.measurements import TestArrays
-from analysis.identification.per_test import apply
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.lsq import blocks_of_tests, sandwich_and_residual_variance
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
 from analysis.identification.result import RESIDUALS_LISTED, Fit, ResidualRows
+from analysis.identification.streaming.per_test import apply
 from analysis.report.formatting import level
 
 
@@ -102,7 +102,7 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
     one aside barely moves the others' t, and a round per residual would cost a pass
     over every test each. The rounds go on until the rest of the residuals are within
     the threshold, as one at a time. ``J``: the tests' Jacobians
-    (:func:`~analysis.identification.fitting.jacobian_blocks`) if the caller has them.
+    (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`) if the caller has them.
     """
     flags = np.zeros(tests.measured.shape, dtype=bool)
     current = first
@@ -136,7 +136,7 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
                                      tests.d[i, c], J)
             if bias_se is not None:
-                from analysis.identification.linear_bias import correct_linear_bias
+                from analysis.identification.corrections.linear_bias import correct_linear_bias
 
                 correct_linear_bias(robot, rest, joints, current, bias_se, method,
                                     in_place=True)
@@ -197,7 +197,10 @@ def _refit_without(robot, rest: TestArrays, joints, noise, method: str, prev: Fi
             x = x - (bread @ a) * (di - a @ x)
             if shift is not None:
                 # the removed row's part of S leaves too: (N - S + dS)^-1, as a p x p update
-                from analysis.identification.eiv import corrected, wrench_eiv_matrix
+                from analysis.identification.corrections.wrench_eiv import (
+                    corrected,
+                    wrench_eiv_matrix,
+                )
 
                 row = np.zeros((1, 6), dtype=bool)
                 row[0, ci] = True

@@ -1,7 +1,7 @@
 """Errors in the measured wrench (errors-in-variables): the bias they cause and its correction.
 
 The regressor of the linear model, ``A(w) = J diag(J^T w)`` (column j:
-``J_j (J_j . w)``, :func:`analysis.identification.linear_model.design_block`), is
+``J_j (J_j . w)``, :func:`analysis.identification.estimators.linear_model.design_block`), is
 built from the *measured* wrench ``w_m = w + e_w``. Since A is linear in w,
 ``A(w_m) = A(w) + A(e_w)`` and, for any weights W independent of e_w,
 
@@ -35,7 +35,7 @@ Joint-angle (encoder) noise enters A through J(q_m) the same way, with
 relative size ``(sigma_q * d ln J / dq)^2 ~ (5e-6)^2``: measured on 1e5 simulated
 KR240-2 tests, switching it off moves no (k - k_true) / se by more than 0.01; its
 bias is estimated and added to the intervals as a systematic term by
-:mod:`analysis.identification.encoder_eiv`. Displacement noise does not enter A.
+:mod:`analysis.identification.corrections.encoder_eiv`. Displacement noise does not enter A.
 
 Units: J rows m/rad (translations) and rad/rad (rotations); W the inverse of the
 residual covariance (1/m^2, 1/rad^2; identity for OLS); S has the units of

@@ -40,7 +40,7 @@ def noise_ratio_notes(
         block: no (m, 6) copy).
     sigma : (m, 6) declared standard deviation of each residual component (m, rad): the
         square root of the diagonal of each test's residual covariance (an array, or
-        made when sliced, :class:`~analysis.identification.per_test.PerTestSigma`).
+        made when sliced, :class:`~analysis.identification.streaming.per_test.PerTestSigma`).
     measured : (m, 6) bool. noise : the declared noise model. n_params : fitted parameters.
     """
     def resid(sl, cols):
