@@ -72,7 +72,8 @@ STREAMED = {
     "TEST_BLOCK": (97, [P + "lsq", P + "linalg.lsq", P + "estimate"]),
     "ROW_BLOCK": (50, [P + "lsq", P + "linalg.lsq"]),
     "RESIDUAL_ROWS_HELD": (100, [P + "estimate", P + "outliers", P + "checks.outliers"]),
-    "EVAL_BLOCK": (101, [P + "gauss_newton", P + "estimators.gauss_newton"]),
+    "EVAL_BLOCK": (101, [P + "gauss_newton", P + "estimators.gauss_newton",
+                        P + "streaming.blocks"]),
     "LAZY_TESTS": (300, [P + "per_test", P + "streaming.per_test"]),
     "FOLD_CHUNK": (7, [P + "crossval", P + "validation.crossval"]),
 }

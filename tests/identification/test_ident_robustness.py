@@ -199,7 +199,7 @@ def test_batched_ols_standard_errors_equal_the_dense_sandwich(kr240, pool):
     single = fit_linear(kr240, tests, tuple(range(6)), noise, weighted=False, eiv=False)
     np.testing.assert_allclose(x[:, 0], single.x, rtol=1e-9)
     # the batch's covariance uses the nominal wrench sigma (no reading-proportional part)
-    from analysis.identification.estimators.gauss_newton import covariances_per_test
+    from analysis.identification.streaming.covariances import covariances_per_test
 
     cov = covariances_per_test(noise, jacobian(kr240, pool.q[idx]), single.x, tests.measured)
     G = single.G

@@ -21,12 +21,12 @@ import pytest
 
 from analysis.identification.checks import outliers
 from analysis.identification.estimate import identify
-from analysis.identification.estimators import fitting, gauss_newton
+from analysis.identification.estimators import fitting
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg import lsq
 from analysis.identification.noise import NoiseModel
 from analysis.identification.result import write_results
-from analysis.identification.streaming import per_test
+from analysis.identification.streaming import blocks, per_test
 from analysis.identification.studies.robustness import sample_poses
 from analysis.identification.validation import crossval
 
@@ -54,7 +54,7 @@ def _streamed(monkeypatch):
     monkeypatch.setattr(lsq, "TEST_BLOCK", 97)
     monkeypatch.setattr(lsq, "ROW_BLOCK", 50)
     monkeypatch.setattr(outliers, "RESIDUAL_ROWS_HELD", 100)
-    monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
+    monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
     # J, the design and the model Jacobian are made when sliced instead of held
     monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
     monkeypatch.setattr(crossval, "FOLD_CHUNK", 7)  # the folds' algebra in chunks
@@ -146,7 +146,7 @@ def test_blockwise_covariances_with_a_held_jacobian(kr240, campaign, method, mon
     """Campaigns between one model block and the lazy size: J held, the covariances and
     the residual sigmas made block by block (and for the rows of the residual table)."""
     ref = identify(kr240, campaign, method, noise=NOISE)
-    monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
+    monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
     res = identify(kr240, campaign, method, noise=NOISE)
     assert not isinstance(fitting.jacobian_blocks(kr240, campaign.q),
                           per_test.PerTestJacobian)

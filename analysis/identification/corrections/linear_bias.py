@@ -33,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.estimators.exact_model import model_displacement_masked
-from analysis.identification.estimators.gauss_newton import EVAL_BLOCK
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg.lsq import stack_vector
+from analysis.identification.streaming.blocks import EVAL_BLOCK
 from analysis.identification.streaming.per_test import apply
 from analysis.model.robot_model import RobotModel
 

@@ -27,7 +27,7 @@ class EstimatorFit:
     weight >= 0.5, else the measured ones); robust: the robust fit
     (:class:`~analysis.identification.estimators.irls.RobustFit`) or None; sums: a streamed
     exact fit's per-fold sums, made in its final pass
-    (:class:`~analysis.identification.validation.crossval.FinalPassSums`) or None.
+    (:class:`~analysis.identification.streaming.fold_sums.FinalPassSums`) or None.
     """
 
     fit: Fit

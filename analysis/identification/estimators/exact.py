@@ -7,7 +7,8 @@ results.json (its first weights are the exact fit's first ones). A large one (mo
 than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS` tests) is streamed: no WLS
 (two passes over every test for a comparison only), and, for the Gaussian fit, the
 errors-in-variables S and the validation's per-fold sums are made in the pass that
-forms the final system (:class:`~analysis.identification.validation.crossval.FinalPassSums`).
+forms the final system
+(:class:`~analysis.identification.streaming.fold_sums.FinalPassSums`).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ class Exact:
         problem.release_design()
         sums = None
         if problem.large and self.final_pass_sums:
-            from analysis.identification.validation.crossval import FinalPassSums
+            from analysis.identification.streaming.fold_sums import FinalPassSums
 
             fold = problem.folds
             n_folds = int(fold.max(initial=-1)) + 1

@@ -12,12 +12,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
-from analysis.identification.estimators.gauss_newton import (
-    covariances_per_test,
-    gauss_newton,
-    per_test_covariance,
-    whitening_per_test,
-)
+from analysis.identification.estimators.gauss_newton import gauss_newton
 from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.io.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
 from analysis.identification.linalg import lsq
@@ -34,6 +29,11 @@ from analysis.identification.noise import NoiseModel
 from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
 from analysis.identification.result import Fit
 from analysis.identification.streaming import per_test
+from analysis.identification.streaming.covariances import (
+    covariances_per_test,
+    per_test_covariance,
+    whitening_per_test,
+)
 from analysis.identification.streaming.per_test import (
     PerTestDesign,
     PerTestJacobian,
@@ -182,7 +182,7 @@ def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
 def _fit_covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
                      w: np.ndarray | None = None, weights: np.ndarray | None = None):
     """A fit's ``cov``: :func:`_covariances`, or for one large campaign a
-    :class:`~analysis.identification.estimators.gauss_newton.PerTestCovariance` made when used."""
+    :class:`~analysis.identification.streaming.covariances.PerTestCovariance` made when used."""
     return per_test_covariance(noise, J, x_full, measured, w, weights)
 
 
@@ -298,7 +298,7 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     Gauss-Newton would compute: computed once).
 
     One large (streamed) campaign: ``sums`` a
-    :class:`~analysis.identification.validation.crossval.FinalPassSums` filled in the pass
+    :class:`~analysis.identification.streaming.fold_sums.FinalPassSums` filled in the pass
     that forms the final system (the errors-in-variables S comes from it);
     ``defer_shift``: ``predicted`` is left None, for the caller to make from ``A`` (the
     model Jacobian, whose blocks come with the model's values) and move by A eiv_shift in

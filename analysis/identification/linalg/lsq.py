@@ -324,7 +324,7 @@ def sandwich_and_residual_variance(A: np.ndarray, cov, bread: np.ndarray,
     ``diag(Sigma_i) - 2 diag(A_i G_i Sigma_i)``, is made in the pass that sums the
     sandwich's meat; ``diag(A_i cov_x A_i^T)`` is added once cov_x is known (a pass over
     A only). ``cov`` may be made block by block when sliced
-    (:class:`analysis.identification.estimators.gauss_newton.PerTestCovariance`): it is sliced once
+    (:class:`analysis.identification.streaming.covariances.PerTestCovariance`): it is sliced once
     per block of tests.
 
     ``meat`` (p, p): sum A^T W Sigma W A if the caller knows it (a fit whitened by its

@@ -113,7 +113,7 @@ class PerTestSigma(PerTestBlocks):
     """The standard deviation of each residual component (m, 6) (m, rad): the square root of
     the diagonal of per-test covariances ``cov`` (an array, or made when sliced with a
     ``take`` of integer rows,
-    :class:`~analysis.identification.estimators.gauss_newton.PerTestCovariance`)."""
+    :class:`~analysis.identification.streaming.covariances.PerTestCovariance`)."""
 
     def __init__(self, cov) -> None:
         self.cov = cov
