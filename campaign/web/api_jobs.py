@@ -1,4 +1,12 @@
-"""``/api/jobs``: one POST endpoint per job of :mod:`campaign.jobs`.
+"""``/api/jobs``: one POST endpoint per job of :mod:`campaign.jobs`, and the job queue.
+
+The long jobs (plan, acquire, analyze, maps, robustness, compensate, place) are
+queued (:mod:`campaign.web.job_queue`): the POST checks the request (paths, this
+server's bounds on trials, candidates, evaluations and map points: 400 naming the
+limit), answers 202 with the job (``id``, ``state``...; 429 when the queue is
+full), and ``GET /api/jobs/{id}`` gives its state, progress, result or error
+(``/events``: the same as server-sent events; ``DELETE`` or ``POST .../cancel``
+stops it, its outputs removed). robots, stiffness and compare answer at once.
 
 Request bodies are the jobs' options records themselves (FastAPI reads the
 dataclasses), so the units are the records' SI units (radians, N, N m, m),
@@ -13,22 +21,26 @@ refused with 400 and one line. The jobs get absolute paths, so the files they
 write name workspace files by absolute path where the command line would write
 the path as typed; the JSON answers give them relative to the workspace.
 Bad input gets 400 (or 422 from the body's
-schema) with the same one-line message as the command line; a refused write
-(disk full, permissions) is 409 with the file named.
+schema) with the same one-line message as the command line, with the request
+field at fault and the command-line options the line names
+(:mod:`campaign.web.job_errors`); a refused write (disk full, permissions) is
+409 with the file named. A queued job's refusal is the same record, as its
+``error``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import errno
+import os
+import threading
 from collections.abc import Callable
+from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
 
-from analysis.errors import InputError
 from campaign.cli_common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
 from campaign.jobs.analyze import AnalyzeOptions
@@ -40,6 +52,21 @@ from campaign.jobs.plan import PlanOptions
 from campaign.jobs.robots import RobotsOptions
 from campaign.jobs.robustness import RobustnessOptions
 from campaign.jobs.stiffness import StiffnessOptions
+from campaign.place_run import DEFAULT_MAX_EVALUATIONS
+from campaign.web import progress_hooks
+from campaign.web.job_errors import describe
+from campaign.web.job_queue import FINAL, JobCancelled, JobQueue, Progress, QueueFull
+
+#: jobs run at a time by one server (two cores: the other one serves the page, and the
+#: placement search's Dask workers share both), and jobs that may wait behind them
+JOB_WORKERS = 1
+JOB_WAITING = 2
+#: per request: robustness' simulated campaigns (trials x numbers of tests; the default
+#: study is 20 000), plan's candidate poses, place's evaluations, maps' grid points
+MAX_CAMPAIGNS = 100_000
+MAX_CANDIDATES = 100_000
+MAX_EVALUATIONS = DEFAULT_MAX_EVALUATIONS
+MAX_MAP_POINTS = 4_000_000
 
 router = APIRouter(prefix="/api/jobs", tags=["jobs"])
 
@@ -92,28 +119,113 @@ def _relative(ws: Path, doc: Any) -> Any:
     return doc
 
 
-def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
-    """Run ``job()``; its result record as JSON, or bad input as 400 with its one line."""
+def call(ws: Path | None, job: Callable[[], Any], options=None,
+         present: Callable[[Any], Any] | None = None) -> JSONResponse | None:
+    """Run ``job()`` here and now; its result record as JSON, or a refusal as 400/409
+    with its one line, the request field at fault and the options it names
+    (:func:`campaign.web.job_errors.describe`). ``present(result)`` instead of the
+    record's JSON (its value is returned as it is: None for a check that passed)."""
     try:
         result = job()
-    except InputError as err:
-        text = str(err) if ws is None else str(err).replace(f"{ws}/", "")
-        raise HTTPException(400, text) from None
-    except OSError as err:
-        where = f"{err.filename}: " if err.filename else ""
-        text = f"{where}{err.strerror or err}"
-        if ws is not None:
-            text = text.replace(f"{ws}/", "")
-        # a name the file system cannot take is bad input; a refused write is a conflict
-        status = 400 if err.errno in (errno.ENAMETOOLONG, errno.EINVAL) else 409
-        raise HTTPException(status, text) from None
     except Exception as err:
-        if type(err).__name__ == "EquilibriumError":
-            raise HTTPException(400, f"nonlinear equilibrium: {err}; reduce the wrench or "
-                                     "check the joint stiffness") from None
-        raise
+        error = describe(err, ws, options)
+        if error is None:
+            raise
+        return JSONResponse({k: v for k, v in error.items() if k != "status"},
+                            status_code=error["status"])
+    if present is not None:
+        return present(result)
     doc = json_ready(result.to_json())
     return JSONResponse(doc if ws is None else _relative(ws, doc))
+
+
+def bound_error(field: str, text: str) -> JSONResponse:
+    """400 for a request above one of this server's bounds, the bound named."""
+    return JSONResponse({"detail": f"{field}: {text}", "field": field, "options": {}},
+                        status_code=400)
+
+
+def map_points(step_rad: float) -> float | None:
+    """Grid points of a (theta_2, theta_3) map at ``step_rad`` over a full turn each (an
+    upper bound of the robot's own ranges); None for a step that is not positive."""
+    import math
+
+    if not (math.isfinite(step_rad) and step_rad > 0):
+        return None
+    return (2 * math.pi / step_rad + 1) ** 2
+
+
+_QUEUE_LOCK = threading.Lock()
+
+
+def job_queue(request: Request) -> JobQueue:
+    """The application's job queue (``app.state.jobs``), made on first use with
+    :data:`JOB_WORKERS` and :data:`JOB_WAITING` unless the application set its own."""
+    state = request.app.state
+    with _QUEUE_LOCK:
+        queue = getattr(state, "jobs", None)
+        if queue is None:
+            queue = state.jobs = JobQueue(JOB_WORKERS, JOB_WAITING, describe_error=_record)
+    return queue
+
+
+def _record(err: BaseException) -> dict | None:
+    return err.record if isinstance(err, JobFailed) else None
+
+
+class JobFailed(Exception):
+    """A job's refusal, carrying its error record (see :func:`describe`)."""
+
+    def __init__(self, record: dict) -> None:
+        super().__init__(record["detail"])
+        self.record = record
+
+
+def submit(request: Request, ws: Path, kind: str, options,
+           work: Callable[[Progress], Any]) -> JSONResponse:
+    """Queue ``work(progress)`` (its result record becomes the job's result document);
+    202 with the job, or 429 when the queue is full.
+
+    A job that fails or is cancelled leaves no output directory it created (as
+    :func:`analysis.output_files.created_dir`: what did not exist before is removed)."""
+    out = getattr(options, "out", None)
+
+    def job(progress: Progress) -> dict:
+        with _removed_on_failure(None if out is None else Path(out), ws):
+            try:
+                result = work(progress)
+            except Exception as err:
+                record = describe(err, ws, options)
+                if record is None:
+                    raise
+                raise JobFailed(record) from None
+        return _relative(ws, json_ready(result.to_json()))
+
+    try:
+        queued = job_queue(request).submit(kind, job)
+    except QueueFull as err:
+        return JSONResponse({"detail": str(err)}, status_code=429)
+    return JSONResponse(queued.public(), status_code=202,
+                        headers={"Location": f"/api/jobs/{queued.id}"})
+
+
+@contextmanager
+def _removed_on_failure(out: Path | None, ws: Path):
+    """Remove ``out`` and the parents this job made when the body fails (inside ``ws``)."""
+    import shutil
+
+    top = None
+    if out is not None and out.is_relative_to(ws):
+        for p in (out, *out.parents):
+            if p == ws or os.path.lexists(p):
+                break
+            top = p
+    try:
+        yield
+    except BaseException:
+        if top is not None and not top.is_symlink():
+            shutil.rmtree(top, ignore_errors=True)
+        raise
 
 
 def robot_path(ws: Path, robot: str, field: str = "robot") -> str:
@@ -130,7 +242,7 @@ def robots(options: RobotsOptions, ws: Path = Depends(workspace)) -> JSONRespons
 
     if options.name is not None:
         options = dataclasses.replace(options, name=robot_path(ws, options.name, "name"))
-    return call(ws, lambda: run(options))
+    return call(ws, lambda: run(options), options)
 
 
 @router.post("/stiffness")
@@ -139,44 +251,63 @@ def stiffness(options: StiffnessOptions, ws: Path = Depends(workspace)) -> JSONR
     from campaign.jobs.stiffness import run
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot))
-    return call(ws, lambda: run(options))
+    return call(ws, lambda: run(options), options)
 
 
-@router.post("/plan")
-def plan(options: PlanOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """Plan the tests of a protocol file; writes the plan directory ``out`` (workspace paths)."""
+@router.post("/plan", status_code=202)
+def plan(options: PlanOptions, request: Request,
+         ws: Path = Depends(workspace)) -> JSONResponse:
+    """Plan the tests of a protocol file into the plan directory ``out`` (workspace paths);
+    queued (202 with the job; ``candidates`` at most :data:`MAX_CANDIDATES`)."""
     from campaign.jobs.plan import run
 
+    if options.candidates > MAX_CANDIDATES:
+        return bound_error("candidates", f"{options.candidates} candidate poses, above this "
+                           f"server's limit of {MAX_CANDIDATES} per request")
     options = dataclasses.replace(options, protocol=inside(ws, options.protocol, "protocol"),
                                   out=inside(ws, options.out, "out"))
-    return call(ws, lambda: run(options))
+    return submit(request, ws, "plan", options,
+                  lambda p: run(options, stage=progress_hooks.stage(p)))
 
 
-@router.post("/maps")
-def maps(options: MapsOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """The paper's Figs. 3 and 5 maps into ``out`` (grid step and fixed joints in rad)."""
+@router.post("/maps", status_code=202)
+def maps(options: MapsOptions, request: Request,
+         ws: Path = Depends(workspace)) -> JSONResponse:
+    """The paper's Figs. 3 and 5 maps into ``out`` (grid step and fixed joints in rad);
+    queued (202 with the job; at most :data:`MAX_MAP_POINTS` grid points)."""
     from campaign.jobs.maps import run
 
+    points = map_points(options.step_rad)  # None: a step the job itself refuses
+    if points is not None and points > MAX_MAP_POINTS:
+        return bound_error("step_rad", f"a step of {options.step_rad:g} rad gives up to "
+                           f"{points:.3g} "
+                           f"grid points, above this server's limit of {MAX_MAP_POINTS:.3g} "
+                           "per request: a coarser step")
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   out=inside(ws, options.out, "out"))
-    return call(ws, lambda: run(options))
+    return submit(request, ws, "maps", options,
+                  lambda p: run(options, stage=progress_hooks.stage(p),
+                                note=progress_hooks.say(p)))
 
 
 @router.post("/compare")
 def compare(options: CompareOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """k_B - k_A per joint with its interval, z score and verdict (campaign paths a and b)."""
+    """k_B - k_A per joint with its interval, z score and verdict (campaign paths a and b);
+    answered at once (a comparison takes milliseconds)."""
     from campaign.jobs.compare import run
 
     options = dataclasses.replace(
         options, a=inside(ws, options.a, "a"), b=inside(ws, options.b, "b"),
         plot=None if options.plot is None else inside(ws, options.plot, "plot"),
         report=None if options.report is None else inside(ws, options.report, "report"))
-    return call(ws, lambda: run(options))
+    return call(ws, lambda: run(options), options)
 
 
-@router.post("/compensate")
-def compensate(options: CompensateOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """The deflection along a path, the compensated joints and the robot program in ``out``."""
+@router.post("/compensate", status_code=202)
+def compensate(options: CompensateOptions, request: Request,
+               ws: Path = Depends(workspace)) -> JSONResponse:
+    """The deflection along a path, the compensated joints and the robot program in ``out``;
+    queued (202 with the job)."""
     from campaign.jobs.compensate import run
 
     options = dataclasses.replace(
@@ -184,36 +315,70 @@ def compensate(options: CompensateOptions, ws: Path = Depends(workspace)) -> JSO
         out=inside(ws, options.out, "out"),
         protocol=None if options.protocol is None else inside(ws, options.protocol,
                                                                "protocol"))
-    return call(ws, lambda: run(options))
+
+    def work(p):
+        p.report(None, "compensating the path" + (" and replaying it on the simulated lab"
+                                                  if options.verify_fake else ""))
+        return run(options)
+
+    return submit(request, ws, "compensate", options, work)
 
 
-@router.post("/place")
-def place(options: PlaceOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+@router.post("/place", status_code=202)
+def place(options: PlaceOptions, request: Request,
+          ws: Path = Depends(workspace)) -> JSONResponse:
     """The placement search (options in the command line's units: mm, deg, ``A..B`` ranges);
-    the answer is placement.json. ``workers`` 0 runs the search in the server's process."""
+    the options and the search's size are checked at once (400; at most
+    :data:`MAX_EVALUATIONS` evaluations), then the search is queued (202 with the job,
+    whose result is placement.json). ``workers`` 0 runs it in the server's process, else
+    on a local Dask cluster as the command line."""
     from campaign.jobs.place import run
+    from campaign.place_run import check_search
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   path=inside(ws, options.path, "path"),
                                   out=inside(ws, options.out, "out"))
-    return call(ws, lambda: run(options))
+    refused = call(ws, lambda: check_search(options, MAX_EVALUATIONS), options,
+                   present=lambda size: None)
+    if refused is not None:
+        return refused
+    return submit(request, ws, "place", options,
+                  lambda p: run(options, progress_hooks.console(p), p.report,
+                                MAX_EVALUATIONS))
 
 
-@router.post("/robustness")
-def robustness(options: RobustnessOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """The Monte-Carlo spread of k against the number of tests (noise overrides in SI)."""
+@router.post("/robustness", status_code=202)
+def robustness(options: RobustnessOptions, request: Request,
+               ws: Path = Depends(workspace)) -> JSONResponse:
+    """The Monte-Carlo spread of k against the number of tests (noise overrides in SI);
+    queued (202 with the job; at most :data:`MAX_CAMPAIGNS` simulated campaigns,
+    trials x numbers of tests)."""
     from campaign.jobs.robustness import run
 
+    campaigns = options.trials * len(set(options.tests))
+    if campaigns > MAX_CAMPAIGNS:
+        return bound_error("trials", f"{options.trials} trials x {len(set(options.tests))} "
+                           f"numbers of tests = {campaigns} simulated campaigns, above this "
+                           f"server's limit of {MAX_CAMPAIGNS} per request")
     options = dataclasses.replace(
         options, robot=robot_path(ws, options.robot),
         out=None if options.out is None else inside(ws, options.out, "out"))
-    return call(ws, lambda: run(options))
+
+    def counted(p):
+        def progress(done: int, total: int) -> None:
+            p.report(done / total, f"{done} of {total} simulated campaigns identified")
+        return progress
+
+    return submit(request, ws, "robustness", options,
+                  lambda p: run(options, progress=counted(p), note=progress_hooks.say(p)))
 
 
-@router.post("/analyze")
-def analyze(options: AnalyzeOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+@router.post("/analyze", status_code=202)
+def analyze(options: AnalyzeOptions, request: Request,
+            ws: Path = Depends(workspace)) -> JSONResponse:
     """Identify k from a run directory or a tests CSV (noise overrides in SI, fractions for
-    the relative F/T noise); the answer is results.json with analysis.json and the files."""
+    the relative F/T noise); queued (202 with the job, whose result is results.json with
+    analysis.json and the files)."""
     from campaign.jobs.analyze import run
 
     def opt(value, name):
@@ -224,17 +389,22 @@ def analyze(options: AnalyzeOptions, ws: Path = Depends(workspace)) -> JSONRespo
         measurements=opt(options.measurements, "measurements"),
         robot=None if options.robot is None else robot_path(ws, options.robot),
         out=opt(options.out, "out"))
-    return call(ws, lambda: run(options))
+    return submit(request, ws, "analyze", options,
+                  lambda p: run(options, stage=progress_hooks.stage(p),
+                                warn=progress_hooks.say(p)))
 
 
-@router.post("/acquire")
-def acquire(options: AcquireJobOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """Run, resume or dry-run a campaign and answer when it ends (status, counts).
+@router.post("/acquire", status_code=202)
+def acquire(options: AcquireJobOptions, request: Request,
+            ws: Path = Depends(workspace)) -> JSONResponse:
+    """Run, resume or dry-run a campaign; queued (202 with the job, whose result is the
+    status and counts). Cancelling it takes the Ctrl-C path (motion stopped, load
+    removed, ``aborted`` recorded: the run stays, resumable, as the command line's).
 
     Without ``out`` a new run goes to ``runs/run-<UTC time>`` in the workspace. A real
     robot moves only with ``assume_yes`` (nobody can be asked here); a long campaign is
-    better started as its own process (``python -m campaign.jobs.acquire``), which a
-    closed page does not stop."""
+    better started from the Acquire view (its own process, which a closed page or a
+    restarted server does not stop)."""
     from campaign.jobs.acquire import default_run_dir, run
 
     def opt(value, name):
@@ -248,4 +418,83 @@ def acquire(options: AcquireJobOptions, ws: Path = Depends(workspace)) -> JSONRe
         options, plan=opt(options.plan, "plan"), out=opt(out, "out"),
         resume=opt(options.resume, "resume"), events_file=opt(options.events_file,
                                                               "events_file"))
-    return call(ws, lambda: run(options, say=lambda s: None))
+
+    def work(p):
+        result = run(options, reporter=progress_hooks.AcquireProgress(p),
+                     say=lambda s: None, should_abort=p.cancelled)
+        if p.cancelled():
+            raise JobCancelled(f"cancelled: the acquisition took the Ctrl-C path "
+                               f"({result.status}: {result.reason}); the run stays, "
+                               "resumable")
+        return result
+
+    return submit(request, ws, "acquire", options, work)
+
+
+# ---- the queue: state, progress events, cancellation --------------------------------------
+
+
+@router.get("/{job_id}")
+def job_state(job_id: str, request: Request) -> JSONResponse:
+    """A queued job: ``state`` (queued, running, done, failed, cancelled), ``fraction``
+    (0..1, null: unknown) and ``text`` of its progress, ``result`` (done) or ``error``
+    (failed: ``status``, the one line ``detail``, the request ``field`` at fault and the
+    command-line ``options`` the line names, mapped to request fields)."""
+    job = job_queue(request).get(job_id)
+    if job is None:
+        return JSONResponse({"detail": f"job_id: no job {job_id[:80]!r} on this server "
+                             "(finished jobs are forgotten after a while)"}, status_code=404)
+    return JSONResponse(job.public())
+
+
+@router.get("/{job_id}/events")
+async def job_events(job_id: str, request: Request):
+    """Server-sent events of a job: one ``data:`` (the job's state, as GET /api/jobs/{id})
+    per change, then ``event: end`` once it has ended."""
+    import asyncio
+
+    from fastapi.responses import StreamingResponse
+
+    queue = job_queue(request)
+    if queue.get(job_id) is None:
+        return JSONResponse({"detail": f"job_id: no job {job_id[:80]!r} on this server"},
+                            status_code=404)
+
+    async def stream():
+        import json
+
+        version = -1
+        while True:
+            job = queue.get(job_id)
+            if job is None:
+                yield "event: end\ndata: {}\n\n"
+                return
+            if job.version != version:
+                version = job.version
+                yield f"data: {json.dumps(json_ready(job.public()))}\n\n"
+            if job.state in FINAL:
+                yield "event: end\ndata: {}\n\n"
+                return
+            if await request.is_disconnected():
+                return
+            await asyncio.sleep(0.1)
+
+    return StreamingResponse(stream(), media_type="text/event-stream",
+                             headers={"Cache-Control": "no-store"})
+
+
+@router.delete("/{job_id}")
+def job_cancel(job_id: str, request: Request) -> JSONResponse:
+    """Cancel a job: a queued one at once, a running one at its next progress step (its
+    outputs removed, as a failed command leaves none); a finished job stays as it ended."""
+    job = job_queue(request).cancel(job_id)
+    if job is None:
+        return JSONResponse({"detail": f"job_id: no job {job_id[:80]!r} on this server"},
+                            status_code=404)
+    return JSONResponse(job.public())
+
+
+@router.post("/{job_id}/cancel")
+def job_cancel_post(job_id: str, request: Request) -> JSONResponse:
+    """The same as DELETE /api/jobs/{job_id}, for clients that only POST."""
+    return job_cancel(job_id, request)

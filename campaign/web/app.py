@@ -25,6 +25,7 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.runs_api",
     "campaign.web.api_jobs",
     "campaign.web.use_api",
+    "campaign.web.use_path_api",
     "campaign.web.acquire_api",
     "campaign.web.plan_api",
     "campaign.web.analyze_api",
