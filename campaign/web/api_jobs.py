@@ -31,6 +31,7 @@ field at fault and the command-line options the line names
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import threading
 from collections.abc import Callable
@@ -119,8 +120,17 @@ def _relative(ws: Path, doc: Any) -> Any:
     return doc
 
 
-def call(ws: Path | None, job: Callable[[], Any], options=None,
-         present: Callable[[Any], Any] | None = None) -> JSONResponse | None:
+def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
+    """Run ``job()``; its result record as JSON, or bad input raised as HTTPException
+    (400/409) with its one line (for the routes that answer errors as FastAPI does)."""
+    answered = answer(ws, job)
+    if answered.status_code >= 400:
+        raise HTTPException(answered.status_code, json.loads(answered.body)["detail"])
+    return answered
+
+
+def answer(ws: Path | None, job: Callable[[], Any], options=None,
+           present: Callable[[Any], Any] | None = None) -> JSONResponse | None:
     """Run ``job()`` here and now; its result record as JSON, or a refusal as 400/409
     with its one line, the request field at fault and the options it names
     (:func:`campaign.web.job_errors.describe`). ``present(result)`` instead of the
@@ -242,7 +252,7 @@ def robots(options: RobotsOptions, ws: Path = Depends(workspace)) -> JSONRespons
 
     if options.name is not None:
         options = dataclasses.replace(options, name=robot_path(ws, options.name, "name"))
-    return call(ws, lambda: run(options), options)
+    return answer(ws, lambda: run(options), options)
 
 
 @router.post("/stiffness")
@@ -251,7 +261,7 @@ def stiffness(options: StiffnessOptions, ws: Path = Depends(workspace)) -> JSONR
     from campaign.jobs.stiffness import run
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot))
-    return call(ws, lambda: run(options), options)
+    return answer(ws, lambda: run(options), options)
 
 
 @router.post("/plan", status_code=202)
@@ -300,7 +310,7 @@ def compare(options: CompareOptions, ws: Path = Depends(workspace)) -> JSONRespo
         options, a=inside(ws, options.a, "a"), b=inside(ws, options.b, "b"),
         plot=None if options.plot is None else inside(ws, options.plot, "plot"),
         report=None if options.report is None else inside(ws, options.report, "report"))
-    return call(ws, lambda: run(options), options)
+    return answer(ws, lambda: run(options), options)
 
 
 @router.post("/compensate", status_code=202)
@@ -338,8 +348,8 @@ def place(options: PlaceOptions, request: Request,
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   path=inside(ws, options.path, "path"),
                                   out=inside(ws, options.out, "out"))
-    refused = call(ws, lambda: check_search(options, MAX_EVALUATIONS), options,
-                   present=lambda size: None)
+    refused = answer(ws, lambda: check_search(options, MAX_EVALUATIONS), options,
+                     present=lambda size: None)
     if refused is not None:
         return refused
     return submit(request, ws, "place", options,
@@ -461,7 +471,6 @@ async def job_events(job_id: str, request: Request):
                             status_code=404)
 
     async def stream():
-        import json
 
         version = -1
         while True:

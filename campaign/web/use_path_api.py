@@ -24,7 +24,7 @@ from fastapi.responses import JSONResponse
 from pydantic import Field
 
 from campaign.cli_common import WrenchFrame
-from campaign.web.api_jobs import call, inside, robot_path, workspace
+from campaign.web.api_jobs import answer, inside, robot_path, workspace
 
 router = APIRouter(prefix="/api/use", tags=["use"])
 
@@ -83,13 +83,13 @@ def deflection(req: PathDeflectionRequest, ws: Path = Depends(workspace)) -> JSO
         joint_stiffness_Nm_per_rad=req.joint_stiffness_Nm_per_rad,
         min_inv_kappa=req.min_inv_kappa)
     try:
-        answer = call(ws, lambda: run(options), options)
+        answered = answer(ws, lambda: run(options), options)
     finally:
         if folder is not None:
             shutil.rmtree(folder, ignore_errors=True)
-    if folder is not None and answer.status_code != 200:
+    if folder is not None and answered.status_code != 200:
         # the reader named the file by where it was written: by its name alone here
-        answer.body = answer.body.replace(
+        answered.body = answered.body.replace(
             f"{folder.relative_to(ws).as_posix()}/".encode(), b"")
-        answer.headers["content-length"] = str(len(answer.body))
-    return answer
+        answered.headers["content-length"] = str(len(answered.body))
+    return answered

@@ -576,18 +576,18 @@ function showPlace(res) {
   u$("pl-result").hidden = false;
   const p = res.placement, unit = res.objective_unit;
   const rows = [
-    ["x", "pl-x", fmt(p.x_mm, 7), "mm"], ["y", "pl-y", fmt(p.y_mm, 7), "mm"],
-    ["z", "pl-z", fmt(p.z_mm, 7), "mm"], ["yaw", "pl-yaw", fmt(p.yaw_deg, 7), "deg"],
-    [`objective: ${res.objective_name}`, "pl-objective", fmt(res.objective), unit],
-    ["objective, nonlinear equilibrium with K_C", "pl-nonlinear", fmt(res.objective_nonlinear), unit],
+    ["x", "pl-best-x", fmt(p.x_mm, 7), "mm"], ["y", "pl-best-y", fmt(p.y_mm, 7), "mm"],
+    ["z", "pl-best-z", fmt(p.z_mm, 7), "mm"], ["yaw", "pl-best-yaw", fmt(p.yaw_deg, 7), "deg"],
+    [`objective: ${res.objective_name}`, "pl-best-objective", fmt(res.objective), unit],
+    ["objective, nonlinear equilibrium with K_C", "pl-best-nonlinear", fmt(res.objective_nonlinear), unit],
     ["configuration (shoulder, elbow, wrist)", "pl-config",
      `${res.configuration.shoulder}, ${res.configuration.elbow}, ${res.configuration.wrist}`, ""],
-    ["centre of the box", "pl-center", res.center_objective === null ? `infeasible: ${res.center_infeasible_reason}` : fmt(res.center_objective), res.center_objective === null ? "" : unit],
-    ["better than the centre by", "pl-improvement", res.improvement_over_center === null ? "\u2014" : fmt(res.improvement_over_center, 4), "\u00d7"],
-    ["placements searched", "pl-placements", String(res.search_space.placements), ""],
-    ["infeasible placements", "pl-infeasible", String(res.infeasible.count), ""],
-    ["evaluations", "pl-evaluations", String(res.search_space.evaluations), ""],
-    ["run", "pl-where", `${res.run.where}, ${fmt(res.run.seconds, 3)} s`, ""],
+    ["centre of the box", "pl-best-center", res.center_objective === null ? `infeasible: ${res.center_infeasible_reason}` : fmt(res.center_objective), res.center_objective === null ? "" : unit],
+    ["better than the centre by", "pl-best-improvement", res.improvement_over_center === null ? "\u2014" : fmt(res.improvement_over_center, 4), "\u00d7"],
+    ["placements searched", "pl-best-placements", String(res.search_space.placements), ""],
+    ["infeasible placements", "pl-best-infeasible", String(res.infeasible.count), ""],
+    ["evaluations", "pl-best-evaluations", String(res.search_space.evaluations), ""],
+    ["run", "pl-best-where", `${res.run.where}, ${fmt(res.run.seconds, 3)} s`, ""],
   ];
   u$("pl-best").querySelector("tbody").innerHTML = rows.map(([a, id, v, un]) =>
     `<tr><th>${a}</th><td id="${id}">${v}</td><td>${un}</td></tr>`).join("") +
