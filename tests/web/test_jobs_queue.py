@@ -196,3 +196,22 @@ def test_path_deflection_from_the_workspace_or_uploaded(client, ws):
         r = client.post("/api/use/deflection", json={"robot": "kr240-2", "upload_name": name,
                                                      "upload_text": text})
         assert r.status_code == 400 and r.json()["field"] == "upload_name", name
+
+
+@pytest.mark.parametrize(("job", "body", "said"), [
+    ("robustness", {"robot": "kr240-2", "tests": [4, 8], "trials": 30, "pool_size": 60,
+                    "method": "ols"}, "of 60 simulated campaigns identified"),
+    ("maps", {"robot": "kr240-2", "out": "m", "step_rad": 0.2}, "plots"),  # its last stage
+])
+def test_jobs_report_their_own_progress(client, ws, job, body, said):
+    queued = client.post(f"/api/jobs/{job}", json=body)
+    assert queued.status_code == 202, queued.text
+    with client.stream("GET", f"/api/jobs/{queued.json()['id']}/events") as events:
+        states = [json.loads(x[6:]) for x in events.iter_lines()
+                  if x.startswith('data: {"')]
+    assert states[-1]["state"] == "done", states[-1]
+    assert any(said in s["text"] for s in states), [s["text"] for s in states]
+    if job == "robustness":  # fractions of the 60 campaigns, in order, to the end
+        fractions = [s["fraction"] for s in states if s["fraction"] is not None]
+        assert fractions == sorted(fractions) and fractions[-1] == 1.0
+        assert len(states[-1]["result"]["results"]) == 2 * 6

@@ -210,6 +210,7 @@ def test_placement_search_with_progress_equals_the_place_job(page, ws):
                             y_step_mm=20, tool_angle_step_deg=30, config="-1,-1,-1",
                             workers=0)).placement
     assert mine["placement"] == doc["placement"] and mine["objective"] == doc["objective"]
+    assert "--" not in page.inner_text("#pl-best")  # its warnings name this form's fields
     hrefs = page.eval_on_selector_all("#pl-files a", "els => els.map(a => a.textContent)")
     assert "placed/placement.json" in hrefs
 

@@ -104,6 +104,15 @@ function inTerms(err, labels) {
   return text;
 }
 
+// a job's own sentence (a warning of placement.json) in this page's terms: a command-line
+// option --x-mm is the field x_mm of the job's options, shown by its label
+function optionsAsLabels(text, labels) {
+  return String(text).replace(/--([a-z][a-z0-9-]*)/g, (all, name) => {
+    const label = labels[name.replace(/-/g, "_")];
+    return label ? `\u201c${label}\u201d` : all;
+  });
+}
+
 // the error beside its field (and in the form's error line); false when no field shows it
 function showFieldError(form, err, errorLine) {
   for (const m of form.querySelectorAll(".use-msg")) m.textContent = "";
@@ -591,7 +600,7 @@ function showPlace(res) {
   ];
   u$("pl-best").querySelector("tbody").innerHTML = rows.map(([a, id, v, un]) =>
     `<tr><th>${a}</th><td id="${id}">${v}</td><td>${un}</td></tr>`).join("") +
-    res.warnings.map((w) => `<tr><td colspan="3" class="undefined">warning: ${w}</td></tr>`).join("");
+    res.warnings.map((w) => `<tr><td colspan="3" class="undefined">warning: ${optionsAsLabels(w, labelsOf(u$("use-place")))}</td></tr>`).join("");
   u$("pl-runners").querySelector("tbody").innerHTML = res.runner_ups.map((r, i) =>
     `<tr id="pl-runner-${i + 1}"><td>${i + 2}</td><td>${fmt(r.placement.x_mm, 7)}</td><td>${fmt(r.placement.y_mm, 7)}</td>` +
     `<td>${fmt(r.placement.z_mm, 7)}</td><td>${fmt(r.placement.yaw_deg, 7)}</td><td class="obj">${fmt(r.objective)} ${unit}</td></tr>`).join("");
