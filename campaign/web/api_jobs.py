@@ -37,10 +37,11 @@ import threading
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import Any, Literal
 
 from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
+from pydantic import BaseModel
 
 from campaign.cli_common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
@@ -165,6 +166,45 @@ def map_points(step_rad: float) -> float | None:
     return (2 * math.pi / step_rad + 1) ** 2
 
 
+class JobError(BaseModel):
+    """A queued job's refusal (see :func:`campaign.web.job_errors.describe`)."""
+
+    status: int
+    detail: str
+    field: str | None = None
+    options: dict[str, str] = {}
+
+
+class JobState(BaseModel):
+    """A queued job as ``GET /api/jobs/{job_id}`` gives it (times: s since the epoch)."""
+
+    id: str
+    kind: str
+    state: Literal["queued", "running", "done", "failed", "cancelled"]
+    fraction: float | None = None
+    text: str
+    result: dict | None = None
+    error: JobError | None = None
+    created: float
+    started: float | None = None
+    finished: float | None = None
+
+
+class Refusal(BaseModel):
+    """A refused request: the one line, the request field at fault, the options it names."""
+
+    detail: str
+    field: str | None = None
+    options: dict[str, str] = {}
+
+
+#: the answers of a queued job's POST, for the OpenAPI document
+QUEUED = {202: {"model": JobState, "description": "queued: the job (follow GET "
+                "/api/jobs/{job_id} or its events)"},
+          400: {"model": Refusal, "description": "refused: bad input or above a bound"},
+          429: {"model": Refusal, "description": "the job queue is full"}}
+
+
 _QUEUE_LOCK = threading.Lock()
 
 
@@ -264,7 +304,7 @@ def stiffness(options: StiffnessOptions, ws: Path = Depends(workspace)) -> JSONR
     return answer(ws, lambda: run(options), options)
 
 
-@router.post("/plan", status_code=202)
+@router.post("/plan", status_code=202, responses=QUEUED)
 def plan(options: PlanOptions, request: Request,
          ws: Path = Depends(workspace)) -> JSONResponse:
     """Plan the tests of a protocol file into the plan directory ``out`` (workspace paths);
@@ -280,7 +320,7 @@ def plan(options: PlanOptions, request: Request,
                   lambda p: run(options, stage=progress_hooks.stage(p)))
 
 
-@router.post("/maps", status_code=202)
+@router.post("/maps", status_code=202, responses=QUEUED)
 def maps(options: MapsOptions, request: Request,
          ws: Path = Depends(workspace)) -> JSONResponse:
     """The paper's Figs. 3 and 5 maps into ``out`` (grid step and fixed joints in rad);
@@ -313,7 +353,7 @@ def compare(options: CompareOptions, ws: Path = Depends(workspace)) -> JSONRespo
     return answer(ws, lambda: run(options), options)
 
 
-@router.post("/compensate", status_code=202)
+@router.post("/compensate", status_code=202, responses=QUEUED)
 def compensate(options: CompensateOptions, request: Request,
                ws: Path = Depends(workspace)) -> JSONResponse:
     """The deflection along a path, the compensated joints and the robot program in ``out``;
@@ -334,7 +374,7 @@ def compensate(options: CompensateOptions, request: Request,
     return submit(request, ws, "compensate", options, work)
 
 
-@router.post("/place", status_code=202)
+@router.post("/place", status_code=202, responses=QUEUED)
 def place(options: PlaceOptions, request: Request,
           ws: Path = Depends(workspace)) -> JSONResponse:
     """The placement search (options in the command line's units: mm, deg, ``A..B`` ranges);
@@ -357,7 +397,7 @@ def place(options: PlaceOptions, request: Request,
                                 MAX_EVALUATIONS))
 
 
-@router.post("/robustness", status_code=202)
+@router.post("/robustness", status_code=202, responses=QUEUED)
 def robustness(options: RobustnessOptions, request: Request,
                ws: Path = Depends(workspace)) -> JSONResponse:
     """The Monte-Carlo spread of k against the number of tests (noise overrides in SI);
@@ -383,7 +423,7 @@ def robustness(options: RobustnessOptions, request: Request,
                   lambda p: run(options, progress=counted(p), note=progress_hooks.say(p)))
 
 
-@router.post("/analyze", status_code=202)
+@router.post("/analyze", status_code=202, responses=QUEUED)
 def analyze(options: AnalyzeOptions, request: Request,
             ws: Path = Depends(workspace)) -> JSONResponse:
     """Identify k from a run directory or a tests CSV (noise overrides in SI, fractions for
@@ -404,7 +444,7 @@ def analyze(options: AnalyzeOptions, request: Request,
                                 warn=progress_hooks.say(p)))
 
 
-@router.post("/acquire", status_code=202)
+@router.post("/acquire", status_code=202, responses=QUEUED)
 def acquire(options: AcquireJobOptions, request: Request,
             ws: Path = Depends(workspace)) -> JSONResponse:
     """Run, resume or dry-run a campaign; queued (202 with the job, whose result is the
@@ -444,7 +484,7 @@ def acquire(options: AcquireJobOptions, request: Request,
 # ---- the queue: state, progress events, cancellation --------------------------------------
 
 
-@router.get("/{job_id}")
+@router.get("/{job_id}", response_model=JobState, responses={404: {"model": Refusal}})
 def job_state(job_id: str, request: Request) -> JSONResponse:
     """A queued job: ``state`` (queued, running, done, failed, cancelled), ``fraction``
     (0..1, null: unknown) and ``text`` of its progress, ``result`` (done) or ``error``
@@ -460,7 +500,8 @@ def job_state(job_id: str, request: Request) -> JSONResponse:
 @router.get("/{job_id}/events")
 async def job_events(job_id: str, request: Request):
     """Server-sent events of a job: one ``data:`` (the job's state, as GET /api/jobs/{id})
-    per change, then ``event: end`` once it has ended."""
+    per change, every change from its submission (the last 1000), then ``event: end``
+    once it has ended."""
     import asyncio
 
     from fastapi.responses import StreamingResponse
@@ -471,17 +512,19 @@ async def job_events(job_id: str, request: Request):
                             status_code=404)
 
     async def stream():
-
-        version = -1
+        version = 0
         while True:
             job = queue.get(job_id)
             if job is None:
                 yield "event: end\ndata: {}\n\n"
                 return
-            if job.version != version:
-                version = job.version
-                yield f"data: {json.dumps(json_ready(job.public()))}\n\n"
-            if job.state in FINAL:
+            with queue.lock:
+                states = job.since(version)
+            for _, state in states:
+                yield f"data: {json.dumps(json_ready(state))}\n\n"
+            if states:
+                version = states[-1][0]
+            if states and states[-1][1]["state"] in FINAL:
                 yield "event: end\ndata: {}\n\n"
                 return
             if await request.is_disconnected():
@@ -492,7 +535,8 @@ async def job_events(job_id: str, request: Request):
                              headers={"Cache-Control": "no-store"})
 
 
-@router.delete("/{job_id}")
+@router.delete("/{job_id}", response_model=JobState,
+                responses={404: {"model": Refusal}})
 def job_cancel(job_id: str, request: Request) -> JSONResponse:
     """Cancel a job: a queued one at once, a running one at its next progress step (its
     outputs removed, as a failed command leaves none); a finished job stays as it ended."""
@@ -503,7 +547,8 @@ def job_cancel(job_id: str, request: Request) -> JSONResponse:
     return JSONResponse(job.public())
 
 
-@router.post("/{job_id}/cancel")
+@router.post("/{job_id}/cancel", response_model=JobState,
+             responses={404: {"model": Refusal}})
 def job_cancel_post(job_id: str, request: Request) -> JSONResponse:
     """The same as DELETE /api/jobs/{job_id}, for clients that only POST."""
     return job_cancel(job_id, request)

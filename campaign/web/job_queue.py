@@ -28,6 +28,8 @@ from typing import Any
 
 #: finished jobs kept for GET /api/jobs/{id} (the oldest are forgotten first)
 KEEP_FINISHED = 50
+#: states of a job kept for its events (a slow reader misses none but the oldest)
+HISTORY = 1000
 #: the progress line of a cancelled job (its outputs are removed as a failed one's)
 CANCELLED = "cancelled; nothing of it was kept"
 #: the states a job ends in
@@ -62,7 +64,7 @@ class Progress:
             job = self._job
             job.fraction = None if fraction is None else min(1.0, max(0.0, float(fraction)))
             job.text = text
-            job.version += 1
+            job.changed()
             self._queue._lock.notify_all()
 
     def report(self, fraction: float | None, text: str) -> None:
@@ -83,8 +85,8 @@ class Job:
     state: queued, running, done, failed or cancelled; fraction: progress in
     [0, 1] (None: unknown); text: the latest progress line; result: the result
     document (done); error: ``{"status", "detail", "field", "options"}`` (failed);
-    created/started/finished: time.time() seconds; version: counts changes (for
-    the server-sent events).
+    created/started/finished: time.time() seconds; version: counts changes, and
+    history keeps the states they lead to (for the server-sent events).
     """
 
     id: str
@@ -100,6 +102,18 @@ class Job:
     finished: float | None = None
     cancel_asked: bool = False
     version: int = 0
+    history: collections.deque = field(default_factory=lambda: collections.deque(
+        maxlen=HISTORY), repr=False)
+
+    def changed(self) -> None:
+        """Count a change and keep the state it leads to (for the events; the lock is held)."""
+        self.version += 1
+        self.history.append((self.version, self.public()))
+
+    def since(self, version: int) -> list[tuple[int, dict]]:
+        """(version, state) after ``version``, oldest first (the last :data:`HISTORY` at
+        most; the lock is held)."""
+        return [(v, state) for v, state in self.history if v > version]
 
     def public(self) -> dict:
         """The job as the API shows it (no function, times in s since the epoch)."""
@@ -130,6 +144,11 @@ class JobQueue:
         self._threads: list[threading.Thread] = []
         self._count = itertools.count(1)
 
+    @property
+    def lock(self) -> threading.Condition:
+        """The lock every job's record is changed under."""
+        return self._lock
+
     # ---- asking -----------------------------------------------------------------------
 
     def submit(self, kind: str, work: Callable[[Progress], dict]) -> Job:
@@ -142,6 +161,7 @@ class JobQueue:
                     f"this server runs {self.workers} at a time and queues {self.waiting}): "
                     "wait for one to finish, or cancel one")
             job = Job(f"{next(self._count)}-{secrets.token_hex(4)}", kind, work)
+            job.changed()
             self._jobs[job.id] = job
             self._queue.append(job)
             self._start_workers()
@@ -170,7 +190,7 @@ class JobQueue:
                 self._end(job, "cancelled", text="cancelled before it started")
             else:
                 job.text = "cancelling"
-                job.version += 1
+                job.changed()
             self._lock.notify_all()
             return job
 
@@ -197,7 +217,7 @@ class JobQueue:
                 self._lock.wait_for(lambda: self._queue, timeout=None)
                 job = self._queue.popleft()
                 job.state, job.started, job.text = "running", time.time(), "started"
-                job.version += 1
+                job.changed()
                 self._lock.notify_all()
             self._run(job)
 
@@ -236,7 +256,7 @@ class JobQueue:
             job.fraction = fraction
         job.finished = time.time()
         job.work = _gone
-        job.version += 1
+        job.changed()
         self._finished.append(job.id)
         while len(self._finished) > KEEP_FINISHED:
             self._jobs.pop(self._finished.popleft(), None)
