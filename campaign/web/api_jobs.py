@@ -232,13 +232,14 @@ class JobFailed(Exception):
 
 
 def submit(request: Request, ws: Path, kind: str, options,
-           work: Callable[[Progress], Any]) -> JSONResponse:
+           work: Callable[[Progress], Any], cleanup: bool = True) -> JSONResponse:
     """Queue ``work(progress)`` (its result record becomes the job's result document);
     202 with the job, or 429 when the queue is full.
 
-    A job that fails or is cancelled leaves no output directory it created (as
-    :func:`analysis.output_files.created_dir`: what did not exist before is removed)."""
-    out = getattr(options, "out", None)
+    With ``cleanup``, a job that fails or is cancelled leaves no output directory it
+    created (as :func:`analysis.output_files.created_dir`: what did not exist before is
+    removed); an acquisition keeps its run (the record of what moved, resumable)."""
+    out = getattr(options, "out", None) if cleanup else None
 
     def job(progress: Progress) -> dict:
         with _removed_on_failure(None if out is None else Path(out), ws):
@@ -478,7 +479,7 @@ def acquire(options: AcquireJobOptions, request: Request,
                                "resumable")
         return result
 
-    return submit(request, ws, "acquire", options, work)
+    return submit(request, ws, "acquire", options, work, cleanup=False)
 
 
 # ---- the queue: state, progress events, cancellation --------------------------------------

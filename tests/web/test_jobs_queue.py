@@ -215,3 +215,33 @@ def test_jobs_report_their_own_progress(client, ws, job, body, said):
         fractions = [s["fraction"] for s in states if s["fraction"] is not None]
         assert fractions == sorted(fractions) and fractions[-1] == 1.0
         assert len(states[-1]["result"]["results"]) == 2 * 6
+
+
+def test_cancelled_acquisition_takes_the_ctrl_c_path_and_keeps_its_run(client, ws):
+    import pandas as pd
+
+    from campaign.planner import make_plan, write_plan
+    from campaign.protocol import load_protocol
+
+    write_plan(make_plan(load_protocol(ROOT / "protocols" / "kr240-2.toml"), candidates=500),
+               ws / "real", figure=False)
+    df = pd.read_csv(ws / "real" / "plan.csv", dtype={"zone": str, "load_case": str,
+                                                      "method": str})
+    df.iloc[:3].assign(repeats=1).to_csv(ws / "real" / "plan.csv", index=False)
+    queued = client.post("/api/jobs/acquire", json={"plan": "real", "out": "runs/r1",
+                                                    "fake": True, "assume_yes": True,
+                                                    "time_scale": 20.0})
+    assert queued.status_code == 202, queued.text
+    job_id = queued.json()["id"]
+    end = time.monotonic() + 60
+    while time.monotonic() < end:  # the first test under way
+        job = client.get(f"/api/jobs/{job_id}").json()
+        if job["state"] == "running" and job["text"].startswith("test "):
+            break
+        assert job["state"] in ("queued", "running"), job
+        time.sleep(0.05)
+    client.delete(f"/api/jobs/{job_id}")
+    job = _wait(client, job_id)
+    assert job["state"] == "cancelled" and "Ctrl-C path" in job["text"], job
+    meta = json.loads((ws / "runs" / "r1" / "metadata.json").read_text())
+    assert meta["status"] == "aborted"  # recorded, resumable, as the command line's Ctrl-C
