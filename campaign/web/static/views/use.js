@@ -554,7 +554,7 @@ async function runPlace() {
     const res = await runJob("/api/jobs/place", placeBody(), (j) => {
       view.dataset.placeJob = j.id;
       if (j.fraction === null) bar.removeAttribute("value"); else bar.value = j.fraction;
-      u$("pl-text").textContent = `${j.state}: ${j.text}`;
+      u$("pl-text").textContent = j.text === j.state ? j.text : `${j.state}: ${j.text}`;
       view.dataset.placeFraction = String(j.fraction);
     });
     showPlace(res);
