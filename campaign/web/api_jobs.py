@@ -1,9 +1,10 @@
 """``/api/jobs``: one POST endpoint per job of :mod:`campaign.jobs`, and the job queue.
 
 The long jobs (plan, acquire, analyze, maps, robustness, compensate, place) are
-queued (:mod:`campaign.web.job_queue`): the POST checks the request (paths, this
-server's bounds on trials, candidates, evaluations and map points: 400 naming the
-limit), answers 202 with the job (``id``, ``state``...; 429 when the queue is
+queued (:mod:`campaign.web.job_submit`; each runs in a process of its own,
+:mod:`campaign.web.job_tasks`): the POST checks the request (paths, this
+server's bounds on trials, candidates, evaluations and map points: 400 naming
+the limit), answers 202 with the job (``id``, ``state``...; 429 when the queue is
 full), and ``GET /api/jobs/{id}`` gives its state, progress, result or error
 (``/events``: the same as server-sent events; ``DELETE`` or ``POST .../cancel``
 stops it, its outputs removed). robots, stiffness and compare answer at once.
@@ -32,16 +33,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import threading
 from collections.abc import Callable
-from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
-from typing import Any, Literal
+from typing import Any
 
 from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel
 
 from campaign.cli_common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
@@ -55,14 +52,11 @@ from campaign.jobs.robots import RobotsOptions
 from campaign.jobs.robustness import RobustnessOptions
 from campaign.jobs.stiffness import StiffnessOptions
 from campaign.place_run import DEFAULT_MAX_EVALUATIONS
-from campaign.web import progress_hooks
-from campaign.web.job_errors import describe
-from campaign.web.job_queue import FINAL, JobCancelled, JobQueue, Progress, QueueFull
+from campaign.web import job_tasks
+from campaign.web.job_errors import describe, relative_to_workspace
+from campaign.web.job_submit import QUEUED, submit
+from campaign.web.job_submit import router as queue_router
 
-#: jobs run at a time by one server (two cores: the other one serves the page, and the
-#: placement search's Dask workers share both), and jobs that may wait behind them
-JOB_WORKERS = 1
-JOB_WAITING = 2
 #: per request: robustness' simulated campaigns (trials x numbers of tests; the default
 #: study is 20 000), plan's candidate poses, place's evaluations, maps' grid points
 MAX_CAMPAIGNS = 100_000
@@ -110,17 +104,6 @@ def inside(ws: Path, rel: str | Path, field: str) -> Path:
     return path
 
 
-def _relative(ws: Path, doc: Any) -> Any:
-    """``doc`` with the workspace's absolute paths written relative to it."""
-    if isinstance(doc, dict):
-        return {k: _relative(ws, v) for k, v in doc.items()}
-    if isinstance(doc, list):
-        return [_relative(ws, v) for v in doc]
-    if isinstance(doc, str):
-        return doc.replace(f"{ws}/", "")
-    return doc
-
-
 def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
     """Run ``job()``; its result record as JSON, or bad input raised as HTTPException
     (400/409) with its one line (for the routes that answer errors as FastAPI does)."""
@@ -147,7 +130,7 @@ def answer(ws: Path | None, job: Callable[[], Any], options=None,
     if present is not None:
         return present(result)
     doc = json_ready(result.to_json())
-    return JSONResponse(doc if ws is None else _relative(ws, doc))
+    return JSONResponse(doc if ws is None else relative_to_workspace(ws, doc))
 
 
 def bound_error(field: str, text: str) -> JSONResponse:
@@ -164,119 +147,6 @@ def map_points(step_rad: float) -> float | None:
     if not (math.isfinite(step_rad) and step_rad > 0):
         return None
     return (2 * math.pi / step_rad + 1) ** 2
-
-
-class JobError(BaseModel):
-    """A queued job's refusal (see :func:`campaign.web.job_errors.describe`)."""
-
-    status: int
-    detail: str
-    field: str | None = None
-    options: dict[str, str] = {}
-
-
-class JobState(BaseModel):
-    """A queued job as ``GET /api/jobs/{job_id}`` gives it (times: s since the epoch)."""
-
-    id: str
-    kind: str
-    state: Literal["queued", "running", "done", "failed", "cancelled"]
-    fraction: float | None = None
-    text: str
-    result: dict | None = None
-    error: JobError | None = None
-    created: float
-    started: float | None = None
-    finished: float | None = None
-
-
-class Refusal(BaseModel):
-    """A refused request: the one line, the request field at fault, the options it names."""
-
-    detail: str
-    field: str | None = None
-    options: dict[str, str] = {}
-
-
-#: the answers of a queued job's POST, for the OpenAPI document
-QUEUED = {202: {"model": JobState, "description": "queued: the job (follow GET "
-                "/api/jobs/{job_id} or its events)"},
-          400: {"model": Refusal, "description": "refused: bad input or above a bound"},
-          429: {"model": Refusal, "description": "the job queue is full"}}
-
-
-_QUEUE_LOCK = threading.Lock()
-
-
-def job_queue(request: Request) -> JobQueue:
-    """The application's job queue (``app.state.jobs``), made on first use with
-    :data:`JOB_WORKERS` and :data:`JOB_WAITING` unless the application set its own."""
-    state = request.app.state
-    with _QUEUE_LOCK:
-        queue = getattr(state, "jobs", None)
-        if queue is None:
-            queue = state.jobs = JobQueue(JOB_WORKERS, JOB_WAITING, describe_error=_record)
-    return queue
-
-
-def _record(err: BaseException) -> dict | None:
-    return err.record if isinstance(err, JobFailed) else None
-
-
-class JobFailed(Exception):
-    """A job's refusal, carrying its error record (see :func:`describe`)."""
-
-    def __init__(self, record: dict) -> None:
-        super().__init__(record["detail"])
-        self.record = record
-
-
-def submit(request: Request, ws: Path, kind: str, options,
-           work: Callable[[Progress], Any], cleanup: bool = True) -> JSONResponse:
-    """Queue ``work(progress)`` (its result record becomes the job's result document);
-    202 with the job, or 429 when the queue is full.
-
-    With ``cleanup``, a job that fails or is cancelled leaves no output directory it
-    created (as :func:`analysis.output_files.created_dir`: what did not exist before is
-    removed); an acquisition keeps its run (the record of what moved, resumable)."""
-    out = getattr(options, "out", None) if cleanup else None
-
-    def job(progress: Progress) -> dict:
-        with _removed_on_failure(None if out is None else Path(out), ws):
-            try:
-                result = work(progress)
-            except Exception as err:
-                record = describe(err, ws, options)
-                if record is None:
-                    raise
-                raise JobFailed(record) from None
-        return _relative(ws, json_ready(result.to_json()))
-
-    try:
-        queued = job_queue(request).submit(kind, job)
-    except QueueFull as err:
-        return JSONResponse({"detail": str(err)}, status_code=429)
-    return JSONResponse(queued.public(), status_code=202,
-                        headers={"Location": f"/api/jobs/{queued.id}"})
-
-
-@contextmanager
-def _removed_on_failure(out: Path | None, ws: Path):
-    """Remove ``out`` and the parents this job made when the body fails (inside ``ws``)."""
-    import shutil
-
-    top = None
-    if out is not None and out.is_relative_to(ws):
-        for p in (out, *out.parents):
-            if p == ws or os.path.lexists(p):
-                break
-            top = p
-    try:
-        yield
-    except BaseException:
-        if top is not None and not top.is_symlink():
-            shutil.rmtree(top, ignore_errors=True)
-        raise
 
 
 def robot_path(ws: Path, robot: str, field: str = "robot") -> str:
@@ -310,15 +180,13 @@ def plan(options: PlanOptions, request: Request,
          ws: Path = Depends(workspace)) -> JSONResponse:
     """Plan the tests of a protocol file into the plan directory ``out`` (workspace paths);
     queued (202 with the job; ``candidates`` at most :data:`MAX_CANDIDATES`)."""
-    from campaign.jobs.plan import run
 
     if options.candidates > MAX_CANDIDATES:
         return bound_error("candidates", f"{options.candidates} candidate poses, above this "
                            f"server's limit of {MAX_CANDIDATES} per request")
     options = dataclasses.replace(options, protocol=inside(ws, options.protocol, "protocol"),
                                   out=inside(ws, options.out, "out"))
-    return submit(request, ws, "plan", options,
-                  lambda p: run(options, stage=progress_hooks.stage(p)))
+    return submit(request, ws, "plan", options, job_tasks.plan)
 
 
 @router.post("/maps", status_code=202, responses=QUEUED)
@@ -326,7 +194,6 @@ def maps(options: MapsOptions, request: Request,
          ws: Path = Depends(workspace)) -> JSONResponse:
     """The paper's Figs. 3 and 5 maps into ``out`` (grid step and fixed joints in rad);
     queued (202 with the job; at most :data:`MAX_MAP_POINTS` grid points)."""
-    from campaign.jobs.maps import run
 
     points = map_points(options.step_rad)  # None: a step the job itself refuses
     if points is not None and points > MAX_MAP_POINTS:
@@ -336,9 +203,7 @@ def maps(options: MapsOptions, request: Request,
                            "per request: a coarser step")
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   out=inside(ws, options.out, "out"))
-    return submit(request, ws, "maps", options,
-                  lambda p: run(options, stage=progress_hooks.stage(p),
-                                note=progress_hooks.say(p)))
+    return submit(request, ws, "maps", options, job_tasks.maps)
 
 
 @router.post("/compare")
@@ -359,20 +224,13 @@ def compensate(options: CompensateOptions, request: Request,
                ws: Path = Depends(workspace)) -> JSONResponse:
     """The deflection along a path, the compensated joints and the robot program in ``out``;
     queued (202 with the job)."""
-    from campaign.jobs.compensate import run
 
     options = dataclasses.replace(
         options, robot=robot_path(ws, options.robot), path=inside(ws, options.path, "path"),
         out=inside(ws, options.out, "out"),
         protocol=None if options.protocol is None else inside(ws, options.protocol,
                                                                "protocol"))
-
-    def work(p):
-        p.report(None, "compensating the path" + (" and replaying it on the simulated lab"
-                                                  if options.verify_fake else ""))
-        return run(options)
-
-    return submit(request, ws, "compensate", options, work)
+    return submit(request, ws, "compensate", options, job_tasks.compensate)
 
 
 @router.post("/place", status_code=202, responses=QUEUED)
@@ -383,7 +241,6 @@ def place(options: PlaceOptions, request: Request,
     :data:`MAX_EVALUATIONS` evaluations), then the search is queued (202 with the job,
     whose result is placement.json). ``workers`` 0 runs it in the server's process, else
     on a local Dask cluster as the command line."""
-    from campaign.jobs.place import run
     from campaign.place_run import check_search
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
@@ -393,9 +250,7 @@ def place(options: PlaceOptions, request: Request,
                      present=lambda size: None)
     if refused is not None:
         return refused
-    return submit(request, ws, "place", options,
-                  lambda p: run(options, progress_hooks.console(p), p.report,
-                                MAX_EVALUATIONS))
+    return submit(request, ws, "place", options, job_tasks.place, (MAX_EVALUATIONS,))
 
 
 @router.post("/robustness", status_code=202, responses=QUEUED)
@@ -404,8 +259,6 @@ def robustness(options: RobustnessOptions, request: Request,
     """The Monte-Carlo spread of k against the number of tests (noise overrides in SI);
     queued (202 with the job; at most :data:`MAX_CAMPAIGNS` simulated campaigns,
     trials x numbers of tests)."""
-    from campaign.jobs.robustness import run
-
     campaigns = options.trials * len(set(options.tests))
     if campaigns > MAX_CAMPAIGNS:
         return bound_error("trials", f"{options.trials} trials x {len(set(options.tests))} "
@@ -414,14 +267,7 @@ def robustness(options: RobustnessOptions, request: Request,
     options = dataclasses.replace(
         options, robot=robot_path(ws, options.robot),
         out=None if options.out is None else inside(ws, options.out, "out"))
-
-    def counted(p):
-        def progress(done: int, total: int) -> None:
-            p.report(done / total, f"{done} of {total} simulated campaigns identified")
-        return progress
-
-    return submit(request, ws, "robustness", options,
-                  lambda p: run(options, progress=counted(p), note=progress_hooks.say(p)))
+    return submit(request, ws, "robustness", options, job_tasks.robustness)
 
 
 @router.post("/analyze", status_code=202, responses=QUEUED)
@@ -430,8 +276,6 @@ def analyze(options: AnalyzeOptions, request: Request,
     """Identify k from a run directory or a tests CSV (noise overrides in SI, fractions for
     the relative F/T noise); queued (202 with the job, whose result is results.json with
     analysis.json and the files)."""
-    from campaign.jobs.analyze import run
-
     def opt(value, name):
         return None if value is None else inside(ws, value, name)
 
@@ -440,9 +284,7 @@ def analyze(options: AnalyzeOptions, request: Request,
         measurements=opt(options.measurements, "measurements"),
         robot=None if options.robot is None else robot_path(ws, options.robot),
         out=opt(options.out, "out"))
-    return submit(request, ws, "analyze", options,
-                  lambda p: run(options, stage=progress_hooks.stage(p),
-                                warn=progress_hooks.say(p)))
+    return submit(request, ws, "analyze", options, job_tasks.analyze)
 
 
 @router.post("/acquire", status_code=202, responses=QUEUED)
@@ -456,7 +298,7 @@ def acquire(options: AcquireJobOptions, request: Request,
     robot moves only with ``assume_yes`` (nobody can be asked here); a long campaign is
     better started from the Acquire view (its own process, which a closed page or a
     restarted server does not stop)."""
-    from campaign.jobs.acquire import default_run_dir, run
+    from campaign.jobs.acquire import default_run_dir
 
     def opt(value, name):
         return None if value is None else inside(ws, value, name)
@@ -470,86 +312,8 @@ def acquire(options: AcquireJobOptions, request: Request,
         resume=opt(options.resume, "resume"), events_file=opt(options.events_file,
                                                               "events_file"))
 
-    def work(p):
-        result = run(options, reporter=progress_hooks.AcquireProgress(p),
-                     say=lambda s: None, should_abort=p.cancelled)
-        if p.cancelled():
-            raise JobCancelled(f"cancelled: the acquisition took the Ctrl-C path "
-                               f"({result.status}: {result.reason}); the run stays, "
-                               "resumable")
-        return result
-
-    return submit(request, ws, "acquire", options, work, cleanup=False)
+    return submit(request, ws, "acquire", options, job_tasks.acquire, cleanup=False)
 
 
-# ---- the queue: state, progress events, cancellation --------------------------------------
-
-
-@router.get("/{job_id}", response_model=JobState, responses={404: {"model": Refusal}})
-def job_state(job_id: str, request: Request) -> JSONResponse:
-    """A queued job: ``state`` (queued, running, done, failed, cancelled), ``fraction``
-    (0..1, null: unknown) and ``text`` of its progress, ``result`` (done) or ``error``
-    (failed: ``status``, the one line ``detail``, the request ``field`` at fault and the
-    command-line ``options`` the line names, mapped to request fields)."""
-    job = job_queue(request).get(job_id)
-    if job is None:
-        return JSONResponse({"detail": f"job_id: no job {job_id[:80]!r} on this server "
-                             "(finished jobs are forgotten after a while)"}, status_code=404)
-    return JSONResponse(job.public())
-
-
-@router.get("/{job_id}/events")
-async def job_events(job_id: str, request: Request):
-    """Server-sent events of a job: one ``data:`` (the job's state, as GET /api/jobs/{id})
-    per change, every change from its submission (the last 1000), then ``event: end``
-    once it has ended."""
-    import asyncio
-
-    from fastapi.responses import StreamingResponse
-
-    queue = job_queue(request)
-    if queue.get(job_id) is None:
-        return JSONResponse({"detail": f"job_id: no job {job_id[:80]!r} on this server"},
-                            status_code=404)
-
-    async def stream():
-        version = 0
-        while True:
-            job = queue.get(job_id)
-            if job is None:
-                yield "event: end\ndata: {}\n\n"
-                return
-            with queue.lock:
-                states = job.since(version)
-            for _, state in states:
-                yield f"data: {json.dumps(json_ready(state))}\n\n"
-            if states:
-                version = states[-1][0]
-            if states and states[-1][1]["state"] in FINAL:
-                yield "event: end\ndata: {}\n\n"
-                return
-            if await request.is_disconnected():
-                return
-            await asyncio.sleep(0.1)
-
-    return StreamingResponse(stream(), media_type="text/event-stream",
-                             headers={"Cache-Control": "no-store"})
-
-
-@router.delete("/{job_id}", response_model=JobState,
-                responses={404: {"model": Refusal}})
-def job_cancel(job_id: str, request: Request) -> JSONResponse:
-    """Cancel a job: a queued one at once, a running one at its next progress step (its
-    outputs removed, as a failed command leaves none); a finished job stays as it ended."""
-    job = job_queue(request).cancel(job_id)
-    if job is None:
-        return JSONResponse({"detail": f"job_id: no job {job_id[:80]!r} on this server"},
-                            status_code=404)
-    return JSONResponse(job.public())
-
-
-@router.post("/{job_id}/cancel", response_model=JobState,
-             responses={404: {"model": Refusal}})
-def job_cancel_post(job_id: str, request: Request) -> JSONResponse:
-    """The same as DELETE /api/jobs/{job_id}, for clients that only POST."""
-    return job_cancel(job_id, request)
+# the queue's own routes: a job's state, its events, its cancellation
+router.include_router(queue_router)

@@ -16,6 +16,7 @@ import dataclasses
 import errno
 import re
 from pathlib import Path
+from typing import Any
 
 from analysis.errors import InputError
 
@@ -101,6 +102,17 @@ def describe(err: BaseException, ws: Path | None, options=None) -> dict | None:
     else:
         fault = None
     return {"status": status, "detail": text, "field": fault, "options": named}
+
+
+def relative_to_workspace(ws: Path, doc: Any) -> Any:
+    """``doc`` with the workspace's absolute paths written relative to it."""
+    if isinstance(doc, dict):
+        return {k: relative_to_workspace(ws, v) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [relative_to_workspace(ws, v) for v in doc]
+    if isinstance(doc, str):
+        return doc.replace(f"{ws}/", "")
+    return doc
 
 
 def _relative_paths(options, ws: Path):

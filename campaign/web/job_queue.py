@@ -3,7 +3,9 @@
 A :class:`JobQueue` runs at most ``workers`` jobs at a time (one or two on a
 two-core machine: the jobs are CPU-bound, and the placement search starts its
 own Dask worker processes) and holds at most ``waiting`` more; a job submitted
-to a full queue is refused with :class:`QueueFull` (the API answers 429).
+to a full queue is refused with :class:`QueueFull` (the API answers 429). Each
+job runs in a worker thread of the queue; the web API's jobs start a process
+there and follow it (:mod:`campaign.web.job_process`).
 
 A job is a function ``work(progress)`` returning the result document (JSON).
 ``progress.report(fraction, text)`` records its progress (fraction in [0, 1],

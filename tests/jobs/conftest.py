@@ -78,6 +78,7 @@ def app(ws):
 
     app = FastAPI()
     app.state.workspace = ws
+    app.state.jobs_in_threads = True  # the results are the point here, not the isolation
     app.include_router(router)
     return app
 

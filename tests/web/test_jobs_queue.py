@@ -95,8 +95,8 @@ def test_cancel_stops_the_search_and_leaves_no_files(client, ws):
 
 
 def test_a_full_queue_answers_429(client, app, ws):
-    from campaign.web.api_jobs import _record
     from campaign.web.job_queue import JobQueue
+    from campaign.web.job_submit import _record
 
     app.state.jobs = JobQueue(workers=1, waiting=1, describe_error=_record)
     first = client.post("/api/jobs/place", json={**LONG, "out": "a"})
