@@ -2,7 +2,7 @@
 
 The target: over >= 20 seeds, the mean z of every joint within +-0.5 and its standard
 deviation within 0.8-1.25 (:mod:`tests.quality.zscore_study`; 1e4, 1e5 and 1e6 tests in
-docs/identification.md). Here: 1e4 tests against the target itself (slow), 1e3 tests with
+docs/identification.md). Here: 1e4 tests against the target over 80 seeds (slow), 1e3 tests with
 tolerances from the sampling spread of 60 seeds, and the bias alone at 1e4 tests from
 antithetic pairs, which bounds it at 1e6 tests.
 """
@@ -85,6 +85,9 @@ def test_cli_resumes_from_its_file(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_1e4_tests_meet_the_target():
-    """Issue 22's target at 1e4 tests over 20 seeds (~20 s CPU)."""
-    s = zscore_study.summarize(zscore_study.zscores(10_000, 20))
-    assert s["within_target"], s
+    """Issue 22's target at 1e4 tests over 80 seeds (~50 s CPU). Over 20 seeds an
+    estimator whose z is exactly N(0, 1) meets the sd band on all six joints with
+    probability 0.27 only (the sample sd of 20 draws spreads by 16 %; seeds 1000-1019
+    give 0.73 on k4); over 80, 0.96. Measured: means -0.18..+0.12, sds 0.88-1.07."""
+    s = zscore_study.summarize(zscore_study.zscores(10_000, 80))
+    assert s["seeds"] == 80 and s["within_target"], s
