@@ -245,3 +245,38 @@ def test_cancelled_acquisition_takes_the_ctrl_c_path_and_keeps_its_run(client, w
     assert job["state"] == "cancelled" and "Ctrl-C path" in job["text"], job
     meta = json.loads((ws / "runs" / "r1" / "metadata.json").read_text())
     assert meta["status"] == "aborted"  # recorded, resumable, as the command line's Ctrl-C
+
+
+EXITING = """
+import sys, time
+from pathlib import Path
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+from campaign.web.api_jobs import router
+
+if __name__ == "__main__":
+    app = FastAPI()
+    app.state.workspace = Path(sys.argv[1])
+    app.include_router(router)
+    c = TestClient(app)
+    job = c.post("/api/jobs/place", json={**__BODY__, "out": "long"}).json()
+    while (c.get("/api/jobs/" + job["id"]).json()["fraction"] or 0) == 0:
+        time.sleep(0.05)
+    print("searching", flush=True)
+"""
+
+
+def test_a_server_that_exits_interrupts_its_jobs_and_leaves_no_files(ws, tmp_path):
+    """The job's process is not waited for: it takes its Ctrl-C path, OUT is removed."""
+    import os
+    import subprocess
+    import sys
+
+    script = tmp_path / "exiting.py"
+    script.write_text(EXITING.replace("__BODY__", repr(LONG)))
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, str(script), str(ws)], capture_output=True,
+                          text=True, timeout=120, env=os.environ.copy())
+    assert proc.returncode == 0 and "searching" in proc.stdout, proc.stderr
+    assert time.monotonic() - t0 < 25  # not the whole search (about 30 s on one core)
+    assert not (ws / "long").exists()
