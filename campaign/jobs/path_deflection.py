@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli_common import WrenchFrame
+from campaign.cli.common import WrenchFrame
 from campaign.jobs.common import floats, joint_stiffness, robot_and_tool
 
 #: points of a path read at most (a path is a program's moves, not a point cloud)
@@ -78,7 +78,7 @@ def run(o: PathDeflectionOptions) -> PathDeflectionResult:
     """Read the path and predict the deflection at each point (nothing is written)."""
     from analysis.kinetostatics.path_compensation import check_path, predict_path
     from analysis.kinetostatics.uncertainty import Z95
-    from campaign.path_file import read_path
+    from campaign.use.path_file import read_path
 
     if not o.min_inv_kappa > 0:
         raise InputError("expected a positive number", where="--min-inv-kappa")

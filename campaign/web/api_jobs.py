@@ -40,7 +40,7 @@ from typing import Any
 from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
 
-from campaign.cli_common import json_ready
+from campaign.cli.common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
 from campaign.jobs.analyze import AnalyzeOptions
 from campaign.jobs.compare import CompareOptions
@@ -51,7 +51,7 @@ from campaign.jobs.plan import PlanOptions
 from campaign.jobs.robots import RobotsOptions
 from campaign.jobs.robustness import RobustnessOptions
 from campaign.jobs.stiffness import StiffnessOptions
-from campaign.place_run import DEFAULT_MAX_EVALUATIONS
+from campaign.use.place_run import DEFAULT_MAX_EVALUATIONS
 from campaign.web import job_tasks
 from campaign.web.job_errors import describe, relative_to_workspace
 from campaign.web.job_submit import QUEUED, submit
@@ -150,9 +150,13 @@ def map_points(step_rad: float) -> float | None:
 
 
 def robot_path(ws: Path, robot: str, field: str = "robot") -> str:
-    """A robot given by name stays a name; one given as a file is a workspace path."""
-    if Path(robot).suffix.lower() in (".urdf", ".toml", ".yaml", ".yml"):
-        return str(inside(ws, robot, field))
+    """A robot given by name stays a name; one given as a file is a workspace path (a
+    URDF may carry its tool frame, ``FILE.urdf#FRAME``: analysis.model.robot_spec)."""
+    from analysis.model.robot_spec import is_robot_file, split_urdf_spec
+
+    if is_robot_file(robot):
+        path, frame = split_urdf_spec(robot.strip())
+        return str(inside(ws, path, field)) + (f"#{frame}" if frame else "")
     return robot  # a built-in name (an unknown one is refused by the job, naming the field)
 
 
@@ -241,7 +245,7 @@ def place(options: PlaceOptions, request: Request,
     :data:`MAX_EVALUATIONS` evaluations), then the search is queued (202 with the job,
     whose result is placement.json). ``workers`` 0 runs it in the server's process, else
     on a local Dask cluster as the command line."""
-    from campaign.place_run import check_search
+    from campaign.use.place_run import check_search
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   path=inside(ws, options.path, "path"),

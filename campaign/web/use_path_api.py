@@ -2,7 +2,7 @@
 
 The path is a CSV of the workspace (``path``) or one uploaded in the request
 (``upload_name`` and ``upload_text``, at most :data:`MAX_UPLOAD` characters).
-Either is read by the command line's path reader (:func:`campaign.path_file.read_path`,
+Either is read by the command line's path reader (:func:`campaign.use.path_file.read_path`,
 through the ``path_deflection`` job), so a bad file gets its ``file:line``
 message: an upload is written for the reader under ``.gui/uploads/`` in the
 workspace, named as uploaded, and removed once read; its messages name it by
@@ -23,7 +23,7 @@ from fastapi import APIRouter, Depends
 from fastapi.responses import JSONResponse
 from pydantic import Field
 
-from campaign.cli_common import WrenchFrame
+from campaign.cli.common import WrenchFrame
 from campaign.web.api_jobs import answer, inside, robot_path, workspace
 
 router = APIRouter(prefix="/api/use", tags=["use"])

@@ -71,15 +71,16 @@ def wait_job(client, job_id: str, timeout: float = 240.0) -> dict:
 
 @pytest.fixture
 def app(ws):
-    """An app built here: the jobs router over the workspace ``ws``."""
+    """An app built here: the jobs routers over the workspace ``ws``."""
     from fastapi import FastAPI
 
-    from campaign.web.api_jobs import router
+    from campaign.web import api_jobs, demo_api
 
     app = FastAPI()
     app.state.workspace = ws
     app.state.jobs_in_threads = True  # the results are the point here, not the isolation
-    app.include_router(router)
+    app.include_router(api_jobs.router)
+    app.include_router(demo_api.router)
     return app
 
 

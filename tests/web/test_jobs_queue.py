@@ -220,7 +220,7 @@ def test_jobs_report_their_own_progress(client, ws, job, body, said):
 def test_cancelled_acquisition_takes_the_ctrl_c_path_and_keeps_its_run(client, ws):
     import pandas as pd
 
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     write_plan(make_plan(load_protocol(ROOT / "protocols" / "kr240-2.toml"), candidates=500),
