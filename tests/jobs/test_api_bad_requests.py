@@ -15,8 +15,7 @@ BAD_BODIES = ([], "x", 3, {"robot": 1}, {"robot": "kr240-2", "out": "a\x00b", "q
 def test_openapi_lists_one_post_per_job(client):
     doc = client.get("/openapi.json").json()
     posts = [p for p, ops in doc["paths"].items() if "{" not in p]
-    # demo: campaign/web/demo_api.py's POST under the same prefix (the fixture's app has it)
-    assert sorted(p.removeprefix("/api/jobs/") for p in posts) == sorted((*JOBS, "demo"))
+    assert sorted(p.removeprefix("/api/jobs/") for p in posts) == sorted(JOBS)
     assert all(set(doc["paths"][p]) == {"post"} for p in posts)
     # the queue: a job's state, its events, its cancellation
     assert set(doc["paths"]["/api/jobs/{job_id}"]) == {"get", "delete"}
