@@ -282,11 +282,22 @@ def _gui_sensitivity(f: Fig) -> tuple[str, str, str, str]:
             f"HTTP + JSON {f['overhead_ms_median']} ms")
 
 
+def _acquire_state(f: Fig) -> tuple[str, str, str, str]:
+    return (f"`GET /api/acquire/state` while a run writes: its events file of "
+            f"{num(f['events'])} lines ({f['file_bytes'] / 1e6:.2f} MB), one line appended "
+            "per poll",
+            f"incremental reading {f['incremental_cpu_ms_per_poll']} ms CPU/poll "
+            f"({f['incremental_ms_per_poll']} ms wall)",
+            f"the whole file read per poll: {f['full_cpu_ms_per_poll']} ms CPU/poll "
+            f"({f['full_ms_per_poll']} ms wall); answers equal {f['answers_equal']}",
+            f"{f['ratio_wall']}x wall")
+
+
 ROWS: dict[str, Callable[[Fig], tuple[str, str, str, str]]] = {
     "maps": _maps, "identification": _identification, "large_import": _large_import,
     "planner": _planner, "compensate": _compensate, "place": _place,
     "fake_campaign": _fake_campaign, "startup": _startup, "csv_io": _csv_io,
-    "gui_sensitivity": _gui_sensitivity,
+    "gui_sensitivity": _gui_sensitivity, "acquire_state": _acquire_state,
 }
 
 
