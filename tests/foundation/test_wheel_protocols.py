@@ -67,6 +67,7 @@ def test_wheel_ships_the_protocols_and_the_installed_reader_finds_them(tmp_path)
     names = zipfile.ZipFile(wheel).namelist()
     assert {f"campaign/protocols/{n}" for n in shipped} <= set(names)
     assert "campaign/protocols/README.md" in names
+    assert not [n for n in names if n.startswith("campaign/protocols/examples/")]
 
     target = tmp_path / "installed"
     install = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps",
