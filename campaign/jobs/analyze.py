@@ -24,7 +24,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.cli.common import Covariance, Method, Robust
+from campaign.jobs.choices import Covariance, Method, Robust
 from campaign.jobs.common import Stage, floats, no_stage, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli.common import Method, RotationSource
 from campaign.jobs.analyze import DEFAULT_METHOD
+from campaign.jobs.choices import Method, RotationSource
 from campaign.jobs.common import joint_stiffness, robot_and_tool, wrench
 
 #: a mean further than this many Monte-Carlo standard errors from the truth is a bias

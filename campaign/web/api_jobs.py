@@ -29,9 +29,9 @@ from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
 
 from analysis.errors import InputError
-from campaign.cli.common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
 from campaign.jobs.analyze import AnalyzeOptions
+from campaign.jobs.choices import json_ready
 from campaign.jobs.compare import CompareOptions
 from campaign.jobs.compensate import CompensateOptions
 from campaign.jobs.maps import MapsOptions

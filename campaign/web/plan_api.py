@@ -147,7 +147,7 @@ def protocols(request: Request) -> dict:
 
 
 def _strategies() -> list[str]:
-    from campaign.cli.common import Strategy
+    from campaign.jobs.choices import Strategy
 
     return [s.value for s in Strategy]
 
@@ -196,7 +196,7 @@ def run_plan(request: Request, body: PlanRequest):
             return _error(f"{key}: not a key of the form", None)
         if not _set(doc, key, _parse(text, _get(doc, key))):
             return _error(f"{key}: the protocol has no such table", key)
-    from campaign.cli.common import Strategy
+    from campaign.jobs.choices import Strategy
 
     try:
         strategy = Strategy(body.strategy)
@@ -223,7 +223,7 @@ def run_plan(request: Request, body: PlanRequest):
         raise
     import pandas as pd
 
-    from campaign.cli.common import json_ready
+    from campaign.jobs.choices import json_ready
 
     rows = pd.read_csv(out / "plan.csv").to_dict(orient="records")
     return JSONResponse(json_ready({
