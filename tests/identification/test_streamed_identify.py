@@ -23,9 +23,9 @@ from analysis.identification.checks import outliers
 from analysis.identification.estimate import identify
 from analysis.identification.estimators import fitting
 from analysis.identification.io.measurements import TestArrays
+from analysis.identification.io.results_json import write_results
 from analysis.identification.linalg import lsq
 from analysis.identification.noise import NoiseModel
-from analysis.identification.result import write_results
 from analysis.identification.streaming import blocks, per_test
 from analysis.identification.studies.robustness import sample_poses
 from analysis.identification.validation import crossval
@@ -123,7 +123,7 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
 
 
 def test_validation_beyond_the_listed_poses_is_summarised(kr240, campaign, monkeypatch):
-    from analysis.identification import result as result_module
+    from analysis.identification.io import results_json as result_module
 
     res = identify(kr240, campaign, "ols", noise=NOISE)
     monkeypatch.setattr(result_module, "VALIDATION_LISTED", 10)

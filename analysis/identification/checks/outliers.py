@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import InputError
+from analysis.identification.estimators.fit import Fit
 from analysis.identification.estimators.fitting import (
     _fit_covariances,
     _full,
@@ -19,9 +20,10 @@ from analysis.identification.estimators.fitting import (
     jacobian_blocks,
 )
 from analysis.identification.io.measurements import TestArrays
+from analysis.identification.io.residual_rows import ResidualRows
+from analysis.identification.io.results_json import RESIDUALS_LISTED
 from analysis.identification.linalg.lsq import blocks_of_tests, sandwich_and_residual_variance
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
-from analysis.identification.result import RESIDUALS_LISTED, Fit, ResidualRows
 from analysis.identification.streaming.per_test import apply
 from analysis.report.formatting import level
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
+from analysis.identification.estimators.fit import Fit
 from analysis.identification.estimators.gauss_newton import gauss_newton
 from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.io.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
@@ -27,7 +28,6 @@ from analysis.identification.linalg.lsq import (
 )
 from analysis.identification.noise import NoiseModel
 from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
-from analysis.identification.result import Fit
 from analysis.identification.streaming import per_test
 from analysis.identification.streaming.covariances import (
     covariances_per_test,

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.errors import InputError
+from analysis.identification.estimators.fit import Fit
 from analysis.identification.estimators.fitting import (
     _covariances,
     _design,
@@ -55,7 +56,6 @@ from analysis.identification.estimators.fitting import (
     fit_linear,
 )
 from analysis.identification.io.measurements import COMPONENTS, TestArrays
-from analysis.identification.result import Fit
 
 ROBUST_METHODS = ("none", "huber", "tukey")
 #: Huber's tuning constant (95 % efficiency under Gaussian noise)

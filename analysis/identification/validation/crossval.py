@@ -141,7 +141,7 @@ def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, f
     ``batched=False`` refits from scratch for every pose (the reference path).
     ``max_exact_refits`` (default :data:`EXACT_REFITS_MAX`): with more poses than
     this, exact folds take one Gauss-Newton step from the full-data estimate.
-    ``full_fit``: the :class:`analysis.identification.result.Fit` of ``method`` on all
+    ``full_fit``: the :class:`analysis.identification.estimators.fit.Fit` of ``method`` on all
     the tests, if the caller has it (saves refitting the full data). ``group``: the
     tests' pose groups (:func:`~analysis.identification.poses.pose_groups`) if the caller
     has them. ``fold_sums``: the per-pose sums of a streamed exact ``full_fit``
