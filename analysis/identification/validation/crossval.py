@@ -31,17 +31,12 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
+from analysis.identification.checks.data import COND_LIMIT, check_identifiable, check_tests
 from analysis.identification.estimators.exact_model import (
     model_displacement,
     model_displacement_state,
 )
-from analysis.identification.estimators.fitting import (
-    COND_LIMIT,
-    check_identifiable,
-    check_tests,
-    fit,
-    fit_exact,
-)
+from analysis.identification.estimators.fitting import fit, fit_exact
 from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg.lsq import sandwich_and_residual_variance, whitening
@@ -101,7 +96,8 @@ def leave_one_pose_out(
     ``held_out_pose`` names the fold by its labels joined with '+'. See
     :func:`_leave_out` for the rest. ``poses``: the tests' pose groups
     (:func:`~analysis.identification.poses.pose_groups`) and ``J`` their Jacobians
-    (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`), if the caller has them.
+    (:func:`~analysis.identification.estimators.linear_model.jacobian_blocks`), if the caller has
+    them.
     """
     if poses is None:
         poses = pose_groups(tests.q, pose_tolerance(noise))
@@ -356,7 +352,7 @@ def _downdate_batched(robot, tests, fold, labels, joints, noise, Aw, rw, x0, met
     """
     from scipy.linalg import solve_triangular
 
-    from analysis.identification.estimators.fitting import jacobian_blocks
+    from analysis.identification.estimators.linear_model import jacobian_blocks
     from analysis.identification.linalg.lsq import TEST_BLOCK, TallR
 
     cols = list(joints)
