@@ -28,7 +28,7 @@ from analysis.identification.linalg import lsq
 from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming import blocks, per_test
 from analysis.identification.studies.robustness import sample_poses
-from analysis.identification.validation import crossval
+from analysis.identification.validation import downdate
 
 from ._sim import simulate
 
@@ -57,7 +57,7 @@ def _streamed(monkeypatch):
     monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
     # J, the design and the model Jacobian are made when sliced instead of held
     monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
-    monkeypatch.setattr(crossval, "FOLD_CHUNK", 7)  # the folds' algebra in chunks
+    monkeypatch.setattr(downdate, "FOLD_CHUNK", 7)  # the folds' algebra in chunks
 
 
 @pytest.mark.parametrize("method", ["ols", "exact"])
