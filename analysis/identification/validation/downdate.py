@@ -99,8 +99,7 @@ def downdate_folds(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
     """
     from scipy.linalg import solve_triangular
 
-    from analysis.identification.estimators.linear_model import jacobian_blocks
-    from analysis.identification.linalg.lsq import TEST_BLOCK, TallR
+    from analysis.identification.linalg.lsq import TEST_BLOCK
 
     cols = list(joints)
     m, p = Aw.shape[0], Aw.shape[-1]
@@ -114,16 +113,85 @@ def downdate_folds(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
         return r if Linv is None else np.einsum("mij,mj->mi", Linv[sl], r)
 
     blocks = [slice(s, s + TEST_BLOCK) for s in range(0, m, TEST_BLOCK)]
-    if system is None:
-        scale = np.sqrt(sum(np.sum(design(sl).reshape(-1, p) ** 2, axis=0) for sl in blocks))
-        scale = np.where(scale > 0, scale, 1.0)
-        acc = TallR()
-        for sl in blocks:
-            acc.add(np.column_stack([design(sl).reshape(-1, p) / scale, rhs(sl).reshape(-1)]))
-        Rc = acc.r()
-        R, c = Rc[:p, :p], Rc[:p, p]
-    else:
-        R, c, scale = system
+    R, c, scale = _full_system(design, rhs, blocks, p) if system is None else system
+    S, t, held, sums = _per_fold(robot, tests, fold, noise, cols, R, scale, P, design, rhs,
+                                 blocks, sums, shift, Linv, J)
+    ok, notes = _fitted_folds(robot, tests, fold, joints, S, R, P)
+    z = np.zeros((P, p))
+    good = np.flatnonzero(ok)
+    for s in range(0, len(good), FOLD_CHUNK):
+        h = good[s:s + FOLD_CHUNK]
+        z[h] = np.linalg.solve(np.eye(p) - S[h], (c - t[h])[..., None])[..., 0]
+    x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
+    x_p[ok] = _fold_eiv(held, R, scale, S, x_p, ok)
+    # the folds' scores and errors-in-variables parts are used up (17 + 5 MB at 1e5 poses):
+    # let them go before the prediction pass (the folds' Gram matrices stay, in S)
+    held = t = None
+    sums.held = sums.score = None
+    if linear_shift is not None:
+        x_p = x_p + linear_shift[0]
+    exact_model = method == "exact" or (linear_shift is not None and offset is None)
+    total, meat = _predictive_sums(P, p, Linv, S, R, scale)
+    sq, failed = _prediction_pass(robot, tests, fold, noise, cols, x_p, P, exact_model, dq0,
+                                  offset, total, meat)
+    counts = np.stack([np.bincount(fold, tests.measured[:, :3].sum(axis=1), P),
+                       np.bincount(fold, tests.measured[:, 3:].sum(axis=1), P),
+                       np.bincount(fold, tests.measured.sum(axis=1), P)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rms = np.where(counts > 0, np.sqrt(sq / np.where(counts > 0, counts, 1)), np.nan)
+    for h in np.flatnonzero(ok & failed):
+        ok[h] = False
+        notes[h] = ("the equilibrium has no solution at this fold's estimate for a held-out "
+                    "test (wrench too large for these compliances)")
+    rms[:, ~ok] = np.nan
+    table = pd.DataFrame({
+        "held_out_pose": list(labels),
+        "n_tests": np.bincount(fold, minlength=P).astype(int),
+        "rms_translation_m": rms[0], "rms_rotation_rad": rms[1], "rms_normalized": rms[2],
+        "note": notes,
+    })
+    Rinv = np.linalg.inv(R)
+    meat_total = None if meat is None else PackedSym(meat.astype(float), p).total()
+
+    def covariance(h):  # the folds' covariances (len(h), p, p), NaN for folds not fitted
+        with np.errstate(all="ignore"):
+            bread = (Rinv @ np.linalg.solve(np.eye(p) - S[h], np.broadcast_to(
+                Rinv.T, (len(h), p, p)))) / (scale[:, None] * scale[None, :])
+        if meat is not None:
+            bread = bread @ (meat_total - PackedSym(meat, p)[h].astype(float)) @ bread
+        if linear_shift is not None:
+            bread = linear_shift[1] @ bread @ linear_shift[1].T
+        bread[~ok[h]] = np.nan
+        return bread
+
+    return with_total(table, total, covariance)
+
+
+def _full_system(design, rhs, blocks, p):
+    """(R, c, scale): the R of the column-scaled whitened system [design / scale | rhs]
+    by blockwise TSQR, its last column c, and the column scale (p,)."""
+    from analysis.identification.linalg.lsq import TallR
+
+    scale = np.sqrt(sum(np.sum(design(sl).reshape(-1, p) ** 2, axis=0) for sl in blocks))
+    scale = np.where(scale > 0, scale, 1.0)
+    acc = TallR()
+    for sl in blocks:
+        acc.add(np.column_stack([design(sl).reshape(-1, p) / scale, rhs(sl).reshape(-1)]))
+    Rc = acc.r()
+    return Rc[:p, :p], Rc[:p, p], scale
+
+
+def _per_fold(robot, tests, fold, noise, cols, R, scale, P, design, rhs, blocks, sums,
+              shift, Linv, J):
+    """(S, t, held, sums): per fold, S_h = U_h^T U_h of U = (Linv A / scale) R^-1 (its
+    leverage matrix), t_h = U_h^T (Linv r) and the fold's part of the wrench
+    errors-in-variables S; from a streamed fit's final-pass ``sums`` when given, else in
+    one pass over the tests."""
+    from scipy.linalg import solve_triangular
+
+    from analysis.identification.estimators.linear_model import jacobian_blocks
+
+    p = len(cols)
     if sums is not None:
         # U = (Linv A / scale) R^-1 summed per fold from the sums of (Linv A)^T (Linv A)
         # and (Linv A)^T Linv r at x0 - shift (r moves by -A shift to x0), packed as upper
@@ -135,21 +203,26 @@ def downdate_folds(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
             h = np.arange(s, min(s + FOLD_CHUNK, P))
             score = sums.score[h] if shift is None else sums.score[h] - gram.chunk(h) @ shift
             t[h] = score @ Rinv
-        S = _Congruent(gram, Rinv)
-        held = PackedSym(sums.held, p)
-    else:
-        # U = (Linv A / scale) R^-1 per test, summed per fold in one pass, with the folds'
-        # part of the wrench errors-in-variables S
-        J = jacobian_blocks(robot, tests.q) if J is None else J
-        sig2 = noise.wrench_sigma_at(tests.w) ** 2
-        sums = FoldSums(P, cols)
-        for sl in blocks:
-            Ab = design(sl)
-            U = solve_triangular(R, (Ab.reshape(-1, p) / scale).T, trans="T").T.reshape(
-                Ab.shape)
-            sums.add(fold[sl], J[sl], None if Linv is None else Linv[sl],
-                     tests.measured[sl], sig2[sl], U, rhs(sl))
-        S, t, held = PackedSym(sums.gram, p), sums.score, PackedSym(sums.held, p)
+        return _Congruent(gram, Rinv), t, PackedSym(sums.held, p), sums
+    # U = (Linv A / scale) R^-1 per test, summed per fold in one pass, with the folds'
+    # part of the wrench errors-in-variables S
+    J = jacobian_blocks(robot, tests.q) if J is None else J
+    sig2 = noise.wrench_sigma_at(tests.w) ** 2
+    sums = FoldSums(P, cols)
+    for sl in blocks:
+        Ab = design(sl)
+        U = solve_triangular(R, (Ab.reshape(-1, p) / scale).T, trans="T").T.reshape(
+            Ab.shape)
+        sums.add(fold[sl], J[sl], None if Linv is None else Linv[sl],
+                 tests.measured[sl], sig2[sl], U, rhs(sl))
+    return PackedSym(sums.gram, p), sums.score, PackedSym(sums.held, p), sums
+
+
+def _fitted_folds(robot, tests, fold, joints, S, R, P):
+    """(ok (P,) bool, notes): the folds whose training set can be fitted, and the reason
+    for each that cannot (the reference path's own refusals, or leverage 1)."""
+    p = len(joints)
+    cols = list(joints)
     lev = np.empty(P)  # largest leverage of each pose block
     for s in range(0, P, FOLD_CHUNK):
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -186,37 +259,39 @@ def downdate_folds(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
             continue
         if not ok[h]:
             notes[h] = "the other poses cannot identify the compliances (leverage 1)"
-    z = np.zeros((P, p))
-    good = np.flatnonzero(ok)
-    for s in range(0, len(good), FOLD_CHUNK):
-        h = good[s:s + FOLD_CHUNK]
-        z[h] = np.linalg.solve(np.eye(p) - S[h], (c - t[h])[..., None])[..., 0]
-    x_p = x0 + solve_triangular(R, z.T).T / scale  # (P, p)
-    x_p[ok] = _fold_eiv(held, R, scale, S, x_p, ok)
-    # the folds' scores and errors-in-variables parts are used up (17 + 5 MB at 1e5 poses):
-    # let them go before the prediction pass (the folds' Gram matrices stay, in S)
-    held = t = None
-    sums.held = sums.score = None
-    if linear_shift is not None:
-        x_p = x_p + linear_shift[0]
-    exact_model = method == "exact" or (linear_shift is not None and offset is None)
-    x = np.zeros((P, 6))
-    x[:, cols] = x_p
+    return ok, notes
+
+
+def _predictive_sums(P, p, Linv, S, R, scale):
+    """(total, meat): the per-fold sums of the total-uncertainty check
+    (:class:`~analysis.identification.validation.holdout_check.PredictiveSums`) and, for
+    ols, the per-fold A^T Sigma A of the sandwich (float32, packed), else None."""
     if P > PARAMETER_TERM_MAX_POSES:
         # the refit's parameter term is below 1/P of the noise term: left out
-        total, meat = PredictiveSums(P, p, parameter=False), None
-    elif Linv is not None:
+        return PredictiveSums(P, p, parameter=False), None
+    if Linv is not None:
         # a fit whitened by its own covariances: the held-out poses' F^T W F are the
         # folds' parts of its normal matrix, D R^T S_h R D (no per-fold sums of their own)
         def normal(h):
             return scale[:, None] * (R.T @ S[h] @ R) * scale[None, :]
 
-        total = PredictiveSums(P, p, normal=normal)
-        meat = None
-    else:  # ols: A^T Sigma A per fold for the sandwich (float32: 8 MB at 1e5 poses)
-        total = PredictiveSums(P, p)
-        meat = np.zeros((P, len(total.iu[0])), dtype=np.float32)
-    # held-out prediction errors, summed per fold (test blocks bound the memory)
+        return PredictiveSums(P, p, normal=normal), None
+    # ols: A^T Sigma A per fold for the sandwich (float32: 8 MB at 1e5 poses)
+    total = PredictiveSums(P, p)
+    return total, np.zeros((P, len(total.iu[0])), dtype=np.float32)
+
+
+def _prediction_pass(robot, tests, fold, noise, cols, x_p, P, exact_model, dq0, offset,
+                     total, meat):
+    """(sq (3, P), failed (P,)): the held-out prediction errors summed per fold
+    (squared translation, rotation and normalised errors), and the folds where the
+    equilibrium had no solution for a held-out test; ``total`` and ``meat`` are filled
+    in the same pass (test blocks bound the memory)."""
+    from analysis.identification.linalg.lsq import TEST_BLOCK
+
+    m = tests.m
+    x = np.zeros((P, 6))
+    x[:, cols] = x_p
     sq = np.zeros((3, P))  # squared errors: translation, rotation, normalised
     failed = np.zeros(P, dtype=bool)
     for s in range(0, m, TEST_BLOCK):
@@ -256,37 +331,7 @@ def downdate_folds(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
         sq[0] += np.bincount(f, np.sum(err[:, :3] ** 2, axis=1), P)
         sq[1] += np.bincount(f, np.sum(err[:, 3:] ** 2, axis=1), P)
         sq[2] += np.bincount(f, np.sum((err / sig) ** 2, axis=1), P)
-    counts = np.stack([np.bincount(fold, tests.measured[:, :3].sum(axis=1), P),
-                       np.bincount(fold, tests.measured[:, 3:].sum(axis=1), P),
-                       np.bincount(fold, tests.measured.sum(axis=1), P)])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rms = np.where(counts > 0, np.sqrt(sq / np.where(counts > 0, counts, 1)), np.nan)
-    for h in np.flatnonzero(ok & failed):
-        ok[h] = False
-        notes[h] = ("the equilibrium has no solution at this fold's estimate for a held-out "
-                    "test (wrench too large for these compliances)")
-    rms[:, ~ok] = np.nan
-    table = pd.DataFrame({
-        "held_out_pose": list(labels),
-        "n_tests": np.bincount(fold, minlength=P).astype(int),
-        "rms_translation_m": rms[0], "rms_rotation_rad": rms[1], "rms_normalized": rms[2],
-        "note": notes,
-    })
-    Rinv = np.linalg.inv(R)
-    meat_total = None if meat is None else PackedSym(meat.astype(float), p).total()
-
-    def covariance(h):  # the folds' covariances (len(h), p, p), NaN for folds not fitted
-        with np.errstate(all="ignore"):
-            bread = (Rinv @ np.linalg.solve(np.eye(p) - S[h], np.broadcast_to(
-                Rinv.T, (len(h), p, p)))) / (scale[:, None] * scale[None, :])
-        if meat is not None:
-            bread = bread @ (meat_total - PackedSym(meat, p)[h].astype(float)) @ bread
-        if linear_shift is not None:
-            bread = linear_shift[1] @ bread @ linear_shift[1].T
-        bread[~ok[h]] = np.nan
-        return bread
-
-    return with_total(table, total, covariance)
+    return sq, failed
 
 
 class _Congruent:
