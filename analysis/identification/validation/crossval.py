@@ -155,51 +155,80 @@ def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, f
     if per_fold_correction:
         batched = False  # each fold is refitted and corrected (the reference path)
     if batched and method == "ols":
-        try:
-            # row checks hold for every subset then
-            check_tests(robot, tests, joints, group=poses)
-        except InputError:
-            batched = False
-        else:
-            if full_fit is not None and full_fit.Linv is None:
-                A = full_fit.A  # the OLS fit's design: the same array (no second copy)
-            else:
-                J = jacobian(robot, tests.q)
-                A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
-            offset, rhs, shift = None, tests.d, linear_shift
-            if linear_shift is not None and full_fit is not None:
-                # the full fit's linearisation error of each test, e = f(x_c) - A x_c (its
-                # prediction is f(x_c) once corrected): each fold's least squares of d - e
-                # is its own estimate less its own bias G_h e (to first order), and its
-                # prediction A x_h + e; no model evaluation per fold
-                offset = (full_fit.predicted, full_fit.x + linear_shift[0])
-                rhs = _LessOffset(tests.d, A, *offset)
-                shift = (np.zeros(len(joints)), linear_shift[1])
-            table = downdate_folds(robot, tests, group, names, joints, noise, A, rhs,
-                                      np.zeros(len(joints)), method, linear_shift=shift,
-                                      offset=offset)
-            if linear_shift is not None:
-                table["note"] = [n or SHIFT_NOTE for n in table["note"]]
+        table = _batched_ols(robot, tests, group, names, joints, noise, method, full_fit,
+                             linear_shift, poses)
+        if table is not None:
             return table
     start = None
     if batched and method == "exact":
-        try:
-            full = full_fit if full_fit is not None else fit(robot, tests, joints, noise,
-                                                             method, J=J)
-            start = full.x
-        except InputError:
-            start = None
-        if start is not None and len(names) > max_exact_refits:
-            # one Gauss-Newton step per fold from the full-data estimate (module docstring)
-            sums = None if fold_sums is None else fold_sums.folds
-            # the residuals are only read when the folds are summed here (48 MB at 1e6)
-            resid = None if sums is not None else tests.d - full.predicted
-            table = downdate_folds(robot, tests, group, names, joints, noise, full.A,
-                                      resid, full.x, method, dq0=full.deflection,
-                                      Linv=full.Linv, system=system_of(full), sums=sums,
-                                      shift=full.eiv_shift, J=J)
-            table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
+        start, table = _batched_exact(robot, tests, group, names, joints, noise, method,
+                                      full_fit, fold_sums, max_exact_refits, J)
+        if table is not None:
             return table
+    return _refit_each(robot, tests, group, names, joints, noise, method, start,
+                       linear_shift)
+
+
+def _batched_ols(robot, tests, group, names, joints, noise, method, full_fit, linear_shift,
+                 poses) -> pd.DataFrame | None:
+    """Every OLS fold by downdates of the full system (:func:`downdate_folds`), or None
+    when the row checks refuse the tests (the reference path then names the folds)."""
+    try:
+        # row checks hold for every subset then
+        check_tests(robot, tests, joints, group=poses)
+    except InputError:
+        return None
+    if full_fit is not None and full_fit.Linv is None:
+        A = full_fit.A  # the OLS fit's design: the same array (no second copy)
+    else:
+        J = jacobian(robot, tests.q)
+        A = design_block(J, tests.w)[..., list(joints)] * tests.measured[..., None]
+    offset, rhs, shift = None, tests.d, linear_shift
+    if linear_shift is not None and full_fit is not None:
+        # the full fit's linearisation error of each test, e = f(x_c) - A x_c (its
+        # prediction is f(x_c) once corrected): each fold's least squares of d - e
+        # is its own estimate less its own bias G_h e (to first order), and its
+        # prediction A x_h + e; no model evaluation per fold
+        offset = (full_fit.predicted, full_fit.x + linear_shift[0])
+        rhs = _LessOffset(tests.d, A, *offset)
+        shift = (np.zeros(len(joints)), linear_shift[1])
+    table = downdate_folds(robot, tests, group, names, joints, noise, A, rhs,
+                           np.zeros(len(joints)), method, linear_shift=shift, offset=offset)
+    if linear_shift is not None:
+        table["note"] = [n or SHIFT_NOTE for n in table["note"]]
+    return table
+
+
+def _batched_exact(robot, tests, group, names, joints, noise, method, full_fit, fold_sums,
+                   max_exact_refits, J):
+    """(start, table): the full-data exact estimate (None when it cannot be fitted) and,
+    with more than ``max_exact_refits`` poses, every fold by one Gauss-Newton step from
+    it (:func:`downdate_folds`), else None (each fold is refitted from ``start``)."""
+    start = None
+    try:
+        full = full_fit if full_fit is not None else fit(robot, tests, joints, noise,
+                                                         method, J=J)
+        start = full.x
+    except InputError:
+        start = None
+    if start is not None and len(names) > max_exact_refits:
+        # one Gauss-Newton step per fold from the full-data estimate (module docstring)
+        sums = None if fold_sums is None else fold_sums.folds
+        # the residuals are only read when the folds are summed here (48 MB at 1e6)
+        resid = None if sums is not None else tests.d - full.predicted
+        table = downdate_folds(robot, tests, group, names, joints, noise, full.A, resid,
+                               full.x, method, dq0=full.deflection, Linv=full.Linv,
+                               system=system_of(full), sums=sums, shift=full.eiv_shift,
+                               J=J)
+        table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
+        return start, table
+    return start, None
+
+
+def _refit_each(robot, tests, group, names, joints, noise, method, start,
+                linear_shift) -> pd.DataFrame:
+    """The reference path: every fold refitted (exact: from ``start`` when given) and its
+    held-out tests predicted; a fold that cannot be fitted gets its refusal as note."""
     rows = []
     cols = list(joints)
     p = len(cols)
