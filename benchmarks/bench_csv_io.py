@@ -70,7 +70,7 @@ print(json.dumps({"m": tests.m, "sha256": digest.hexdigest()}))
 def residual_rows(csv: Path, n: int):
     """A ResidualRows of the first n tests of ``csv`` with deterministic stand-ins."""
     from analysis.identification.io.measurements import read_test_arrays
-    from analysis.identification.result import ResidualRows
+    from analysis.identification.io.residual_rows import ResidualRows
 
     tests = read_test_arrays(csv)
     tests = tests.subset(np.arange(min(n, tests.m)))
@@ -84,7 +84,7 @@ def residual_rows(csv: Path, n: int):
 
 
 def time_write(rows, path: Path, how: str, repeat: int) -> float:
-    from analysis.identification.result import write_table
+    from analysis.identification.io.results_json import write_table
 
     best = np.inf
     for _ in range(repeat):

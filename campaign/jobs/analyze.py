@@ -471,7 +471,7 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
                    stage: Stage = no_stage) -> dict[str, Path]:
     """Write results.json, residuals.csv, model.toml, the report and analysis.json into
     ``out`` (a new directory); returns the paths of the main files by name."""
-    from analysis.identification.result import write_results
+    from analysis.identification.io.results_json import write_results
     from analysis.output_files import write_text
 
     paths = write_results(result, out)
