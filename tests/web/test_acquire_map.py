@@ -122,6 +122,29 @@ def test_pose_progress_counts_every_test_and_repeat():
         pose_progress([{"test": 1, "pose": "1", "repeats": 10**9}], [])
 
 
+def test_poses_endpoint_reads_tests_csv_as_written(client, workspace):
+    run = workspace / "r"
+    run.mkdir()
+    shutil.copy(workspace / "plan" / "plan.csv", run / "plan.csv")
+    plan = list(csv.DictReader(open(run / "plan.csv")))
+    head = "test_id,repeat,status,flags\n"
+    t1, t2 = plan[0]["test"], plan[1]["test"]
+    # test 1 twice ok, test 2 once failed, and a last line still being written
+    (run / "tests.csv").write_text(head + f"{t1},1,ok,\n{t1},2,ok,\n{t2},1,failed,drift\n"
+                                   f"{t2},2,o")
+    d = client.get("/api/acquire/poses", params={"run": "r"}).json()
+    assert d["rows_read"] == 3
+    status = {p["pose"]: (p["status"], p["rows_done"], p["rows_failed"]) for p in d["poses"]}
+    assert status == {plan[0]["pose"]: ("done", 2, 0), plan[1]["pose"]: ("partial", 1, 1),
+                      plan[2]["pose"]: ("pending", 0, 0)}
+    assert d["done"] == [plan[0]["pose"]]
+    (run / "tests.csv").write_text(head + f"{t1},1,ok,\n{t1},2,ok,\n{t2},1,failed,drift\n"
+                                   f"{t2},2,ok,\n")
+    d = client.get("/api/acquire/poses", params={"run": "r"}).json()
+    assert d["poses"][1]["status"] == "failed" and d["rows_read"] == 4
+    assert client.get("/api/acquire/poses", params={"run": "plan2"}).status_code == 404
+
+
 def test_trace_follows_the_last_test_of_the_events():
     from campaign.web.acquire_map_api import current_trace
 
