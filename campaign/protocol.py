@@ -405,7 +405,9 @@ class Protocol(_Strict):
             return None
         lab = self.fake_lab
         robot = self.campaign.robot
-        is_file = robot.lower().endswith((".toml", ".yaml", ".yml", ".urdf"))
+        from analysis.model.robot_spec import is_robot_file
+
+        is_file = is_robot_file(robot)
         if is_file and not Path(robot).is_absolute():
             # robot files are named relative to the protocol file
             robot = str(Path(self._path).parent / robot)

@@ -103,10 +103,11 @@ def _plan_and_analyze(page, docs: Path) -> None:
     page.set_viewport_size({"width": 1240, "height": 980})
     page.click("#tab-plan")
     page.wait_for_function("() => document.body.dataset.planview === 'ready'")
+    page.check("#plan-compact")  # the keys with a value (the form has every key)
     page.fill("#plan-candidates", "1000")
     page.click("#plan-run")
     page.wait_for_function("() => document.body.dataset.plan === 'done'", timeout=120_000)
-    page.wait_for_function("() => document.getElementById('plan-map').naturalWidth > 0")
+    page.wait_for_function("() => pv.plots['plan-map-fig'] !== undefined")
     if page.locator("#an-run option[value='run']").count():
         page.select_option("#an-run", "run")
         page.select_option("#an-method", "wls")

@@ -98,3 +98,40 @@ def draw_plan_map(plan, path: Path) -> None:
     place_labels(ax, cand.q[chosen, 1] / DEG, cand.q[chosen, 2] / DEG, labels, 7 / 2 + 1)
     save_figure(fig, path, metadata={"Software": None})
     plt.close(fig)
+
+
+def map_points(plan, size: int = 61) -> dict:
+    """The zone map's data for an interactive plot, angles in deg (model convention).
+
+    ``grid``: 1/kappa_F of J_N on ``size`` x ``size`` (theta_2, theta_3) points at the
+    other joints' values of :func:`draw_plan_map` (``inv_kappa[i3][i2]``);
+    ``candidates``: every drawn pose, ``passing`` where it passes the thresholds for
+    some load case; ``chosen``: the design's distinct poses in plan.csv's ``pose``
+    order, with the tests at each; ``random``: the random zone design's poses;
+    ``zones``: the sampling boxes.
+    """
+    from analysis.kinetostatics.map_fixed import map_fixed_joints
+
+    robot, cand = plan.robot, plan.candidates
+    chosen, pose_id = np.unique(plan.chosen.pose, return_inverse=True)
+    fixed = map_fixed_joints(robot.n, plan.protocol.sampling.fixed_deg, cand.q[chosen])
+    t2, t3, inv_k = kappa_map(robot, fixed.q, plan.length, size)
+
+    def deg(v) -> list[float]:
+        return [float(x) for x in np.asarray(v) / DEG]
+
+    rnd = np.unique(plan.random.pose)
+    return {
+        "grid": {"theta2_deg": deg(t2), "theta3_deg": deg(t3),
+                 "inv_kappa": np.round(inv_k, 6).tolist()},
+        "fixed_text": fixed.values_text(), "rule_text": fixed.rule_text(),
+        "candidates": {"q2_deg": deg(cand.q[:, 1]), "q3_deg": deg(cand.q[:, 2]),
+                       "passing": [bool(v) for v in np.any(cand.valid, axis=1)]},
+        "chosen": {"q2_deg": deg(cand.q[chosen, 1]), "q3_deg": deg(cand.q[chosen, 2]),
+                   "tests": [[int(t) + 1 for t in np.flatnonzero(pose_id == i)]
+                             for i in range(len(chosen))]},
+        "random": {"q2_deg": deg(cand.q[rnd, 1]), "q3_deg": deg(cand.q[rnd, 2])},
+        "zones": [{"name": b.name, "q2_deg": deg([b.lo[1], b.hi[1]]),
+                   "q3_deg": deg([b.lo[2], b.hi[2]])} for b in plan.boxes],
+        "strategy": plan.strategy,
+    }
