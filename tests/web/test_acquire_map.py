@@ -73,6 +73,15 @@ def test_map_candidates_are_the_planners(client, workspace, planned):
     np.testing.assert_allclose([(z["lo_deg"][1], z["hi_deg"][2]) for z in d["zones"]],
                                [(np.degrees(b.lo[1]), np.degrees(b.hi[2])) for b in plan.boxes])
     assert d["axes"] == [2, 3]
+    # the background: the Plan view's 1/kappa_F grid of the same plan (made from the plan
+    # in memory), at the protocol's fixed joints
+    from campaign.planning.plan_map import map_points
+
+    theirs = map_points(plan, size=len(d["grid"]["theta2_deg"]))["grid"]
+    np.testing.assert_allclose(d["grid"]["inv_kappa"], theirs["inv_kappa"], atol=1e-6)
+    np.testing.assert_allclose(d["grid"]["theta3_deg"], theirs["theta3_deg"], atol=1e-9)
+    assert 0 < np.max(d["grid"]["inv_kappa"]) <= 1
+    assert "fixed_deg" in d["grid"]["rule_text"]
 
 
 def test_map_of_an_edited_plan_says_its_poses_are_not_candidates(client, workspace):
