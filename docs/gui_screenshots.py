@@ -148,9 +148,9 @@ def _acquire(page, docs: Path) -> None:
     page.click("#acq-dry")
     page.wait_for_selector("#acq-motions li")
     page.click("#acq-start")
-    # mid-run: two poses done on the zone map, the next one being measured under its load
+    # mid-run: poses 1 and 2 done on the zone map, pose 3 being measured under its load
     page.wait_for_function(
-        "() => (document.getElementById('acq-map').dataset.done || '').split(',').length >= 2"
+        "() => (document.getElementById('acq-map').dataset.done || '') === '1,2'"
         " && document.getElementById('acq-map').dataset.current"
         " && document.querySelector('#acq-stage').textContent === 'settle'"
         " && Number(document.getElementById('acq-trace-readings').textContent) >= 3",
