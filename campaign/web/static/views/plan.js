@@ -331,6 +331,35 @@ function planPlotSe(s) {
   }, data);
 }
 
+const MAP_KINDS = ["", "candidate passing the thresholds", "candidate rejected",
+  "random zone design", "chosen pose"];
+
+function planMapHover(u, pts, m) {
+  // the point nearest the cursor on screen, whatever its series (hidden series skipped)
+  const out = pvEl("plan-map-hover");
+  const { left, top } = u.cursor;
+  if (left === undefined || left < 0) { out.textContent = ""; return; }
+  // nearest per kind; a chosen (then random) pose under the cursor wins over the
+  // candidate drawn at the same place (every pose of a design is a candidate)
+  const near = [null, null, null, null, null], dist = [225, 225, 225, 225, 225];
+  for (const p of pts) {
+    if (!u.series[p[1]].show) continue;
+    const dx = u.valToPos(p[0], "x") - left, dy = u.valToPos(p[2], "y") - top;
+    const d = dx * dx + dy * dy;
+    if (d < dist[p[1]]) { dist[p[1]] = d; near[p[1]] = p; }
+  }
+  let best = [4, 3].map((k) => (dist[k] <= 36 ? near[k] : null)).find((p) => p);
+  if (!best) {
+    const k = [1, 2, 3, 4].filter((i) => near[i]).sort((a, b) => dist[a] - dist[b])[0];
+    best = k === undefined ? null : near[k];
+  }
+  if (!best) { out.textContent = ""; return; }
+  const what = best[1] === 4 ? `chosen pose ${best[3] + 1}, tests ${m.chosen.tests[best[3]].join(", ")}`
+    : MAP_KINDS[best[1]];
+  out.textContent = `${what}: \u03b8\u2082 = ${best[0].toFixed(3)} deg, ` +
+    `\u03b8\u2083 = ${best[2].toFixed(3)} deg (model convention)`;
+}
+
 function planPlotMap(m) {
   // one x array for every series (uPlot's aligned data): candidates, chosen, random
   // poses sorted by theta_2, each series null where the point is another series'
@@ -381,7 +410,7 @@ function planPlotMap(m) {
     width: 760, height: 520, mode: 1,
     scales: { x: { time: false, range: [lo2, hi2] }, y: { range: [lo3, hi3] } },
     cursor: { drag: { x: true, y: true, uni: 20 } },
-    hooks: { drawClear: [drawGrid] },
+    hooks: { drawClear: [drawGrid], setCursor: [(u) => planMapHover(u, pts, m)] },
     series: [{ label: "\u03b8\u2082 (deg, model)", value: (u, v) => fmt(v) },
       { label: `candidates passing the thresholds (${passing})`, stroke: "#17becf", width: 0, paths: () => null,
         points: { show: true, size: 3, fill: "#17becf", width: 0 }, value: (u, v) => fmt(v) },
