@@ -11,7 +11,6 @@ plan job run directly on the saved protocol.
 
 from __future__ import annotations
 
-import json
 import re
 import threading
 import time
@@ -310,8 +309,14 @@ def test_page_shows_each_message_beside_its_field(plan_page, tmp_path):
     page.fill("#pf-load_cases-1-force_N", "0, -2200, 2200")
     page.click("#plan-save")
     page.wait_for_function("() => document.body.dataset.plan === 'saved'", timeout=30_000)
-    assert json.loads(json.dumps(page.locator("#plan-status").inner_text())).startswith(
-        "saved protocols/plan-gui.toml")
+    assert page.locator("#plan-status").inner_text().startswith("saved protocols/plan-gui.toml")
+    # the saved protocol is offered to start from, and fills the form with what was typed
+    page.select_option("#plan-source", "protocols/plan-gui.toml")
+    page.wait_for_function("() => document.getElementById('pf-instruments-pose-driver')"
+                           " && document.getElementById('pf-load_cases-1-force_N').value"
+                           " === '0, -2200, 2200'")
+    assert page.input_value("#pf-instruments-pose-driver") == "emscon"
+    assert page.input_value("#pf-campaign-tests") == "5"
 
 
 def test_any_typed_text_is_saved_or_refused_never_a_500(client):

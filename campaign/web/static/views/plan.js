@@ -257,6 +257,7 @@ async function planRun(saveOnly) {
     document.body.dataset.plan = "error";
     return;
   }
+  pvAddSource(d.protocol);
   if (saveOnly) {
     pvEl("plan-status").textContent = `saved ${d.protocol}; the protocol reader accepts it`;
     document.body.dataset.plan = "saved";
@@ -505,14 +506,18 @@ async function anRun() {
   document.body.dataset.analyze = "done";
 }
 
+function pvAddSource(name) {
+  // a protocol to start from: shipped, or a workspace file (the one just saved, too)
+  if ([...pvEl("plan-source").options].some((o) => o.value === name)) return;
+  const o = document.createElement("option"); o.value = name; o.textContent = name;
+  pvEl("plan-source").appendChild(o);
+}
+
 async function pvStart() {
   const s = await (await fetch("/api/session", { credentials: "same-origin" })).json();
   pv.csrf = s.csrf_token; pv.header = s.csrf_header;
   const p = await (await fetch("/api/plan/protocols", { credentials: "same-origin" })).json();
-  for (const name of [...p.shipped, ...p.workspace]) {
-    const o = document.createElement("option"); o.value = name; o.textContent = name;
-    pvEl("plan-source").appendChild(o);
-  }
+  for (const name of [...p.shipped, ...p.workspace]) pvAddSource(name);
   pvEl("plan-source").value = "kr240-2.toml";
   for (const name of p.strategies) {
     const o = document.createElement("option"); o.value = name; o.textContent = name;
