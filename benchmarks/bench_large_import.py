@@ -67,7 +67,7 @@ def reference_ols(csv: Path, dense_se: bool) -> tuple[np.ndarray, np.ndarray | N
     ~1e-4 relative)."""
     import pandas as pd
 
-    from analysis.identification.linear_model import design_block
+    from analysis.identification.estimators.linear_model import design_block
     from analysis.identification.noise import NoiseModel, residual_covariance
     from analysis.model.kinematics import jacobian
     from analysis.model.robots import load_robot

@@ -39,7 +39,8 @@ class Covariance(StrEnum):
 
 
 class Robust(StrEnum):
-    """Robust fitting of ``campaign analyze`` (analysis.identification.robust.ROBUST_METHODS)."""
+    """Robust fitting of ``campaign analyze``
+    (analysis.identification.estimators.irls.ROBUST_METHODS)."""
 
     none = "none"
     huber = "huber"

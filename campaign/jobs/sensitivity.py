@@ -3,7 +3,7 @@
 Given a robot, the poses of the tests, the wrench of each test and one
 standard deviation per error source, it simulates ``trials`` noisy campaigns
 and identifies each (the project's Monte-Carlo of a design,
-:mod:`analysis.identification.design_simulation`), then reports per joint
+:mod:`analysis.identification.studies.design_simulation`), then reports per joint
 the spread of the identified k (median, quartiles, a few individual trial
 sets: the paper's broken lines) beside the planner's predicted standard
 error (:func:`campaign.planning.criteria.candidate_information`, the same noise model).
@@ -161,7 +161,7 @@ def _check(o: SensitivityOptions) -> None:
 def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.ndarray | None]:
     """(q (count, n) rad, the plan's wrenches (count, 6) or None): the tests in order."""
     if o.poses == "zones":
-        from analysis.identification.robustness import sample_poses
+        from analysis.identification.studies.robustness import sample_poses
 
         q = sample_poses(robot, max(ZONE_POOL, count), np.random.default_rng(o.seed))
         return q[:count], None
@@ -192,7 +192,7 @@ def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.nda
 def predicted_relative_se(robot, q, w, k, noise) -> np.ndarray:
     """(t, n): the planner's relative standard error of each k for the first 1, 2, ..., t
     of the tests (q (t, n) rad, w (t, 6) N, N m), one row each; inf where not identified."""
-    from analysis.identification.robustness import jacobian_derivative
+    from analysis.identification.studies.robustness import jacobian_derivative
     from analysis.model.kinematics import jacobian
     from campaign.planning.criteria import candidate_information, relative_se
 
@@ -202,8 +202,11 @@ def predicted_relative_se(robot, q, w, k, noise) -> np.ndarray:
 
 def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
     """Simulate and identify ``o.trials`` campaigns; ``robot`` (a loaded model) skips loading."""
-    from analysis.identification.design_simulation import identify_campaigns, simulate_campaigns
-    from analysis.identification.robustness import W_EFF
+    from analysis.identification.studies.design_simulation import (
+        identify_campaigns,
+        simulate_campaigns,
+    )
+    from analysis.identification.studies.robustness import W_EFF
 
     _check(o)
     if robot is None:

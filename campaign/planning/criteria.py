@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.linear_model import design_block
+from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.noise import NoiseModel, residual_covariance
 from campaign.planning.design import greedy_exchange, information, random_design
 from campaign.planning.separation import Separation, blocked
@@ -87,7 +87,7 @@ def candidate_information(
     if S.ndim == 3:
         # whitening L^-1 A by an entry-major Cholesky and forward substitution over the
         # whole batch: one LAPACK call per 6 x 6 matrix (np.linalg.solve) costs ~4x more
-        from analysis.identification.batch_lsq import cholesky, forward_substitute
+        from analysis.identification.linalg.batch_lsq import cholesky, forward_substitute
 
         B = np.moveaxis(forward_substitute(cholesky(np.moveaxis(S, 0, -1)),
                                            np.moveaxis(A, 0, -1)), -1, 0) * x0

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.linear_model import design_block
+from analysis.identification.estimators.linear_model import design_block
 from campaign.planning.separation import Separation, blocked
 
 

@@ -152,7 +152,7 @@ def _design(plan_in: dict, picks: np.ndarray) -> Design:
 
 def _full_information(plan_in: dict, pose: np.ndarray, case: np.ndarray) -> np.ndarray:
     """Information of the design's tests with every noise source, encoders included."""
-    from analysis.identification.robustness import jacobian_derivative
+    from analysis.identification.studies.robustness import jacobian_derivative
 
     cand = plan_in["cand"]
     dJ = jacobian_derivative(plan_in["robot"], cand.q[pose])

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from analysis.identification.holdout_check import CLUSTER_DEG
+from analysis.identification.validation.holdout_check import CLUSTER_DEG
 
 #: default of the protocol key ``[thresholds] min_pose_separation_deg``: the distance
 #: below which the held-out validation holds poses out together

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.measurements import CSV_COLUMNS, R_COLS, from_csv_frame
+from analysis.identification.io.measurements import CSV_COLUMNS, R_COLS, from_csv_frame
 
 FORMAT_VERSION = 1
 STATUSES = ("running", "complete", "aborted", "failed")
@@ -54,7 +54,8 @@ class Run:
     protocol_sha256 : SHA-256 of that copy (hex), None if absent.
     tests : every row of ``tests.csv`` (CSV units), with ``line`` (file line, header = 1)
         and ``flag_list`` (list of flags).
-    ok : tidy SI table of the rows with status ``ok`` (:mod:`analysis.identification.measurements`).
+    ok : tidy SI table of the rows with status ``ok``
+    (:mod:`analysis.identification.io.measurements`).
     events : ``events.jsonl`` records.
     notes : things the report must mention (hash mismatch, dropped line, unknown flags...).
     """

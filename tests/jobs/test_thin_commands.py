@@ -18,7 +18,7 @@ JOBS = ("plan", "acquire", "analyze", "stiffness", "maps", "robustness", "compen
         "compare", "place", "robots", "demo", "lab")
 #: what a face may import from analysis/: its error class and presentation helpers
 PRESENTATION = {"analysis.errors", "analysis.report.formatting",
-                "analysis.identification.compare"}  # level_text: the verdict's wording
+                "analysis.identification.compare.comparison"}  # level_text: the verdict's wording
 #: names a face must not use: file writing and the heap tricks belong to the job
 FORBIDDEN = {"write_text", "write_bytes", "replacing", "make_dir", "replaced_dir",
              "created_dir", "check_output_dir", "save_figure", "open", "freeze", "unfreeze"}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.linear_model import design_matrix
+from analysis.identification.estimators.linear_model import design_matrix
 from analysis.kinetostatics.equilibrium import displacement_screw
 from campaign.planning.candidates import Candidates
 from campaign.planning.design import information, predicted_se, random_design, scaled_blocks

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification.linear_model import design_matrix
+from analysis.identification.estimators.linear_model import design_matrix
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.stiffness import kc_influence
 from analysis.model.kinematics import jacobian

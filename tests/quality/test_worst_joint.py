@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.design_simulation import identify_campaigns, simulate_campaigns
+from analysis.identification.studies.design_simulation import identify_campaigns, simulate_campaigns
 from campaign.planning.criteria import candidate_information, relative_se
 from campaign.planning.design import random_design
 from campaign.planning.planner import make_plan

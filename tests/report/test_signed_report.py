@@ -233,7 +233,7 @@ def test_outliers_of_a_misfit_run_agree_with_the_figure(misfit, monkeypatch):
     """A campaign simulated with a wrong model (a 0.5 mm offset per pose the joint
     model cannot explain), accepted with --accept-misfit: more residuals beyond the
     threshold than the sequential test's budget sets aside."""
-    from analysis.identification.estimate import MAX_OUTLIERS
+    from analysis.identification.checks.outliers import MAX_OUTLIERS
 
     assert misfit["results"]["misfit_accepted"]["accepted"]
     aside = _check_outliers(misfit, monkeypatch)
@@ -509,7 +509,7 @@ def test_time_stamps_are_shown_to_the_second():
 
 
 def test_robustness_rows_not_identifiable_are_marked():
-    from analysis.identification.robustness import identifiable_rows
+    from analysis.identification.studies.robustness import identifiable_rows
 
     summary = pd.DataFrame({
         "trials": [200, 200, 200], "trials_rejected": [0, 30, 0],

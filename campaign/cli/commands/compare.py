@@ -39,7 +39,7 @@ def register(app: typer.Typer) -> None:
 def compare_lines(result: dict) -> list[str]:
     """The comparison as text lines of at most 80 columns (stiffness in kN m/rad, 5
     digits; the interval of k_B - k_A at the verdict's level, 4 digits)."""
-    from analysis.identification.compare import level_text
+    from analysis.identification.compare.comparison import level_text
     from analysis.report.formatting import k_kNm, percent, sig
 
     lines = [f"{result['robot']}: B = {result['B']}", f"  vs A = {result['A']}",
