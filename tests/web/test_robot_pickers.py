@@ -174,6 +174,9 @@ def test_plan_form_plans_a_urdf_robot(client, urdf_ws):
     d = r.json()
     assert d["summary"]["robot"] == "arm" and d["summary"]["tests"] == 4
     assert [row["zone"] for row in d["rows"]] == ["front"] * 4
+    # the plan's protocol copy sits one directory deeper: said, not hidden
+    assert len(d["warnings"]) == 1 and "plans/u/../robots/arm.urdf" not in d["warnings"][0]
+    assert "u/../robots/arm.urdf, which does not exist" in d["warnings"][0]
     assert all(-60 <= row["q2_model_deg"] <= 0 and 20 <= row["q3_model_deg"] <= 90
                for row in d["rows"])
 

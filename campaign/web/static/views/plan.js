@@ -273,6 +273,7 @@ function planShow(d) {
   pvEl("plan-status").textContent = `${s.tests} tests at ${s.poses} poses of ${s.robot} ` +
     `(${s.strategy}, ${s.candidates.poses_passing} of ${s.candidates.drawn} candidates pass); ` +
     `saved ${d.protocol} and ${d.out}/`;
+  pvEl("plan-error").textContent = (d.warnings || []).map((w) => `warning: ${w}`).join("\n");
   const tb = document.querySelector("#plan-se tbody");
   tb.innerHTML = "";
   for (const j of s.predicted_standard_errors) {
