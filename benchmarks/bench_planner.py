@@ -25,13 +25,13 @@ The last line printed is one JSON object with the figures.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from math import sqrt
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from _load import LoadWindow
 from scipy.linalg.lapack import dgesv
 from threadpoolctl import threadpool_limits
 
@@ -119,6 +119,7 @@ def timed(fn):
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--baseline-candidates", type=int, default=2000)
     parser.add_argument("--sizes", type=int, nargs="+", default=[10000, 100000])
@@ -156,7 +157,7 @@ def main() -> None:
           f"{us['loop_wall'] / us['batched_wall']:.1f}x wall")
     for n, v in sizes.items():
         print(f"batched make_plan at {n} candidates: {v:.1f} us CPU/candidate")
-    print(json.dumps({
+    load.emit({
         "benchmark": "planner", "baseline_candidates": n0, "repeat": args.repeat,
         "batched_cpu_us_per_candidate": round(us["batched_cpu"], 2),
         "loop_cpu_us_per_candidate": round(us["loop_cpu"], 2),
@@ -171,7 +172,7 @@ def main() -> None:
         "timing": f"CPU time (time.process_time) and wall time, best of {args.repeat} runs "
                   "per side, interleaved, on the same candidates; single-threaded "
                   "(BLAS pinned to 1 thread); the larger sizes batched only",
-    }))
+    })
 
 
 if __name__ == "__main__":

@@ -29,6 +29,8 @@ import sys
 import time
 from pathlib import Path
 
+from _load import LoadWindow
+
 STIFFNESS_ARGS = ["stiffness", "--robot", "kr240-2", "--q", "0,30,10,45,45,45"]
 CASES = (
     # (name, campaign arguments, reference imports, limit of the CPU ratio)
@@ -96,6 +98,7 @@ def check_stiffness(campaign: list[str]) -> None:
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7, help="runs of each side (best of)")
     args = parser.parse_args()
@@ -139,7 +142,7 @@ def main() -> None:
                         f"{key}_within_limit": r["ratio"] <= r["limit"],
                         f"{key}_command": r["command"],
                         f"{key}_reference": r["reference"]})
-    print(json.dumps(figures))
+    load.emit(figures)
 
 
 if __name__ == "__main__":
