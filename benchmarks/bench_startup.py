@@ -93,7 +93,7 @@ def check_stiffness(campaign: list[str]) -> None:
     K_X = cartesian_stiffness(J, robot.nominal_stiffness, K_C)
     np.testing.assert_allclose(data["K_X"], K_X, rtol=1e-10)
     np.testing.assert_allclose(
-        data["deflection"], deflection(J, robot.nominal_stiffness, WORST_CASE_WRENCH, K_C),
+        data["deflection_m_rad"], deflection(J, robot.nominal_stiffness, WORST_CASE_WRENCH, K_C),
         rtol=1e-9)
 
 
