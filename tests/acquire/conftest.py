@@ -27,6 +27,25 @@ def kr240_plan(tmp_path_factory) -> Path:
     return out
 
 
+def plan_and_acquire(protocol, tmp_path: Path, time_scale: float,
+                     candidates: int = 2000) -> Path:
+    """Plan ``protocol`` with one repeat per test into ``tmp_path/plan`` and acquire it on the
+    simulated lab (``acquire --fake``: the protocol's real drivers against the fakes) into
+    ``tmp_path/run``; asserts the run is complete and returns its directory."""
+    from campaign.acquire.progress import QuietReporter
+    from campaign.acquire.session import AcquireOptions, acquire
+    from campaign.planner import make_plan, write_plan
+
+    protocol.campaign.repeats = 1
+    plan, run = tmp_path / "plan", tmp_path / "run"
+    write_plan(make_plan(protocol, candidates=candidates), plan, figure=False)
+    outcome = acquire(plan, run, None,
+                      AcquireOptions(fake=True, assume_yes=True, time_scale=time_scale),
+                      QuietReporter(), say=lambda s: None)
+    assert outcome.status == "complete", outcome.reason
+    return run
+
+
 def variant(plan: Path, dest: Path, tests: int | None = None, repeats: int | None = None,
             edit=None) -> Path:
     """Copy of ``plan`` with fewer tests/repeats, or rows edited by ``edit(frame)``."""
