@@ -46,6 +46,21 @@ def plan_and_acquire(protocol, tmp_path: Path, time_scale: float,
     return run
 
 
+def displacement_noise(protocol):
+    """The noise model of a fake run's tests: the tracker's pose noise of the protocol with
+    the displacement's variance, 1.5 sigma^2 (loaded pose minus the mean of two unloaded
+    ones), and the lab's F/T noise, 0.5 N and 0.05 N m."""
+    import math
+
+    from analysis.identification.noise import NoiseModel
+
+    pose = protocol.instruments["pose"].noise
+    return NoiseModel().with_overrides(
+        translation_sigma_override=pose.translation_um * 1e-6 * math.sqrt(1.5),
+        rotation_sigma_override=pose.rotation_urad * 1e-6 * math.sqrt(1.5),
+        force_sigma=0.5, moment_sigma=0.05)
+
+
 def variant(plan: Path, dest: Path, tests: int | None = None, repeats: int | None = None,
             edit=None) -> Path:
     """Copy of ``plan`` with fewer tests/repeats, or rows edited by ``edit(frame)``."""
