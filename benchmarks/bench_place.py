@@ -266,7 +266,7 @@ def case(robot, args, rng, w_tool, loop):
 
 
 def main() -> None:
-    load = LoadWindow()
+    load_window = LoadWindow()
     ap = argparse.ArgumentParser()
     ap.add_argument("--placements", type=int, default=16)
     ap.add_argument("--sample", type=int, default=300)
@@ -296,7 +296,7 @@ def main() -> None:
           f"{offset['batched_per_s']:,} /s wall, {offset['batched_cpu_per_s']:,} /s CPU; "
           f"general batched agrees: {offset['general_batched_agrees']}")
     agree = f["loop_agrees"] and f["general_batched_agrees"] and offset["general_batched_agrees"]
-    load.emit({"benchmark": "place", "evaluations": f["evaluations"],
+    load_window.emit({"benchmark": "place", "evaluations": f["evaluations"],
                       "batched_evaluations_per_s": f["batched_per_s"],
                       "batched_cpu_evaluations_per_s": f["batched_cpu_per_s"],
                       "general_batched_evaluations_per_s": f["general_batched_per_s"],
