@@ -51,7 +51,7 @@ from _load import LoadWindow
 
 BIN = Path(sys.executable).parent
 CAMPAIGN = [str(BIN / "campaign")] if (BIN / "campaign").exists() else [
-    sys.executable, "-m", "campaign.cli"]
+    sys.executable, "-m", "campaign"]
 
 
 def best(launcher: Launcher, args: list[str], repeat: int) -> dict:
@@ -68,7 +68,7 @@ def reference_ols(csv: Path, dense_se: bool) -> tuple[np.ndarray, np.ndarray | N
     ~1e-4 relative)."""
     import pandas as pd
 
-    from analysis.identification.linear_model import design_block
+    from analysis.identification.estimators.linear_model import design_block
     from analysis.identification.noise import NoiseModel, residual_covariance
     from analysis.model.kinematics import jacobian
     from analysis.model.robots import load_robot

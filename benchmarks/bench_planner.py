@@ -38,9 +38,10 @@ from _load import LoadWindow
 from scipy.linalg.lapack import dgesv
 from threadpoolctl import threadpool_limits
 
-from campaign.candidates import sample
-from campaign.design import greedy_exchange
-from campaign.planner import _expand, make_plan
+from campaign.planning.candidates import sample
+from campaign.planning.design import greedy_exchange
+from campaign.planning.planner import _expand, make_plan
+from campaign.planning.separation import Separation
 from campaign.protocol import DEG, load_protocol
 from campaign.protocol_robot import (
     characteristic_length,
@@ -48,7 +49,6 @@ from campaign.protocol_robot import (
     protocol_robot,
     sampling_boxes,
 )
-from campaign.separation import Separation
 
 ROOT = Path(__file__).resolve().parents[1]
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED

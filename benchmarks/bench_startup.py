@@ -59,9 +59,9 @@ print(json.dumps([status, sorted({{m.split('.')[0] for m in sys.modules}} & set(
 
 def minimal_app(path: Path) -> Path:
     """Write the baseline of ``campaign --help``: a one-file typer app with the commands and
-    help lines of :data:`campaign.cli.LAZY_COMMANDS` and a ``--version`` option, set up as
+    help lines of :data:`campaign.cli.app.LAZY_COMMANDS` and a ``--version`` option, set up as
     campaign's app is (no completion, no pretty exceptions), and nothing else."""
-    from campaign.cli import LAZY_COMMANDS
+    from campaign.cli.app import LAZY_COMMANDS
 
     lines = ["import typer", "",
              "app = typer.Typer(name='campaign', help='Plan, run and analyse joint-stiffness "
@@ -100,12 +100,12 @@ def heavy_imports(args: list[str]) -> list[str]:
 
 
 def campaign_command() -> list[str]:
-    """The installed console script beside this interpreter, else ``python -m campaign.cli``."""
+    """The installed console script beside this interpreter, else ``python -m campaign``."""
     script = Path(sys.executable).with_name("campaign")
     if script.is_file():
         return [str(script)]
     found = shutil.which("campaign")
-    return [found] if found else [sys.executable, "-m", "campaign.cli"]
+    return [found] if found else [sys.executable, "-m", "campaign"]
 
 
 def run(cmd: list[str]) -> tuple[float, float, str]:
@@ -123,9 +123,9 @@ def run(cmd: list[str]) -> tuple[float, float, str]:
 
 
 def check_help(text: str) -> None:
-    import campaign.commands
+    import campaign.cli.commands
 
-    names = [m.name for m in pkgutil.iter_modules(campaign.commands.__path__)]
+    names = [m.name for m in pkgutil.iter_modules(campaign.cli.commands.__path__)]
     missing = [n for n in names if f" {n} " not in text]
     if missing:
         raise SystemExit(f"campaign --help does not list: {', '.join(missing)}")
@@ -179,7 +179,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7, help="runs of each side (best of)")
     args = parser.parse_args()
-    from campaign.cli import LAZY_COMMANDS
+    from campaign.cli.app import LAZY_COMMANDS
 
     campaign = campaign_command()
     env_note = "COLUMNS=80 for both sides"

@@ -6,9 +6,9 @@ a run and an analysis (``campaign demo --out WORKSPACE``); writes
 K_X at a pose and the compensation of ``examples/kr240-2_path.csv``, copied into the
 workspace as ``kr240-2_path.csv`` when it is not there) and ``docs/gui_plan.png`` (the
 Plan & Analyze view after a plan and a re-analysis of the workspace's run ``run``) and
-``docs/gui_acquire.png`` (the Acquire view after a dry run and a complete acquisition of
-the workspace's plan ``plan`` on the simulated lab, time x 200, into
-``acquire-screenshot``).
+``docs/gui_acquire.png`` (the Acquire view after a dry run, during an acquisition of
+the workspace's plan ``plan`` on the simulated lab, time x 50, into
+``acquire-screenshot``: two poses done, the next one settling under its load).
 
 ``python docs/gui_screenshots.py WORKSPACE VIEW ...`` takes only those views' screenshots
 (names: sensitivity, runs, use, plan, acquire).
@@ -107,26 +107,39 @@ def _plan_and_analyze(page, docs: Path) -> None:
     page.set_viewport_size({"width": 1240, "height": 980})
     page.click("#tab-plan")
     wait_job(page, "planview", "ready", timeout=30_000)
+    page.check("#plan-compact")  # the keys with a value (the form has every key)
     page.fill("#plan-candidates", "1000")
     page.click("#plan-run")
     wait_job(page, "plan", "done", timeout=120_000)
-    page.wait_for_function("() => document.getElementById('plan-map').naturalWidth > 0")
+    page.wait_for_function("() => pv.plots['plan-map-fig'] !== undefined")
     if page.locator("#an-run option[value='run']").count():
         page.select_option("#an-run", "run")
         page.select_option("#an-method", "wls")
         page.check("#an-force")
+        page.evaluate("() => { document.getElementById('an-plots').dataset.ready = ''; }")
         page.click("#an-run-btn")
         wait_job(page, "analyze", "done", "error", timeout=180_000)
+        # the residual and validation plots of that analysis
+        page.wait_for_function("() => document.getElementById('an-plots').dataset.ready",
+                               timeout=30_000)
     page.screenshot(path=docs / "gui_plan.png", full_page=True)
 
 
 def _acquire(page, docs: Path) -> None:
-    """The Acquire view: a dry run, then the workspace's plan on the simulated lab."""
+    """The Acquire view: a dry run, then the workspace's plan on the simulated lab (x 50,
+    slow enough to catch a test settling under its load)."""
     page.set_viewport_size({"width": 1240, "height": 980})
-    acquire_dry_run(page, "plan", "acquire-screenshot", 200)
+    acquire_dry_run(page, "plan", "acquire-screenshot", 50)
     page.click("#acq-start")
-    wait_text(page, "#acq-status", "complete", timeout=300_000)
+    # mid-run: two poses done on the zone map, the next one being measured under its load
+    page.wait_for_function(
+        "() => (document.getElementById('acq-map').dataset.done || '').split(',').length >= 2"
+        " && document.getElementById('acq-map').dataset.current"
+        " && document.querySelector('#acq-stage').textContent === 'settle'"
+        " && Number(document.getElementById('acq-trace-readings').textContent) >= 3",
+        timeout=300_000, polling=20)
     page.screenshot(path=docs / "gui_acquire.png", full_page=True)
+    wait_text(page, "#acq-status", "complete", timeout=300_000)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
 
 from analysis.errors import InputError
-from campaign.cli_common import json_ready
+from campaign.cli.common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
 from campaign.jobs.analyze import AnalyzeOptions
 from campaign.jobs.compare import CompareOptions
@@ -117,9 +117,13 @@ def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
 
 
 def robot_path(ws: Path, robot: str, field: str = "robot") -> str:
-    """A robot given by name stays a name; one given as a file is a workspace path."""
-    if Path(robot).suffix.lower() in (".urdf", ".toml", ".yaml", ".yml"):
-        return str(inside(ws, robot, field))
+    """A robot given by name stays a name; one given as a file is a workspace path (a
+    URDF may carry its tool frame, ``FILE.urdf#FRAME``: analysis.model.robot_spec)."""
+    from analysis.model.robot_spec import is_robot_file, split_urdf_spec
+
+    if is_robot_file(robot):
+        path, frame = split_urdf_spec(robot.strip())
+        return str(inside(ws, path, field)) + (f"#{frame}" if frame else "")
     return robot  # a built-in name (an unknown one is refused by the job, naming the field)
 
 

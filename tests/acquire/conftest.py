@@ -19,7 +19,7 @@ TIME_SCALE = 100.0
 @pytest.fixture(scope="session")
 def kr240_plan(tmp_path_factory) -> Path:
     """Plan directory of the built-in KR240-2 protocol (5 tests x 3 repeats)."""
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     out = tmp_path_factory.mktemp("plan")
@@ -34,7 +34,7 @@ def plan_and_acquire(protocol, tmp_path: Path, time_scale: float,
     ``tmp_path/run``; asserts the run is complete and returns its directory."""
     from campaign.acquire.progress import QuietReporter
     from campaign.acquire.session import AcquireOptions, acquire
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
 
     protocol.campaign.repeats = 1
     plan, run = tmp_path / "plan", tmp_path / "run"

@@ -10,7 +10,7 @@ from analysis.model.kinematics import tool_pose
 from analysis.model.robots import load_robot
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
-from campaign.run_reader import read_run
+from campaign.run_format.reader import read_run
 from tests.acquire.conftest import PROTOCOL, displacement_noise, plan_and_acquire
 
 TRUE_K = np.array([1409800, 400760, 935280, 360000, 370000, 380000], dtype=float)

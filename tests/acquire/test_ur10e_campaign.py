@@ -12,10 +12,10 @@ import pytest
 from analysis.errors import InputError
 from analysis.identification.estimate import analyze_table
 from campaign.cli import main
-from campaign.commands.analyze import _noise_from_protocol
+from campaign.cli.commands.analyze import _noise_from_protocol
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
-from campaign.run_reader import read_run
+from campaign.run_format.reader import read_run
 from tests.acquire.conftest import ROOT, plan_and_acquire
 
 PROTOCOL = ROOT / "protocols" / "ur10e.toml"

@@ -24,15 +24,16 @@ def ws(tmp_path) -> Path:
 
 @pytest.fixture
 def client(ws):
-    """A TestClient on an app built here: the jobs router over the workspace ``ws``."""
+    """A TestClient on an app built here: the jobs routers over the workspace ``ws``."""
     from fastapi import FastAPI
     from fastapi.testclient import TestClient
 
-    from campaign.web.api_jobs import router
+    from campaign.web import api_jobs, demo_api
 
     app = FastAPI()
     app.state.workspace = ws
-    app.include_router(router)
+    app.include_router(api_jobs.router)
+    app.include_router(demo_api.router)
     return TestClient(app)
 
 

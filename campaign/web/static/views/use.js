@@ -304,7 +304,7 @@ async function runCompare() {
 
 async function refreshFiles() {
   const f = await useGet("/api/use/files");
-  const robots = [...f.builtin.map((n) => [n, `${n} (built-in)`]), ...f.models.map((m) => [m, m])];
+  const robots = (await robotChoices()).map((c) => [c.value, c.label]);  // robots.js
   const first = !u$("use-robot").options.length;
   fillSelect(u$("use-robot"), robots, true);
   if (first && f.builtin.includes("kr240-2")) u$("use-robot").value = "kr240-2";
