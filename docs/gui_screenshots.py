@@ -73,12 +73,13 @@ def main(workspace: str, views: tuple[str, ...] = VIEWS) -> None:
 
 
 def use_view(page, workspace: Path, docs: Path) -> None:
-    """The Use view: one slider move, then the compensation of the example path."""
+    """The Use view: one slider move, the deflection along the example path, a placement
+    search of the example workpiece, then the compensation of the example path."""
     import shutil
 
-    path = workspace / "kr240-2_path.csv"
-    if not path.exists():
-        shutil.copy(docs.parent / "examples" / "kr240-2_path.csv", path)
+    for name in ("kr240-2_path.csv", "part_circle.csv"):
+        if not (workspace / name).exists():
+            shutil.copy(docs.parent / "examples" / name, workspace / name)
     page.set_viewport_size({"width": 1240, "height": 980})
     page.click("#tab-use")
     page.wait_for_selector("#view-use[data-ready='1']")
@@ -93,6 +94,19 @@ def use_view(page, workspace: Path, docs: Path) -> None:
     for _ in range(4):
         slider.press("ArrowRight")
     wait_use_shown(page)
+    page.select_option("#pd-path", "kr240-2_path.csv")
+    if model:
+        page.select_option("#pd-robot", model)
+    page.click("#pd-run")
+    page.wait_for_selector("#view-use[data-pd='done']", timeout=60_000)
+    page.select_option("#pl-path", "part_circle.csv")
+    page.select_option("#pl-robot", "kr240-2")
+    for field, value in (("x_step_mm", "50"), ("y_step_mm", "50"), ("config", "-1,-1,-1"),
+                         ("workers", "0"), ("out", "placement-screenshot")):
+        page.fill(f"#pl-{field}", value)
+    page.check("#pl-force")
+    page.click("#pl-run")
+    page.wait_for_selector("#view-use[data-place='done']", timeout=120_000)
     page.select_option("#comp-path", "kr240-2_path.csv")
     if model:
         page.select_option("#comp-robot", model)

@@ -30,9 +30,12 @@ class PlaceResult:
         return self.placement
 
 
-def run(o: PlaceOptions, console=None) -> PlaceResult:
+def run(o: PlaceOptions, console=None, progress=None,
+        server_limit: float | None = None) -> PlaceResult:
     """Search and write OUT; ``console`` (a rich Console) gets the progress and summary
-    lines (None: they are discarded)."""
+    lines (None: they are discarded); ``progress(fraction, text)`` the search's progress
+    (an exception it raises stops the job, and OUT, if it made it, is removed);
+    ``server_limit``: the evaluations a server allows per request (refused above)."""
     from rich.console import Console
 
     from analysis.output_files import check_output_dir, created_dir
@@ -45,4 +48,4 @@ def run(o: PlaceOptions, console=None) -> PlaceResult:
     if console is None:
         console = Console(file=io.StringIO())
     with created_dir(o.out):  # a refused search leaves no OUT directory behind
-        return PlaceResult(run_place(o, console), o.out)
+        return PlaceResult(run_place(o, console, progress, server_limit), o.out)

@@ -9,6 +9,7 @@ FANUC TP (``PLACE_PATH.LS``) program.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import time
@@ -286,14 +287,19 @@ def search_size(problem, G) -> SearchSize:
     return SearchSize(P, N, int(problem.angles.size), len(problem.flags), result_bytes(P, N))
 
 
-def check_size(size: SearchSize, o: PlaceOptions) -> None:
+def check_size(size: SearchSize, o: PlaceOptions, server_limit: float | None = None) -> None:
     """Refuse a search above the evaluation or memory limit (before any work).
 
     The evaluation limit is --max-evaluations when given, else
     :data:`DEFAULT_MAX_EVALUATIONS` unless --scheduler sends the work to a cluster.
     The memory limit (--max-memory-gib) bounds the results kept in this process.
+    ``server_limit``: the evaluations a web server allows per request, above any of those.
     """
     where = "--x-mm/--y-mm/--z-mm/--yaw-deg/--tool-angle-deg and their steps"
+    if server_limit is not None and size.evaluations > server_limit:
+        raise InputError(f"the search has {size.text()} ({size.evaluations:.3g}), above this "
+                         f"server's limit of {server_limit:.3g} evaluations per request: "
+                         "coarsen the steps or narrow the box", where=where)
     limit = o.max_evaluations
     if limit is None and not o.scheduler:
         limit = DEFAULT_MAX_EVALUATIONS
@@ -363,14 +369,15 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.3g} h"
 
 
-def _run(problem, G, o: PlaceOptions, console: Console):
-    """Search every placement; returns (ChunkResult, how it ran)."""
+def _run(problem, G, o: PlaceOptions, console: Console, progress=None):
+    """Search every placement; returns (ChunkResult, how it ran). ``progress(done, total)``
+    after each task (a chunk of placements) of the search."""
     from analysis.placement.search import run_dask, run_local
 
     per_task = o.chunk or max(1, min(64, -(-len(G) // (4 * (os.cpu_count() or 1)))))
     if o.workers == 0 and not o.scheduler:
         with console.status("searching in this process"):
-            return run_local(problem, G, per_task), "in this process (no Dask)"
+            return run_local(problem, G, per_task, progress), "in this process (no Dask)"
     from distributed import Client, LocalCluster
 
     if o.scheduler:
@@ -390,7 +397,8 @@ def _run(problem, G, o: PlaceOptions, console: Console):
     try:
         console.print(f"searching on the {how}; {len(G)} placements in tasks of "
                       f"{per_task}")
-        return run_dask(problem, G, per_task, client, show_progress=True), how
+        return run_dask(problem, G, per_task, client, show_progress=progress is None,
+                        progress=progress), how
     finally:
         client.close()
         if cluster is not None:
@@ -433,9 +441,21 @@ def _placement_dict(p: np.ndarray) -> dict:
             "z_mm": round(1e3 * p[2], 6), "yaw_deg": round(float(np.degrees(p[3])), 9)}
 
 
-def run_place(o: PlaceOptions, console: Console | None = None) -> dict:
+def check_search(o: PlaceOptions, server_limit: float | None = None) -> SearchSize:
+    """The size of the search the options ask for, or InputError (every check of the
+    options and the size limits, no search): what a web server answers before queuing."""
+    _, problem, G, *_ = build_problem(o, Console(file=io.StringIO()))
+    size = search_size(problem, G)
+    check_size(size, o, server_limit)
+    return size
+
+
+def run_place(o: PlaceOptions, console: Console | None = None, progress=None,
+              server_limit: float | None = None) -> dict:
     """The whole search; returns placement.json's document; raises InputError on bad input
-    or when nothing is feasible. ``console`` gets the progress and summary lines."""
+    or when nothing is feasible. ``console`` gets the progress and summary lines;
+    ``progress(fraction, text)`` the search's progress (an exception it raises stops the
+    search); ``server_limit``: see :func:`check_size`."""
     from analysis.placement.details import path_details
     from analysis.placement.search import evaluate_chunk
     from campaign.cli.common import print_wrapped
@@ -443,12 +463,21 @@ def run_place(o: PlaceOptions, console: Console | None = None) -> dict:
     console = console or Console()
     robot, problem, G, grids, assumptions, part = build_problem(o, console)
     size = search_size(problem, G)
-    check_size(size, o)
+    check_size(size, o, server_limit)
     N, evaluations = size.points, size.evaluations
     print_wrapped(console, f"search: {size.text()}")
     print_wrapped(console, probe(problem, G, size, _workers(o)))
+    tasks = None
+    if progress is not None:
+        progress(0.0, f"search: {size.text()}")
+
+        def tasks(done: int, total: int) -> None:
+            progress(done / total, f"searching: {done} of {total} tasks "
+                     f"({len(G)} placements)")
     t0 = time.perf_counter()
-    res, how = _run(problem, G, o, console)
+    res, how = _run(problem, G, o, console, tasks)
+    if progress is not None:
+        progress(1.0, "search done; writing placement.json, path_joints.csv, plots")
     elapsed = time.perf_counter() - t0
     center = np.array([0.5 * (grids[k][0] + grids[k][-1]) for k in ("x_mm", "y_mm", "z_mm")]
                       + [0.5 * (grids["yaw_deg"][0] + grids["yaw_deg"][-1])])

@@ -26,6 +26,7 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.api_jobs",
     "campaign.web.demo_api",
     "campaign.web.use_api",
+    "campaign.web.use_path_api",
     "campaign.web.acquire_api",
     "campaign.web.acquire_map_api",
     "campaign.web.plan_api",
