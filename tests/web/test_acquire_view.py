@@ -176,7 +176,7 @@ def test_browser_start_reload_reattach_abort_resume(server, workspace):
         page.wait_for_selector("#acq-plan", state="visible")
         wait_text(page, "#acq-running", "running", timeout=30_000)
         assert page.locator("#acq-run").text_content() == "gui-run"
-        # abort under load (the page reattached and shows it): then the load must come off
+        # abort once the reattached page shows a test under load (the case with a load to remove)
         wait_text(page, "#acq-stage", "load", "settle", "measure", timeout=30_000)
         page.click("#acq-abort")
         wait_text(page, "#acq-status", "aborted")
