@@ -14,6 +14,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from campaign.jobs.choices import (  # noqa: F401 (the commands' choices, re-exported)
+    DEFAULT_METHOD,
+    DEFAULT_TRIALS,
     Covariance,
     Method,
     Objective,

@@ -20,6 +20,12 @@ class Method(StrEnum):
     exact = "exact"
 
 
+#: the estimator of ``campaign analyze`` and ``robustness`` when none is given, and the
+#: Monte-Carlo trials per point; here (no numpy) so that ``--help`` can show them cheaply
+DEFAULT_METHOD = "exact"
+DEFAULT_TRIALS = 200
+
+
 class Covariance(StrEnum):
     """Covariance of the estimate: the noise figures taken as known, or scaled by chi-square."""
 
