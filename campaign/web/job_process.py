@@ -81,7 +81,7 @@ class ChildProgress:
 
 def _ended(task: Callable, ws: Path, options, extra: tuple, progress) -> tuple:
     """Run ``task(progress, options, *extra)``; how it ended, as the child's last message."""
-    from campaign.cli.common import json_ready
+    from campaign.jobs.choices import json_ready
     from campaign.web.job_errors import describe, relative_to_workspace
 
     try:
