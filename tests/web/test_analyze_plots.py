@@ -23,11 +23,11 @@ def analysed(tmp_path_factory) -> Path:
     """A workspace with a run of 6 KR240-2 tests on the simulated lab, analysed (ols)."""
     import pandas as pd
 
-    from campaign.cli.common import Method
     from campaign.jobs.acquire import AcquireJobOptions
     from campaign.jobs.acquire import run as acquire
     from campaign.jobs.analyze import AnalyzeOptions
     from campaign.jobs.analyze import run as analyze
+    from campaign.jobs.choices import Method
     from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
@@ -119,6 +119,7 @@ def test_residual_table_reads_empty_cells_as_missing():
                          "outlier": "False", "set_aside": "True"}])
     assert t["test"] == [3.0] and t["residual"] == [1e-05] and t["sigma"] == [None]
     assert t["studentized"] == [None] and t["outlier"] == [False] and t["set_aside"] == [True]
+    assert t["weight"] == [None]  # a Gaussian fit's table has no weight column
 
 
 def _plotted(page) -> dict:

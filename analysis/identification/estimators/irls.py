@@ -47,15 +47,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.estimators.fitting import (
-    _covariances,
-    _design,
-    _full,
-    fit_exact,
-    fit_linear,
-)
+from analysis.identification.estimators.fit import Fit
+from analysis.identification.estimators.fitting import _covariances, _full, fit_exact, fit_linear
+from analysis.identification.estimators.linear_model import tests_design
 from analysis.identification.io.measurements import COMPONENTS, TestArrays
-from analysis.identification.result import Fit
 
 ROBUST_METHODS = ("none", "huber", "tukey")
 #: Huber's tuning constant (95 % efficiency under Gaussian noise)
@@ -153,7 +148,7 @@ def _sigma(noise, J, x_p, tests: TestArrays, joints) -> np.ndarray:
 def _weighted_fit(robot, tests: TestArrays, joints, noise, method, weights, start,
                   J) -> Fit:
     """One fit by ``method`` with ``weights`` (zero weights leave the fit); ``J``: the
-    tests' Jacobians (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`)."""
+    tests' Jacobians (:func:`~analysis.identification.estimators.linear_model.jacobian_blocks`)."""
     keep = tests.measured & (weights > 0)
     sub = TestArrays(tests.pose, tests.q, tests.w, np.where(keep, tests.d, np.nan), keep,
                      tests.line)
@@ -206,8 +201,8 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
     """Huber or Tukey IRLS around the fit ``method`` ("wls" or "exact") from ``start`` (p,).
 
     See the module docstring for the weights, the scale and the covariance. ``J``: the
-    tests' Jacobians (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`) if the
-    caller has them.
+    tests' Jacobians (:func:`~analysis.identification.estimators.linear_model.jacobian_blocks`) if
+    the caller has them.
     """
     if robust not in ("huber", "tukey"):
         raise InputError(f"unknown robust estimator {robust!r}: expected one of "
@@ -215,7 +210,7 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
     if method not in ("wls", "exact"):
         raise InputError("robust fitting weights the residuals whitened by the noise model: "
                          "use --method exact (or wls), not ols", where="--robust")
-    J, A_lin = _design(robot, tests, joints, J)
+    J, A_lin = tests_design(robot, tests, joints, J)
     ones = np.ones(tests.measured.shape)
     x, weights, r, n_it = _irls(robot, tests, joints, noise, method, huber_weight, HUBER_C,
                                 np.asarray(start, dtype=float), ones, J, A_lin)
