@@ -398,9 +398,6 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     if robust not in ROBUST_METHODS:
         raise InputError(f"unknown robust estimator {robust!r}: expected one of "
                          f"{', '.join(ROBUST_METHODS)}", where="--robust")
-    if robust != "none" and method == "ols":
-        raise InputError("robust fitting weights the residuals whitened by the noise model: "
-                         "use --method exact (or wls), not ols", where="--robust")
     noise = noise or NoiseModel()
     if joints is None:
         joints = tuple(range(6)) if tests.has_rotations else (0, 1, 2)
@@ -480,6 +477,9 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
         corr = correct_linear_bias(robot, tests, joints, chosen, np.sqrt(np.diag(
             sandwich(chosen.A, chosen.cov, chosen.bread, chosen.Linv))), method,
             in_place=True)
+    if rob is not None:  # the M-estimator's sandwich, on residuals free of the linear misfit
+        rob = rob.with_covariance(None if corr is None or not corr.reliable else
+                                  corr.predicted - apply(chosen.A, corr.x))
     # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
     # start for the held-out tests) are let go before the per-test statistics are made
     validation = None
@@ -538,6 +538,8 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
     else:
         cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
                                                       chosen.Linv)
+        if rob is not None:  # the M-estimator's sandwich (robust_covariance)
+            cov_x = rob.covariance.cov
         # the fit's own whitening when it used the same components, else made block by
         # block (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of
         # the whitened system, for its scaled condition without the (6m, p) Linv A
@@ -568,7 +570,11 @@ def _identify(robot, tests, method, joints, noise, covariance, cond_limit, outli
                              where="covariance")
         scale = chi2_red
         crit = critical_value(confidence, dof)
-    cov_x = cov_x * scale
+    if rob is not None:
+        # the sandwich is estimated from the tests' scores already (not scaled by the
+        # chi-square); its G scores give it G - p degrees of freedom (robust_covariance)
+        crit = critical_value(confidence, rob.covariance.dof)
+    cov_x = cov_x * (scale if rob is None else 1.0)
     se_x = np.sqrt(np.diag(cov_x))
     x_out = chosen.x  # the raw linear estimate for ols/wls (the outlier refits start there)
     bias = None
