@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.identification.measurements import CSV_COLUMNS
+from analysis.identification.io.measurements import CSV_COLUMNS
 from analysis.identification.noise import NoiseModel
-from analysis.identification.robustness import sample_poses
+from analysis.identification.studies.robustness import sample_poses
 from analysis.kinetostatics.equilibrium import displacement_screw
 from analysis.model.robots import load_robot
 

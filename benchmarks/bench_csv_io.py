@@ -3,7 +3,7 @@
 Read: for each size N (default 1e5 and 1e6 tests; the files of :mod:`_large_csv`,
 kept and reused with ``--data DIR``) three fresh processes, each started from a
 small launcher (CPU user + system and peak RSS of that one child from
-``os.wait4``), import what ``campaign analyze`` imports (``campaign.cli``, the
+``os.wait4``), import what ``campaign analyze`` imports (``campaign.cli.app``, the
 identification, pyarrow), then
 
 * ``arrow``: read the file with ``read_test_arrays`` (Arrow's streaming CSV reader
@@ -18,7 +18,7 @@ measured, line and the pose labels); the two must agree.
 Write: the residual table of a file of ``--write-tests`` tests (default 1e5: 6e5
 rows), with deterministic stand-ins for the predicted displacements,
 sigmas and studentized residuals, written as residuals.csv in this process by
-``result.write_table`` (:mod:`analysis.identification.table_csv`) and by pandas'
+``result.write_table`` (:mod:`analysis.identification.io.table_csv`) and by pandas'
 ``DataFrame.to_csv`` block by block (the text residuals.csv must have, the same
 bytes); CPU time (``time.process_time``), best of ``--repeat``; the files'
 bytes compared.
@@ -48,10 +48,10 @@ READER = r"""
 import hashlib, json, sys
 import numpy as np
 import pyarrow.csv  # noqa: F401
-import campaign.cli  # noqa: F401
+import campaign.cli.app  # noqa: F401
 import analysis.identification.estimate  # noqa: F401
 import analysis.identification.result  # noqa: F401
-from analysis.identification.measurements import read_csv, read_test_arrays, to_arrays
+from analysis.identification.io.measurements import read_csv, read_test_arrays, to_arrays
 mode, path = sys.argv[1], sys.argv[2]
 if mode == "imports":
     print(json.dumps({}))
@@ -69,7 +69,7 @@ print(json.dumps({"m": tests.m, "sha256": digest.hexdigest()}))
 
 def residual_rows(csv: Path, n: int):
     """A ResidualRows of the first n tests of ``csv`` with deterministic stand-ins."""
-    from analysis.identification.measurements import read_test_arrays
+    from analysis.identification.io.measurements import read_test_arrays
     from analysis.identification.result import ResidualRows
 
     tests = read_test_arrays(csv)

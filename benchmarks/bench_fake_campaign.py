@@ -27,7 +27,7 @@ import numpy as np
 
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
-from campaign.planner import make_plan, write_plan
+from campaign.planning.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
 
 PROTOCOL = Path(__file__).resolve().parents[1] / "protocols" / "kr240-2.toml"

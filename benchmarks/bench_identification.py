@@ -5,7 +5,7 @@ Setting: KR240-2, Table 2 stiffness, the paper's w_eff, poses from the Table
 4 zones (a pool simulated once with the nonlinear equilibrium), default
 noise model.
 
-* Batched OLS (:func:`analysis.identification.robustness.identify_batch`):
+* Batched OLS (:func:`analysis.identification.studies.robustness.identify_batch`):
   A from J and the measured wrench (eqs. 16-18), least squares by modified
   Gram-Schmidt with the trials on the last axis.
 * Baseline: the fastest per-trial loop we could write in numpy: A^T built
@@ -41,7 +41,7 @@ from scipy.linalg.lapack import dgels
 from threadpoolctl import threadpool_limits
 
 from analysis.identification.noise import NoiseModel
-from analysis.identification.robustness import (
+from analysis.identification.studies.robustness import (
     W_EFF,
     build_pool,
     identify_batch,

@@ -50,7 +50,7 @@ from _launcher import Launcher  # noqa: E402
 
 BIN = Path(sys.executable).parent
 CAMPAIGN = [str(BIN / "campaign")] if (BIN / "campaign").exists() else [
-    sys.executable, "-m", "campaign.cli"]
+    sys.executable, "-m", "campaign"]
 
 
 def best(launcher: Launcher, args: list[str], repeat: int) -> dict:
@@ -67,7 +67,7 @@ def reference_ols(csv: Path, dense_se: bool) -> tuple[np.ndarray, np.ndarray | N
     ~1e-4 relative)."""
     import pandas as pd
 
-    from analysis.identification.linear_model import design_block
+    from analysis.identification.estimators.linear_model import design_block
     from analysis.identification.noise import NoiseModel, residual_covariance
     from analysis.model.kinematics import jacobian
     from analysis.model.robots import load_robot

@@ -35,9 +35,9 @@ import pinocchio as pin
 from scipy.linalg.lapack import dgesv
 from threadpoolctl import threadpool_limits
 
-from campaign.candidates import sample
-from campaign.design import greedy_exchange
-from campaign.planner import _expand, make_plan
+from campaign.planning.candidates import sample
+from campaign.planning.design import greedy_exchange
+from campaign.planning.planner import _expand, make_plan
 from campaign.protocol import DEG, load_protocol
 from campaign.protocol_robot import (
     characteristic_length,

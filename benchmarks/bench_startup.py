@@ -39,12 +39,12 @@ CASES = (
 
 
 def campaign_command() -> list[str]:
-    """The installed console script beside this interpreter, else ``python -m campaign.cli``."""
+    """The installed console script beside this interpreter, else ``python -m campaign``."""
     script = Path(sys.executable).with_name("campaign")
     if script.is_file():
         return [str(script)]
     found = shutil.which("campaign")
-    return [found] if found else [sys.executable, "-m", "campaign.cli"]
+    return [found] if found else [sys.executable, "-m", "campaign"]
 
 
 def run(cmd: list[str]) -> tuple[float, float, str]:
@@ -61,9 +61,9 @@ def run(cmd: list[str]) -> tuple[float, float, str]:
 
 
 def check_help(text: str) -> None:
-    import campaign.commands
+    import campaign.cli.commands
 
-    names = [m.name for m in pkgutil.iter_modules(campaign.commands.__path__)]
+    names = [m.name for m in pkgutil.iter_modules(campaign.cli.commands.__path__)]
     missing = [n for n in names if f" {n} " not in text]
     if missing:
         raise SystemExit(f"campaign --help does not list: {', '.join(missing)}")

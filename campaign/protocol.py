@@ -37,7 +37,7 @@ from analysis.file_errors import (
     toml_line,
     yaml_line,
 )
-from campaign.separation import DEFAULT_MIN_SEPARATION_DEG
+from campaign.planning.separation import DEFAULT_MIN_SEPARATION_DEG
 
 DEG = math.pi / 180.0
 
@@ -235,7 +235,7 @@ class ThresholdSpec(_Strict):
     min_inv_kappa_F: float = Field(default=0.0, ge=0, le=1)
     max_v_p: float = Field(default=1.0, gt=0)
     max_v_r_deg: float = Field(default=180.0, gt=0)
-    #: smallest joint-space distance between two planned poses (campaign.separation)
+    #: smallest joint-space distance between two planned poses (campaign.planning.separation)
     min_pose_separation_deg: float = Field(default=DEFAULT_MIN_SEPARATION_DEG, ge=0, le=360)
 
 
@@ -405,7 +405,9 @@ class Protocol(_Strict):
             return None
         lab = self.fake_lab
         robot = self.campaign.robot
-        is_file = robot.lower().endswith((".toml", ".yaml", ".yml", ".urdf"))
+        from analysis.model.robot_spec import is_robot_file
+
+        is_file = is_robot_file(robot)
         if is_file and not Path(robot).is_absolute():
             # robot files are named relative to the protocol file
             robot = str(Path(self._path).parent / robot)
@@ -432,7 +434,7 @@ def load_protocol(path: str | Path) -> Protocol:
     """Read and validate a protocol file (schema, units, loads against safety limits).
 
     Checks that need the robot (zones inside joint limits, thresholds that
-    leave candidates) are made by :func:`campaign.planner.make_plan`, which
+    leave candidates) are made by :func:`campaign.planning.planner.make_plan`, which
     reports them with the same ``file:line: key`` form.
 
     Raises

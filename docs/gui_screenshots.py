@@ -6,9 +6,9 @@ a run and an analysis (``campaign demo --out WORKSPACE``); writes
 K_X at a pose and the compensation of ``examples/kr240-2_path.csv``, copied into the
 workspace as ``kr240-2_path.csv`` when it is not there) and ``docs/gui_plan.png`` (the
 Plan & Analyze view after a plan and a re-analysis of the workspace's run ``run``) and
-``docs/gui_acquire.png`` (the Acquire view after a dry run and a complete acquisition of
-the workspace's plan ``plan`` on the simulated lab, time x 200, into
-``acquire-screenshot``).
+``docs/gui_acquire.png`` (the Acquire view after a dry run, during an acquisition of
+the workspace's plan ``plan`` on the simulated lab, time x 50, into
+``acquire-screenshot``: two poses done, the next one settling under its load).
 
 ``python docs/gui_screenshots.py WORKSPACE VIEW ...`` takes only those views' screenshots
 (names: sensitivity, runs, use, plan, acquire).
@@ -67,12 +67,13 @@ def main(workspace: str, views: tuple[str, ...] = VIEWS) -> None:
 
 
 def use_view(page, workspace: Path, docs: Path) -> None:
-    """The Use view: one slider move, then the compensation of the example path."""
+    """The Use view: one slider move, the deflection along the example path, a placement
+    search of the example workpiece, then the compensation of the example path."""
     import shutil
 
-    path = workspace / "kr240-2_path.csv"
-    if not path.exists():
-        shutil.copy(docs.parent / "examples" / "kr240-2_path.csv", path)
+    for name in ("kr240-2_path.csv", "part_circle.csv"):
+        if not (workspace / name).exists():
+            shutil.copy(docs.parent / "examples" / name, workspace / name)
     page.set_viewport_size({"width": 1240, "height": 980})
     page.click("#tab-use")
     page.wait_for_selector("#view-use[data-ready='1']")
@@ -89,6 +90,19 @@ def use_view(page, workspace: Path, docs: Path) -> None:
     page.wait_for_function("() => { const v = document.getElementById('view-use'); return "
                            "!v.dataset.busy && v.dataset.shownQ === "
                            "JSON.stringify(useView.poseDeg()); }")
+    page.select_option("#pd-path", "kr240-2_path.csv")
+    if model:
+        page.select_option("#pd-robot", model)
+    page.click("#pd-run")
+    page.wait_for_selector("#view-use[data-pd='done']", timeout=60_000)
+    page.select_option("#pl-path", "part_circle.csv")
+    page.select_option("#pl-robot", "kr240-2")
+    for field, value in (("x_step_mm", "50"), ("y_step_mm", "50"), ("config", "-1,-1,-1"),
+                         ("workers", "0"), ("out", "placement-screenshot")):
+        page.fill(f"#pl-{field}", value)
+    page.check("#pl-force")
+    page.click("#pl-run")
+    page.wait_for_selector("#view-use[data-place='done']", timeout=120_000)
     page.select_option("#comp-path", "kr240-2_path.csv")
     if model:
         page.select_option("#comp-robot", model)
@@ -103,34 +117,47 @@ def _plan_and_analyze(page, docs: Path) -> None:
     page.set_viewport_size({"width": 1240, "height": 980})
     page.click("#tab-plan")
     page.wait_for_function("() => document.body.dataset.planview === 'ready'")
+    page.check("#plan-compact")  # the keys with a value (the form has every key)
     page.fill("#plan-candidates", "1000")
     page.click("#plan-run")
     page.wait_for_function("() => document.body.dataset.plan === 'done'", timeout=120_000)
-    page.wait_for_function("() => document.getElementById('plan-map').naturalWidth > 0")
+    page.wait_for_function("() => pv.plots['plan-map-fig'] !== undefined")
     if page.locator("#an-run option[value='run']").count():
         page.select_option("#an-run", "run")
         page.select_option("#an-method", "wls")
         page.check("#an-force")
+        page.evaluate("() => { document.getElementById('an-plots').dataset.ready = ''; }")
         page.click("#an-run-btn")
         page.wait_for_function("() => document.body.dataset.analyze !== 'running'",
                                timeout=180_000)
+        # the residual and validation plots of that analysis
+        page.wait_for_function("() => document.getElementById('an-plots').dataset.ready",
+                               timeout=30_000)
     page.screenshot(path=docs / "gui_plan.png", full_page=True)
 
 
 def _acquire(page, docs: Path) -> None:
-    """The Acquire view: a dry run, then the workspace's plan on the simulated lab."""
+    """The Acquire view: a dry run, then the workspace's plan on the simulated lab (x 50,
+    slow enough to catch a test settling under its load)."""
     page.set_viewport_size({"width": 1240, "height": 980})
     page.click("#tab-acquire")
     page.wait_for_selector("#acq-plan", state="visible")
     page.fill("#acq-plan", "plan")
     page.fill("#acq-out", "acquire-screenshot")
-    page.fill("#acq-scale", "200")
+    page.fill("#acq-scale", "50")
     page.click("#acq-dry")
     page.wait_for_selector("#acq-motions li")
     page.click("#acq-start")
+    # mid-run: two poses done on the zone map, the next one being measured under its load
+    page.wait_for_function(
+        "() => (document.getElementById('acq-map').dataset.done || '').split(',').length >= 2"
+        " && document.getElementById('acq-map').dataset.current"
+        " && document.querySelector('#acq-stage').textContent === 'settle'"
+        " && Number(document.getElementById('acq-trace-readings').textContent) >= 3",
+        timeout=300_000, polling=20)
+    page.screenshot(path=docs / "gui_acquire.png", full_page=True)
     page.wait_for_function("() => document.querySelector('#acq-status').textContent"
                            " === 'complete'", timeout=300_000)
-    page.screenshot(path=docs / "gui_acquire.png", full_page=True)
 
 
 if __name__ == "__main__":

@@ -1,9 +1,15 @@
 """Identification of the joint compliances x = 1/k from stiffness tests.
 
-Modules, one step each: ``measurements`` (the tests as arrays, CSV import),
-``noise`` (measurement noise model), ``linear_model`` (the paper's A x = d),
-``lsq`` and ``batch_lsq`` (OLS/WLS), ``gauss_newton`` and ``exact_fit`` (the
-nonlinear equilibrium fit), ``uncertainty`` (intervals), ``crossval``
-(leave-one-pose-out), ``estimate`` (the ``identify`` entry point choosing among
-them), ``result`` (results.json) and ``robustness`` (Monte-Carlo study).
+``estimate`` (``identify``: the entry point) builds a ``problem`` (the robot, tests,
+noise model, joints and options as one object) and runs its stages: ``estimators/``
+(OLS, WLS, exact, the robust modes, behind one interface, chosen by name),
+``corrections/`` (wrench and encoder errors in variables, the linearisation bias),
+``validation/`` (leave-one-pose-out), ``statistics`` and ``intervals`` (covariance,
+chi-square, the reported intervals; formulas in ``uncertainty``), ``checks/`` (outliers,
+noise ratio, plausibility, tool point); ``result`` holds the outcome and writes
+results.json. Beside them: ``io/`` (tests import, model export), ``linalg/`` (least
+squares on per-test blocks), ``streaming/`` (per-test blocks made when sliced, for large
+campaigns), ``studies/`` (Monte-Carlo robustness), ``compare/`` (two campaigns),
+``noise`` (the noise model) and ``poses`` (grouping tests into poses). Map:
+docs/identification_code.md.
 """

@@ -42,25 +42,10 @@ def pose_groups(q: np.ndarray, tol: float) -> np.ndarray:
     than ``tol``) is resolved exactly by a sweep along its widest joint that
     links the pairs within ``tol`` of each other (:func:`_components_by_sweep`).
     """
-    import hashlib
-
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    m = q.shape[0]
-    if m == 0:
+    if q.shape[0] == 0:
         return np.zeros(0, dtype=int)
-    digest = hashlib.blake2b(digest_size=16)
-    for s in range(0, m, 1 << 16):  # by blocks: no copy of a large (e.g. column-major) q
-        digest.update(np.ascontiguousarray(q[s:s + (1 << 16)]).tobytes())
-    key = (q.shape, float(tol), digest.digest())
-    if _LAST.get("key") != key:
-        _LAST.clear()
-        _LAST.update(key=key, group=_pose_groups(q, tol))
-    return _LAST["group"].copy()
-
-
-#: the last grouping (the checks, the result, the validation and the export of one
-#: identification group the same joint angles)
-_LAST: dict = {}
+    return _pose_groups(q, tol)
 
 
 def _pose_groups(q: np.ndarray, tol: float) -> np.ndarray:

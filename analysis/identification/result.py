@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.identification.measurements import COMPONENTS, TestArrays
+from analysis.identification.io.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
 
 CI_METHOD = (
@@ -54,16 +54,17 @@ class Fit:
     displacement (m, rad). The linear(ised) estimator x = G d is kept in
     factored form, G = bread A^T W with W = Linv^T Linv per test (identity
     when ``Linv`` is None, OLS) and bread (p, p) = (A^T W A)^-1: memory
-    linear in the number of tests (:mod:`analysis.identification.lsq` computes
+    linear in the number of tests (:mod:`analysis.identification.linalg.lsq` computes
     its covariance and residual variances blockwise). ``deflection`` (m, 6): the
     exact fit's joint deflections at x (rad), None for the linear fits. ``eiv_shift``
     (p,): how far the wrench errors-in-variables correction moved x
-    (:mod:`analysis.identification.eiv`; None when not applied); ``bread`` is then the
+    (:mod:`analysis.identification.corrections.wrench_eiv`; None when not applied); ``bread`` is
+    then the
     corrected (A^T W A - S)^-1. ``R`` (p + 1, p + 1): for a fit of one large campaign
-    whose A and Linv are made when sliced (:mod:`analysis.identification.per_test`), the
+    whose A and Linv are made when sliced (:mod:`analysis.identification.streaming.per_test`), the
     triangular factor of its final whitened system [Linv A | Linv r] at x - eiv_shift,
     else None. ``predicted_shifted`` False: ``predicted`` is still at x - eiv_shift (the
-    caller moves it by A eiv_shift, :func:`analysis.identification.fitting.fit_exact`).
+    caller moves it by A eiv_shift, :func:`analysis.identification.estimators.fitting.fit_exact`).
     """
 
     x: np.ndarray
@@ -96,7 +97,7 @@ class ResidualRows:
     """The residual table held as per-test arrays, made into rows a block of tests at a time.
 
     ``tests`` the tests analysed; ``predicted``, ``sigma`` (model sigma of each
-    component, or a :class:`~analysis.identification.per_test.PerTestSigma` made for the
+    component, or a :class:`~analysis.identification.streaming.per_test.PerTestSigma` made for the
     tests written; else
     component), ``t`` (studentized residual) (m, 6); ``flags`` (m, 6) bool, the residuals
     the fit set aside (the sequential outlier test's refits, or a robust fit's
@@ -296,29 +297,33 @@ class IdentificationResult:
         outlier (Sidak-corrected for the number of residuals).
     assumptions : what the result rests on (tool point, noise figures and
         their source, method, ...), filled by the caller; results.json ``assumptions``.
-    misfit_accepted : refusals of :mod:`analysis.identification.plausibility`
+    misfit_accepted : refusals of :mod:`analysis.identification.checks.plausibility`
         overridden by the user (``--accept-misfit``); empty when none.
     residual_rows : None when ``residuals`` holds every row; for large campaigns
-        (:data:`analysis.identification.estimate.RESIDUAL_ROWS_HELD`) ``residuals`` holds
+        (:data:`analysis.identification.checks.outliers.RESIDUAL_ROWS_HELD`) ``residuals`` holds
         only the rows of the tests with the largest |studentized| residuals (outliers
         first) and this holds the whole table as arrays (residuals.csv, histogram).
     robust : None for the Gaussian fit, else the robust fit's summary
-        (:meth:`analysis.identification.robust.RobustFit.describe`: method, constant,
+        (:meth:`analysis.identification.estimators.irls.RobustFit.describe`: method, constant,
         iterations, down-weighted rows); results.json ``robust``.
     wrench_eiv : the correction for the wrench noise in the regressor
-        (:func:`analysis.identification.eiv.shift_summary`), None when not applied;
+        (:func:`analysis.identification.corrections.wrench_eiv.shift_summary`), None when not
+        applied;
         results.json ``wrench_errors_in_variables``.
     linear_bias : ols/wls only, the linearisation-bias correction
-        (:func:`analysis.identification.linear_bias.summary`: raw and corrected k, the
+        (:func:`analysis.identification.corrections.linear_bias.summary`: raw and corrected k, the
         bias in standard errors, whether the correction is reliable); None for exact.
         results.json ``linearisation_bias``.
     encoder_eiv : the bias of the encoder noise in J, added to the intervals as a
-        systematic term (:func:`analysis.identification.encoder_eiv.summary`);
+        systematic term (:func:`analysis.identification.corrections.encoder_eiv.summary`);
         results.json ``encoder_errors_in_variables``.
     tests_data : fingerprint of the tests analysed
-        (:func:`analysis.identification.data_fingerprint.fingerprint`), filled by the
+        (:func:`analysis.identification.io.data_fingerprint.fingerprint`), filled by the
         caller; results.json ``tests_data`` (``campaign compare`` refuses campaigns that
         share tests).
+    pose_group : (m,) the pose index of each test
+        (:func:`analysis.identification.poses.pose_groups`), for the writers that group
+        the same tests (not written).
     """
 
     robot: str
@@ -355,6 +360,7 @@ class IdentificationResult:
     linear_bias: dict | None = None
     encoder_eiv: dict | None = None
     tests_data: dict | None = None
+    pose_group: np.ndarray | None = None
 
     @classmethod
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
@@ -494,7 +500,10 @@ def validation_summary(validation: pd.DataFrame | None, listed: int = VALIDATION
         "rms_rotation_rad_pooled": pooled("rms_rotation_rad"),
     }
     if "rms_normalized_total" in validation:
-        from analysis.identification.holdout_check import HOLDOUT_FAMILY_LEVEL, LIMIT_TEXT
+        from analysis.identification.validation.holdout_check import (
+            HOLDOUT_FAMILY_LEVEL,
+            LIMIT_TEXT,
+        )
 
         tot = validation["rms_normalized_total"].to_numpy(dtype=float)
         ok = np.isfinite(tot)
@@ -580,9 +589,9 @@ def write_table(table, path: Path) -> None:
     """CSV of ``table`` (a DataFrame or a :class:`ResidualRows`): the bytes of pandas'
     ``to_csv(index=False)`` of the whole table (floats in numpy's shortest round-trip
     text, empty cells for NaN, True/False), written a block of rows at a time by
-    :mod:`analysis.identification.table_csv` (a 1e6-test residual table, 6e6 rows,
+    :mod:`analysis.identification.io.table_csv` (a 1e6-test residual table, 6e6 rows,
     never exists as one DataFrame)."""
-    from analysis.identification.table_csv import write_blocks, write_frame
+    from analysis.identification.io.table_csv import write_blocks, write_frame
 
     if isinstance(table, ResidualRows):
         write_blocks(path, table.names, table.blocks())

@@ -64,14 +64,12 @@ def _limits(robot: RobotModel, q: np.ndarray, lines, where: str, what: str) -> N
             "convention)", where=_first(np.any(out, axis=1), lines, where))
 
 
-def compensate_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray,
-                    cov_x: np.ndarray | None, lines: np.ndarray, where: str,
-                    min_inv_kappa: float = MIN_INV_KAPPA) -> PathCompensation:
-    """Predict, compensate and check every point of a path (see module docstring).
+def check_path(robot: RobotModel, q: np.ndarray, lines: np.ndarray, where: str,
+               min_inv_kappa: float = MIN_INV_KAPPA) -> tuple[np.ndarray, tuple[float, str]]:
+    """Refuse a path with a point outside the joint limits or near a singularity.
 
-    q (N, n) commanded joints (rad); k (n,) (N m/rad); w (N, 6) (N, N m);
-    cov_x (n, n) covariance of the compliances or None; lines (N,) CSV lines
-    and ``where`` (the file) for messages.
+    q (N, n) commanded joints (rad); returns 1/kappa_F (N,) of the normalized
+    Jacobian and the characteristic length used (m, where it comes from).
     """
     q = np.asarray(q, dtype=float)
     _limits(robot, q, lines, where, "commanded")
@@ -86,6 +84,33 @@ def compensate_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarr
         raise InputError(f"near a singularity: 1/kappa_F = {inv_k[i]:.4f} < {min_inv_kappa:g} "
                          "(compensating there needs large joint corrections)",
                          where=_first(near, lines, where))
+    return inv_k, length
+
+
+def predict_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray,
+                 cov_x: np.ndarray | None, lines: np.ndarray,
+                 where: str) -> DeflectionPrediction:
+    """The predicted deflection at every point (see :func:`predict_deflection`); a point
+    without equilibrium under its wrench is refused with its CSV line."""
+    try:
+        return predict_deflection(robot, q, k, w, cov_x)
+    except EquilibriumError as err:
+        bad = err.unconverged if err.unconverged is not None else np.ones(len(q), bool)
+        raise InputError(f"no equilibrium under the wrench: {err}",
+                         where=_first(bad, lines, where)) from None
+
+
+def compensate_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray,
+                    cov_x: np.ndarray | None, lines: np.ndarray, where: str,
+                    min_inv_kappa: float = MIN_INV_KAPPA) -> PathCompensation:
+    """Predict, compensate and check every point of a path (see module docstring).
+
+    q (N, n) commanded joints (rad); k (n,) (N m/rad); w (N, 6) (N, N m);
+    cov_x (n, n) covariance of the compliances or None; lines (N,) CSV lines
+    and ``where`` (the file) for messages.
+    """
+    q = np.asarray(q, dtype=float)
+    inv_k, length = check_path(robot, q, lines, where, min_inv_kappa)
     try:
         before = predict_deflection(robot, q, k, w, cov_x)
         comp = compensate(robot, q, k, w)

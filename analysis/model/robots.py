@@ -72,17 +72,27 @@ def load_robot(spec: str, tip: str | None = None, where: str = "--robot") -> Rob
 
     Parameters
     ----------
-    spec : built-in name (see ``campaign robots``) or a file path.
-    tip : frame name of the tool point, required for a URDF.
+    spec : built-in name (see ``campaign robots``) or a file path; a URDF may name its
+        tool frame as ``FILE.urdf#FRAME`` (:mod:`analysis.model.robot_spec`).
+    tip : frame name of the tool point, required for a URDF (unless given with ``#``).
     where : the option or argument ``spec`` came from, for messages.
     """
+    from analysis.model.robot_spec import split_urdf_spec
+
     key = spec.strip().lower()
     if key in builtin_files():
         return _load_builtin(key)
+    spec, frame = split_urdf_spec(spec)
+    if frame is not None:
+        if tip and tip != frame:
+            raise InputError(f"two tool frames: {frame!r} after '#' and {tip!r} (--tip); "
+                             "give one", where=where)
+        tip = frame
     path = Path(spec)
     if path.suffix.lower() == ".urdf":
         if not tip:
-            raise InputError("a URDF needs the tool frame: add --tip FRAME", where=where)
+            raise InputError("a URDF needs the tool frame: add --tip FRAME (or write "
+                             "FILE.urdf#FRAME)", where=where)
         return load_urdf(path, tip)
     if path.suffix.lower() in (".toml", ".yaml", ".yml"):
         if not path.is_file():

@@ -181,25 +181,38 @@ def run_local(problem: Problem, placements, chunk: int,
 
 
 def run_dask(problem: Problem, placements, chunk: int, client,
-             show_progress: bool = False) -> ChunkResult:
+             show_progress: bool = False,
+             progress: Callable[[int, int], None] | None = None) -> ChunkResult:
     """Evaluate the chunks as tasks of a ``dask.distributed`` client, gathered in order.
 
     At most :data:`DASK_WINDOW` tasks are submitted at a time, so the client holds a
-    bounded number of chunks besides the collected results.
+    bounded number of chunks besides the collected results. ``progress(done, total)``
+    is called as each task's result arrives (tasks, not placements); an exception it
+    raises stops the search (the futures are released).
     """
+    from distributed import as_completed
+
     problem_f = client.scatter(problem, broadcast=True)
     total = len(placements)
     out = _Collector(total, problem.points.shape[0])
     span = chunk * DASK_WINDOW
+    count, done = -(-total // chunk), 0
     for first in range(0, total, span):
         starts = list(range(first, min(total, first + span), chunk))
         pieces = [placements[s:s + chunk] for s in starts]
         futures = client.map(evaluate_chunk, [problem_f] * len(pieces), pieces)
         if show_progress:
-            from distributed import progress
+            from distributed import progress as progress_bar
 
-            progress(futures)
-        for s, part in zip(starts, client.gather(futures), strict=True):
-            out.put(s, part)
-        del futures
+            progress_bar(futures)
+        where = {f.key: s for f, s in zip(futures, starts, strict=True)}
+        try:
+            for future in as_completed(futures):
+                out.put(where[future.key], future.result())
+                done += 1
+                if progress:
+                    progress(done, count)
+        finally:
+            client.cancel(futures)
+            del futures
     return out.result()

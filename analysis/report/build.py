@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.identification.estimate import OUTLIER_FAMILY_LEVEL
-from analysis.identification.measurements import COMPONENTS, TestArrays
+from analysis.identification.io.measurements import COMPONENTS, TestArrays
 from analysis.identification.noise import NoiseModel
+from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
 from analysis.identification.result import IdentificationResult
 from analysis.kinetostatics.map_fixed import MapFixed, map_fixed_joints
 from analysis.model.robot_model import RobotModel

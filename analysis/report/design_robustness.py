@@ -10,7 +10,7 @@ the exact displacement (nonlinear equilibrium) at the reference stiffness,
 adds the noise model's normal noise to the displacement, wrench and joint
 angles, and identifies with the paper's linear model (eqs. 16-18), weighted
 by each test's measurement covariance (displacement noise plus the wrench
-noise through the compliance; :func:`analysis.identification.robustness.identify_batch`).
+noise through the compliance; :func:`analysis.identification.studies.robustness.identify_batch`).
 The Jacobian is evaluated at the noisy joint angles, as a real
 identification would.
 """
@@ -24,7 +24,7 @@ import pandas as pd
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from analysis.identification.robustness import identify_batch
+from analysis.identification.studies.robustness import identify_batch
 from analysis.kinetostatics.equilibrium import EquilibriumError, displacement_screw
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification.measurements import COMPONENTS, TestArrays
+from analysis.identification.io.measurements import COMPONENTS, TestArrays
 from analysis.report.formatting import MICRO, fixed, level, sig
 from analysis.report.model import Table
 

@@ -34,7 +34,7 @@ class HeldOut:
 
 
 #: the validation's columns of the total-uncertainty check, when it gives them
-#: (:mod:`analysis.identification.holdout_check`): ratio, per-pose limit, flag
+#: (:mod:`analysis.identification.validation.holdout_check`): ratio, per-pose limit, flag
 TOTAL_COLUMNS = ("rms_normalized_total", "limit_normalized_total", "beyond_limit")
 
 

@@ -18,7 +18,7 @@ import pandas as pd
 from analysis.errors import InputError
 from analysis.model.robot_model import RobotModel
 from campaign.acquire.geometry import approach_pose
-from campaign.plan_output import MAX_REPEATS
+from campaign.planning.plan_output import MAX_REPEATS
 from campaign.protocol import DEG, Protocol
 from drivers.errors import SafetyRefusal
 from drivers.safety import check_force, check_joint_targets, format_motion_list

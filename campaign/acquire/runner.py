@@ -332,7 +332,8 @@ class Runner:
     def _measure(self, test: PlannedTest, repeat: int) -> dict[str, Any]:
         inst = self.inst
         # the previous test's readings are not this one's: blank until measured
-        self.reporter.phase(wrench=None, wrench_planned=None, deflection_mm=None)
+        self.reporter.phase(wrench=None, wrench_planned=None, deflection_mm=None,
+                            rotation_mrad=None)
         self._move(test.q_approach, "approach")
         q = self._move(test.q, "move")
         T_fk = tool_pose(self.robot, q)
@@ -387,7 +388,8 @@ class Runner:
                    repeatability_mm=res.repeatability * 1e3, drift_mm=res.drift * 1e3,
                    wrench_error_N=res.wrench_error, tracker_sigma_mm=res.tracker_sigma * 1e3,
                    t_utc=utc())
-        self.reporter.phase(deflection_mm=screw[:3] * 1e3, wrench=w_base)
+        self.reporter.phase(deflection_mm=screw[:3] * 1e3, rotation_mrad=screw[3:] * 1e3,
+                            wrench=w_base)
         if res.flags:
             raise CheckFailed(row, res.flags)
         return row

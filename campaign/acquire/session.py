@@ -36,7 +36,7 @@ from campaign.acquire.rundir import (
 )
 from campaign.acquire.runner import Runner, RunSettings, utc
 from campaign.acquire.settle import SettleRule, rule_for
-from campaign.plan_output import load_plan
+from campaign.planning.plan_output import load_plan
 from campaign.protocol import Protocol
 from campaign.protocol_robot import protocol_robot
 from drivers.errors import SafetyRefusal
@@ -92,13 +92,14 @@ def _protocol_copy_name(protocol: Protocol) -> str:
 
 
 def write_tests_sidecar(run_path: Path, protocol: Protocol, robot: Any) -> None:
-    """tests.meta.json next to tests.csv: robot, tool, noise model (see campaign/tests_meta.py).
+    """tests.meta.json next to tests.csv: robot, tool, noise model
+    (see campaign/run_format/tests_meta.py).
 
     Written when the run starts (and on resume when missing), so a copy of the
     run's tests.csv analysed on its own keeps its tool point and noise figures.
     """
+    from campaign.run_format.tests_meta import sidecar_path, sidecar_record, write_sidecar
     from campaign.run_noise import noise_from_protocol, protocol_noise_source
-    from campaign.tests_meta import sidecar_path, sidecar_record, write_sidecar
 
     csv_path = Path(run_path) / TESTS
     if os.path.lexists(sidecar_path(csv_path)):

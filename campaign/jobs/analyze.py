@@ -24,7 +24,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.cli_common import Covariance, Method, Robust
+from campaign.cli.common import Covariance, Method, Robust
 from campaign.jobs.common import Stage, floats, no_stage, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
@@ -150,7 +150,7 @@ def _instrument_text(spec) -> str:
 
 def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
     from analysis.report.summary import CampaignInfo
-    from campaign.report_trace import run_trace
+    from campaign.run_format.trace import run_trace
 
     meta = run.metadata
     tool = tool.text()
@@ -180,12 +180,13 @@ def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
 
 
 def _tool_problem(result, model, tests, noise, method: str, tool) -> list[str]:
-    """The tool-point F-test (:mod:`analysis.identification.tool_check`) as a refusal, if any.
+    """The tool-point F-test (:mod:`analysis.identification.checks.tool_check`) as a refusal, if
+    any.
 
     Stored in ``assumptions.tool_point.check``; refused at P < 1e-3 when P was assumed
     (no tool point given anywhere), at P < 1e-6 when one was given; a warning below 0.01.
     """
-    from analysis.identification import tool_check
+    from analysis.identification.checks import tool_check
 
     if len(result.joints) < 6:
         # joints taken rigid leave a misfit of their own (the wrist absorbed by k1..k3), which
@@ -226,8 +227,8 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
     """
     from campaign.protocol import load_protocol
     from campaign.protocol_robot import protocol_robot
-    from campaign.run_reader import read_run
-    from campaign.tests_meta import read_sidecar
+    from campaign.run_format.reader import read_run
+    from campaign.run_format.tests_meta import read_sidecar
 
     run = read_run(run_dir)
     protocol = load_protocol(run.protocol_path) if run.protocol_path else None
@@ -286,9 +287,9 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     """(tests, robot, noise, info, extras) of a tests CSV file and its sidecar, if any;
     tests as :class:`TestArrays` (read straight into arrays: a 1e6-row file never
     becomes a table)."""
-    from analysis.identification.measurements import read_test_arrays
+    from analysis.identification.io.measurements import read_test_arrays
     from analysis.report.summary import CampaignInfo
-    from campaign.tests_meta import read_sidecar
+    from campaign.run_format.tests_meta import read_sidecar
 
     meta = read_sidecar(path)
     notes = []
@@ -332,7 +333,7 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
                  covariance: str, joints, robust: str = "none") -> dict:
     """What the analysis rests on (results.json ``assumptions``, the terminal, the report)."""
     from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, pose_tolerance
-    from campaign.tests_meta import CONVENTIONS
+    from campaign.run_format.tests_meta import CONVENTIONS
 
     tool: ToolPoint = extras["tool"]
     return {
@@ -359,7 +360,7 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
 
 def _holdout_deg(protocol) -> tuple[float, str]:
     """Poses closer than this (deg) are held out together, and where that comes from."""
-    from analysis.identification.holdout_check import CLUSTER_DEG
+    from analysis.identification.validation.holdout_check import CLUSTER_DEG
 
     if protocol is not None:
         return (float(protocol.thresholds.min_pose_separation_deg),
@@ -374,10 +375,10 @@ def _folds_text(protocol) -> str:
 
 
 def _release_freed_heap() -> None:
-    """:func:`analysis.identification.per_test.release_freed_heap` (the text table's cells
+    """:func:`analysis.identification.streaming.per_test.release_freed_heap` (the text table's cells
     are many small allocations: freed, they stay in the process, ~0.15 GB after a
     1e6-row import, under the arrays the fits then allocate)."""
-    from analysis.identification.per_test import release_freed_heap
+    from analysis.identification.streaming.per_test import release_freed_heap
 
     release_freed_heap()
 
@@ -474,7 +475,7 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
     from analysis.output_files import write_text
 
     paths = write_results(result, out)
-    from analysis.identification.model_export import export_model  # model.toml, K_X
+    from analysis.identification.io.model_export import export_model  # model.toml, K_X
     from analysis.report.traceability import stamp_results
 
     paths.update(export_model(result, model, out, tests, info))
@@ -531,10 +532,10 @@ def run(o: AnalyzeOptions, stage: Stage = no_stage,
 
 
 def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult:
-    from analysis.identification.data_fingerprint import fingerprint
+    from analysis.identification.checks.plausibility import problems
     from analysis.identification.estimate import identify, parse_joints
-    from analysis.identification.measurements import TestArrays, to_arrays
-    from analysis.identification.plausibility import problems
+    from analysis.identification.io.data_fingerprint import fingerprint
+    from analysis.identification.io.measurements import TestArrays, to_arrays
     from analysis.output_files import check_output_dir, replaced_dir
 
     gc.freeze()  # what was just imported joins the frozen objects (see _frozen_heap)

@@ -37,8 +37,8 @@ class CompareResult:
 
 def run(o: CompareOptions) -> CompareResult:
     """Load both campaigns, compare them and write the plot and report asked for."""
-    from analysis.identification.compare import compare, load_campaign
-    from analysis.identification.compare_plot import check_plot_path, plot_comparison
+    from analysis.identification.compare.comparison import compare, load_campaign
+    from analysis.identification.compare.plot import check_plot_path, plot_comparison
 
     if o.plot is not None:
         check_plot_path(Path(o.plot))

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli_common import Program, WrenchFrame
+from campaign.cli.common import Program, WrenchFrame
 from campaign.jobs.common import floats, joint_stiffness, robot_and_tool
 
 
@@ -64,7 +64,7 @@ class CompensateResult:
 
 
 def _verify(protocol: Path, robot, pin, pc, readings: int) -> tuple:
-    from campaign.verify_fake import run_on_fake_lab
+    from campaign.use.verify_fake import run_on_fake_lab
 
     check = run_on_fake_lab(protocol, robot, pin.q, pc.comp.q_cmd, pin.w, readings)
     stats = check.stats()
@@ -77,8 +77,8 @@ def run(o: CompensateOptions) -> CompensateResult:
     """Read the path, compensate it and write the output directory."""
     from analysis.kinetostatics.path_compensation import compensate_path
     from analysis.output_files import check_output_dir, make_dir, replacing, write_text
-    from campaign import compensate_output as co
-    from campaign.path_file import read_path
+    from campaign.use import compensate_output as co
+    from campaign.use.path_file import read_path
 
     if o.verify_fake and o.protocol is None:
         raise InputError("--verify-fake needs --protocol P (the lab to simulate)",

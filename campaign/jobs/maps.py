@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli_common import TableFormat
+from campaign.cli.common import TableFormat
 from campaign.jobs.common import (
     Note,
     Stage,

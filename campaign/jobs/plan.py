@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from campaign.cli_common import Strategy
+from campaign.cli.common import Strategy
 from campaign.jobs.common import Stage, floats, no_stage
 
 
@@ -19,7 +19,8 @@ class PlanOptions:
     weights: the joints' weights of the relative standard errors (strategy weighted);
     seed: seed of the candidate draw and random design; candidates: candidate poses drawn;
     tests: test poses (None: the protocol's); figure: draw plan_map.png;
-    force: write into a non-empty ``out`` (its plan files are replaced)."""
+    force: write into a non-empty ``out`` (its plan files are replaced);
+    map_points: also return the zone map's data (:func:`campaign.planning.plan_map.map_points`)."""
 
     protocol: Path
     out: Path
@@ -30,16 +31,18 @@ class PlanOptions:
     tests: int | None = None
     figure: bool = True
     force: bool = False
+    map_points: bool = False
 
 
 @dataclass
 class PlanResult:
     """summary: the document written to OUT/summary.json (SI units); text: summary.txt;
-    plan_file: OUT/plan.csv."""
+    plan_file: OUT/plan.csv; map: the zone map's data (with ``map_points``)."""
 
     summary: dict
     text: str
     plan_file: Path
+    map: dict | None = None
 
     def to_json(self) -> dict:
         """The document ``campaign plan --json`` prints."""
@@ -49,7 +52,7 @@ class PlanResult:
 def run(o: PlanOptions, stage: Stage = no_stage) -> PlanResult:
     """Load the protocol, plan and write the plan directory (removed again on failure)."""
     from analysis.output_files import check_output_dir, created_dir
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     proto = load_protocol(Path(o.protocol))
@@ -63,5 +66,10 @@ def run(o: PlanOptions, stage: Stage = no_stage) -> PlanResult:
     with stage("writing the plan" + (" and plan_map.png" if o.figure else "")), \
             created_dir(out):
         path = write_plan(plan, out, figure=o.figure)
+    points = None
+    if o.map_points:
+        from campaign.planning.plan_map import map_points
+
+        points = map_points(plan)
     return PlanResult(json.loads((out / "summary.json").read_text()),
-                      (out / "summary.txt").read_text(), path)
+                      (out / "summary.txt").read_text(), path, points)

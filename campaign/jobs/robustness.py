@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli_common import Method, RotationSource
+from campaign.cli.common import Method, RotationSource
 from campaign.jobs.analyze import DEFAULT_METHOD
 from campaign.jobs.common import joint_stiffness, robot_and_tool, wrench
 
@@ -172,7 +172,7 @@ def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None
     """
     from contextlib import nullcontext
 
-    from analysis.identification.robustness import W_EFF, plot_study, robustness_study
+    from analysis.identification.studies.robustness import W_EFF, plot_study, robustness_study
 
     method = str(o.method)
     r, _ = robot_and_tool(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)

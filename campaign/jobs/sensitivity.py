@@ -3,10 +3,10 @@
 Given a robot, the poses of the tests, the wrench of each test and one
 standard deviation per error source, it simulates ``trials`` noisy campaigns
 and identifies each (the project's Monte-Carlo of a design,
-:mod:`analysis.identification.design_simulation`), then reports per joint
+:mod:`analysis.identification.studies.design_simulation`), then reports per joint
 the spread of the identified k (median, quartiles, a few individual trial
 sets: the paper's broken lines) beside the planner's predicted standard
-error (:func:`campaign.criteria.candidate_information`, the same noise model).
+error (:func:`campaign.planning.criteria.candidate_information`, the same noise model).
 
 Poses: ``zones`` draws ``n_tests`` poses in the robot's zones (the paper's
 Table 4 for the KR240-2) with 1/kappa_F >= 0.2, the first ``n_tests`` of a
@@ -161,14 +161,14 @@ def _check(o: SensitivityOptions) -> None:
 def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.ndarray | None]:
     """(q (count, n) rad, the plan's wrenches (count, 6) or None): the tests in order."""
     if o.poses == "zones":
-        from analysis.identification.robustness import sample_poses
+        from analysis.identification.studies.robustness import sample_poses
 
         q = sample_poses(robot, max(ZONE_POOL, count), np.random.default_rng(o.seed))
         return q[:count], None
     if o.poses == "plan":
         if o.plan_dir is None:
             raise InputError("poses 'plan' needs a plan directory", where="plan")
-        from campaign.plan_output import read_plan
+        from campaign.planning.plan_output import read_plan
 
         _, df = read_plan(o.plan_dir)
         q = np.radians(df[[f"q{j}_model_deg" for j in range(1, robot.n + 1)]].to_numpy(float))
@@ -192,9 +192,9 @@ def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.nda
 def predicted_relative_se(robot, q, w, k, noise) -> np.ndarray:
     """(t, n): the planner's relative standard error of each k for the first 1, 2, ..., t
     of the tests (q (t, n) rad, w (t, 6) N, N m), one row each; inf where not identified."""
-    from analysis.identification.robustness import jacobian_derivative
+    from analysis.identification.studies.robustness import jacobian_derivative
     from analysis.model.kinematics import jacobian
-    from campaign.criteria import candidate_information, relative_se
+    from campaign.planning.criteria import candidate_information, relative_se
 
     F = candidate_information(jacobian(robot, q), w, noise, k, 1, jacobian_derivative(robot, q))
     return relative_se(np.cumsum(F, axis=0))
@@ -202,8 +202,11 @@ def predicted_relative_se(robot, q, w, k, noise) -> np.ndarray:
 
 def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
     """Simulate and identify ``o.trials`` campaigns; ``robot`` (a loaded model) skips loading."""
-    from analysis.identification.design_simulation import identify_campaigns, simulate_campaigns
-    from analysis.identification.robustness import W_EFF
+    from analysis.identification.studies.design_simulation import (
+        identify_campaigns,
+        simulate_campaigns,
+    )
+    from analysis.identification.studies.robustness import W_EFF
 
     _check(o)
     if robot is None:

@@ -1,4 +1,13 @@
-"""``/api/jobs``: one POST endpoint per job of :mod:`campaign.jobs`.
+"""``/api/jobs``: one POST endpoint per job of :mod:`campaign.jobs`, and the job queue.
+
+The long jobs (plan, acquire, analyze, maps, robustness, compensate, place) are
+queued (:mod:`campaign.web.job_submit`; each runs in a process of its own,
+:mod:`campaign.web.job_tasks`): the POST checks the request (paths, this
+server's bounds on trials, candidates, evaluations and map points: 400 naming
+the limit), answers 202 with the job (``id``, ``state``...; 429 when the queue is
+full), and ``GET /api/jobs/{id}`` gives its state, progress, result or error
+(``/events``: the same as server-sent events; ``DELETE`` or ``POST .../cancel``
+stops it, its outputs removed). robots, stiffness and compare answer at once.
 
 Request bodies are the jobs' options records themselves (FastAPI reads the
 dataclasses), so the units are the records' SI units (radians, N, N m, m),
@@ -13,14 +22,17 @@ refused with 400 and one line. The jobs get absolute paths, so the files they
 write name workspace files by absolute path where the command line would write
 the path as typed; the JSON answers give them relative to the workspace.
 Bad input gets 400 (or 422 from the body's
-schema) with the same one-line message as the command line; a refused write
-(disk full, permissions) is 409 with the file named.
+schema) with the same one-line message as the command line, with the request
+field at fault and the command-line options the line names
+(:mod:`campaign.web.job_errors`); a refused write (disk full, permissions) is
+409 with the file named. A queued job's refusal is the same record, as its
+``error``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import errno
+import json
 from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -28,8 +40,7 @@ from typing import Any
 from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
 
-from analysis.errors import InputError
-from campaign.cli_common import json_ready
+from campaign.cli.common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
 from campaign.jobs.analyze import AnalyzeOptions
 from campaign.jobs.compare import CompareOptions
@@ -40,6 +51,18 @@ from campaign.jobs.plan import PlanOptions
 from campaign.jobs.robots import RobotsOptions
 from campaign.jobs.robustness import RobustnessOptions
 from campaign.jobs.stiffness import StiffnessOptions
+from campaign.use.place_run import DEFAULT_MAX_EVALUATIONS
+from campaign.web import job_tasks
+from campaign.web.job_errors import describe, relative_to_workspace
+from campaign.web.job_submit import QUEUED, submit
+from campaign.web.job_submit import router as queue_router
+
+#: per request: robustness' simulated campaigns (trials x numbers of tests; the default
+#: study is 20 000), plan's candidate poses, place's evaluations, maps' grid points
+MAX_CAMPAIGNS = 100_000
+MAX_CANDIDATES = 100_000
+MAX_EVALUATIONS = DEFAULT_MAX_EVALUATIONS
+MAX_MAP_POINTS = 4_000_000
 
 router = APIRouter(prefix="/api/jobs", tags=["jobs"])
 
@@ -81,45 +104,59 @@ def inside(ws: Path, rel: str | Path, field: str) -> Path:
     return path
 
 
-def _relative(ws: Path, doc: Any) -> Any:
-    """``doc`` with the workspace's absolute paths written relative to it."""
-    if isinstance(doc, dict):
-        return {k: _relative(ws, v) for k, v in doc.items()}
-    if isinstance(doc, list):
-        return [_relative(ws, v) for v in doc]
-    if isinstance(doc, str):
-        return doc.replace(f"{ws}/", "")
-    return doc
-
-
 def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
-    """Run ``job()``; its result record as JSON, or bad input as 400 with its one line."""
+    """Run ``job()``; its result record as JSON, or bad input raised as HTTPException
+    (400/409) with its one line (for the routes that answer errors as FastAPI does)."""
+    answered = answer(ws, job)
+    if answered.status_code >= 400:
+        raise HTTPException(answered.status_code, json.loads(answered.body)["detail"])
+    return answered
+
+
+def answer(ws: Path | None, job: Callable[[], Any], options=None,
+           present: Callable[[Any], Any] | None = None) -> JSONResponse | None:
+    """Run ``job()`` here and now; its result record as JSON, or a refusal as 400/409
+    with its one line, the request field at fault and the options it names
+    (:func:`campaign.web.job_errors.describe`). ``present(result)`` instead of the
+    record's JSON (its value is returned as it is: None for a check that passed)."""
     try:
         result = job()
-    except InputError as err:
-        text = str(err) if ws is None else str(err).replace(f"{ws}/", "")
-        raise HTTPException(400, text) from None
-    except OSError as err:
-        where = f"{err.filename}: " if err.filename else ""
-        text = f"{where}{err.strerror or err}"
-        if ws is not None:
-            text = text.replace(f"{ws}/", "")
-        # a name the file system cannot take is bad input; a refused write is a conflict
-        status = 400 if err.errno in (errno.ENAMETOOLONG, errno.EINVAL) else 409
-        raise HTTPException(status, text) from None
     except Exception as err:
-        if type(err).__name__ == "EquilibriumError":
-            raise HTTPException(400, f"nonlinear equilibrium: {err}; reduce the wrench or "
-                                     "check the joint stiffness") from None
-        raise
+        error = describe(err, ws, options)
+        if error is None:
+            raise
+        return JSONResponse({k: v for k, v in error.items() if k != "status"},
+                            status_code=error["status"])
+    if present is not None:
+        return present(result)
     doc = json_ready(result.to_json())
-    return JSONResponse(doc if ws is None else _relative(ws, doc))
+    return JSONResponse(doc if ws is None else relative_to_workspace(ws, doc))
+
+
+def bound_error(field: str, text: str) -> JSONResponse:
+    """400 for a request above one of this server's bounds, the bound named."""
+    return JSONResponse({"detail": f"{field}: {text}", "field": field, "options": {}},
+                        status_code=400)
+
+
+def map_points(step_rad: float) -> float | None:
+    """Grid points of a (theta_2, theta_3) map at ``step_rad`` over a full turn each (an
+    upper bound of the robot's own ranges); None for a step that is not positive."""
+    import math
+
+    if not (math.isfinite(step_rad) and step_rad > 0):
+        return None
+    return (2 * math.pi / step_rad + 1) ** 2
 
 
 def robot_path(ws: Path, robot: str, field: str = "robot") -> str:
-    """A robot given by name stays a name; one given as a file is a workspace path."""
-    if Path(robot).suffix.lower() in (".urdf", ".toml", ".yaml", ".yml"):
-        return str(inside(ws, robot, field))
+    """A robot given by name stays a name; one given as a file is a workspace path (a
+    URDF may carry its tool frame, ``FILE.urdf#FRAME``: analysis.model.robot_spec)."""
+    from analysis.model.robot_spec import is_robot_file, split_urdf_spec
+
+    if is_robot_file(robot):
+        path, frame = split_urdf_spec(robot.strip())
+        return str(inside(ws, path, field)) + (f"#{frame}" if frame else "")
     return robot  # a built-in name (an unknown one is refused by the job, naming the field)
 
 
@@ -130,7 +167,7 @@ def robots(options: RobotsOptions, ws: Path = Depends(workspace)) -> JSONRespons
 
     if options.name is not None:
         options = dataclasses.replace(options, name=robot_path(ws, options.name, "name"))
-    return call(ws, lambda: run(options))
+    return answer(ws, lambda: run(options), options)
 
 
 @router.post("/stiffness")
@@ -139,83 +176,110 @@ def stiffness(options: StiffnessOptions, ws: Path = Depends(workspace)) -> JSONR
     from campaign.jobs.stiffness import run
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot))
-    return call(ws, lambda: run(options))
+    return answer(ws, lambda: run(options), options)
 
 
-@router.post("/plan")
-def plan(options: PlanOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """Plan the tests of a protocol file; writes the plan directory ``out`` (workspace paths)."""
-    from campaign.jobs.plan import run
+@router.post("/plan", status_code=202, responses=QUEUED)
+def plan(options: PlanOptions, request: Request,
+         ws: Path = Depends(workspace)) -> JSONResponse:
+    """Plan the tests of a protocol file into the plan directory ``out`` (workspace paths);
+    queued (202 with the job; ``candidates`` at most :data:`MAX_CANDIDATES`)."""
 
+    if options.candidates > MAX_CANDIDATES:
+        return bound_error("candidates", f"{options.candidates} candidate poses, above this "
+                           f"server's limit of {MAX_CANDIDATES} per request")
     options = dataclasses.replace(options, protocol=inside(ws, options.protocol, "protocol"),
                                   out=inside(ws, options.out, "out"))
-    return call(ws, lambda: run(options))
+    return submit(request, ws, "plan", options, job_tasks.plan)
 
 
-@router.post("/maps")
-def maps(options: MapsOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """The paper's Figs. 3 and 5 maps into ``out`` (grid step and fixed joints in rad)."""
-    from campaign.jobs.maps import run
+@router.post("/maps", status_code=202, responses=QUEUED)
+def maps(options: MapsOptions, request: Request,
+         ws: Path = Depends(workspace)) -> JSONResponse:
+    """The paper's Figs. 3 and 5 maps into ``out`` (grid step and fixed joints in rad);
+    queued (202 with the job; at most :data:`MAX_MAP_POINTS` grid points)."""
 
+    points = map_points(options.step_rad)  # None: a step the job itself refuses
+    if points is not None and points > MAX_MAP_POINTS:
+        return bound_error("step_rad", f"a step of {options.step_rad:g} rad gives up to "
+                           f"{points:.3g} "
+                           f"grid points, above this server's limit of {MAX_MAP_POINTS:.3g} "
+                           "per request: a coarser step")
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   out=inside(ws, options.out, "out"))
-    return call(ws, lambda: run(options))
+    return submit(request, ws, "maps", options, job_tasks.maps)
 
 
 @router.post("/compare")
 def compare(options: CompareOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """k_B - k_A per joint with its interval, z score and verdict (campaign paths a and b)."""
+    """k_B - k_A per joint with its interval, z score and verdict (campaign paths a and b);
+    answered at once (a comparison takes milliseconds)."""
     from campaign.jobs.compare import run
 
     options = dataclasses.replace(
         options, a=inside(ws, options.a, "a"), b=inside(ws, options.b, "b"),
         plot=None if options.plot is None else inside(ws, options.plot, "plot"),
         report=None if options.report is None else inside(ws, options.report, "report"))
-    return call(ws, lambda: run(options))
+    return answer(ws, lambda: run(options), options)
 
 
-@router.post("/compensate")
-def compensate(options: CompensateOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """The deflection along a path, the compensated joints and the robot program in ``out``."""
-    from campaign.jobs.compensate import run
+@router.post("/compensate", status_code=202, responses=QUEUED)
+def compensate(options: CompensateOptions, request: Request,
+               ws: Path = Depends(workspace)) -> JSONResponse:
+    """The deflection along a path, the compensated joints and the robot program in ``out``;
+    queued (202 with the job)."""
 
     options = dataclasses.replace(
         options, robot=robot_path(ws, options.robot), path=inside(ws, options.path, "path"),
         out=inside(ws, options.out, "out"),
         protocol=None if options.protocol is None else inside(ws, options.protocol,
                                                                "protocol"))
-    return call(ws, lambda: run(options))
+    return submit(request, ws, "compensate", options, job_tasks.compensate)
 
 
-@router.post("/place")
-def place(options: PlaceOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+@router.post("/place", status_code=202, responses=QUEUED)
+def place(options: PlaceOptions, request: Request,
+          ws: Path = Depends(workspace)) -> JSONResponse:
     """The placement search (options in the command line's units: mm, deg, ``A..B`` ranges);
-    the answer is placement.json. ``workers`` 0 runs the search in the server's process."""
-    from campaign.jobs.place import run
+    the options and the search's size are checked at once (400; at most
+    :data:`MAX_EVALUATIONS` evaluations), then the search is queued (202 with the job,
+    whose result is placement.json). ``workers`` 0 runs it in the server's process, else
+    on a local Dask cluster as the command line."""
+    from campaign.use.place_run import check_search
 
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   path=inside(ws, options.path, "path"),
                                   out=inside(ws, options.out, "out"))
-    return call(ws, lambda: run(options))
+    refused = answer(ws, lambda: check_search(options, MAX_EVALUATIONS), options,
+                     present=lambda size: None)
+    if refused is not None:
+        return refused
+    return submit(request, ws, "place", options, job_tasks.place, (MAX_EVALUATIONS,))
 
 
-@router.post("/robustness")
-def robustness(options: RobustnessOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """The Monte-Carlo spread of k against the number of tests (noise overrides in SI)."""
-    from campaign.jobs.robustness import run
-
+@router.post("/robustness", status_code=202, responses=QUEUED)
+def robustness(options: RobustnessOptions, request: Request,
+               ws: Path = Depends(workspace)) -> JSONResponse:
+    """The Monte-Carlo spread of k against the number of tests (noise overrides in SI);
+    queued (202 with the job; at most :data:`MAX_CAMPAIGNS` simulated campaigns,
+    trials x numbers of tests)."""
+    campaigns = options.trials * len(set(options.tests))
+    if campaigns > MAX_CAMPAIGNS:
+        return bound_error("trials", f"{options.trials} trials x {len(set(options.tests))} "
+                           f"numbers of tests = {campaigns} simulated campaigns, above this "
+                           f"server's limit of {MAX_CAMPAIGNS} per request")
     options = dataclasses.replace(
         options, robot=robot_path(ws, options.robot),
         out=None if options.out is None else inside(ws, options.out, "out"))
-    return call(ws, lambda: run(options))
+    return submit(request, ws, "robustness", options, job_tasks.robustness)
 
 
-@router.post("/analyze")
-def analyze(options: AnalyzeOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+@router.post("/analyze", status_code=202, responses=QUEUED)
+def analyze(options: AnalyzeOptions, request: Request,
+            ws: Path = Depends(workspace)) -> JSONResponse:
     """Identify k from a run directory or a tests CSV (noise overrides in SI, fractions for
-    the relative F/T noise); the answer is results.json with analysis.json and the files."""
-    from campaign.jobs.analyze import run
-
+    the relative F/T noise); queued (202 with the job, whose result is results.json with
+    analysis.json and the files)."""
     def opt(value, name):
         return None if value is None else inside(ws, value, name)
 
@@ -224,18 +288,21 @@ def analyze(options: AnalyzeOptions, ws: Path = Depends(workspace)) -> JSONRespo
         measurements=opt(options.measurements, "measurements"),
         robot=None if options.robot is None else robot_path(ws, options.robot),
         out=opt(options.out, "out"))
-    return call(ws, lambda: run(options))
+    return submit(request, ws, "analyze", options, job_tasks.analyze)
 
 
-@router.post("/acquire")
-def acquire(options: AcquireJobOptions, ws: Path = Depends(workspace)) -> JSONResponse:
-    """Run, resume or dry-run a campaign and answer when it ends (status, counts).
+@router.post("/acquire", status_code=202, responses=QUEUED)
+def acquire(options: AcquireJobOptions, request: Request,
+            ws: Path = Depends(workspace)) -> JSONResponse:
+    """Run, resume or dry-run a campaign; queued (202 with the job, whose result is the
+    status and counts). Cancelling it takes the Ctrl-C path (motion stopped, load
+    removed, ``aborted`` recorded: the run stays, resumable, as the command line's).
 
     Without ``out`` a new run goes to ``runs/run-<UTC time>`` in the workspace. A real
     robot moves only with ``assume_yes`` (nobody can be asked here); a long campaign is
-    better started as its own process (``python -m campaign.jobs.acquire``), which a
-    closed page does not stop."""
-    from campaign.jobs.acquire import default_run_dir, run
+    better started from the Acquire view (its own process, which a closed page or a
+    restarted server does not stop)."""
+    from campaign.jobs.acquire import default_run_dir
 
     def opt(value, name):
         return None if value is None else inside(ws, value, name)
@@ -248,4 +315,9 @@ def acquire(options: AcquireJobOptions, ws: Path = Depends(workspace)) -> JSONRe
         options, plan=opt(options.plan, "plan"), out=opt(out, "out"),
         resume=opt(options.resume, "resume"), events_file=opt(options.events_file,
                                                               "events_file"))
-    return call(ws, lambda: run(options, say=lambda s: None))
+
+    return submit(request, ws, "acquire", options, job_tasks.acquire, cleanup=False)
+
+
+# the queue's own routes: a job's state, its events, its cancellation
+router.include_router(queue_router)

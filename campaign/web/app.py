@@ -24,10 +24,15 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.sensitivity_api",
     "campaign.web.runs_api",
     "campaign.web.api_jobs",
+    "campaign.web.demo_api",
     "campaign.web.use_api",
+    "campaign.web.use_path_api",
     "campaign.web.acquire_api",
+    "campaign.web.acquire_map_api",
     "campaign.web.plan_api",
     "campaign.web.analyze_api",
+    "campaign.web.robots_api",
+    "campaign.web.analyze_plots_api",
 )
 
 STATIC = Path(__file__).parent / "static"

@@ -1,12 +1,13 @@
-"""``/api/plan``: the Plan view's server side (a protocol form, the plan job on it).
+"""``/api/plan``: the Plan view's server side (the protocol form, the plan job on it).
 
-The form edits a few keys of a protocol (a shipped one from ``protocols/`` or a
-``.toml`` of the workspace), named by their dotted keys (``campaign.tests``,
-``instruments.pose.noise.translation_um``). Values arrive as the user typed them and
-are written as numbers where they read as numbers; anything else is written as typed,
-so the protocol reader itself refuses it with the command line's own one-line message
-(``FILE:LINE: KEY: why``), which the answer names the field of. The protocol is saved
-as ``protocols/NAME.toml`` in the workspace and planned into ``plans/NAME``.
+The form holds every key of the protocol schema (:mod:`campaign.web.protocol_form`),
+filled from a protocol (a shipped one from ``protocols/`` or a ``.toml`` of the
+workspace). Values arrive as the user typed them, named by the key paths of the
+command line's messages (``campaign.tests``, ``load_cases[1].force_N``); what does
+not read as its field's kind is written as typed, so the protocol reader itself
+refuses it with the command line's own one-line message (``FILE:LINE: KEY: why``),
+which the answer names the field of. The protocol is saved as
+``protocols/NAME.toml`` in the workspace and planned into ``plans/NAME``.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import re
 import tomllib
 from pathlib import Path
+from typing import Annotated
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse
@@ -21,212 +23,225 @@ from pydantic import BaseModel, Field
 
 router = APIRouter(prefix="/api/plan", tags=["plan"])
 
-SHIPPED = Path(__file__).resolve().parents[2] / "protocols"
-#: the keys of the form: dotted key, label with its unit (the protocol's own units)
-FIELDS: tuple[tuple[str, str], ...] = (
-    ("campaign.name", "campaign name"),
-    ("campaign.robot", "robot (built-in name or robot file)"),
-    ("campaign.tests", "number of tests (poses)"),
-    ("campaign.repeats", "repeats per test"),
-    ("tool.xyz_mm", "tool point x,y,z in the flange frame (mm)"),
-    ("tool.rpy_deg", "tool frame roll,pitch,yaw (deg)"),
-    ("tool.mass_kg", "tool mass (kg)"),
-    ("instruments.force_torque.mount_xyz_mm", "F/T sensor origin in the tool frame (mm)"),
-    ("loads.selection", "load selection (per-pose or all)"),
-    ("load_cases.0.name", "first load case: name"),
-    ("load_cases.0.force_N", "first load case: force fx,fy,fz (N)"),
-    ("load_cases.0.moment_N_m", "first load case: moment mx,my,mz (N m)"),
-    ("instruments.force_torque.noise.force_N", "F/T force noise (N)"),
-    ("instruments.force_torque.noise.torque_N_m", "F/T moment noise (N m)"),
-    ("instruments.pose.noise.translation_um", "tracker translation noise (\u00b5m)"),
-    ("instruments.pose.noise.rotation_urad", "tracker rotation noise (\u00b5rad)"),
-    ("thresholds.min_inv_kappa_F", "minimum 1/kappa_F"),
-    ("thresholds.max_v_p", "maximum v_p"),
-    ("thresholds.max_v_r_deg", "maximum v_r (deg)"),
-    ("sampling.use_robot_zones", "sample the robot's zones (true/false)"),
-    ("safety.joint_margin_deg", "joint margin (deg)"),
-    ("safety.max_joint_speed_deg_s", "maximum joint speed (deg/s)"),
-    ("safety.max_joint_acceleration_deg_s2", "maximum joint acceleration (deg/s\u00b2)"),
-    ("safety.approach_offset_mm", "approach offset (mm)"),
-)
+SHIPPED = Path(__file__).resolve().parents[1] / "protocols"  # package data
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
 class PlanRequest(BaseModel):
-    """source: a shipped protocol's file name or a workspace .toml path; values: dotted
-    key -> the text typed; name: of the saved protocol and plan directory."""
+    """source: a shipped protocol's file name or a workspace .toml path; values: key ->
+    the text typed (an empty text leaves the key out); complete: ``values`` is the whole
+    form (else they change the source's values); name: of the saved protocol and plan
+    directory; strategy, seed, candidates: the planner's (``campaign plan`` options)."""
 
     source: str = Field("kr240-2.toml", max_length=300)
-    values: dict[str, str] = Field(default_factory=dict)
+    values: dict[str, Annotated[str, Field(max_length=20_000)]] = Field(
+        default_factory=dict, max_length=2000)
+    complete: bool = False
     name: str = Field("plan-gui", max_length=64)
     strategy: str = Field("worst-joint", max_length=40)
     seed: int = Field(0, ge=0, le=2**31)
     candidates: int = Field(2000, ge=10, le=100_000)
 
 
-def _error(text: str, field: str | None = None, status: int = 400) -> JSONResponse:
-    return JSONResponse({"detail": text, "field": field}, status_code=status)
+def _error(text: str, field: str | None = None, status: int = 400,
+           problems: list[dict] | None = None) -> JSONResponse:
+    return JSONResponse({"detail": text, "field": field,
+                         "problems": problems or [{"field": field, "detail": text}]},
+                        status_code=status)
 
 
 def _source(ws: Path, source: str) -> Path:
     from campaign.web.security import inside_workspace
 
-    if "/" not in source and (SHIPPED / source).is_file():
-        return SHIPPED / source
-    return inside_workspace(ws, source, "source")
-
-
-def _get(doc, key: str):
-    for part in key.split("."):
-        if isinstance(doc, list):
-            doc = doc[int(part)] if part.isdigit() and int(part) < len(doc) else None
-        elif isinstance(doc, dict):
-            doc = doc.get(part)
-        else:
-            return None
-    return doc
-
-
-def _set(doc, key: str, value) -> bool:
-    parts = key.split(".")
-    for part in parts[:-1]:
-        if isinstance(doc, list):
-            if not (part.isdigit() and int(part) < len(doc)):
-                return False
-            doc = doc[int(part)]
-        else:
-            doc = doc.setdefault(part, {})
-    if not isinstance(doc, dict):
-        return False
-    doc[parts[-1]] = value
-    return True
-
-
-def _text(value) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, list):
-        return ",".join(_text(v) for v in value)
-    return str(value)
-
-
-def _parse(text: str, like):
-    """``text`` as the type of ``like`` where it reads so; else the text (refused later
-    by the protocol reader with its own message)."""
-    t = text.strip()
     try:
-        if isinstance(like, bool):
-            return {"true": True, "false": False}.get(t.lower(), t)
-        if isinstance(like, list):
-            return [float(v) for v in t.split(",")]
-        if isinstance(like, int):
-            return int(t)
-        if isinstance(like, float):
-            return float(t)
-    except ValueError:
-        return t
-    if like is None:  # a key the protocol does not have: a number, a list, else text
-        for parse in (int, float, lambda v: [float(x) for x in v.split(",")]):
-            try:
-                return parse(t)
-            except ValueError:
-                pass
-    return t
+        shipped = "/" not in source and (SHIPPED / source).is_file()
+    except (OSError, ValueError):  # a name too long, a NUL byte: no shipped protocol
+        shipped = False
+    return SHIPPED / source if shipped else inside_workspace(ws, source, "source")
 
 
 @router.get("/protocols")
 def protocols(request: Request) -> dict:
     """The shipped protocols (file names) and the workspace's ``protocols/*.toml``."""
     ws = Path(request.app.state.workspace)
-    mine = sorted(str(p.relative_to(ws)) for p in (ws / "protocols").glob("*.toml")
-                  if p.is_file() and not p.is_symlink()) if (ws / "protocols").is_dir() else []
+    found = [*(ws / "protocols").glob("*.toml"), *ws.glob("*/protocol.toml"),
+             *ws.glob("*/*/protocol.toml")]
+    mine = sorted({str(p.relative_to(ws)) for p in found if p.is_file()
+                   and not p.is_symlink() and not p.parent.is_symlink()})
     return {"shipped": sorted(p.name for p in SHIPPED.glob("*.toml")), "workspace": mine,
             "strategies": _strategies()}
 
 
 def _strategies() -> list[str]:
-    from campaign.cli_common import Strategy
+    from campaign.cli.common import Strategy
 
     return [s.value for s in Strategy]
 
 
+def _document(ws: Path, source: str) -> dict:
+    """The TOML document of ``source`` (InputError naming it when unreadable)."""
+    from analysis.errors import InputError
+    from analysis.file_errors import decode_utf8
+
+    path = _source(ws, source)
+    try:
+        text = decode_utf8(path.read_bytes(), source, "protocol file")
+        return tomllib.loads(text)
+    except OSError as err:
+        raise InputError(f"cannot read: {err.strerror}", where=source) from None
+    except (tomllib.TOMLDecodeError, ValueError) as err:  # ValueError: a 4300-digit int
+        raise InputError(f"not TOML: {err}", where=source) from None
+
+
 @router.get("/form")
 def form(request: Request, source: str = Query("kr240-2.toml", max_length=300)):
-    """The form's keys, labels and values in ``source`` (the protocol's own units)."""
+    """Every field of the protocol form (key, kind, unit, default) and ``source``'s values
+    (text, the protocol's own units); ``values`` holds only keys ``source`` sets."""
+    from analysis.errors import InputError
+    from campaign.web.protocol_form import FormError, form_fields, form_values
+
     try:
-        path = _source(Path(request.app.state.workspace), source)
-        doc = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        values = form_values(_document(Path(request.app.state.workspace), source))
+    except InputError as err:
+        return _error(str(err), "source")
+    except FormError as err:
         return _error(f"source: {source}: {err}", "source")
-    return {"source": source, "fields": [
-        {"key": k, "label": label, "value": _text(_get(doc, k))} for k, label in FIELDS]}
+    return {"source": source, "fields": [_suggest(f.to_dict(), request) for f in form_fields()],
+            "values": values}
 
 
-def _field_of(message: str) -> str | None:
-    """The form's key a protocol or job message names (``FILE:LINE: KEY: why``)."""
-    known = [k for k, _ in FIELDS] + ["strategy", "seed", "candidates", "name"]
-    hits = [k for k in known if re.search(rf"(^|[\s:]){re.escape(k)}:", message)]
-    return max(hits, key=len) if hits else None
+def _shipped_addresses() -> list[str]:
+    """The instrument addresses of the shipped protocols (examples of each scheme)."""
+    out = set()
+    for path in SHIPPED.glob("*.toml"):
+        try:
+            doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        for spec in (doc.get("instruments") or {}).values():
+            if isinstance(spec, dict) and isinstance(spec.get("address"), str):
+                out.add(spec["address"])
+    return sorted(out)
+
+
+def _suggest(field: dict, request: Request) -> dict:
+    """campaign.robot: the pickers' robots, files named relative to ``protocols/`` (where
+    the form saves the protocol; a robot file is read relative to its protocol);
+    addresses: the shipped protocols' (one per driver and scheme)."""
+    if field["key"] == "instruments.*.address":
+        field["suggestions"] = _shipped_addresses()
+    if field["key"] == "campaign.robot":
+        from campaign.web.robots_api import robot_choices
+
+        field["suggestions"] = [c.value if c.kind == "builtin" else f"../{c.value}"
+                                for c in robot_choices(request.app.state.workspace)]
+    return field
+
+
+def _problems(text: str, keys: list[str]) -> list[dict]:
+    """One entry per line of a protocol or job message, with the form key it names."""
+    from campaign.web.protocol_form import field_of
+
+    known = keys + ["strategy", "seed", "candidates", "name"]
+    return [{"field": field_of(line, known), "detail": line}
+            for line in text.splitlines() if line.strip()]
+
+
+def _save(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONResponse:
+    """Write the form as ``protocols/NAME.toml``: (its path, the form's keys), or the
+    refusal naming the field."""
+    import tomli_w
+
+    from analysis.errors import InputError
+    from campaign.web.protocol_form import FormError, build_document, field_keys, form_values
+
+    if not NAME.match(body.name):
+        return _error("name: letters, digits, '.', '_' and '-' only", "name")
+    try:
+        values = {} if body.complete else form_values(_document(ws, body.source))
+    except InputError as err:
+        return _error(str(err), "source")
+    except FormError as err:
+        return _error(f"source: {body.source}: {err}", "source")
+    values.update(body.values)
+    keys = field_keys(values)
+    try:
+        doc = build_document(values)
+    except FormError as err:
+        return _error(str(err), err.key if err.key in keys else None)
+    for sub in ("protocols", "plans"):
+        if (ws / sub).is_symlink():
+            return _error(f"{sub}: a symbolic link; refused", "name")
+        (ws / sub).mkdir(exist_ok=True)
+    proto = ws / "protocols" / f"{body.name}.toml"
+    for p in (proto, ws / "plans" / body.name):
+        if p.is_symlink():
+            return _error(f"{p.relative_to(ws)}: a symbolic link; refused", "name")
+    source = body.source.replace("\n", " ").splitlines()[0] if body.source else ""
+    proto.write_text(f"# edited in campaign gui from {source}\n" + tomli_w.dumps(doc))
+    return proto, keys
+
+
+def _refusal(ws: Path, err: Exception, keys: list[str]) -> JSONResponse:
+    text = str(err).replace(f"{ws}/", "")
+    problems = _problems(text, keys)
+    return _error(text, problems[0]["field"] if problems else None, problems=problems)
+
+
+@router.post("/save")
+def save_protocol(request: Request, body: PlanRequest):
+    """Save the form as ``protocols/NAME.toml`` and read it back with the protocol reader
+    (``load_protocol``: schema, units, safety limits, drivers and addresses); the
+    answer: the saved path, or the reader's message per field."""
+    from analysis.errors import InputError
+    from campaign.protocol import load_protocol
+
+    ws = Path(request.app.state.workspace)
+    saved = _save(ws, body)
+    if isinstance(saved, JSONResponse):
+        return saved
+    proto, keys = saved
+    try:
+        load_protocol(proto)
+    except InputError as err:
+        return _refusal(ws, err, keys)
+    return {"protocol": str(proto.relative_to(ws))}
 
 
 @router.post("/run")
 def run_plan(request: Request, body: PlanRequest):
-    """Save the edited protocol as ``protocols/NAME.toml`` and plan it into ``plans/NAME``
-    (replacing a plan of that name); the answer is summary.json with the plan's rows."""
-    import tomli_w
-
+    """Save the form as ``protocols/NAME.toml`` and plan it into ``plans/NAME`` (replacing
+    a plan of that name); the answer: summary.json, the plan's rows, the zone map's data."""
     from analysis.errors import InputError
+    from campaign.cli.common import Strategy
     from campaign.jobs.plan import PlanOptions, run
 
     ws = Path(request.app.state.workspace)
-    if not NAME.match(body.name):
-        return _error("name: letters, digits, '.', '_' and '-' only", "name")
-    try:
-        src = _source(ws, body.source)
-        doc = tomllib.loads(src.read_text())
-    except InputError as err:
-        return _error(str(err), "source")
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
-        return _error(f"source: {body.source}: {err}", "source")
-    keys = {k for k, _ in FIELDS}
-    for key, text in body.values.items():
-        if key not in keys:
-            return _error(f"{key}: not a key of the form", None)
-        if not _set(doc, key, _parse(text, _get(doc, key))):
-            return _error(f"{key}: the protocol has no such table", key)
-    from campaign.cli_common import Strategy
-
     try:
         strategy = Strategy(body.strategy)
     except ValueError:
         return _error(f"strategy: {body.strategy!r} is not one of {', '.join(_strategies())}",
                       "strategy")
-    (ws / "protocols").mkdir(exist_ok=True)
-    (ws / "plans").mkdir(exist_ok=True)
-    proto = ws / "protocols" / f"{body.name}.toml"
+    saved = _save(ws, body)
+    if isinstance(saved, JSONResponse):
+        return saved
+    proto, keys = saved
     out = ws / "plans" / body.name
-    for p in (proto, out):
-        if p.is_symlink():
-            return _error(f"{p.relative_to(ws)}: a symbolic link; refused", "name")
-    proto.write_text(f"# edited in campaign gui from {body.source}\n" + tomli_w.dumps(doc))
     try:
         result = run(PlanOptions(protocol=proto, out=out, strategy=strategy, seed=body.seed,
-                                 candidates=body.candidates, force=True))
+                                 candidates=body.candidates, force=True, map_points=True))
     except InputError as err:
-        text = str(err).replace(f"{ws}/", "")
-        return _error(text, _field_of(text))
+        return _refusal(ws, err, keys)
     except Exception as err:
         if type(err).__name__ == "EquilibriumError":
             return _error(f"nonlinear equilibrium: {err}; reduce the wrench", None)
         raise
     import pandas as pd
 
-    from campaign.cli_common import json_ready
+    from campaign.cli.common import json_ready
 
     rows = pd.read_csv(out / "plan.csv").to_dict(orient="records")
     return JSONResponse(json_ready({
-        "summary": result.summary, "rows": rows, "protocol": str(proto.relative_to(ws)),
-        "out": str(out.relative_to(ws)),
+        "summary": result.summary, "rows": rows, "map": result.map,
+        "protocol": str(proto.relative_to(ws)), "out": str(out.relative_to(ws)),
         "files": sorted(str(p.relative_to(ws)) for p in out.iterdir() if p.is_file())}))

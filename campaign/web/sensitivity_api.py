@@ -19,7 +19,6 @@ router = APIRouter(prefix="/api/sensitivity", tags=["sensitivity"])
 
 #: most trials one request may ask for (a slider move must stay interactive)
 API_MAX_TRIALS = 5000
-ROBOT_SUFFIXES = (".toml", ".yaml", ".yml")
 
 
 #: a wrench component (N or N m) and a joint stiffness (N m/rad) within physical reach
@@ -35,7 +34,8 @@ class SensitivityRequest(BaseModel):
 
     robot: str = Field("kr240-2", max_length=200,
                        description="Built-in name, or a robot file (.toml/.yaml, e.g. an "
-                       "identified model.toml) inside the workspace.")
+                       "identified model.toml) or a URDF with its tool frame "
+                       "(robots/arm.urdf#tool0) inside the workspace (see /api/robots).")
     poses: Literal["zones", "plan", "typed"] = "zones"
     plan: str | None = Field(None, max_length=500,
                              description="Plan directory inside the workspace (poses=plan).")
@@ -103,8 +103,10 @@ class Defaults(BaseModel):
 
 def options_from_request(body: SensitivityRequest, workspace):
     """The job's options (SI) for ``body``; files resolved inside ``workspace``."""
+    from analysis.model.robot_spec import is_robot_file
     from analysis.model.robots import builtin_files
     from campaign.jobs.sensitivity import ErrorSources, SensitivityOptions
+    from campaign.web.robots_api import resolve_robot
     from campaign.web.security import inside_workspace
 
     def scaled(v, f):
@@ -112,11 +114,11 @@ def options_from_request(body: SensitivityRequest, workspace):
 
     robot = body.robot.strip()
     if robot.lower() not in builtin_files():
-        path = inside_workspace(workspace, robot, "robot")
-        if path.suffix.lower() not in ROBOT_SUFFIXES:
-            raise InputError("expected a built-in name or a .toml/.yaml robot file in the "
-                             "workspace", where="robot")
-        robot = str(path)
+        if not is_robot_file(robot):
+            raise InputError("expected a built-in name, or a .toml/.yaml robot file or a URDF "
+                             "with its tool frame (FILE.urdf#FRAME) in the workspace",
+                             where="robot")
+        robot = resolve_robot(workspace, robot, "robot")
     plan = None
     if body.poses == "plan":
         if not body.plan:

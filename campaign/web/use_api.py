@@ -1,8 +1,9 @@
 """``/api/use``: what the Use view offers to pick from the workspace.
 
 The robot models (the built-in names and the ``.toml`` robot or identified model
-files), the path CSVs (a header with ``q1_deg``) and the analyses (directories
-holding a results.json). Paths are relative to the workspace; the walk skips hidden
+files), the path CSVs (a header with ``q1_deg``), the workpiece paths of the
+placement search (a header with ``x_mm`` and ``ax``) and the analyses
+(directories holding a results.json). Paths are relative to the workspace; the walk skips hidden
 directories, does not follow symbolic links and stops after :data:`MAX_FILES` files.
 """
 
@@ -27,6 +28,7 @@ class UseFiles(BaseModel):
     builtin: list[str]
     models: list[str]
     paths: list[str]
+    parts: list[str]
     analyses: list[str]
 
 
@@ -41,14 +43,21 @@ def _walk(ws: Path):
             yield Path(root) / name
 
 
-def _is_path_csv(f: Path) -> bool:
+def _header(f: Path) -> list[str]:
     try:
         with open(f, encoding="utf-8", errors="replace") as fh:
             head = fh.readline(4096)
     except OSError:
-        return False
-    cols = [c.strip() for c in head.split(",")]
+        return []
+    return [c.strip() for c in head.split(",")]
+
+
+def _is_path_csv(cols: list[str]) -> bool:
     return "q1_deg" in cols and not any(c.endswith("_cmd_deg") for c in cols)
+
+
+def _is_part_csv(cols: list[str]) -> bool:
+    return {"x_mm", "y_mm", "z_mm", "ax", "ay", "az"} <= set(cols) and "q1_deg" not in cols
 
 
 def _is_robot_toml(f: Path) -> bool:
@@ -64,22 +73,26 @@ def _is_robot_toml(f: Path) -> bool:
 
 @router.get("/files", response_model=UseFiles)
 def files(request: Request) -> UseFiles:
-    """Robot models, path CSVs and analyses in the workspace."""
+    """Robot models, path CSVs, workpiece paths and analyses in the workspace."""
     from analysis.model.robots import builtin_names
 
     ws = Path(request.app.state.workspace)
-    models, paths, analyses = [], [], []
+    models, paths, parts, analyses = [], [], [], []
     for f in _walk(ws):
         if f.is_symlink():
             continue
         rel = f.relative_to(ws).as_posix()
         if f.suffix == ".toml" and _is_robot_toml(f):
             models.append(rel)
-        elif f.suffix == ".csv" and _is_path_csv(f):
-            paths.append(rel)
+        elif f.suffix == ".csv":
+            cols = _header(f)
+            if _is_path_csv(cols):
+                paths.append(rel)
+            elif _is_part_csv(cols):
+                parts.append(rel)
         elif f.name == "results.json":
             analyses.append(f.parent.relative_to(ws).as_posix() or ".")
-    return UseFiles(builtin=list(builtin_names()), models=models, paths=paths,
+    return UseFiles(builtin=list(builtin_names()), models=models, paths=paths, parts=parts,
                     analyses=analyses)
 
 

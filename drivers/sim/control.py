@@ -98,7 +98,7 @@ class ControlServer:
     """Threaded TCP server answering control requests on 127.0.0.1."""
 
     def __init__(self, world: World, addresses: dict[str, str],
-                 on_shutdown: Callable[[], None] | None = None) -> None:
+                 on_shutdown: Callable[[], None] | None = None, port: int = 0) -> None:
         outer = self
 
         class Handler(socketserver.StreamRequestHandler):
@@ -121,7 +121,7 @@ class ControlServer:
                 return handle_command(world, req, outer.addresses, on_shutdown)
 
         self.addresses = addresses
-        self.server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), Handler)
+        self.server = socketserver.ThreadingTCPServer(("127.0.0.1", port), Handler)
         self.server.daemon_threads = True
         self.url = f"tcp://127.0.0.1:{self.server.server_address[1]}"
         self._thread = threading.Thread(target=self.server.serve_forever, daemon=True,

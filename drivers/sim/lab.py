@@ -51,7 +51,9 @@ def robot_fake_name(robot: str) -> str:
 class Lab:
     """The simulated lab (threads in this process; the UR fake in a child process)."""
 
-    def __init__(self, settings: LabSettings | None = None) -> None:
+    def __init__(self, settings: LabSettings | None = None, control_port: int = 0) -> None:
+        """``control_port``: TCP port of the control channel on 127.0.0.1 (0: a free one);
+        the fakes always take free ports (the control channel's ``addresses`` lists them)."""
         self.settings = settings or LabSettings()
         self.world = World(self.settings)
         self.fakes: list[FakeServer] = []
@@ -59,7 +61,8 @@ class Lab:
         self.notes: list[str] = []
         self._ur: subprocess.Popen | None = None
         self._done = threading.Event()
-        self.control = ControlServer(self.world, self.addresses, on_shutdown=self._done.set)
+        self.control = ControlServer(self.world, self.addresses, on_shutdown=self._done.set,
+                                     port=control_port)
 
     @property
     def control_url(self) -> str:

@@ -19,7 +19,7 @@ TIME_SCALE = 100.0
 @pytest.fixture(scope="session")
 def kr240_plan(tmp_path_factory) -> Path:
     """Plan directory of the built-in KR240-2 protocol (5 tests x 3 repeats)."""
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     out = tmp_path_factory.mktemp("plan")

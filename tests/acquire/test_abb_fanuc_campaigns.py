@@ -11,7 +11,7 @@ import pytest
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
 from campaign.cli import main
-from campaign.planner import make_plan, write_plan
+from campaign.planning.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
 from tests.acquire.conftest import ROOT
 

@@ -80,7 +80,7 @@ def test_fault_while_loaded_records_every_removal_then_resume_marks_sessions(sma
 
 
 def test_load_that_cannot_be_removed_is_said_everywhere(small_plan, tmp_path, monkeypatch):
-    from campaign.run_reader import read_run
+    from campaign.run_format.reader import read_run
     from drivers.manual import ManualLoad
 
     out = tmp_path / "run"

@@ -109,7 +109,7 @@ def test_damaged_plan_is_one_line_error(kr240_plan, tmp_path, capsys, damage, me
 def test_pendant_column_that_disagrees_with_the_model_is_refused(kr240_plan, tmp_path, capsys):
     plan = tmp_path / "plan"
     shutil.copytree(kr240_plan, plan)
-    from campaign.plan_output import read_plan
+    from campaign.planning.plan_output import read_plan
     from campaign.protocol_robot import protocol_robot
 
     protocol, df = read_plan(plan)
@@ -160,7 +160,7 @@ def test_move_time_of_the_trapezoidal_profile():
 def test_dry_run_shows_the_planned_duration(kr240_plan, tmp_path, capsys):
     from campaign.acquire.preflight import move_time, planned_tests
     from campaign.acquire.session import _settle_rule
-    from campaign.plan_output import read_plan
+    from campaign.planning.plan_output import read_plan
     from campaign.protocol_robot import protocol_robot
 
     code = main(["acquire", "--plan", str(kr240_plan), "--dry-run"])
@@ -187,7 +187,7 @@ def test_dry_run_shows_the_planned_duration(kr240_plan, tmp_path, capsys):
 
 def test_the_largest_repeat_count_is_planned_and_counted(kr240_plan, tmp_path, capsys):
     from campaign.acquire.preflight import motion_limits, planned_duration, planned_tests
-    from campaign.plan_output import MAX_REPEATS, read_plan
+    from campaign.planning.plan_output import MAX_REPEATS, read_plan
     from campaign.protocol_robot import protocol_robot
 
     plan = tmp_path / "plan"

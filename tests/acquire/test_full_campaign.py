@@ -17,7 +17,7 @@ from campaign.acquire.rundir import TEST_COLUMNS
 from campaign.acquire.session import AcquireOptions, acquire
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
-from campaign.run_reader import read_run
+from campaign.run_format.reader import read_run
 
 TRUE_K = np.array([1409800, 400760, 935280, 360000, 370000, 380000], dtype=float)
 

@@ -13,10 +13,10 @@ from analysis.model.kinematics import tool_pose
 from analysis.model.robots import load_robot
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
-from campaign.planner import make_plan, write_plan
+from campaign.planning.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
-from campaign.run_reader import read_run
+from campaign.run_format.reader import read_run
 from tests.acquire.conftest import PROTOCOL
 
 TRUE_K = np.array([1409800, 400760, 935280, 360000, 370000, 380000], dtype=float)

@@ -14,11 +14,11 @@ from analysis.identification.estimate import analyze_table
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
 from campaign.cli import main
-from campaign.commands.analyze import _noise_from_protocol
-from campaign.planner import make_plan, write_plan
+from campaign.cli.commands.analyze import _noise_from_protocol
+from campaign.planning.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
-from campaign.run_reader import read_run
+from campaign.run_format.reader import read_run
 from tests.acquire.conftest import ROOT
 
 PROTOCOL = ROOT / "protocols" / "ur10e.toml"

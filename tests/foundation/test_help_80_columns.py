@@ -7,7 +7,8 @@ import re
 
 import pytest
 
-from campaign.cli import LAZY_COMMANDS, load_command, main
+from campaign.cli import main
+from campaign.cli.app import LAZY_COMMANDS, load_command
 
 WIDTH = 80
 #: narrowest description column accepted in an options panel (characters)

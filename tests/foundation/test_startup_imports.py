@@ -18,8 +18,8 @@ import sys
 import typer
 import typer.main
 
-import campaign.cli as cli
-import campaign.commands
+import campaign.cli.app as cli
+import campaign.cli.commands
 
 #: Libraries whose import costs tens to hundreds of ms of CPU each.
 HEAVY = ("matplotlib", "scipy", "pandas", "pinocchio", "pyarrow", "dask")
@@ -46,13 +46,13 @@ def top_level(modules: list[str]) -> set[str]:
 
 
 def command_modules() -> list[str]:
-    return sorted(m.name for m in pkgutil.iter_modules(campaign.commands.__path__))
+    return sorted(m.name for m in pkgutil.iter_modules(campaign.cli.commands.__path__))
 
 
 def test_building_the_app_imports_no_heavy_library():
     found, out = imported_after(
-        "import campaign.cli\n"
-        "app = campaign.cli.build_app()\n"
+        "import campaign.cli.app\n"
+        "app = campaign.cli.app.build_app()\n"
         "import typer.main\n"
         "print('COMMANDS=' + ','.join(sorted(typer.main.get_command(app).commands)))\n")
     assert found == []
@@ -68,7 +68,7 @@ def test_no_command_module_imports_a_heavy_library_at_import_time():
     code = (
         "import importlib\n"
         f"for name in {names!r}:\n"
-        "    importlib.import_module('campaign.commands.' + name)\n"
+        "    importlib.import_module('campaign.cli.commands.' + name)\n"
         "    heavy = sorted({m.split('.')[0] for m in sys.modules} & set(" + repr(HEAVY) + "))\n"
         "    print('MODULE', name, ','.join(heavy))\n")
     _, out = imported_after(code)
@@ -84,7 +84,7 @@ def test_help_lists_every_command_and_imports_no_lazy_command_module():
         "status = main(['--help'])\n"
         "assert status == 0, status\n"
         f"print('LOADED=' + ','.join(m for m in {lazy!r} "
-        "if 'campaign.commands.' + m in sys.modules))\n")
+        "if 'campaign.cli.commands.' + m in sys.modules))\n")
     assert found == []
     assert [s for s in out.splitlines() if s.startswith("LOADED=")] == ["LOADED="]
     for name in command_modules():
@@ -92,25 +92,25 @@ def test_help_lists_every_command_and_imports_no_lazy_command_module():
 
 
 def registered(module: str) -> dict:
-    """{name: click command} that ``campaign.commands.<module>`` registers."""
+    """{name: click command} that ``campaign.cli.commands.<module>`` registers."""
     app = typer.Typer()
 
     @app.callback()
     def _group() -> None:
         pass
 
-    importlib.import_module(f"campaign.commands.{module}").register(app)
+    importlib.import_module(f"campaign.cli.commands.{module}").register(app)
     return typer.main.get_command(app).commands
 
 
 def test_lazy_table_matches_what_the_modules_register():
     for name, (module, help_line) in cli.LAZY_COMMANDS.items():
         commands = registered(module)
-        assert name in commands, f"campaign.commands.{module} registers {sorted(commands)}"
+        assert name in commands, f"campaign.cli.commands.{module} registers {sorted(commands)}"
         first = " ".join(inspect.cleandoc(commands[name].help or "").split("\n\n")[0].split())
         assert help_line == first, (
             f"campaign --help would show another text than `campaign {name} --help`: set "
-            f"LAZY_COMMANDS[{name!r}] in campaign/cli.py to ({module!r}, {first!r})")
+            f"LAZY_COMMANDS[{name!r}] in campaign/cli/app.py to ({module!r}, {first!r})")
 
 
 def test_a_module_missing_from_the_table_is_registered_at_start(monkeypatch, capsys):
@@ -141,7 +141,7 @@ def test_stiffness_imports_pinocchio_but_not_scipy_pandas_matplotlib():
         "'--json'])\n"
         "assert status == 0, status\n"
         "print('LOADED=' + ','.join(sorted(m.rsplit('.', 1)[1] for m in sys.modules "
-        "if m.startswith('campaign.commands.'))))\n")
+        "if m.startswith('campaign.cli.commands.'))))\n")
     assert top_level(found) == {"pinocchio"}
     # only the invoked command's module was imported
     assert [s for s in out.splitlines() if s.startswith("LOADED=")] == ["LOADED=stiffness"]
@@ -151,8 +151,8 @@ def test_stiffness_imports_pinocchio_but_not_scipy_pandas_matplotlib():
 
 
 def test_plan_command_strategies_match_the_planner():
-    from campaign.cli_common import Strategy
-    from campaign.planner import STRATEGIES
+    from campaign.cli.common import Strategy
+    from campaign.planning.planner import STRATEGIES
 
     # the CLI's enum is kept apart from the planner (which pulls in pandas) and must agree
     assert tuple(s.value for s in Strategy) == STRATEGIES

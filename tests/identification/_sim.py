@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.measurements import TestArrays
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification.robustness import W_EFF, sample_poses
+from analysis.identification.studies.robustness import W_EFF, sample_poses
 from analysis.model.robots import load_robot
 
 

@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification import lsq
-from analysis.identification.estimate import fit
-from analysis.identification.fitting import _full
-from analysis.identification.lsq import (
+from analysis.identification.estimators.fitting import _full, fit
+from analysis.identification.linalg import lsq
+from analysis.identification.linalg.lsq import (
     block_diag_apply,
     per_test_diagonal,
     qr_solve,
@@ -86,7 +85,7 @@ def test_sandwich_and_residual_variance_equal_the_hat_matrix_forms(kr240, zone_p
     np.testing.assert_allclose(var_block, var_dense, rtol=1e-9, atol=1e-12 * var_dense.max())
     # one pass over Sigma: the same numbers as the two passes, from the covariances made
     # block by block when sliced (PerTestCovariance), blocks of 3 tests
-    from analysis.identification.gauss_newton import PerTestCovariance
+    from analysis.identification.streaming.covariances import PerTestCovariance
 
     cov_fused, var_fused = sandwich_and_residual_variance(f.A, f.cov, f.bread, f.Linv, block=3)
     np.testing.assert_array_equal(cov_fused, cov_block)

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification.crossval import leave_one_pose_out
 from analysis.identification.noise import NoiseModel
+from analysis.identification.validation.crossval import leave_one_pose_out
 
 from ._sim import simulate
 
@@ -90,9 +90,9 @@ def test_ols_folds_corrected_by_the_full_shift_are_close_to_their_own(kr240, w_e
     below, each fold is corrected and predicted by the exact model. 60 poses at w_eff,
     both ways (measured: RMS errors within 1.4e-3 relative, the statistic within 1.8e-3;
     asserted 5e-3)."""
-    from analysis.identification import crossval
     from analysis.identification.estimate import identify
-    from analysis.identification.robustness import sample_poses
+    from analysis.identification.studies.robustness import sample_poses
+    from analysis.identification.validation import crossval
 
     noise = NoiseModel()
     q = sample_poses(kr240, 60, np.random.default_rng(3), min_inverse_condition=0.3)
@@ -112,8 +112,8 @@ def test_parameter_term_left_out_for_many_folds(kr240, w_eff, monkeypatch):
     out): q can only grow (V >= Sigma). Measured on sqrt(q/n), OLS at w_eff, one test per
     pose: at most +22 % with 60 poses (asserted < 25 %), +6 % with 300, +1.6 % (median
     +0.2 %) with 1000, the threshold."""
-    from analysis.identification import crossval
-    from analysis.identification.robustness import sample_poses
+    from analysis.identification.studies.robustness import sample_poses
+    from analysis.identification.validation import crossval
 
     noise = NoiseModel()
     q = sample_poses(kr240, 60, np.random.default_rng(3), min_inverse_condition=0.3)

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.data_fingerprint import (
+from analysis.identification.io.data_fingerprint import (
     SKETCH_SIZE,
     _rounded,
     fingerprint,
     row_digests,
     shared_rows,
 )
-from analysis.identification.measurements import TestArrays
+from analysis.identification.io.measurements import TestArrays
 
 
 def _tests(rng, m):

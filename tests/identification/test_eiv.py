@@ -1,17 +1,18 @@
 """Wrench errors-in-variables: S against an independent expectation, the corrected
-solutions, and the bias they remove on simulated campaigns (analysis.identification.eiv)."""
+solutions, and the bias they remove on simulated campaigns
+(analysis.identification.corrections.wrench_eiv)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from analysis.identification.eiv import corrected, wrench_eiv_matrix
-from analysis.identification.fitting import fit_exact, fit_linear
-from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import sandwich, whitening
+from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
+from analysis.identification.estimators.fitting import fit_exact, fit_linear
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.linalg.lsq import sandwich, whitening
 from analysis.identification.noise import NoiseModel
-from analysis.identification.robustness import sample_poses
+from analysis.identification.studies.robustness import sample_poses
 
 from ._sim import simulate
 
@@ -127,7 +128,7 @@ def test_correction_removes_the_attenuation_bias(kr240, method):
 def test_exact_fit_solves_the_corrected_estimating_equation(kr240):
     """At the corrected exact estimate, F^T W (d - f(x)) + S x = 0 up to the second order
     of the one Newton step (|shift| ~1e-2 x here): below 2 % of |S x|."""
-    from analysis.identification.exact_fit import model_displacement
+    from analysis.identification.estimators.exact_model import model_displacement
     from analysis.model.kinematics import jacobian
 
     tests = _campaign(kr240, 200, LOUD_FT, 3)
@@ -166,7 +167,8 @@ def test_the_correction_is_a_warning_only_where_it_moves_k(kr240, zone_poses, w_
     """Always in results.json; among the warnings only from 0.1 se on: a 15-test campaign
     with the default F/T figures (~1e-2 se) has none, 400 tests with ten times the noise
     (several se) have it."""
-    from analysis.identification.estimate import EIV_WARN_SE, identify
+    from analysis.identification.estimate import identify
+    from analysis.identification.intervals import EIV_WARN_SE
 
     q = zone_poses[np.arange(15) % len(zone_poses)]
     small = identify(kr240, simulate(kr240, q, w_eff, kr240.nominal_stiffness, NoiseModel(),

@@ -1,4 +1,4 @@
-"""The bias of the encoder noise in J (analysis/identification/encoder_eiv.py).
+"""The bias of the encoder noise in J (analysis/identification/corrections/encoder_eiv.py).
 
 Checked against a seeded Monte-Carlo with the encoder noise inflated 2000-fold (0.01 rad,
 so that the bias, ~1e-4 of x, shows against the spread): the mean error of 40 000
@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.encoder_eiv import encoder_bias
+from analysis.identification.corrections.encoder_eiv import encoder_bias
 from analysis.identification.estimate import identify
-from analysis.identification.linear_model import design_block
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.model.kinematics import jacobian
 

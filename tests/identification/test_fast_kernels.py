@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from analysis.identification import lsq
+from analysis.identification.linalg import lsq
 from analysis.kinetostatics.equilibrium import newton_deflection
 from analysis.kinetostatics.small_linalg import solve_dominant_columns
 from analysis.model.kinematics import rotation_vector
@@ -157,7 +157,7 @@ def test_whitening_refuses_what_numpy_cholesky_refuses():
 def test_left_jacobian_inverse_equals_inverse_of_closed_form():
     """J_l^-1(phi) = inv(I + (1 - cos t)/t^2 K + (t - sin t)/t^3 K^2), K = [phi]x, from
     1e-7 rad (below the 1e-4 rad switch to the series) to 2 rad."""
-    from analysis.identification.exact_fit import so3_left_jacobian_inverse
+    from analysis.identification.estimators.exact_model import so3_left_jacobian_inverse
 
     rng = np.random.default_rng(13)
     phi = rng.normal(size=(200, 3))
@@ -181,7 +181,7 @@ def test_exact_model_equals_an_independent_composition(kr240, zone_poses, w_eff)
     """Screw, deflection and derivative of the exact model = Pinocchio's pose and
     Jacobian at q + dq composed with numpy (K_C, a 6 x 6 solve, J_l^-1); cold start,
     warm start and cached unloaded poses give the same numbers."""
-    from analysis.identification.exact_fit import (
+    from analysis.identification.estimators.exact_model import (
         model_displacement_state,
         so3_left_jacobian_inverse,
     )
@@ -229,7 +229,7 @@ def test_cold_start_keeps_every_solution_either_start_finds(kr240):
     poses where it converges from the first-order deflection, and the reverse; the exact
     model (from zero, then from x J(q)^T w) solves exactly the poses either start solves,
     to the same deflection."""
-    from analysis.identification.exact_fit import model_displacement_state
+    from analysis.identification.estimators.exact_model import model_displacement_state
     from analysis.model.kinematics import jacobian
 
     rng = np.random.default_rng(1)

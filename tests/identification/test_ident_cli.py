@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pandas as pd
 
-from analysis.identification.measurements import CSV_COLUMNS, table_from_arrays, to_csv_frame
+from analysis.identification.io.measurements import CSV_COLUMNS, table_from_arrays, to_csv_frame
 from analysis.identification.noise import NoiseModel
 from campaign.cli import main
 
@@ -90,7 +90,8 @@ def test_analyze_noise_overrides_scale_the_intervals(tmp_path, kr240, zone_poses
     assert main([*base, "--out", str(tmp_path / "b"), *doubled]) == 0
     a = json.loads((tmp_path / "a" / "results.json").read_text())
     b = json.loads((tmp_path / "b" / "results.json").read_text())
-    # k = k_uncorrected / (1 - relative shift) (analysis.identification.eiv.shift_summary)
+    # k = k_uncorrected / (1 - relative shift)
+    # (analysis.identification.corrections.wrench_eiv.shift_summary)
     rel_a = np.array(a["wrench_errors_in_variables"]["relative_shift_of_k"])
     rel_b = np.array(b["wrench_errors_in_variables"]["relative_shift_of_k"])
     np.testing.assert_allclose((1 - rel_b) * b["joint_stiffness_Nm_per_rad"],

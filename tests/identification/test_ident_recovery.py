@@ -7,7 +7,7 @@ w_eff and by 1.2e-4 at w_eff / 100 (WLS: 3.3e-2 and 3.4e-4; the weights give
 the rotations, whose linearisation error is larger, more say). The exact
 fit is limited by the Gauss-Newton tolerance (1e-9 relative step).
 The wrench of these data is exact, and the noise model says so (``EXACT_WRENCH``):
-no errors-in-variables correction (:mod:`analysis.identification.eiv`) is made.
+no errors-in-variables correction (:mod:`analysis.identification.corrections.wrench_eiv`) is made.
 """
 
 from __future__ import annotations
@@ -16,7 +16,10 @@ import numpy as np
 import pytest
 
 from analysis.identification.estimate import identify
-from analysis.identification.exact_fit import model_displacement, solve_deflection_compliance
+from analysis.identification.estimators.exact_model import (
+    model_displacement,
+    solve_deflection_compliance,
+)
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw, solve_deflection
 
@@ -29,7 +32,7 @@ EXACT_WRENCH = NoiseModel(force_sigma=0.0, moment_sigma=0.0)
 def test_small_wrench_recovers_within_the_linearisation_error(kr240, zone_poses, w_eff, method,
                                                               tol):
     """The raw linear estimate errs by the linearisation error; the corrected one (the
-    result of ols/wls, :mod:`analysis.identification.linear_bias`) is exact to 1e-9."""
+    result of ols/wls, :mod:`analysis.identification.corrections.linear_bias`) is exact to 1e-9."""
     k = kr240.nominal_stiffness
     res = identify(kr240, simulate(kr240, zone_poses[:6], w_eff / 100, k), method,
                    noise=EXACT_WRENCH, validate=False)

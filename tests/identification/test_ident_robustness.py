@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from analysis.errors import InputError
-from analysis.identification.batch_lsq import cholesky, forward_substitute, mgs_lstsq
-from analysis.identification.estimate import fit_linear
-from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import block_diag_apply
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators.fitting import fit_linear
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.batch_lsq import cholesky, forward_substitute, mgs_lstsq
+from analysis.identification.linalg.lsq import block_diag_apply
 from analysis.identification.noise import NoiseModel
-from analysis.identification.robustness import (
+from analysis.identification.studies.robustness import (
     build_pool,
     identify_batch,
     robustness_study,
@@ -173,7 +173,7 @@ def test_exact_fit_removes_the_linearisation_bias_of_k3(kr240, w_eff):
 def test_pose_first_gather_equals_the_batch_last_reference(pool):
     """measured_jacobians (pose-first gather, one contraction per test) equals the former
     batch-last gather with six multiply-adds, to 1e-14 relative (summation order only)."""
-    from analysis.identification.robustness import draw_campaigns, measured_jacobians
+    from analysis.identification.studies.robustness import draw_campaigns, measured_jacobians
 
     draw = draw_campaigns(pool, 7, 300, NoiseModel(), np.random.default_rng(11))
     ref = pool.Jc[:, :, draw.idx]
@@ -199,7 +199,7 @@ def test_batched_ols_standard_errors_equal_the_dense_sandwich(kr240, pool):
     single = fit_linear(kr240, tests, tuple(range(6)), noise, weighted=False, eiv=False)
     np.testing.assert_allclose(x[:, 0], single.x, rtol=1e-9)
     # the batch's covariance uses the nominal wrench sigma (no reading-proportional part)
-    from analysis.identification.gauss_newton import covariances_per_test
+    from analysis.identification.streaming.covariances import covariances_per_test
 
     cov = covariances_per_test(noise, jacobian(kr240, pool.q[idx]), single.x, tests.measured)
     G = single.G

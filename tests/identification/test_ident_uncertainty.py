@@ -1,7 +1,7 @@
 """Uncertainty: spread vs covariance, interval coverage, intervals of k, outliers.
 
 The Monte-Carlo checks run the exact fit batched over 1000 seeded campaigns
-(:func:`analysis.identification.gauss_newton.gauss_newton`), with data from the nonlinear
+(:func:`analysis.identification.estimators.gauss_newton.gauss_newton`), with data from the nonlinear
 equilibrium and the noise model's normal noise on displacement, wrench and
 joint angles; identify() is checked to give the same covariance on one of
 them.
@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from analysis.identification.eiv import corrected, wrench_eiv_matrix
+from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
 from analysis.identification.estimate import identify
-from analysis.identification.gauss_newton import gauss_newton
-from analysis.identification.linear_model import design_block
-from analysis.identification.lsq import qr_solve, whitening
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators.gauss_newton import gauss_newton
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.lsq import qr_solve, whitening
 from analysis.identification.noise import NoiseModel
-from analysis.identification.robustness import build_pool
+from analysis.identification.studies.robustness import build_pool
 from analysis.identification.uncertainty import critical_value, stiffness_interval
 from analysis.model.kinematics import jacobian
 

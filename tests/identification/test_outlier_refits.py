@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification import estimate
-from analysis.identification.estimate import (
+from analysis.identification.checks import outliers
+from analysis.identification.checks.outliers import (
     _refit_without,
     _studentized_matrix,
-    fit,
     flag_outliers,
     outlier_threshold,
 )
-from analysis.identification.lsq import sandwich
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators.fitting import fit
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.lsq import sandwich
 from analysis.identification.noise import NoiseModel
 
 from ._sim import simulate
@@ -77,7 +77,7 @@ def test_flag_outliers_finds_the_three_glitches(kr240, glitched, method, monkeyp
     flags = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
     assert {tuple(map(int, ij)) for ij in np.argwhere(flags)} == {(4, 1), (7, 0), (10, 2)}
     # the same flags with every refit from scratch
-    monkeypatch.setattr(estimate, "_refit_without", lambda robot, rest, joints, noise, method,
+    monkeypatch.setattr(outliers, "_refit_without", lambda robot, rest, joints, noise, method,
                         *_, **__: fit(robot, rest, joints, noise, method))
     ref = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
     np.testing.assert_array_equal(flags, ref)
@@ -93,10 +93,10 @@ def test_outliers_set_aside_at_once_in_large_campaigns(kr240, glitched, method, 
     thr = outlier_threshold(int(glitched.measured.sum()))
     one = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
     calls = []
-    real = estimate._refit_without
-    monkeypatch.setattr(estimate, "_refit_without",
+    real = outliers._refit_without
+    monkeypatch.setattr(outliers, "_refit_without",
                         lambda *a, **k: calls.append(np.size(a[6])) or real(*a, **k))
-    monkeypatch.setattr(estimate, "OUTLIERS_AT_ONCE_ABOVE", 0)
+    monkeypatch.setattr(outliers, "OUTLIERS_AT_ONCE_ABOVE", 0)
     many = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
     np.testing.assert_array_equal(many, one)
     # 12 tests: each residual's leverage is ~p / n = 0.08, and the glitches mask each
@@ -104,7 +104,7 @@ def test_outliers_set_aside_at_once_in_large_campaigns(kr240, glitched, method, 
     assert calls == [1, 1, 1]
     # without the leverage guard all those beyond would go in the first round
     calls.clear()
-    monkeypatch.setattr(estimate, "AT_ONCE_MAX_LEVERAGE", np.inf)
+    monkeypatch.setattr(outliers, "AT_ONCE_MAX_LEVERAGE", np.inf)
     blind = flag_outliers(kr240, glitched, joints, NOISE, method, first, 1.0, thr)
     beyond = int(np.sum(np.abs(np.nan_to_num(_studentized_matrix(glitched, first, 1.0))) > thr))
     assert calls[0] == beyond >= 3 and (blind >= one).all()

@@ -76,7 +76,7 @@ def test_largest_by_blocks_equals_a_full_sort():
 
 
 def test_worst_tests_by_blocks_equal_one_block():
-    from analysis.identification.measurements import TestArrays
+    from analysis.identification.io.measurements import TestArrays
     from analysis.identification.result import ResidualRows
 
     rng = np.random.default_rng(5)

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from analysis.errors import InputError
-from analysis.identification import robust
-from analysis.identification.robust import HUBER_C, TUKEY_C, huber_weight, tukey_weight
-from analysis.identification.robust_covariance import robust_covariance, sqrt_weight
+from analysis.identification.estimators import irls as robust
+from analysis.identification.estimators.irls import HUBER_C, TUKEY_C, huber_weight, tukey_weight
+from analysis.identification.estimators.robust_covariance import robust_covariance, sqrt_weight
 
 M, P = 12, 3  # tests, unknowns
 

@@ -19,12 +19,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification import crossval, estimate, fitting, gauss_newton, lsq, per_test
+from analysis.identification.checks import outliers
 from analysis.identification.estimate import identify
-from analysis.identification.measurements import TestArrays
+from analysis.identification.estimators import fitting
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg import lsq
 from analysis.identification.noise import NoiseModel
 from analysis.identification.result import write_results
-from analysis.identification.robustness import sample_poses
+from analysis.identification.streaming import blocks, per_test
+from analysis.identification.studies.robustness import sample_poses
+from analysis.identification.validation import crossval
 
 from ._sim import simulate
 
@@ -49,13 +53,11 @@ def _streamed(monkeypatch):
     monkeypatch.setattr(lsq, "TALL_ROWS", 600)
     monkeypatch.setattr(lsq, "TEST_BLOCK", 97)
     monkeypatch.setattr(lsq, "ROW_BLOCK", 50)
-    monkeypatch.setattr(estimate, "TEST_BLOCK", 97)
-    monkeypatch.setattr(estimate, "RESIDUAL_ROWS_HELD", 100)
-    monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
+    monkeypatch.setattr(outliers, "RESIDUAL_ROWS_HELD", 100)
+    monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
     # J, the design and the model Jacobian are made when sliced instead of held
     monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
     monkeypatch.setattr(crossval, "FOLD_CHUNK", 7)  # the folds' algebra in chunks
-    fitting._J_CACHE.clear()
 
 
 @pytest.mark.parametrize("method", ["ols", "exact"])
@@ -64,9 +66,9 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
     ref = identify(kr240, campaign, method, noise=NOISE)
     write_results(ref, tmp_path / "ref")
     _streamed(monkeypatch)
-    from analysis.identification.per_test import PerTestJacobian
+    from analysis.identification.streaming.per_test import PerTestJacobian
 
-    assert isinstance(fitting._jacobian(kr240, campaign.q), PerTestJacobian)
+    assert isinstance(fitting.jacobian_blocks(kr240, campaign.q), PerTestJacobian)
     res = identify(kr240, campaign, method, noise=NOISE)
     write_results(res, tmp_path / "res")
     assert ref.residual_rows is None and res.residual_rows is not None
@@ -144,10 +146,10 @@ def test_blockwise_covariances_with_a_held_jacobian(kr240, campaign, method, mon
     """Campaigns between one model block and the lazy size: J held, the covariances and
     the residual sigmas made block by block (and for the rows of the residual table)."""
     ref = identify(kr240, campaign, method, noise=NOISE)
-    monkeypatch.setattr(gauss_newton, "EVAL_BLOCK", 101)
-    fitting._J_CACHE.clear()
+    monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
     res = identify(kr240, campaign, method, noise=NOISE)
-    assert not isinstance(fitting._jacobian(kr240, campaign.q), per_test.PerTestJacobian)
+    assert not isinstance(fitting.jacobian_blocks(kr240, campaign.q),
+                          per_test.PerTestJacobian)
     np.testing.assert_allclose(res.x, ref.x, rtol=1e-9)
     for col in ("sigma", "studentized", "predicted"):
         np.testing.assert_allclose(res.residuals[col], ref.residuals[col], rtol=1e-7,

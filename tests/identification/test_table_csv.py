@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification.table_csv import float_text, write_frame
+from analysis.identification.io.table_csv import float_text, write_frame
 
 
 def _awkward_floats(rng, n: int) -> np.ndarray:

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.linear_model import design_block
-from analysis.identification.measurements import TestArrays
+from analysis.identification.checks.tool_check import tool_point_check
+from analysis.identification.estimators.linear_model import design_block
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel, residual_covariance
-from analysis.identification.robustness import sample_poses
-from analysis.identification.tool_check import tool_point_check
+from analysis.identification.studies.robustness import sample_poses
 from analysis.model.kinematics import jacobian
 from analysis.model.robots import load_robot, with_tool
 

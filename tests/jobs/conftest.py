@@ -22,18 +22,74 @@ def ws(tmp_path) -> Path:
     return d
 
 
-@pytest.fixture
-def client(ws):
-    """A TestClient on an app built here: the jobs router over the workspace ``ws``."""
-    from fastapi import FastAPI
-    from fastapi.testclient import TestClient
+class Finished:
+    """The end of a queued job as a response: 200 and the result document when done, the
+    error's status (400, 409) and record when it failed."""
 
-    from campaign.web.api_jobs import router
+    def __init__(self, job: dict) -> None:
+        self.job = job
+        error = job["error"] or {}
+        self.status_code = 200 if job["state"] == "done" else error.get("status", 500)
+        self.body = job["result"] if job["state"] == "done" else \
+            {k: v for k, v in error.items() if k != "status"}
+        self.text = json.dumps(job)
+
+    def json(self):
+        return self.body
+
+
+class FollowedClient:
+    """A TestClient whose POST of a queued job (202) follows the job to its end
+    (GET /api/jobs/{id} until its state is final) and answers as :class:`Finished`;
+    other answers are the TestClient's."""
+
+    def __init__(self, client) -> None:
+        self.raw = client
+
+    def __getattr__(self, name):
+        return getattr(self.raw, name)
+
+    def post(self, url: str, **kwargs):
+        answer = self.raw.post(url, **kwargs)
+        if answer.status_code != 202:
+            return answer
+        return Finished(wait_job(self.raw, answer.json()["id"]))
+
+
+def wait_job(client, job_id: str, timeout: float = 240.0) -> dict:
+    """GET /api/jobs/{id} until the job has ended; its state."""
+    import time
+
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        job = client.get(f"/api/jobs/{job_id}").json()
+        if job["state"] in ("done", "failed", "cancelled"):
+            return job
+        time.sleep(0.05)
+    raise AssertionError(f"job {job_id} still {job['state']} after {timeout} s")
+
+
+@pytest.fixture
+def app(ws):
+    """An app built here: the jobs routers over the workspace ``ws``."""
+    from fastapi import FastAPI
+
+    from campaign.web import api_jobs, demo_api
 
     app = FastAPI()
     app.state.workspace = ws
-    app.include_router(router)
-    return TestClient(app)
+    app.state.jobs_in_threads = True  # the results are the point here, not the isolation
+    app.include_router(api_jobs.router)
+    app.include_router(demo_api.router)
+    return app
+
+
+@pytest.fixture
+def client(app):
+    """A TestClient on ``app`` whose POSTs of queued jobs wait for their end."""
+    from fastapi.testclient import TestClient
+
+    return FollowedClient(TestClient(app))
 
 
 def cli(ws: Path, *args: str) -> subprocess.CompletedProcess:

@@ -27,7 +27,7 @@ SCALE = 200.0
 @pytest.fixture(scope="session")
 def plan_dir(tmp_path_factory) -> Path:
     """A KR240-2 plan cut to 2 tests of 1 repeat."""
-    from campaign.planner import make_plan, write_plan
+    from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
     out = tmp_path_factory.mktemp("jobs-plan") / "plan"

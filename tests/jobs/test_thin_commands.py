@@ -13,12 +13,12 @@ from pathlib import Path
 
 import pytest
 
-COMMANDS = Path(__file__).parents[2] / "campaign" / "commands"
+COMMANDS = Path(__file__).parents[2] / "campaign" / "cli" / "commands"
 JOBS = ("plan", "acquire", "analyze", "stiffness", "maps", "robustness", "compensate",
-        "compare", "place", "robots")
+        "compare", "place", "robots", "demo", "lab")
 #: what a face may import from analysis/: its error class and presentation helpers
 PRESENTATION = {"analysis.errors", "analysis.report.formatting",
-                "analysis.identification.compare"}  # level_text: the verdict's wording
+                "analysis.identification.compare.comparison"}  # level_text: the verdict's wording
 #: names a face must not use: file writing and the heap tricks belong to the job
 FORBIDDEN = {"write_text", "write_bytes", "replacing", "make_dir", "replaced_dir",
              "created_dir", "check_output_dir", "save_figure", "open", "freeze", "unfreeze"}
@@ -51,7 +51,7 @@ def test_command_calls_its_job(job):
     tree = _tree(job)
     imports = [n for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
     assert any(n.module == f"campaign.jobs.{job}" and "run" in {a.name for a in n.names}
-               for n in imports), f"campaign/commands/{job}.py does not call its job's run"
+               for n in imports), f"campaign/cli/commands/{job}.py does not call its job's run"
     calls = {n.func.id for n in ast.walk(tree) if isinstance(n, ast.Call)
              and isinstance(n.func, ast.Name)}
     assert "run" in calls

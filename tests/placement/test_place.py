@@ -186,7 +186,7 @@ def test_dask_local_cluster_equals_local_run():
 
 
 def test_edge_of_the_box_is_warned_and_the_nonlinear_check_has_a_unit(tmp_path, capsys):
-    from campaign.place_run import edge_warnings
+    from campaign.use.place_run import edge_warnings
 
     capsys.readouterr()
     code, out = _place(tmp_path)

@@ -18,7 +18,7 @@ from analysis.model.robots import load_robot
 from analysis.placement.grid import PlacementGrid
 from analysis.placement.search import result_bytes, run_dask, run_local
 from campaign.cli import main
-from campaign.place_run import DEFAULT_MAX_EVALUATIONS, SearchSize, check_size
+from campaign.use.place_run import DEFAULT_MAX_EVALUATIONS, SearchSize, check_size
 from tests.placement.test_place import WRENCH, _problem, _write_path
 from tests.refusal import assert_refused
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from campaign.planner import make_plan
+from campaign.planning.planner import make_plan
 from campaign.protocol import load_protocol
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from campaign.design import criterion, greedy_exchange, predicted_se, random_design
+from campaign.planning.design import criterion, greedy_exchange, predicted_se, random_design
 
 
 def _problem(seed, N=14, p=3, rows=2):

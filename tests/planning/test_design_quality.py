@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.linear_model import design_matrix
+from analysis.identification.estimators.linear_model import design_matrix
 from analysis.kinetostatics.equilibrium import displacement_screw
-from campaign.candidates import Candidates
-from campaign.design import information, predicted_se, random_design, scaled_blocks
+from campaign.planning.candidates import Candidates
+from campaign.planning.design import information, predicted_se, random_design, scaled_blocks
 
 #: stated margin: the D-optimal KR240-2 plan (seed 0, 1e4 candidates) has a geometric
 #: mean predicted standard error of k at least 1.3 times lower than the random zone

@@ -9,8 +9,8 @@ import analysis.kinetostatics.maps as maps
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.stiffness import kc_influence
 from analysis.model.kinematics import jacobian
-from campaign.candidates import evaluate, sample
-from campaign.design import information, information_of_tests, scaled_blocks
+from campaign.planning.candidates import evaluate, sample
+from campaign.planning.design import information, information_of_tests, scaled_blocks
 from campaign.protocol_robot import (
     characteristic_length,
     prior_stiffness,
@@ -35,7 +35,7 @@ def test_information_identity_matches_blocks(kr_protocol):
 
 
 def test_blocked_evaluation_matches_per_candidate(kr_protocol, monkeypatch):
-    import campaign.candidates as candidates
+    import campaign.planning.candidates as candidates
 
     monkeypatch.setattr(candidates, "BLOCK", 37)  # several blocks, one ragged
     assert maps.BLOCK != 37

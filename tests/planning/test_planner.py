@@ -6,12 +6,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification.linear_model import design_matrix
+from analysis.identification.estimators.linear_model import design_matrix
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.stiffness import kc_influence
 from analysis.model.kinematics import jacobian
-from campaign.plan_output import COLUMNS
-from campaign.planner import make_plan, read_plan, write_plan
+from campaign.planning.plan_output import COLUMNS
+from campaign.planning.planner import make_plan, read_plan, write_plan
 from campaign.protocol_robot import protocol_robot
 
 DEG = np.pi / 180

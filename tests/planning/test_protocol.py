@@ -12,7 +12,7 @@ import yaml
 
 from analysis.errors import InputError
 from campaign.cli import main
-from campaign.planner import make_plan
+from campaign.planning.planner import make_plan
 from campaign.protocol import load_protocol
 
 ROOT = Path(__file__).resolve().parents[2]

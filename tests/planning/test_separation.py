@@ -6,9 +6,13 @@ import numpy as np
 import pytest
 
 from analysis.errors import InputError
-from campaign.design import greedy_exchange, random_design
-from campaign.planner import make_plan
-from campaign.separation import DEFAULT_MIN_SEPARATION_DEG, Separation, min_pairwise_distance
+from campaign.planning.design import greedy_exchange, random_design
+from campaign.planning.planner import make_plan
+from campaign.planning.separation import (
+    DEFAULT_MIN_SEPARATION_DEG,
+    Separation,
+    min_pairwise_distance,
+)
 
 DEG = np.pi / 180
 

@@ -8,10 +8,10 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.estimate import identify
-from analysis.identification.measurements import TestArrays
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw
-from campaign.candidates import evaluate, sample
+from campaign.planning.candidates import evaluate, sample
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import (
     characteristic_length,

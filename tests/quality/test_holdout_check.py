@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from analysis.identification.estimate import identify
-from analysis.identification.holdout_check import flag_columns
-from analysis.identification.measurements import TestArrays
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.validation.holdout_check import flag_columns
 from analysis.kinetostatics.equilibrium import displacement_screw
 from tests.quality._coverage import NOISE, campaign_setup
 
@@ -78,7 +78,7 @@ def test_a_bad_pose_is_flagged_and_named(setup):
 
 
 def test_folds_hold_nearby_poses_together_without_chaining():
-    from analysis.identification.holdout_check import holdout_folds
+    from analysis.identification.validation.holdout_check import holdout_folds
 
     deg = np.pi / 180
     # poses along one joint at 0, 0.2, 4, 8, 12, 30 deg (labels 0..5), two tests each

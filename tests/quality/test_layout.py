@@ -8,7 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.identification.exact_fit import solve_deflection_compliance, solve_deflection_masked
+from analysis.identification.estimators.exact_model import (
+    solve_deflection_compliance,
+    solve_deflection_masked,
+)
 from analysis.kinetostatics.equilibrium import (
     EquilibriumError,
     newton_deflection,
@@ -33,7 +36,7 @@ def _imports(path: Path) -> set[str]:
 
 def test_crossval_does_not_import_estimate():
     assert "analysis.identification.estimate" not in _imports(
-        ROOT / "analysis/identification/crossval.py")
+        ROOT / "analysis/identification/validation/crossval.py")
 
 
 def test_one_newton_loop():

@@ -10,9 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification.estimate import fit_linear, identify
-from analysis.identification.linear_bias import linearisation_bias
-from analysis.identification.measurements import TestArrays
+from analysis.identification.corrections.linear_bias import linearisation_bias
+from analysis.identification.estimate import identify
+from analysis.identification.estimators.fitting import fit_linear
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw
 from tests.quality._coverage import NOISE, campaign_setup, coverage
@@ -94,8 +95,8 @@ def test_corrected_estimate_is_unbiased(setup):
 def test_unreliable_correction_is_refused_and_can_be_accepted(setup, monkeypatch):
     """Beyond the contraction limit the raw estimate is kept, widened by |b|, and the
     plausibility checks refuse it (which --accept-misfit overrides, as every refusal)."""
-    import analysis.identification.linear_bias as lb
-    from analysis.identification.plausibility import problems
+    import analysis.identification.corrections.linear_bias as lb
+    from analysis.identification.checks.plausibility import problems
     from analysis.identification.uncertainty import stiffness_interval
 
     robot, q, W, k = setup

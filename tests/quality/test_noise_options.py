@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from analysis.identification.estimate import identify
-from analysis.identification.measurements import TestArrays
+from analysis.identification.io.measurements import TestArrays
 from analysis.kinetostatics.equilibrium import displacement_screw
-from campaign.commands.analyze import _override_noise
+from campaign.cli.commands.analyze import _override_noise
 from tests.quality._coverage import NOISE, campaign_setup
 
 

@@ -7,9 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from analysis.identification.design_simulation import identify_campaigns, simulate_campaigns
-from campaign.criteria import candidate_information, relative_se
-from campaign.planner import make_plan
+from analysis.identification.studies.design_simulation import identify_campaigns, simulate_campaigns
+from campaign.planning.criteria import candidate_information, relative_se
+from campaign.planning.planner import make_plan
 from campaign.protocol import load_protocol
 from tests.quality._own_robot import write_protocol
 

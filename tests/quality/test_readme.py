@@ -76,8 +76,8 @@ def test_no_two_walk_through_commands_write_into_one_directory():
 
 
 def test_the_listed_strategies_are_the_planners():
-    from campaign.cli_common import Strategy
-    from campaign.planner import STRATEGIES
+    from campaign.cli.common import Strategy
+    from campaign.planning.planner import STRATEGIES
 
     text = " ".join((ROOT / "README.md").read_text().split())
     listed = re.search(r"--strategy ([a-z|-]+)`", text).group(1).split("|")

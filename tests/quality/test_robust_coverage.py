@@ -76,7 +76,7 @@ def test_slow_reweighting_settles(setup):
     50-iteration limit refused: Tukey's reweighting contracts at ~0.84 per iteration and
     settles in 106 (Huber + Tukey) iterations."""
     from analysis.identification.estimate import identify
-    from analysis.identification.measurements import TestArrays
+    from analysis.identification.io.measurements import TestArrays
     from analysis.kinetostatics.equilibrium import displacement_screw
     from tests.quality._coverage import NOISE
 

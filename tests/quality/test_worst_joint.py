@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.design_simulation import identify_campaigns, simulate_campaigns
-from campaign.criteria import candidate_information, relative_se
-from campaign.design import random_design
-from campaign.planner import make_plan
+from analysis.identification.studies.design_simulation import identify_campaigns, simulate_campaigns
+from campaign.planning.criteria import candidate_information, relative_se
+from campaign.planning.design import random_design
+from campaign.planning.planner import make_plan
 from campaign.protocol import load_protocol
 
 RANDOM_DESIGNS = 201  # the planner's reference designs (seeds seed + 1000 + i)

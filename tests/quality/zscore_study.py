@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.identification.estimate import identify
-from analysis.identification.measurements import TestArrays
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.model.robots import load_robot
 

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from report_runs import write_csv, write_run
 
-import analysis.identification.estimate as identification
+import analysis.identification.problem as identification
 from analysis.identification.estimate import analyze_table
-from analysis.identification.measurements import read_csv
+from analysis.identification.io.measurements import read_csv
 from analysis.model.robots import load_robot
 from campaign.cli import main
-from campaign.commands import analyze as analyze_command
+from campaign.cli.commands import analyze as analyze_command
 
 
 class _H3(HTMLParser):
@@ -32,7 +32,7 @@ class _H3(HTMLParser):
 
 
 def test_cli_methods_match_the_identification():
-    from campaign.cli_common import Method
+    from campaign.cli.common import Method
 
     assert analyze_command.METHODS == identification.METHODS
     assert tuple(m.value for m in Method) == identification.METHODS
@@ -192,7 +192,7 @@ def test_ols_on_a_kr240_run_is_corrected_not_refused(tmp_path, complete_run, cap
 
 def test_unreliable_linear_correction_is_refused_unless_accepted(tmp_path, complete_run,
                                                                   monkeypatch):
-    import analysis.identification.linear_bias as lb
+    import analysis.identification.corrections.linear_bias as lb
 
     monkeypatch.setattr(lb, "CONTRACTION_LIMIT", 1e-9)
     args = ["analyze", str(complete_run), "--method", "ols", "--no-report"]

@@ -1,4 +1,4 @@
-"""campaign.run_reader: complete, aborted and malformed run directories."""
+"""campaign.run_format.reader: complete, aborted and malformed run directories."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from report_runs import HEADER, REPEATS, write_run
 
 from analysis.errors import InputError
-from campaign.run_reader import read_run
+from campaign.run_format.reader import read_run
 
 
 def test_complete_run_counts_flags_and_si_table(complete_run):

@@ -233,7 +233,7 @@ def test_outliers_of_a_misfit_run_agree_with_the_figure(misfit, monkeypatch):
     """A campaign simulated with a wrong model (a 0.5 mm offset per pose the joint
     model cannot explain), accepted with --accept-misfit: more residuals beyond the
     threshold than the sequential test's budget sets aside."""
-    from analysis.identification.estimate import MAX_OUTLIERS
+    from analysis.identification.checks.outliers import MAX_OUTLIERS
 
     assert misfit["results"]["misfit_accepted"]["accepted"]
     aside = _check_outliers(misfit, monkeypatch)
@@ -467,8 +467,8 @@ def test_plan_map_lists_coinciding_poses_and_sets_their_labels_apart(monkeypatch
     """plan_map.png: two planned poses 0.1 deg apart are listed under the title and
     their labels (the report's placement) overlap neither each other nor the others."""
     import analysis.output_files as output_files
-    from campaign.plan_map import draw_plan_map
-    from campaign.planner import make_plan
+    from campaign.planning.plan_map import draw_plan_map
+    from campaign.planning.planner import make_plan
 
     plan = make_plan(_kr_protocol(), "d-optimal", seed=5, candidates=2000)
     chosen = np.unique(plan.chosen.pose)
@@ -509,7 +509,7 @@ def test_time_stamps_are_shown_to_the_second():
 
 
 def test_robustness_rows_not_identifiable_are_marked():
-    from analysis.identification.robustness import identifiable_rows
+    from analysis.identification.studies.robustness import identifiable_rows
 
     summary = pd.DataFrame({
         "trials": [200, 200, 200], "trials_rejected": [0, 30, 0],

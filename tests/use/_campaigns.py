@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.gauss_newton import gauss_newton
+from analysis.identification.estimators.gauss_newton import gauss_newton
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw
 from tests.report import report_runs

@@ -178,7 +178,7 @@ def test_a_row_where_the_interval_and_the_z_test_part_is_marked():
     "changed" and the interval holds 0, a borderline row said as such."""
     from scipy.stats import norm
 
-    from analysis.identification.compare import Campaign, compare
+    from analysis.identification.compare.comparison import Campaign, compare
 
     def campaign(name, k, se_x):
         kk = np.full(6, np.nan)

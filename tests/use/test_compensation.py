@@ -18,7 +18,7 @@ from analysis.kinetostatics.uncertainty import predict_deflection
 from analysis.model.kinematics import pin_tool_pose, pose_difference, tool_pose
 from analysis.model.robots import builtin_names, load_robot
 from campaign.cli import main
-from campaign.path_file import Q_COLS, W_COLS
+from campaign.use.path_file import Q_COLS, W_COLS
 
 PROTOCOL = "protocols/kr240-2.toml"
 
@@ -29,7 +29,7 @@ def _path_points(robot, count: int, seed: int, span: float = 1.0) -> np.ndarray:
     The end poses are drawn from ``seed``; draws whose straight joint-space path passes
     near a singularity (1/kappa_F < 0.05 anywhere) are skipped, deterministically.
     """
-    from analysis.identification.robustness import sample_poses
+    from analysis.identification.studies.robustness import sample_poses
     from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
     from analysis.model.kinematics import jacobian
 

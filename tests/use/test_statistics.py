@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification.compare import critical_z, difference_intervals, z_scores
+from analysis.identification.compare.comparison import critical_z, difference_intervals, z_scores
 from analysis.kinetostatics.equilibrium import displacement_screw
 from analysis.kinetostatics.uncertainty import Z95, predict_deflection
 from analysis.model.robots import load_robot

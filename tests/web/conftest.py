@@ -28,7 +28,7 @@ def workspace(tmp_path: Path) -> Path:
 
 
 def _write_plan(d: Path) -> None:
-    from campaign.plan_output import COLUMNS
+    from campaign.planning.plan_output import COLUMNS
 
     shutil.copy(Path(__file__).parents[2] / "protocols" / "kr240-2.toml", d / "protocol.toml")
     poses = POSES_DEG

@@ -15,7 +15,7 @@ def test_default_host_is_loopback():
 
     assert GuiOptions(workspace=".").host == DEFAULT_HOST == "127.0.0.1"
     assert is_loopback(DEFAULT_HOST)
-    from campaign.commands import gui
+    from campaign.cli.commands import gui
 
     assert '"127.0.0.1"' in inspect.getsource(gui)
 

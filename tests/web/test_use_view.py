@@ -245,7 +245,8 @@ def test_compensation_shows_the_jobs_numbers(page, ws):
     text = page.evaluate("async (p) => (await fetch('/api/use/program?path=' + "
                          "encodeURIComponent(p))).text()", src)
     assert text == (ws / src).read_text()
-    # the same output directory again, without "replace": the job's one line beside the form
+    # the same output directory again, without "replace": the job's one line beside the form,
+    # naming the checkbox (not the command line's --force)
     page.click("#comp-run")
     page.wait_for_selector("#view-use[data-comp='error']", timeout=30_000)
     err = page.inner_text("#comp-error")
@@ -253,7 +254,11 @@ def test_compensation_shows_the_jobs_numbers(page, ws):
     with pytest.raises(Exception) as refused:
         run(CompensateOptions(robot=str(ws / "A/model.toml"), path=ws / "path.csv",
                               out=ws / "comp-page", wrench_N_Nm=[500, 0, -1000, 0, 20, 0]))
-    assert err == str(refused.value).replace(f"{ws}/", "")
+    # the job's line in the page's terms: its command-line options are the form's labels
+    line = str(refused.value).replace(f"{ws}/", "")
+    assert "--force" in line and "--force" not in err
+    assert err == line.replace("--out", "\u201cOutput directory\u201d").replace(
+        "--force", "\u201cReplace its files\u201d")
 
 
 def test_a_new_wrench_gives_the_jobs_numbers(page, ws):

@@ -73,6 +73,8 @@ function body() {
   else delete b.reflector_radius_mm;
   const w = $("wrench").value.trim();
   if (w) b.wrench_N_Nm = numbers(w, "wrench");
+  const k = $("joint_k").value.trim();
+  if (k) b.joint_stiffness_Nm_per_rad = numbers(k, "joint stiffness");
   if (b.poses === "plan") b.plan = $("plan").value.trim();
   if (b.poses === "typed") {
     b.q_deg = $("q_deg").value.split("\n").filter((l) => l.trim()).map((l) => numbers(l, "q"));
@@ -236,12 +238,16 @@ async function start() {
   $("workspace").textContent = `workspace: ${session.workspace}`;
   state.api.sensitivity = route(openapi, "sensitivity", "post");
   const defaults = await getJSON(route(openapi, "sensitivity", "get"));
-  for (const name of defaults.robots) {
-    const o = document.createElement("option"); o.value = name; $("robots").appendChild(o);
-  }
+  robotFillDatalist($("robots"), await robotChoices());
+  $("urdf-upload").addEventListener("click", () => robotUpload($("urdf-file"), $("urdf-tip"),
+    $("urdf-msg"), async (value) => {
+      robotFillDatalist($("robots"), await robotChoices());
+      $("robot").value = value;
+      schedule();
+    }).catch((err) => { $("urdf-msg").textContent = String(err); }));
   buildSliders(openapi.components.schemas.SensitivityRequest, defaults);
   for (const b of document.querySelectorAll(".tab")) b.addEventListener("click", () => showView(b.dataset.view));
-  for (const id of ["robot", "poses", "plan", "q_deg", "wrench", "method", "trials"]) {
+  for (const id of ["robot", "joint_k", "poses", "plan", "q_deg", "wrench", "method", "trials"]) {
     $(id).addEventListener("change", schedule);
   }
   $("poses").addEventListener("change", posesChanged);

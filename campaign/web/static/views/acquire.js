@@ -40,21 +40,22 @@
     const w = live.wrench;
     el("acq-force").textContent = w ? vec(w.slice(0, 3), 1, 1) : dash;
     el("acq-moment").textContent = w ? vec(w.slice(3), 1, 1) : dash;
-    el("acq-defl").textContent = vec(live.deflection_mm, 1000, 0);
+    el("acq-defl").textContent = vec(live.deflection_mm, 1, 3);
     const body = el("acq-tests").querySelector("tbody");
     body.replaceChildren(...s.tests.map((t) => {
       const tr = document.createElement("tr");
       const cells = [t.test_id, t.repeat, t.status,
         [t.fx_N, t.fy_N, t.fz_N].map((x) => x.toFixed(1)).join(", "),
         [t.mx_Nm, t.my_Nm, t.mz_Nm].map((x) => x.toFixed(1)).join(", "),
-        [t.dx_mm, t.dy_mm, t.dz_mm].map((x) => (x * 1000).toFixed(0)).join(", "),
-        [t.rx_mrad, t.ry_mrad, t.rz_mrad].map((x) => (x * 1000).toFixed(0)).join(", "),
+        [t.dx_mm, t.dy_mm, t.dz_mm].map((x) => x.toFixed(3)).join(", "),
+        [t.rx_mrad, t.ry_mrad, t.rz_mrad].map((x) => x.toFixed(4)).join(", "),
         (t.repeatability_mm * 1000).toFixed(1), t.flags || ""];
       for (const c of cells) { const td = document.createElement("td"); td.textContent = c; tr.appendChild(td); }
       return tr;
     }));
     el("acq-abort").disabled = !s.running;
     el("acq-resume").disabled = s.running || s.status !== "aborted";
+    if (window.acqMap) window.acqMap.update(s).catch(error);
   }
 
   async function refresh() {
@@ -93,6 +94,7 @@
     el("acq-error").textContent = "";
     try {
       const d = await post("/api/acquire/dry-run", { plan: el("acq-plan").value.trim() });
+      if (window.acqMap) window.acqMap.preview(el("acq-plan").value.trim());
       el("acq-motions").replaceChildren(...d.motions.filter((m) => m.trim()).map((m) => {
         const li = document.createElement("li"); li.textContent = m; return li;
       }));

@@ -1,12 +1,16 @@
-// campaign gui, the Use view: K_X and the deflection at a pose (joint sliders), the
-// compensation of a path, and the comparison of two analyses. Every number comes from a
-// job of the server (POST /api/jobs/stiffness, /compensate, /compare; SI in the bodies);
-// the page converts only at its edge: deg for joints, mm and mrad, N/mm and N m/mrad, kN m/rad.
+// campaign gui, the Use view: K_X and the deflection at a pose (joint sliders, in the model
+// or the pendant convention), the deflection along a path with its band, the placement
+// search (a queued job, its progress from server-sent events), the compensation of a path
+// and the comparison of two analyses. Every number comes from a job of the server (POST
+// /api/jobs/stiffness, /place, /compensate, /compare, /api/use/deflection; SI in the bodies
+// but place's, in the command line's mm and deg); the page converts only at its edge: deg
+// for joints, mm and mrad, N/mm and N m/mrad, kN m/rad. A job's refusal is shown in the
+// page's terms: the command-line options it names become the labels of this page's fields.
 (() => {
 "use strict";
 
 const use = { csrf: null, header: null, robot: null, timer: null, inflight: false,
-              dirty: false, calls: 0, plot: null };
+              dirty: false, calls: 0, plot: null, pdPlot: null, job: null, pendant: false };
 const DEG = Math.PI / 180;
 const WRENCH = [["fx", "N"], ["fy", "N"], ["fz", "N"], ["mx", "N m"], ["my", "N m"], ["mz", "N m"]];
 
@@ -24,13 +28,99 @@ async function useGet(url) {
   return r.json();
 }
 
-async function usePost(url, body) {
+function jobError(err, status) {
+  const detail = err && typeof err.detail === "string" ? err.detail : JSON.stringify(err && err.detail);
+  const e = new Error(detail || String(status));
+  e.detail = detail; e.field = (err && err.field) || null; e.options = (err && err.options) || {};
+  e.status = status;
+  return e;
+}
+
+async function post(url, body) {
   const r = await fetch(url, { method: "POST", credentials: "same-origin",
     headers: { "Content-Type": "application/json", [use.header]: use.csrf },
     body: JSON.stringify(body) });
   const doc = await r.json().catch(() => ({ detail: `${r.status}` }));
-  if (!r.ok) throw new Error(typeof doc.detail === "string" ? doc.detail : JSON.stringify(doc.detail));
+  return [r.status, doc];
+}
+
+async function usePost(url, body) {
+  const [status, doc] = await post(url, body);
+  if (status >= 400) throw jobError(doc, status);
   return doc;
+}
+
+// A queued job (202): followed by its server-sent events to its end; onProgress(job) at
+// each change. Resolves with its result; rejects with its error (or .cancelled).
+async function runJob(url, body, onProgress) {
+  const [status, doc] = await post(url, body);
+  if (status >= 400) throw jobError(doc, status);
+  if (status !== 202) return doc;
+  use.job = doc.id;
+  if (onProgress) onProgress(doc);
+  const ended = (j) => {
+    if (j.state === "done") return { ok: j.result };
+    if (j.state === "failed") return { err: jobError(j.error, j.error.status) };
+    if (j.state === "cancelled") {
+      const e = new Error(j.text); e.cancelled = true; return { err: e };
+    }
+    return null;
+  };
+  const end = await new Promise((resolve) => {
+    const es = new EventSource(`/api/jobs/${encodeURIComponent(doc.id)}/events`);
+    es.onmessage = (ev) => {
+      const j = JSON.parse(ev.data);
+      if (onProgress) onProgress(j);
+      const e = ended(j);
+      if (e) { es.close(); resolve(e); }
+    };
+    es.onerror = async () => {  // the stream broke: ask for the state until it ends
+      es.close();
+      for (;;) {
+        const j = await useGet(`/api/jobs/${encodeURIComponent(doc.id)}`).catch(() => null);
+        if (j) { if (onProgress) onProgress(j); const e = ended(j); if (e) { resolve(e); return; } }
+        await new Promise((t) => setTimeout(t, 300));
+      }
+    };
+  });
+  use.job = null;
+  if (end.err) throw end.err;
+  return end.ok;
+}
+
+// the labels of a form's fields: <label data-field="force" data-label="Replace its files">
+function labelsOf(form) {
+  const out = {};
+  for (const el of form.querySelectorAll("[data-field]")) out[el.dataset.field] = el.dataset.label;
+  return out;
+}
+
+// a job's line in this page's terms: each command-line option it names -> the field's label
+function inTerms(err, labels) {
+  let text = String(err.detail || err.message || err);
+  for (const [opt, field] of Object.entries(err.options || {})) {
+    if (labels[field]) text = text.split(opt).join(`\u201c${labels[field]}\u201d`);
+  }
+  return text;
+}
+
+// a job's own sentence (a warning of placement.json) in this page's terms: a command-line
+// option --x-mm is the field x_mm of the job's options, shown by its label
+function optionsAsLabels(text, labels) {
+  return String(text).replace(/--([a-z][a-z0-9-]*)/g, (all, name) => {
+    const label = labels[name.replace(/-/g, "_")];
+    return label ? `\u201c${label}\u201d` : all;
+  });
+}
+
+// the error beside its field (and in the form's error line); false when no field shows it
+function showFieldError(form, err, errorLine) {
+  for (const m of form.querySelectorAll(".use-msg")) m.textContent = "";
+  const text = inTerms(err, labelsOf(form));
+  errorLine.textContent = text;
+  const msg = err.field && form.querySelector(`.use-msg[data-for="${err.field}"]`);
+  if (msg) msg.textContent = text;
+  return Boolean(msg);
 }
 
 function wrenchInputs(box, prefix, values) {
@@ -69,8 +159,6 @@ async function loadRobot() {
   use.robot = r;
   u$("use-robot-info").textContent = `${r.name}: ${r.joints} joints; angles in the model ` +
     `convention (${r.convention}), limits from ${r.source_file ? r.source_file.split("/").pop() : "the model"}`;
-  const box = u$("use-joints");
-  for (const el of box.querySelectorAll("label")) el.remove();
   // where the sliders start: the first zone's centre, other joints a quarter of the way
   // from the middle of their range to its top (off the wrist singularity at 0)
   const start = r.lower_rad.map((lo, j) => (lo + r.upper_rad[j]) / 2 + (r.upper_rad[j] - lo) / 8);
@@ -78,44 +166,141 @@ async function loadRobot() {
   if (zone) {
     for (const [key, [a, b]] of Object.entries(zone.ranges_rad)) start[Number(key.slice(1)) - 1] = (a + b) / 2;
   }
+  buildSliders(start.map((v) => Math.round(2 * v / DEG) / 2));
+  scheduleStiffness();
+}
+
+// ---- the two conventions: model q (deg) and pendant A = (diag(sign) + coupling) q + offset
+
+function ctrlMatrix() {
+  const r = use.robot;
+  return r.controller_sign.map((sg, i) => r.controller_coupling[i].map((c, j) => (i === j ? sg : 0) + c));
+}
+
+function toCtrl(q) {
+  const off = use.robot.controller_offset_rad.map((v) => v / DEG);
+  return ctrlMatrix().map((row, i) => off[i] + row.reduce((a, m, j) => a + m * q[j], 0));
+}
+
+function fromCtrl(a) {
+  // solve M q = a - offset (Gaussian elimination with partial pivoting; M is 6x6)
+  const M = ctrlMatrix().map((row) => row.slice());
+  const off = use.robot.controller_offset_rad.map((v) => v / DEG);
+  const b = a.map((v, i) => v - off[i]);
+  const n = b.length;
+  for (let c = 0; c < n; c++) {
+    let p = c;
+    for (let i = c + 1; i < n; i++) if (Math.abs(M[i][c]) > Math.abs(M[p][c])) p = i;
+    [M[c], M[p]] = [M[p], M[c]]; [b[c], b[p]] = [b[p], b[c]];
+    for (let i = c + 1; i < n; i++) {
+      const f = M[i][c] / M[c][c];
+      for (let j = c; j < n; j++) M[i][j] -= f * M[c][j];
+      b[i] -= f * b[c];
+    }
+  }
+  const q = new Array(n).fill(0);
+  for (let i = n - 1; i >= 0; i--) {
+    let acc = b[i];
+    for (let j = i + 1; j < n; j++) acc -= M[i][j] * q[j];
+    q[i] = acc / M[i][i];
+  }
+  return q.map((v) => Number(v.toFixed(9)));  // the solve's rounding, not a new angle
+}
+
+function modelLimits() {
+  const r = use.robot;
+  return [r.lower_rad.map((v) => Number((v / DEG).toFixed(6))), r.upper_rad.map((v) => Number((v / DEG).toFixed(6)))];
+}
+
+// the slider ranges of the shown convention: the model's limits, or their image on the
+// pendant (interval sum of each row of M over the limits' box, plus the offset)
+function shownLimits() {
+  const [lo, hi] = modelLimits();
+  if (!use.pendant) return [lo, hi];
+  const off = use.robot.controller_offset_rad.map((v) => v / DEG);
+  const M = ctrlMatrix();
+  const a = M.map((row, i) => off[i] + row.reduce((acc, m, j) => acc + Math.min(m * lo[j], m * hi[j]), 0));
+  const b = M.map((row, i) => off[i] + row.reduce((acc, m, j) => acc + Math.max(m * lo[j], m * hi[j]), 0));
+  return [a.map((v) => Number(v.toFixed(6))), b.map((v) => Number(v.toFixed(6)))];
+}
+
+function buildSliders(qModel) {
+  const r = use.robot;
+  const box = u$("use-joints");
+  for (const el of box.querySelectorAll("label")) el.remove();
+  u$("use-joints-legend").textContent = use.pendant ?
+    "Joint angles (deg, pendant convention A1..A6; slider range = the model's limits on the pendant)" :
+    "Joint angles (deg, model convention; slider range = the model's limits)";
+  const [lo, hi] = shownLimits();
+  const shown = use.pendant ? toCtrl(qModel) : qModel;
   for (let j = 0; j < r.joints; j++) {
-    const lo = Number((r.lower_rad[j] / DEG).toFixed(6)), hi = Number((r.upper_rad[j] / DEG).toFixed(6));
+    const name = use.pendant ? `A${j + 1}` : `q${j + 1}`;
     const l = document.createElement("label");
     l.className = "slider";
-    l.innerHTML = `<span>q${j + 1} (deg) [${fmt(lo)}, ${fmt(hi)}]</span>` +
-      `<input type="range" id="q${j + 1}" min="${lo}" max="${hi}" step="0.5">` +
-      `<input type="number" id="q${j + 1}-deg" min="${lo}" max="${hi}" step="any" title="q${j + 1} (deg), within [${fmt(lo)}, ${fmt(hi)}]">`;
+    l.innerHTML = `<span>${name} (deg) [${fmt(lo[j])}, ${fmt(hi[j])}]</span>` +
+      `<input type="range" id="q${j + 1}" min="${lo[j]}" max="${hi[j]}" step="0.5">` +
+      `<input type="number" id="q${j + 1}-deg" min="${lo[j]}" max="${hi[j]}" step="any" title="${name} (deg), within [${fmt(lo[j])}, ${fmt(hi[j])}]">`;
     box.appendChild(l);
-    const s = l.querySelector("input[type=range]"), n = l.querySelector("input[type=number]");
-    s.value = String(Math.round(2 * start[j] / DEG) / 2);
-    n.value = s.value;
-    s.addEventListener("input", () => { n.value = s.value; scheduleStiffness(); });
+    const sl = l.querySelector("input[type=range]"), n = l.querySelector("input[type=number]");
+    n.value = String(Number(shown[j].toFixed(9)));
+    sl.value = n.value;
+    sl.addEventListener("input", () => { n.value = sl.value; enforceLimits(j); scheduleStiffness(); });
     n.addEventListener("change", () => {
       let v = Number(n.value);
-      if (!Number.isFinite(v)) v = Number(s.value);
-      const clamped = Math.min(Math.max(v, lo), hi);  // the limits are enforced here too
+      if (!Number.isFinite(v)) v = Number(sl.value);
+      const clamped = Math.min(Math.max(v, lo[j]), hi[j]);  // the limits are enforced here too
       n.value = String(clamped);
-      s.value = String(clamped);
-      u$("use-limit").textContent = clamped !== v ? `q${j + 1} held at its limit ${fmt(clamped)} deg` : "";
+      sl.value = String(clamped);
+      u$("use-limit").textContent = clamped !== v ? `${name} held at its limit ${fmt(clamped)} deg` : "";
+      enforceLimits(j);
       scheduleStiffness();
     });
   }
   const pendant = document.createElement("label");
-  pendant.innerHTML = `<span>pendant (controller) convention</span><output id="use-pendant"></output>`;
+  pendant.innerHTML = use.pendant ? `<span>model convention</span><output id="use-pendant"></output>` :
+    `<span>pendant (controller) convention</span><output id="use-pendant"></output>`;
   box.appendChild(pendant);
+}
+
+// pendant mode: the pendant's box is wider than the model's limits when joints are
+// coupled; the pose is held inside the model's limits, and the sliders show where
+function enforceLimits(j) {
+  if (!use.pendant) return;
+  const [lo, hi] = modelLimits();
+  const q = fromCtrl(shownValues());
+  const held = q.map((v, i) => Math.min(Math.max(v, lo[i]), hi[i]));
+  if (held.every((v, i) => v === q[i])) return;
+  const a = toCtrl(held);
+  a.forEach((v, i) => {
+    u$(`q${i + 1}-deg`).value = String(Number(v.toFixed(9)));
+    u$(`q${i + 1}`).value = String(v);
+  });
+  u$("use-limit").textContent = `A${j + 1} held: the pose stays inside the model's joint limits`;
+}
+
+function shownValues() {
+  return Array.from({ length: use.robot.joints }, (_, j) => Number(u$(`q${j + 1}-deg`).value));
+}
+
+function setConvention(pendant) {
+  const q = poseDeg();
+  use.pendant = pendant;
+  buildSliders(q);
   scheduleStiffness();
 }
 
 function showPendant(qDeg) {
-  // q_ctrl = (diag(sign) + coupling) q_model + offset, as the model file defines it
-  const r = use.robot;
-  const out = qDeg.map((_, i) => r.controller_offset_rad[i] / DEG + qDeg.reduce(
-    (acc, q, j) => acc + ((i === j ? r.controller_sign[i] : 0) + r.controller_coupling[i][j]) * q, 0));
-  u$("use-pendant").textContent = out.map((v, i) => `A${i + 1} ${fmt(v)}`).join(", ") + " deg";
+  // the other convention than the sliders': the pendant's A (the model file's transform),
+  // or the model's q when the sliders are the pendant's
+  const out = use.pendant ? qDeg : toCtrl(qDeg);
+  const name = use.pendant ? "q" : "A";
+  u$("use-pendant").textContent = out.map((v, i) => `${name}${i + 1} ${fmt(v)}`).join(", ") + " deg";
 }
 
+// the pose in the model convention (deg), whatever the sliders show
 function poseDeg() {
-  return Array.from({ length: use.robot.joints }, (_, j) => Number(u$(`q${j + 1}-deg`).value));
+  const shown = shownValues();
+  return use.pendant ? fromCtrl(shown) : shown;
 }
 
 function scheduleStiffness() {
@@ -216,19 +401,214 @@ async function runCompensation() {
   u$("comp-run").disabled = true;
   const view = u$("view-use");
   view.dataset.comp = "running";
+  const bar = u$("comp-progress");
+  bar.hidden = false; bar.removeAttribute("value");
   try {
-    const res = await usePost("/api/jobs/compensate", {
+    const res = await runJob("/api/jobs/compensate", {
       robot: u$("comp-robot").value, path: u$("comp-path").value, out: u$("comp-out").value.trim(),
-      wrench_N_Nm: wrenchOf("comp-w"), force: u$("comp-force").checked });
+      wrench_N_Nm: wrenchOf("comp-w"), force: u$("comp-force").checked },
+      (j) => { u$("comp-text").textContent = j.text; });
     const csv = res.files.find((f) => f.endsWith("compensated.csv"));
     const table = parseCSV(await (await fetch("/api/runs/file?path=" + encodeURIComponent(csv))).text());
     showCompensation(res, table);
     view.dataset.comp = "done";
   } catch (err) {
-    u$("comp-error").textContent = String(err.message || err);
+    u$("comp-error").textContent = inTerms(err, { force: "Replace its files", out: "Output directory",
+                                                  path: "Path CSV", robot: "Robot model", wrench_N_Nm: "wrench" });
     view.dataset.comp = "error";
   } finally {
     u$("comp-run").disabled = false;
+    bar.hidden = true;
+  }
+}
+
+// ---- deflection along a path (no compensation, nothing written) ----------------------
+
+const PD_LIMIT = 2000000;  // characters of an uploaded path, as the server's limit
+
+async function runDeflection() {
+  const view = u$("view-use");
+  u$("pd-error").textContent = "";
+  view.dataset.pd = "running";
+  try {
+    const body = { robot: u$("pd-robot").value, controller_angles: u$("pd-pendant").checked };
+    if (u$("pd-constant").checked) body.wrench_N_Nm = wrenchOf("pd-w");
+    const file = u$("pd-file").files[0];
+    if (file) {
+      if (file.size > PD_LIMIT) throw new Error(`${file.name}: ${file.size} bytes, above the limit of ${PD_LIMIT} for an upload`);
+      body.upload_name = file.name;
+      body.upload_text = await file.text();
+    } else {
+      body.path = u$("pd-path").value;
+    }
+    const res = await usePost("/api/use/deflection", body);
+    showDeflection(res);
+    view.dataset.pd = "done";
+  } catch (err) {
+    u$("pd-error").textContent = inTerms(err, { wrench_N_Nm: "constant wrench", controller_angles: "pendant angles" });
+    u$("pd-result").hidden = true;
+    view.dataset.pd = "error";
+  }
+}
+
+function showDeflection(res) {
+  u$("pd-result").hidden = false;
+  const band = res.lo95_m_rad !== null;
+  const rows = [
+    ["points", "pd-points", String(res.points), ""],
+    ["max |dp| (predicted)", "pd-max", fmt(1e3 * res.max_norm_p_m), "mm"],
+    ["max |dp|, 95 % upper bound", "pd-max-hi", band ? fmt(1e3 * Math.max(...res.norm_p_upper95_m)) : "no covariance in the model", band ? "mm" : ""],
+    ["worst point (line of the path file)", "pd-worst", String(res.worst_line), ""],
+    ["joint stiffness", "pd-k", res.joint_stiffness_source, ""],
+    ["wrench", "pd-wrench-src", res.wrench_source, ""],
+  ];
+  u$("pd-summary").querySelector("tbody").innerHTML = rows.map(([a, id, v, unit]) =>
+    `<tr><th>${a}</th><td id="${id}">${v}</td><td>${unit}</td></tr>`).join("");
+  const x = res.line;
+  const data = [x];
+  const series = [{ label: "line" }];
+  const colours = ["#c0392b", "#2471a3", "#229954"];
+  const bands = [];
+  ["dx", "dy", "dz"].forEach((c, i) => {
+    data.push(res.deflection_m_rad.map((d) => 1e3 * d[i]));
+    series.push({ label: `${c} (mm)`, stroke: colours[i], width: 2 });
+    if (band) {
+      const k = data.length;
+      data.push(res.hi95_m_rad.map((d) => 1e3 * d[i]), res.lo95_m_rad.map((d) => 1e3 * d[i]));
+      series.push({ label: `${c} 95 % hi (mm)`, stroke: colours[i], dash: [4, 4], width: 1 },
+                  { label: `${c} 95 % lo (mm)`, stroke: colours[i], dash: [4, 4], width: 1 });
+      bands.push({ series: [k, k + 1], fill: colours[i] + "33" });
+    }
+  });
+  const box = u$("pd-fig");
+  if (use.pdPlot) use.pdPlot.destroy();
+  box.innerHTML = "";
+  use.pdPlot = new uPlot({ width: 760, height: 300, series, bands, legend: { live: true },
+                           scales: { x: { time: false } },
+                           axes: [{ label: "line of the path file" }, { label: "deflection (mm)", size: 60 }] }, data, box);
+}
+
+// ---- placement search (a queued job; progress from its events) -----------------------
+
+// field of PlaceOptions, label, default, input kind (the command line's units: mm, deg)
+const PLACE_FIELDS = [
+  ["path", "Workpiece path CSV", "", "select"],
+  ["robot", "Robot", "kr240-2", "select"],
+  ["x_mm", "x range (mm)", "1400..1800", "text"], ["x_step_mm", "x step (mm)", "200", "number"],
+  ["y_mm", "y range (mm)", "-200..200", "text"], ["y_step_mm", "y step (mm)", "200", "number"],
+  ["z_mm", "z range (mm)", "200", "text"], ["z_step_mm", "z step (mm)", "100", "number"],
+  ["yaw_deg", "yaw range (deg)", "0", "text"], ["yaw_step_deg", "yaw step (deg)", "15", "number"],
+  ["tool_angle_step_deg", "tool angle step (deg)", "30", "number"],
+  ["config", "configuration (any, or shoulder,elbow,wrist each 1 or -1)", "any", "text"],
+  ["wrench", "process wrench fx,fy,fz (N), mx,my,mz (N m), tool frame (empty: the path's columns)", "", "text"],
+  ["objective", "objective", "max", "objective"],
+  ["workers", "worker processes (0: in the server's process; empty: a local Dask cluster)", "", "number"],
+  ["out", "Output directory", "placement", "text"],
+  ["force", "Replace its files", false, "checkbox"],
+];
+
+function buildPlaceForm() {
+  const box = u$("pl-fields");
+  for (const [field, label, value, kind] of PLACE_FIELDS) {
+    const l = document.createElement("label");
+    l.dataset.field = field; l.dataset.label = label;
+    const id = `pl-${field}`;
+    let input;
+    if (kind === "select" || kind === "objective") {
+      input = `<select id="${id}">${kind === "objective" ? ["max", "rms", "compliance"].map((o) => `<option>${o}</option>`).join("") : ""}</select>`;
+    } else if (kind === "checkbox") {
+      input = `<input type="checkbox" id="${id}">`;
+    } else {
+      input = `<input type="${kind === "number" ? "number" : "text"}" id="${id}" step="any">`;
+    }
+    l.innerHTML = `<span>${label}</span>${input}<small class="use-msg" data-for="${field}"></small>`;
+    box.appendChild(l);
+    const el = u$(id);
+    if (kind !== "checkbox" && kind !== "select") el.value = String(value);
+  }
+}
+
+function placeBody() {
+  const b = {};
+  for (const [field, , , kind] of PLACE_FIELDS) {
+    const el = u$(`pl-${field}`);
+    if (kind === "checkbox") b[field] = el.checked;
+    else if (kind === "number") { if (el.value.trim() !== "") b[field] = Number(el.value); }
+    else if (el.value.trim() !== "" || field === "path") b[field] = el.value.trim();
+  }
+  return b;
+}
+
+async function runPlace() {
+  const view = u$("view-use");
+  const form = u$("use-place");
+  for (const m of form.querySelectorAll(".use-msg")) m.textContent = "";
+  u$("pl-error").textContent = "";
+  u$("pl-run").disabled = true;
+  u$("pl-cancel").disabled = false;
+  u$("pl-result").hidden = true;
+  const bar = u$("pl-progress");
+  bar.value = 0;
+  view.dataset.place = "running";
+  try {
+    const res = await runJob("/api/jobs/place", placeBody(), (j) => {
+      view.dataset.placeJob = j.id;
+      if (j.fraction === null) bar.removeAttribute("value"); else bar.value = j.fraction;
+      u$("pl-text").textContent = j.text === j.state ? j.text : `${j.state}: ${j.text}`;
+      view.dataset.placeFraction = String(j.fraction);
+    });
+    showPlace(res);
+    view.dataset.place = "done";
+  } catch (err) {
+    if (err.cancelled) {
+      u$("pl-text").textContent = err.message;
+      view.dataset.place = "cancelled";
+    } else {
+      showFieldError(form, err, u$("pl-error"));
+      view.dataset.place = "error";
+    }
+  } finally {
+    u$("pl-run").disabled = false;
+    u$("pl-cancel").disabled = true;
+  }
+}
+
+async function cancelPlace() {
+  const id = u$("view-use").dataset.placeJob;
+  if (!id) return;
+  const r = await fetch(`/api/jobs/${encodeURIComponent(id)}`, { method: "DELETE", credentials: "same-origin",
+                                                               headers: { [use.header]: use.csrf } });
+  if (!r.ok) u$("pl-error").textContent = (await r.json().catch(() => ({}))).detail || String(r.status);
+}
+
+function showPlace(res) {
+  u$("pl-result").hidden = false;
+  const p = res.placement, unit = res.objective_unit;
+  const rows = [
+    ["x", "pl-best-x", fmt(p.x_mm, 7), "mm"], ["y", "pl-best-y", fmt(p.y_mm, 7), "mm"],
+    ["z", "pl-best-z", fmt(p.z_mm, 7), "mm"], ["yaw", "pl-best-yaw", fmt(p.yaw_deg, 7), "deg"],
+    [`objective: ${res.objective_name}`, "pl-best-objective", fmt(res.objective), unit],
+    ["objective, nonlinear equilibrium with K_C", "pl-best-nonlinear", fmt(res.objective_nonlinear), unit],
+    ["configuration (shoulder, elbow, wrist)", "pl-config",
+     `${res.configuration.shoulder}, ${res.configuration.elbow}, ${res.configuration.wrist}`, ""],
+    ["centre of the box", "pl-best-center", res.center_objective === null ? `infeasible: ${res.center_infeasible_reason}` : fmt(res.center_objective), res.center_objective === null ? "" : unit],
+    ["better than the centre by", "pl-best-improvement", res.improvement_over_center === null ? "\u2014" : fmt(res.improvement_over_center, 4), "\u00d7"],
+    ["placements searched", "pl-best-placements", String(res.search_space.placements), ""],
+    ["infeasible placements", "pl-best-infeasible", String(res.infeasible.count), ""],
+    ["evaluations", "pl-best-evaluations", String(res.search_space.evaluations), ""],
+    ["run", "pl-best-where", `${res.run.where}, ${fmt(res.run.seconds, 3)} s`, ""],
+  ];
+  u$("pl-best").querySelector("tbody").innerHTML = rows.map(([a, id, v, un]) =>
+    `<tr><th>${a}</th><td id="${id}">${v}</td><td>${un}</td></tr>`).join("") +
+    res.warnings.map((w) => `<tr><td colspan="3" class="undefined">warning: ${optionsAsLabels(w, labelsOf(u$("use-place")))}</td></tr>`).join("");
+  u$("pl-runners").querySelector("tbody").innerHTML = res.runner_ups.map((r, i) =>
+    `<tr id="pl-runner-${i + 1}"><td>${i + 2}</td><td>${fmt(r.placement.x_mm, 7)}</td><td>${fmt(r.placement.y_mm, 7)}</td>` +
+    `<td>${fmt(r.placement.z_mm, 7)}</td><td>${fmt(r.placement.yaw_deg, 7)}</td><td class="obj">${fmt(r.objective)} ${unit}</td></tr>`).join("");
+  const files = u$("pl-files");
+  files.innerHTML = "";
+  const out = u$("pl-out").value.trim().replace(/\/+$/, "");
+  for (const name of ["placement.json", "path_joints.csv", "objective_xy.png", "path_deflection.png"]) {
+    files.appendChild(fileLink(`${out}/${name}`)); files.appendChild(document.createTextNode(" "));
   }
 }
 
@@ -304,13 +684,19 @@ async function runCompare() {
 
 async function refreshFiles() {
   const f = await useGet("/api/use/files");
-  const robots = [...f.builtin.map((n) => [n, `${n} (built-in)`]), ...f.models.map((m) => [m, m])];
+  const robots = (await robotChoices()).map((c) => [c.value, c.label]);  // robots.js
   const first = !u$("use-robot").options.length;
   fillSelect(u$("use-robot"), robots, true);
   if (first && f.builtin.includes("kr240-2")) u$("use-robot").value = "kr240-2";
   const models = [...f.models.map((m) => [m, m]), ...f.builtin.map((n) => [n, `${n} (built-in, nominal k)`])];
   fillSelect(u$("comp-robot"), models, true);
   fillSelect(u$("comp-path"), f.paths.map((p) => [p, p]), true);
+  fillSelect(u$("pd-robot"), models, true);
+  fillSelect(u$("pd-path"), f.paths.map((p) => [p, p]), true);
+  fillSelect(u$("pl-path"), f.parts.map((p) => [p, p]), true);
+  const firstPlace = !u$("pl-robot").options.length;
+  fillSelect(u$("pl-robot"), robots, true);
+  if (firstPlace && f.builtin.includes("kr240-2")) u$("pl-robot").value = "kr240-2";
   fillSelect(u$("cmp-a"), f.analyses.map((p) => [p, p]), true);
   fillSelect(u$("cmp-b"), f.analyses.map((p) => [p, p]), true);
   if (f.analyses.length > 1 && u$("cmp-a").value === u$("cmp-b").value) u$("cmp-b").value = f.analyses[1];
@@ -321,10 +707,16 @@ async function startUse() {
   use.csrf = session.csrf_token; use.header = session.csrf_header;
   wrenchInputs(u$("use-wrench"), "use-w", [0, 0, -2000, 0, 200, 0]);
   wrenchInputs(u$("comp-wrench"), "comp-w", [500, 0, -1000, 0, 20, 0]);
+  wrenchInputs(u$("pd-wrench"), "pd-w", [500, 0, -1000, 0, 20, 0]);
+  buildPlaceForm();
   await refreshFiles();
   u$("use-robot").addEventListener("change", () => loadRobot().catch((e) => { u$("use-error").textContent = String(e.message || e); }));
   for (const [name] of WRENCH) u$(`use-w-${name}`).addEventListener("change", scheduleStiffness);
   u$("comp-run").addEventListener("click", runCompensation);
+  u$("pd-run").addEventListener("click", runDeflection);
+  u$("pl-run").addEventListener("click", runPlace);
+  u$("pl-cancel").addEventListener("click", () => cancelPlace().catch((e) => { u$("pl-error").textContent = String(e.message || e); }));
+  u$("use-pendant-mode").addEventListener("change", () => setConvention(u$("use-pendant-mode").checked));
   u$("cmp-run").addEventListener("click", runCompare);
   u$("tab-use").addEventListener("click", () => refreshFiles().catch(() => {}));
   await loadRobot();

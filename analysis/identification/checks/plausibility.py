@@ -1,0 +1,166 @@
+"""Checks that an identified stiffness is believable before anyone uses it.
+
+Checks, each a refusal unless the user accepts the result anyway
+(``campaign analyze --accept-misfit``):
+
+* **misfit**: the reduced chi-square says the model does not explain the data,
+  P(chi2 >= observed) < :data:`MISFIT_P` (the residuals are far larger than the
+  noise figures);
+* **too good**: P(chi2 <= observed) < :data:`MISFIT_P`, the residuals are far
+  smaller than the noise figures allow: typically a consistent unit error
+  (displacements typed in m instead of mm are 1000 x too small, and so is
+  every residual) or noise figures far too large;
+* **robust fit hiding a misfit**: a robust fit (``--robust``) down-weighted more
+  than :data:`MAX_DOWN_WEIGHTED` of the components: that is not a few glitches
+  but data the model does not explain, which down-weighting would hide from
+  the chi-square;
+* **negative compliance**: an identified compliance x = 1/k is below zero by
+  more than its interval half-width (the whole interval is negative): no
+  joint pushes back, so the signs of the data disagree with the model, most
+  often the wrench given as the reaction the sensor feels instead of the load
+  applied to the robot;
+* **linearisation bias not correctable** (``ols``, ``wls``): the correction of the
+  linear model's bias is unreliable (:mod:`analysis.identification.corrections.linear_bias`), so
+  the raw, biased estimate is all there is;
+* **far from nominal**: an identified k differs from the robot model's nominal
+  stiffness by more than :data:`NOMINAL_FACTOR` either way (only where the
+  model has one): a unit error of the displacements or the wrench, or a
+  wrong tool point, not a property of the robot.
+
+Each message names the likely causes in order and the worst rows (input line
+numbers), so the user can look at the data rather than at the code.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.identification.result import IdentificationResult
+from analysis.report.formatting import level
+
+#: probability below which the chi-square test refuses (either tail)
+MISFIT_P = 1e-6
+#: largest believable ratio between an identified k and the model's nominal one
+NOMINAL_FACTOR = 10.0
+#: largest fraction of the components a robust fit may down-weight (Gaussian data: ~1 %)
+MAX_DOWN_WEIGHTED = 0.1
+#: number of rows named in a message
+WORST_ROWS = 5
+
+CAUSES_MISFIT = (
+    "the tool point P (the displacements and wrench must be at the P given to the analysis: "
+    "--tool-xyz-mm/--tool-rpy-deg or the protocol's [tool])",
+    "units (q in deg, forces in N, moments in N m, displacements in mm, rotations in mrad)",
+    "the pose sign convention (model vs controller joint angles, base-frame components)",
+    "the noise figures (--translation-sigma-um, --rotation-sigma-urad, --force-sigma-N, "
+    "--moment-sigma-Nm)",
+)
+CAUSES_TOO_GOOD = (
+    "units (displacements typed in m instead of mm, rotations in rad instead of mrad: "
+    "1000 x too small)",
+    "noise figures far larger than the instruments' (--translation-sigma-um, "
+    "--rotation-sigma-urad, --force-sigma-N, --moment-sigma-Nm, protocol noise)",
+    "data computed from a model rather than measured",
+)
+CAUSES_NEGATIVE = (
+    "the sign of the wrench (it must be the load applied to the robot at P, not the reaction "
+    "the F/T sensor feels: flip fx..mz if the sensor measures the reaction)",
+    "the sign of the displacements (loaded minus unloaded, not the reverse)",
+    "the tool point P or the frame of the wrench (base-frame components)",
+)
+CAUSES_NOMINAL = (
+    "units (displacements in m instead of mm, forces in kN instead of N)",
+    "the tool point P",
+    "the robot model (another robot's file)",
+)
+
+
+def worst_rows(result: IdentificationResult, n: int = WORST_ROWS) -> str:
+    """The n largest |studentized| residuals as 'line L (pose P) dz t = 5.1, ...'."""
+    res = result.residuals
+    if res is None or not len(res):
+        return "no residuals"
+    order = res["studentized"].abs().sort_values(ascending=False).index[:n]
+    return ", ".join(f"line {int(r.line)} (pose {r.pose}) {r.component} t = {r.studentized:.2g}"
+                     for r in res.loc[order].itertuples())
+
+
+def _causes(causes: tuple[str, ...]) -> str:
+    return "; ".join(f"({i}) {c}" for i, c in enumerate(causes, start=1))
+
+
+def chi2_lower_tail(result: IdentificationResult) -> float:
+    """P(chi2 <= observed) of the fit (NaN without residual degrees of freedom)."""
+    from scipy import special  # chi2.cdf, without importing scipy.stats
+
+    if result.dof <= 0 or not np.isfinite(result.chi2_reduced):
+        return float("nan")
+    return float(special.chdtr(result.dof, result.chi2_reduced * result.dof))
+
+
+def _negative_joints(result: IdentificationResult) -> list[str]:
+    """'x3 = -1.1e-06 +- 2e-08 rad/(N m)' for each joint whose compliance interval is below 0."""
+    from scipy import special  # norm.isf, without importing scipy.stats
+
+    crit = float(-special.ndtri((1.0 - result.confidence) / 2.0))
+    se = np.sqrt(np.clip(np.diag(result.cov_x), 0.0, None))
+    out = []
+    for idx, j in enumerate(result.joints):
+        x = float(result.x[j])
+        if x + crit * se[idx] < 0.0:
+            out.append(f"x{j + 1} = 1/k{j + 1} = {x:.3g} +- {crit * se[idx]:.2g} rad/(N m)")
+    return out
+
+
+def problems(result: IdentificationResult, nominal: np.ndarray | None,
+             nominal_label: str = "nominal stiffness of the robot model") -> list[str]:
+    """Messages of every failed check (empty when the result is believable)."""
+    out = []
+    chi2 = f"reduced chi-square {result.chi2_reduced:.3g} with {result.dof} degrees of freedom"
+    if result.dof > 0 and np.isfinite(result.p_value) and result.p_value < MISFIT_P:
+        out.append(
+            f"misfit: the model does not explain the data ({chi2}, P(chi2 >= observed) = "
+            f"{result.p_value:.2g} < {MISFIT_P:g}); likely causes, most likely first: "
+            f"{_causes(CAUSES_MISFIT)}; worst rows: {worst_rows(result)}")
+    rob = result.robust
+    if rob is not None and len(rob["down_weighted"]) > MAX_DOWN_WEIGHTED * result.n_equations:
+        out.append(
+            f"misfit hidden by the robust fit: {rob['method']} down-weighted "
+            f"{len(rob['down_weighted'])} of {result.n_equations} components below weight "
+            f"{rob['reported_below_weight']:g} (more than {level(MAX_DOWN_WEIGHTED)}; glitches are "
+            f"a few rows); likely causes, most likely first: {_causes(CAUSES_MISFIT)}; worst "
+            f"rows: {worst_rows(result)}")
+    low = chi2_lower_tail(result)
+    if np.isfinite(low) and low < MISFIT_P:
+        out.append(
+            f"too good to be true: the residuals are far smaller than the noise figures "
+            f"({chi2}, P(chi2 <= observed) = {low:.2g} < {MISFIT_P:g}); likely causes: "
+            f"{_causes(CAUSES_TOO_GOOD)}")
+    bias = result.linear_bias
+    if bias is not None and not bias["reliable"]:
+        out.append(
+            f"linearisation bias: {result.method} is biased by the linear model at these "
+            f"loads and the correction is unreliable ({bias['reason']}); use --method exact "
+            "(the nonlinear equilibrium fit)")
+    negative = _negative_joints(result)
+    if negative:
+        out.append(
+            f"negative stiffness: {'; '.join(negative)} (the whole {level(result.confidence)} "
+            f"interval of the compliance is below zero); likely causes, most likely first: "
+            f"{_causes(CAUSES_NEGATIVE)}")
+    if nominal is not None:
+        nominal = np.asarray(nominal, dtype=float)
+        far = []
+        for j in result.joints:
+            k, k0 = result.k[j], nominal[j]
+            if not (np.isfinite(k) and np.isfinite(k0) and k0 > 0 and k > 0):
+                continue
+            ratio = k / k0
+            if ratio > NOMINAL_FACTOR or ratio < 1.0 / NOMINAL_FACTOR:
+                far.append(f"k{j + 1} = {k:.3g} N m/rad is {ratio:.3g} x the {nominal_label} "
+                           f"{k0:.3g}")
+        if far:
+            out.append(
+                f"implausible stiffness: {'; '.join(far)} (more than {NOMINAL_FACTOR:g} x "
+                f"either way); likely causes: {_causes(CAUSES_NOMINAL)}")
+    return out

@@ -1,0 +1,3 @@
+"""Two campaigns compared: results read back (load), the test of a change (comparison), its
+plot.
+"""

@@ -1,0 +1,254 @@
+"""The identified model as a file every command reads, and K_X in results.json.
+
+:func:`export_model` (called by ``campaign analyze``) writes ``model.toml``
+beside ``results.json``: the robot file the run was analysed with (same
+geometry, limits, conventions and zones; the run's tool composed into
+``[tool]``), whose joint stiffness is the identified one, plus an
+``[identification]`` table holding the covariance of the identified joint
+*compliances* x = 1/k, the method, n_tests, the source run, its protocol hash
+and the date (format: :mod:`analysis.model.robot_files`). Joints not
+identified keep the robot file's nominal stiffness and are listed in
+``joints_nominal``. It also adds ``cartesian_stiffness`` to results.json:
+K_X with and without K_C at every tested pose, with standard errors, SI.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from analysis.errors import InputError, SingularPoseError
+from analysis.identification.io.measurements import TestArrays, to_arrays
+from analysis.identification.result import IdentificationResult
+from analysis.model.robot_model import RobotModel
+
+_LENGTH = {"m": 1.0, "mm": 1e-3}
+_ANGLE = {"rad": 1.0, "deg": math.pi / 180.0}
+_STIFF = {"N m/rad": 1.0, "kN m/rad": 1e3}
+
+
+def _tool_in_flange(robot: RobotModel) -> np.ndarray:
+    """Transform (4, 4) of P in the flange frame (m): the robot file's tool and any added one."""
+    from analysis.model.robots import tool_in_flange
+
+    tool = tool_in_flange(robot)
+    if tool is None:
+        raise InputError("the robot has no flange frame (not built from a robot file)")
+    return tool
+
+
+def _rpy(rot: np.ndarray) -> np.ndarray:
+    import pinocchio as pin
+
+    return np.asarray(pin.rpy.matrixToRpy(rot), dtype=float)
+
+
+def model_file_data(result: IdentificationResult, robot: RobotModel, *, source_run: str,
+                    protocol_sha256: str, date: str, software: str = "") -> dict:
+    """The mapping of ``model.toml`` (robot-file format) for an identification result.
+
+    Raises :class:`InputError` when the robot was not loaded from a robot file
+    (URDF) or a joint has neither an identified nor a nominal stiffness.
+    """
+    from analysis.file_errors import read_mapping_file
+
+    src = robot.source_file
+    if not src or Path(src).suffix.lower() not in (".toml", ".yaml", ".yml"):
+        raise InputError("the robot was not loaded from a robot file (URDF?): model.toml "
+                         "needs its geometry in the robot-file format", where=str(src))
+    data, _ = read_mapping_file(Path(src), "robot file")
+    data = dict(data)
+    joints = [dict(j) for j in data["joints"]]
+    ls, ang = _LENGTH[data["length_unit"]], _ANGLE[data["angle_unit"]]
+    old_unit = _STIFF[data.get("stiffness_unit", "N m/rad")]
+    k = np.asarray(result.k, dtype=float)
+    cov = np.zeros((robot.n, robot.n))
+    ident_idx = [j for j in result.joints if np.isfinite(k[j]) and k[j] > 0]
+    notes = []
+    for j in set(result.joints) - set(ident_idx):
+        notes.append(f"k{j + 1}: the identified compliance is not positive; nominal kept")
+    cols = list(result.joints)
+    for a, ja in enumerate(cols):
+        for b, jb in enumerate(cols):
+            if ja in ident_idx and jb in ident_idx:
+                cov[ja, jb] = result.cov_x[a, b]
+    nominal_idx = [j for j in range(robot.n) if j not in ident_idx]
+    for j in range(robot.n):
+        if j in ident_idx:
+            joints[j]["stiffness"] = float(k[j])
+        elif joints[j].get("stiffness") is not None:
+            joints[j]["stiffness"] = float(joints[j]["stiffness"]) * old_unit
+        else:
+            raise InputError(f"k{j + 1} was not identified and {robot.name} has no nominal "
+                             "value for it: model.toml needs every joint's stiffness "
+                             "(identify all joints, or add the nominal one to the robot file)",
+                             where=src)
+    data["joints"] = joints
+    data["stiffness_unit"] = "N m/rad"
+    tool = _tool_in_flange(robot)
+    old_tool = data.get("tool") or {}
+    xyz = [float(v) for v in tool[:3, 3] / ls]
+    rpy = [float(v) for v in _rpy(tool[:3, :3]) / ang]
+    moved = not (np.allclose(xyz, old_tool.get("xyz", [0, 0, 0]), atol=1e-9)
+                 and np.allclose(rpy, old_tool.get("rpy", [0, 0, 0]), atol=1e-9))
+    data["tool"] = {"xyz": xyz, "rpy": rpy}
+    if moved:
+        # published FK checks are of the file's own tool point
+        data.pop("reference_poses", None)
+        notes.append("tool of the run composed into [tool]; reference_poses dropped")
+    data.pop("aliases", None)  # a model file is named by its path, never by a built-in name
+    sources = dict(data.get("sources") or {})
+    ident_txt = ", ".join(f"k{j + 1}" for j in ident_idx) or "none"
+    nom_txt = ", ".join(f"k{j + 1}" for j in nominal_idx)
+    stiff_src = f"{ident_txt} identified by campaign analyze ({result.method}) from {source_run}"
+    if nominal_idx:
+        stiff_src += f"; {nom_txt} nominal: {sources.get('stiffness', 'robot file')}"
+    sources["stiffness"] = stiff_src
+    data["sources"] = sources
+    ident = {
+        "quantity": "compliance",
+        "covariance_unit": "(rad/(N m))^2",
+        "covariance": cov.tolist(),
+        "joints_identified": [j + 1 for j in ident_idx],
+        "joints_nominal": [j + 1 for j in nominal_idx],
+        "method": result.method,
+        "covariance_source": result.covariance,
+        "confidence": float(result.confidence),
+        "n_tests": int(result.n_tests),
+        "n_poses": int(result.n_poses),
+        "source_run": source_run,
+        "protocol_sha256": protocol_sha256,
+        "date": date,
+        "software": software,
+        "notes": notes,
+    }
+    data["identification"] = ident
+    return data
+
+
+def write_model_file(data: dict, path: Path) -> Path:
+    """Write ``data`` as TOML with a header saying what the file is."""
+    import tomli_w
+
+    header = ("# Identified robot model written by `campaign analyze`: a robot file "
+              "(analysis/model/robot_files.py)\n# whose joint stiffness is the identified "
+              "one; [identification] holds the covariance of the\n# identified compliances "
+              "x = 1/k. Use it with any --robot option.\n")
+    from analysis.output_files import write_text
+
+    write_text(path, header + tomli_w.dumps(data))
+    return path
+
+
+#: K_X is listed at most at this many distinct tested poses (a 1e6-row import would
+#: otherwise write ~1e6 entries of 6 x 6 matrices into results.json)
+POSES_LISTED = 200
+
+
+def cartesian_stiffness_at_tests(result: IdentificationResult, robot: RobotModel,
+                                 tests: TestArrays) -> dict:
+    """K_X with and without K_C, standard errors and principal stiffnesses at the tested poses.
+
+    One entry per distinct tested pose (joint angles equal to within the
+    encoder noise, :mod:`analysis.identification.poses`), at most
+    :data:`POSES_LISTED` in order of appearance, with the wrench of its first
+    test (K_C depends on the wrench). Joints not identified take the nominal
+    stiffness (rigid without one) and contribute no uncertainty.
+    """
+    from analysis.kinetostatics.stiffness import (
+        cartesian_stiffness,
+        complementary_stiffness_from_jacobian,
+    )
+    from analysis.kinetostatics.uncertainty import (
+        cartesian_stiffness_se,
+        principal_stiffness,
+        stiffness_covariance,
+    )
+    from analysis.model.kinematics import jacobian
+    from analysis.report.quantities import stiffness_for_prediction
+
+    k, notes = stiffness_for_prediction(result.k, robot.nominal_stiffness)
+    cov_x = np.zeros((robot.n, robot.n))
+    cols = list(result.joints)
+    cov_x[np.ix_(cols, cols)] = result.cov_x
+    finite = np.isfinite(result.k)
+    cov_x[~finite, :] = 0.0
+    cov_x[:, ~finite] = 0.0
+    cov_k = stiffness_covariance(k, cov_x)
+    from analysis.identification.poses import pose_groups, pose_tolerance
+
+    group = result.pose_group
+    if group is None or len(group) != tests.m:
+        group = pose_groups(tests.q, pose_tolerance(result.noise))
+    _, first = np.unique(group, return_index=True)  # groups are numbered by appearance
+    listed = first[:POSES_LISTED]
+    poses = []
+    for i in listed:
+        q, w = tests.q[i], tests.w[i]
+        J = jacobian(robot, q)
+        K_C = complementary_stiffness_from_jacobian(J, w)
+        try:
+            K_X, K_0 = cartesian_stiffness(J, k, K_C), cartesian_stiffness(J, k)
+        except SingularPoseError:
+            poses.append({"pose": str(tests.pose[i]), "singular": True})
+            continue
+        se = cartesian_stiffness_se(J, cov_k)
+        pt, pr = principal_stiffness(K_X)
+        poses.append({
+            "pose": str(tests.pose[i]), "line": int(tests.line[i]), "q_rad": q.tolist(),
+            "wrench_N_Nm": w.tolist(), "K_X": K_X.tolist(), "K_X_se": se.tolist(),
+            "K_X_without_K_C": K_0.tolist(), "K_X_without_K_C_se": se.tolist(),
+            "principal_translational_N_per_m": pt.tolist(),
+            "principal_rotational_Nm_per_rad": pr.tolist(),
+        })
+    return {
+        "poses": poses,
+        "poses_listed": (f"all {len(first)} distinct poses" if len(first) == len(listed) else
+                         f"the first {len(listed)} of {len(first)} distinct poses"),
+        "joint_stiffness_Nm_per_rad": k.tolist(),
+        "notes": notes,
+        "method": "K_X = J^-T (K_theta - K_C) J^-1 (eq. 6) and without K_C (eq. 12), at P, "
+                  "base frame, wrench of the pose's first test; K_X is linear in k, so its "
+                  "standard errors are exact given cov(k), which comes from the covariance of "
+                  "the compliances by the delta method (same errors with and without K_C). "
+                  "Principal stiffnesses: inverses of the eigenvalues of the translational "
+                  "(rotational) block of K_X^-1, i.e. under a pure force (moment).",
+        "units": {"K_X": "N/m | N/rad ; N | N m/rad blocks (rows/columns: dx dy dz rx ry rz)",
+                  "q_rad": "rad, model convention", "wrench_N_Nm": "N, N m at P, base frame"},
+    }
+
+
+def export_model(result: IdentificationResult, robot: RobotModel, out_dir: str | Path,
+                 table, info) -> dict[str, Path]:
+    """Write ``model.toml`` and add K_X to ``results.json`` in ``out_dir`` (written before).
+
+    ``table`` is the tests table analysed; ``info`` the campaign summary
+    (:class:`analysis.report.summary.CampaignInfo`: source run, protocol hash,
+    software). When no model file can be written (URDF robot, a joint without
+    any stiffness), results.json says why under ``model_file_note``.
+    """
+    out = Path(out_dir)
+    tests = table if isinstance(table, TestArrays) else to_arrays(table)
+    results_path = out / "results.json"
+    doc = json.loads(results_path.read_text())
+    doc["cartesian_stiffness"] = cartesian_stiffness_at_tests(result, robot, tests)
+    date = datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+    paths: dict[str, Path] = {}
+    try:
+        software = ", ".join(f"{k} {v}" for k, v in (info.software or {}).items())
+        data = model_file_data(result, robot, source_run=str(info.location),
+                               protocol_sha256=str(info.protocol_sha256), date=date,
+                               software=software)
+        paths["model"] = write_model_file(data, out / "model.toml")
+        doc["model_file"] = "model.toml"
+    except InputError as err:
+        doc["model_file"] = None
+        doc["model_file_note"] = f"no model.toml: {err}"
+    from analysis.output_files import write_text
+
+    write_text(results_path, json.dumps(doc, indent=2) + "\n")
+    return paths

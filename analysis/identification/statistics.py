@@ -1,0 +1,103 @@
+"""A fit's statistics: the covariance of x, each residual's variance, the chi-square.
+
+Two implementations of one pass over the tests, chosen by how the fit holds its system:
+:func:`_streamed` for a fit of one large campaign whose per-test blocks are made when
+sliced (it carries the triangular factor R of its final whitened system), and
+:func:`_held` for every other (the blocks held, or a robust fit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from analysis.identification.linalg import lsq
+from analysis.identification.linalg.lsq import (
+    TallR,
+    blocks_of_tests,
+    sandwich_and_residual_variance,
+    stack_matrix,
+    whitening,
+)
+from analysis.identification.uncertainty import chi2_summary
+
+
+@dataclass(frozen=True)
+class FitStatistics:
+    """cov_x (p, p): the sandwich covariance of x under the noise model ((rad/(N m))^2,
+    unscaled); var_r (m, 6): each residual's variance (m^2, rad^2); chi2_reduced,
+    p_value, dof: the goodness of fit on the components kept; Aw: a matrix with the
+    singular values of the whitened system (its R, or the stacked whitened design)."""
+
+    cov_x: np.ndarray
+    var_r: np.ndarray
+    chi2_reduced: float
+    p_value: float
+    dof: int
+    Aw: np.ndarray
+
+
+def fit_statistics(problem, outcome) -> FitStatistics:
+    """The statistics of ``outcome`` (an
+    :class:`~analysis.identification.estimators.base.EstimatorFit`) of ``problem``."""
+    # the goodness of fit is that of the components the fit rests on
+    dof = int(outcome.kept.sum()) - problem.p
+    if outcome.fit.R is not None and outcome.robust is None:
+        return _streamed(problem, outcome.fit, dof)
+    return _held(problem, outcome, dof)
+
+
+def _streamed(problem, chosen, dof: int) -> FitStatistics:
+    """One pass over the recomputed blocks: the variances (meat A^T W A = R^T R, and
+    Sigma W A = A, of a fit whitened by its own covariances), each component's sigma, and
+    the prediction moved by the errors-in-variables shift (``chosen.predicted`` is set)."""
+    p = problem.p
+    Rp, c0 = chosen.R[:p, :p], chosen.R[:p, p]
+    predicted = chosen.predicted
+    fill = predicted is None  # the model's values come with A's blocks
+    if fill:
+        predicted = np.empty(problem.tests.measured.shape)
+    move = None if chosen.predicted_shifted else chosen.eiv_shift
+
+    def visit(sl, Ab):
+        if fill:
+            predicted[sl] = chosen.A.values(sl)
+        if move is not None:
+            predicted[sl] += Ab @ move
+
+    cov_x, var_r = sandwich_and_residual_variance(
+        chosen.A, chosen.cov, chosen.bread, chosen.Linv, meat=Rp.T @ Rp,
+        own_weights=True, visit=visit)
+    chosen.predicted, chosen.predicted_shifted = predicted, True
+    chosen.A.dq = None  # later rows (outliers' leverages) start cold: 48 MB let go
+    # chi-square from R: |Linv (r - F shift)|^2 = |c0 - Rp shift|^2 + R[p, p]^2
+    shift = np.zeros(p) if chosen.eiv_shift is None else chosen.eiv_shift
+    chi2_red, p_value = chi2_summary(float(np.sum((c0 - Rp @ shift) ** 2)
+                                           + chosen.R[p, p] ** 2), dof)
+    return FitStatistics(cov_x, var_r, chi2_red, p_value, dof, Rp)
+
+
+def _held(problem, outcome, dof: int) -> FitStatistics:
+    """The sandwich and residual variances of the fit's blocks, and the chi-square summed
+    block by block (no (m, 6) residual arrays)."""
+    tests, chosen, kept = problem.tests, outcome.fit, outcome.kept
+    p = problem.p
+    cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
+                                                  chosen.Linv)
+    # the fit's own whitening when it used the same components, else made block by
+    # block (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of
+    # the whitened system, for its scaled condition without the (6m, p) Linv A
+    own = chosen.Linv if outcome.robust is None and chosen.Linv is not None else None
+    acc = TallR() if tests.m > lsq.TEST_BLOCK else None
+    chi2 = 0.0
+    for sl in blocks_of_tests(tests.m):
+        Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
+        rb = np.where(kept[sl], tests.d[sl] - chosen.predicted[sl], 0.0)
+        chi2 += float(np.sum(np.einsum("mij,mj->mi", Lb, rb) ** 2))
+        if acc is not None:
+            acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
+    chi2_red, p_value = chi2_summary(chi2, dof)
+    Aw = acc.r() if acc is not None else stack_matrix(
+        (own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
+    return FitStatistics(cov_x, var_r, chi2_red, p_value, dof, Aw)

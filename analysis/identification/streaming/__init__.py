@@ -1,0 +1,3 @@
+"""Per-test blocks made when sliced: the large-campaign form of J, the design, the
+covariances.
+"""

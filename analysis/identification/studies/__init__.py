@@ -1,0 +1,3 @@
+"""Monte-Carlo studies: the paper's robustness curve (robustness), simulated campaigns of a
+design (design_simulation).
+"""

@@ -1,0 +1,104 @@
+"""The ``path_deflection`` job: the predicted deflection of P along a path, with its band.
+
+What ``compensate`` predicts before it compensates (the same path reader, the
+same checks of the joint limits and of the singularity, the same nonlinear
+equilibrium and covariance of an identified model), without the compensation
+and without writing anything: the Use view draws it as the path is chosen.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from analysis.errors import InputError
+from campaign.cli.common import WrenchFrame
+from campaign.jobs.common import floats, joint_stiffness, robot_and_tool
+
+#: points of a path read at most (a path is a program's moves, not a point cloud)
+MAX_POINTS = 20_000
+
+
+@dataclass(frozen=True)
+class PathDeflectionOptions:
+    """robot: model.toml from analyze, a built-in name, robot file or URDF; path: the path
+    CSV (the compensate job's format); controller_angles: the path's joints are pendant
+    angles; wrench_N_Nm: constant wrench at P when the path has none (N, N m);
+    wrench_frame: base or tool; joint_stiffness_Nm_per_rad: instead of the model's (no
+    band then); min_inv_kappa: refuse points where 1/kappa_F is below it."""
+
+    robot: str
+    path: Path
+    tip: str | None = None
+    tool_xyz_mm: Sequence[float] | None = None
+    tool_rpy_deg: Sequence[float] | None = None
+    controller_angles: bool = False
+    wrench_N_Nm: Sequence[float] | None = None
+    wrench_frame: WrenchFrame = WrenchFrame.base
+    joint_stiffness_Nm_per_rad: Sequence[float] | None = None
+    min_inv_kappa: float = 0.02
+
+
+@dataclass
+class PathDeflectionResult:
+    """Per point (SI, base frame at P): line of the CSV, screw (N, 6) [dp (m); rotation
+    (rad)], lo95/hi95 (N, 6) the 95 % interval of each component (None without a
+    covariance), norm_p (N,) |dp| (m) and its 95 % upper bound norm_p_hi (or None)."""
+
+    robot: str
+    line: np.ndarray
+    screw: np.ndarray
+    lo95: np.ndarray | None
+    hi95: np.ndarray | None
+    norm_p: np.ndarray
+    norm_p_hi: np.ndarray | None
+    wrench_source: str
+    stiffness_source: str
+
+    def to_json(self) -> dict:
+        def listed(a):
+            return None if a is None else np.asarray(a).tolist()
+
+        worst = int(np.argmax(self.norm_p))
+        return {"robot": self.robot, "points": int(self.line.size),
+                "line": self.line.astype(int).tolist(),
+                "deflection_m_rad": listed(self.screw), "lo95_m_rad": listed(self.lo95),
+                "hi95_m_rad": listed(self.hi95), "norm_p_m": listed(self.norm_p),
+                "norm_p_upper95_m": listed(self.norm_p_hi),
+                "max_norm_p_m": float(self.norm_p[worst]),
+                "worst_line": int(self.line[worst]),
+                "wrench_source": self.wrench_source,
+                "joint_stiffness_source": self.stiffness_source}
+
+
+def run(o: PathDeflectionOptions) -> PathDeflectionResult:
+    """Read the path and predict the deflection at each point (nothing is written)."""
+    from analysis.kinetostatics.path_compensation import check_path, predict_path
+    from analysis.kinetostatics.uncertainty import Z95
+    from campaign.use.path_file import read_path
+
+    if not o.min_inv_kappa > 0:
+        raise InputError("expected a positive number", where="--min-inv-kappa")
+    r, _ = robot_and_tool(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
+    if r.n != 6:
+        raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
+    k = joint_stiffness(r, o.joint_stiffness_Nm_per_rad)
+    given_k = o.joint_stiffness_Nm_per_rad is not None
+    cov = None if given_k else r.compliance_covariance
+    w_const = None if o.wrench_N_Nm is None else floats(o.wrench_N_Nm, "--wrench", 6)
+    path = Path(o.path)
+    pin = read_path(path, r, o.controller_angles, w_const, str(o.wrench_frame))
+    if len(pin.q) > MAX_POINTS:
+        raise InputError(f"{len(pin.q)} points, more than {MAX_POINTS}", where=str(path))
+    check_path(r, pin.q, pin.line, str(path), o.min_inv_kappa)
+    pred = predict_path(r, pin.q, k, pin.w, cov, pin.line, str(path))
+    lo, hi = pred.bounds(Z95) if cov is not None else (None, None)
+    source = ("--joint-stiffness" if given_k else "identified (model.toml)"
+              if r.identification else "nominal (robot file)")
+    return PathDeflectionResult(
+        r.name, np.asarray(pin.line), pred.screw, lo, hi,
+        np.linalg.norm(pred.screw[:, :3], axis=1),
+        pred.norm_upper() if cov is not None else None, pin.wrench_source, source)

@@ -1,0 +1,291 @@
+"""The campaign planner: candidate poses in the zones -> an optimal set of tests.
+
+:func:`make_plan` returns a :class:`Plan`; :func:`write_plan` saves it as a
+directory (``plan.csv``, the protocol copy, ``plan_map.png``, ``summary.txt``,
+``summary.json``); :func:`read_plan` reads that directory back for the
+acquisition runner.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import InputError
+from analysis.identification.noise import NoiseModel
+from analysis.model.robot_model import RobotModel
+from campaign.planning.candidates import Candidates, check_enough, evaluate, sample
+from campaign.planning.criteria import candidate_information, choose, random_reference, relative_se
+from campaign.planning.design import criterion, greedy_exchange, random_design
+from campaign.planning.plan_output import COLUMNS, read_plan, write_plan
+from campaign.planning.separation import Separation
+from campaign.protocol import DEG, Protocol
+from campaign.protocol_robot import (
+    SamplingBox,
+    characteristic_length,
+    prior_stiffness,
+    protocol_robot,
+    sampling_boxes,
+)
+from campaign.run_noise import noise_from_protocol
+
+__all__ = ["COLUMNS", "STRATEGIES", "Design", "Plan", "make_plan", "read_plan", "write_plan"]
+
+STRATEGIES = ("worst-joint", "weighted", "d-optimal", "e-optimal", "zones-random")
+
+
+@dataclass
+class Design:
+    """A chosen set of tests. Arrays have one entry per test (pose, load case)."""
+
+    pose: np.ndarray  # (t,) candidate pose index
+    case: np.ndarray  # (t,) load case index
+    se: np.ndarray  # (n,) predicted standard error of k (N m/rad)
+    log_det: float  # log det of the information matrix of relative compliances
+    min_eig: float  # its smallest eigenvalue
+    picks: np.ndarray | None = None  # (p,) indices of the chosen candidate tests
+
+
+@dataclass
+class Plan:
+    """A planned campaign: the chosen design, the random zone design, the evidence.
+
+    Attributes
+    ----------
+    protocol, robot : the inputs (robot with the protocol's tool).
+    strategy, seed : how it was planned.
+    candidates : the evaluated candidate poses.
+    boxes : sampling box of each zone (rad).
+    chosen, random : the chosen design and the random zone design (same seed).
+    k_prior : (n,) prior joint stiffness (N m/rad). sigma : (6,) displacement sigma
+        of one averaged test [m x3; rad x3]. length : characteristic length L (m).
+    noise : noise model of one test row (the identification's, see
+        :mod:`campaign.run_noise`); the predictions include every source.
+    random_median_se : (n,) median predicted standard error of k (N m/rad) over
+        201 seeded random zone designs (the reference of the worst-joint criterion).
+    case_contributions : per load case, its tests and the relative se of every
+        joint without them (see :func:`case_contributions`).
+    """
+
+    protocol: Protocol
+    robot: RobotModel
+    strategy: str
+    seed: int
+    candidates: Candidates
+    boxes: list[SamplingBox]
+    chosen: Design
+    random: Design
+    k_prior: np.ndarray
+    sigma: np.ndarray
+    length: float
+    noise: NoiseModel | None = None
+    random_median_se: np.ndarray | None = None
+    case_contributions: list[dict] | None = None
+    weights: np.ndarray | None = None
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per test, columns :data:`COLUMNS` (degrees, N, N m; v_r in deg)."""
+        return design_frame(self, self.chosen)
+
+
+def design_frame(plan: Plan, design: Design) -> pd.DataFrame:
+    """Table of a design (see :data:`COLUMNS`)."""
+    cand, protocol, robot = plan.candidates, plan.protocol, plan.robot
+    q = cand.q[design.pose]
+    ctrl = robot.to_controller(q)
+    w = plan.protocol.wrenches()[design.case]
+    _, pose_id = np.unique(design.pose, return_inverse=True)
+    data: dict[str, object] = {
+        "test": np.arange(1, len(design.pose) + 1),
+        "pose": pose_id + 1,
+        "zone": [plan.boxes[z].name for z in cand.zone[design.pose]],
+        "load_case": [protocol.load_cases[c].name for c in design.case],
+        "method": [protocol.load_cases[c].method for c in design.case],
+        "repeats": protocol.campaign.repeats,
+    }
+    for j in range(robot.n):
+        data[f"q{j + 1}_model_deg"] = q[:, j] / DEG
+    for j in range(robot.n):
+        data[f"q{j + 1}_ctrl_deg"] = ctrl[:, j] / DEG
+    for i, name in enumerate(["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m"]):
+        data[name] = w[:, i]
+    data["inv_kappa_F"] = cand.inv_kappa[design.pose]
+    data["v_p"] = cand.v_p[design.pose, design.case]
+    data["v_r_deg"] = cand.v_r[design.pose, design.case] / DEG
+    return pd.DataFrame(data, columns=COLUMNS)
+
+
+def _tests(cand: Candidates, selection: str):
+    """Candidate tests: (pose index, case index or -1 for all cases) and the pose group."""
+    if selection == "all":
+        poses = np.flatnonzero(np.all(cand.valid, axis=1))
+        return poses, np.full(poses.size, -1), poses
+    poses, cases = np.nonzero(cand.valid)
+    return poses, cases, poses
+
+
+def _expand(pose: np.ndarray, case: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of a design: a case of -1 stands for every load case in turn."""
+    rows_p, rows_c = [], []
+    for p, c in zip(pose, case, strict=True):
+        for cc in range(m) if c < 0 else [c]:
+            rows_p.append(p)
+            rows_c.append(cc)
+    return np.array(rows_p, dtype=int), np.array(rows_c, dtype=int)
+
+
+def _design(plan_in: dict, picks: np.ndarray) -> Design:
+    pose, case = _expand(plan_in["pose"][picks], plan_in["case"][picks], plan_in["m"])
+    M = plan_in["F"][picks].sum(axis=0)
+    return Design(
+        pose=pose,
+        case=case,
+        se=plan_in["k"] * relative_se(_full_information(plan_in, pose, case)),
+        log_det=float(criterion(M, "d")),
+        min_eig=float(criterion(M, "e")),
+        picks=np.asarray(picks, dtype=int),
+    )
+
+
+def _full_information(plan_in: dict, pose: np.ndarray, case: np.ndarray) -> np.ndarray:
+    """Information of the design's tests with every noise source, encoders included."""
+    from analysis.identification.studies.robustness import jacobian_derivative
+
+    cand = plan_in["cand"]
+    dJ = jacobian_derivative(plan_in["robot"], cand.q[pose])
+    F = candidate_information(cand.J[pose], plan_in["wrenches"][case], plan_in["noise"],
+                              plan_in["k"], plan_in["rows"], dJ)
+    return F.sum(axis=0)
+
+
+def case_contributions(plan_in: dict, design: Design, names: list[str]) -> list[dict]:
+    """What each load case brings: its tests, and each joint's relative se without them."""
+    out = []
+    for c, name in enumerate(names):
+        keep = design.case != c
+        used = int(np.sum(~keep))
+        without = (relative_se(_full_information(plan_in, design.pose[keep], design.case[keep]))
+                   if used and keep.any() else np.full(len(plan_in["k"]), np.inf))
+        out.append({"load_case": name, "tests": used,
+                    "relative_se_without": [float(v) for v in without] if used else None})
+    return out
+
+
+def make_plan(
+    protocol: Protocol,
+    strategy: str = "worst-joint",
+    seed: int = 0,
+    candidates: int = 10000,
+    tests: int | None = None,
+    weights: Sequence[float] | None = None,
+) -> Plan:
+    """Plan the campaign of ``protocol``.
+
+    Parameters
+    ----------
+    protocol : a loaded protocol (:func:`campaign.protocol.load_protocol`).
+    strategy : ``worst-joint`` (min the largest relative standard error of k,
+        guarded so that no joint is worse than the median random zone design;
+        :mod:`campaign.planning.criteria`), ``weighted`` (min the ``weights``-weighted sum of
+        the relative standard errors), ``d-optimal`` (max log det of the
+        information matrix), ``e-optimal`` (max smallest eigenvalue) or
+        ``zones-random`` (the paper's practice: random poses cycling through the
+        zones). Every criterion uses the identification's noise model.
+    seed : seed of the candidate draw and of the random design.
+    candidates : number of candidate poses drawn over the zones.
+    tests : number of test poses; default the protocol's ``campaign.tests`` (an
+        override is recorded in the summary, not in the protocol copy).
+    weights : (n,) weights of the joints' relative standard errors (``weighted``).
+
+    Raises
+    ------
+    InputError
+        Zones or fixed joints outside the limits, thresholds leaving too few
+        candidates, unknown strategy; each names the key and line.
+    """
+    if strategy not in STRATEGIES:
+        raise InputError(f"unknown strategy {strategy!r}: expected one of "
+                         f"{', '.join(STRATEGIES)}", where="--strategy")
+    if candidates < 1:
+        raise InputError("need at least one candidate", where="--candidates")
+    if tests is not None:
+        if tests < 1:
+            raise InputError("need at least one test", where="--tests")
+        protocol = protocol.model_copy(
+            update={"campaign": protocol.campaign.model_copy(update={"tests": tests})}
+        )
+    robot = protocol_robot(protocol)
+    if weights is not None and strategy != "weighted":
+        raise InputError("weights are used by --strategy weighted only", where="--weights")
+    if strategy == "weighted":
+        if weights is None or len(weights) != robot.n or not all(
+                np.isfinite(v) and v >= 0 for v in weights) or not any(weights):
+            raise InputError(f"the weighted criterion needs {robot.n} weights >= 0, not all 0",
+                             where="--weights")
+        weights = np.asarray(weights, dtype=float)
+    k_prior = prior_stiffness(protocol, robot)
+    protocol.measurement_sigma()  # refuses a pose instrument without noise figures
+    noise = noise_from_protocol(protocol)
+    rows = protocol.campaign.repeats
+    sigma = noise.displacement_sigma / np.sqrt(rows)
+    length = characteristic_length(protocol, robot)
+    boxes = sampling_boxes(protocol, robot)
+    q, zone = sample(boxes, candidates, seed)
+    cand = evaluate(protocol, robot, q, zone, k_prior, length)
+    check_enough(protocol, cand)
+
+    wrenches = protocol.wrenches()
+    pose, case, group = _tests(cand, protocol.loads.selection)
+    if case.size and case[0] < 0:
+        F = sum(
+            candidate_information(cand.J[pose], wrenches[c], noise, k_prior, rows)
+            for c in range(len(wrenches))
+        )
+    else:
+        F = candidate_information(cand.J[pose], wrenches[case], noise, k_prior, rows)
+    inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches),
+              "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows}
+    n = protocol.campaign.tests
+    zone = cand.zone[pose]
+    sep_deg = protocol.thresholds.min_pose_separation_deg
+    sep = Separation(cand.q[pose], group, sep_deg * DEG)
+    try:
+        rand = random_design(group, zone, n, seed, sep)
+        if strategy == "zones-random":
+            picks = rand
+        elif strategy in ("worst-joint", "weighted"):
+            picks = choose(F, group, zone, n, seed,
+                           kind="worst" if strategy == "worst-joint" else "weighted",
+                           weights=weights, sep=sep)
+        else:
+            picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e",
+                                    sep=sep)
+        reference = random_reference(F, group, zone, n, seed, sep=sep)[1]
+    except ValueError as err:
+        raise InputError(
+            f"cannot choose {n} poses at least {sep_deg:g} deg apart (joint space) from "
+            f"{len(np.unique(group))} candidate poses ({err}); lower "
+            "min_pose_separation_deg, widen the zones or draw more --candidates",
+            where=protocol.where("thresholds", "min_pose_separation_deg")) from err
+    chosen = _design(inputs, picks)
+    return Plan(
+        protocol=protocol,
+        robot=robot,
+        strategy=strategy,
+        seed=seed,
+        candidates=cand,
+        boxes=boxes,
+        chosen=chosen,
+        random=_design(inputs, rand),
+        k_prior=k_prior,
+        sigma=sigma,
+        length=length,
+        noise=noise,
+        random_median_se=k_prior * reference,
+        case_contributions=case_contributions(
+            inputs, chosen, [c.name for c in protocol.load_cases]),
+        weights=weights,
+    )

@@ -1,0 +1,73 @@
+"""What each queued job of ``/api/jobs`` runs in its process: the job with its hooks.
+
+One module-level function per job (pickled by name into the job's process, see
+:mod:`campaign.web.job_process`): ``task(progress, options, *extra)`` calls the
+job's ``run`` with its progress hooks turned into the job's progress
+(:mod:`campaign.web.progress_hooks`) and returns its result record.
+"""
+
+from __future__ import annotations
+
+from campaign.web import progress_hooks
+from campaign.web.job_queue import JobCancelled
+
+
+def plan(progress, options):
+    """The plan job; its stages as progress."""
+    from campaign.jobs.plan import run
+
+    return run(options, stage=progress_hooks.stage(progress))
+
+
+def maps(progress, options):
+    """The maps job; its stages and notes as progress."""
+    from campaign.jobs.maps import run
+
+    return run(options, stage=progress_hooks.stage(progress),
+               note=progress_hooks.say(progress))
+
+
+def compensate(progress, options):
+    """The compensate job (no steps of its own to report)."""
+    from campaign.jobs.compensate import run
+
+    progress.report(None, "compensating the path" + (
+        " and replaying it on the simulated lab" if options.verify_fake else ""))
+    return run(options)
+
+
+def place(progress, options, server_limit: float):
+    """The place job: each task of the search as progress, its lines as text."""
+    from campaign.jobs.place import run
+
+    return run(options, progress_hooks.console(progress), progress.report, server_limit)
+
+
+def robustness(progress, options):
+    """The robustness job: the simulated campaigns identified, counted."""
+    from campaign.jobs.robustness import run
+
+    def counted(done: int, total: int) -> None:
+        progress.report(done / total, f"{done} of {total} simulated campaigns identified")
+
+    return run(options, progress=counted, note=progress_hooks.say(progress))
+
+
+def analyze(progress, options):
+    """The analyze job; its stages and a damaged run's warnings as progress."""
+    from campaign.jobs.analyze import run
+
+    return run(options, stage=progress_hooks.stage(progress),
+               warn=progress_hooks.say(progress))
+
+
+def acquire(progress, options):
+    """The acquire job: its phases as progress; a cancellation takes its Ctrl-C path."""
+    from campaign.jobs.acquire import run
+
+    result = run(options, reporter=progress_hooks.AcquireProgress(progress),
+                 say=lambda s: None, should_abort=progress.cancelled)
+    if progress.cancelled():
+        raise JobCancelled(f"cancelled: the acquisition took the Ctrl-C path "
+                           f"({result.status}: {result.reason}); the run stays, resumable")
+    return result
