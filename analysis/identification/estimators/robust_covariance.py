@@ -29,11 +29,11 @@ Linearised about the solution, x_hat - x = H^-1 Psi(x) with
 
 (the Gauss-Newton approximation: the derivatives of F, sigma and C in x are left
 out; with C = I, M = diag(psi'(r)), and H = sum psi'(r) X^T X, Huber's "A"). Where the
-fit corrects the wrench noise in the regressor (:mod:`analysis.identification.corrections.wrench_eiv`:
-Psi(x) + S x = 0), H is H - S. The tests are independent, but the components of one
-test are not (an F/T error moves its whole regressor, and its six residuals share
-the wrench noise), so the variance of Psi is estimated from the tests' scores, not
-the components' (cluster = test):
+fit corrects the wrench noise in the regressor
+(:mod:`analysis.identification.corrections.wrench_eiv`: Psi(x) + S x = 0), H is H - S.
+The tests are independent, but the components of one test are not (an F/T error moves
+its whole regressor, and its six residuals share the wrench noise), so the variance of
+Psi is estimated from the tests' scores, not the components' (cluster = test):
 
     B = sum_t g_t g_t^T (at x_hat),   cov(x_hat) = H^-1 B H^-T   (Huber's sandwich).
 
@@ -163,8 +163,8 @@ def robust_covariance(A, cov, resid: np.ndarray, kept: np.ndarray, robust: str, 
     weighted : True for wls and exact (weights from the noise covariance), False for ols.
     fixed : (p, p) the fixed-weight covariance G Sigma G^T, reported beside.
     S : (p, p) the errors-in-variables matrix the fit's estimating equation adds
-        (:func:`analysis.identification.corrections.wrench_eiv.wrench_eiv_matrix` with the fit's weights),
-        or None.
+        (:func:`analysis.identification.corrections.wrench_eiv.wrench_eiv_matrix` with the
+        fit's weights), or None.
     """
     m, p = A.shape[0], A.shape[-1]
     H = np.zeros((p, p))
