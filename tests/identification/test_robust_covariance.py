@@ -160,3 +160,52 @@ def test_reweighting_criterion(monkeypatch):
     with pytest.raises(InputError, match="did not settle in 50 reweighting") as err:
         _scripted(monkeypatch, flip)
     assert err.value.where == "--robust"
+
+
+@pytest.fixture(scope="module")
+def large_campaign(kr240, w_eff):
+    """400 tests (40 poses x 10 loads), 2 % of them with a 20-sigma tracker glitch."""
+    from analysis.identification.io.measurements import TestArrays
+    from analysis.identification.studies.robustness import sample_poses
+
+    from ._sim import simulate
+    from .test_robust import NOISE
+
+    rng = np.random.default_rng(8)
+    poses = sample_poses(kr240, 40, rng, min_inverse_condition=0.3)
+    q = np.repeat(poses, 10, axis=0)
+    w = w_eff * rng.uniform(0.3, 0.6, size=(len(q), 1)) * rng.choice([-1.0, 1.0], (len(q), 1))
+    sim = simulate(kr240, q, w, kr240.nominal_stiffness, NOISE, seed=4)
+    d = sim.d.copy()
+    hit = rng.choice(len(q), 8, replace=False)
+    d[hit, rng.integers(0, 3, 8)] += 20 * NOISE.translation_sigma
+    names = np.repeat([f"Z{i + 1}" for i in range(len(poses))], 10)
+    return TestArrays(pose=names, q=sim.q, w=sim.w, d=d, measured=sim.measured,
+                      line=sim.line)
+
+
+@pytest.mark.parametrize(("method", "mode"), [("ols", "huber"), ("wls", "tukey"),
+                                              ("exact", "huber")])
+def test_streamed_robust_equals_in_memory(kr240, large_campaign, method, mode, monkeypatch):
+    """The robust fit of a campaign whose J, design and model Jacobian are made when sliced
+    (LAZY_TESTS 300, blocks of 97 tests) gives the in-memory estimate and sandwich
+    covariance, to 1e-8 relative (backward-stable factorisations of the same systems)."""
+    from analysis.identification.estimate import identify
+    from analysis.identification.estimators import fitting
+    from analysis.identification.linalg import lsq
+    from analysis.identification.streaming import blocks, per_test
+    from analysis.identification.streaming.per_test import PerTestJacobian
+
+    from .test_robust import NOISE
+
+    ref = identify(kr240, large_campaign, method, noise=NOISE, validate=False, robust=mode)
+    monkeypatch.setattr(lsq, "TALL_ROWS", 600)
+    monkeypatch.setattr(lsq, "TEST_BLOCK", 97)
+    monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
+    monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
+    assert isinstance(fitting.jacobian_blocks(kr240, large_campaign.q), PerTestJacobian)
+    res = identify(kr240, large_campaign, method, noise=NOISE, validate=False, robust=mode)
+    np.testing.assert_allclose(res.x, ref.x, rtol=1e-8)
+    np.testing.assert_allclose(res.cov_x, ref.cov_x, rtol=1e-8)
+    assert res.robust["covariance"]["clusters"] == 400
+    assert len(res.robust["down_weighted"]) >= 6  # the glitches found

@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification.linalg.lsq import TEST_BLOCK
+from analysis.identification.linalg import lsq
 
 #: the correction in results.json
 CORRECTION = ("cluster jackknife over tests (CR3): (G - 1)/G sum_t (x_(t) - x - mean)^2, "
@@ -148,7 +148,7 @@ def _block_terms(A, cov, resid, kept, robust, c, weighted):
 
 def robust_covariance(A, cov, resid: np.ndarray, kept: np.ndarray, robust: str, c: float,
                       weighted: bool, fixed: np.ndarray, S: np.ndarray | None = None,
-                      block: int = TEST_BLOCK) -> RobustCovariance:
+                      block: int | None = None) -> RobustCovariance:
     """The sandwich covariance of a robust fit (module docstring).
 
     Parameters
@@ -165,8 +165,10 @@ def robust_covariance(A, cov, resid: np.ndarray, kept: np.ndarray, robust: str, 
     S : (p, p) the errors-in-variables matrix the fit's estimating equation adds
         (:func:`analysis.identification.corrections.wrench_eiv.wrench_eiv_matrix` with the
         fit's weights), or None.
+    block : tests per block (default :data:`analysis.identification.linalg.lsq.TEST_BLOCK`).
     """
     m, p = A.shape[0], A.shape[-1]
+    block = lsq.TEST_BLOCK if block is None else block
     H = np.zeros((p, p))
     B = np.zeros((p, p))
     for s in range(0, m, block):
