@@ -54,7 +54,7 @@ def study(trials: int, seed: int) -> dict:
 
 
 def robust_study(trials: int, seed: int, methods=ROBUST_METHODS,
-                 exact_trials: int | None = None) -> dict:
+                 exact_trials: int | None = None, modes=ROBUST) -> dict:
     """{"huber (wls)": {"clean x1": (coverage (6,), given), ...}, ...} of the robust fits;
     ``exact_trials`` campaigns per cell for exact (``trials`` if None)."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -62,15 +62,16 @@ def robust_study(trials: int, seed: int, methods=ROBUST_METHODS,
     out = {}
     for m in methods:
         n = trials if m != "exact" or exact_trials is None else exact_trials
-        for r in ROBUST:
+        for r in modes:
             row = out[f"{r} ({m})"] = {}
             for label, g in DATA:
                 for s in SCALES:
                     row[f"{label} x{s:g}"] = coverage(robot, q, W, k, m, s, n, seed=seed,
                                                       robust=r, glitches=g)
-                    print(f"# {r} ({m}) {label} x{s:g}: "
-                          + " ".join(f"{100 * c:.1f}" for c in row[f"{label} x{s:g}"][0]),
-                          file=sys.stderr, flush=True)
+                    cov, given = row[f"{label} x{s:g}"]
+                    print(f"# {r} ({m}) {label} x{s:g}: " + " ".join(f"{100 * c:.1f}"
+                                                                    for c in cov)
+                          + f" ({given} of {n} given)", file=sys.stderr, flush=True)
     return out
 
 
@@ -102,6 +103,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="the robust fits (huber, tukey) on clean data and with glitches")
     ap.add_argument("--methods", nargs="+", choices=ROBUST_METHODS, default=ROBUST_METHODS,
                     help="with --robust: the fits the robust ones reweight")
+    ap.add_argument("--modes", nargs="+", choices=ROBUST, default=ROBUST,
+                    help="with --robust: the robust modes to run")
     ap.add_argument("--exact-trials", type=int, default=None,
                     help="with --robust: campaigns per cell for exact (default --trials)")
     ap.add_argument("--write-docs", action="store_true",
@@ -110,7 +113,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.process_time()
     out = {}
     if args.robust:
-        res = robust_study(args.trials, args.seed, tuple(args.methods), args.exact_trials)
+        res = robust_study(args.trials, args.seed, tuple(args.methods), args.exact_trials,
+                           tuple(args.modes))
         cols = [f"{label} x{s:g}" for label, _ in DATA for s in SCALES]
         print(HEADER)
         rows = {}

@@ -112,6 +112,7 @@ class RobustCovariance:
             "small_sample_correction": CORRECTION,
             "clusters": self.tests,
             "interval": f"Student t with G - p = {self.dof} degrees of freedom",
+            "degrees_of_freedom": self.dof,
             # per identified joint, in the order of the joints
             "se_over_uncorrected_sandwich": [
                 float(v) for v in se / np.sqrt(np.diag(self.sandwich))],
