@@ -128,6 +128,8 @@ def main(argv: list[str] | None = None) -> int:
                 cov, given = row[c]
                 out[f"{name} {c}"] = {"coverage": [round(float(v), 4) for v in cov],
                                       "given": given}
+        if args.write_docs:
+            write_docs(rows)
     else:
         res = study(args.trials, args.seed)
         print("| method | nominal loads: coverage k1..k6 (%) | twice the loads (%) |")
@@ -138,8 +140,6 @@ def main(argv: list[str] | None = None) -> int:
                 out[f"{m}_x{s:g}"] = {"coverage": [round(float(c), 4) for c in cov],
                                       "given": given}
             print(f"| `{m}` | {cells[0]} | {cells[1]} |")
-        if args.write_docs:
-            write_docs(rows)
     worst = max(abs(c - 0.95) for v in out.values() for c in v["coverage"])
     print(json.dumps({"study": "robust coverage" if args.robust else "coverage",
                       "trials": args.trials, "seed": args.seed,
