@@ -32,12 +32,12 @@ Run: ``python benchmarks/bench_compensate.py [--points 10000] [--sample 300] [--
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from math import sqrt
 
 import numpy as np
 import pinocchio as pin
+from _load import LoadWindow
 from scipy.linalg.lapack import dgesv
 from threadpoolctl import threadpool_limits
 
@@ -143,6 +143,7 @@ def rel_diff(a, b) -> float:
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, default=10_000)
     parser.add_argument("--sample", type=int, default=300)
@@ -195,7 +196,7 @@ def main() -> None:
     print("outputs agree: " + ", ".join(f"{key} {v:.1e}" for key, v in diffs.items())
           + f"; max residual {res:.2e}")
     print(f"ratio batched / loop: {rate_b / rate_l:.1f}x wall, {rate_bc / rate_lc:.1f}x CPU")
-    print(json.dumps({"benchmark": "compensate", "points": args.points, "repeat": args.repeat,
+    load.emit({"benchmark": "compensate", "points": args.points, "repeat": args.repeat,
                       "batched_s": round(t_batch, 4), "batched_points_per_s": round(rate_b, 1),
                       "loop_points_per_s": round(rate_l, 1), "ratio": round(rate_b / rate_l, 2),
                       "max_q_cmd_difference_rad": diffs["q_cmd_rad_abs"],
@@ -212,7 +213,7 @@ def main() -> None:
                       "timing": "wall time (time.perf_counter) and CPU time "
                                 f"(time.process_time), best of {args.repeat} runs per side, "
                                 "interleaved, after a warm-up, BLAS pinned to 1 thread on "
-                                "both sides"}))
+                                "both sides"})
 
 
 if __name__ == "__main__":

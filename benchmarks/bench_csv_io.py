@@ -42,6 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _launcher import Launcher  # noqa: E402
+from _load import LoadWindow
 
 #: the timed reading process: argv mode (arrow, table, imports) and the CSV file
 READER = r"""
@@ -70,7 +71,7 @@ print(json.dumps({"m": tests.m, "sha256": digest.hexdigest()}))
 def residual_rows(csv: Path, n: int):
     """A ResidualRows of the first n tests of ``csv`` with deterministic stand-ins."""
     from analysis.identification.io.measurements import read_test_arrays
-    from analysis.identification.result import ResidualRows
+    from analysis.identification.io.residual_rows import ResidualRows
 
     tests = read_test_arrays(csv)
     tests = tests.subset(np.arange(min(n, tests.m)))
@@ -84,7 +85,7 @@ def residual_rows(csv: Path, n: int):
 
 
 def time_write(rows, path: Path, how: str, repeat: int) -> float:
-    from analysis.identification.result import write_table
+    from analysis.identification.io.results_json import write_table
 
     best = np.inf
     for _ in range(repeat):
@@ -100,6 +101,7 @@ def time_write(rows, path: Path, how: str, repeat: int) -> float:
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100_000, 1_000_000])
     parser.add_argument("--data", type=Path, default=None,
@@ -150,7 +152,7 @@ def main() -> None:
             "ratio_cpu": round(cpu["pandas"] / cpu["table_csv"], 2), "same_bytes": same,
             "sha256": hashlib.sha256(paths["pandas"].read_bytes()).hexdigest()[:16]}
         print(f"write: {json.dumps(figures['write'])}", flush=True)
-    print(json.dumps(figures))
+    load.emit(figures)
 
 
 if __name__ == "__main__":

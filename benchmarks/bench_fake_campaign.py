@@ -18,12 +18,12 @@ The last line is one JSON object.
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from _load import LoadWindow
 
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
@@ -56,6 +56,7 @@ def fit(scales: np.ndarray, walls: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scales", type=float, nargs="+", default=[25.0, 50.0, 100.0, 200.0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -87,7 +88,7 @@ def main() -> None:
     print(f"largest |residual| of the fit: {np.max(np.abs(resid)):.2f} s; CPU of this "
           f"process per run {data[:, 3].min():.2f}..{data[:, 3].max():.2f} s")
     walls = {f"{s:g}": [round(float(v), 3) for v in data[data[:, 1] == s, 2]] for s in scales}
-    print(json.dumps({
+    load.emit({
         "benchmark": "fake_campaign", "scales": scales, "repeat": args.repeat,
         "wall_s_by_scale": walls,
         "lab_time_s": round(float(lab_time), 2), "lab_time_se_s": round(float(se[1]), 2),
@@ -101,7 +102,7 @@ def main() -> None:
         "baseline": "none: the model's two terms (overhead, lab time / scale)",
         "timing": "wall time (time.perf_counter) of each whole campaign in this process, "
                   "scales interleaved within each repeat",
-    }))
+    })
 
 
 if __name__ == "__main__":

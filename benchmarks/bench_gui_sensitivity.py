@@ -14,7 +14,6 @@ Wall time per call (time.perf_counter): what the user waits for.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
@@ -22,6 +21,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _load import LoadWindow
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -38,6 +39,7 @@ SWEEPS = {
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=1000)
     parser.add_argument("--method", default="ols", choices=["ols", "wls", "exact"])
@@ -71,7 +73,7 @@ def main() -> None:
     print(f"API round trip: median {med} ms, p90 {q(api_ms, 90)} ms, max {max(api_ms):.1f} ms")
     print(f"job in-process: median {job} ms; HTTP + JSON overhead {med - job:.1f} ms")
     print(f"API numbers vs the job's: max relative difference {worst_diff:.1e}")
-    print(json.dumps({
+    load.emit({
         "benchmark": "gui_sensitivity", "robot": "KR240-2", "poses": "zones",
         "trials": args.trials, "method": args.method, "moves": len(bodies),
         "round_trip_ms_median": med, "round_trip_ms_p90": q(api_ms, 90),
@@ -81,7 +83,7 @@ def main() -> None:
         "baseline": "the job called in-process on the same settings (no HTTP, no JSON)",
         "timing": "wall time (time.perf_counter) per call, interleaved with the baseline; "
                   "the server is `campaign gui` in its own process on 127.0.0.1",
-    }))
+    })
 
 
 class _Client:

@@ -33,10 +33,10 @@ Run: ``python benchmarks/bench_identification.py [--trials 100000] [--loop 5000]
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
+from _load import LoadWindow
 from scipy.linalg.lapack import dgels
 from threadpoolctl import threadpool_limits
 
@@ -74,6 +74,7 @@ def timed(fn):
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=100_000)
     parser.add_argument("--tests", type=int, default=5)
@@ -128,7 +129,7 @@ def main() -> None:
     print(f"  robustness study, {args.study_trials} trials of {args.tests} tests (OLS): "
           f"{best['study'][0]:.2f} s CPU, {best['study'][1]:.2f} s wall; relative std of k "
           f"{rel_std.min():.3f}..{rel_std.max():.3f}")
-    print(json.dumps({
+    load.emit({
         "benchmark": "identification", "trials": args.trials, "tests": args.tests,
         "repeat": args.repeat, "loop_sample": n_loop, "blas_threads": 1,
         "batched_ols_cpu_s": round(best["ols"][0], 4),
@@ -143,7 +144,7 @@ def main() -> None:
         "timing": f"CPU time (time.process_time) and wall time, best of {args.repeat} runs "
                   "per side, interleaved, BLAS pinned to 1 thread on both sides; the study "
                   "best of the same number of runs",
-    }))
+    })
 
 
 if __name__ == "__main__":

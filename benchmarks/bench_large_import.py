@@ -47,6 +47,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _launcher import Launcher  # noqa: E402
+from _load import LoadWindow
 
 BIN = Path(sys.executable).parent
 CAMPAIGN = [str(BIN / "campaign")] if (BIN / "campaign").exists() else [
@@ -111,6 +112,7 @@ def analyze_csv(csv: Path, out: Path, method: str, extra: tuple[str, ...] = ()) 
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
     parser.add_argument("--methods", nargs="+", default=["ols", "exact"])
@@ -191,14 +193,14 @@ def main() -> None:
         print(f"demo analysis with report: {r['cpu_s']:.2f} s CPU; imports alone "
               f"{base['cpu_s']:.2f} s; ratio {r['cpu_s'] / base['cpu_s']:.1f} (best of "
               f"{args.repeat} each)", flush=True)
-    print(json.dumps({"benchmark": "large_import", "machine_note": "2 shared cores",
+    load.emit({"benchmark": "large_import", "machine_note": "2 shared cores",
                       "baseline": 'python -c "import numpy, pandas, matplotlib.pyplot, '
                                   'pinocchio"',
                       "timing": "CPU (user + sys) and peak RSS of each command's process "
                                 "(os.wait4), started from a small launcher process; the "
                                 f"large imports one run each, the small analyses and the "
                                 f"imports best of {args.repeat}",
-                      **figures}))
+                      **figures})
 
 
 if __name__ == "__main__":

@@ -31,13 +31,13 @@ The last line printed is one JSON object with the figures.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 from math import sqrt
 
 import numpy as np
 import pinocchio as pin
+from _load import LoadWindow
 from scipy.linalg.lapack import dgesv
 from threadpoolctl import threadpool_limits
 
@@ -98,6 +98,7 @@ def timed(fn):
 
 
 def main() -> None:
+    load = LoadWindow()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sample", type=int, default=3000, help="poses for the loop baseline")
     parser.add_argument("--repeat", type=int, default=3, help="runs per side (best is kept)")
@@ -145,7 +146,7 @@ def main() -> None:
           + ", ".join(f"{key} {v:.1e}" for key, v in errors.items()))
     print(f"ratio loop / batched: {l_cpu / b_cpu:.1f}x CPU, {l_wall / b_wall:.1f}x wall")
     print(f"threaded batched ({os.cpu_count()} CPUs, BLAS default): {t_wall:.3f} us wall/pose")
-    print(json.dumps({
+    load.emit({
         "benchmark": "maps", "robot": "KR240-2", "grid_step_deg": step_deg, "threads": 1,
         "poses": n, "loop_sample": args.sample, "repeat": args.repeat,
         "batched_cpu_us_per_pose": round(b_cpu, 3), "batched_wall_us_per_pose": round(b_wall, 3),
@@ -160,7 +161,7 @@ def main() -> None:
         "timing": f"CPU time (time.process_time) and wall time, best of {args.repeat} runs "
                   "per side, interleaved; threads=1 and BLAS pinned to 1 thread on both "
                   "sides; the loop on a random sample of the grid",
-    }))
+    })
 
 
 if __name__ == "__main__":

@@ -30,13 +30,13 @@ JSON line.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 from math import atan2, cos, inf, pi, sin, sqrt
 
 import numpy as np
 import pinocchio as pin
+from _load import LoadWindow
 
 from analysis.model.ik import IKSolver
 from analysis.model.robots import load_robot, with_tool
@@ -266,6 +266,7 @@ def case(robot, args, rng, w_tool, loop):
 
 
 def main() -> None:
+    load_window = LoadWindow()
     ap = argparse.ArgumentParser()
     ap.add_argument("--placements", type=int, default=16)
     ap.add_argument("--sample", type=int, default=300)
@@ -295,7 +296,7 @@ def main() -> None:
           f"{offset['batched_per_s']:,} /s wall, {offset['batched_cpu_per_s']:,} /s CPU; "
           f"general batched agrees: {offset['general_batched_agrees']}")
     agree = f["loop_agrees"] and f["general_batched_agrees"] and offset["general_batched_agrees"]
-    print(json.dumps({"benchmark": "place", "evaluations": f["evaluations"],
+    load_window.emit({"benchmark": "place", "evaluations": f["evaluations"],
                       "batched_evaluations_per_s": f["batched_per_s"],
                       "batched_cpu_evaluations_per_s": f["batched_cpu_per_s"],
                       "general_batched_evaluations_per_s": f["general_batched_per_s"],
@@ -318,7 +319,7 @@ def main() -> None:
                                 f"(time.process_time), best of {args.repeat} runs (the "
                                 f"general batched route and the loop best of "
                                 f"{max(1, args.repeat // 2)}), BLAS threads at their "
-                                "default; the loop on a random sample"}))
+                                "default; the loop on a random sample"})
     if not agree:
         raise SystemExit("outputs disagree")
 

@@ -239,13 +239,31 @@ def _fake_campaign(f: Fig) -> tuple[str, str, str, str]:
 
 
 def _startup(f: Fig) -> tuple[str, str, str, str]:
-    return (f"start-up CPU of `{f['help_command']}` and `{f['stiffness_command']}` (one "
-            "pose); outputs checked (every command listed; K_X and deflection equal the "
-            "library's)",
-            f"{f['help_cpu_s']} s / {f['stiffness_cpu_s']} s CPU",
-            f"`{f['help_reference']}` {f['help_ref_cpu_s']} s / `{f['stiffness_reference']}` "
-            f"{f['stiffness_ref_cpu_s']} s CPU. Timed: {f['timing']}",
-            f"{f['help_ratio']}x / {f['stiffness_ratio']}x CPU")
+    rows = f.get("command_help")
+    if rows is None:  # a record from before the per-command figures (issue 22)
+        return (f"start-up CPU of `{f['help_command']}` and `{f['stiffness_command']}` (one "
+                "pose); outputs checked (every command listed; K_X and deflection equal the "
+                "library's)",
+                f"{f['help_cpu_s']} s / {f['stiffness_cpu_s']} s CPU",
+                f"`{f['help_reference']}` {f['help_ref_cpu_s']} s / "
+                f"`{f['stiffness_reference']}` {f['stiffness_ref_cpu_s']} s CPU. "
+                f"Timed: {f['timing']}",
+                f"{f['help_ratio']}x / {f['stiffness_ratio']}x CPU")
+    cpus = [r["cpu_s"] for r in rows.values()]
+    heavy = f.get("command_help_heavy_imports") or []
+    return (f"start-up CPU of `{f['help_command']}`, of each of the {len(rows)} "
+            f"`campaign <cmd> --help` and of `{f['stiffness_command']}` (one pose); outputs "
+            "checked (every command listed, the same Commands panel as the baseline app; "
+            "K_X and deflection equal the library's)",
+            f"`--help` {f['help_cpu_s']} s; `<cmd> --help` {num(min(cpus))}-{num(max(cpus))} s "
+            f"(heavy libraries imported: {', '.join(heavy) or 'none'}); stiffness "
+            f"{f['stiffness_cpu_s']} s CPU",
+            f"{f['help_reference']}: {f['help_ref_cpu_s']} s, and its `<cmd> --help` (the "
+            "help line only, no options); for stiffness "
+            f"`{f['stiffness_reference']}` {f['stiffness_ref_cpu_s']} s CPU. Timed: "
+            f"{f['timing']}",
+            f"`--help` {f['help_ratio']}x; worst `<cmd> --help` {f['command_help_worst_ratio']}x "
+            f"({f['command_help_worst']}); stiffness {f['stiffness_ratio']}x CPU")
 
 
 def _csv_io(f: Fig) -> tuple[str, str, str, str]:
@@ -282,11 +300,22 @@ def _gui_sensitivity(f: Fig) -> tuple[str, str, str, str]:
             f"HTTP + JSON {f['overhead_ms_median']} ms")
 
 
+def _acquire_state(f: Fig) -> tuple[str, str, str, str]:
+    return (f"`GET /api/acquire/state` while a run writes: its events file of "
+            f"{num(f['events'])} lines ({f['file_bytes'] / 1e6:.2f} MB), one line appended "
+            "per poll",
+            f"incremental reading {f['incremental_cpu_ms_per_poll']} ms CPU/poll "
+            f"({f['incremental_ms_per_poll']} ms wall)",
+            f"the whole file read per poll: {f['full_cpu_ms_per_poll']} ms CPU/poll "
+            f"({f['full_ms_per_poll']} ms wall); answers equal {f['answers_equal']}",
+            f"{f['ratio_wall']}x wall")
+
+
 ROWS: dict[str, Callable[[Fig], tuple[str, str, str, str]]] = {
     "maps": _maps, "identification": _identification, "large_import": _large_import,
     "planner": _planner, "compensate": _compensate, "place": _place,
     "fake_campaign": _fake_campaign, "startup": _startup, "csv_io": _csv_io,
-    "gui_sensitivity": _gui_sensitivity,
+    "gui_sensitivity": _gui_sensitivity, "acquire_state": _acquire_state,
 }
 
 

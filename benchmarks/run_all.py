@@ -60,6 +60,7 @@ QUICK: dict[str, list[str]] = {
     "startup": ["--repeats", "2"],
     "csv_io": ["--sizes", "2000", "--write-tests", "2000", "--repeat", "1"],
     "gui_sensitivity": ["--repeat", "1"],
+    "acquire_state": ["--repeat", "1", "--polls", "5"],
 }
 
 

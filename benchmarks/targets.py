@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 ISSUE_13 = "issue 13"
+ISSUE_22 = "issue 22"
 ISSUE_23 = "issue 23"
 MET, MISSED, NOT_MEASURED = "met", "NOT MET", "not measured"
 
@@ -94,9 +95,10 @@ TARGETS: tuple[Target, ...] = (
     Target("maps", "batched kernel, us CPU/pose", _when(
         _map_05, lambda f: f["batched_cpu_us_per_pose"]), "<=", 2.5,
         f"{ISSUE_13}: single-threaded, 0.5 deg KR240-2 map", "the 0.5 deg map, threads=1"),
-    Target("maps", "loop / batched, CPU", _when(_map_05, lambda f: f["ratio_cpu"]), ">=", 35,
-           f"{ISSUE_13}: against the per-pose Pinocchio loop; set when that loop took "
-           "~105 us/pose, before issue 22 made it fast (~13 us/pose)",
+    Target("maps", "loop / batched, CPU", _when(_map_05, lambda f: f["ratio_cpu"]), ">=", 8,
+           f"{ISSUE_22}: against the fastest per-pose Pinocchio loop (~12 us/pose); issue 13's "
+           ">= 35 was set against a loop of ~105 us/pose that spent most of its time in numpy "
+           "around Pinocchio, and is withdrawn; 8 is a floor under the ~11x measured",
            "the 0.5 deg map, threads=1"),
     Target("planner", "us CPU/candidate at 1e5", _planner_at_1e5, "<=", 30,
            ISSUE_13, "--sizes including 100000"),
@@ -130,9 +132,14 @@ TARGETS: tuple[Target, ...] = (
            f"{ISSUE_13} ('a few hundred MB', read as <= 600 MB)", "--sizes including 1000000"),
     Target("fake_campaign", "more than two scales per fit, repeats, spread reported (1 = yes)",
            _fake_campaign_design, ">=", 1, ISSUE_13, "any run"),
-    Target("startup", "`campaign --help` / `import numpy, typer, rich`, CPU",
-           lambda f: f["help_ratio"], "<=", 2.0,
-           "bench_startup.py's start-up limit", "any run"),
+    Target("startup", "`campaign --help` / the same command list from a one-file typer app, CPU",
+           lambda f: f["help_ratio"] if "command_help" in f else None, "<=", 1.5,
+           f"{ISSUE_22}: start-up is typer's own plus little (lazy commands)",
+           "a run of bench_startup.py since issue 22"),
+    Target("startup", "worst `campaign <cmd> --help` / the one-file app's `<cmd> --help`, CPU",
+           lambda f: f.get("command_help_worst_ratio"), "<=", 1.5,
+           f"{ISSUE_22}: no command's --help imports numpy or a heavy library",
+           "a run of bench_startup.py since issue 22"),
     Target("startup", "`campaign stiffness` / `import numpy, typer, rich, pinocchio`, CPU",
            lambda f: f["stiffness_ratio"], "<=", 2.5,
            "bench_startup.py's start-up limit", "any run"),

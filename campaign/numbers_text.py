@@ -5,7 +5,10 @@ Shared by the command line's faces and the notes the jobs print as they go.
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def matrix_lines(M: np.ndarray, digits: int = 5) -> list[str]:
@@ -14,6 +17,8 @@ def matrix_lines(M: np.ndarray, digits: int = 5) -> list[str]:
     Round-off (below 1e-9 of the largest entry) is shown as 0, never '-0'; a
     matrix whose entries span beyond 1e-3..1e5 is shown in one exponent style.
     """
+    import numpy as np
+
     from analysis.report.formatting import clean, sig
 
     a = clean(M)

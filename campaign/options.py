@@ -14,11 +14,11 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from analysis.errors import InputError
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from analysis.model.robot_model import RobotModel
 
 
@@ -28,6 +28,8 @@ def parse_floats(text: str, where: str, count: int | None = None) -> np.ndarray:
     An empty text or an empty item (``0,,30``, a trailing comma) is refused: it is
     a typo, and dropping it (or falling back to a default) would be a silent guess.
     """
+    import numpy as np
+
     if not text.strip():
         raise InputError("empty value: expected "
                          + (f"{count} " if count is not None else "")
@@ -108,6 +110,8 @@ def tool_option(xyz_text: str | None, rpy_text: str | None,
 
 def apply_tool(robot: RobotModel, tool: ToolPoint) -> RobotModel:
     """``robot`` with P moved to ``tool`` (see :func:`analysis.model.robots.with_tool`)."""
+    import numpy as np
+
     from analysis.model.robots import with_tool
 
     return with_tool(robot, np.asarray(tool.xyz_mm) * 1e-3, np.radians(tool.rpy_deg))
@@ -131,6 +135,8 @@ def robot_and_tool(robot: str, tip: str | None, tool_xyz_mm: str | None = None,
 
 def file_tool_point(robot: RobotModel) -> ToolPoint | None:
     """The robot file's own ``[tool]`` as a :class:`ToolPoint`, or None when P is the flange."""
+    import numpy as np
+
     from analysis.model.robots import tool_in_flange, tool_mm_deg
 
     t = tool_in_flange(robot)
@@ -157,12 +163,16 @@ def joint_angles_option(robot: RobotModel, text: str, controller: bool, where: s
     With ``controller`` the angles are the teach pendant's and are converted
     with the model's offsets.
     """
+    import numpy as np
+
     q = np.radians(parse_floats(text, where, robot.n))
     return robot.from_controller(q) if controller else q
 
 
 def stiffness_option(robot: RobotModel, text: str | None) -> np.ndarray:
     """``--joint-stiffness`` (N m/rad, comma-separated) or the model's nominal values."""
+    import numpy as np
+
     if text is not None:
         k = parse_floats(text, "--joint-stiffness", robot.n)
         if np.any(k <= 0):

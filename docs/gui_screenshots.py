@@ -23,6 +23,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from tests.web.pages import (  # noqa: E402  (the browser tests' waits)
+    acquire_dry_run,
+    wait_job,
+    wait_text,
+    wait_use_shown,
+)
 
 VIEWS = ("sensitivity", "runs", "use", "plan", "acquire")
 
@@ -87,9 +93,7 @@ def use_view(page, workspace: Path, docs: Path) -> None:
     slider.focus()
     for _ in range(4):
         slider.press("ArrowRight")
-    page.wait_for_function("() => { const v = document.getElementById('view-use'); return "
-                           "!v.dataset.busy && v.dataset.shownQ === "
-                           "JSON.stringify(useView.poseDeg()); }")
+    wait_use_shown(page)
     page.select_option("#pd-path", "kr240-2_path.csv")
     if model:
         page.select_option("#pd-robot", model)
@@ -116,11 +120,11 @@ def use_view(page, workspace: Path, docs: Path) -> None:
 def _plan_and_analyze(page, docs: Path) -> None:
     page.set_viewport_size({"width": 1240, "height": 980})
     page.click("#tab-plan")
-    page.wait_for_function("() => document.body.dataset.planview === 'ready'")
+    wait_job(page, "planview", "ready", timeout=30_000)
     page.check("#plan-compact")  # the keys with a value (the form has every key)
     page.fill("#plan-candidates", "1000")
     page.click("#plan-run")
-    page.wait_for_function("() => document.body.dataset.plan === 'done'", timeout=120_000)
+    wait_job(page, "plan", "done", timeout=120_000)
     page.wait_for_function("() => pv.plots['plan-map-fig'] !== undefined")
     if page.locator("#an-run option[value='run']").count():
         page.select_option("#an-run", "run")
@@ -128,8 +132,7 @@ def _plan_and_analyze(page, docs: Path) -> None:
         page.check("#an-force")
         page.evaluate("() => { document.getElementById('an-plots').dataset.ready = ''; }")
         page.click("#an-run-btn")
-        page.wait_for_function("() => document.body.dataset.analyze !== 'running'",
-                               timeout=180_000)
+        wait_job(page, "analyze", "done", "error", timeout=180_000)
         # the residual and validation plots of that analysis
         page.wait_for_function("() => document.getElementById('an-plots').dataset.ready",
                                timeout=30_000)
@@ -140,24 +143,17 @@ def _acquire(page, docs: Path) -> None:
     """The Acquire view: a dry run, then the workspace's plan on the simulated lab (x 50,
     slow enough to catch a test settling under its load)."""
     page.set_viewport_size({"width": 1240, "height": 980})
-    page.click("#tab-acquire")
-    page.wait_for_selector("#acq-plan", state="visible")
-    page.fill("#acq-plan", "plan")
-    page.fill("#acq-out", "acquire-screenshot")
-    page.fill("#acq-scale", "50")
-    page.click("#acq-dry")
-    page.wait_for_selector("#acq-motions li")
+    acquire_dry_run(page, "plan", "acquire-screenshot", 50)
     page.click("#acq-start")
-    # mid-run: two poses done on the zone map, the next one being measured under its load
+    # mid-run: poses 1 and 2 done on the zone map, pose 3 being measured under its load
     page.wait_for_function(
-        "() => (document.getElementById('acq-map').dataset.done || '').split(',').length >= 2"
+        "() => (document.getElementById('acq-map').dataset.done || '') === '1,2'"
         " && document.getElementById('acq-map').dataset.current"
         " && document.querySelector('#acq-stage').textContent === 'settle'"
         " && Number(document.getElementById('acq-trace-readings').textContent) >= 3",
         timeout=300_000, polling=20)
     page.screenshot(path=docs / "gui_acquire.png", full_page=True)
-    page.wait_for_function("() => document.querySelector('#acq-status').textContent"
-                           " === 'complete'", timeout=300_000)
+    wait_text(page, "#acq-status", "complete", timeout=300_000)
 
 
 if __name__ == "__main__":

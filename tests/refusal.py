@@ -7,30 +7,57 @@ and checks, for one bad input:
 * stderr is one line, starts with ``error:`` and contains the expected text;
 * no traceback and no warning (a leaked ``RuntimeWarning`` is a defect);
 * every file and directory under the watched paths is unchanged: same names,
-  same bytes; a watched path that did not exist (an ``--out``) still does not.
+  same bytes, links pointing where they did; a watched path that did not exist (an
+  ``--out``) still does not.
+
+The tree helpers (:func:`tree`, :func:`snapshot`, :func:`outside_dir`) serve the
+tests that check a command never writes through a link as well.
 """
 
 from __future__ import annotations
 
 import hashlib
+import os
 import warnings
 from pathlib import Path
 
 from campaign.cli import main
 
 
+def entry_state(p: Path) -> str:
+    """What one entry is: ``"dir"``, the SHA-256 of a file's bytes, or for a symbolic link
+    ``"-> TARGET"`` with the state of what it points to (``missing`` when dangling)."""
+    if p.is_symlink():
+        target = os.readlink(p)
+        pointed = ("missing" if not p.exists() else "dir" if p.is_dir()
+                   else hashlib.sha256(p.read_bytes()).hexdigest())
+        return f"-> {target}: {pointed}"
+    return "dir" if p.is_dir() else hashlib.sha256(p.read_bytes()).hexdigest()
+
+
+def tree(path: Path) -> dict[str, str]:
+    """{name relative to ``path``: :func:`entry_state`} of every entry of a tree, the root
+    (``"."``) included; links are not followed into. {} when ``path`` does not exist."""
+    path = Path(path)
+    if not os.path.lexists(path):
+        return {}
+    items = [path, *sorted(path.rglob("*"))] if path.is_dir() and not path.is_symlink() \
+        else [path]
+    return {str(p.relative_to(path)): entry_state(p) for p in items}
+
+
 def snapshot(paths) -> dict:
-    """{path: None (absent) | "dir" | sha256 of the bytes} of every path under ``paths``."""
-    state: dict = {}
-    for root in map(Path, paths):
-        if not root.exists() and not root.is_symlink():
-            state[str(root)] = None
-            continue
-        items = [root, *sorted(root.rglob("*"))] if root.is_dir() else [root]
-        for p in items:
-            state[str(p)] = ("dir" if p.is_dir() else
-                             hashlib.sha256(p.read_bytes()).hexdigest())
-    return state
+    """{path: None (absent) | :func:`tree` of it} of each path of ``paths``."""
+    return {str(root): tree(root) if os.path.lexists(root) else None for root in map(Path, paths)}
+
+
+def outside_dir(tmp_path: Path) -> Path:
+    """A directory outside every output, for links to point to: ``victim.txt`` and an empty
+    ``dir``; a refusal must leave it as it was."""
+    d = Path(tmp_path) / "outside"
+    (d / "dir").mkdir(parents=True)
+    (d / "victim.txt").write_text("not yours\n")
+    return d
 
 
 def assert_refused(capsys, args: list[str], message: str, *, watch=(), code: int = 2) -> str:

@@ -46,6 +46,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
+from analysis.identification.checks.data import check_identifiable, check_tests
 from analysis.identification.checks.outliers import (
     flag_outliers,
     outlier_threshold,
@@ -53,7 +54,6 @@ from analysis.identification.checks.outliers import (
     residual_table,
     studentize,
 )
-from analysis.identification.estimators.fitting import check_identifiable, check_tests
 from analysis.identification.io.measurements import TestArrays, to_arrays
 from analysis.identification.linalg.lsq import per_test_diagonal, scaled_condition
 from analysis.identification.noise import NoiseModel

@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.estimators.fitting import COND_LIMIT
+from analysis.identification.checks.data import COND_LIMIT
 from analysis.identification.estimators.irls import ROBUST_METHODS
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
@@ -139,8 +139,8 @@ class IdentificationProblem:
     @cached_property
     def jacobian(self):
         """J (m, 6, 6) of the tests' joint angles
-        (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`)."""
-        from analysis.identification.estimators.fitting import jacobian_blocks
+        (:func:`~analysis.identification.estimators.linear_model.jacobian_blocks`)."""
+        from analysis.identification.estimators.linear_model import jacobian_blocks
 
         return jacobian_blocks(self.robot, self.tests.q)
 
@@ -148,9 +148,9 @@ class IdentificationProblem:
     def design(self):
         """(J, A): J and the linear model's design (m, 6, p) of the joints, zero rows where
         not measured; :meth:`release_design` lets A go (~0.3 GB at 1e6 tests)."""
-        from analysis.identification.estimators.fitting import _design
+        from analysis.identification.estimators.linear_model import tests_design
 
-        return _design(self.robot, self.tests, self.joints, self.jacobian)
+        return tests_design(self.robot, self.tests, self.joints, self.jacobian)
 
     def release_design(self) -> None:
         """Let the design A go (J stays): the fits after the linear ones do not use it."""

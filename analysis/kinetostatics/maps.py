@@ -15,13 +15,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from analysis.kinetostatics.dexterity import inverse_condition_em
-from analysis.kinetostatics.small_linalg import to_entry_major
 from analysis.kinetostatics.stiffness import (
     complementary_stiffness_em,
     deflections_em,
     influence_indices,
 )
-from analysis.model.kinematics import chain_state, jacobian_from_state
+from analysis.model.kinematics import chain_state_em, jacobian_em
 from analysis.model.robot_model import RobotModel
 
 if TYPE_CHECKING:  # pandas is imported where a table is built (CLI start-up time)
@@ -99,8 +98,8 @@ def pose_metrics(
 
 def _pose_metrics(robot, q, k, w, length):
     """The kernel of :func:`pose_metrics` on one block of poses (N, n), entry-major inside."""
-    state = chain_state(robot, q)
-    E = to_entry_major(jacobian_from_state(state))  # J as (6, n, N)
+    state = chain_state_em(robot, q.T)
+    E = jacobian_em(state)  # J as (6, n, N)
     scale = np.array([1.0 / length] * 3 + [1.0] * 3)[:, None, None]
     inv_k = inverse_condition_em(E * scale)
     d_kc, d_no = deflections_em(E, k, w, complementary_stiffness_em(E, w))
@@ -110,7 +109,7 @@ def _pose_metrics(robot, q, k, w, length):
         "v_p": v_p,
         "v_r": v_r,
         "singular": inv_k < SINGULAR_INV_KAPPA,
-        "position": state.tip[..., :3, 3],
+        "position": state.pos.T,
         "deflection": d_kc.T,
     }
 

@@ -31,9 +31,13 @@ def to_entry_major(A: np.ndarray) -> np.ndarray:
 def diagonally_dominant(A: np.ndarray) -> np.ndarray:
     """(N,) True where the entry-major (n, n, N) matrix is strictly row diagonally dominant."""
     n = A.shape[0]
-    diag = np.abs(A[np.arange(n), np.arange(n)])  # (n, N)
-    off = np.abs(A).sum(axis=1) - diag
-    return np.all(diag > off, axis=0)
+    ok = np.ones(A.shape[2:], dtype=bool)
+    # row by row: (n, N) temporaries, not an |A| as large as A (whose pages cost more to
+    # touch than the sums)
+    for i in range(n):
+        a = np.abs(A[i])
+        ok &= a[i] > a.sum(axis=0) - a[i]
+    return ok
 
 
 def _eliminate(A: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -136,18 +140,19 @@ def solve_dominant_columns_em(M: np.ndarray, B: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.moveaxis(X, 0, -1))
 
 
-def solve_dominant(A: np.ndarray, b: np.ndarray, dominant: np.ndarray | None = None
-                   ) -> np.ndarray:
+def solve_dominant(A: np.ndarray, b: np.ndarray, dominant: np.ndarray | None = None,
+                   overwrite_a: bool = False) -> np.ndarray:
     """x (n, N) with A x = b for entry-major A (n, n, N), b (n, N).
 
     Diagonally dominant matrices are solved by elimination without pivoting;
     the others (if any) by ``numpy.linalg.solve`` with partial pivoting.
     ``dominant`` (N,) bool: :func:`diagonally_dominant` of A when the caller has it.
-    Inputs are not modified.
+    ``b`` is not modified; neither is ``A`` unless ``overwrite_a`` (a caller's own
+    scratch matrix, spared a copy: its content is then undefined).
     """
     ok = diagonally_dominant(A) if dominant is None else dominant
     if ok.all():
-        return _eliminate(A.copy(), b.copy())
+        return _eliminate(A if overwrite_a else A.copy(), b.copy())
     x = np.empty_like(b)
     if ok.any():
         x[:, ok] = _eliminate(A[:, :, ok], b[:, ok])  # boolean indexing copies
@@ -165,27 +170,29 @@ def inverse_frobenius2(M: np.ndarray) -> np.ndarray:
     verdict for such matrices must use singular values.
     """
     n = M.shape[0]
-    A = M.copy()
-    R = np.zeros_like(A)
+    A = M.copy()  # its columns become Q's, one (n, N) column at a time
+    R = np.empty(M.shape)  # only the upper triangle is written and read
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        # Modified Gram-Schmidt over the columns A[:, j] (n, N).
+        # Modified Gram-Schmidt over the columns A[:, j] (n, N): each later column loses
+        # its component along q_j as soon as q_j is known.
         for j in range(n):
             a = A[:, j]
-            r = np.sqrt(np.einsum("kn,kn->n", a, a))
-            R[j, j] = r
-            q = a / r
-            if j < n - 1:
-                rest = A[:, j + 1:]  # (n, n-j-1, N)
-                proj = np.einsum("kn,kmn->mn", q, rest)
-                R[j, j + 1:] = proj
-                rest -= q[:, None, :] * proj[None]
-        # X = R^-1 (upper triangular), rows from the bottom; sum of squares on the fly.
-        X = np.zeros_like(R)
+            R[j, j] = np.sqrt(np.einsum("kn,kn->n", a, a))
+            a /= R[j, j]
+            for m in range(j + 1, n):
+                b = A[:, m]
+                R[j, m] = np.einsum("kn,kn->n", a, b)
+                b -= a * R[j, m]
+        # ||R^-1||_F^2 column by column: column m of X = R^-1 solves R x = e_m, from the
+        # bottom (x_i = 0 below m); the sum of squares on the fly, no (n, n, N) inverse.
         total = np.zeros(M.shape[-1])
-        for i in range(n - 1, -1, -1):
-            inv = 1.0 / R[i, i]
-            X[i, i] = inv
-            if i < n - 1:
-                X[i, i + 1:] = -inv * np.einsum("kn,kmn->mn", R[i, i + 1:], X[i + 1:, i + 1:])
-            total += np.einsum("kn,kn->n", X[i, i:], X[i, i:])
+        inv = 1.0 / R[np.arange(n), np.arange(n)]  # (n, N)
+        x = np.empty((n,) + M.shape[2:])
+        for m in range(n):
+            x[m] = inv[m]
+            total += x[m] * x[m]
+            for i in range(m - 1, -1, -1):
+                x[i] = np.einsum("kn,kn->n", R[i, i + 1:m + 1], x[i + 1:m + 1])
+                x[i] *= -inv[i]
+                total += x[i] * x[i]
     return total

@@ -164,7 +164,7 @@ def deflections_em(
     tau = np.einsum("rin,r->in", E, np.asarray(w, dtype=float))  # J^T w, (n, N)
     A = -K_C
     A[np.arange(n), np.arange(n)] += k[:, None]
-    dq = solve_dominant(A, tau)
+    dq = solve_dominant(A, tau, overwrite_a=True)  # A is this function's own scratch
     d_kc = np.einsum("rin,in->rn", E, dq)
     d_no = np.einsum("rin,in->rn", E, tau / k[:, None])
     return d_kc, d_no

@@ -410,6 +410,55 @@ def _check_reach(spec: RobotFile, robot: RobotModel, path: str, text: str) -> No
         where=where)
 
 
+def check_urdf_text(path: Path) -> None:
+    """``FILE:LINE`` messages for what the URDF parser reports without a line: XML that is
+    not well formed, and a joint whose parent or child link is not defined.
+
+    Raises
+    ------
+    InputError
+        Naming the file and line.
+    """
+    import xml.parsers.expat
+
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise InputError(f"cannot read the URDF: {err.strerror}", where=str(path)) from None
+    links: set[str] = set()
+    joints: list[dict] = []
+    stack: list[str] = []
+    parser = xml.parsers.expat.ParserCreate()
+
+    def start(tag: str, attrs: dict) -> None:
+        line = parser.CurrentLineNumber
+        if len(stack) == 1 and tag == "link":
+            links.add(attrs.get("name", ""))
+        elif len(stack) == 1 and tag == "joint":
+            joints.append({"name": attrs.get("name", "?"), "line": line})
+        elif len(stack) == 2 and stack[-1] == "joint" and tag in ("parent", "child"):
+            joints[-1][tag] = (attrs.get("link", ""), line)
+        stack.append(tag)
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = lambda tag: stack.pop()
+    try:
+        parser.Parse(data, True)
+    except xml.parsers.expat.ExpatError as err:
+        raise InputError(f"not well-formed XML: {xml.parsers.expat.ErrorString(err.code)} "
+                         f"(column {err.offset + 1})", where=f"{path}:{err.lineno}") from None
+    for joint in joints:
+        for role in ("parent", "child"):
+            if role not in joint:
+                raise InputError(f"joint {joint['name']!r} has no {role} link",
+                                 where=f"{path}:{joint['line']}")
+            link, line = joint[role]
+            if link not in links:
+                raise InputError(f"joint {joint['name']!r}: {role} link {link!r} is not "
+                                 "defined (no <link name=...> of that name)",
+                                 where=f"{path}:{line}")
+
+
 def load_urdf(path: str | Path, tip: str, name: str | None = None) -> RobotModel:
     """Load a URDF and keep the serial chain of revolute joints from the base to ``tip``.
 
@@ -419,6 +468,7 @@ def load_urdf(path: str | Path, tip: str, name: str | None = None) -> RobotModel
     path = Path(path)
     if not path.is_file():
         raise InputError("URDF file not found", where=str(path))
+    check_urdf_text(path)
     try:
         full = pin.buildModelFromUrdf(str(path))
     except (RuntimeError, ValueError) as err:

@@ -258,7 +258,7 @@ def validation_blocks(result: IdentificationResult) -> list:
     if result.validation is None:
         return [Paragraph("Held-out validation needs 3 distinct poses or more: not done.",
                           "note")]
-    from analysis.identification.result import validation_summary, worst_poses
+    from analysis.identification.io.results_json import validation_summary, worst_poses
     from analysis.report.verdict import HELD_OUT_LIMIT, _column
 
     shown = worst_poses(result.validation)

@@ -1,5 +1,5 @@
-"""What every ``campaign`` command shares: choices as enums, ``--json`` output,
-``--force`` for output directories, progress of long stages.
+"""What every ``campaign`` command shares: the choices (enums of :mod:`campaign.jobs.choices`),
+``--json`` output, ``--force`` for output directories, progress of long stages.
 
 Only the standard library, typer and rich at import time: every command module
 is imported at start-up.
@@ -8,12 +8,25 @@ is imported at start-up.
 from __future__ import annotations
 
 import json
-import math
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from enum import StrEnum
 from pathlib import Path
+
+from campaign.jobs.choices import (  # noqa: F401 (the commands' choices, re-exported)
+    DEFAULT_METHOD,
+    DEFAULT_TRIALS,
+    Covariance,
+    Method,
+    Objective,
+    Program,
+    Robust,
+    RotationSource,
+    Strategy,
+    TableFormat,
+    WrenchFrame,
+    json_ready,
+)
 
 #: Panels of ``--help`` shared by the commands: options grouped in panels keep each
 #: panel's columns narrow, so option names stay whole and descriptions readable at 80
@@ -23,90 +36,11 @@ PANEL_NOISE = "Noise figures (per measured component of one test row)"
 PANEL_OUTPUT = "Output"
 
 
-class Method(StrEnum):
-    """Estimator of the joint compliances (analysis.identification.estimate.METHODS)."""
-
-    ols = "ols"
-    wls = "wls"
-    exact = "exact"
-
-
-class Covariance(StrEnum):
-    """Covariance of the estimate: the noise figures taken as known, or scaled by chi-square."""
-
-    model = "model"
-    residual = "residual"
-
-
-class Robust(StrEnum):
-    """Robust fitting of ``campaign analyze``
-    (analysis.identification.estimators.irls.ROBUST_METHODS)."""
-
-    none = "none"
-    huber = "huber"
-    tukey = "tukey"
-
-
-class Strategy(StrEnum):
-    """Test selection of ``campaign plan`` (campaign.planning.planner.STRATEGIES)."""
-
-    worst_joint = "worst-joint"
-    weighted = "weighted"
-    d_optimal = "d-optimal"
-    e_optimal = "e-optimal"
-    zones_random = "zones-random"
-
-
-class TableFormat(StrEnum):
-    parquet = "parquet"
-    csv = "csv"
-
-
-class WrenchFrame(StrEnum):
-    base = "base"
-    tool = "tool"
-
-
-class Objective(StrEnum):
-    max = "max"
-    rms = "rms"
-    compliance = "compliance"
-
-
-class Program(StrEnum):
-    auto = "auto"
-    krl = "krl"
-    urscript = "urscript"
-    rapid = "rapid"
-    fanuc_ls = "fanuc-ls"
-    none = "none"
-
-
 #: ``--program`` in --help: a short metavar, the choices in words (as one word,
 #: ``<auto|krl|urscript|rapid|fanuc-ls|none>`` folds mid-word at 80 columns)
 PROGRAM_METAVAR = "<program>"
 PROGRAM_CHOICES = ("auto (default: by robot), krl (KUKA), urscript (UR), rapid (ABB), "
                    "fanuc-ls (FANUC), none")
-
-
-class RotationSource(StrEnum):
-    reflectors = "reflectors"
-    probe = "probe"
-
-
-def json_ready(value):
-    """``value`` with numpy scalars/arrays as Python numbers/lists and NaN/inf as None."""
-    if isinstance(value, dict):
-        return {str(k): json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_ready(v) for v in value]
-    if hasattr(value, "tolist"):
-        return json_ready(value.tolist())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, Path):
-        return str(value)
-    return value
 
 
 def print_json(obj) -> None:

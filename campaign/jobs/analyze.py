@@ -24,7 +24,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.cli.common import Covariance, Method, Robust
+from campaign.jobs.choices import DEFAULT_METHOD, DEFAULT_TRIALS, Covariance, Method, Robust
 from campaign.jobs.common import Stage, floats, no_stage, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
@@ -32,8 +32,6 @@ from campaign.run_noise import noise_from_protocol, protocol_noise_source
 # Kept in step with analysis.identification.estimate (not imported here: every CLI command
 # module is imported at start-up, and the identification pulls in scipy).
 METHODS = ("ols", "wls", "exact")
-DEFAULT_METHOD = "exact"
-DEFAULT_TRIALS = 200
 
 #: the noise overrides: options record field -> (NoiseModel field, option named in messages,
 #: factor from the command line's unit to SI)
@@ -471,7 +469,7 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
                    stage: Stage = no_stage) -> dict[str, Path]:
     """Write results.json, residuals.csv, model.toml, the report and analysis.json into
     ``out`` (a new directory); returns the paths of the main files by name."""
-    from analysis.identification.result import write_results
+    from analysis.identification.io.results_json import write_results
     from analysis.output_files import write_text
 
     paths = write_results(result, out)

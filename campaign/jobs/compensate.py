@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli.common import Program, WrenchFrame
+from campaign.jobs.choices import Program, WrenchFrame
 from campaign.jobs.common import floats, joint_stiffness, robot_and_tool
 
 

@@ -94,12 +94,15 @@ def check_demo_dir(out: Path) -> None:
 
 def run(o: DemoOptions, say: Note = no_note, stage: Stage = no_stage, reporter=None,
         on_assumptions: Callable[[dict], None] | None = None,
-        warn: Callable[[str], None] | None = None) -> DemoResult:
+        warn: Callable[[str], None] | None = None,
+        should_abort: Callable[[], bool] | None = None) -> DemoResult:
     """Plan, acquire on the simulated lab and analyse into ``o.out``.
 
     ``say``: a line per step (and the plan's summary); ``stage``: around long steps;
     ``reporter``: the acquisition's progress (:class:`campaign.acquire.progress.Reporter`,
-    default silent); ``on_assumptions`` and ``warn``: the analysis' hooks. Bad input
+    default silent); ``on_assumptions`` and ``warn``: the analysis' hooks;
+    ``should_abort``: polled at each phase of the acquisition (True: its Ctrl-C path, the
+    run recorded as aborted, no analysis). Bad input
     raises InputError before anything is written; a failed or aborted acquisition
     returns a result without analysis (the run directory says why).
     """
@@ -123,7 +126,7 @@ def run(o: DemoOptions, say: Note = no_note, stage: Stage = no_stage, reporter=N
     say("2/3 acquire on the simulated lab (real drivers over loopback)")
     acquired = acquire.run(acquire.AcquireJobOptions(
         plan=out / "plan", out=out / "run", fake=True, assume_yes=True,
-        time_scale=o.time_scale), reporter, say=say)
+        time_scale=o.time_scale), reporter, say=say, should_abort=should_abort)
     result = DemoResult(protocol_file, planned, acquired)
     if acquired.succeeded:
         say("3/3 analyze the run")

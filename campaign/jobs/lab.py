@@ -18,7 +18,7 @@ table).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -38,7 +38,9 @@ class LabOptions:
     instruments: the fakes to start by driver name (None: all, or the protocol's);
     can_interface: where the Net CAN fake sits, ``socketcand`` (a server on 127.0.0.1)
     or ``virtual`` (in-process); control_port: TCP port of the control channel on
-    127.0.0.1, whose ``addresses`` command lists every fake (0: a free port)."""
+    127.0.0.1, whose ``addresses`` command lists every fake (0: a free port); ports:
+    fixed TCP ports of fakes by driver name (those of
+    :data:`drivers.sim.lab.FIXED_PORTS`; the others take free ports)."""
 
     protocol: Path | None = None
     robot: str | None = None
@@ -47,6 +49,7 @@ class LabOptions:
     instruments: Sequence[str] | None = None
     can_interface: str | None = None
     control_port: int = 0
+    ports: Mapping[str, int] | None = None
 
 
 class SimulatedLab:
@@ -54,13 +57,19 @@ class SimulatedLab:
     ``control``), :attr:`description` (what it simulates, one line each) and
     :attr:`notes` (fakes that could not start)."""
 
-    def __init__(self, settings: Any, probe: bool, control_port: int = 0) -> None:
-        from drivers.sim.lab import Lab
+    def __init__(self, settings: Any, probe: bool, control_port: int = 0,
+                 ports: Mapping[str, int] | None = None) -> None:
+        from drivers.sim.lab import FIXED_PORTS, Lab
 
         self.settings = settings
         self.probe = probe
+        ports = dict(ports or {})
+        other = sorted(set(ports) - set(FIXED_PORTS))
+        if other:
+            raise InputError(f"{', '.join(other)} cannot take a fixed port (only "
+                             f"{', '.join(FIXED_PORTS)} can)", where="--port")
         try:
-            self.lab = Lab(settings, control_port=control_port)
+            self.lab = Lab(settings, control_port=control_port, ports=ports)
         except ValueError as err:
             raise InputError(str(err), where="lab settings") from err
         except OSError as err:  # the control port is taken
@@ -72,6 +81,10 @@ class SimulatedLab:
         """Start every fake; the addresses (also :attr:`addresses`)."""
         try:
             self.addresses = dict(self.lab.start())
+        except OSError as err:  # a fixed port of a fake is taken
+            self.lab.stop()
+            raise InputError(f"a fake cannot listen on its port ({err.strerror or err})",
+                             where="--port") from None
         except BaseException:
             self.lab.stop()
             raise
@@ -140,6 +153,10 @@ def settings_of(o: LabOptions) -> tuple[Any, bool]:
 
     if not 0 <= o.control_port <= MAX_PORT:
         raise InputError(f"expected a port number 0..{MAX_PORT}", where="--control-port")
+    for name, port in (o.ports or {}).items():
+        if not (isinstance(port, int) and 0 < port <= MAX_PORT):
+            raise InputError(f"{name}: expected a port number 1..{MAX_PORT}, got {port!r}",
+                             where="--port")
     path = None if o.protocol is None else Path(o.protocol)
     base = _read_protocol(path) if path is not None else {}
     chosen = None if o.instruments is None else tuple(
@@ -180,6 +197,6 @@ def describe(settings: Any, probe: bool) -> list[str]:
 def run(o: LabOptions) -> SimulatedLab:
     """The simulated lab of ``o``, started (stop it, or leave its ``with`` block)."""
     settings, probe = settings_of(o)
-    lab = SimulatedLab(settings, probe, o.control_port)
+    lab = SimulatedLab(settings, probe, o.control_port, o.ports)
     lab.start()
     return lab

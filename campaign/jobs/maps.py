@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli.common import TableFormat
+from campaign.jobs.choices import TableFormat
 from campaign.jobs.common import (
     Note,
     Stage,

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli.common import WrenchFrame
+from campaign.jobs.choices import WrenchFrame
 from campaign.jobs.common import floats, joint_stiffness, robot_and_tool
 
 #: points of a path read at most (a path is a program's moves, not a point cloud)

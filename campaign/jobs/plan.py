@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from campaign.cli.common import Strategy
+from campaign.jobs.choices import Strategy
 from campaign.jobs.common import Stage, floats, no_stage
 
 

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 
 from analysis.errors import InputError
-from campaign.cli.common import Method, RotationSource
 from campaign.jobs.analyze import DEFAULT_METHOD
+from campaign.jobs.choices import Method, RotationSource
 from campaign.jobs.common import joint_stiffness, robot_and_tool, wrench
 
 #: a mean further than this many Monte-Carlo standard errors from the truth is a bias
@@ -172,7 +172,8 @@ def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None
     """
     from contextlib import nullcontext
 
-    from analysis.identification.studies.robustness import W_EFF, plot_study, robustness_study
+    from analysis.identification.studies.robustness import W_EFF, robustness_study
+    from analysis.identification.studies.robustness_plot import plot_study
 
     method = str(o.method)
     r, _ = robot_and_tool(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)

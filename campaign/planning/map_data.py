@@ -1,11 +1,12 @@
 """The numbers of a plan's zone map (``plan_map.png``) for an interactive plot.
 
-The map is the planner's: theta_2 against theta_3 (model convention), the zones as
-boxes, the candidate poses passing the thresholds, and the chosen poses numbered as in
-``plan.csv``'s ``pose`` column. The plan directory keeps the chosen poses only; the
-candidates are drawn again from the protocol with the seed and count ``summary.json``
-recorded (:func:`campaign.planning.candidates.sample` is seeded, so the same draw), and the
-chosen poses are checked to be among them. Angles are returned in deg (the edge).
+The map is the planner's: theta_2 against theta_3 (model convention) over 1/kappa_F of
+the normalized Jacobian, the zones as boxes, the candidate poses passing the thresholds,
+and the chosen poses numbered as in ``plan.csv``'s ``pose`` column. The plan directory
+keeps the chosen poses only; the candidates are drawn again from the protocol with the
+seed and count ``summary.json`` recorded (:func:`campaign.planning.candidates.sample` is
+seeded, so the same draw), and the chosen poses are checked to be among them. Angles are
+returned in deg (the edge).
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ import pandas as pd
 
 from campaign.protocol import DEG, Protocol
 
+#: points per axis of the 1/kappa_F background (the Plan view's interactive map's too)
+GRID = 61
 #: a chosen pose is "the candidate" when every joint agrees to this (deg; plan.csv has 3
 #: decimals and candidates are rounded to 1e-3 deg when drawn)
 MATCH_DEG = 6e-4
@@ -38,6 +41,7 @@ class MapData:
     chosen: list[dict]
     candidates_drawn: int | None = None
     note: str = ""
+    grid: dict | None = None
 
     def to_json(self) -> dict:
         """Plain types; candidates as one list of angles per joint (deg, 3 decimals)."""
@@ -45,7 +49,7 @@ class MapData:
         return {"axes": list(self.axes), "zones": self.zones,
                 "candidates": {"count": int(q.shape[0]), "drawn": self.candidates_drawn,
                                "q_deg": [q[:, j].tolist() for j in range(q.shape[1])]},
-                "chosen": self.chosen, "note": self.note}
+                "chosen": self.chosen, "note": self.note, "grid": self.grid}
 
 
 def chosen_poses(plan: pd.DataFrame, n: int) -> list[dict]:
@@ -90,7 +94,25 @@ def plan_map_data(protocol: Protocol, plan: pd.DataFrame, seed: int | None,
         note = ("some chosen poses are not among the candidates drawn again (the plan was "
                 "edited, or planned by another version): they are shown, not matched")
     return MapData(axes=(2, 3), zones=zones, candidates_q_deg=cand, chosen=chosen,
-                   candidates_drawn=drawn, note=note)
+                   candidates_drawn=drawn, note=note,
+                   grid=kappa_grid(protocol, robot, [c["q_deg"] for c in chosen]))
+
+
+def kappa_grid(protocol: Protocol, robot, chosen_deg: list[list[float]],
+               size: int = GRID) -> dict:
+    """The map's background, as ``plan_map.png`` draws it: 1/kappa_F of J_N over
+    (theta_2, theta_3) (``inv_kappa[i3][i2]``, axes in deg) at the other joints' values
+    of the report's rule (the protocol's ``fixed_deg``, else the chosen poses' median)."""
+    from analysis.kinetostatics.map_fixed import map_fixed_joints
+    from campaign.planning.plan_map import kappa_map
+    from campaign.protocol_robot import characteristic_length
+
+    fixed = map_fixed_joints(robot.n, protocol.sampling.fixed_deg,
+                             np.radians(np.asarray(chosen_deg, dtype=float)))
+    t2, t3, inv_k = kappa_map(robot, fixed.q, characteristic_length(protocol, robot), size)
+    return {"theta2_deg": (t2 / DEG).tolist(), "theta3_deg": (t3 / DEG).tolist(),
+            "inv_kappa": np.round(inv_k, 6).tolist(), "fixed_text": fixed.values_text(),
+            "rule_text": fixed.rule_text()}
 
 
 def _passing_candidates(protocol: Protocol, robot, boxes, seed: int, drawn: int

@@ -7,10 +7,11 @@ session (detached: closing the page or stopping the server does not stop it) and
 answers at once. ``POST /resume`` continues a partial run; ``POST /abort`` sends SIGINT
 (the Ctrl-C path: motion stopped, load removed, ``aborted`` recorded).
 
-The server keeps nothing in memory: the job's record (run directory, pid, events file)
-is ``.gui/acquire/<name>.json`` in the workspace, so any tab and a restarted server
-reattach through ``GET /state`` (the events file and the run directory read again) and
-``GET /events`` (server-sent events: the events file's JSON lines as they are written).
+The server keeps nothing in memory that its files do not hold: the job's record (run
+directory, pid, events file) is ``.gui/acquire/<name>.json`` in the workspace, so any tab
+and a restarted server reattach through ``GET /state`` (the run directory read again, the
+events file from where this server last stopped reading it) and ``GET /events``
+(server-sent events: the events file's JSON lines as they are written).
 Only the simulated lab starts without ``confirm``; a real robot needs ``confirm: true``
 (the CLI's safety question answered), as ``campaign acquire --yes``.
 """
@@ -28,7 +29,7 @@ import threading
 import time
 from pathlib import Path
 
-from fastapi import APIRouter, Depends, HTTPException, Query
+from fastapi import APIRouter, Depends, HTTPException, Query, Request
 from fastapi.responses import StreamingResponse
 from pydantic import BaseModel, Field
 
@@ -258,18 +259,6 @@ def _run_of(ws: Path, run: str | None) -> Path:
     return inside(ws, run, "run")
 
 
-def _lines(path: Path) -> list[dict]:
-    out = []
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError:
-        return out
-    for line in text.splitlines():
-        with contextlib.suppress(ValueError):
-            out.append(json.loads(line))
-    return out
-
-
 def _rows(run_dir: Path) -> list[dict]:
     import csv
 
@@ -289,22 +278,19 @@ def _rows(run_dir: Path) -> list[dict]:
 
 
 @router.get("/state")
-def state(run: str | None = Query(None, max_length=1000), ws: Path = Depends(workspace)
-          ) -> dict:
-    """The run's state from its files: running or not, the live phase, finished tests."""
+def state(request: Request, run: str | None = Query(None, max_length=1000),
+          ws: Path = Depends(workspace)) -> dict:
+    """The run's state from its files: running or not, the live phase, finished tests.
+
+    The events file is read from where this server's last reading of it stopped
+    (:mod:`campaign.web.events_tail`), with the answer of a full reading."""
+    from campaign.web.events_tail import EventsSummary, tails_of
+
     run_dir = _run_of(ws, run)
     record = _read(ws, run_dir)
-    live: dict = {}
-    start_info: dict = {}
-    finish = None
-    for line in _lines(ws / record["events_file"]) if record else []:
-        kind = line.get("event")
-        if kind == "start":
-            start_info = line
-        elif kind == "phase":
-            live.update({k: v for k, v in line.items() if k in LIVE})
-        elif kind == "finish":
-            finish = line
+    summary = tails_of(request.app, LIVE).read(ws / record["events_file"]) if record \
+        else EventsSummary()
+    live, start_info, finish = summary.live, summary.start, summary.finish
     meta = {}
     with contextlib.suppress(OSError, ValueError):
         meta = json.loads((run_dir / "metadata.json").read_text())

@@ -42,8 +42,8 @@ def analyze_run(request: Request, body: AnalyzeRequest):
     """Analyse ``run_dir`` into ``run_dir/analysis``; verdict, k, intervals and files."""
     from analysis.errors import InputError
     from analysis.report.verdict import verdict
-    from campaign.cli.common import Method, Robust, json_ready
     from campaign.jobs.analyze import AnalyzeOptions, run
+    from campaign.jobs.choices import Method, Robust, json_ready
     from campaign.web.security import inside_workspace
 
     ws = Path(request.app.state.workspace)

@@ -2,14 +2,14 @@
 
 Nothing is recomputed: the numbers are those the analyze job wrote into
 ``RUN/analysis`` -- the residual table ``residuals.csv`` (every row: studentized
-residual, residual and its sigma in SI, the outlier flag of the reported fit and the
-components the sequential test set aside) with the outlier threshold of
-``results.json`` (``outlier_threshold_studentized``), and the held-out validation of
-``results.json`` (``validation``: per held-out pose the RMS prediction error over the
-total uncertainty ``rms_normalized_total`` against ``limit_normalized_total``, the flag
-``beyond_limit``, and the RMS error over the noise alone ``rms_normalized``). Above
-:data:`MAX_POINTS` residual rows the plot gets the rows ``results.json`` lists (the
-largest |studentized|) and says so.
+residual, residual and its sigma in SI, the outlier flag of the reported fit, the
+components the sequential test set aside and, for a robust fit, the weight) with the
+outlier threshold of ``results.json`` (``outlier_threshold_studentized``), and the
+held-out validation of ``results.json`` (``validation``: per held-out pose the RMS
+prediction error over the total uncertainty ``rms_normalized_total`` against
+``limit_normalized_total``, the flag ``beyond_limit``, and the RMS error over the noise
+alone ``rms_normalized``). Above :data:`MAX_POINTS` residual rows the plot gets the rows
+``results.json`` lists (the largest |studentized|) and says so.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ router = APIRouter(prefix="/api/analyze", tags=["analyze-plots"])
 #: residual rows sent to the page at most (a browser plot of more is no longer readable)
 MAX_POINTS = 60_000
 RESIDUAL_COLUMNS = ("test", "pose", "component", "unit", "residual", "sigma", "studentized",
-                    "outlier", "set_aside")
+                    "outlier", "set_aside", "weight")
 VALIDATION_FIELDS = ("held_out_pose", "n_tests", "rms_normalized", "rms_normalized_total",
                      "limit_normalized_total", "p_value_total", "beyond_limit",
                      "rms_translation_m", "rms_rotation_rad", "note")
@@ -62,7 +62,7 @@ def residual_table(records: list[dict]) -> dict:
         out["pose"].append(str(r.get("pose", "")))
         out["component"].append(str(r.get("component", "")))
         out["unit"].append(str(r.get("unit", "")))
-        for c in ("residual", "sigma", "studentized"):
+        for c in ("residual", "sigma", "studentized", "weight"):
             out[c].append(_number(r.get(c)))
         out["outlier"].append(_flag(r.get("outlier")))
         out["set_aside"].append(_flag(r.get("set_aside")))

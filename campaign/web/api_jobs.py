@@ -40,9 +40,9 @@ from typing import Any
 from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import JSONResponse
 
-from campaign.cli.common import json_ready
 from campaign.jobs.acquire import AcquireJobOptions
 from campaign.jobs.analyze import AnalyzeOptions
+from campaign.jobs.choices import json_ready
 from campaign.jobs.compare import CompareOptions
 from campaign.jobs.compensate import CompensateOptions
 from campaign.jobs.maps import MapsOptions

@@ -102,7 +102,7 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
             # as Jupyter: the URL's token becomes a cookie, and the token leaves the URL
             response = RedirectResponse(request.url.remove_query_params("token"),
                                         status_code=303)
-            _set_cookie(response, token)
+            _set_cookie(response, token, secure=request.url.scheme == "https")
             return response
         response = await call_next(request)
         # the page's own files only; no framing by another site (clickjacking)
@@ -137,10 +137,12 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
     return app
 
 
-def _set_cookie(response, token: str) -> None:
+def _set_cookie(response, token: str, secure: bool = False) -> None:
+    """The access cookie; ``secure`` (over HTTPS): the browser never sends it in clear."""
     from campaign.web.security import COOKIE
 
-    response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
+    response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/",
+                        secure=secure)
 
 
 def _add_login(app, password: str, token: str) -> None:
@@ -167,5 +169,5 @@ def _add_login(app, password: str, token: str) -> None:
         if not same((given.get("password") or [""])[0], password):
             return HTMLResponse(form + "<p>wrong password</p>", status_code=403)
         response = RedirectResponse("/", status_code=303)
-        _set_cookie(response, token)
+        _set_cookie(response, token, secure=request.url.scheme == "https")
         return response

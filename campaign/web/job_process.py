@@ -18,7 +18,10 @@ so that the job's own cleanup runs. A child that does not end within
 
 from __future__ import annotations
 
+import atexit
 import multiprocessing
+import os
+import signal
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -28,6 +31,22 @@ from campaign.web.job_queue import JobCancelled, Progress
 
 #: seconds a job's process has to end once cancelled, before it is terminated
 CANCEL_GRACE = 30.0
+#: the job processes running now: interrupted when the server exits (multiprocessing
+#: would otherwise wait for them, the processes not being daemons)
+LIVE: set = set()
+
+
+def _interrupt_live() -> None:
+    """At the server's exit, SIGINT each job process (its Ctrl-C path: its cleanup runs)."""
+    for proc in list(LIVE):
+        try:
+            os.kill(proc.pid, signal.SIGINT)
+        except (OSError, TypeError):
+            continue
+    for proc in list(LIVE):
+        proc.join(10)
+        if proc.is_alive():
+            proc.kill()
 
 
 class ProcessFailed(Exception):
@@ -62,7 +81,7 @@ class ChildProgress:
 
 def _ended(task: Callable, ws: Path, options, extra: tuple, progress) -> tuple:
     """Run ``task(progress, options, *extra)``; how it ended, as the child's last message."""
-    from campaign.cli.common import json_ready
+    from campaign.jobs.choices import json_ready
     from campaign.web.job_errors import describe, relative_to_workspace
 
     try:
@@ -78,10 +97,21 @@ def _ended(task: Callable, ws: Path, options, extra: tuple, progress) -> tuple:
         return ("bug", f"internal error: {type(err).__name__}: {first}")
 
 
+def _stop(signum, frame) -> None:
+    raise KeyboardInterrupt  # SIGTERM as Ctrl-C: the job's cleanup runs
+
+
 def _child(pipe, task: Callable, ws: Path, options, extra: tuple) -> None:
-    """The job process: run the task and send how it ended."""
-    pipe.send(_ended(task, ws, options, extra, ChildProgress(pipe)))
-    pipe.close()
+    """The job process: run the task and send how it ended. SIGINT and SIGTERM interrupt
+    it as Ctrl-C does (even when the server was started with SIGINT ignored)."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        pipe.send(_ended(task, ws, options, extra, ChildProgress(pipe)))
+    except KeyboardInterrupt:  # interrupted: the job's cleanup has run; nothing to send
+        return
+    finally:
+        pipe.close()
 
 
 def _outcome(message: tuple) -> Any:
@@ -113,6 +143,10 @@ def run_in_process(task: Callable, ws: Path, options, progress: Progress,
     proc = ctx.Process(target=_child, args=(child, task, ws, options, extra), daemon=False,
                        name="campaign-gui-job")
     proc.start()
+    if not LIVE:  # registered after multiprocessing's own exit hook, so that it runs first
+        atexit.unregister(_interrupt_live)
+        atexit.register(_interrupt_live)
+    LIVE.add(proc)
     child.close()
     asked = None  # when the cancellation was sent (time.monotonic())
     try:
@@ -143,4 +177,5 @@ def run_in_process(task: Callable, ws: Path, options, progress: Progress,
         if proc.is_alive():
             proc.kill()
             proc.join(5)
+        LIVE.discard(proc)
         parent.close()

@@ -26,7 +26,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, StreamingResponse
 from pydantic import BaseModel
 
-from campaign.cli.common import json_ready
+from campaign.jobs.choices import json_ready
 from campaign.web.job_process import ProcessFailed, run_in_process, run_in_thread
 from campaign.web.job_queue import FINAL, JobQueue, Progress, QueueFull
 

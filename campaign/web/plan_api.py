@@ -73,7 +73,7 @@ def protocols(request: Request) -> dict:
 
 
 def _strategies() -> list[str]:
-    from campaign.cli.common import Strategy
+    from campaign.jobs.choices import Strategy
 
     return [s.value for s in Strategy]
 
@@ -188,6 +188,24 @@ def _refusal(ws: Path, err: Exception, keys: list[str]) -> JSONResponse:
     return _error(text, problems[0]["field"] if problems else None, problems=problems)
 
 
+def _copy_warnings(proto: Path, out: Path) -> list[str]:
+    """What the plan directory's protocol copy will not find: a robot file named relative
+    to the saved protocol is read relative to the copy (one directory deeper)."""
+    from analysis.model.robot_spec import is_robot_file, split_urdf_spec
+    from campaign.protocol import load_protocol
+
+    robot = load_protocol(proto).campaign.robot
+    if not is_robot_file(robot) or Path(split_urdf_spec(robot)[0]).is_absolute():
+        return []
+    name = split_urdf_spec(robot)[0]
+    if (out / name).exists():
+        return []
+    return [f"campaign.robot = {robot!r} is read relative to the protocol file: the plan's "
+            f"copy {out.name}/protocol.toml names {out.name}/{name}, which does not exist, "
+            "so acquiring or analysing from this plan directory will not find the robot; "
+            "give its absolute path, or copy the robot file there"]
+
+
 @router.post("/save")
 def save_protocol(request: Request, body: PlanRequest):
     """Save the form as ``protocols/NAME.toml`` and read it back with the protocol reader
@@ -213,7 +231,7 @@ def run_plan(request: Request, body: PlanRequest):
     """Save the form as ``protocols/NAME.toml`` and plan it into ``plans/NAME`` (replacing
     a plan of that name); the answer: summary.json, the plan's rows, the zone map's data."""
     from analysis.errors import InputError
-    from campaign.cli.common import Strategy
+    from campaign.jobs.choices import Strategy
     from campaign.jobs.plan import PlanOptions, run
 
     ws = Path(request.app.state.workspace)
@@ -238,10 +256,11 @@ def run_plan(request: Request, body: PlanRequest):
         raise
     import pandas as pd
 
-    from campaign.cli.common import json_ready
+    from campaign.jobs.choices import json_ready
 
     rows = pd.read_csv(out / "plan.csv").to_dict(orient="records")
     return JSONResponse(json_ready({
         "summary": result.summary, "rows": rows, "map": result.map,
+        "warnings": _copy_warnings(proto, out),
         "protocol": str(proto.relative_to(ws)), "out": str(out.relative_to(ws)),
         "files": sorted(str(p.relative_to(ws)) for p in out.iterdir() if p.is_file())}))

@@ -8,7 +8,8 @@
   HEAD, OPTIONS) also needs the header ``X-CSRF-Token``, a value derived from the
   token that the page reads from ``/api/session`` (same-origin only: no CORS).
 * Binding: loopback by default; another address only with ``allow_remote`` and a
-  password (then ``/login`` takes the password instead of the token).
+  password (then ``/login`` takes the password instead of the token), over HTTPS
+  only (:mod:`campaign.web.tls`: the operator's certificate or a self-signed one).
 * Files: :func:`inside_workspace` resolves a path given by a client and refuses
   absolute paths, ``..``, and symbolic links anywhere under the workspace.
 """
@@ -54,8 +55,12 @@ def is_loopback(host: str) -> bool:
 
 
 def check_bind(host: str, allow_remote: bool, password: str | None) -> None:
-    """Refuse a non-loopback ``host`` unless ``allow_remote`` and a password are given."""
-    if is_loopback(host):
+    """Refuse a non-loopback ``host`` unless ``allow_remote`` and a password are given.
+
+    ``allow_remote`` is remote mode whatever the host (a loopback address may be
+    forwarded): it always needs the password, and the server then speaks only HTTPS
+    (:mod:`campaign.web.tls`)."""
+    if not allow_remote and is_loopback(host):
         return
     if not allow_remote:
         raise InputError(f"{host} is not a loopback address: the GUI would be reachable "

@@ -23,7 +23,7 @@ from fastapi import APIRouter, Depends
 from fastapi.responses import JSONResponse
 from pydantic import Field
 
-from campaign.cli.common import WrenchFrame
+from campaign.jobs.choices import WrenchFrame
 from campaign.web.api_jobs import answer, inside, robot_path, workspace
 
 router = APIRouter(prefix="/api/use", tags=["use"])

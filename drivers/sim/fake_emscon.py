@@ -48,8 +48,8 @@ class FakeEmscon(TcpFake):
     device = "emscon"
 
     def __init__(self, world: World, mode: str = "point", header: str = "int32",
-                 position_stream: bool = False) -> None:
-        super().__init__(world)
+                 position_stream: bool = False, port: int = 0) -> None:
+        super().__init__(world, port=port)
         self.mode, self.header, self.position_stream = mode, header, position_stream
         self.url = f"socket://{self.host}:{self.port}?header={header}&length_unit=mm"
 

@@ -79,8 +79,8 @@ class FakeGeoCom(TcpFake):
     driver = "geocom"
     device = "geocom"
 
-    def __init__(self, world: World) -> None:
-        super().__init__(world)
+    def __init__(self, world: World, port: int = 0) -> None:
+        super().__init__(world, port=port)
         self.url = f"socket://{self.host}:{self.port}"
 
     def serve(self, conn: socket.socket) -> None:

@@ -44,8 +44,8 @@ class FakeKukaVarProxy(TcpFake):
     driver = "kuka-kvp"
     device = "kuka-kvp"
 
-    def __init__(self, world: World, max_speed: float = 1.5) -> None:
-        super().__init__(world)
+    def __init__(self, world: World, max_speed: float = 1.5, port: int = 0) -> None:
+        super().__init__(world, port=port)
         self.url = f"socket://{self.host}:{self.port}"
         self.max_speed = max_speed
         q0 = kvp.format_axis(world.joint_angles(self.device))

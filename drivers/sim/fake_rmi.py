@@ -67,8 +67,9 @@ class FakeRMI(TcpFake):
     driver = "fanuc-rmi"
     device = "fanuc-rmi"
 
-    def __init__(self, world: World, max_speed: float = 1.5) -> None:
-        super().__init__(world)
+    def __init__(self, world: World, max_speed: float = 1.5, port: int = 0) -> None:
+        """``port``: the connection port (0: a free one); the session port is always free."""
+        super().__init__(world, port=port)
         self.session = _SessionPort(self)
         self.url = f"rmi://{self.host}:{self.port}"
         self.max_speed = max_speed

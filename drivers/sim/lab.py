@@ -48,12 +48,24 @@ def robot_fake_name(robot: str) -> str:
     return "kuka-kvp"
 
 
+#: fakes that can listen on a given port (one TCP listener each)
+FIXED_PORTS = ("emscon", "geocom", "kuka-kvp", "fanuc-rmi")
+
+
 class Lab:
     """The simulated lab (threads in this process; the UR fake in a child process)."""
 
-    def __init__(self, settings: LabSettings | None = None, control_port: int = 0) -> None:
+    def __init__(self, settings: LabSettings | None = None, control_port: int = 0,
+                 ports: dict[str, int] | None = None) -> None:
         """``control_port``: TCP port of the control channel on 127.0.0.1 (0: a free one);
-        the fakes always take free ports (the control channel's ``addresses`` lists them)."""
+        ``ports``: fixed ports of fakes by driver name, for those of :data:`FIXED_PORTS`;
+        the others take free ports (the control channel's ``addresses`` lists them all)."""
+        ports = dict(ports or {})
+        other = sorted(set(ports) - set(FIXED_PORTS))
+        if other:
+            raise ValueError(f"a fixed port for {', '.join(other)}: only "
+                             f"{', '.join(FIXED_PORTS)} take one (the others: free ports)")
+        self.ports = ports
         self.settings = settings or LabSettings()
         self.world = World(self.settings)
         self.fakes: list[FakeServer] = []
@@ -84,19 +96,19 @@ class Lab:
         if name == "emscon":
             from drivers.sim.fake_emscon import FakeEmscon
 
-            return FakeEmscon(self.world)
+            return FakeEmscon(self.world, port=self.ports.get("emscon", 0))
         if name == "geocom":
             from drivers.sim.fake_geocom import FakeGeoCom
 
-            return FakeGeoCom(self.world)
+            return FakeGeoCom(self.world, port=self.ports.get("geocom", 0))
         if name == "kuka-kvp":
             from drivers.sim.fake_kvp import FakeKukaVarProxy
 
-            return FakeKukaVarProxy(self.world)
+            return FakeKukaVarProxy(self.world, port=self.ports.get("kuka-kvp", 0))
         if name == "fanuc-rmi":
             from drivers.sim.fake_rmi import FakeRMI
 
-            return FakeRMI(self.world)
+            return FakeRMI(self.world, port=self.ports.get("fanuc-rmi", 0))
         if name in ("abb-rws", "abb-rws2"):
             from drivers.sim.fake_rws import FakeRWS
 

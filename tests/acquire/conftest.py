@@ -27,6 +27,40 @@ def kr240_plan(tmp_path_factory) -> Path:
     return out
 
 
+def plan_and_acquire(protocol, tmp_path: Path, time_scale: float,
+                     candidates: int = 2000) -> Path:
+    """Plan ``protocol`` with one repeat per test into ``tmp_path/plan`` and acquire it on the
+    simulated lab (``acquire --fake``: the protocol's real drivers against the fakes) into
+    ``tmp_path/run``; asserts the run is complete and returns its directory."""
+    from campaign.acquire.progress import QuietReporter
+    from campaign.acquire.session import AcquireOptions, acquire
+    from campaign.planning.planner import make_plan, write_plan
+
+    protocol.campaign.repeats = 1
+    plan, run = tmp_path / "plan", tmp_path / "run"
+    write_plan(make_plan(protocol, candidates=candidates), plan, figure=False)
+    outcome = acquire(plan, run, None,
+                      AcquireOptions(fake=True, assume_yes=True, time_scale=time_scale),
+                      QuietReporter(), say=lambda s: None)
+    assert outcome.status == "complete", outcome.reason
+    return run
+
+
+def displacement_noise(protocol):
+    """The noise model of a fake run's tests: the tracker's pose noise of the protocol with
+    the displacement's variance, 1.5 sigma^2 (loaded pose minus the mean of two unloaded
+    ones), and the lab's F/T noise, 0.5 N and 0.05 N m."""
+    import math
+
+    from analysis.identification.noise import NoiseModel
+
+    pose = protocol.instruments["pose"].noise
+    return NoiseModel().with_overrides(
+        translation_sigma_override=pose.translation_um * 1e-6 * math.sqrt(1.5),
+        rotation_sigma_override=pose.rotation_urad * 1e-6 * math.sqrt(1.5),
+        force_sigma=0.5, moment_sigma=0.05)
+
+
 def variant(plan: Path, dest: Path, tests: int | None = None, repeats: int | None = None,
             edit=None) -> Path:
     """Copy of ``plan`` with fewer tests/repeats, or rows edited by ``edit(frame)``."""

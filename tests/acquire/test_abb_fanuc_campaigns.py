@@ -8,12 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from campaign.acquire.progress import QuietReporter
-from campaign.acquire.session import AcquireOptions, acquire
 from campaign.cli import main
-from campaign.planning.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
-from tests.acquire.conftest import ROOT
+from tests.acquire.conftest import ROOT, plan_and_acquire
 
 
 @pytest.mark.timeout(240)
@@ -28,18 +25,12 @@ def test_fake_campaign_recovers_the_lab_stiffness(tmp_path, time_scale, name, dr
     protocol = load_protocol(path)
     assert protocol.instruments["robot"].driver == driver
     truth = np.array(protocol.fake_lab.true_joint_stiffness)
-    protocol.campaign.repeats = 1
-    plan = tmp_path / "plan"
-    write_plan(make_plan(protocol, candidates=2000), plan, figure=False)
-    outcome = acquire(plan, tmp_path / "run", None,
-                      AcquireOptions(fake=True, assume_yes=True, time_scale=time_scale),
-                      QuietReporter(), say=lambda s: None)
-    assert outcome.status == "complete", outcome.reason
-    robot = json.loads((tmp_path / "run" / "metadata.json").read_text())["instruments"]["robot"]
+    run = plan_and_acquire(protocol, tmp_path, time_scale)
+    robot = json.loads((run / "metadata.json").read_text())["instruments"]["robot"]
     assert robot["registry_name"] == driver
     if driver.startswith("abb"):  # the driver does not write the RWS password
         assert ":***@" in robot["address"] and "robotics" not in robot["address"]
-    assert main(["analyze", str(tmp_path / "run"), "--no-report", "--out",
+    assert main(["analyze", str(run), "--no-report", "--out",
                  str(tmp_path / "a")]) == 0
     res = json.loads((tmp_path / "a" / "results.json").read_text())
     k = np.array(res["joint_stiffness_Nm_per_rad"])

@@ -16,6 +16,7 @@ from campaign.acquire.progress import QuietReporter
 from campaign.acquire.rundir import RunDir
 from campaign.acquire.session import AcquireOptions, acquire
 from campaign.cli import main
+from tests.refusal import assert_refused, outside_dir, tree
 
 
 def run_cli(capsys, *args: str) -> tuple[int, str]:
@@ -317,36 +318,9 @@ def test_two_creations_of_one_run_directory_exclude_each_other(tmp_path, monkeyp
 
 # -- writing: links, read-only and full disks, finished runs ---------------------------------
 
-def _tree(path: Path) -> dict[str, str]:
-    """Every entry of a directory tree: links as their target, files by SHA-256."""
-    import os
-
-    out = {}
-    for p in sorted([path, *path.rglob("*")]) if os.path.lexists(path) else []:
-        key = str(p.relative_to(path))
-        if p.is_symlink():
-            out[key] = "-> " + os.readlink(p)
-        elif p.is_file():
-            out[key] = hashlib.sha256(p.read_bytes()).hexdigest()
-        else:
-            out[key] = "dir"
-    return out
-
-
-def _one_line_error(code: int, captured, status: int, message: str) -> None:
-    err = captured.err
-    assert code == status, err
-    assert err.startswith("error: ") and err.count("\n") == 1, err
-    assert "Traceback" not in err + captured.out
-    assert message in err, err
-
-
 @pytest.fixture
 def outside(tmp_path) -> Path:
-    d = tmp_path / "outside"
-    (d / "dir").mkdir(parents=True)
-    (d / "victim.txt").write_text("not yours\n")
-    return d
+    return outside_dir(tmp_path)
 
 
 def test_one_run_leaves_no_lock_behind(one_run):
@@ -359,12 +333,11 @@ def test_acquire_out_onto_a_link_is_refused_before_anything_starts(kr240_plan, t
                                                                     capsys, outside, target):
     link = tmp_path / "run"
     link.symlink_to(outside / target)
-    before = _tree(outside)
-    code = main(["acquire", "--plan", str(kr240_plan), "--out", str(link), "--fake", "--yes",
-                 "--quiet"])
-    _one_line_error(code, capsys.readouterr(), 2, f"run: is a symbolic link (to "
-                    f"{outside / target}); refusing to write through it")
-    assert _tree(outside) == before and not (outside / "missing").exists()
+    assert_refused(capsys, ["acquire", "--plan", kr240_plan, "--out", link, "--fake", "--yes",
+                            "--quiet"],
+                   f"run: is a symbolic link (to {outside / target}); refusing to write "
+                   "through it", watch=[outside])
+    assert not (outside / "missing").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["outside", "run"]
 
 
@@ -376,17 +349,17 @@ def test_resume_refuses_a_link_in_the_run_and_writes_nothing(run_copy, capsys, o
     if os.path.lexists(run_copy / name):
         (run_copy / name).unlink()
     (run_copy / name).symlink_to(outside / "victim.txt")
-    before, outside_before = _tree(run_copy), _tree(outside)
+    before, outside_before = tree(run_copy), tree(outside)
     code, err = run_cli(capsys, "acquire", "--resume", str(run_copy), "--fake", "--yes",
                         "--quiet")
     assert code == 2 and err.count("\n") == 1, err
     assert err.startswith(f"error: {run_copy / name}: is a symbolic link")
-    assert _tree(run_copy) == before and _tree(outside) == outside_before
+    assert tree(run_copy) == before and tree(outside) == outside_before
 
 
 def test_analyze_run_refuses_a_linked_analysis_directory_or_file(run_copy, capsys, outside):
     (run_copy / "analysis").symlink_to(outside / "dir")
-    before = _tree(outside)
+    before = tree(outside)
     code, err = run_cli(capsys, "analyze", str(run_copy), "--no-report")
     assert code == 2 and err == (f"error: {run_copy / 'analysis'}: is a symbolic link (to "
                                  f"{outside / 'dir'}); refusing to write through it: remove "
@@ -397,7 +370,7 @@ def test_analyze_run_refuses_a_linked_analysis_directory_or_file(run_copy, capsy
     code, err = run_cli(capsys, "analyze", str(run_copy), "--no-report", "--force")
     assert code == 2 and "analysis/report.html: is a symbolic link" in err
     assert err.count("\n") == 1
-    assert _tree(outside) == before
+    assert tree(outside) == before
     assert sorted(p.name for p in (run_copy / "analysis").iterdir()) == ["report.html"]
 
 
@@ -465,12 +438,9 @@ def test_resume_on_a_read_only_file_system_is_one_line_and_exit_1(run_copy, caps
         return real_open(path, flags, *args, **kwargs)
 
     monkeypatch.setattr(rundir.os, "open", read_only_open)
-    before = _tree(run_copy)
-    code = main(["acquire", "--resume", str(run_copy), "--fake", "--yes", "--quiet"])
-    _one_line_error(code, capsys.readouterr(), 1,
-                    f"error: cannot write .lock in {run_copy}: Read-only file system; "
-                    "nothing moved")
-    assert _tree(run_copy) == before
+    assert_refused(capsys, ["acquire", "--resume", run_copy, "--fake", "--yes", "--quiet"],
+                   f"error: cannot write .lock in {run_copy}: Read-only file system; "
+                   "nothing moved", watch=[run_copy], code=1)
 
 
 def _small_plan(kr240_plan, tmp_path) -> Path:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import time
 
 import numpy as np
@@ -11,13 +10,13 @@ import pandas as pd
 from scipy import stats
 
 from analysis.identification.estimate import analyze_table
-from analysis.identification.noise import NoiseModel
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.rundir import TEST_COLUMNS
 from campaign.acquire.session import AcquireOptions, acquire
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
 from campaign.run_format.reader import read_run
+from tests.acquire.conftest import displacement_noise
 
 TRUE_K = np.array([1409800, 400760, 935280, 360000, 370000, 380000], dtype=float)
 
@@ -61,14 +60,8 @@ def test_full_fake_campaign_recovers_the_true_stiffness(kr240_plan, tmp_path, ti
     # identification from the run directory, as campaign analyze reads it
     run = read_run(out)
     protocol = load_protocol(out / "protocol.toml")
-    noise_t = protocol.instruments["pose"].noise.translation_um * 1e-6
-    noise_r = protocol.instruments["pose"].noise.rotation_urad * 1e-6
-    # displacement = loaded pose - mean of two unloaded poses: variance 1.5 sigma^2
-    noise = NoiseModel().with_overrides(
-        translation_sigma_override=noise_t * math.sqrt(1.5),
-        rotation_sigma_override=noise_r * math.sqrt(1.5),
-        force_sigma=0.5, moment_sigma=0.05)
-    result = analyze_table(run.ok, protocol_robot(protocol), noise=noise, validate=False)
+    result = analyze_table(run.ok, protocol_robot(protocol), noise=displacement_noise(protocol),
+                           validate=False)
     z = (result.k - TRUE_K) / result.se_k
     rel = np.abs(result.k - TRUE_K) / TRUE_K
     se_rel = result.se_k / TRUE_K

@@ -3,21 +3,15 @@ protocol's tool recovers the truth (without the tool it would not)."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from analysis.identification.estimate import analyze_table
-from analysis.identification.noise import NoiseModel
 from analysis.model.kinematics import tool_pose
 from analysis.model.robots import load_robot
-from campaign.acquire.progress import QuietReporter
-from campaign.acquire.session import AcquireOptions, acquire
-from campaign.planning.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
 from campaign.run_format.reader import read_run
-from tests.acquire.conftest import PROTOCOL
+from tests.acquire.conftest import PROTOCOL, displacement_noise, plan_and_acquire
 
 TRUE_K = np.array([1409800, 400760, 935280, 360000, 370000, 380000], dtype=float)
 TOOL = "xyz_mm = [30, -20, 250]\nrpy_deg = [0, 90, 0]"
@@ -36,22 +30,8 @@ def test_fake_campaign_with_tool_offset(tmp_path, time_scale):
     offset = np.linalg.inv(tool_pose(flange, q)) @ tool_pose(robot, q)
     np.testing.assert_allclose(offset[:3, 3], [0.030, -0.020, 0.250], atol=1e-12)
 
-    plan_dir = tmp_path / "plan"
-    protocol.campaign.repeats = 1
-    write_plan(make_plan(protocol, candidates=2000), plan_dir, figure=False)
-    out = tmp_path / "run"
-    outcome = acquire(plan_dir, out, None,
-                      AcquireOptions(fake=True, assume_yes=True, time_scale=time_scale),
-                      QuietReporter(), say=lambda s: None)
-    assert outcome.status == "complete", outcome.reason
-
-    run = read_run(out)
-    noise_t = protocol.instruments["pose"].noise.translation_um * 1e-6
-    noise_r = protocol.instruments["pose"].noise.rotation_urad * 1e-6
-    noise = NoiseModel().with_overrides(
-        translation_sigma_override=noise_t * math.sqrt(1.5),
-        rotation_sigma_override=noise_r * math.sqrt(1.5),
-        force_sigma=0.5, moment_sigma=0.05)
+    run = read_run(plan_and_acquire(protocol, tmp_path, time_scale))
+    noise = displacement_noise(protocol)
     result = analyze_table(run.ok, robot, noise=noise, validate=False)
     z = (result.k - TRUE_K) / result.se_k
     assert np.all(np.abs(z) < 4), (result.k, result.se_k)

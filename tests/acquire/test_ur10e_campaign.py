@@ -11,15 +11,12 @@ import pytest
 
 from analysis.errors import InputError
 from analysis.identification.estimate import analyze_table
-from campaign.acquire.progress import QuietReporter
-from campaign.acquire.session import AcquireOptions, acquire
 from campaign.cli import main
 from campaign.cli.commands.analyze import _noise_from_protocol
-from campaign.planning.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
 from campaign.run_format.reader import read_run
-from tests.acquire.conftest import ROOT
+from tests.acquire.conftest import ROOT, plan_and_acquire
 
 PROTOCOL = ROOT / "protocols" / "ur10e.toml"
 
@@ -28,14 +25,8 @@ PROTOCOL = ROOT / "protocols" / "ur10e.toml"
 def test_ur10e_fake_campaign(tmp_path, time_scale):
     protocol = load_protocol(PROTOCOL)
     truth = np.array(protocol.fake_lab.true_joint_stiffness)
-    protocol.campaign.repeats = 1
-    plan = tmp_path / "plan"
-    write_plan(make_plan(protocol, candidates=2000), plan, figure=False)
-    outcome = acquire(plan, tmp_path / "run", None,
-                      AcquireOptions(fake=True, assume_yes=True, time_scale=time_scale),
-                      QuietReporter(), say=lambda s: None)
-    assert outcome.status == "complete", outcome.reason
-    run = read_run(tmp_path / "run")
+    run_dir = plan_and_acquire(protocol, tmp_path, time_scale)
+    run = read_run(run_dir)
     assert len(run.ok) == protocol.campaign.tests
     result = analyze_table(run.ok, protocol_robot(protocol), noise=_noise_from_protocol(protocol),
                            validate=False)
@@ -44,11 +35,11 @@ def test_ur10e_fake_campaign(tmp_path, time_scale):
     # the rotation noise of the reflector fit is in the weights: residuals fit the model
     assert 0.3 < result.chi2_reduced < 2.5
     # tests.csv travels with its sidecar: re-imported alone it gives the run's k
-    meta = json.loads((tmp_path / "run" / "tests.meta.json").read_text())
+    meta = json.loads((run_dir / "tests.meta.json").read_text())
     assert meta["tool"]["xyz_mm"] == [0.0, 0.0, 120.0] and meta["robot"]["key"] == "ur10e"
-    assert main(["analyze", str(tmp_path / "run"), "--no-report", "--out",
+    assert main(["analyze", str(run_dir), "--no-report", "--out",
                  str(tmp_path / "a_run")]) == 0
-    assert main(["analyze", "--measurements", str(tmp_path / "run" / "tests.csv"),
+    assert main(["analyze", "--measurements", str(run_dir / "tests.csv"),
                  "--no-report", "--out", str(tmp_path / "a_csv")]) == 0
     k_run, k_csv = (json.loads((tmp_path / d / "results.json").read_text())
                     ["joint_stiffness_Nm_per_rad"] for d in ("a_run", "a_csv"))

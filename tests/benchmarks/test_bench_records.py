@@ -107,7 +107,8 @@ def test_target_statuses_from_figures():
     assert kernel.check(dict(MAPS, batched_cpu_us_per_pose=2.5)) == (targets.MET, 2.5)
     assert kernel.check(dict(MAPS, batched_cpu_us_per_pose=2.51))[0] == targets.MISSED
     assert kernel.check(dict(MAPS, grid_step_deg=1.0)) == (targets.NOT_MEASURED, None)
-    assert ratio.check(dict(MAPS, ratio_cpu=34.9))[0] == targets.MISSED
+    assert ratio.check(dict(MAPS, ratio_cpu=7.9))[0] == targets.MISSED
+    assert ratio.check(dict(MAPS, ratio_cpu=8.0))[0] == targets.MET
     assert ratio.check({}) == (targets.NOT_MEASURED, None)
 
 

@@ -156,3 +156,24 @@ def test_plan_command_strategies_match_the_planner():
 
     # the CLI's enum is kept apart from the planner (which pulls in pandas) and must agree
     assert tuple(s.value for s in Strategy) == STRATEGIES
+
+
+def test_no_command_help_imports_numpy_or_a_heavy_library():
+    """``campaign <cmd> --help`` imports the command's module but neither numpy nor the heavy
+    libraries; in one interpreter, in order, so the first command that does is the one named."""
+    names = sorted(cli.LAZY_COMMANDS)
+    assert len(names) >= len(command_modules())
+    code = (
+        "from campaign.cli import main\n"
+        "import contextlib, io\n"
+        f"for name in {names!r}:\n"
+        "    with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "        status = main([name, '--help'])\n"
+        "    assert status == 0 and 'Usage' in out.getvalue(), (name, status)\n"
+        "    heavy = sorted({m.split('.')[0] for m in sys.modules} & set("
+        + repr(("numpy", *HEAVY)) + "))\n"
+        "    print('HELP', name, ','.join(heavy))\n")
+    _, out = imported_after(code)
+    lines = [s.split(" ") for s in out.splitlines() if s.startswith("HELP ")]
+    assert [n for _, n, _ in lines] == names
+    assert {n: h for _, n, h in lines if h} == {}

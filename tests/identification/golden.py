@@ -75,7 +75,7 @@ STREAMED = {
     "EVAL_BLOCK": (101, [P + "gauss_newton", P + "estimators.gauss_newton",
                         P + "streaming.blocks"]),
     "LAZY_TESTS": (300, [P + "per_test", P + "streaming.per_test"]),
-    "FOLD_CHUNK": (7, [P + "crossval", P + "validation.crossval"]),
+    "FOLD_CHUNK": (7, [P + "crossval", P + "validation.crossval", P + "validation.downdate"]),
 }
 
 

@@ -113,14 +113,14 @@ def test_parameter_term_left_out_for_many_folds(kr240, w_eff, monkeypatch):
     pose: at most +22 % with 60 poses (asserted < 25 %), +6 % with 300, +1.6 % (median
     +0.2 %) with 1000, the threshold."""
     from analysis.identification.studies.robustness import sample_poses
-    from analysis.identification.validation import crossval
+    from analysis.identification.validation import downdate
 
     noise = NoiseModel()
     q = sample_poses(kr240, 60, np.random.default_rng(3), min_inverse_condition=0.3)
     tests = simulate(kr240, q, w_eff, kr240.nominal_stiffness, noise=noise, seed=5)
     joints = tuple(range(6))
     full = leave_one_pose_out(kr240, tests, "ols", joints, noise)
-    monkeypatch.setattr(crossval, "PARAMETER_TERM_MAX_POSES", 10)
+    monkeypatch.setattr(downdate, "PARAMETER_TERM_MAX_POSES", 10)
     noise_only = leave_one_pose_out(kr240, tests, "ols", joints, noise)
     ratio = noise_only["rms_normalized_total"] / full["rms_normalized_total"]
     assert np.all(ratio >= 1 - 1e-9) and np.all(ratio < 1.25), ratio.max()

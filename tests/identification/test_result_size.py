@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis.identification.result import residual_summary
+from analysis.identification.io.results_json import residual_summary
 
 
 def _residuals(n_tests: int, seed: int = 0) -> pd.DataFrame:
@@ -64,7 +64,7 @@ def test_report_table_lists_the_worst_tests(monkeypatch):
 
 
 def test_largest_by_blocks_equals_a_full_sort():
-    from analysis.identification.result import _largest
+    from analysis.identification.io.residual_rows import _largest
 
     rng = np.random.default_rng(3)
     values = rng.normal(size=10_007)
@@ -77,7 +77,7 @@ def test_largest_by_blocks_equals_a_full_sort():
 
 def test_worst_tests_by_blocks_equal_one_block():
     from analysis.identification.io.measurements import TestArrays
-    from analysis.identification.result import ResidualRows
+    from analysis.identification.io.residual_rows import ResidualRows
 
     rng = np.random.default_rng(5)
     m = 500

@@ -21,14 +21,14 @@ import pytest
 
 from analysis.identification.checks import outliers
 from analysis.identification.estimate import identify
-from analysis.identification.estimators import fitting
+from analysis.identification.estimators import linear_model
 from analysis.identification.io.measurements import TestArrays
+from analysis.identification.io.results_json import write_results
 from analysis.identification.linalg import lsq
 from analysis.identification.noise import NoiseModel
-from analysis.identification.result import write_results
 from analysis.identification.streaming import blocks, per_test
 from analysis.identification.studies.robustness import sample_poses
-from analysis.identification.validation import crossval
+from analysis.identification.validation import downdate
 
 from ._sim import simulate
 
@@ -57,7 +57,7 @@ def _streamed(monkeypatch):
     monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
     # J, the design and the model Jacobian are made when sliced instead of held
     monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
-    monkeypatch.setattr(crossval, "FOLD_CHUNK", 7)  # the folds' algebra in chunks
+    monkeypatch.setattr(downdate, "FOLD_CHUNK", 7)  # the folds' algebra in chunks
 
 
 @pytest.mark.parametrize("method", ["ols", "exact"])
@@ -68,7 +68,7 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
     _streamed(monkeypatch)
     from analysis.identification.streaming.per_test import PerTestJacobian
 
-    assert isinstance(fitting.jacobian_blocks(kr240, campaign.q), PerTestJacobian)
+    assert isinstance(linear_model.jacobian_blocks(kr240, campaign.q), PerTestJacobian)
     res = identify(kr240, campaign, method, noise=NOISE)
     write_results(res, tmp_path / "res")
     assert ref.residual_rows is None and res.residual_rows is not None
@@ -123,7 +123,7 @@ def test_streamed_identification_equals_the_in_memory_one(kr240, campaign, metho
 
 
 def test_validation_beyond_the_listed_poses_is_summarised(kr240, campaign, monkeypatch):
-    from analysis.identification import result as result_module
+    from analysis.identification.io import results_json as result_module
 
     res = identify(kr240, campaign, "ols", noise=NOISE)
     monkeypatch.setattr(result_module, "VALIDATION_LISTED", 10)
@@ -148,7 +148,7 @@ def test_blockwise_covariances_with_a_held_jacobian(kr240, campaign, method, mon
     ref = identify(kr240, campaign, method, noise=NOISE)
     monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
     res = identify(kr240, campaign, method, noise=NOISE)
-    assert not isinstance(fitting.jacobian_blocks(kr240, campaign.q),
+    assert not isinstance(linear_model.jacobian_blocks(kr240, campaign.q),
                           per_test.PerTestJacobian)
     np.testing.assert_allclose(res.x, ref.x, rtol=1e-9)
     for col in ("sigma", "studentized", "predicted"):

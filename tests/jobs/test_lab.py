@@ -68,3 +68,24 @@ def test_lab_options_refused_naming_the_option():
             run(LabOptions(instruments=["geocom"], control_port=port))
     with pytest.raises(InputError, match="unknown instruments"):
         run(LabOptions(instruments=["laser-cannon"]))
+    with pytest.raises(InputError, match=r"--port: ati-netft cannot take a fixed port"):
+        run(LabOptions(ports={"ati-netft": _free_port()}))
+    with pytest.raises(InputError, match=r"--port: geocom: expected a port number"):
+        run(LabOptions(ports={"geocom": 0}))
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(InputError, match=r"--port: a fake cannot listen on its port"):
+            run(LabOptions(instruments=["geocom"], ports={"geocom": port}))
+
+
+def test_fixed_ports_of_fakes():
+    """geocom and the KUKA robot's fake on the ports asked for; a real client reads them."""
+    ports = {"geocom": _free_port(), "kuka-kvp": _free_port()}
+    with run(LabOptions(instruments=["geocom", "robot"], ports=ports)) as lab:
+        assert lab.addresses["geocom"] == f"socket://127.0.0.1:{ports['geocom']}"
+        assert lab.addresses["kuka-kvp"] == f"socket://127.0.0.1:{ports['kuka-kvp']}"
+        with open_driver("geocom", lab.addresses["geocom"]) as tracker:
+            assert np.all(np.isfinite(tracker.measure_point().value))
+    assert not any(_listening(p) for p in ports.values())

@@ -509,7 +509,7 @@ def test_time_stamps_are_shown_to_the_second():
 
 
 def test_robustness_rows_not_identifiable_are_marked():
-    from analysis.identification.studies.robustness import identifiable_rows
+    from analysis.identification.studies.robustness_plot import identifiable_rows
 
     summary = pd.DataFrame({
         "trials": [200, 200, 200], "trials_rejected": [0, 30, 0],

@@ -26,6 +26,7 @@ from analysis.output_files import (
     write_text,
 )
 from campaign.cli import main
+from tests.refusal import assert_refused, outside_dir, tree
 from tests.use._campaigns import NOISE
 from tests.use.conftest import analyze, write_tests_csv
 from tests.use.test_compensation import _path_points
@@ -35,42 +36,15 @@ ROOT = Path(__file__).resolve().parents[2]
 PROTOCOL = str(ROOT / "protocols" / "kr240-2.toml")
 
 
-def _tree(path: Path) -> dict[str, str]:
-    """Every entry under ``path`` (links as their target, files by SHA-256)."""
-    out = {}
-    for p in sorted([path, *path.rglob("*")]) if os.path.lexists(path) else []:
-        key = str(p.relative_to(path))
-        if p.is_symlink():
-            out[key] = "-> " + os.readlink(p)
-        elif p.is_file():
-            out[key] = hashlib.sha256(p.read_bytes()).hexdigest()
-        else:
-            out[key] = "dir"
-    return out
-
-
 @pytest.fixture
 def outside(tmp_path) -> Path:
-    """A directory outside every output: a file and an empty directory links point to."""
-    d = tmp_path / "outside"
-    (d / "dir").mkdir(parents=True)
-    (d / "victim.txt").write_text("not yours\n")
-    return d
+    return outside_dir(tmp_path)
 
 
 def refused(capsys, argv: list[str], *watched: Path, message: str = "is a symbolic link",
             code: int = 2) -> str:
     """Run ``campaign ARGV``; assert a one-line refusal and that ``watched`` are unchanged."""
-    before = [_tree(p) for p in watched]
-    status = main(argv)
-    captured = capsys.readouterr()
-    err = captured.err
-    assert status == code, err
-    assert err.startswith("error: ") and err.count("\n") == 1, err
-    assert "Traceback" not in err + captured.out
-    assert message in err, err
-    assert [_tree(p) for p in watched] == before
-    return err
+    return assert_refused(capsys, argv, message, watch=watched, code=code)
 
 
 def _with_link(out: Path, name: str, target: Path) -> Path:
@@ -116,7 +90,7 @@ def test_replaced_dir_keeps_the_old_output_when_the_body_fails_and_swaps_it_whol
     with pytest.raises(RuntimeError), replaced_dir(out, True) as new:
         write_text(new / "results.json", "{}\n")
         raise RuntimeError("the analysis failed")
-    assert _tree(out) == {".": "dir", "report.html": hashlib.sha256(b"old report\n").hexdigest()}
+    assert tree(out) == {".": "dir", "report.html": hashlib.sha256(b"old report\n").hexdigest()}
     with replaced_dir(out, True) as new:
         write_text(new / "results.json", "{}\n")
     assert sorted(p.name for p in out.iterdir()) == ["results.json"]

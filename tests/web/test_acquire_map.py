@@ -73,6 +73,15 @@ def test_map_candidates_are_the_planners(client, workspace, planned):
     np.testing.assert_allclose([(z["lo_deg"][1], z["hi_deg"][2]) for z in d["zones"]],
                                [(np.degrees(b.lo[1]), np.degrees(b.hi[2])) for b in plan.boxes])
     assert d["axes"] == [2, 3]
+    # the background: the Plan view's 1/kappa_F grid of the same plan (made from the plan
+    # in memory), at the protocol's fixed joints
+    from campaign.planning.plan_map import map_points
+
+    theirs = map_points(plan, size=len(d["grid"]["theta2_deg"]))["grid"]
+    np.testing.assert_allclose(d["grid"]["inv_kappa"], theirs["inv_kappa"], atol=1e-6)
+    np.testing.assert_allclose(d["grid"]["theta3_deg"], theirs["theta3_deg"], atol=1e-9)
+    assert 0 < np.max(d["grid"]["inv_kappa"]) <= 1
+    assert "fixed_deg" in d["grid"]["rule_text"]
 
 
 def test_map_of_an_edited_plan_says_its_poses_are_not_candidates(client, workspace):
@@ -120,6 +129,29 @@ def test_pose_progress_counts_every_test_and_repeat():
     assert pose_progress(plan, rows)[0]["status"] == "done"
     with pytest.raises(ValueError, match="repeats 1000000000 outside 1..1000"):
         pose_progress([{"test": 1, "pose": "1", "repeats": 10**9}], [])
+
+
+def test_poses_endpoint_reads_tests_csv_as_written(client, workspace):
+    run = workspace / "r"
+    run.mkdir()
+    shutil.copy(workspace / "plan" / "plan.csv", run / "plan.csv")
+    plan = list(csv.DictReader(open(run / "plan.csv")))
+    head = "test_id,repeat,status,flags\n"
+    t1, t2 = plan[0]["test"], plan[1]["test"]
+    # test 1 twice ok, test 2 once failed, and a last line still being written
+    (run / "tests.csv").write_text(head + f"{t1},1,ok,\n{t1},2,ok,\n{t2},1,failed,drift\n"
+                                   f"{t2},2,o")
+    d = client.get("/api/acquire/poses", params={"run": "r"}).json()
+    assert d["rows_read"] == 3
+    status = {p["pose"]: (p["status"], p["rows_done"], p["rows_failed"]) for p in d["poses"]}
+    assert status == {plan[0]["pose"]: ("done", 2, 0), plan[1]["pose"]: ("partial", 1, 1),
+                      plan[2]["pose"]: ("pending", 0, 0)}
+    assert d["done"] == [plan[0]["pose"]]
+    (run / "tests.csv").write_text(head + f"{t1},1,ok,\n{t1},2,ok,\n{t2},1,failed,drift\n"
+                                   f"{t2},2,ok,\n")
+    d = client.get("/api/acquire/poses", params={"run": "r"}).json()
+    assert d["poses"][1]["status"] == "failed" and d["rows_read"] == 4
+    assert client.get("/api/acquire/poses", params={"run": "plan2"}).status_code == 404
 
 
 def test_trace_follows_the_last_test_of_the_events():

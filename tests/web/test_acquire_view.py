@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.web.pages import acquire_dry_run, wait_text
+
 pytestmark = pytest.mark.timeout(120)
 #: the simulated lab's clock runs this much faster than the wall clock
 FAST = 200.0
@@ -165,30 +167,19 @@ def test_browser_start_reload_reattach_abort_resume(server, workspace):
         errors: list[str] = []
         page.on("pageerror", lambda e: errors.append(str(e)))
         page.goto(server)
-        page.click("#tab-acquire")
-        page.wait_for_selector("#acq-plan", state="visible")
-        page.fill("#acq-plan", "plan")
-        page.fill("#acq-out", "gui-run")
-        page.fill("#acq-scale", "10")
-        page.click("#acq-dry")
-        page.wait_for_selector("#acq-motions li")
-        assert page.locator("#acq-motions li").count() >= 3
+        assert acquire_dry_run(page, "plan", "gui-run", 10) >= 3
         page.click("#acq-start")
-        page.wait_for_function(
-            "() => ['load','settle','measure'].includes(document.querySelector('#acq-stage')"
-            ".textContent)", timeout=30_000)
+        wait_text(page, "#acq-stage", "load", "settle", "measure", timeout=30_000)
         assert page.locator("#acq-total").text_content() == "3"
         page.reload()
         page.click("#tab-acquire")
         page.wait_for_selector("#acq-plan", state="visible")
-        page.wait_for_function("() => document.querySelector('#acq-running').textContent"
-                               " === 'running'", timeout=30_000)
+        wait_text(page, "#acq-running", "running", timeout=30_000)
         assert page.locator("#acq-run").text_content() == "gui-run"
-        page.wait_for_function("() => document.querySelector('#acq-stage').textContent"
-                               " !== '\u2013'", timeout=30_000)
+        # abort once the reattached page shows a test under load (the case with a load to remove)
+        wait_text(page, "#acq-stage", "load", "settle", "measure", timeout=30_000)
         page.click("#acq-abort")
-        page.wait_for_function("() => document.querySelector('#acq-status').textContent"
-                               " === 'aborted'", timeout=60_000)
+        wait_text(page, "#acq-status", "aborted")
         state = json.loads((workspace / "gui-run" / "metadata.json").read_text())
         assert state["status"] == "aborted"
         kinds = _events(workspace, "gui-run")
@@ -214,8 +205,7 @@ def test_browser_start_reload_reattach_abort_resume(server, workspace):
         # resume the partial run from the page: it completes, every test measured once
         page.fill("#acq-scale", "50")
         page.click("#acq-resume")
-        page.wait_for_function("() => document.querySelector('#acq-status').textContent"
-                               " === 'complete'", timeout=60_000)
+        wait_text(page, "#acq-status", "complete")
         assert page.locator("#acq-done").text_content() == "3"
         assert page.locator("#acq-tests tbody tr").count() == 3
         browser.close()

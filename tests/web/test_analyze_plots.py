@@ -119,6 +119,7 @@ def test_residual_table_reads_empty_cells_as_missing():
                          "outlier": "False", "set_aside": "True"}])
     assert t["test"] == [3.0] and t["residual"] == [1e-05] and t["sigma"] == [None]
     assert t["studentized"] == [None] and t["outlier"] == [False] and t["set_aside"] == [True]
+    assert t["weight"] == [None]  # a Gaussian fit's table has no weight column
 
 
 def _plotted(page) -> dict:

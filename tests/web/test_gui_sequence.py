@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.web.pages import acquire_dry_run, wait_job, wait_text
 from tests.web.test_plan_view import open_page  # noqa: F401  (the browser page fixture)
 
 pytestmark = pytest.mark.timeout(180)
@@ -29,24 +30,16 @@ def test_plan_acquire_analyze_compensate(open_page, tmp_path):  # noqa: F811
     page.fill("#plan-candidates", "300")
     page.fill("#plan-name", "seq")
     page.click("#plan-run")
-    page.wait_for_function("() => document.body.dataset.plan === 'done'", timeout=60_000)
+    wait_job(page, "plan", "done")
     plan = ws / "plans" / "seq"
     summary = json.loads((plan / "summary.json").read_text())
     assert summary["tests"] == 4
     assert page.locator("#plan-rows tbody tr").count() == 4
     # ---- Acquire: dry run, then the simulated lab at time x 200 until complete
-    page.click("#tab-acquire")
-    page.wait_for_selector("#acq-plan", state="visible")
-    page.fill("#acq-plan", "plans/seq")
-    page.fill("#acq-out", "run")
-    page.fill("#acq-scale", "200")
-    page.click("#acq-dry")
-    page.wait_for_selector("#acq-motions li")
-    assert page.locator("#acq-motions li").count() >= 4
+    assert acquire_dry_run(page, "plans/seq", "run", 200) >= 4
     assert not (ws / "run").exists()  # a dry run writes nothing
     page.click("#acq-start")
-    page.wait_for_function("() => document.querySelector('#acq-status').textContent"
-                           " === 'complete'", timeout=60_000)
+    wait_text(page, "#acq-status", "complete")
     assert page.locator("#acq-done").text_content() == "4"
     meta = json.loads((ws / "run" / "metadata.json").read_text())
     assert meta["status"] == "complete"
@@ -58,15 +51,12 @@ def test_plan_acquire_analyze_compensate(open_page, tmp_path):  # noqa: F811
                            ".some((o) => o.value === 'run')", timeout=10_000)
     page.select_option("#an-run", "run")
     page.click("#an-run-btn")
-    page.wait_for_function("() => ['done', 'error'].includes(document.body.dataset.analyze)",
-                           timeout=60_000)
-    if page.evaluate("() => document.body.dataset.analyze") == "error":
+    if wait_job(page, "analyze", "done", "error") == "error":
         # refused on this small run: accept the listed reasons, as --accept-misfit does
         assert page.locator("#an-error").inner_text() == "", page.locator("#an-error").inner_text()
         assert page.locator("#an-reasons li").count() >= 1
         page.click("#an-retry")
-        page.wait_for_function("() => document.body.dataset.analyze === 'done'",
-                               timeout=60_000)
+        wait_job(page, "analyze", "done")
     res = json.loads((ws / "run" / "analysis" / "results.json").read_text())
     assert len(res["joints_identified"]) >= 1
     for j, k, (lo, hi) in zip(res["joints_identified"], res["joint_stiffness_Nm_per_rad"],

@@ -27,6 +27,13 @@ def ws(workspace) -> Path:
     return workspace
 
 
+@pytest.fixture
+def in_threads(app):
+    """The app's jobs in the queue's threads: for the tests of what the queue answers, not
+    of the job processes (each would add its start-up, seconds on a loaded machine)."""
+    app.state.jobs_in_threads = True
+
+
 def _wait(client, job_id: str, until=("done", "failed", "cancelled"), timeout=120.0) -> dict:
     end = time.monotonic() + timeout
     while time.monotonic() < end:
@@ -94,7 +101,7 @@ def test_cancel_stops_the_search_and_leaves_no_files(client, ws):
     assert client.delete("/api/jobs/nope").status_code == 404
 
 
-def test_a_full_queue_answers_429(client, app, ws):
+def test_a_full_queue_answers_429(client, app, ws, in_threads):
     from campaign.web.job_queue import JobQueue
     from campaign.web.job_submit import _record
 
@@ -132,7 +139,7 @@ def test_bounds_are_refused_naming_the_limit(client, ws, job, body, field, limit
     assert not (ws / "x").exists()
 
 
-def test_refusal_names_the_field_and_the_options_it_mentions(client, ws):
+def test_refusal_names_the_field_and_the_options_it_mentions(client, ws, in_threads):
     (ws / "c").mkdir()
     (ws / "c" / "old.txt").write_text("earlier output")
     body = {"robot": "kr240-2", "path": "path.csv", "out": "c",
@@ -201,9 +208,9 @@ def test_path_deflection_from_the_workspace_or_uploaded(client, ws):
 @pytest.mark.parametrize(("job", "body", "said"), [
     ("robustness", {"robot": "kr240-2", "tests": [4, 8], "trials": 30, "pool_size": 60,
                     "method": "ols"}, "of 60 simulated campaigns identified"),
-    ("maps", {"robot": "kr240-2", "out": "m", "step_rad": 0.2}, "plots"),  # its last stage
+    ("maps", {"robot": "kr240-2", "out": "m", "step_rad": 0.5}, "plots"),  # its last stage
 ])
-def test_jobs_report_their_own_progress(client, ws, job, body, said):
+def test_jobs_report_their_own_progress(client, ws, in_threads, job, body, said):
     queued = client.post(f"/api/jobs/{job}", json=body)
     assert queued.status_code == 202, queued.text
     with client.stream("GET", f"/api/jobs/{queued.json()['id']}/events") as events:
@@ -245,3 +252,38 @@ def test_cancelled_acquisition_takes_the_ctrl_c_path_and_keeps_its_run(client, w
     assert job["state"] == "cancelled" and "Ctrl-C path" in job["text"], job
     meta = json.loads((ws / "runs" / "r1" / "metadata.json").read_text())
     assert meta["status"] == "aborted"  # recorded, resumable, as the command line's Ctrl-C
+
+
+EXITING = """
+import sys, time
+from pathlib import Path
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+from campaign.web.api_jobs import router
+
+if __name__ == "__main__":
+    app = FastAPI()
+    app.state.workspace = Path(sys.argv[1])
+    app.include_router(router)
+    c = TestClient(app)
+    job = c.post("/api/jobs/place", json={**__BODY__, "out": "long"}).json()
+    while (c.get("/api/jobs/" + job["id"]).json()["fraction"] or 0) == 0:
+        time.sleep(0.05)
+    print("searching", flush=True)
+"""
+
+
+def test_a_server_that_exits_interrupts_its_jobs_and_leaves_no_files(ws, tmp_path):
+    """The job's process is not waited for: it takes its Ctrl-C path, OUT is removed."""
+    import os
+    import subprocess
+    import sys
+
+    script = tmp_path / "exiting.py"
+    script.write_text(EXITING.replace("__BODY__", repr(LONG)))
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, str(script), str(ws)], capture_output=True,
+                          text=True, timeout=120, env=os.environ.copy())
+    assert proc.returncode == 0 and "searching" in proc.stdout, proc.stderr
+    assert time.monotonic() - t0 < 25  # not the whole search (about 30 s on one core)
+    assert not (ws / "long").exists()

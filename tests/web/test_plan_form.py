@@ -11,7 +11,6 @@ plan job run directly on the saved protocol.
 
 from __future__ import annotations
 
-import json
 import re
 import threading
 import time
@@ -267,6 +266,21 @@ def test_page_fills_keys_plans_and_shows_the_jobs_numbers(plan_page, workspace, 
                            " return d[0].map((x, i) => [x, d[4][i]]).filter(p => p[1] !== null); }")
     want = sorted(zip(plan.drop_duplicates("pose")["q2_model_deg"],
                       plan.drop_duplicates("pose")["q3_model_deg"], strict=True))
+    # hovering a chosen pose names it, its tests and its angles (those of plan.csv)
+    page.locator("#plan-map-fig").scroll_into_view_if_needed()
+    x, y = page.evaluate("() => { const u = pv.plots['plan-map-fig'];"
+                         " const m = pv.last.map; const r = u.over.getBoundingClientRect();"
+                         " return [r.left + u.valToPos(m.chosen.q2_deg[0], 'x'),"
+                         " r.top + u.valToPos(m.chosen.q3_deg[0], 'y')]; }")
+    page.mouse.move(x, y)
+    page.wait_for_function("() => document.getElementById('plan-map-hover').textContent"
+                           ".startsWith('chosen pose')")
+    first = plan[plan["pose"] == 1]
+    hover = page.locator("#plan-map-hover").inner_text()
+    assert hover.startswith(f"chosen pose 1, tests {', '.join(str(t) for t in first['test'])}:")
+    shown = [float(v) for v in re.findall(r"= (-?[\d.]+) deg", hover)]
+    assert shown == pytest.approx([first["q2_model_deg"].iloc[0], first["q3_model_deg"].iloc[0]],
+                                  abs=6e-4)
     got = sorted(tuple(p) for p in chosen)
     assert len(got) == len(want) == direct.summary["poses"]
     for (x, y), (wx, wy) in zip(got, want, strict=True):  # plan.csv: 3 decimals
@@ -295,8 +309,14 @@ def test_page_shows_each_message_beside_its_field(plan_page, tmp_path):
     page.fill("#pf-load_cases-1-force_N", "0, -2200, 2200")
     page.click("#plan-save")
     page.wait_for_function("() => document.body.dataset.plan === 'saved'", timeout=30_000)
-    assert json.loads(json.dumps(page.locator("#plan-status").inner_text())).startswith(
-        "saved protocols/plan-gui.toml")
+    assert page.locator("#plan-status").inner_text().startswith("saved protocols/plan-gui.toml")
+    # the saved protocol is offered to start from, and fills the form with what was typed
+    page.select_option("#plan-source", "protocols/plan-gui.toml")
+    page.wait_for_function("() => document.getElementById('pf-instruments-pose-driver')"
+                           " && document.getElementById('pf-load_cases-1-force_N').value"
+                           " === '0, -2200, 2200'")
+    assert page.input_value("#pf-instruments-pose-driver") == "emscon"
+    assert page.input_value("#pf-campaign-tests") == "5"
 
 
 def test_any_typed_text_is_saved_or_refused_never_a_500(client):

@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 from tests.web.conftest import TOKEN  # noqa: F401  (the fixtures' token)
+from tests.web.pages import wait_job
 
 CHROMIUM = Path("/usr/bin/chromium")
 
@@ -193,7 +194,7 @@ def test_page_plans_and_shows_the_jobs_numbers(open_page, workspace):
     page.fill("#pf-instruments-pose-noise-translation_um", "45")
     page.select_option("#plan-strategy", "d-optimal")
     page.click("#plan-run")
-    page.wait_for_function("() => document.body.dataset.plan === 'done'", timeout=60_000)
+    wait_job(page, "plan", "done")
     out = workspace / "plans" / "plan-gui"
     plan = pd.read_csv(out / "plan.csv")
     summary = json.loads((out / "summary.json").read_text())
@@ -220,7 +221,7 @@ def test_page_shows_the_cli_message_beside_the_field(open_page, workspace, tmp_p
     page = open_page(workspace)
     page.fill("#pf-campaign-tests", "-3")
     page.click("#plan-run")
-    page.wait_for_function("() => document.body.dataset.plan === 'error'", timeout=60_000)
+    wait_job(page, "plan", "error")
     shown = page.locator("[data-key='campaign.tests'] .pv-msg").inner_text()
     assert shown.split(": ", 2)[-1] == _cli_message(tmp_path, "tests = 5 ", "tests = -3 ")
     assert page.locator("#plan-error").inner_text() == ""
@@ -235,7 +236,7 @@ def test_page_analyzes_a_run_and_shows_results_json(open_page, demo_ws):
     page.check("#an-force")
     page.click("#an-run-btn")
     # the job's own refusal of this combination, shown as it says it
-    page.wait_for_function("() => document.body.dataset.analyze === 'error'", timeout=60_000)
+    wait_job(page, "analyze", "error")
     assert "use --method exact (or wls)" in page.locator("#an-error").inner_text()
     page.select_option("#an-method", "wls")
     page.click("#an-run-btn")

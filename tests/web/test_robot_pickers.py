@@ -105,6 +105,13 @@ def test_upload_reads_with_the_cli_reader_and_refuses_bad_files(client, workspac
     with pytest.raises(InputError) as err:
         load_robot(str(p), tip="tool0")
     assert r.json()["detail"] == str(err.value).replace(str(p), "robots/bad.urdf")
+    assert r.json()["detail"].startswith("robots/bad.urdf:1: not well-formed XML: ")
+    # a joint naming an undefined link: the line of that <child>
+    lines = arm_urdf().replace("><", ">\n<").replace('<link name="link3"/>', "")
+    r = client.post("/api/robots/urdf", json={"name": "bad.urdf", "text": lines})
+    line = next(i for i, t in enumerate(lines.splitlines(), 1) if '<child link="link3"/>' in t)
+    assert r.json()["detail"] == (f"robots/bad.urdf:{line}: joint 'j3': child link 'link3' "
+                                  "is not defined (no <link name=...> of that name)")
     assert not (workspace / "robots" / "bad.urdf").exists()
     assert [f.name for f in (workspace / "robots").iterdir()] == ["up.urdf"]  # no leftovers
     r = client.post("/api/robots/urdf", json={"name": "up2.urdf", "text": arm_urdf(),
@@ -167,6 +174,9 @@ def test_plan_form_plans_a_urdf_robot(client, urdf_ws):
     d = r.json()
     assert d["summary"]["robot"] == "arm" and d["summary"]["tests"] == 4
     assert [row["zone"] for row in d["rows"]] == ["front"] * 4
+    # the plan's protocol copy sits one directory deeper: said, not hidden
+    assert len(d["warnings"]) == 1 and "plans/u/../robots/arm.urdf" not in d["warnings"][0]
+    assert "u/../robots/arm.urdf, which does not exist" in d["warnings"][0]
     assert all(-60 <= row["q2_model_deg"] <= 0 and 20 <= row["q3_model_deg"] <= 90
                for row in d["rows"])
 

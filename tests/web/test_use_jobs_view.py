@@ -56,6 +56,9 @@ def page(ws):
     from campaign.web.server import GuiOptions, make_server, url_of
 
     srv, sock = make_server(GuiOptions(workspace=ws, port=0, open_browser=False), TOKEN)
+    # the page is the point here: its jobs run in the queue's threads (no process start-up
+    # per job); the processes are tested over HTTP in test_jobs_queue.py
+    srv.config.app.state.jobs_in_threads = True
     thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
     for _ in range(200):

@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.web.pages import wait_use_shown
+
 CHROMIUM = Path("/usr/bin/chromium")
 if not CHROMIUM.exists():
     pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)",
@@ -88,16 +90,7 @@ def page(ws):
 def _settled(page) -> list[float]:
     """Wait until the page shows the job's answer for the joints and wrench now set; those
     joints (deg)."""
-    page.wait_for_function(
-        "() => { const v = document.getElementById('view-use');"
-        " return !v.dataset.busy && v.dataset.shownQ === JSON.stringify(useView.poseDeg())"
-        " && v.dataset.shownW === JSON.stringify(useView.wrench()); }",
-        timeout=20_000)
-    page.wait_for_timeout(150)  # a debounced request still pending would show as busy
-    page.wait_for_function(
-        "() => { const v = document.getElementById('view-use');"
-        " return !v.dataset.busy && v.dataset.shownQ === JSON.stringify(useView.poseDeg())"
-        " && v.dataset.shownW === JSON.stringify(useView.wrench()); }")
+    wait_use_shown(page)
     return json.loads(page.get_attribute("#view-use", "data-shown-q"))
 
 

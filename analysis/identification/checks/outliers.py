@@ -11,17 +11,14 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.estimators.fitting import (
-    _fit_covariances,
-    _full,
-    fit,
-    fit_exact,
-    jacobian_blocks,
-)
+from analysis.identification.estimators.fit import Fit
+from analysis.identification.estimators.fitting import _fit_covariances, _full, fit, fit_exact
+from analysis.identification.estimators.linear_model import jacobian_blocks
 from analysis.identification.io.measurements import TestArrays
+from analysis.identification.io.residual_rows import ResidualRows
+from analysis.identification.io.results_json import RESIDUALS_LISTED
 from analysis.identification.linalg.lsq import blocks_of_tests, sandwich_and_residual_variance
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
-from analysis.identification.result import RESIDUALS_LISTED, Fit, ResidualRows
 from analysis.identification.streaming.per_test import apply
 from analysis.report.formatting import level
 
@@ -102,7 +99,8 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
     one aside barely moves the others' t, and a round per residual would cost a pass
     over every test each. The rounds go on until the rest of the residuals are within
     the threshold, as one at a time. ``J``: the tests' Jacobians
-    (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`) if the caller has them.
+    (:func:`~analysis.identification.estimators.linear_model.jacobian_blocks`) if the caller has
+    them.
     """
     flags = np.zeros(tests.measured.shape, dtype=bool)
     current = first

@@ -1,4 +1,4 @@
-"""The fits behind ``identify``: data checks, OLS/WLS of the linear model, the exact fit.
+"""The fits behind the estimators: OLS/WLS of the linear model, the exact fit.
 
 ``identify`` (:mod:`analysis.identification.estimate`) chooses among them and
 builds the result; leave-one-pose-out validation
@@ -12,165 +12,31 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
+from analysis.identification.estimators.fit import Fit
 from analysis.identification.estimators.gauss_newton import gauss_newton
-from analysis.identification.estimators.linear_model import design_block
-from analysis.identification.io.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
+from analysis.identification.estimators.linear_model import jacobian_blocks, tests_design
 from analysis.identification.linalg import lsq
 from analysis.identification.linalg.lsq import (
     qr_solve,
-    scaled_condition,
     stack_matrix,
     stack_vector,
-    weakest_column,
     whitened_lstsq,
     whitening,
 )
 from analysis.identification.noise import NoiseModel
-from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
-from analysis.identification.result import Fit
-from analysis.identification.streaming import per_test
 from analysis.identification.streaming.covariances import (
     covariances_per_test,
     per_test_covariance,
     whitening_per_test,
 )
 from analysis.identification.streaming.per_test import (
-    PerTestDesign,
-    PerTestJacobian,
     apply,
-    is_lazy,
 )
-from analysis.model.kinematics import jacobian
-from analysis.model.robot_model import RobotModel
 
-COND_LIMIT = 1e6
 #: refuse when the wrench noise attenuates some compliance by more than this fraction
 #: (:mod:`analysis.identification.corrections.wrench_eiv`; ~(sigma_w/|w|)^2: loads under ~5x the
 #: F/T noise)
 EIV_LIMIT = 0.05
-
-
-def check_tests(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...],
-                noise: NoiseModel | None = None, group: np.ndarray | None = None) -> None:
-    """Refuse data that cannot identify ``joints``; messages name the line, column or joint.
-
-    Poses are told apart by :mod:`analysis.identification.poses` (joint angles
-    equal to within the encoder noise of ``noise``); ``group``: the tests' pose groups
-    (:func:`~analysis.identification.poses.pose_groups`) if the caller has them.
-    """
-    if robot.n != 6:
-        raise InputError(f"{robot.name} has {robot.n} joints; the test format has 6")
-    for name, arr, cols in (("joint angles", tests.q, Q_COLS), ("wrench", tests.w, W_COLS)):
-        bad = ~np.isfinite(arr)
-        if np.any(bad):
-            i, j = np.argwhere(bad)[0]
-            raise InputError(f"line {tests.line[i]}, column {cols[j]}: {name} must be finite")
-    bad = np.isinf(tests.d) | (np.isnan(tests.d) & tests.measured)
-    if np.any(bad):
-        i, j = np.argwhere(bad)[0]
-        raise InputError(f"line {tests.line[i]}, component {COMPONENTS[j]}: displacement must "
-                         "be finite where measured")
-    zero = np.all(tests.w == 0.0, axis=1)
-    if np.any(zero):
-        i = int(np.flatnonzero(zero)[0])
-        raise InputError(f"line {tests.line[i]}, columns {', '.join(W_COLS)}: zero wrench; a "
-                         "test needs a load")
-    tol = 1e-9
-    out = (tests.q < robot.lower - tol) | (tests.q > robot.upper + tol)
-    if np.any(out):
-        i, j = np.argwhere(out)[0]
-        raise InputError(
-            f"line {tests.line[i]}, column {Q_COLS[j]}: {np.degrees(tests.q[i, j]):.3f} deg is "
-            f"outside the limits of {robot.name} [{np.degrees(robot.lower[j]):.1f}, "
-            f"{np.degrees(robot.upper[j]):.1f}] deg (model convention; a controller-angle mix-up?)",
-        )
-    n_eq = int(tests.measured.sum())
-    if n_eq < len(joints):
-        raise InputError(
-            f"{n_eq} measured displacement components for {len(joints)} unknown joint "
-            f"compliances: fewer equations than unknowns; add tests"
-        )
-    tol = pose_tolerance(noise)
-    n_poses = count_poses(tests.q, tol) if group is None else int(group.max(initial=-1)) + 1
-    if n_poses < 2:
-        raise InputError(
-            f"all {tests.m} tests (lines {tests.line[0]}..{tests.line[-1]}, columns "
-            f"{Q_COLS[0]}..{Q_COLS[-1]}) are at one pose (joint angles equal to within "
-            f"{np.degrees(tol):.2g} deg, {POSE_TOLERANCE_SIGMAS:g} encoder sigmas): errors of "
-            "the kinematic model and tool point cannot be told from compliance, and nothing "
-            "can be validated; measure at two poses or more"
-        )
-
-
-def jacobian_blocks(robot: RobotModel, q: np.ndarray):
-    """J(q) (m, 6, 6) of the tests' joint angles ``q`` (m, 6) (rad).
-
-    More than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS` tests: a
-    :class:`~analysis.identification.streaming.per_test.PerTestJacobian`, made block by block
-    when sliced (0.3 GB not held at 1e6 tests). An identification makes it once
-    (:attr:`analysis.identification.problem.IdentificationProblem.jacobian`) and passes
-    it to every fit of the same joint angles.
-    """
-    q = np.asarray(q, dtype=float)
-    if q.ndim == 2 and q.shape[0] > per_test.LAZY_TESTS:
-        return PerTestJacobian(robot, q)
-    # in blocks of tests: the chain state of many poses at once is ~2.6 kB per pose
-    J = np.empty((*q.shape[:-1], 6, q.shape[-1]))
-    for s in range(0, q.shape[0], lsq.TEST_BLOCK):
-        J[s:s + lsq.TEST_BLOCK] = jacobian(robot, q[s:s + lsq.TEST_BLOCK])
-    return J
-
-
-def _design(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...], J=None):
-    """J (m, 6, 6) and the design A (m, 6, p) of ``joints`` (zero rows where not measured).
-
-    A is filled block by block: no (m, 6, 6) temporaries beside J. For a large campaign
-    both are made when sliced (:mod:`analysis.identification.streaming.per_test`). ``J``: the
-    tests' :func:`jacobian_blocks` if the caller has it.
-    """
-    J = jacobian_blocks(robot, tests.q) if J is None else J
-    cols = list(joints)
-    if is_lazy(J):
-        return J, PerTestDesign(J, tests.w, tests.measured, cols)
-    A = np.empty((tests.m, 6, len(cols)))
-    for s in range(0, tests.m, lsq.TEST_BLOCK):
-        sl = slice(s, s + lsq.TEST_BLOCK)
-        A[sl] = design_block(J[sl], tests.w[sl])[..., cols] * tests.measured[sl, :, None]
-    return J, A
-
-
-def check_identifiable(
-    A: np.ndarray, joints: tuple[int, ...], cond_limit: float = COND_LIMIT
-) -> float:
-    """Condition number of the column-scaled A (m, 6, p); refuse naming the weakest joint."""
-    if is_lazy(A) or A.shape[0] * 6 > lsq.TALL_ROWS:
-        # one pass: the R of the tall A has its column norms and singular values (Householder
-        # QR's backward error is column-wise, so scaling after it loses nothing)
-        acc = lsq.TallR()
-        for s in range(0, A.shape[0], lsq.TEST_BLOCK):
-            acc.add(A[s:s + lsq.TEST_BLOCK].reshape(-1, A.shape[-1]))
-        stacked = acc.r()
-    else:
-        stacked = stack_matrix(A)
-    norms = np.linalg.norm(stacked, axis=0)
-    if np.any(norms == 0):
-        j = joints[int(np.flatnonzero(norms == 0)[0])]
-        raise InputError(
-            f"joint {j + 1} cannot be identified: no test moves the tool through it "
-            f"(its column of A is zero: no torque on joint {j + 1}, or no measured component "
-            "it moves); take it as rigid with --joints or add tests that load it",
-            where="--joints",
-        )
-    cond = float(scaled_condition(stacked))
-    if not cond <= cond_limit:
-        j = joints[weakest_column(stacked)]
-        raise InputError(
-            f"joint {j + 1} cannot be identified from these tests: the condition number of "
-            f"the column-scaled A is {cond:.3g} (limit {cond_limit:.0e}) and joint {j + 1} "
-            "dominates its null direction; take it as rigid with --joints or add poses",
-            where="--joints",
-        )
-    return cond
 
 
 def _covariances(noise: NoiseModel, J: np.ndarray, x_full: np.ndarray, measured,
@@ -245,15 +111,17 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
     WLS only: ``weights`` (m, 6) robust weights (:func:`_covariances`; ``cov`` of the
     result is then the weighted one), ``start`` (p,) compliances to evaluate the first
     weights at instead of the OLS estimate. ``eiv``: correct the bias of the wrench
-    noise in the regressor (:mod:`analysis.identification.corrections.wrench_eiv`). ``design``: (J,
-    A) of
-    :func:`_design` for these tests and joints, if the caller has them; else ``J``, the
-    tests' :func:`jacobian_blocks`, if the caller has it.
+    noise in the regressor (:mod:`analysis.identification.corrections.wrench_eiv`).
+    ``design``: (J, A) of
+    :func:`~analysis.identification.estimators.linear_model.tests_design` for these tests
+    and joints, if the caller has them; else ``J``, the tests'
+    :func:`~analysis.identification.estimators.linear_model.jacobian_blocks`, if the
+    caller has it.
     ``first_whitening``: a dict that receives ``x`` and ``Linv``, the compliances and
     the whitening of the first WLS pass (an exact fit started at the same x needs the
     same whitening first).
     """
-    J, A = _design(robot, tests, joints, J) if design is None else design
+    J, A = tests_design(robot, tests, joints, J) if design is None else design
     if weighted and start is not None:
         x = np.asarray(start, dtype=float)  # no OLS solve: the weights start at ``start``
     else:
@@ -303,7 +171,7 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     ``defer_shift``: ``predicted`` is left None, for the caller to make from ``A`` (the
     model Jacobian, whose blocks come with the model's values) and move by A eiv_shift in
     a pass of its own (``predicted_shifted`` False). ``J``: the tests'
-    :func:`jacobian_blocks` if the caller has it.
+    :func:`~analysis.identification.estimators.linear_model.jacobian_blocks` if the caller has it.
     """
     Linv0 = None
     if (first_whitening and weights is None
@@ -334,7 +202,8 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
 
 
 def fit(robot, tests, joints, noise, method, J=None) -> Fit:
-    """Fit by ``method`` (ols, wls, exact); ``J``: the tests' :func:`jacobian_blocks`."""
+    """Fit by ``method`` (ols, wls, exact); ``J``: the tests'
+    :func:`~analysis.identification.estimators.linear_model.jacobian_blocks`."""
     if method == "ols":
         return fit_linear(robot, tests, joints, noise, weighted=False, J=J)
     if method == "wls":

@@ -47,22 +47,22 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.corrections.wrench_eiv import wrench_eiv_matrix
+from analysis.identification.estimators.fit import Fit
 from analysis.identification.estimators.fitting import (
     _covariances,
-    _design,
     _full,
     _linear_estimator,
     _wrench_eiv,
     fit_exact,
     fit_linear,
 )
+from analysis.identification.estimators.linear_model import tests_design
 from analysis.identification.estimators.robust_covariance import (
     RobustCovariance,
     robust_covariance,
 )
 from analysis.identification.io.measurements import COMPONENTS, TestArrays
 from analysis.identification.linalg.lsq import sandwich
-from analysis.identification.result import Fit
 from analysis.identification.streaming.per_test import apply
 
 ROBUST_METHODS = ("none", "huber", "tukey")
@@ -201,7 +201,7 @@ def _sigma(noise, J, x_p, tests: TestArrays, joints) -> np.ndarray:
 def _weighted_fit(robot, tests: TestArrays, joints, noise, method, weights, start,
                   J) -> Fit:
     """One fit by ``method`` with ``weights`` (zero weights leave the fit); ``J``: the
-    tests' Jacobians (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`)."""
+    tests' Jacobians (:func:`~analysis.identification.estimators.linear_model.jacobian_blocks`)."""
     keep = tests.measured & (weights > 0)
     sub = TestArrays(tests.pose, tests.q, tests.w, np.where(keep, tests.d, np.nan), keep,
                      tests.line)
@@ -222,7 +222,7 @@ def _weighted_ols(robot, sub: TestArrays, joints, noise, w, J) -> Fit:
     components ``sub.measured``: min sum w e^2, i.e. W = diag(w), Linv = diag(sqrt w);
     corrected for the wrench noise in the regressor with that W, as OLS is. ``cov`` is the
     unweighted noise covariance."""
-    J, A = _design(robot, sub, joints, J)
+    J, A = tests_design(robot, sub, joints, J)
     Linv = np.sqrt(np.where(sub.measured, w, 0.0))[..., :, None] * np.eye(6)
     x, bread, Linv = _linear_estimator(A, sub.d, sub.measured, None, weighted=True, Linv=Linv)
     x, bread, shift = _wrench_eiv(noise, J, sub, joints, x, bread, Linv)
@@ -274,18 +274,18 @@ def _irls(robot, tests, joints, noise, method, weight_fn, c, x, weights, J, A_li
 
 def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method: str,
                robust: str, start: np.ndarray, J=None) -> RobustFit:
-    """Huber or Tukey IRLS around the fit ``method`` ("ols", "wls" or "exact") from ``start`` (p,).
+    """Huber or Tukey IRLS around the fit ``method`` (ols, wls or exact) from ``start`` (p,).
 
     See the module docstring for the weights, the scale and the covariance. ``J``: the
-    tests' Jacobians (:func:`~analysis.identification.estimators.fitting.jacobian_blocks`) if the
-    caller has them.
+    tests' Jacobians (:func:`~analysis.identification.estimators.linear_model.jacobian_blocks`) if
+    the caller has them.
     """
     if robust not in ("huber", "tukey"):
         raise InputError(f"unknown robust estimator {robust!r}: expected one of "
                          f"{', '.join(ROBUST_METHODS)}", where="--robust")
     if method not in ("ols", "wls", "exact"):
         raise InputError(f"unknown method {method!r} for a robust fit", where="--method")
-    J, A_lin = _design(robot, tests, joints, J)
+    J, A_lin = tests_design(robot, tests, joints, J)
     ones = np.ones(tests.measured.shape)
     x, weights, r, n_it = _irls(robot, tests, joints, noise, method, huber_weight, HUBER_C,
                                 np.asarray(start, dtype=float), ones, J, A_lin)

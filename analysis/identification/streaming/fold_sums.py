@@ -17,9 +17,9 @@ from analysis.identification.noise import NoiseModel
 class FoldSums:
     """Sums per fold of the rows of a whitened system, ``Z`` (b, 6, p) and ``r`` (b, 6) a
     block of tests at a time: ``gram`` = sum Z^T Z and ``held`` the folds' part of the
-    wrench errors-in-variables S (:mod:`analysis.identification.corrections.wrench_eiv`), both as
-    upper
-    triangles (P, p (p + 1) / 2) (:class:`PackedSym`), and ``score`` (P, p) = sum Z^T r."""
+    wrench errors-in-variables S (:mod:`analysis.identification.corrections.wrench_eiv`),
+    both as upper triangles (P, p (p + 1) / 2) (:class:`PackedSym`), and ``score``
+    (P, p) = sum Z^T r."""
 
     def __init__(self, n_folds: int, cols: list[int]) -> None:
         p = len(cols)

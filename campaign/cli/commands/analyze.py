@@ -11,13 +11,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table as RichTable
 
 from analysis.errors import InputError
 from campaign.cli.common import (
+    DEFAULT_METHOD,
+    DEFAULT_TRIALS,
     PANEL_NOISE,
     PANEL_OUTPUT,
     Covariance,
@@ -28,15 +29,20 @@ from campaign.cli.common import (
     print_wrapped,
     stage,
 )
-from campaign.jobs.analyze import (  # noqa: F401 (importable from here: tests, scripts)
-    DEFAULT_METHOD,
-    DEFAULT_TRIALS,
-    METHODS,
-    NOISE_OVERRIDES,
-    _noise_from_protocol,
-    _override_noise,
-)
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
+
+#: the job's names that tests and scripts import from here; looked up when asked for, so
+#: that importing this module (every ``campaign analyze --help``) does not import numpy
+_FROM_THE_JOB = ("METHODS", "NOISE_OVERRIDES", "_noise_from_protocol", "_override_noise")
+
+
+def __getattr__(name: str):
+    if name in _FROM_THE_JOB:
+        from campaign.jobs import analyze as job
+
+        return getattr(job, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 #: panels of --help (campaign.cli.common)
 _INPUT = "Input and tool point"
@@ -52,6 +58,8 @@ def _alias(value, old, name: str):
 
 
 def _print_assumptions(console: Console, a: dict) -> None:
+    import numpy as np
+
     n, t = a["noise"], a["tool_point"]
     console.print("[bold]Assumptions[/bold]")
     for line in (
@@ -75,6 +83,8 @@ def _print_assumptions(console: Console, a: dict) -> None:
 def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
     """The result's table, warnings (but the first ``printed``, on the terminal already)
     and files."""
+    import numpy as np
+
     from analysis.report.formatting import interval_kNm, k_kNm
 
     table = RichTable(title=f"{result.robot}: identified joint stiffness ({result.method})")
@@ -190,7 +200,9 @@ def register(app: typer.Typer) -> None:
         contradict) is refused unless --accept-misfit. A non-empty output directory
         (an earlier analysis) is refused unless --force, which replaces it as a whole.
         """
-        from campaign.jobs.analyze import AnalyzeOptions, run
+        import numpy as np
+
+        from campaign.jobs.analyze import NOISE_OVERRIDES, AnalyzeOptions, run
 
         typed = (_alias(translation_sigma_um, old_translation, "--translation-sigma-um"),
                  _alias(rotation_sigma_urad, old_rotation, "--rotation-sigma-urad"),

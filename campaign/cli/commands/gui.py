@@ -7,6 +7,16 @@ from pathlib import Path
 import typer
 
 
+def _announce(workspace: Path, url: str, cert) -> None:
+    """The start-up lines: what is served, the URL, and the certificate to check."""
+    typer.echo(f"campaign gui: serving {workspace.resolve()}\nopen {url}")
+    if cert is not None:
+        typer.echo(f"TLS certificate ({cert.source}) SHA-256 fingerprint:\n"
+                   f"  {cert.fingerprint}\n"
+                   "(check that your browser shows this fingerprint before you accept it)")
+    typer.echo("(Ctrl-C stops the server)")
+
+
 def register(app: typer.Typer) -> None:
     @app.command("gui")
     def gui(
@@ -17,13 +27,21 @@ def register(app: typer.Typer) -> None:
         host: str = typer.Option("127.0.0.1", help="Address to bind; not loopback only with "
                                  "--allow-remote and --password."),
         allow_remote: bool = typer.Option(False, "--allow-remote",
-                                          help="Allow a non-loopback --host."),
+                                          help="Remote access: a non-loopback --host, the "
+                                          "password, HTTPS only."),
         password: str = typer.Option(None, help="Password of /login for remote use."),
+        certfile: Path = typer.Option(None, "--certfile", help="TLS certificate (PEM) for "
+                                      "HTTPS; with --allow-remote and no certificate, a "
+                                      "self-signed one is made at start."),
+        keyfile: Path = typer.Option(None, "--keyfile", help="Private key (PEM) of "
+                                     "--certfile."),
     ) -> None:
         """Start the GUI on a local web server and print its URL with the access token.
 
         Every request needs the token (the URL sets a cookie); the server binds
         127.0.0.1 unless --host, --allow-remote and --password say otherwise.
+        Remote access is HTTPS only: --certfile/--keyfile, or a self-signed
+        certificate made at start whose SHA-256 fingerprint is printed.
         Ctrl-C stops it.
         """
         from campaign.web.security import new_token
@@ -31,7 +49,5 @@ def register(app: typer.Typer) -> None:
 
         options = GuiOptions(workspace=workspace, host=host, port=port,
                              open_browser=not no_browser, allow_remote=allow_remote,
-                             password=password)
-        serve(options, new_token(),
-              lambda url: typer.echo(f"campaign gui: serving {workspace.resolve()}\n"
-                                     f"open {url}\n(Ctrl-C stops the server)"))
+                             password=password, certfile=certfile, keyfile=keyfile)
+        serve(options, new_token(), lambda url, cert: _announce(workspace, url, cert))

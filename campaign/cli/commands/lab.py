@@ -16,6 +16,20 @@ import typer
 from analysis.errors import InputError
 
 
+def _ports(items: list[str]) -> dict[str, int]:
+    """``NAME=PORT`` items of ``--port`` as {driver name: port}."""
+    ports = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        try:
+            ports[name.strip()] = int(text)
+        except ValueError:
+            raise InputError(f"expected NAME=PORT, got {item!r}", where="--port") from None
+        if not sep or not name.strip():
+            raise InputError(f"expected NAME=PORT, got {item!r}", where="--port")
+    return ports
+
+
 def register(app: typer.Typer) -> None:
     """Add the ``lab`` command to ``app``."""
 
@@ -36,6 +50,9 @@ def register(app: typer.Typer) -> None:
         control_port: int = typer.Option(0, "--control-port", help="TCP port of the control "
                                          "channel on 127.0.0.1 (default: a free one); its "
                                          "addresses command lists the fakes."),
+        port: list[str] = typer.Option(  # noqa: B008 (typer's way of a repeatable option)
+            [], "--port", help="NAME=PORT: a fixed port of the fake NAME (emscon, geocom, "
+            "kuka-kvp, fanuc-rmi; the others take free ones); repeatable."),
     ) -> None:
         """Start fake instruments on loopback that speak the real protocols."""
         if not fake:
@@ -46,7 +63,7 @@ def register(app: typer.Typer) -> None:
 
         chosen = None if not instruments else instruments.split(",")
         sim = run(LabOptions(protocol, robot, seed, time_scale, chosen, can_interface,
-                             control_port))
+                             control_port, _ports(port)))
         with sim:
             try:
                 for name, url in sim.addresses.items():

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 from rich.console import Console
 
@@ -60,6 +59,8 @@ def register(app: typer.Typer) -> None:
             rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Maps like the paper's Figs. 3 and 5: data table and PNG plots."""
+        import numpy as np
+
         from campaign.jobs.maps import MapsOptions, run
 
         def rad(text: str | None, where: str) -> list[float] | None:

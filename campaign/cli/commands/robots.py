@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -24,6 +23,8 @@ def _listing(console: Console, robots: list[dict]) -> None:
 
 
 def _model(console: Console, r: dict) -> None:
+    import numpy as np
+
     table = Table(title=escape(f"{r['name']} ({r['source_file']})"),
                   caption="angles in the model convention; pendant angle = sign q + "
                   "offset (+ coupling)")

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from analysis.errors import InputError
 from campaign.cli.common import (
+    DEFAULT_METHOD,
     PANEL_NOISE,
     PANEL_OUTPUT,
     PANEL_ROBOT,
@@ -19,7 +19,6 @@ from campaign.cli.common import (
     print_json,
     print_wrapped,
 )
-from campaign.jobs.analyze import DEFAULT_METHOD
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
 
@@ -123,6 +122,8 @@ def register(app: typer.Typer) -> None:
         come from the nonlinear equilibrium; normal noise on displacement,
         wrench and joint angles; identification as in the paper (eqs. 16-21).
         """
+        import numpy as np
+
         from campaign.cli.commands.analyze import _alias
         from campaign.jobs.robustness import RobustnessOptions, run
 

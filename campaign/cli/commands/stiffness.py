@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import json
+from typing import TYPE_CHECKING
 
-import numpy as np
 import typer
 from rich.console import Console
 
 from campaign.cli.common import print_wrapped
 from campaign.numbers_text import matrix_lines, vector_text
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def _matrix(console: Console, title: str, M: np.ndarray, unit: str) -> None:
@@ -42,6 +45,8 @@ def register(app: typer.Typer) -> None:
             False, "--ignore-limits", help="Accept joint angles outside the robot's limits."),
     ) -> None:
         """Kinematic Jacobian, K_C (eq. 8), K_X with and without K_C (eqs. 6, 12), deflection."""
+        import numpy as np
+
         from campaign.jobs.stiffness import StiffnessOptions, run
 
         res = run(StiffnessOptions(
@@ -59,6 +64,8 @@ def register(app: typer.Typer) -> None:
 
 def _present(res) -> None:
     """The text summary of a :class:`campaign.jobs.stiffness.StiffnessResult`."""
+    import numpy as np
+
     from analysis.report.formatting import k_kNm
 
     qr, k, w = np.array(res.q_rad), np.array(res.joint_stiffness_Nm_per_rad), \
@@ -91,6 +98,8 @@ def _present(res) -> None:
 
 def _present_intervals(console: Console, u: dict) -> None:
     """The 95 % intervals of an identified model (delta method)."""
+    import numpy as np
+
     lo = np.array(u["deflection_nonlinear_lo95_m_rad"])
     hi = np.array(u["deflection_nonlinear_hi95_m_rad"])
     console.print("[bold]95 % intervals[/bold] (identified model, delta method)")

@@ -19,7 +19,7 @@
   async function get(url) {
     const r = await fetch(url, { credentials: "same-origin" });
     const d = await r.json();
-    if (!r.ok) throw new Error(d.detail || r.statusText);
+    if (!r.ok) throw Object.assign(new Error(d.detail || r.statusText), { status: r.status });
     return d;
   }
 
@@ -52,7 +52,7 @@
       cursor: { drag: { x: true, y: true, uni: 30 }, points: { show: false } },
       axes: [{ label: `theta${map.axes[0]} (deg, model convention)` },
              { label: `theta${map.axes[1]} (deg, model convention)`, size: 60 }],
-      hooks: { draw: [drawZones], setCursor: [hover] },
+      hooks: { drawClear: [drawGrid], draw: [drawZones], setCursor: [hover] },
     };
     m.plot = new uPlot(opts, data(), el("acq-map"));
     el("acq-map").dataset.candidates = String(map.candidates.count);
@@ -69,6 +69,39 @@
     }
     cols.push(m.points.map((p) => (p.kind === "chosen" && chosen[p.i].pose === m.current ? p.y : null)));
     return n ? cols : cols.map(() => []);
+  }
+
+  // the background: 1/kappa_F of J_N over (theta2, theta3), grey from dark (0) to light
+  // (its largest value on the grid), as plan_map.png shades it
+  function drawGrid(u) {
+    const g = m.map.grid;
+    if (!g) return;
+    const ctx = u.ctx, t2 = g.theta2_deg, t3 = g.theta3_deg;
+    const top = Math.max(...g.inv_kappa.map((row) => Math.max(...row)));
+    const edge = (t, i) => (i === 0 ? t[0] : i === t.length ? t[t.length - 1] : (t[i - 1] + t[i]) / 2);
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(u.bbox.left, u.bbox.top, u.bbox.width, u.bbox.height);
+    ctx.clip();
+    for (let i3 = 0; i3 < t3.length; i3++) {
+      const y0 = u.valToPos(edge(t3, i3), "y", true), y1 = u.valToPos(edge(t3, i3 + 1), "y", true);
+      for (let i2 = 0; i2 < t2.length; i2++) {
+        const x0 = u.valToPos(edge(t2, i2), "x", true), x1 = u.valToPos(edge(t2, i2 + 1), "x", true);
+        const level = Math.round(70 + 180 * g.inv_kappa[i3][i2] / top);
+        ctx.fillStyle = `rgb(${level},${level},${level})`;
+        ctx.fillRect(Math.min(x0, x1), Math.min(y0, y1), Math.abs(x1 - x0) + 1, Math.abs(y1 - y0) + 1);
+      }
+    }
+    ctx.restore();
+  }
+
+  function kappaAt(u, left, top) {  // 1/kappa_F of the grid point nearest the cursor
+    const g = m.map.grid;
+    if (!g) return "";
+    const a = u.posToVal(left, "x"), b = u.posToVal(top, "y");
+    const near = (t, v) => t.reduce((best, x, i) => (Math.abs(x - v) < Math.abs(t[best] - v) ? i : best), 0);
+    const i2 = near(g.theta2_deg, a), i3 = near(g.theta3_deg, b);
+    return `theta2 ${a.toFixed(1)} deg, theta3 ${b.toFixed(1)} deg: 1/kappa_F ${g.inv_kappa[i3][i2].toFixed(3)}`;
   }
 
   function drawZones(u) {
@@ -118,7 +151,7 @@
       const d = Math.hypot(u.valToPos(q[a][i], "x") - left, u.valToPos(q[b][i], "y") - top);
       if (d < dist) { dist = d; near = i; }
     }
-    info.textContent = near < 0 ? "" :
+    info.textContent = near < 0 ? kappaAt(u, left, top) :
       `candidate: q1..q6 = ${vec(q.map((col) => col[near]), 3)} deg`;
   }
 
@@ -133,10 +166,16 @@
       m.status = {};
       build(map);
       el("acq-map-note").textContent = `${map.robot}: ${map.chosen.length} planned poses, ` +
-        `${map.candidates.count} candidates passing the thresholds` + (map.note ? `; ${map.note}` : "");
+        `${map.candidates.count} candidates passing the thresholds` +
+        (map.grid ? `; background 1/kappa_F (dark 0, light ${Math.max(...map.grid.inv_kappa.map((r) => Math.max(...r))).toFixed(2)}) ` +
+          `at ${map.grid.fixed_text} (${map.grid.rule_text})` : "") + (map.note ? `; ${map.note}` : "");
     } catch (err) {
       // a run directory appears whole a moment after its start: tried again next state
-      if (m.key === key) { m.key = null; el("acq-map-note").textContent = `zone map: ${err.message}`; }
+      if (m.key === key) {
+        m.key = null;
+        el("acq-map-note").textContent = err.status === 404 ? "zone map: waiting for the run " +
+          "directory (it appears whole once the acquisition has checked its plan)" : `zone map: ${err.message}`;
+      }
     }
   }
 

@@ -86,7 +86,8 @@
           `row ${i + 1}: test ${res.test[i]}, pose ${res.pose[i]}, ${res.component[i]}: studentized ` +
           `${fmt(res.studentized[i], 3)}, residual ${micro(res.residual[i], res.unit[i])} ` +
           `(sigma ${micro(res.sigma[i], res.unit[i])})` + (res.outlier[i] ? ", OUTLIER" : "") +
-          (res.set_aside[i] ? ", set aside" : "");
+          (res.set_aside[i] ? ", set aside" : "") +
+          (res.weight[i] === null ? "" : `, robust weight ${fmt(res.weight[i], 3)}`);
       }] },
     };
     if (ap.res) ap.res.destroy();

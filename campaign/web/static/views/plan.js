@@ -257,6 +257,7 @@ async function planRun(saveOnly) {
     document.body.dataset.plan = "error";
     return;
   }
+  pvAddSource(d.protocol);
   if (saveOnly) {
     pvEl("plan-status").textContent = `saved ${d.protocol}; the protocol reader accepts it`;
     document.body.dataset.plan = "saved";
@@ -272,6 +273,7 @@ function planShow(d) {
   pvEl("plan-status").textContent = `${s.tests} tests at ${s.poses} poses of ${s.robot} ` +
     `(${s.strategy}, ${s.candidates.poses_passing} of ${s.candidates.drawn} candidates pass); ` +
     `saved ${d.protocol} and ${d.out}/`;
+  pvEl("plan-error").textContent = (d.warnings || []).map((w) => `warning: ${w}`).join("\n");
   const tb = document.querySelector("#plan-se tbody");
   tb.innerHTML = "";
   for (const j of s.predicted_standard_errors) {
@@ -331,6 +333,35 @@ function planPlotSe(s) {
   }, data);
 }
 
+const MAP_KINDS = ["", "candidate passing the thresholds", "candidate rejected",
+  "random zone design", "chosen pose"];
+
+function planMapHover(u, pts, m) {
+  // the point nearest the cursor on screen, whatever its series (hidden series skipped)
+  const out = pvEl("plan-map-hover");
+  const { left, top } = u.cursor;
+  if (left === undefined || left < 0) { out.textContent = ""; return; }
+  // nearest per kind; a chosen (then random) pose under the cursor wins over the
+  // candidate drawn at the same place (every pose of a design is a candidate)
+  const near = [null, null, null, null, null], dist = [225, 225, 225, 225, 225];
+  for (const p of pts) {
+    if (!u.series[p[1]].show) continue;
+    const dx = u.valToPos(p[0], "x") - left, dy = u.valToPos(p[2], "y") - top;
+    const d = dx * dx + dy * dy;
+    if (d < dist[p[1]]) { dist[p[1]] = d; near[p[1]] = p; }
+  }
+  let best = [4, 3].map((k) => (dist[k] <= 36 ? near[k] : null)).find((p) => p);
+  if (!best) {
+    const k = [1, 2, 3, 4].filter((i) => near[i]).sort((a, b) => dist[a] - dist[b])[0];
+    best = k === undefined ? null : near[k];
+  }
+  if (!best) { out.textContent = ""; return; }
+  const what = best[1] === 4 ? `chosen pose ${best[3] + 1}, tests ${m.chosen.tests[best[3]].join(", ")}`
+    : MAP_KINDS[best[1]];
+  out.textContent = `${what}: \u03b8\u2082 = ${best[0].toFixed(3)} deg, ` +
+    `\u03b8\u2083 = ${best[2].toFixed(3)} deg (model convention)`;
+}
+
 function planPlotMap(m) {
   // one x array for every series (uPlot's aligned data): candidates, chosen, random
   // poses sorted by theta_2, each series null where the point is another series'
@@ -381,7 +412,7 @@ function planPlotMap(m) {
     width: 760, height: 520, mode: 1,
     scales: { x: { time: false, range: [lo2, hi2] }, y: { range: [lo3, hi3] } },
     cursor: { drag: { x: true, y: true, uni: 20 } },
-    hooks: { drawClear: [drawGrid] },
+    hooks: { drawClear: [drawGrid], setCursor: [(u) => planMapHover(u, pts, m)] },
     series: [{ label: "\u03b8\u2082 (deg, model)", value: (u, v) => fmt(v) },
       { label: `candidates passing the thresholds (${passing})`, stroke: "#17becf", width: 0, paths: () => null,
         points: { show: true, size: 3, fill: "#17becf", width: 0 }, value: (u, v) => fmt(v) },
@@ -476,14 +507,18 @@ async function anRun() {
   document.body.dataset.analyze = "done";
 }
 
+function pvAddSource(name) {
+  // a protocol to start from: shipped, or a workspace file (the one just saved, too)
+  if ([...pvEl("plan-source").options].some((o) => o.value === name)) return;
+  const o = document.createElement("option"); o.value = name; o.textContent = name;
+  pvEl("plan-source").appendChild(o);
+}
+
 async function pvStart() {
   const s = await (await fetch("/api/session", { credentials: "same-origin" })).json();
   pv.csrf = s.csrf_token; pv.header = s.csrf_header;
   const p = await (await fetch("/api/plan/protocols", { credentials: "same-origin" })).json();
-  for (const name of [...p.shipped, ...p.workspace]) {
-    const o = document.createElement("option"); o.value = name; o.textContent = name;
-    pvEl("plan-source").appendChild(o);
-  }
+  for (const name of [...p.shipped, ...p.workspace]) pvAddSource(name);
   pvEl("plan-source").value = "kr240-2.toml";
   for (const name of p.strategies) {
     const o = document.createElement("option"); o.value = name; o.textContent = name;
