@@ -238,7 +238,13 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
     rng = np.random.default_rng(o.seed + 1)
     sim = simulate_campaigns(robot, q, w, k, noise, 1, o.trials, rng)
     with np.errstate(all="ignore"):
-        x = identify_campaigns(robot, sim, noise, 1.0 / k, o.method)  # (T, n)
+        try:
+            x = identify_campaigns(robot, sim, noise, 1.0 / k, o.method)  # (T, n)
+        except np.linalg.LinAlgError:  # wls/exact whiten by the rows' noise covariance
+            raise InputError(f"{o.method} weights each test by the inverse of its noise "
+                             "covariance, which is singular at these settings (zero noise "
+                             "on every source of a measured component); give a nonzero "
+                             "tracker or F/T noise, or use ols", where="method") from None
         ok = np.isfinite(x) & (x > 0)
         kk = np.where(ok, 1.0 / np.where(ok, x, 1.0), np.nan)
     se = curve[o.n_tests - 1] * k

@@ -185,18 +185,24 @@ def greedy_exchange(
         M = M + F[best]
         free &= ~blocked(group, [best], sep)
     current = float(criterion(M, kind))
+    # what each chosen candidate blocks, and how many chosen block each candidate: a slot's
+    # allowed set is then O(N) (the others' union without recomputing their distances)
+    masks = [blocked(group, [c], sep) for c in chosen]
+    count = np.sum(masks, axis=0, dtype=np.int64)
     for _ in range(max_passes):
         improved = False
         for slot in range(n):
             base = M - F[chosen[slot]]
-            others = [c for j, c in enumerate(chosen) if j != slot]
-            allowed = ~blocked(group, others, sep) if others else np.ones(len(F), bool)
+            allowed = (count - masks[slot]) == 0
             best, score = _best(base, F, allowed, kind)
             if score > current + rel_tol * max(1.0, abs(current)):
                 chosen[slot] = best
                 M = base + F[best]
                 current = score
                 improved = True
+                count -= masks[slot]
+                masks[slot] = blocked(group, [best], sep)
+                count += masks[slot]
         if not improved:
             break
     return np.sort(np.array(chosen, dtype=int))

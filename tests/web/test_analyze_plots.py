@@ -23,11 +23,11 @@ def analysed(tmp_path_factory) -> Path:
     """A workspace with a run of 6 KR240-2 tests on the simulated lab, analysed (ols)."""
     import pandas as pd
 
-    from campaign.cli.common import Method
     from campaign.jobs.acquire import AcquireJobOptions
     from campaign.jobs.acquire import run as acquire
     from campaign.jobs.analyze import AnalyzeOptions
     from campaign.jobs.analyze import run as analyze
+    from campaign.jobs.choices import Method
     from campaign.planning.planner import make_plan, write_plan
     from campaign.protocol import load_protocol
 
