@@ -160,6 +160,8 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
     if problem.large:
         per_test.release_freed_heap()  # the fit's freed pages, before the validation
     corr = _linear_bias(problem, outcome) if est.linearised else None
+    if outcome.robust is not None:
+        outcome = _with_robust_covariance(outcome, corr)
     # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
     # start for the held-out tests) are let go before the per-test statistics are made
     validation = _validation(problem, outcome, corr)
@@ -185,6 +187,21 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
     warnings += notes
     return _result(problem, outcome, stats, iv, cond, residuals, rows, threshold, validation,
                    warnings)
+
+
+def _with_robust_covariance(outcome, corr):
+    """``outcome`` with its robust fit's sandwich covariance made
+    (:mod:`analysis.identification.estimators.robust_covariance`), on residuals free of the
+    linear model's deterministic misfit f(x_c) - A x_c where its bias correction is
+    reliable."""
+    from dataclasses import replace
+
+    from analysis.identification.streaming.per_test import apply
+
+    misfit = None
+    if corr is not None and corr.reliable:
+        misfit = corr.predicted - apply(outcome.fit.A, corr.x)
+    return replace(outcome, robust=outcome.robust.with_covariance(misfit))
 
 
 def _checked(problem: IdentificationProblem) -> tuple[float, list[str]]:

@@ -58,6 +58,12 @@ def reported_intervals(problem, outcome, stats, corr) -> Intervals:
         scale = stats.chi2_reduced
         crit = critical_value(options.confidence, stats.dof)
     cov_x = stats.cov_x * scale
+    if outcome.robust is not None:
+        # the M-estimator's sandwich, estimated from the tests' scores (not scaled by the
+        # chi-square); its G scores give the interval G - p degrees of freedom
+        # (analysis.identification.estimators.robust_covariance)
+        crit = critical_value(options.confidence, outcome.robust.covariance.dof)
+        cov_x = outcome.robust.covariance.cov
     se_x = np.sqrt(np.diag(cov_x))
     x_out = chosen.x  # the raw linear estimate for ols/wls (the outlier refits start there)
     bias = None

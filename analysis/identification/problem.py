@@ -63,9 +63,6 @@ class IdentifyOptions:
         if self.robust not in ROBUST_METHODS:
             raise InputError(f"unknown robust estimator {self.robust!r}: expected one of "
                              f"{', '.join(ROBUST_METHODS)}", where="--robust")
-        if self.robust != "none" and self.method == "ols":
-            raise InputError("robust fitting weights the residuals whitened by the noise "
-                             "model: use --method exact (or wls), not ols", where="--robust")
 
     @property
     def radius(self) -> float:

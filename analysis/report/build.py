@@ -235,7 +235,10 @@ def robust_blocks(result: IdentificationResult) -> list:
         return []
     text = (f"Robust fit: {rob['method']} IRLS, c = {rob['constant']:g} on residuals whitened "
             f"by the noise model's sigma (scale 1), {rob['iterations']} reweighting "
-            "iterations; covariance of the weighted fit with the final weights fixed.")
+            "iterations; covariance: the M-estimator sandwich clustered by test (cluster "
+            "jackknife), intervals with Student t"
+            + (f" ({rob['covariance']['degrees_of_freedom']} degrees of freedom)."
+               if rob.get("covariance") else "."))
     if not rob["down_weighted"]:
         return [Paragraph(f"{text} No component down-weighted below "
                           f"{rob['reported_below_weight']:g}.")]

@@ -6,13 +6,17 @@ component, F/T 0.5 N + 0.5 % of reading (``_coverage.NOISE``). With 1000 campaig
 binomial standard error of a 95 % coverage is 0.69 %, so 95 +- 3 % is resolved.
 
     PYTHONPATH=. python -m tests.quality.coverage_study [--trials 1000] [--seed 3]
-    PYTHONPATH=. python -m tests.quality.coverage_study --robust [--methods wls exact]
+    PYTHONPATH=. python -m tests.quality.coverage_study --robust [--methods ols wls exact]
+        [--exact-trials 1000] [--write-docs]
 
 The first prints the table of ols, wls and exact at the nominal loads and twice them;
-``--robust`` the table of Huber and Tukey around wls and exact, on clean campaigns and
-on campaigns with glitches (``_coverage.Glitches``: 10 % of the tests with one gross
+``--robust`` the table of Huber and Tukey around ols, wls and exact, on clean campaigns
+and on campaigns with glitches (``_coverage.Glitches``: 10 % of the tests with one gross
 tracker or F/T error of 20 sigma). Each prints a Markdown table (the ones in
 docs/identification.md) and one JSON line; exit 1 if a cell misses 95 +- 3 %.
+``--write-docs`` puts the robust table's rows into docs/identification.md (between the
+``robust-coverage`` markers; rows of the fits not rerun are kept), so a study split
+over runs (``--methods exact`` alone) fills the same table.
 """
 
 from __future__ import annotations
@@ -29,7 +33,13 @@ from tests.quality._own_robot import write_protocol
 
 METHODS = ("ols", "wls", "exact")
 ROBUST = ("huber", "tukey")
-ROBUST_METHODS = ("wls", "exact")
+ROBUST_METHODS = ("ols", "wls", "exact")
+#: the robust table in docs/identification.md, between these lines
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "identification.md"
+BEGIN, END = "<!-- robust-coverage: begin -->", "<!-- robust-coverage: end -->"
+HEADER = ("| fit | campaigns | clean, nominal loads: coverage k1..k6 (%) | clean, twice the "
+          "loads | glitches, nominal loads | glitches, twice the loads |\n"
+          "| --- | --- | --- | --- | --- | --- |")
 SCALES = (1.0, 2.0)
 #: (label, glitches) of the robust table's data
 DATA = (("clean", None), ("glitches", Glitches()))
@@ -43,21 +53,25 @@ def study(trials: int, seed: int) -> dict:
                 for m in METHODS}
 
 
-def robust_study(trials: int, seed: int, methods=ROBUST_METHODS) -> dict:
-    """{"huber (wls)": {"clean x1": (coverage (6,), given), ...}, ...} of the robust fits."""
+def robust_study(trials: int, seed: int, methods=ROBUST_METHODS,
+                 exact_trials: int | None = None, modes=ROBUST) -> dict:
+    """{"huber (wls)": {"clean x1": (coverage (6,), given), ...}, ...} of the robust fits;
+    ``exact_trials`` campaigns per cell for exact (``trials`` if None)."""
     with tempfile.TemporaryDirectory() as tmp:
         robot, q, W, k = campaign_setup(write_protocol(Path(tmp)))
     out = {}
     for m in methods:
-        for r in ROBUST:
+        n = trials if m != "exact" or exact_trials is None else exact_trials
+        for r in modes:
             row = out[f"{r} ({m})"] = {}
             for label, g in DATA:
                 for s in SCALES:
-                    row[f"{label} x{s:g}"] = coverage(robot, q, W, k, m, s, trials, seed=seed,
+                    row[f"{label} x{s:g}"] = coverage(robot, q, W, k, m, s, n, seed=seed,
                                                       robust=r, glitches=g)
-                    print(f"# {r} ({m}) {label} x{s:g}: "
-                          + " ".join(f"{100 * c:.1f}" for c in row[f"{label} x{s:g}"][0]),
-                          file=sys.stderr, flush=True)
+                    cov, given = row[f"{label} x{s:g}"]
+                    print(f"# {r} ({m}) {label} x{s:g}: " + " ".join(f"{100 * c:.1f}"
+                                                                    for c in cov)
+                          + f" ({given} of {n} given)", file=sys.stderr, flush=True)
     return out
 
 
@@ -65,6 +79,20 @@ def _cell(cov, given, trials) -> str:
     refused = trials - given
     return (" ".join(f"{100 * c:.1f}" for c in cov)
             + (f" ({refused} refused)" if refused else ""))
+
+
+def write_docs(rows: dict[str, str], path: Path = DOCS) -> None:
+    """Replace (or add) the rows {fit name: Markdown row} of the robust table in ``path``;
+    rows of other fits are kept, in the order methods x robust modes."""
+    text = path.read_text()
+    head, rest = text.split(BEGIN + "\n", 1)
+    table, tail = rest.split(END, 1)
+    old = {line.split("|")[1].strip().strip("`"): line for line in table.splitlines()
+           if line.startswith("| `")}
+    old.update(rows)
+    order = [f"{r} ({m})" for m in ROBUST_METHODS for r in ROBUST]
+    body = "\n".join(old[name] for name in order if name in old)
+    path.write_text(f"{head}{BEGIN}\n{HEADER}\n{body}\n{END}{tail}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -75,22 +103,33 @@ def main(argv: list[str] | None = None) -> int:
                     help="the robust fits (huber, tukey) on clean data and with glitches")
     ap.add_argument("--methods", nargs="+", choices=ROBUST_METHODS, default=ROBUST_METHODS,
                     help="with --robust: the fits the robust ones reweight")
+    ap.add_argument("--modes", nargs="+", choices=ROBUST, default=ROBUST,
+                    help="with --robust: the robust modes to run")
+    ap.add_argument("--exact-trials", type=int, default=None,
+                    help="with --robust: campaigns per cell for exact (default --trials)")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="with --robust: put the rows into docs/identification.md")
     args = ap.parse_args(argv)
     t0 = time.process_time()
     out = {}
     if args.robust:
-        res = robust_study(args.trials, args.seed, tuple(args.methods))
+        res = robust_study(args.trials, args.seed, tuple(args.methods), args.exact_trials,
+                           tuple(args.modes))
         cols = [f"{label} x{s:g}" for label, _ in DATA for s in SCALES]
-        print("| fit | clean, nominal loads: coverage k1..k6 (%) | clean, twice the loads | "
-              "glitches, nominal loads | glitches, twice the loads |")
-        print("| --- | --- | --- | --- | --- |")
+        print(HEADER)
+        rows = {}
         for name, row in res.items():
-            print(f"| `{name}` | " + " | ".join(_cell(*row[c], args.trials) for c in cols)
-                  + " |")
+            n = (args.exact_trials if name.endswith("(exact)") and args.exact_trials
+                 else args.trials)
+            rows[name] = (f"| `{name}` | {n} | "
+                          + " | ".join(_cell(*row[c], n) for c in cols) + " |")
+            print(rows[name])
             for c in cols:
                 cov, given = row[c]
                 out[f"{name} {c}"] = {"coverage": [round(float(v), 4) for v in cov],
                                       "given": given}
+        if args.write_docs:
+            write_docs(rows)
     else:
         res = study(args.trials, args.seed)
         print("| method | nominal loads: coverage k1..k6 (%) | twice the loads (%) |")

@@ -3,8 +3,8 @@
 Same seeded Monte-Carlo as the Gaussian fits' (``_coverage.py``: the test-written 6R arm,
 5 poses x 3 load cases, tracker 30 um / 40 urad, F/T 0.5 N + 0.5 % of reading); glitches
 (``_coverage.Glitches``): each test with probability 0.1 has one gross error of 20 sigma,
-on a tracker component or on an F/T component. The table of 1000 campaigns per cell is in
-docs/identification.md (``python -m tests.quality.coverage_study --robust``).
+on a tracker component or on an F/T component. The table is in docs/identification.md
+(``python -m tests.quality.coverage_study --robust --write-docs``).
 """
 
 from __future__ import annotations
@@ -56,40 +56,66 @@ def test_glitches_break_the_gaussian_fit(setup):
     assert np.all(cov < 0.9), cov
 
 
-#: glitched campaigns: the measured miss (1000 campaigns per cell, docs/identification.md:
-#: 88-96 %, the intervals too narrow by the glitches' remaining influence); the quick test
-#: holds the line at 95 - 8 % (4.5 binomial sd of 150 campaigns below the worst cell's 88 %
-#: would be 80 %; 87 % fails a regression of a few points)
-GLITCHED_FLOOR = 0.87
-
-
 @pytest.mark.parametrize("robust", ["huber", "tukey"])
-def test_robust_coverage_quick(setup, robust):
-    """Robust wls, nominal loads: clean 95 +- 5 % per joint; glitched >= 87 % (150 each)."""
+@pytest.mark.parametrize(("method", "scale", "glitches"), [
+    ("wls", 1.0, None), ("wls", 2.0, Glitches()), ("ols", 1.0, Glitches())],
+    ids=["wls-clean-x1", "wls-glitches-x2", "ols-glitches-x1"])
+def test_robust_coverage_quick(setup, robust, method, scale, glitches):
+    """Robust fits (sandwich covariance, Student t): 95 +- 5 % per joint (150 each)."""
     robot, q, W, k = setup
-    cov, given = coverage(robot, q, W, k, "wls", 1.0, QUICK_TRIALS, seed=5, robust=robust)
-    assert given == QUICK_TRIALS
+    cov, given = coverage(robot, q, W, k, method, scale, QUICK_TRIALS, seed=5, robust=robust,
+                          glitches=glitches)
+    # a campaign may be refused (the reweighting not contracting, an unreliable
+    # linearisation-bias correction): not counted; measured 0-2 of 150
+    assert given >= 0.97 * QUICK_TRIALS
     assert np.all(np.abs(cov - 0.95) <= QUICK_TOL), cov
-    cov, given = coverage(robot, q, W, k, "wls", 1.0, QUICK_TRIALS, seed=5, robust=robust,
-                          glitches=Glitches())
-    # a glitched campaign may be refused (identify's InputError or an unreliable
-    # linearisation-bias correction): not counted
-    assert given >= 0.95 * QUICK_TRIALS
-    assert np.all(cov >= GLITCHED_FLOOR) and np.all(cov <= 0.95 + QUICK_TOL), cov
+
+
+def test_slow_reweighting_settles(setup):
+    """Campaign 9 of the seeded study (seed 3, twice the loads, clean), which the old
+    50-iteration limit refused: Tukey's reweighting contracts at ~0.84 per iteration and
+    settles in 106 (Huber + Tukey) iterations."""
+    from analysis.identification.estimate import identify
+    from analysis.identification.io.measurements import TestArrays
+    from analysis.kinetostatics.equilibrium import displacement_screw
+    from tests.quality._coverage import NOISE
+
+    robot, q, W, k = setup
+    qq = np.repeat(q, len(W), axis=0)
+    ww = np.tile(2.0 * W, (len(q), 1))
+    d = displacement_screw(robot, qq, k, ww)
+    rng = np.random.default_rng(3)
+    for _ in range(9):  # the draws of coverage(..., seed=3), campaign 9
+        wm = ww + rng.normal(size=ww.shape) * NOISE.wrench_sigma_at(ww)
+        dm = d + rng.normal(size=d.shape) * NOISE.displacement_sigma
+        qm = qq + rng.normal(size=qq.shape) * NOISE.joint_sigma
+    tests = TestArrays(pose=np.repeat([f"P{i}" for i in range(len(q))], len(W)), q=qm, w=wm,
+                       d=dm, measured=np.ones(d.shape, bool), line=np.arange(len(qq)) + 2)
+    res = identify(robot, tests, method="wls", noise=NOISE, validate=False, robust="tukey")
+    assert res.robust["iterations"] > 2 * 50  # beyond both estimators' old limits
+    assert np.all((res.ci[:, 0] <= k) & (k <= res.ci[:, 1]))
+
+
+#: campaigns per cell of the slow version: the table's (exact: 400, 0.15 s of CPU each)
+SLOW_TRIALS = {"ols": 1000, "wls": 1000, "exact": 400}
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("glitches", [None, pytest.param(Glitches(), marks=pytest.mark.xfail(
-    reason="robust intervals too narrow with glitches (docs/identification.md)"))],
-    ids=["clean", "glitches"])
+@pytest.mark.parametrize("glitches", [None, Glitches()], ids=["clean", "glitches"])
 @pytest.mark.parametrize("scale", [1.0, 2.0])
-@pytest.mark.parametrize("method", ["wls", "exact"])
+@pytest.mark.parametrize("method", ["ols", "wls", "exact"])
 @pytest.mark.parametrize("robust", ["huber", "tukey"])
-def test_robust_coverage_every_cell(setup, robust, method, scale, glitches):
-    """The table's cells (1000 campaigns, binomial sd 0.69 %): 95 +- 3 % per joint."""
+def test_robust_coverage_every_cell(setup, robust, method, scale, glitches, request):
+    """The table's cells (1000 campaigns, binomial sd 0.69 %; exact 400, 1.1 %):
+    95 +- 3 % per joint."""
+    if method == "ols" and scale == 2.0:
+        request.applymarker(pytest.mark.xfail(
+            reason="robust ols at twice the loads over-covers k2, k3, k6 (97-99.5 % at 400 "
+                   "campaigns, docs/identification.md): its sandwich is too wide there"))
     robot, q, W, k = setup
-    cov, given = coverage(robot, q, W, k, method, scale, 1000, seed=3, robust=robust,
+    n = SLOW_TRIALS[method]
+    cov, given = coverage(robot, q, W, k, method, scale, n, seed=3, robust=robust,
                           glitches=glitches)
-    # wls at twice the loads: 1-4 % refused (the reweighting does not settle in 50 iterations)
-    assert given >= 950
+    # refused: the reweighting not contracting (glitched Tukey at 2x: ~1 %)
+    assert given >= 0.97 * n
     assert np.all(np.abs(cov - 0.95) <= 0.03), cov

@@ -3,5 +3,5 @@
 ``base`` (the :class:`~analysis.identification.estimators.base.Estimator` protocol and
 its outcome, :class:`~analysis.identification.estimators.base.EstimatorFit`), ``ols``,
 ``wls``, ``exact`` (the Gaussian fits), ``huber`` and ``tukey`` (the robust modes, IRLS
-around wls or exact), ``registry`` (an estimator by name).
+around ols, wls or exact), ``registry`` (an estimator by name).
 """

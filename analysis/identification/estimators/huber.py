@@ -1,4 +1,4 @@
-"""The Huber robust mode: IRLS with Huber's weights around wls or exact.
+"""The Huber robust mode: IRLS with Huber's weights around ols, wls or exact.
 
 Huber's weights (min(1, c/|r|), c = 1.345) keep every component in the fit
 at a reduced weight (:mod:`analysis.identification.estimators.irls`).
@@ -14,7 +14,7 @@ from analysis.identification.estimators.robust_mode import robust_refit
 
 @dataclass(frozen=True)
 class Huber:
-    """Huber IRLS around ``base`` (a WLS or exact estimator)."""
+    """Huber IRLS around ``base`` (an OLS, WLS or exact estimator)."""
 
     base: object
     robust: str = "huber"

@@ -1,4 +1,4 @@
-"""The Tukey robust mode: IRLS with Tukey's weights around wls or exact.
+"""The Tukey robust mode: IRLS with Tukey's weights around ols, wls or exact.
 
 Tukey's biweight ((1 - (r/c)^2)^2 within c = 4.685, else 0), from Huber's solution,
 sets gross errors aside (:mod:`analysis.identification.estimators.irls`).
@@ -14,7 +14,7 @@ from analysis.identification.estimators.robust_mode import robust_refit
 
 @dataclass(frozen=True)
 class Tukey:
-    """Tukey IRLS around ``base`` (a WLS or exact estimator)."""
+    """Tukey IRLS around ``base`` (an OLS, WLS or exact estimator)."""
 
     base: object
     robust: str = "tukey"
