@@ -257,4 +257,8 @@ async function start() {
   update();
 }
 
+// Forms are driven by script: Enter in a field never submits (reloads) the page. Attached
+// here, not inline: the page's Content Security Policy (script-src 'self') blocks inline handlers.
+for (const f of document.querySelectorAll("form")) f.addEventListener("submit", (e) => e.preventDefault());
+
 start().catch((err) => { $("sens-error").textContent = String(err); });
