@@ -189,12 +189,12 @@ def _refusal(ws: Path, err: Exception, keys: list[str]) -> JSONResponse:
 
 
 def _copy_warnings(proto: Path, out: Path) -> list[str]:
-    """What the plan directory's protocol copy will not find: a robot file named relative
-    to the saved protocol is read relative to the copy (one directory deeper)."""
+    """What the plan directory's protocol copy will not find (the plan writer copies a
+    relative robot file beside it, :mod:`campaign.protocol_copy`; this says if it did not)."""
     from analysis.model.robot_spec import is_robot_file, split_urdf_spec
     from campaign.protocol import load_protocol
 
-    robot = load_protocol(proto).campaign.robot
+    robot = load_protocol(out / f"protocol{proto.suffix.lower()}").campaign.robot
     if not is_robot_file(robot) or Path(split_urdf_spec(robot)[0]).is_absolute():
         return []
     name = split_urdf_spec(robot)[0]
