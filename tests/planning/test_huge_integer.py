@@ -65,7 +65,7 @@ def test_read_json_object_names_line_and_key(tmp_path):
     from analysis.file_errors import read_json_object
 
     path = tmp_path / "metadata.json"
-    path.write_text('{\n  "status": "complete",\n  "n": [1, %s]\n}\n' % HUGE)
+    path.write_text('{\n  "status": "complete",\n  "n": [1, ' + HUGE + ']\n}\n')
     with pytest.raises(InputError) as err:
         read_json_object(path, "run record")
     assert str(err.value).startswith(f"{path}:3: n: a number of 5001 digits")
