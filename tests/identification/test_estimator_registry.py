@@ -115,5 +115,5 @@ def test_the_problem_refuses_bad_options(kr240, tests_):
         IdentificationProblem.make(kr240, tests_, joints=(0, 6))
     assert IdentificationProblem.make(kr240, tests_).joints == tuple(range(6))
     # robust ols is a fit of its own now (the unweighted fit with the robust weights)
-    assert IdentificationProblem.make(
-        kr240, tests_, options=IdentifyOptions(method="ols", robust="huber")).joints == tuple(range(6))
+    robust_ols = IdentifyOptions(method="ols", robust="huber")
+    assert IdentificationProblem.make(kr240, tests_, options=robust_ols).joints == tuple(range(6))
