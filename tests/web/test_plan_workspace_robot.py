@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.web.test_robot_pickers import arm_urdf
+from tests.web.test_robot_pickers import K, arm_urdf
 
 pytestmark = pytest.mark.timeout(180)
 #: the simulated lab's clock runs this much faster than the wall clock
@@ -99,3 +99,34 @@ def test_urdf_with_frame_is_copied_beside_and_reads_the_same_robot(robot_ws):
     assert b.n == 6 and np.allclose(tool_pose(a, q), tool_pose(b, q), atol=1e-12)
     # a copy of the copy (the run directory's) is unchanged: the name is already bare
     assert portable_copy(copy) == (copy_text, {"arm.urdf": plan_dir / "arm.urdf"})
+
+
+def test_gui_plan_with_a_workspace_urdf_is_acquired_and_analysed(client, robot_ws):
+    """robots/arm.urdf#tool0 (the picker's value from protocols/: ../robots/...), zones and
+    thresholds for the small arm as test_robot_pickers plans it; 3 tests of 1 repeat."""
+    from campaign.jobs.acquire import AcquireJobOptions
+    from campaign.jobs.acquire import run as acquire
+    from campaign.jobs.analyze import AnalyzeOptions
+    from campaign.jobs.analyze import run as analyze
+
+    values = {"campaign.robot": "../robots/arm.urdf#tool0", "campaign.tests": "3",
+              "campaign.repeats": "1", "campaign.prior_stiffness": ", ".join(map(str, K)),
+              "campaign.characteristic_length_mm": "800",
+              "sampling.use_robot_zones": "false", "sampling.fixed_deg": "{ q1 = 0 }",
+              "zones[0].name": "front", "zones[0].ranges_deg": "{ q2 = [-60, 0], q3 = [20, 90] }",
+              "thresholds.min_inv_kappa_F": "0.05", "thresholds.max_v_p": "0.5",
+              "thresholds.max_v_r_deg": "5",
+              "fake_lab.true_joint_stiffness": ", ".join(map(str, K))}
+    r = client.post("/api/plan/run", json={"values": values, "candidates": 200, "name": "pa"})
+    assert r.status_code == 200, r.text
+    assert r.json()["warnings"] == []
+    plan_dir = robot_ws / "plans" / "pa"
+    run_dir = robot_ws / "runs" / "ra"
+    got = acquire(AcquireJobOptions(plan=plan_dir, out=run_dir, fake=True, assume_yes=True,
+                                    time_scale=FAST), say=lambda s: None)
+    assert got.status == "complete" and got.ok == 3, got
+    assert (run_dir / "arm.urdf").read_text() == arm_urdf()
+    res = analyze(AnalyzeOptions(run_dir=run_dir, report=False, accept_misfit=True)).results
+    k = np.array(res["joint_stiffness_Nm_per_rad"], float)
+    assert res["robot"] == "arm"
+    assert k.shape == (6,) and np.all(np.abs(k / np.array(K) - 1) < 0.10), k / np.array(K)
