@@ -191,16 +191,17 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
 
 def _with_robust_covariance(outcome, corr):
     """``outcome`` with its robust fit's sandwich covariance made
-    (:mod:`analysis.identification.estimators.robust_covariance`), on residuals free of the
-    linear model's deterministic misfit f(x_c) - A x_c where its bias correction is
-    reliable."""
+    (:mod:`analysis.identification.estimators.robust_covariance`), where the linear
+    model's bias correction is reliable on the exact model's residuals d - f(x_c) at the
+    corrected estimate x_c (free of the linear model's deterministic misfit; d - A x_hat
+    less f(x_c) - A x_c would keep -A (x_hat - x_c), the same in every campaign)."""
     from dataclasses import replace
 
     from analysis.identification.streaming.per_test import apply
 
     misfit = None
     if corr is not None and corr.reliable:
-        misfit = corr.predicted - apply(outcome.fit.A, corr.x)
+        misfit = corr.predicted - apply(outcome.fit.A, corr.x_raw)
     return replace(outcome, robust=outcome.robust.with_covariance(misfit))
 
 
