@@ -202,7 +202,7 @@ class RichReporter(Reporter):
 
     def _print(self, text: str, style: str | None = None) -> None:
         """A line above the panel (plain text: never read as markup), wrapped at words."""
-        from campaign.cli.common import print_wrapped
+        from campaign.text_wrap import print_wrapped
 
         with interrupt_after():
             print_wrapped(self.console, text, style=style)

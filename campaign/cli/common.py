@@ -27,6 +27,7 @@ from campaign.jobs.choices import (  # noqa: F401 (the commands' choices, re-exp
     WrenchFrame,
     json_ready,
 )
+from campaign.text_wrap import print_wrapped, wrap_text  # noqa: F401 (re-exported)
 
 #: Panels of ``--help`` shared by the commands: options grouped in panels keep each
 #: panel's columns narrow, so option names stay whole and descriptions readable at 80
@@ -91,29 +92,6 @@ def text_width(stream=None) -> int | None:
     return int(columns) if columns.isdigit() and int(columns) > 0 else None
 
 
-def wrap_text(text: str, width: int | None, hang: int = 2) -> str:
-    """``text`` with each line longer than ``width`` wrapped at spaces, never inside a word.
-
-    Continuation lines are indented ``hang`` columns more than their line's own
-    indentation, so a wrapped item still reads as one item; ``width`` None
-    leaves the text as it is. A word longer than the line stays whole.
-    """
-    import textwrap
-
-    if not width:
-        return text
-    out = []
-    for line in text.split("\n"):
-        if len(line) <= width:
-            out.append(line)
-            continue
-        lead = line[: len(line) - len(line.lstrip())]
-        out.extend(textwrap.wrap(line.strip(), width=width, initial_indent=lead,
-                                 subsequent_indent=lead + " " * hang, break_long_words=False,
-                                 break_on_hyphens=False) or [line])
-    return "\n".join(out)
-
-
 def echo(text: str = "", err: bool = False, nl: bool = True) -> None:
     """``typer.echo`` of text for a person, wrapped at word boundaries to :func:`text_width`."""
     import sys
@@ -121,17 +99,6 @@ def echo(text: str = "", err: bool = False, nl: bool = True) -> None:
     import typer
 
     typer.echo(wrap_text(text, text_width(sys.stderr if err else sys.stdout)), err=err, nl=nl)
-
-
-def print_wrapped(console, text: str, style: str | None = None) -> None:
-    """Print plain ``text`` (never read as markup) on a rich ``console``, wrapped at word
-    boundaries to the console's width with hanging indentation (:func:`wrap_text`)."""
-    from rich.text import Text
-
-    # the style on the Text, not on print(): under a live panel, print's style would also
-    # colour the panel redrawn after the line
-    console.print(Text(wrap_text(text, console.width), style=style or ""), highlight=False,
-                  soft_wrap=True)
 
 
 @contextmanager

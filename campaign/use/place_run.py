@@ -458,7 +458,7 @@ def run_place(o: PlaceOptions, console: Console | None = None, progress=None,
     search); ``server_limit``: see :func:`check_size`."""
     from analysis.placement.details import path_details
     from analysis.placement.search import evaluate_chunk
-    from campaign.cli.common import print_wrapped
+    from campaign.text_wrap import print_wrapped
 
     console = console or Console()
     robot, problem, G, grids, assumptions, part = build_problem(o, console)
