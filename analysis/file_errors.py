@@ -8,6 +8,7 @@ YAML nodes carry their own marks.
 from __future__ import annotations
 
 import re
+import sys
 import tomllib
 from collections.abc import Sequence
 from pathlib import Path
@@ -155,6 +156,34 @@ def decode_utf8(data: bytes, where: str, what: str) -> str:
     return text.replace("\r\n", "\n").replace("\r", "\n")
 
 
+#: a run of digits (TOML allows ``_`` between them) too long for Python's int(): over its
+#: int-string limit (sys.get_int_max_str_digits, 4300 by default) the parsers raise a bare
+#: ValueError with no position
+_DIGITS = re.compile(r"[0-9](?:_?[0-9])*")
+
+
+def huge_integer(path: Path, text: str) -> InputError | None:
+    """The refusal of the first integer in ``text`` with more digits than Python reads
+    (``file:line: key: ...``), or None if there is none."""
+    limit = sys.get_int_max_str_digits()
+    if not limit:
+        return None
+    for number, line in enumerate(text.splitlines(), 1):
+        for m in _DIGITS.finditer(line):
+            digits = m.group().replace("_", "")
+            if len(digits) > limit:
+                # the key the number is the value of (or an item of): the last
+                # ``key =`` / ``key:`` before it
+                key = re.search(r"([A-Za-z_][A-Za-z0-9_.-]*)[\"']?\s*[=:][^=:]*$",
+                                line[:m.start()])
+                name = f"{key.group(1)}: " if key else ""
+                return InputError(f"{name}a number of {len(digits)} digits: more than "
+                                  f"the {limit} a number may have; write a number of "
+                                  "plausible size (with an exponent, e.g. 1e6)",
+                                  where=f"{path}:{number}")
+    return None
+
+
 def read_mapping_file(path: Path, what: str) -> tuple[dict, str]:
     """Parse a TOML or YAML file whose top level is a table; returns (data, text).
 
@@ -170,11 +199,17 @@ def read_mapping_file(path: Path, what: str) -> tuple[dict, str]:
             data = yaml.safe_load(text)
         except yaml.YAMLError as err:
             raise InputError(f"not valid YAML: {err}", where=str(path)) from err
+        except ValueError:  # an integer over Python's int-string limit
+            raise huge_integer(path, text) or InputError(
+                "not valid YAML: a value cannot be read", where=str(path)) from None
     elif suffix == ".toml":
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as err:
             raise InputError(f"not valid TOML: {err}", where=str(path)) from err
+        except ValueError:  # an integer over Python's int-string limit
+            raise huge_integer(path, text) or InputError(
+                "not valid TOML: a value cannot be read", where=str(path)) from None
     else:
         raise InputError(f"expected a .toml, .yaml or .yml {what}", where=str(path))
     if not isinstance(data, dict):
@@ -196,6 +231,10 @@ def read_json_object(path: Path, what: str) -> dict:
     except json.JSONDecodeError as err:
         raise InputError(f"not valid JSON (line {err.lineno}, column {err.colno}): {err.msg}; "
                          "the run record is damaged", where=str(path)) from None
+    except ValueError:  # an integer over Python's int-string limit
+        raise huge_integer(path, text) or InputError(
+            "not valid JSON: a value cannot be read; the run record is damaged",
+            where=str(path)) from None
     if not isinstance(data, dict):
         raise InputError(f"expected a JSON object, found a {type(data).__name__}; the run "
                          "record is damaged", where=str(path))

@@ -291,7 +291,8 @@ class RunDir:
     # -- creation and reopening ----------------------------------------------------------
     @classmethod
     def create(cls, path: Path, metadata: dict[str, Any], protocol_name: str,
-               protocol_text: str, plan_text: str) -> RunDir:
+               protocol_text: str, plan_text: str,
+               beside: dict[str, Path] | None = None) -> RunDir:
         """Make a new run directory, atomically and exclusively.
 
         Everything (metadata, protocol and plan copies, tests.csv header, lock) is
@@ -318,6 +319,9 @@ class RunDir:
             run.write_metadata()
             atomic_write(tmp / protocol_name, protocol_text)
             atomic_write(tmp / PLAN, plan_text)
+            from campaign.protocol_copy import copy_beside
+
+            copy_beside(beside or {}, tmp)  # the protocol copy's robot file
             try:
                 # POSIX rename replaces an empty directory and fails on a non-empty one
                 os.rename(tmp, path)

@@ -38,6 +38,7 @@ from campaign.acquire.runner import Runner, RunSettings, utc
 from campaign.acquire.settle import SettleRule, rule_for
 from campaign.planning.plan_output import load_plan
 from campaign.protocol import Protocol
+from campaign.protocol_copy import portable_copy
 from campaign.protocol_robot import protocol_robot
 from drivers.errors import SafetyRefusal
 from drivers.safety import require_confirmation
@@ -223,8 +224,10 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         if run is None:
             meta = base_metadata(protocol, plan_text, plan_dir, robot, tests, opts,
                                  lab_scale or 1.0)
-            run = RunDir.create(out, meta, _protocol_copy_name(protocol), protocol.text,
-                                plan_text)
+            copy_text, beside = portable_copy(protocol)  # the robot file in the run too
+            meta["protocol_sha256"] = _sha(copy_text)
+            run = RunDir.create(out, meta, _protocol_copy_name(protocol), copy_text,
+                                plan_text, beside)
         try:
             status, reason = _run_session(run, inst, robot, tests, protocol, opts,
                                           lab_scale, reporter, on_event, counts)

@@ -187,13 +187,16 @@ def _criterion_lines(s: dict) -> list[str]:
 def write_plan(plan: Plan, out: str | Path, figure: bool = True) -> Path:
     """Write the plan directory ``out`` (created if needed); returns the plan.csv path."""
     from analysis.output_files import make_dir, write_text
+    from campaign.protocol_copy import copy_beside, portable_copy
 
     out = make_dir(out)
     suffix = Path(plan.protocol.path).suffix.lower() or ".toml"
     for old in out.glob("protocol.*"):
         if old.suffix in (".toml", ".yaml", ".yml") and old.suffix != suffix:
             old.unlink()
-    write_text(out / f"protocol{suffix}", plan.protocol.text)
+    text, robot_files = portable_copy(plan.protocol)  # its robot file beside the copy
+    write_text(out / f"protocol{suffix}", text)
+    copy_beside(robot_files, out)
     csv_path = out / PLAN_FILE
     write_text(csv_path, format_frame(plan.to_frame()))
     write_text(out / "summary.txt", summary_text(plan))

@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 
 from fastapi import APIRouter, Depends, HTTPException, Query, Request
-from fastapi.responses import StreamingResponse
+from fastapi.responses import Response, StreamingResponse
 from pydantic import BaseModel, Field
 
 from campaign.web.api_jobs import call, inside, workspace
@@ -277,15 +277,20 @@ def _rows(run_dir: Path) -> list[dict]:
     return [{k: num(r.get(k)) for k in ROW_FIELDS} for r in rows]
 
 
-@router.get("/state")
+@router.get("/state", responses={204: {"description": "no acquisition started from this "
+                                               "workspace yet (no run asked for)"}})
 def state(request: Request, run: str | None = Query(None, max_length=1000),
           ws: Path = Depends(workspace)) -> dict:
     """The run's state from its files: running or not, the live phase, finished tests.
+    Without ``run`` and before any acquisition: 204, the page's usual first question and no
+    error (a 404 would log one in the browser's console on every fresh page).
 
     The events file is read from where this server's last reading of it stopped
     (:mod:`campaign.web.events_tail`), with the answer of a full reading."""
     from campaign.web.events_tail import EventsSummary, tails_of
 
+    if run is None and not (ws / JOBS / "latest").is_file():
+        return Response(status_code=204)
     run_dir = _run_of(ws, run)
     record = _read(ws, run_dir)
     summary = tails_of(request.app, LIVE).read(ws / record["events_file"]) if record \

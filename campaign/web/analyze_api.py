@@ -44,20 +44,27 @@ def analyze_run(request: Request, body: AnalyzeRequest):
     from analysis.report.verdict import verdict
     from campaign.jobs.analyze import AnalyzeOptions, run
     from campaign.jobs.choices import Method, Robust, json_ready
+    from campaign.web.job_errors import describe
     from campaign.web.security import inside_workspace
 
     ws = Path(request.app.state.workspace)
+    options = None
     try:
         run_dir = inside_workspace(ws, body.run_dir, "run_dir")
         if not run_dir.is_dir():
             raise InputError("no such run directory in the workspace", where="run_dir")
-        result = run(AnalyzeOptions(run_dir=run_dir, method=Method(body.method),
-                                    robust=Robust(body.robust), force=body.force,
-                                    accept_misfit=body.accept_misfit, report=body.report))
+        options = AnalyzeOptions(run_dir=run_dir, method=Method(body.method),
+                                 robust=Robust(body.robust), force=body.force,
+                                 accept_misfit=body.accept_misfit, report=body.report)
+        result = run(options)
     except InputError as err:
         text = str(err).replace(f"{ws}/", "")
         reasons = refusal_reasons(text) if REFUSED in text else []
-        return JSONResponse({"detail": text, "refused": reasons}, status_code=400)
+        # field and options as campaign.web.job_errors gives them: the page says the
+        # command-line options it names (--force) by its own labels
+        named = describe(err, ws, options) or {}
+        return JSONResponse({"detail": text, "refused": reasons, "field": named.get("field"),
+                             "options": named.get("options", {})}, status_code=400)
     except FileExistsError as err:
         return JSONResponse({"detail": str(err).replace(f"{ws}/", ""), "refused": []},
                             status_code=409)

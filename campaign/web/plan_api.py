@@ -44,10 +44,12 @@ class PlanRequest(BaseModel):
 
 
 def _error(text: str, field: str | None = None, status: int = 400,
-           problems: list[dict] | None = None) -> JSONResponse:
+           problems: list[dict] | None = None, options: dict | None = None) -> JSONResponse:
+    """A refusal: its line, the field at fault, one problem per line, and ``options``: each
+    command-line option the text names -> the request field (campaign.web.job_errors)."""
     return JSONResponse({"detail": text, "field": field,
-                         "problems": problems or [{"field": field, "detail": text}]},
-                        status_code=status)
+                         "problems": problems or [{"field": field, "detail": text}],
+                         "options": options or {}}, status_code=status)
 
 
 def _source(ws: Path, source: str) -> Path:
@@ -183,18 +185,25 @@ def _save(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONResponse:
 
 
 def _refusal(ws: Path, err: Exception, keys: list[str]) -> JSONResponse:
+    from campaign.jobs.plan import PlanOptions
+    from campaign.web.job_errors import OPTION, fields_of, option_field
+
     text = str(err).replace(f"{ws}/", "")
     problems = _problems(text, keys)
-    return _error(text, problems[0]["field"] if problems else None, problems=problems)
+    names = fields_of(PlanOptions)
+    named = {opt: name for opt in dict.fromkeys(OPTION.findall(text))
+             if (name := option_field(opt, names)) is not None}
+    return _error(text, problems[0]["field"] if problems else None, problems=problems,
+                  options=named)
 
 
 def _copy_warnings(proto: Path, out: Path) -> list[str]:
-    """What the plan directory's protocol copy will not find: a robot file named relative
-    to the saved protocol is read relative to the copy (one directory deeper)."""
+    """What the plan directory's protocol copy will not find (the plan writer copies a
+    relative robot file beside it, :mod:`campaign.protocol_copy`; this says if it did not)."""
     from analysis.model.robot_spec import is_robot_file, split_urdf_spec
     from campaign.protocol import load_protocol
 
-    robot = load_protocol(proto).campaign.robot
+    robot = load_protocol(out / f"protocol{proto.suffix.lower()}").campaign.robot
     if not is_robot_file(robot) or Path(split_urdf_spec(robot)[0]).is_absolute():
         return []
     name = split_urdf_spec(robot)[0]

@@ -174,9 +174,10 @@ def test_plan_form_plans_a_urdf_robot(client, urdf_ws):
     d = r.json()
     assert d["summary"]["robot"] == "arm" and d["summary"]["tests"] == 4
     assert [row["zone"] for row in d["rows"]] == ["front"] * 4
-    # the plan's protocol copy sits one directory deeper: said, not hidden
-    assert len(d["warnings"]) == 1 and "plans/u/../robots/arm.urdf" not in d["warnings"][0]
-    assert "u/../robots/arm.urdf, which does not exist" in d["warnings"][0]
+    # the plan's protocol copy sits one directory deeper: it names the URDF copied beside it
+    assert d["warnings"] == []
+    assert 'robot = "arm.urdf#tool0"' in (urdf_ws / "plans" / "u" / "protocol.toml").read_text()
+    assert (urdf_ws / "plans" / "u" / "arm.urdf").read_text() == arm_urdf()
     assert all(-60 <= row["q2_model_deg"] <= 0 and 20 <= row["q3_model_deg"] <= 90
                for row in d["rows"])
 

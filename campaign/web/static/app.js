@@ -26,6 +26,24 @@ async function getJSON(url) {
   return r.json();
 }
 
+// A job's refusal in a form's terms (shared by the views): the API's refusal record carries
+// `options` ({"--force": "force"}: each command-line option its line names -> the request
+// field); a form labels its fields <label data-field="force" data-label="Replace its files">.
+function fieldLabels(form) {
+  const out = {};
+  for (const el of form.querySelectorAll("[data-field][data-label]")) out[el.dataset.field] = el.dataset.label;
+  return out;
+}
+
+// the line with each option it names replaced by the label of that field of the form
+function inFormTerms(err, labels) {
+  let text = String(err.detail || err.message || err);
+  for (const [opt, field] of Object.entries(err.options || {})) {
+    if (labels[field]) text = text.split(opt).join(`\u201c${labels[field]}\u201d`);
+  }
+  return text;
+}
+
 function route(openapi, tag, method) {
   for (const [path, ops] of Object.entries(openapi.paths)) {
     const op = ops[method];
@@ -256,5 +274,9 @@ async function start() {
   rotationChanged();
   update();
 }
+
+// Forms are driven by script: Enter in a field never submits (reloads) the page. Attached
+// here, not inline: the page's Content Security Policy (script-src 'self') blocks inline handlers.
+for (const f of document.querySelectorAll("form")) f.addEventListener("submit", (e) => e.preventDefault());
 
 start().catch((err) => { $("sens-error").textContent = String(err); });

@@ -61,7 +61,7 @@
   async function refresh() {
     const q = acq.run ? `?run=${encodeURIComponent(acq.run)}` : "";
     const r = await fetch(`/api/acquire/state${q}`);
-    if (r.status === 404) return null;
+    if (r.status === 404 || r.status === 204) return null;  // 204: nothing started yet
     const s = await r.json();
     if (!r.ok) throw new Error(s.detail || r.statusText);
     show(s);

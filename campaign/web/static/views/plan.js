@@ -245,12 +245,14 @@ async function planRun(saveOnly) {
     for (const p of d.problems || [{ field: d.field, detail: d.detail }]) {
       const row = p.field && document.querySelector(`#view-plan :is(label, div)[data-key="${CSS.escape(p.field)}"]`);
       const msg = row && row.querySelector(":scope > .pv-msg");
+      const text = inFormTerms({ detail: p.detail, options: d.options }, fieldLabels(pvEl("plan-form")));
       if (msg) {
-        msg.textContent = msg.textContent ? `${msg.textContent}\n${p.detail}` : p.detail;
+        msg.textContent = msg.textContent ? `${msg.textContent}\n${text}` : text;
         row.classList.add("pv-bad");
-      } else rest.push(p.detail);
+      } else rest.push(text);
     }
-    pvEl("plan-error").textContent = rest.join("\n") || (d.detail && !d.problems ? d.detail : "");
+    pvEl("plan-error").textContent = rest.join("\n") ||
+      (d.detail && !d.problems ? inFormTerms(d, fieldLabels(pvEl("plan-form"))) : "");
     const first = document.querySelector("#view-plan .pv-bad");
     if (first) first.scrollIntoView({ block: "center" });
     pvEl("plan-status").textContent = "";
@@ -468,11 +470,14 @@ async function anRun() {
       const ul = pvEl("an-reasons");
       ul.innerHTML = "";
       for (const reason of d.refused) {
-        const li = document.createElement("li"); li.textContent = reason; ul.appendChild(li);
+        const li = document.createElement("li");
+        li.textContent = inFormTerms({ detail: reason, options: d.options }, fieldLabels(pvEl("an-form")));
+        ul.appendChild(li);
       }
       pvEl("an-refused").hidden = false;
     } else {
-      pvEl("an-error").textContent = d.detail || "the analysis failed";
+      pvEl("an-error").textContent = d.detail ? inFormTerms(d, fieldLabels(pvEl("an-form")))
+        : "the analysis failed";
     }
     document.body.dataset.analyze = "error";
     return;

@@ -88,21 +88,9 @@ async function runJob(url, body, onProgress) {
   return end.ok;
 }
 
-// the labels of a form's fields: <label data-field="force" data-label="Replace its files">
-function labelsOf(form) {
-  const out = {};
-  for (const el of form.querySelectorAll("[data-field]")) out[el.dataset.field] = el.dataset.label;
-  return out;
-}
-
-// a job's line in this page's terms: each command-line option it names -> the field's label
-function inTerms(err, labels) {
-  let text = String(err.detail || err.message || err);
-  for (const [opt, field] of Object.entries(err.options || {})) {
-    if (labels[field]) text = text.split(opt).join(`\u201c${labels[field]}\u201d`);
-  }
-  return text;
-}
+// a job's refusal in the form's terms: app.js's shared helpers
+const labelsOf = fieldLabels;
+const inTerms = inFormTerms;
 
 // a job's own sentence (a warning of placement.json) in this page's terms: a command-line
 // option --x-mm is the field x_mm of the job's options, shown by its label
