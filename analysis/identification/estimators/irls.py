@@ -148,10 +148,12 @@ class RobustFit:
     def with_covariance(self, misfit: np.ndarray | None = None) -> RobustFit:
         """This fit with its sandwich covariance made
         (:mod:`analysis.identification.estimators.robust_covariance`). ``misfit`` (m, 6):
-        the linear model's deterministic misfit f(x_c) - A x_c at the bias-corrected
-        estimate (m, rad), taken out of the residuals of ols and wls: it is no noise, and in
-        the tests' scores it would count as variance (measured: se of k2, k3 2.4x the
-        spread at twice the loads); None: none known."""
+        the linear model's deterministic misfit (m, rad), taken out of the residuals of ols
+        and wls: it is no noise, and in the tests' scores it would count as variance
+        (measured: se of k2, k3 2.4x the spread at twice the loads). ols: f(x_c) - A x_hat,
+        x_c the bias-corrected estimate, so that the residuals are the exact model's
+        d - f(x_c); wls: f(x_c) - A x_c (:func:`analysis.identification.estimate.
+        _with_robust_covariance` says why); None: none known."""
         i = self.inputs
         resid = i.residual if misfit is None else np.where(i.kept, i.residual - misfit, 0.0)
         return replace(self, covariance=robust_covariance(
