@@ -122,7 +122,8 @@ def test_start_state_stream_abort_resume(client, workspace):
     assert other.get("/api/acquire/state").json()["pid"] == pid
     r = client.post("/api/acquire/abort", json={"run": "run"})
     assert r.status_code == 200 and r.json()["pid"] == pid
-    s = _wait(client, "run", lambda s: not s["running"])
+    # ended and its last line read (a poll between the two, once in CI, saw no finish yet)
+    s = _wait(client, "run", lambda s: not s["running"] and s["finish"] is not None)
     assert s["status"] == "aborted" and "Ctrl-C" in s["reason"]
     assert s["finish"]["status"] == "aborted"
     kinds = _events(workspace, "run")
