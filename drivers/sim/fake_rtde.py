@@ -68,7 +68,9 @@ class RTDEServer:
     def shutdown(self) -> None:
         """Close every socket (the ``disconnect`` fault, or the end of the process)."""
         self.stop.set()
-        self.ctrl.shutdown()
+        # The sockets close before the control program stops: a client whose link drops sees the
+        # connection go, never a last state in which the program stopped (on a real controller
+        # that happens behind the broken link, out of the client's sight).
         for s in (self.sock, *self.conns):
             try:
                 s.shutdown(socket.SHUT_RDWR)
@@ -77,6 +79,7 @@ class RTDEServer:
             s.close()
         for server in self.servers:
             server.close()
+        self.ctrl.shutdown()
 
     def poll_world(self) -> None:
         while not self.stop.is_set():

@@ -190,6 +190,9 @@ class URController:
         self.runtime_state = STOPPED
         self.world_state: dict = lab_call("state")
         self.motion: Motion | None = None
+        #: joint angles reported while a new motion is being set up with the world (two lab
+        #: calls): the world already stands at the end point then, the robot not yet
+        self.setting_up: list[float] | None = None
         self.time_scale: float | None = None
         self.program: ControlProgram | None = None
         self.unsupported: list[int] = []
@@ -220,6 +223,8 @@ class URController:
     def joints(self) -> tuple[list[float], list[float]]:
         """Reported joint angles and speeds: along the motion, else the world's."""
         with self.lock:
+            if self.setting_up is not None:
+                return list(self.setting_up), [0.0] * len(self.setting_up)
             m = self.motion
             if m is not None:
                 if not m.done:
@@ -235,10 +240,18 @@ class URController:
         with self.lock:
             q0 = np.asarray(self.joints()[0], dtype=float)
             self.motion = None
-        duration = float(self.lab_call("move", q=[float(x) for x in target], speed=v)["duration"])
+            self.setting_up = q0.tolist()
+        try:
+            duration = float(self.lab_call("move", q=[float(x) for x in target],
+                                           speed=v)["duration"])
+            state = self.lab_call("state")  # the end point, whatever the polling interval
+        except BaseException:
+            with self.lock:
+                self.setting_up = None
+            raise
         length = float(np.max(np.abs(target - q0)))
-        state = self.lab_call("state")  # the end point, whatever the polling interval
         with self.lock:
+            self.setting_up = None
             self.world_state = state
             if length > 0 and duration > 0:
                 self.time_scale = length / v / duration
