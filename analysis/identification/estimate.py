@@ -161,7 +161,7 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
         per_test.release_freed_heap()  # the fit's freed pages, before the validation
     corr = _linear_bias(problem, outcome) if est.linearised else None
     if outcome.robust is not None:
-        outcome = _with_robust_covariance(outcome, corr)
+        outcome = _with_robust_covariance(outcome)
     # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
     # start for the held-out tests) are let go before the per-test statistics are made
     validation = _validation(problem, outcome, corr)
@@ -189,26 +189,15 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
                    warnings)
 
 
-def _with_robust_covariance(outcome, corr):
+def _with_robust_covariance(outcome):
     """``outcome`` with its robust fit's sandwich covariance made
-    (:mod:`analysis.identification.estimators.robust_covariance`), on residuals free of the
-    linear model's deterministic misfit where its bias correction is reliable: for ols the
-    exact model's d - f(x_c) at the corrected estimate x_c; for wls d - A x_hat less
-    f(x_c) - A x_c (the measured coverage of each: docs/identification.md, robust table).
-    """
+    (:mod:`analysis.identification.estimators.robust_covariance`): its scores on the
+    residuals the weights were taken from, for ols and wls the exact model's d - f(x_c) at
+    the bias-corrected estimate (:func:`analysis.identification.estimators.irls._irls`;
+    why: docs/identification.md, robust table)."""
     from dataclasses import replace
 
-    from analysis.identification.streaming.per_test import apply
-
-    misfit = None
-    if corr is not None and corr.reliable:
-        # ols: taking out f(x_c) - A x_c left -A (x_hat - x_c), the same in every
-        # campaign, in the scores (se 1.1-1.3x the spread, 97-99.5 % at twice the loads);
-        # for wls d - f(x_c) under-covers k2 at twice the loads (Tukey 91.6-91.9 %, 400
-        # campaigns) where the former residual covers 93-97.5 %: kept (not resolved)
-        x_ref = corr.x if outcome.robust.inputs.weighted else corr.x_raw
-        misfit = corr.predicted - apply(outcome.fit.A, x_ref)
-    return replace(outcome, robust=outcome.robust.with_covariance(misfit))
+    return replace(outcome, robust=outcome.robust.with_covariance())
 
 
 def _checked(problem: IdentificationProblem) -> tuple[float, list[str]]:

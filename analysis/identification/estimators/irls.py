@@ -114,8 +114,9 @@ class DownWeighted:
 @dataclass(frozen=True)
 class _SandwichInputs:
     """What :func:`robust_covariance` needs of a converged robust fit: the model's Jacobian
-    A (m, 6, p), the unweighted noise covariance (m, 6, 6), the residuals d - f(x) (m, 6)
-    of the fitted model (m, rad), the components kept (weight > 0), whether the fit is
+    A (m, 6, p), the unweighted noise covariance (m, 6, 6), the residuals (m, 6) (m, rad)
+    the weights were taken from (d - f(x); ols, wls: d - f(x_c), x_c the bias-corrected
+    estimate; 0 where not kept), the components kept (weight > 0), whether the fit is
     weighted by the noise model (wls, exact), the errors-in-variables S (p, p) or None and
     the fixed-weight covariance (p, p)."""
 
@@ -145,19 +146,16 @@ class RobustFit:
     inputs: _SandwichInputs | None = None
     covariance: RobustCovariance | None = None
 
-    def with_covariance(self, misfit: np.ndarray | None = None) -> RobustFit:
+    def with_covariance(self) -> RobustFit:
         """This fit with its sandwich covariance made
-        (:mod:`analysis.identification.estimators.robust_covariance`). ``misfit`` (m, 6):
-        the linear model's deterministic misfit (m, rad), taken out of the residuals of ols
-        and wls: it is no noise, and in the tests' scores it would count as variance
-        (measured: se of k2, k3 2.4x the spread at twice the loads). ols: f(x_c) - A x_hat,
-        x_c the bias-corrected estimate, so that the residuals are the exact model's
-        d - f(x_c); wls: f(x_c) - A x_c (:func:`analysis.identification.estimate.
-        _with_robust_covariance` says why); None: none known."""
+        (:mod:`analysis.identification.estimators.robust_covariance`), its scores on the
+        residuals the weights were taken from (:func:`_irls`): d - f(x) of the exact fit;
+        for ols and wls the exact model's d - f(x_c) at the bias-corrected estimate, free
+        of the linear model's deterministic misfit, which is no noise and in the tests'
+        scores would count as variance."""
         i = self.inputs
-        resid = i.residual if misfit is None else np.where(i.kept, i.residual - misfit, 0.0)
         return replace(self, covariance=robust_covariance(
-            i.A, i.cov, resid, i.kept, self.method, self.constant, weighted=i.weighted,
+            i.A, i.cov, i.residual, i.kept, self.method, self.constant, weighted=i.weighted,
             fixed=i.fixed, S=i.S))
 
     def kept(self, measured: np.ndarray) -> np.ndarray:
@@ -243,25 +241,73 @@ def _model(robot, tests, joints, method, x_p, J, A_lin):
     return apply(A_lin, x_p), A_lin
 
 
-def _irls(robot, tests, joints, noise, method, weight_fn, c, x, weights, J, A_lin):
-    """Reweight until the weights move by <= WEIGHT_TOL; returns x, weights, r, iterations.
+def _exact_prediction(robot, tests: TestArrays, joints, x_p) -> np.ndarray | None:
+    """(m, 6) the exact model's displacement f(x_p) (m, rad), 0 where not measured, made in
+    blocks of :data:`~analysis.identification.streaming.blocks.EVAL_BLOCK` tests; None
+    where the equilibrium cannot be solved at x_p for some test."""
+    from analysis.identification.estimators.exact_model import model_displacement_masked
+    from analysis.identification.streaming.blocks import EVAL_BLOCK
+
+    x_full = _full(x_p, joints)
+    out = np.zeros(tests.measured.shape)
+    for s in range(0, tests.m, EVAL_BLOCK):
+        sl = slice(s, s + EVAL_BLOCK)
+        f, _, ok = model_displacement_masked(robot, tests.q[sl], x_full, tests.w[sl],
+                                             with_jacobian=False)
+        if not np.all(ok):
+            return None
+        out[sl] = np.where(tests.measured[sl], f, 0.0)
+    return out
+
+
+def _with_data(tests: TestArrays, d: np.ndarray) -> TestArrays:
+    """``tests`` with the displacements ``d`` (m, 6) (m, rad) instead of the measured ones."""
+    return TestArrays(tests.pose, tests.q, tests.w, np.where(tests.measured, d, np.nan),
+                      tests.measured, tests.line)
+
+
+def _irls(robot, tests, joints, noise, method, weight_fn, c, x, weights, J, A_lin, misfit):
+    """Reweight until the weights (and, for the linear fits, their misfit) move by <=
+    WEIGHT_TOL; returns x, weights, r, iterations, the (m, 6) prediction the residuals r are
+    taken from, and the misfit.
+
+    ``misfit`` (m, 6) (m, rad): for ols and wls the linear model's deterministic misfit
+    f(x) - A x at the current estimate (zeros to start, None for exact): the linear fit is
+    made on d - misfit, so that x is the bias-corrected estimate x_c (x_c = G (d - (f(x_c)
+    - A x_c)), :mod:`analysis.identification.corrections.linear_bias`) and the weights come
+    from the exact model's residuals d - f(x_c), the noise, not from the linear residuals
+    d - A x_hat, which hold the misfit (at twice the loads of the coverage study up to 4
+    sigma: clean components down-weighted as glitches). Where the equilibrium cannot be
+    solved, the linear residuals are used (the correction is then unreliable and the
+    result refused, :mod:`analysis.identification.checks.plausibility`).
 
     Refused beyond :data:`MAX_ITER` iterations unless the changes contract (SLOW_FACTOR
     over SLOW_SPAN iterations), and at :data:`ITER_CAP`.
     """
     history: list[float] = []
     for it in range(1, ITER_CAP + 1):
-        f = _weighted_fit(robot, tests, joints, noise, method, weights, x, J)
+        data = tests if misfit is None else _with_data(tests, tests.d - misfit)
+        f = _weighted_fit(robot, data, joints, noise, method, weights, x, J)
         x = f.x
-        pred, _ = _model(robot, tests, joints, method, x, J, A_lin)
-        r = np.where(tests.measured, (tests.d - pred) / _sigma(noise, J, x, tests, joints),
-                     np.nan)
+        sigma = _sigma(noise, J, x, tests, joints)
+        misfit_moved = 0.0
+        if misfit is None:
+            pred, _ = _model(robot, tests, joints, method, x, J, A_lin)
+        else:
+            linear = apply(A_lin, x)
+            exact = _exact_prediction(robot, tests, joints, x)
+            pred = linear if exact is None else exact
+            new_misfit = pred - linear
+            misfit_moved = float(np.max(np.abs(new_misfit - misfit)[tests.measured]
+                                        / sigma[tests.measured]))
+            misfit = new_misfit
+        r = np.where(tests.measured, (tests.d - pred) / sigma, np.nan)
         new = np.where(tests.measured, weight_fn(np.nan_to_num(r), c), 1.0)
         moved = np.abs(new - weights)
         weights = new
-        change = float(np.max(moved))
+        change = max(float(np.max(moved)), misfit_moved)
         if change <= WEIGHT_TOL:
-            return x, weights, r, it
+            return x, weights, r, it, pred, misfit
         history.append(change)
         if it >= MAX_ITER and change > SLOW_FACTOR * history[-1 - SLOW_SPAN]:
             break
@@ -289,19 +335,25 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
         raise InputError(f"unknown method {method!r} for a robust fit", where="--method")
     J, A_lin = tests_design(robot, tests, joints, J)
     ones = np.ones(tests.measured.shape)
-    x, weights, r, n_it = _irls(robot, tests, joints, noise, method, huber_weight, HUBER_C,
-                                np.asarray(start, dtype=float), ones, J, A_lin)
+    misfit = None if method == "exact" else np.zeros(tests.measured.shape)
+    x, weights, r, n_it, scored, misfit = _irls(
+        robot, tests, joints, noise, method, huber_weight, HUBER_C,
+        np.asarray(start, dtype=float), ones, J, A_lin, misfit)
     c = HUBER_C
     if robust == "tukey":
         c = TUKEY_C
         start_w = np.where(tests.measured, tukey_weight(np.nan_to_num(r), c), 1.0)
-        x, weights, r, more = _irls(robot, tests, joints, noise, method, tukey_weight, c, x,
-                                    start_w, J, A_lin)
+        x, weights, r, more, scored, misfit = _irls(
+            robot, tests, joints, noise, method, tukey_weight, c, x, start_w, J, A_lin, misfit)
         n_it += more
-    # the final fit at the converged weights: its G is the weighted estimator
+    # the final fit at the converged weights, on the measured d: its x is the raw linear
+    # estimate (corrected for the linearisation bias after, as the Gaussian fit's), its G
+    # the weighted estimator
     final = _weighted_fit(robot, tests, joints, noise, method, weights, x, J)
     # G's columns of components with weight 0 are zero: they do not enter x
     pred, A = _model(robot, tests, joints, method, final.x, J, A_lin)
+    if method == "exact":
+        scored = pred
     cov = _covariances(noise, J, _full(final.x, joints), tests.measured, tests.w)
     # G = final.bread A^T W_weighted, kept factored (memory linear in the tests)
     fit = Fit(x=final.x, A=A, cov=cov, predicted=pred, iterations=n_it, bread=final.bread,
@@ -309,7 +361,7 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
     keep = tests.measured & (weights > 0)
     S = None if final.eiv_shift is None else wrench_eiv_matrix(
         J, noise.wrench_sigma_at(tests.w) ** 2, final.Linv, keep, cols=list(joints))
-    inputs = _SandwichInputs(A=A, cov=cov, residual=np.where(keep, tests.d - pred, 0.0),
+    inputs = _SandwichInputs(A=A, cov=cov, residual=np.where(keep, tests.d - scored, 0.0),
                              kept=keep, weighted=method != "ols", S=S,
                              fixed=sandwich(A, cov, final.bread, final.Linv))
     down = tuple(
