@@ -142,3 +142,31 @@ def test_robust_coverage_every_cell(setup, robust, method, scale, glitches, requ
     # refused: the reweighting not contracting (glitched Tukey at 2x: ~1 %)
     assert given >= 0.97 * n
     assert np.all(np.abs(cov - 0.95) <= 0.03), cov
+
+
+@pytest.mark.parametrize("method", ["ols", "wls"])
+def test_linear_misfit_is_not_down_weighted(setup, method):
+    """Noise-free campaign at twice the loads: the linear model's misfit reaches 4 sigma of
+    some components, but the robust ols and wls fits reweight on the exact model's
+    residuals d - f(x_c), which vanish here, so no component is down-weighted and the
+    estimate is the Gaussian fit's corrected one (measured: within 2e-7 se; tolerance
+    1e-5 se). Weights from the linear residuals d - A x_hat instead down-weighted 2 (ols)
+    / 4 (wls) clean components, Huber and Tukey (Tukey weights 0.05-0.41), and moved k by
+    1.5e-3 to 3.2e-3 se (the largest joint of each fit)."""
+    from analysis.identification.estimate import identify
+    from analysis.identification.io.measurements import TestArrays
+    from analysis.kinetostatics.equilibrium import displacement_screw
+
+    robot, q, W, k = setup
+    qq = np.repeat(q, len(W), axis=0)
+    ww = np.tile(2.0 * W, (len(q), 1))
+    d = displacement_screw(robot, qq, k, ww)
+    tests = TestArrays(pose=np.repeat([f"P{i}" for i in range(len(q))], len(W)), q=qq, w=ww,
+                       d=d, measured=np.ones(d.shape, bool), line=np.arange(len(qq)) + 2)
+    gauss = identify(robot, tests, method=method, noise=NOISE, validate=False)
+    assert gauss.linear_bias["reliable"]
+    for robust in ("huber", "tukey"):
+        res = identify(robot, tests, method=method, noise=NOISE, validate=False,
+                       robust=robust)
+        assert res.robust["down_weighted"] == [], (robust, res.robust["down_weighted"])
+        np.testing.assert_array_less(np.abs(res.k - gauss.k) / gauss.se_k, 1e-5)
