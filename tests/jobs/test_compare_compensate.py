@@ -108,11 +108,10 @@ def test_path_deflection_is_compensate_before_compensating(ws, app, client, camp
             if f.name in shared} == shared
     a, _ = campaigns
     path, model, wrench = _path_csv(ws), f"{a}/model.toml", [500, 0, -1000, 0, 20, 0]
-    pd_answer = client.post("/api/use/deflection", json={
-        "robot": model, "path": path, "wrench_N_Nm": wrench, "wrench_frame": "tool"})
-    comp = client.post("/api/jobs/compensate", json={
-        "robot": model, "path": path, "out": "c", "wrench_N_Nm": wrench,
-        "wrench_frame": "tool"})
+    load = {"wrench_N_Nm": wrench, "wrench_frame": "tool"}
+    pd_answer = client.post("/api/use/deflection", json={"robot": model, "path": path, **load})
+    comp = client.post("/api/jobs/compensate", json={"robot": model, "path": path, "out": "c",
+                                                     **load})
     assert pd_answer.status_code == 200, pd_answer.text
     assert comp.status_code == 200, comp.text
     got, summary = pd_answer.json(), comp.json()
@@ -130,12 +129,22 @@ def test_path_deflection_is_compensate_before_compensating(ws, app, client, camp
     assert f"wrench: {got['wrench_source']}" in summary["assumptions"]
     assert 1e3 * got["max_norm_p_m"] == pytest.approx(
         summary["translation_m"]["before"]["max"] * 1e3, rel=1e-10)
+    # a tool point on a built-in robot (nominal k: no band): P moved, the same P in both
+    tool = {"robot": "kr240-2", "path": path, "wrench_N_Nm": wrench, "tool_xyz_mm": [0, 0, 150]}
+    one = client.post("/api/use/deflection", json=tool).json()
+    client.post("/api/jobs/compensate", json={**tool, "out": "t"})
+    flange = client.post("/api/use/deflection", json={**tool, "tool_xyz_mm": None}).json()
+    dx = pd.read_csv(ws / "t" / "compensated.csv")["dx_mm"]
+    assert np.allclose(1e3 * np.asarray(one["deflection_m_rad"])[:, 0], dx, rtol=1e-10)
+    assert abs(one["max_norm_p_m"] / flange["max_norm_p_m"] - 1) > 1e-3
     for extra in ({"min_inv_kappa": 0}, {"wrench_N_Nm": [1, 2, 3]},
-                  {"joint_stiffness_Nm_per_rad": [1e6] * 5}):
+                  {"joint_stiffness_Nm_per_rad": [1e6] * 5}, {"tool_xyz_mm": [0, 0, 150]}):
         one = client.post("/api/use/deflection", json={"robot": model, "path": path, **extra})
         two = client.post("/api/jobs/compensate", json={"robot": model, "path": path,
                                                         "out": "o", **extra})
         assert one.status_code == two.status_code == 400, (one.text, two.text)
         assert one.json()["detail"] == two.json()["detail"], extra
-        assert one.json()["field"] == two.json()["field"] == next(iter(extra)), extra
+        # the identified model refuses a second tool point: on its robot
+        assert one.json()["field"] == two.json()["field"] == \
+            ("robot" if "tool_xyz_mm" in extra else next(iter(extra))), extra
     assert not (ws / "o").exists()
