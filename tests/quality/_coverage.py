@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -73,11 +75,17 @@ def campaign_setup(protocol_path, poses: int = 5, seed: int = 0):
 
 
 def coverage(robot, q, wrenches, k_true, method, scale, trials, seed, noise=NOISE,
-             robust="none", glitches: Glitches | None = None):
+             robust="none", glitches: Glitches | None = None, checkpoint: Path | None = None,
+             every: int = 50):
     """(coverage (6,) over the results given, results given) of 95 % intervals of k.
 
     ``robust``: "none", "huber" or "tukey" (``identify(..., robust=)``); ``glitches``:
     gross errors added to every campaign (:class:`Glitches`), none by default.
+    ``checkpoint``: a JSON file the counts and the generators' states are saved to every
+    ``every`` campaigns and read back from, so that an interrupted cell resumes (and a
+    cell of fewer campaigns extends) where it stopped with the same campaigns as one
+    uninterrupted run; a file of another cell (method, scale, seed, robust, glitches) or
+    of more campaigns than ``trials`` is not used.
     """
     qq = np.repeat(q, len(wrenches), axis=0)
     ww = np.tile(wrenches * scale, (len(q), 1))
@@ -85,24 +93,42 @@ def coverage(robot, q, wrenches, k_true, method, scale, trials, seed, noise=NOIS
     rng = np.random.default_rng(seed)
     glitch_rng = np.random.default_rng([seed, 1])
     hits = np.zeros(6)
-    given = 0
+    given = done = 0
+    cell = {"method": method, "scale": float(scale), "seed": seed, "robust": robust,
+            "glitches": None if glitches is None else repr(glitches)}
+    if checkpoint is not None and Path(checkpoint).exists():
+        saved = json.loads(Path(checkpoint).read_text())
+        if saved["cell"] == cell and saved["done"] <= trials:
+            done, given, hits = saved["done"], saved["given"], np.array(saved["hits"])
+            rng.bit_generator.state = saved["rng"]
+            glitch_rng.bit_generator.state = saved["glitch_rng"]
+
+    def save():
+        if checkpoint is not None:
+            Path(checkpoint).write_text(json.dumps(
+                {"cell": cell, "done": done, "given": given, "hits": hits.tolist(),
+                 "rng": rng.bit_generator.state, "glitch_rng": glitch_rng.bit_generator.state}))
+
     labels = np.repeat([f"P{i}" for i in range(len(q))], len(wrenches))
-    for _ in range(trials):
+    while done < trials:
         wm = ww + rng.normal(size=ww.shape) * noise.wrench_sigma_at(ww)
         dm = d + rng.normal(size=d.shape) * noise.displacement_sigma
         qm = qq + rng.normal(size=qq.shape) * noise.joint_sigma
         if glitches is not None:
             dm, wm = glitches.add(glitch_rng, dm, wm, ww, noise)
+        done += 1
         tests = TestArrays(pose=labels, q=qm, w=wm, d=dm, measured=np.ones(d.shape, bool),
                            line=np.arange(len(qq)) + 2)
         try:
             res = identify(robot, tests, method=method, noise=noise, validate=False,
                            robust=robust)
         except InputError:
-            continue
-        if res.linear_bias is not None and not res.linear_bias["reliable"]:
-            continue  # refused by the plausibility checks (campaign analyze)
-        ci = res.ci
-        given += 1
-        hits += (ci[:, 0] <= k_true) & (k_true <= ci[:, 1])
+            res = None
+        # refused by identify, or by the plausibility checks (campaign analyze)
+        if res is not None and (res.linear_bias is None or res.linear_bias["reliable"]):
+            ci = res.ci
+            given += 1
+            hits += (ci[:, 0] <= k_true) & (k_true <= ci[:, 1])
+        if done % every == 0 or done == trials:
+            save()
     return hits / max(given, 1), given

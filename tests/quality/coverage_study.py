@@ -7,7 +7,7 @@ binomial standard error of a 95 % coverage is 0.69 %, so 95 +- 3 % is resolved.
 
     PYTHONPATH=. python -m tests.quality.coverage_study [--trials 1000] [--seed 3]
     PYTHONPATH=. python -m tests.quality.coverage_study --robust [--methods ols wls exact]
-        [--exact-trials 1000] [--write-docs]
+        [--exact-trials 1000] [--write-docs] [--resume DIR]
 
 The first prints the table of ols, wls and exact at the nominal loads and twice them;
 ``--robust`` the table of Huber and Tukey around ols, wls and exact, on clean campaigns
@@ -16,7 +16,10 @@ tracker or F/T error of 20 sigma). Each prints a Markdown table (the ones in
 docs/identification.md) and one JSON line; exit 1 if a cell misses 95 +- 3 %.
 ``--write-docs`` puts the robust table's rows into docs/identification.md (between the
 ``robust-coverage`` markers; rows of the fits not rerun are kept), so a study split
-over runs (``--methods exact`` alone) fills the same table.
+over runs (``--methods exact`` alone) fills the same table. ``--resume DIR`` saves each
+cell's counts and generator states in DIR every 50 campaigns (``_coverage.coverage``
+``checkpoint``): a run stopped and started again with the same DIR goes on where it stopped,
+and a cell run at fewer campaigns is extended, with the campaigns of one uninterrupted run.
 """
 
 from __future__ import annotations
@@ -45,16 +48,27 @@ SCALES = (1.0, 2.0)
 DATA = (("clean", None), ("glitches", Glitches()))
 
 
-def study(trials: int, seed: int) -> dict:
+def _checkpoint(resume: Path | None, name: str) -> Path | None:
+    """The checkpoint file of cell ``name`` in ``resume`` (made), or None."""
+    if resume is None:
+        return None
+    resume.mkdir(parents=True, exist_ok=True)
+    return resume / f"{name}.json"
+
+
+def study(trials: int, seed: int, resume: Path | None = None) -> dict:
     """{method: {scale: (coverage (6,), campaigns given)}} of the Gaussian fits."""
     with tempfile.TemporaryDirectory() as tmp:
         robot, q, W, k = campaign_setup(write_protocol(Path(tmp)))
-        return {m: {s: coverage(robot, q, W, k, m, s, trials, seed=seed) for s in SCALES}
+        return {m: {s: coverage(robot, q, W, k, m, s, trials, seed=seed,
+                                checkpoint=_checkpoint(resume, f"{m}-x{s:g}"))
+                    for s in SCALES}
                 for m in METHODS}
 
 
 def robust_study(trials: int, seed: int, methods=ROBUST_METHODS,
-                 exact_trials: int | None = None, modes=ROBUST) -> dict:
+                 exact_trials: int | None = None, modes=ROBUST,
+                 resume: Path | None = None) -> dict:
     """{"huber (wls)": {"clean x1": (coverage (6,), given), ...}, ...} of the robust fits;
     ``exact_trials`` campaigns per cell for exact (``trials`` if None)."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -66,8 +80,9 @@ def robust_study(trials: int, seed: int, methods=ROBUST_METHODS,
             row = out[f"{r} ({m})"] = {}
             for label, g in DATA:
                 for s in SCALES:
-                    row[f"{label} x{s:g}"] = coverage(robot, q, W, k, m, s, n, seed=seed,
-                                                      robust=r, glitches=g)
+                    row[f"{label} x{s:g}"] = coverage(
+                        robot, q, W, k, m, s, n, seed=seed, robust=r, glitches=g,
+                        checkpoint=_checkpoint(resume, f"{r}-{m}-{label}-x{s:g}"))
                     cov, given = row[f"{label} x{s:g}"]
                     print(f"# {r} ({m}) {label} x{s:g}: " + " ".join(f"{100 * c:.1f}"
                                                                     for c in cov)
@@ -109,12 +124,14 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --robust: campaigns per cell for exact (default --trials)")
     ap.add_argument("--write-docs", action="store_true",
                     help="with --robust: put the rows into docs/identification.md")
+    ap.add_argument("--resume", type=Path, default=None, metavar="DIR",
+                    help="save each cell's progress in DIR and go on from it")
     args = ap.parse_args(argv)
     t0 = time.process_time()
     out = {}
     if args.robust:
         res = robust_study(args.trials, args.seed, tuple(args.methods), args.exact_trials,
-                           tuple(args.modes))
+                           tuple(args.modes), args.resume)
         cols = [f"{label} x{s:g}" for label, _ in DATA for s in SCALES]
         print(HEADER)
         rows = {}
@@ -131,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.write_docs:
             write_docs(rows)
     else:
-        res = study(args.trials, args.seed)
+        res = study(args.trials, args.seed, args.resume)
         print("| method | nominal loads: coverage k1..k6 (%) | twice the loads (%) |")
         print("| --- | --- | --- |")
         for m, by_scale in res.items():

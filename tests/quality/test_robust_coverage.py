@@ -9,6 +9,8 @@ on a tracker component or on an F/T component. The table is in docs/identificati
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -170,3 +172,23 @@ def test_linear_misfit_is_not_down_weighted(setup, method):
                        robust=robust)
         assert res.robust["down_weighted"] == [], (robust, res.robust["down_weighted"])
         np.testing.assert_array_less(np.abs(res.k - gauss.k) / gauss.se_k, 1e-5)
+
+
+def test_checkpoint_resumes_with_the_same_campaigns(setup, tmp_path):
+    """A cell stopped after 4 campaigns and extended to 8 from its checkpoint counts the
+    same campaigns as one run of 8 (glitched Tukey wls, twice the loads), and a checkpoint
+    of another cell is not used."""
+    robot, q, W, k = setup
+    args = (robot, q, W, k, "wls", 2.0)
+    kw = {"seed": 11, "robust": "tukey", "glitches": Glitches(fraction=0.5), "every": 3}
+    whole = coverage(*args, 8, **kw)
+    ck = tmp_path / "cell.json"
+    coverage(*args, 4, checkpoint=ck, **kw)
+    assert json.loads(ck.read_text())["done"] == 4
+    resumed = coverage(*args, 8, checkpoint=ck, **kw)
+    np.testing.assert_array_equal(resumed[0], whole[0])
+    assert resumed[1] == whole[1]
+    # another seed: the file is not this cell's, so the 8 campaigns are run from the start
+    other = coverage(*args, 8, checkpoint=ck, **{**kw, "seed": 12})
+    assert json.loads(ck.read_text())["cell"]["seed"] == 12
+    assert other[1] == json.loads(ck.read_text())["given"]

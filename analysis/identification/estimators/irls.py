@@ -22,6 +22,17 @@ weights stop changing.
 
 Both constants give 95 % asymptotic efficiency under Gaussian noise.
 
+Around ols and wls the residuals are the exact model's, d - f(x_c) at the
+bias-corrected estimate x_c, not the linear model's d - A x: the latter hold the
+linear model's deterministic misfit f - A x (at twice the loads of the coverage
+study up to 4 sigma of a component, more than the Huber and Tukey constants),
+which the weights would treat as glitches. Each iteration fits the linear model
+to d - (f(x_c) - A x_c) (the fixed point x_c = G (d - (f(x_c) - A x_c)) is the
+corrected estimate of :mod:`analysis.identification.corrections.linear_bias`);
+the final fit on the measured d gives the raw estimate that correction starts
+from. The sandwich's scores take the same residuals, so the weights and the
+covariance describe one estimator.
+
 Scale: 1 on the whitened residuals. The noise figures are those of calibrated
 instruments, and they are checked by the chi-square test; a scale estimated
 from the data (MAD) would be noisy with a campaign's few dozen residuals and
