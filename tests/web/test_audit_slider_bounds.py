@@ -24,15 +24,15 @@ def _bounds(schema: dict) -> tuple[float | None, float | None]:
     return None, None
 
 
-def _press(page, key: str, button: str) -> None:
-    before = int(page.evaluate("() => document.body.dataset.updates || '0'"))
-    slider = page.locator(f"#s-{key}")
+def _press(pg, key: str, button: str) -> None:
+    before = int(pg.evaluate("() => document.body.dataset.updates || '0'"))
+    slider = pg.locator(f"#s-{key}")
     slider.focus()
     slider.press(button)
-    page.wait_for_function(
+    pg.wait_for_function(
         f"() => Number(document.body.dataset.updates) > {before}"
         " || (document.body.dataset.shown || '').startsWith('error:')", timeout=60_000)
-    page.wait_for_function("() => (document.body.dataset.shown || '').replace(/^error:/, '')"
+    pg.wait_for_function("() => (document.body.dataset.shown || '').replace(/^error:/, '')"
                            " === JSON.stringify(body())", timeout=60_000)
 
 
