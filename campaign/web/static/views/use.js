@@ -381,6 +381,8 @@ function fileLink(path) {
   const program = /\.(src|dat|mod|script)$/i.test(path);
   a.href = (program ? "/api/use/program?path=" : "/api/runs/file?path=") + encodeURIComponent(path);
   a.textContent = path; a.target = "_blank";
+  // a robot program is for the controller: the link saves the file under its own name
+  if (program) a.download = path.split("/").pop();
   return a;
 }
 
