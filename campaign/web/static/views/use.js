@@ -555,6 +555,8 @@ async function runPlace() {
       view.dataset.place = "cancelled";
     } else {
       showFieldError(form, err, u$("pl-error"));
+      // the job's line is shown beside the form in its terms; not again with the CLI's options
+      u$("pl-text").textContent = "failed";
       view.dataset.place = "error";
     }
   } finally {
