@@ -134,10 +134,13 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
                                      tests.d[i, c], J)
             if bias_se is not None:
-                from analysis.identification.corrections.linear_bias import correct_linear_bias
+                from analysis.identification.corrections.linear_bias import (
+                    correct_linear_bias,
+                    corrected_fit,
+                )
 
-                correct_linear_bias(robot, rest, joints, current, bias_se, method,
-                                    in_place=True)
+                current = corrected_fit(current, correct_linear_bias(
+                    robot, rest, joints, current, bias_se, method))
             t = None  # its 48 MB (1e6 tests) before the next
             t = _studentized_matrix(rest, current, scale)
         except InputError:

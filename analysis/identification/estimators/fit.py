@@ -34,9 +34,10 @@ class FactoredEstimator:
         return self.bread @ acc
 
 
-@dataclass
+@dataclass(frozen=True)
 class Fit:
-    """One estimator's output on per-test blocks (internal).
+    """One estimator's output on per-test blocks (internal); a frozen record (the stages
+    after the fit make new ones with :func:`dataclasses.replace`).
 
     x (p,) compliances (rad/(N m)); A (m, 6, p) model (or its Jacobian) per
     test; cov (m, 6, 6) residual covariance per test; predicted (m, 6) model
