@@ -55,7 +55,7 @@ from analysis.identification.checks.outliers import (
     studentize,
 )
 from analysis.identification.io.measurements import TestArrays, to_arrays
-from analysis.identification.linalg.lsq import per_test_diagonal, scaled_condition
+from analysis.identification.linalg.lsq import scaled_condition
 from analysis.identification.noise import NoiseModel
 from analysis.identification.problem import (
     COND_LIMIT,
@@ -66,7 +66,7 @@ from analysis.identification.problem import (
 )
 from analysis.identification.result import IdentificationResult
 from analysis.identification.streaming import per_test
-from analysis.identification.streaming.per_test import PerTestSigma
+from analysis.identification.streaming.covariances import component_sigmas
 from analysis.model.robot_model import RobotModel
 from analysis.report.formatting import level
 
@@ -179,8 +179,7 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
     stats, outcome = fit_statistics(problem, outcome)
     chosen, tests = outcome.fit, problem.tests
     # (m, 6) each component's sigma; for a large campaign made where used (48 MB at 1e6)
-    sigma = PerTestSigma(chosen.cov) if per_test.is_lazy(chosen.cov) else np.sqrt(
-        per_test_diagonal(chosen.cov))
+    sigma = component_sigmas(chosen.cov)
     warnings += noise_ratio_notes((tests.d, chosen.predicted), sigma, outcome.kept,
                                   problem.noise, problem.p)
     iv = reported_intervals(problem, outcome, stats, corr)

@@ -17,7 +17,7 @@ import numpy as np
 
 from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming import blocks
-from analysis.identification.streaming.systems import Context, HeldSystems, StreamedSystems
+from analysis.identification.streaming.systems import Context, systems_for
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
@@ -98,15 +98,13 @@ def gauss_newton(
     then made when sliced, and ``R`` is the triangular factor of the final whitened
     system [Linv F | Linv r].
     """
-    from analysis.identification.streaming import per_test
-
     cols = list(joints)
     dz = np.where(measured, d, 0.0)
     J = jacobian(robot, q) if J is None else J
     batch = q.shape[:-2]
     ctx = Context(robot, q, w, dz, measured, cols, noise, J, weights, batch, {})
-    streamed = not batch and q.shape[0] > per_test.LAZY_TESTS
-    systems = StreamedSystems(ctx) if streamed else HeldSystems(ctx)
+    systems = systems_for(q.shape[-2], batch)(ctx)
+    streamed = systems.streamed
 
     x = np.array(x0, dtype=float)
     valid = np.all(np.isfinite(x), axis=-1)

@@ -24,6 +24,14 @@ import numpy as np
 LAZY_TESTS = 100_000
 
 
+def streamed(m: int, batch: tuple[int, ...] = ()) -> bool:
+    """Is a fit of ``m`` tests (in a batch of campaigns of shape ``batch``) streamed: one
+    campaign of more than :data:`LAZY_TESTS` tests, whose per-test blocks are made when
+    sliced. The one place the campaign's size is decided
+    (:func:`analysis.identification.streaming.systems.systems_for`, the Jacobian's blocks)."""
+    return not batch and m > LAZY_TESTS
+
+
 class PerTestBlocks(ABC):
     """Base of the per-test arrays made when sliced: ``shape``, ``ndim``, ``len`` and
     ``obj[key]`` like an ndarray for slices of tests, single tests and ``obj[i, c]``."""
