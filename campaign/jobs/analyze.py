@@ -290,7 +290,7 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     """(tests, robot, noise, info, extras) of a tests CSV file and its sidecar, if any;
     tests as :class:`TestArrays` (read straight into arrays: a 1e6-row file never
     becomes a table)."""
-    from analysis.identification.io.measurements import read_test_arrays
+    from analysis.identification.io.csv_reader import read_test_arrays
     from analysis.report.summary import CampaignInfo
     from campaign.run_format.tests_meta import read_sidecar
 
