@@ -19,7 +19,7 @@ SI_W = W_COLS
 SI_D = ["dx_m", "dy_m", "dz_m", "rx_rad", "ry_rad", "rz_rad"]
 SI_COLUMNS = ["pose", *SI_Q, *SI_W, *SI_D]
 #: CSV column -> (SI column, factor from CSV unit to SI)
-_TO_SI = {
+TO_SI = {
     **{c: (s, np.pi / 180.0) for c, s in zip(Q_COLS, SI_Q, strict=True)},
     **{c: (c, 1.0) for c in W_COLS},
     **{c: (s, 1e-3) for c, s in zip(D_COLS + R_COLS, SI_D, strict=True)},

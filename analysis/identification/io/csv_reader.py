@@ -14,9 +14,9 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.io.columns import _TO_SI, CSV_COLUMNS, N_JOINTS
+from analysis.identification.io.columns import CSV_COLUMNS, N_JOINTS, TO_SI
 from analysis.identification.io.measurements import TestArrays, to_arrays
-from analysis.identification.io.table_checks import _validate_arrays, validate_table
+from analysis.identification.io.table_checks import validate_arrays, validate_table
 
 
 def _numeric(frame: pd.DataFrame, col: str, where: str, line0: int) -> np.ndarray:
@@ -183,7 +183,7 @@ def _read_arrow(path: Path) -> TestArrays | None:
                 if np.count_nonzero(np.isfinite(v)) != n - col.null_count:
                     return None
                 block, k = target[j]
-                block[m:m + n, k] = v * _TO_SI[c][1]
+                block[m:m + n, k] = v * TO_SI[c][1]
             m += n
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError, UnicodeDecodeError, OSError):
         return None
@@ -198,7 +198,7 @@ def _read_arrow(path: Path) -> TestArrays | None:
         i = int(np.flatnonzero(np.isin(codes, bad))[0])
         raise InputError(f"line {i + 2}, column pose: empty pose label", where=where)
     line = np.arange(m, dtype=np.int64) + 2
-    _validate_arrays(q, w, d, line, where)
+    validate_arrays(q, w, d, line, where)
     pose = np.empty(len(labels), dtype=object)
     pose[:] = list(labels)
     return TestArrays(pose=pose[codes], q=q, w=w, d=d, measured=np.isfinite(d), line=line)
@@ -226,7 +226,7 @@ def from_csv_frame(frame: pd.DataFrame, where: str = "measurements") -> pd.DataF
         i = int(np.flatnonzero(empty_pose.to_numpy())[0])
         raise InputError(f"line {i + line0}, column pose: empty pose label", where=where)
     for col in CSV_COLUMNS[1:]:
-        si, factor = _TO_SI[col]
+        si, factor = TO_SI[col]
         out[si] = _numeric(frame, col, where, line0) * factor
     out["line"] = np.arange(len(frame)) + line0
     validate_table(out, where=where)

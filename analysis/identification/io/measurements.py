@@ -1,4 +1,4 @@
-"""The table of stiffness tests: CSV import format, tidy SI table, validation.
+"""The stiffness tests as arrays (:class:`TestArrays`, SI) and as the tidy SI table.
 
 Public CSV format (one row per test, extra columns ignored, header required)::
 
@@ -9,9 +9,11 @@ Public CSV format (one row per test, extra columns ignored, header required)::
     rx_mrad, ry_mrad, rz_mrad              small rotation vector, base frame (mrad);
                                            empty for translational-only measurements
 
-Inside the program the same tests are a tidy table in SI units with the
-columns of :data:`SI_COLUMNS` (rad, N, N m, m, rad). Every error names the CSV
-line (header = line 1) and the column at fault.
+Inside the program the same tests are a tidy table in SI units with the columns of
+:data:`~analysis.identification.io.columns.SI_COLUMNS` (rad, N, N m, m, rad). Reading a
+file: :mod:`analysis.identification.io.csv_reader`; the checks, whose errors name the CSV
+line (header = line 1) and the column at fault:
+:mod:`analysis.identification.io.table_checks`.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.identification.io.columns import _TO_SI, SI_D, SI_Q, SI_W
+from analysis.identification.io.columns import SI_D, SI_Q, SI_W, TO_SI
 from analysis.identification.io.table_checks import validate_table
 
 
@@ -82,7 +84,7 @@ def to_arrays(table: pd.DataFrame) -> TestArrays:
 def to_csv_frame(table: pd.DataFrame) -> pd.DataFrame:
     """The tidy SI table back in the public CSV units (deg, N, N m, mm, mrad)."""
     out = pd.DataFrame({"pose": table["pose"].to_numpy()})
-    for col, (si, factor) in _TO_SI.items():
+    for col, (si, factor) in TO_SI.items():
         out[col] = table[si].to_numpy(dtype=float) / factor
     return out
 

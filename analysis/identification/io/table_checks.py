@@ -10,13 +10,13 @@ import pandas as pd
 
 from analysis.errors import InputError
 from analysis.identification.io.columns import (
-    _TO_SI,
     PLAUSIBLE_MAX,
     R_COLS,
     SI_COLUMNS,
     SI_D,
     SI_Q,
     SI_W,
+    TO_SI,
     W_COLS,
 )
 
@@ -41,7 +41,7 @@ def validate_table(table: pd.DataFrame, where: str = "measurements") -> None:
                 lines, where)
 
 
-def _validate_arrays(q: np.ndarray, w: np.ndarray, d: np.ndarray, lines: np.ndarray | None,
+def validate_arrays(q: np.ndarray, w: np.ndarray, d: np.ndarray, lines: np.ndarray | None,
                      where: str) -> None:
     """:func:`validate_table` on the (m, 6) SI arrays: the same checks in the same order,
     so that the same cell is named."""
@@ -56,7 +56,7 @@ def _row_label(lines: np.ndarray | None, i: int) -> str:
 
 
 def _csv_name(si: str) -> str:
-    for c, (s, _) in _TO_SI.items():
+    for c, (s, _) in TO_SI.items():
         if s == si:
             return c
     return si
@@ -81,7 +81,7 @@ def _check_column(values: np.ndarray, col: str, lines: np.ndarray | None, where:
     if np.any(huge):
         i = int(np.flatnonzero(huge)[0])
         name = _csv_name(col)
-        factor = _TO_SI[name][1] if name in _TO_SI else 1.0
+        factor = TO_SI[name][1] if name in TO_SI else 1.0
         raise InputError(
             f"{_row_label(lines, i)}, column {name}: {values[i] / factor:.6g} is beyond any "
             f"plausible value (|value| <= {PLAUSIBLE_MAX[col] / factor:.3g}); check the units "
