@@ -240,7 +240,7 @@ def _linear_bias(problem: IdentificationProblem, outcome):
         correct_linear_bias,
         corrected_fit,
     )
-    from analysis.identification.linalg.lsq import sandwich
+    from analysis.identification.linalg.sandwich import sandwich
 
     chosen = outcome.fit
     corr = correct_linear_bias(problem.robot, problem.tests, problem.joints, chosen,

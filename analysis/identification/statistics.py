@@ -13,13 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.linalg import lsq
-from analysis.identification.linalg.lsq import (
-    TallR,
-    blocks_of_tests,
-    sandwich_and_residual_variance,
-    stack_matrix,
-    whitening,
-)
+from analysis.identification.linalg.lsq import TallR, blocks_of_tests, stack_matrix, whitening
+from analysis.identification.linalg.sandwich import sandwich_and_residual_variance
 from analysis.identification.uncertainty import chi2_summary
 
 

@@ -17,7 +17,8 @@ from analysis.identification.estimators.linear_model import jacobian_blocks
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.io.residual_rows import ResidualRows
 from analysis.identification.io.results_json import RESIDUALS_LISTED
-from analysis.identification.linalg.lsq import blocks_of_tests, sandwich_and_residual_variance
+from analysis.identification.linalg.lsq import blocks_of_tests
+from analysis.identification.linalg.sandwich import sandwich_and_residual_variance
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
 from analysis.identification.streaming.per_test import apply
 from analysis.report.formatting import level

@@ -63,7 +63,7 @@ from analysis.identification.estimators.robust_covariance import (
 )
 from analysis.identification.io.columns import COMPONENTS
 from analysis.identification.io.measurements import TestArrays
-from analysis.identification.linalg.lsq import sandwich
+from analysis.identification.linalg.sandwich import sandwich
 from analysis.identification.streaming.per_test import apply
 
 ROBUST_METHODS = ("none", "huber", "tukey")

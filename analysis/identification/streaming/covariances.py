@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.identification.linalg.lsq import per_test_diagonal, whitening
+from analysis.identification.linalg.lsq import whitening
+from analysis.identification.linalg.sandwich import per_test_diagonal
 from analysis.identification.noise import residual_covariance
 from analysis.identification.streaming import blocks
 from analysis.identification.streaming.per_test import (
@@ -56,8 +57,9 @@ class PerTestCovariance(PerTestBlocks):
 
     ``cov[s:e]`` is :func:`covariances_per_test` of those tests (the same numbers as a
     slice of the whole array); the (m, 6, 6) array (0.3 GB at 1e6 tests) is never held.
-    The passes over it (:func:`analysis.identification.linalg.lsq.sandwich_and_residual_variance`,
-    the chi-square's whitening, :func:`~analysis.identification.linalg.lsq.per_test_diagonal`)
+    The passes over it
+    (:func:`analysis.identification.linalg.sandwich.sandwich_and_residual_variance`, the
+    chi-square's whitening, :func:`~analysis.identification.linalg.sandwich.per_test_diagonal`)
     take it by blocks of consecutive tests. ``J`` (m, 6, 6) is the Jacobian at the tests'
     joint angles, ``x_full`` (6,) the compliances the covariances are evaluated at.
     """
