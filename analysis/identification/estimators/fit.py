@@ -44,7 +44,7 @@ class Fit:
     displacement (m, rad). The linear(ised) estimator x = G d is kept in
     factored form, G = bread A^T W with W = Linv^T Linv per test (identity
     when ``Linv`` is None, OLS) and bread (p, p) = (A^T W A)^-1: memory
-    linear in the number of tests (:mod:`analysis.identification.linalg.lsq` computes
+    linear in the number of tests (:mod:`analysis.identification.linalg.sandwich` computes
     its covariance and residual variances blockwise). ``deflection`` (m, 6): the
     exact fit's joint deflections at x (rad), None for the linear fits. ``eiv_shift``
     (p,): how far the wrench errors-in-variables correction moved x

@@ -5,7 +5,7 @@ the Jacobian J(q) (m, 6, 6), the design A (m, 6, p) of the linear model, the
 whitening of the residual covariances. At 1e6 tests each is 0.3 GB. Above
 :data:`LAZY_TESTS` tests they are not held: these objects stand in for them, and
 ``obj[s:e]`` computes the rows of tests s..e-1 (the same numbers as a slice of the
-full array). Every pass of :mod:`analysis.identification.linalg.lsq` and of the fits
+full array). Every pass of :mod:`analysis.identification.linalg.sandwich` and of the fits
 already walks the tests in blocks, so they take either. Recomputing J costs about
 1.3 us per test and pass; holding it would cost 288 bytes per test.
 
