@@ -115,7 +115,11 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
 
     @app.exception_handler(InputError)
     async def input_error(request: Request, err: InputError):
-        return JSONResponse({"detail": str(err), "where": err.where}, status_code=422)
+        # paths as the client gave them: relative to the workspace, not the server's disk
+        root = f"{app.state.workspace}{os.sep}"
+        return JSONResponse({"detail": str(err).replace(root, ""),
+                             "where": None if err.where is None else
+                             str(err.where).replace(root, "")}, status_code=422)
 
     @app.exception_handler(EquilibriumError)
     async def equilibrium_error(request: Request, err: EquilibriumError):
