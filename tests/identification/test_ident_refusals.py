@@ -129,3 +129,29 @@ def test_translational_misfit_names_the_rigid_wrist_first(kr240, zone_poses, w_e
     tests = simulate(kr240, zone_poses, w_eff, rigid, noise=noise, rotations=False)
     res = identify(kr240, tests, noise=noise, validate=False)
     assert not any(p.startswith("misfit") for p in problems(res, None)), res.chi2_reduced
+
+
+def test_unreliable_linear_correction_is_named_first(kr240, zone_poses, w_eff):
+    """At 45 x w_eff (~100 kN: past any real load, where the linearisation of ols is
+    so poor that its bias correction does not converge) the raw linear fit is kept and
+    refused. Its residuals are the linear model's, so the chi-square is huge (~1e7);
+    the first problem named is the linearisation with its way out (--method exact), and
+    the misfit's first cause is the linear model, not the tool point. The exact fit of
+    the same data is not refused and recovers the truth."""
+    from analysis.identification.checks.plausibility import problems
+    from analysis.identification.noise import NoiseModel
+
+    noise = NoiseModel(translation_sigma_override=30e-6, rotation_sigma_override=20e-6)
+    w = np.array([w_eff, w_eff * [1, -1, 1, -1, 1, 1], w_eff[[1, 0, 2, 4, 3, 5]]]) * 45.0
+    q = np.repeat(zone_poses[:6], 3, axis=0)
+    tests = simulate(kr240, q, np.tile(w, (6, 1)), kr240.nominal_stiffness, noise=noise)
+    res = identify(kr240, tests, method="ols", noise=noise, validate=False)
+    assert not res.linear_bias["reliable"]
+    found = problems(res, None)
+    assert found[0].startswith("linearisation bias") and "--method exact" in found[0]
+    misfit = [p for p in found if p.startswith("misfit")]
+    assert misfit and "(1) the linear model of ols at these loads" in misfit[0], found
+    exact = identify(kr240, tests, method="exact", noise=noise, validate=False)
+    assert not problems(exact, None)
+    z = (exact.k - kr240.nominal_stiffness) / exact.se_k
+    assert np.all(np.abs(z) < 4), z

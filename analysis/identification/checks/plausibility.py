@@ -91,10 +91,22 @@ def worst_rows(result: IdentificationResult, n: int = WORST_ROWS) -> str:
                      for r in res.loc[order].itertuples())
 
 
+def _linear_bias_unreliable(result: IdentificationResult) -> bool:
+    return result.linear_bias is not None and not result.linear_bias["reliable"]
+
+
 def _misfit_causes(result: IdentificationResult) -> tuple[str, ...]:
-    """CAUSES_MISFIT, led by the rigid wrist when the fit is the translational-only variant."""
-    rigid_wrist = any(w.startswith("translational-only variant") for w in result.warnings)
-    return (CAUSE_RIGID_WRIST, *CAUSES_MISFIT) if rigid_wrist else CAUSES_MISFIT
+    """CAUSES_MISFIT, led by the linear model when its bias correction was unreliable (the
+    residuals are then the raw linear fit's) and by the rigid wrist when the fit is the
+    translational-only variant."""
+    first = []
+    if _linear_bias_unreliable(result):
+        first.append(f"the linear model of {result.method} at these loads (its residuals "
+                     "hold the linearisation error: see the linearisation bias; --method "
+                     "exact)")
+    if any(w.startswith("translational-only variant") for w in result.warnings):
+        first.append(CAUSE_RIGID_WRIST)
+    return (*first, *CAUSES_MISFIT)
 
 
 def _causes(causes: tuple[str, ...]) -> str:
@@ -148,12 +160,13 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
             f"too good to be true: the residuals are far smaller than the noise figures "
             f"({chi2}, P(chi2 <= observed) = {low:.2g} < {MISFIT_P:g}); likely causes: "
             f"{_causes(CAUSES_TOO_GOOD)}")
-    bias = result.linear_bias
-    if bias is not None and not bias["reliable"]:
-        out.append(
+    if _linear_bias_unreliable(result):
+        # first: the residuals of a raw linear fit carry the linearisation error, so this
+        # also explains a misfit reported with it
+        out.insert(0,
             f"linearisation bias: {result.method} is biased by the linear model at these "
-            f"loads and the correction is unreliable ({bias['reason']}); use --method exact "
-            "(the nonlinear equilibrium fit)")
+            f"loads and the correction is unreliable ({result.linear_bias['reason']}); use "
+            "--method exact (the nonlinear equilibrium fit)")
     negative = _negative_joints(result)
     if negative:
         out.append(
