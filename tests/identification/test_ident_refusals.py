@@ -155,3 +155,17 @@ def test_unreliable_linear_correction_is_named_first(kr240, zone_poses, w_eff):
     assert not problems(exact, None)
     z = (exact.k - kr240.nominal_stiffness) / exact.se_k
     assert np.all(np.abs(z) < 4), z
+
+
+def test_missing_held_out_check_is_said(kr240, zone_poses, w_eff):
+    """The held-out check needs 3 folds; with fewer (2 poses here) the result says that it
+    was not made, instead of leaving the validation out silently."""
+    tests = simulate(kr240, zone_poses[:2], w_eff, kr240.nominal_stiffness)
+    res = identify(kr240, tests, validate=True)
+    assert res.validation is None
+    said = [w for w in res.warnings if w.startswith("no held-out validation")]
+    assert len(said) == 1 and "2 fold(s)" in said[0] and "2 poses" in said[0], res.warnings
+    res = identify(kr240, simulate(kr240, zone_poses[:3], w_eff, kr240.nominal_stiffness),
+                   validate=True)
+    assert res.validation is not None and len(res.validation) == 3
+    assert not any(w.startswith("no held-out validation") for w in res.warnings)
