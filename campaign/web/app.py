@@ -94,7 +94,9 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
             if offered is None:
                 return _denied(401, "no access token: open the URL `campaign gui` printed")
             if not security.same(offered, token):
-                return _denied(403, "wrong access token")
+                # a restarted server has a new token: a page left open says what to do
+                return _denied(403, "wrong access token (the server was restarted? open "
+                               "the URL `campaign gui` printed)")
             if request.method not in security.SAFE_METHODS and not security.same(
                     request.headers.get(security.CSRF_HEADER), app.state.csrf):
                 return _denied(403, f"missing or wrong {security.CSRF_HEADER} header")
@@ -113,7 +115,11 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
 
     @app.exception_handler(InputError)
     async def input_error(request: Request, err: InputError):
-        return JSONResponse({"detail": str(err), "where": err.where}, status_code=422)
+        # paths as the client gave them: relative to the workspace, not the server's disk
+        root = f"{app.state.workspace}{os.sep}"
+        return JSONResponse({"detail": str(err).replace(root, ""),
+                             "where": None if err.where is None else
+                             str(err.where).replace(root, "")}, status_code=422)
 
     @app.exception_handler(EquilibriumError)
     async def equilibrium_error(request: Request, err: EquilibriumError):

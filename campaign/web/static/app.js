@@ -58,7 +58,9 @@ function route(openapi, tag, method) {
 function buildSliders(schema, defaults) {
   const box = $("sliders");
   for (const [key, label, unit, max, step] of SLIDERS) {
-    const prop = schema.properties[key] || {};
+    // an optional field's bounds are in its anyOf (number | null)
+    const field = schema.properties[key] || {};
+    const prop = (field.anyOf || [field]).find((s) => s.type === "number" || s.type === "integer") || {};
     const hi = Math.min(max, prop.maximum ?? max);
     const lo = prop.minimum ?? (key === "n_tests" ? 1 : 0);
     const start = key === "n_tests" ? 10 : Math.min(hi, defaults[key]);
