@@ -6,7 +6,6 @@ import io
 
 import numpy as np
 import pypdf
-import pytest
 from PIL import Image
 
 from analysis.report.model import Figure
@@ -47,19 +46,3 @@ def test_other_pngs_go_through_fpdf():
     assert png_stream(_png(rgba, "RGBA")) is None
     assert png_stream(b"not a png") is None
     assert np.array_equal(_pdf_images([_png(rgba, "RGBA")])[0], rgba[..., :3])
-
-
-def test_encoded_png_reads_back_with_its_pixels_and_resolution():
-    from analysis.report.png import encode_rgb
-
-    rng = np.random.default_rng(3)
-    rgb = rng.integers(0, 256, (37, 53, 3), dtype=np.uint8)
-    rgb[:10] = 255  # flat rows too
-    png = encode_rgb(rgb, dpi=300)
-    with Image.open(io.BytesIO(png)) as im:
-        assert im.mode == "RGB" and im.size == (53, 37)
-        assert np.array_equal(np.asarray(im), rgb)
-        assert im.info["dpi"] == pytest.approx((300, 300), abs=0.01)
-    assert np.array_equal(_pdf_images([png])[0], rgb)
-    with pytest.raises(ValueError, match="uint8"):
-        encode_rgb(rgb.astype(float))
