@@ -269,61 +269,12 @@ def _table(doc: _Doc, t: Table) -> None:
     doc.ln(3)
 
 
-def png_stream(png: bytes) -> tuple[int, int, bytes] | None:
-    """(width, height, zlib stream) of an 8-bit RGB, non-interlaced PNG with no palette,
-    transparency or colour profile; None for any other PNG.
-
-    The PNG's IDAT data is zlib-compressed scanlines, each led by its PNG filter byte:
-    exactly what a PDF image stream with ``/FlateDecode`` and ``/DecodeParms
-    <</Predictor 15 /Colors 3 /Columns w>>`` holds, so the PDF can carry it as it is.
-    """
-    if png[:8] != b"\x89PNG\r\n\x1a\n":
-        return None
-    pos, idat, size = 8, [], None
-    while pos + 8 <= len(png):
-        length = int.from_bytes(png[pos:pos + 4], "big")
-        kind, body = png[pos + 4:pos + 8], png[pos + 8:pos + 8 + length]
-        pos += 12 + length
-        if kind == b"IHDR":
-            w, h = int.from_bytes(body[:4], "big"), int.from_bytes(body[4:8], "big")
-            if body[8:13] != bytes([8, 2, 0, 0, 0]):  # depth 8, RGB, deflate, filters, no interlace
-                return None
-            size = (w, h)
-        elif kind == b"IDAT":
-            idat.append(body)
-        elif kind in (b"PLTE", b"tRNS", b"iCCP", b"gAMA", b"cHRM", b"sRGB"):
-            return None  # colour handling the pass-through would drop
-        elif kind == b"IEND":
-            break
-    if size is None or not idat:
-        return None
-    return size[0], size[1], b"".join(idat)
-
-
-def _image_name(doc: _Doc, f: Figure) -> str | io.BytesIO:
-    """What to hand ``doc.image`` for the figure: the name of its PNG stream entered in the
-    document's image cache (fpdf2 would otherwise decode the PNG and compress its pixels
-    again, about a third of the PDF's time), else the PNG itself."""
-    from fpdf.image_datastructures import RasterImageInfo
-
-    stream = png_stream(f.png)
-    if stream is None:
-        return io.BytesIO(f.png)
-    w, h, data = stream
-    name = f"figure:{f.name}:{len(doc.image_cache.images)}"
-    doc.image_cache.images[name] = RasterImageInfo(
-        data=data, w=w, h=h, cs="DeviceRGB", iccp=None, dpn=3, bpc=8, f="FlateDecode",
-        inverted=False, dp=f"/Predictor 15 /Colors 3 /Columns {w}",
-        i=len(doc.image_cache.images) + 1, usages=0, iccp_i=None)
-    return name
-
-
 def _figure(doc: _Doc, f: Figure) -> None:
     h = FIGURE_WIDTH * f.height / f.width
     if _space_left(doc) < h + 10:
         doc.add_page()
     x = (doc.w - FIGURE_WIDTH) / 2
-    doc.image(_image_name(doc, f), x=x, y=doc.get_y(), w=FIGURE_WIDTH, h=h)
+    doc.image(io.BytesIO(f.png), x=x, y=doc.get_y(), w=FIGURE_WIDTH, h=h)
     doc.set_y(doc.get_y() + h + 1)
     doc.set_font("DejaVu", "", 7.5)
     doc.set_text_color(80)
