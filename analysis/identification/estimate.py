@@ -169,6 +169,8 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
     validation = _validation(problem, outcome, corr)
     if validation is not None:
         warnings += _validation_flags(validation)
+    elif problem.options.validate:
+        warnings.append(_no_validation_note(problem))
     outcome = _released(outcome)
     if problem.large:
         per_test.release_freed_heap()  # the blocks' freed pages, before the statistics
@@ -268,6 +270,15 @@ def _validation(problem: IdentificationProblem, outcome, corr) -> pd.DataFrame |
                               fold_sums=outcome.sums,
                               linear_shift=None if corr is None or not corr.reliable
                               else (corr.x - corr.x_raw, corr.propagation))
+
+
+def _no_validation_note(problem: IdentificationProblem) -> str:
+    """Why the held-out check is missing: fewer than 3 folds of poses."""
+    folds = int(np.max(problem.folds, initial=-1)) + 1
+    poses = int(np.max(problem.pose_group, initial=-1)) + 1
+    return (f"no held-out validation: {folds} fold(s) of poses ({poses} poses, those within "
+            f"{np.degrees(problem.options.radius):g} deg of each other held out together); "
+            "it needs 3 or more: nothing predicted a pose it was not fitted to")
 
 
 def _released(outcome):

@@ -366,8 +366,12 @@ def _holdout_deg(protocol) -> tuple[float, str]:
     from analysis.identification.validation.holdout_check import CLUSTER_DEG
 
     if protocol is not None:
+        name = Path(protocol.path).name
+        if "min_pose_separation_deg" in protocol.thresholds.model_fields_set:
+            return (float(protocol.thresholds.min_pose_separation_deg),
+                    f"protocol {name} [thresholds] min_pose_separation_deg")
         return (float(protocol.thresholds.min_pose_separation_deg),
-                f"protocol {Path(protocol.path).name} [thresholds] min_pose_separation_deg")
+                f"default: protocol {name} has no [thresholds] min_pose_separation_deg")
     return CLUSTER_DEG, "default, the planner's default minimum pose separation"
 
 

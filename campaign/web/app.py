@@ -50,8 +50,13 @@ def _routers():
             log.warning("GUI: %s not available (%s); its views are off", name, err)
 
 
-def create_app(workspace: str | Path, token: str, password: str | None = None):
+def create_app(workspace: str | Path, token: str, password: str | None = None,
+               hardware: bool = False):
     """The FastAPI app serving ``workspace`` to clients holding ``token`` (or ``password``).
+
+    ``hardware``: the Acquire view may run on a real robot (the operator's ``--hardware``
+    at start; each run still needs its confirmation, limits and dry run); without it the
+    server runs acquisitions on the simulated lab only.
 
     Raises InputError when the workspace is not an existing directory.
     """
@@ -77,6 +82,7 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
     app.state.token = token
     app.state.csrf = security.csrf_value(token)
     app.state.password = password
+    app.state.hardware = bool(hardware)
     # Monte-Carlo requests of every tab and client share the CPUs: one per core at a time
     app.state.compute_slots = threading.BoundedSemaphore(os.cpu_count() or 1)
 

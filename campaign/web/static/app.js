@@ -256,6 +256,14 @@ async function start() {
   state.csrf = session.csrf_token;
   state.header = session.csrf_header;
   $("workspace").textContent = `workspace: ${session.workspace}`;
+  if (!session.hardware) {
+    // started without --hardware: the server refuses a run on hardware, so the page offers none
+    $("acq-fake").checked = true;
+    $("acq-fake").disabled = true;
+    $("acq-fake").title = "this GUI was started without --hardware: simulated lab only";
+    $("acq-confirm-row").hidden = true;
+    $("acq-hardware-note").hidden = false;
+  }
   state.api.sensitivity = route(openapi, "sensitivity", "post");
   const defaults = await getJSON(route(openapi, "sensitivity", "get"));
   robotFillDatalist($("robots"), await robotChoices());
