@@ -146,13 +146,17 @@ def test_fuzz_helper_lets_foreign_errors_through():
 
 
 class _BytesPort:
-    """Stands in for a serial port: serves a fixed byte string, then nothing."""
+    """Stands in for a serial port: serves a fixed byte string, then fails as an unplugged
+    port does (the driver's ConnectionFailed ends the read loop on the data, not on a clock:
+    a short timeout could expire mid-stream on a loaded machine)."""
 
     def __init__(self, data: bytes) -> None:
         self.data = bytearray(data)
         self.in_waiting = 0
 
     def read(self, n: int) -> bytes:
+        if not self.data:
+            raise OSError("end of the test's bytes")
         out = bytes(self.data[:n])
         del self.data[:n]
         return out
@@ -173,7 +177,7 @@ def test_ft300_stream_reassembly_returns_only_sent_frames(pieces):
             stream += frame
         else:
             stream += piece
-    drv = robotiq_ft300.FT300Sensor("/dev/null", timeout=0.01)
+    drv = robotiq_ft300.FT300Sensor("/dev/null", timeout=60.0)
     drv._ser = _BytesPort(stream)
     drv.max_bad_frames = 10**6
     returned = []
