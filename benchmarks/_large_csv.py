@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.identification.io.measurements import CSV_COLUMNS
+from analysis.identification.io.columns import CSV_COLUMNS
 from analysis.identification.noise import NoiseModel
 from analysis.identification.studies.robustness import sample_poses
 from analysis.kinetostatics.equilibrium import displacement_screw

@@ -70,7 +70,7 @@ print(json.dumps({"m": tests.m, "sha256": digest.hexdigest()}))
 
 def residual_rows(csv: Path, n: int):
     """A ResidualRows of the first n tests of ``csv`` with deterministic stand-ins."""
-    from analysis.identification.io.measurements import read_test_arrays
+    from analysis.identification.io.csv_reader import read_test_arrays
     from analysis.identification.io.residual_rows import ResidualRows
 
     tests = read_test_arrays(csv)

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from drivers.errors import DeviceFault, DeviceTimeout, DriverError
+from drivers.loopback_guard import check_address
 from drivers.readings import JointAngles, Point, Pose, Wrench, average_wrench
 
 
@@ -37,6 +38,7 @@ class Driver(ABC):
     def connect(self) -> None:
         """Open the link to the device (idempotent)."""
         if not self.connected:
+            check_address(self.address)
             self._connect()
             self.connected = True
 

@@ -1,8 +1,19 @@
-"""Shared pytest options: hardware addresses and the opt-in slow marker."""
+"""Shared pytest options: hardware addresses, the opt-in slow marker, loopback only."""
 
 from __future__ import annotations
 
+import os
+
 import pytest
+
+from drivers.loopback_guard import ENV as LOOPBACK_ONLY
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # Nothing leaves loopback: every driver this run (and every process it starts) builds
+    # refuses a device off this machine, unless a real device's address was given.
+    if not any(config.getoption(o) for o in ("--ft-url", "--tracker-url", "--robot-url")):
+        os.environ[LOOPBACK_ONLY] = "1"
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -55,7 +55,7 @@ from analysis.identification.checks.outliers import (
     studentize,
 )
 from analysis.identification.io.measurements import TestArrays, to_arrays
-from analysis.identification.linalg.lsq import per_test_diagonal, scaled_condition
+from analysis.identification.linalg.lsq import scaled_condition
 from analysis.identification.noise import NoiseModel
 from analysis.identification.problem import (
     COND_LIMIT,
@@ -66,7 +66,7 @@ from analysis.identification.problem import (
 )
 from analysis.identification.result import IdentificationResult
 from analysis.identification.streaming import per_test
-from analysis.identification.streaming.per_test import PerTestSigma
+from analysis.identification.streaming.covariances import component_sigmas
 from analysis.model.robot_model import RobotModel
 from analysis.report.formatting import level
 
@@ -159,7 +159,9 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
     outcome = est.fit(problem)
     if problem.large:
         per_test.release_freed_heap()  # the fit's freed pages, before the validation
-    corr = _linear_bias(problem, outcome) if est.linearised else None
+    corr = None
+    if est.linearised:
+        outcome, corr = _linear_bias(problem, outcome)
     if outcome.robust is not None:
         outcome = _with_robust_covariance(outcome, corr)
     # validation first: a streamed exact fit's per-pose sums (and its deflections, Newton's
@@ -167,6 +169,8 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
     validation = _validation(problem, outcome, corr)
     if validation is not None:
         warnings += _validation_flags(validation)
+    elif problem.options.validate:
+        warnings.append(_no_validation_note(problem))
     outcome = _released(outcome)
     if problem.large:
         per_test.release_freed_heap()  # the blocks' freed pages, before the statistics
@@ -174,11 +178,10 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
     from analysis.identification.intervals import reported_intervals
     from analysis.identification.statistics import fit_statistics
 
-    stats = fit_statistics(problem, outcome)
+    stats, outcome = fit_statistics(problem, outcome)
     chosen, tests = outcome.fit, problem.tests
     # (m, 6) each component's sigma; for a large campaign made where used (48 MB at 1e6)
-    sigma = PerTestSigma(chosen.cov) if per_test.is_lazy(chosen.cov) else np.sqrt(
-        per_test_diagonal(chosen.cov))
+    sigma = component_sigmas(chosen.cov)
     warnings += noise_ratio_notes((tests.d, chosen.predicted), sigma, outcome.kept,
                                   problem.noise, problem.p)
     iv = reported_intervals(problem, outcome, stats, corr)
@@ -229,18 +232,24 @@ def _checked(problem: IdentificationProblem) -> tuple[float, list[str]]:
 
 
 def _linear_bias(problem: IdentificationProblem, outcome):
-    """The linear model's bias corrected (before the validation, which corrects its folds
-    too); where reliable, the residuals (chi-square, outliers, notes) are those of the
-    exact model at the corrected estimate: ``outcome.fit.predicted`` becomes f(x_c) in
-    place."""
-    from analysis.identification.corrections.linear_bias import correct_linear_bias
-    from analysis.identification.linalg.lsq import sandwich
+    """(outcome, correction): the linear model's bias corrected (before the validation,
+    which corrects its folds too); where reliable, the residuals (chi-square, outliers,
+    notes) are those of the exact model at the corrected estimate: the new outcome's fit
+    predicts f(x_c)."""
+    from dataclasses import replace
+
+    from analysis.identification.corrections.linear_bias import (
+        correct_linear_bias,
+        corrected_fit,
+    )
+    from analysis.identification.linalg.sandwich import sandwich
 
     chosen = outcome.fit
-    return correct_linear_bias(problem.robot, problem.tests, problem.joints, chosen,
+    corr = correct_linear_bias(problem.robot, problem.tests, problem.joints, chosen,
                                np.sqrt(np.diag(sandwich(chosen.A, chosen.cov, chosen.bread,
                                                         chosen.Linv))),
-                               problem.options.method, in_place=True)
+                               problem.options.method)
+    return replace(outcome, fit=corrected_fit(chosen, corr)), corr
 
 
 def _validation(problem: IdentificationProblem, outcome, corr) -> pd.DataFrame | None:
@@ -263,14 +272,22 @@ def _validation(problem: IdentificationProblem, outcome, corr) -> pd.DataFrame |
                               else (corr.x - corr.x_raw, corr.propagation))
 
 
+def _no_validation_note(problem: IdentificationProblem) -> str:
+    """Why the held-out check is missing: fewer than 3 folds of poses."""
+    folds = int(np.max(problem.folds, initial=-1)) + 1
+    poses = int(np.max(problem.pose_group, initial=-1)) + 1
+    return (f"no held-out validation: {folds} fold(s) of poses ({poses} poses, those within "
+            f"{np.degrees(problem.options.radius):g} deg of each other held out together); "
+            "it needs 3 or more: nothing predicted a pose it was not fitted to")
+
+
 def _released(outcome):
     """``outcome`` without what only the validation used: a streamed fit's per-fold sums
     and its deflections (48 MB at 1e6 tests)."""
     from dataclasses import replace
 
-    if outcome.fit.R is not None:
-        outcome.fit.deflection = None
-    return replace(outcome, sums=None)
+    fit = replace(outcome.fit, deflection=None) if outcome.fit.R is not None else outcome.fit
+    return replace(outcome, fit=fit, sums=None)
 
 
 def _residuals(problem: IdentificationProblem, outcome, stats, iv, sigma):
@@ -307,7 +324,7 @@ def _result(problem, outcome, stats, iv, cond, residuals, rows, threshold, valid
             warnings) -> IdentificationResult:
     """The :class:`IdentificationResult` of the stages' records."""
     tests, options = problem.tests, problem.options
-    result = IdentificationResult.build(
+    return IdentificationResult.build(
         robot=problem.robot.name, method=options.method, joints=problem.joints, x=iv.x,
         cov_x=iv.cov_x, ci=iv.ci, confidence=options.confidence,
         covariance=options.covariance, condition_number=cond,
@@ -317,17 +334,11 @@ def _result(problem, outcome, stats, iv, cond, residuals, rows, threshold, valid
         n_poses=int(problem.pose_group.max(initial=-1)) + 1,
         outlier_threshold=threshold,
         linear=outcome.linear, iterations=outcome.fit.iterations,
-        noise=problem.noise, warnings=warnings,
+        noise=problem.noise, warnings=warnings, residual_rows=rows,
+        wrench_eiv=iv.wrench_eiv, linear_bias=iv.linear_bias, encoder_eiv=iv.encoder,
+        robust=None if outcome.robust is None else outcome.robust.describe(),
+        validation=validation, pose_group=problem.pose_group,
     )
-    result.residual_rows = rows
-    result.wrench_eiv = iv.wrench_eiv
-    result.linear_bias = iv.linear_bias
-    result.encoder_eiv = iv.encoder
-    if outcome.robust is not None:
-        result.robust = outcome.robust.describe()
-    result.validation = validation
-    result.pose_group = problem.pose_group
-    return result
 
 
 def _validation_flags(validation: pd.DataFrame, named: int = 5) -> list[str]:

@@ -111,12 +111,20 @@ class IdentificationProblem:
         return len(self.joints)
 
     @property
-    def large(self) -> bool:
-        """More tests than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS`: the
-        per-test blocks are made when sliced, the fits stream over them."""
-        from analysis.identification.streaming import per_test
+    def systems(self):
+        """The :class:`~analysis.identification.streaming.systems.LinearisedSystems` of this
+        campaign's fits (:func:`~analysis.identification.streaming.systems.systems_for`):
+        what the estimators do differently at its size, without asking for the size."""
+        from analysis.identification.streaming.systems import systems_for
 
-        return self.tests.m > per_test.LAZY_TESTS
+        return systems_for(self.tests.m)
+
+    @property
+    def large(self) -> bool:
+        """The fits stream over per-test blocks made when sliced (more than
+        :data:`~analysis.identification.streaming.per_test.LAZY_TESTS` tests); the
+        identification's stages use it to give freed memory back between them."""
+        return self.systems.streamed
 
     @cached_property
     def pose_group(self) -> np.ndarray:

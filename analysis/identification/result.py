@@ -19,9 +19,12 @@ CI_METHOD = (
 )
 
 
-@dataclass
+@dataclass(frozen=True)
 class IdentificationResult:
     """Identified joint stiffness with its uncertainty and diagnostics (SI units).
+
+    A frozen record: the stages after the identification (the analyze job's assumptions,
+    warnings and refusals) make a new one with :func:`dataclasses.replace`.
 
     Attributes
     ----------
@@ -46,13 +49,13 @@ class IdentificationResult:
     change_vs_linear : {name: (6,) relative change of k, chosen vs that linear fit}.
     validation : leave-one-pose-out table (one row per held-out pose) or None.
     iterations : Gauss-Newton iterations (exact), 0 otherwise.
-    noise : the noise model used. warnings : messages for the user.
+    noise : the noise model used. warnings : messages for the user (a tuple).
     outlier_threshold : |studentized residual| beyond which a residual is an
         outlier (Sidak-corrected for the number of residuals).
     assumptions : what the result rests on (tool point, noise figures and
         their source, method, ...), filled by the caller; results.json ``assumptions``.
     misfit_accepted : refusals of :mod:`analysis.identification.checks.plausibility`
-        overridden by the user (``--accept-misfit``); empty when none.
+        overridden by the user (``--accept-misfit``, a tuple); empty when none.
     residual_rows : None when ``residuals`` holds every row; for large campaigns
         (:data:`analysis.identification.checks.outliers.RESIDUAL_ROWS_HELD`) ``residuals`` holds
         only the rows of the tests with the largest |studentized| residuals (outliers
@@ -103,11 +106,11 @@ class IdentificationResult:
     change_vs_linear: dict[str, np.ndarray]
     iterations: int
     noise: NoiseModel
-    warnings: list[str] = field(default_factory=list)
+    warnings: tuple[str, ...] = ()
     validation: pd.DataFrame | None = None
     outlier_threshold: float = float("nan")
     assumptions: dict = field(default_factory=dict)
-    misfit_accepted: list[str] = field(default_factory=list)
+    misfit_accepted: tuple[str, ...] = ()
     robust: dict | None = None
     residual_rows: ResidualRows | None = None
     wrench_eiv: dict | None = None
@@ -120,7 +123,10 @@ class IdentificationResult:
     def build(cls, *, robot, method, joints, x, cov_x, ci, confidence, covariance,
               condition_number, condition_number_weighted, tests: TestArrays, n_equations,
               dof, chi2_reduced, p_value, residuals, linear, iterations, noise, warnings,
-              n_poses: int, outlier_threshold: float):
+              n_poses: int, outlier_threshold: float, **rest):
+        """The result of the fit's values on the identified joints (``x`` (p,), ``cov_x``,
+        ``ci`` (p, 2)), spread over the six joints; ``rest``: the other fields as they
+        are."""
         cols = list(joints)
         x_full = np.zeros(6)
         x_full[cols] = x
@@ -146,7 +152,7 @@ class IdentificationResult:
             n_poses=int(n_poses), n_equations=n_equations,
             dof=dof, chi2_reduced=chi2_reduced, p_value=p_value, residuals=residuals,
             linear=linear, change_vs_linear=change, iterations=iterations, noise=noise,
-            warnings=list(warnings), outlier_threshold=float(outlier_threshold),
+            warnings=tuple(warnings), outlier_threshold=float(outlier_threshold), **rest,
         )
 
     def _per_joint(self, values: list) -> list:
@@ -203,7 +209,7 @@ class IdentificationResult:
             "wrench_errors_in_variables": self.wrench_eiv,
             "linearisation_bias": self.linear_bias,
             "encoder_errors_in_variables": self.encoder_eiv,
-            "warnings": self.warnings,
+            "warnings": list(self.warnings),
             "tests_data": self.tests_data,
             **_summaries(self),
         }

@@ -13,13 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.linalg import lsq
-from analysis.identification.linalg.lsq import (
-    TallR,
-    blocks_of_tests,
-    sandwich_and_residual_variance,
-    stack_matrix,
-    whitening,
-)
+from analysis.identification.linalg.lsq import TallR, blocks_of_tests, stack_matrix, whitening
+from analysis.identification.linalg.sandwich import sandwich_and_residual_variance
 from analysis.identification.uncertainty import chi2_summary
 
 
@@ -38,20 +33,28 @@ class FitStatistics:
     Aw: np.ndarray
 
 
-def fit_statistics(problem, outcome) -> FitStatistics:
-    """The statistics of ``outcome`` (an
-    :class:`~analysis.identification.estimators.base.EstimatorFit`) of ``problem``."""
+def fit_statistics(problem, outcome):
+    """(statistics, outcome): the :class:`FitStatistics` of ``outcome`` (an
+    :class:`~analysis.identification.estimators.base.EstimatorFit`) of ``problem``, and
+    the outcome the later stages use (a streamed fit's gets the prediction its pass
+    made; others are returned as they are)."""
+    from dataclasses import replace
+
     # the goodness of fit is that of the components the fit rests on
     dof = int(outcome.kept.sum()) - problem.p
     if outcome.fit.R is not None and outcome.robust is None:
-        return _streamed(problem, outcome.fit, dof)
-    return _held(problem, outcome, dof)
+        stats, fit = _streamed(problem, outcome.fit, dof)
+        return stats, replace(outcome, fit=fit)
+    return _held(problem, outcome, dof), outcome
 
 
-def _streamed(problem, chosen, dof: int) -> FitStatistics:
-    """One pass over the recomputed blocks: the variances (meat A^T W A = R^T R, and
-    Sigma W A = A, of a fit whitened by its own covariances), each component's sigma, and
-    the prediction moved by the errors-in-variables shift (``chosen.predicted`` is set)."""
+def _streamed(problem, chosen, dof: int):
+    """(statistics, fit): one pass over the recomputed blocks gives the variances (meat
+    A^T W A = R^T R, and Sigma W A = A, of a fit whitened by its own covariances), each
+    component's sigma, and the prediction moved by the errors-in-variables shift, which
+    the new fit carries (its F's later blocks start cold)."""
+    from dataclasses import replace
+
     p = problem.p
     Rp, c0 = chosen.R[:p, :p], chosen.R[:p, p]
     predicted = chosen.predicted
@@ -69,13 +72,13 @@ def _streamed(problem, chosen, dof: int) -> FitStatistics:
     cov_x, var_r = sandwich_and_residual_variance(
         chosen.A, chosen.cov, chosen.bread, chosen.Linv, meat=Rp.T @ Rp,
         own_weights=True, visit=visit)
-    chosen.predicted, chosen.predicted_shifted = predicted, True
-    chosen.A.dq = None  # later rows (outliers' leverages) start cold: 48 MB let go
+    # later rows (outliers' leverages) start cold: the deflections' 48 MB let go
+    done = replace(chosen, predicted=predicted, predicted_shifted=True, A=chosen.A.cold())
     # chi-square from R: |Linv (r - F shift)|^2 = |c0 - Rp shift|^2 + R[p, p]^2
     shift = np.zeros(p) if chosen.eiv_shift is None else chosen.eiv_shift
     chi2_red, p_value = chi2_summary(float(np.sum((c0 - Rp @ shift) ** 2)
                                            + chosen.R[p, p] ** 2), dof)
-    return FitStatistics(cov_x, var_r, chi2_red, p_value, dof, Rp)
+    return FitStatistics(cov_x, var_r, chi2_red, p_value, dof, Rp), done
 
 
 def _held(problem, outcome, dof: int) -> FitStatistics:

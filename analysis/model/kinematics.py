@@ -50,8 +50,9 @@ _SNAP = 1e-15
 
 
 @dataclass(frozen=True)
-class _NormalChain:
-    """The chain rewritten with every joint axis along z (entry-major kinematics).
+class NormalChain:
+    """The chain rewritten with every joint axis along z (entry-major kinematics); made
+    once per :class:`~analysis.model.robot_model.Chain`, as its ``normal``.
 
     Joint i's frame is turned by a constant rotation Q_i with Q_i e_z = its axis, so
     ``G_i = G_(i-1) L_i Rz(q_i)`` with ``L_i = Q_(i-1)^T P_i Q_i`` (P_i the placement);
@@ -59,7 +60,6 @@ class _NormalChain:
     rot (n, 3, 3), pos (n, 3): the L_i (m); tip_rot (3, 3), tip_pos (3,): P in G_n (m).
     """
 
-    chain: Chain
     rot: np.ndarray
     pos: np.ndarray
     tip_rot: np.ndarray
@@ -80,22 +80,15 @@ def _snap(m: np.ndarray) -> np.ndarray:
     return np.where(np.abs(m) < _SNAP, 0.0, m)
 
 
-_NORMAL: dict[int, _NormalChain] = {}
-
-
-def _normal_chain(chain: Chain) -> _NormalChain:
-    hit = _NORMAL.get(id(chain))
-    if hit is not None and hit.chain is chain:
-        return hit
+def normal_chain(chain: Chain) -> NormalChain:
+    """``chain`` with every joint axis along z (:class:`NormalChain`); use
+    ``chain.normal``, which makes it once per chain."""
     Q = [np.eye(3)] + [_axis_frame(np.asarray(a, dtype=float)) for a in chain.axes]
     P = chain.placements
-    out = _NormalChain(
-        chain,
+    return NormalChain(
         np.array([_snap(Q[i].T @ P[i, :3, :3] @ Q[i + 1]) for i in range(chain.n)]),
         np.array([_snap(Q[i].T @ P[i, :3, 3]) for i in range(chain.n)]),
         _snap(Q[-1].T @ chain.tip[:3, :3]), _snap(Q[-1].T @ chain.tip[:3, 3]))
-    _NORMAL[id(chain)] = out
-    return out
 
 
 def _combine(cols: list, coef: np.ndarray):
@@ -182,7 +175,7 @@ def chain_state_em(robot: RobotModel, q: np.ndarray,
     pose costs a few dozen vectorised operations over the whole batch and no
     (N, 3, 3) matrix products.
     """
-    nc = _normal_chain(robot.chain)
+    nc = robot.chain.normal
     cos, sin = joint_cos_sin(np.asarray(q, dtype=float)) if cos_sin is None else cos_sin
     n, N = cos.shape
     origins = np.empty((3, n, N))

@@ -459,6 +459,20 @@ def check_urdf_text(path: Path) -> None:
                                  where=f"{path}:{line}")
 
 
+def _tip_frame_id(model, tip: str) -> int:
+    """Index of the frame named ``tip``: a link's frame first, then an operational frame,
+    a fixed joint's, a moving joint's.
+
+    URDFs often name a fixed joint after the link it carries (Pinocchio then has two
+    frames of one name, and looking it up without a type raises); both are one placement.
+    """
+    for kind in (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
+                 pin.FrameType.JOINT, pin.FrameType.SENSOR):
+        if model.existFrame(tip, kind):
+            return model.getFrameId(tip, kind)
+    return model.getFrameId(tip)
+
+
 def load_urdf(path: str | Path, tip: str, name: str | None = None) -> RobotModel:
     """Load a URDF and keep the serial chain of revolute joints from the base to ``tip``.
 
@@ -478,11 +492,11 @@ def load_urdf(path: str | Path, tip: str, name: str | None = None) -> RobotModel
         raise InputError(
             f"no frame named {tip!r} in the URDF (frames: {', '.join(names)})", where="--tip"
         )
-    fid = full.getFrameId(tip)
+    fid = _tip_frame_id(full, tip)
     support = set(full.supports[full.frames[fid].parentJoint])
     lock = [j for j in range(1, full.njoints) if j not in support]
     model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
-    tip_id = model.getFrameId(tip)
+    tip_id = _tip_frame_id(model, tip)
     return RobotModel(
         name=name or model.name or path.stem,
         model=model,

@@ -18,6 +18,7 @@ the horizontal, i.e. a combination of the model's q2 and q3): in general
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -44,6 +45,15 @@ class Chain:
     @property
     def n(self) -> int:
         return self.axes.shape[0]
+
+    @cached_property
+    def normal(self):
+        """The chain with every joint axis along z
+        (:class:`analysis.model.kinematics.NormalChain`), made once per chain: the batched
+        kinematics' constant frames (no module-level cache)."""
+        from analysis.model.kinematics import normal_chain
+
+        return normal_chain(self)
 
 
 @dataclass(frozen=True)

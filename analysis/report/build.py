@@ -10,7 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.identification.io.measurements import COMPONENTS, TestArrays
+from analysis.identification.io.columns import COMPONENTS
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
 from analysis.identification.result import IdentificationResult

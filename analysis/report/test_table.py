@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification.io.measurements import COMPONENTS, TestArrays
+from analysis.identification.io.columns import COMPONENTS
+from analysis.identification.io.measurements import TestArrays
 from analysis.report.formatting import MICRO, fixed, level, sig
 from analysis.report.model import Table
 

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.io.measurements import CSV_COLUMNS
+from analysis.identification.io.columns import CSV_COLUMNS
 from analysis.output_files import SymlinkRefused, refuse_link, refuse_links_in, replacing
 
 FORMAT_VERSION = 1

@@ -156,6 +156,7 @@ def run(o: AcquireJobOptions, reporter=None, say: Callable[[str], None] = print,
     from campaign.acquire.rundir import WriteFailure, require_new_run_dir
     from campaign.acquire.session import AcquireOptions
     from campaign.acquire.session import acquire as run_session
+    from drivers.loopback_guard import loopback_only_mode
 
     out = None if o.out is None else Path(o.out)
     resume = None if o.resume is None else Path(o.resume)
@@ -172,8 +173,11 @@ def run(o: AcquireJobOptions, reporter=None, say: Callable[[str], None] = print,
     opts = AcquireOptions(fake=o.fake, assume_yes=o.assume_yes, dry_run=o.dry_run,
                           time_scale=o.time_scale, operator=o.operator)
     try:
-        outcome = run_session(plan, out, resume, opts, events, say=say, ask=ask,
-                              on_event=on_event)
+        # on the simulated lab every driver talks to this machine only (a copied protocol's
+        # instrument addresses must never be tried)
+        with loopback_only_mode(o.fake):
+            outcome = run_session(plan, out, resume, opts, events, say=say, ask=ask,
+                                  on_event=on_event)
     except WriteFailure as err:  # the run's own record cannot be opened (read-only, ...)
         return AcquireResult("failed", f"{err}; nothing moved", out or resume,
                              error=f"{err}; nothing moved")

@@ -16,7 +16,7 @@ import gc
 import json
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -177,28 +177,32 @@ def _run_info(run, robot_name: str, protocol, tool: ToolPoint):
     )
 
 
-def _tool_problem(result, model, tests, noise, method: str, tool) -> list[str]:
-    """The tool-point F-test (:mod:`analysis.identification.checks.tool_check`) as a refusal, if
-    any.
+def _tool_problem(result, model, tests, noise, method: str, tool):
+    """(refusals, result): the tool-point F-test
+    (:mod:`analysis.identification.checks.tool_check`) as a refusal, if any, and the result
+    that records it.
 
     Stored in ``assumptions.tool_point.check``; refused at P < 1e-3 when P was assumed
     (no tool point given anywhere), at P < 1e-6 when one was given; a warning below 0.01.
     """
     from analysis.identification.checks import tool_check
 
+    def checked(description: dict):
+        tool_point = {**result.assumptions.get("tool_point", {}), "check": description}
+        return replace(result, assumptions={**result.assumptions, "tool_point": tool_point})
+
     if len(result.joints) < 6:
         # joints taken rigid leave a misfit of their own (the wrist absorbed by k1..k3), which
         # the offset columns would partly explain: the test would accuse a right tool
-        result.assumptions.setdefault("tool_point", {})["check"] = {
+        return [], checked({
             "skipped": "not all six joints identified: the rigid joints' own misfit would "
-                       "show as a tool offset"}
-        return []
+                       "show as a tool offset"})
     # the tests analysed (TestArrays: the text table is let go by then); the check takes
     # its own evenly spaced subset of a large campaign
     check = tool_check.tool_point_check(model, tests, result.joints, result.x, noise, method)
     if check is None:
-        return []
-    result.assumptions.setdefault("tool_point", {})["check"] = check.describe()
+        return [], result
+    result = checked(check.describe())
     assumed = tool.source.startswith("none given")
     limit = tool_check.P_ASSUMED if assumed else tool_check.P_GIVEN
     if check.p_value < limit:
@@ -209,12 +213,13 @@ def _tool_problem(result, model, tests, noise, method: str, tool) -> list[str]:
             return [f"a missing tool point: no tool point was given, P was taken at the flange "
                     f"centre, and {check.text()}; with P there k would be about [{k}] kN m/rad. "
                     "Give --tool-xyz-mm/--tool-rpy-deg (--tool-xyz-mm 0,0,0 if P really is "
-                    "the flange centre)"]
+                    "the flange centre)"], result
         return [f"wrong tool point? {check.text()}; with P there k would be about [{k}] kN m/rad. "
-                f"Check the tool point ({tool.source})"]
+                f"Check the tool point ({tool.source})"], result
     if check.p_value < tool_check.P_WARN:
-        result.warnings.append(f"tool point: {check.text()} (not significant enough to refuse)")
-    return []
+        result = replace(result, warnings=(
+            *result.warnings, f"tool point: {check.text()} (not significant enough to refuse)"))
+    return [], result
 
 
 def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
@@ -285,7 +290,7 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     """(tests, robot, noise, info, extras) of a tests CSV file and its sidecar, if any;
     tests as :class:`TestArrays` (read straight into arrays: a 1e6-row file never
     becomes a table)."""
-    from analysis.identification.io.measurements import read_test_arrays
+    from analysis.identification.io.csv_reader import read_test_arrays
     from analysis.report.summary import CampaignInfo
     from campaign.run_format.tests_meta import read_sidecar
 
@@ -361,8 +366,12 @@ def _holdout_deg(protocol) -> tuple[float, str]:
     from analysis.identification.validation.holdout_check import CLUSTER_DEG
 
     if protocol is not None:
+        name = Path(protocol.path).name
+        if "min_pose_separation_deg" in protocol.thresholds.model_fields_set:
+            return (float(protocol.thresholds.min_pose_separation_deg),
+                    f"protocol {name} [thresholds] min_pose_separation_deg")
         return (float(protocol.thresholds.min_pose_separation_deg),
-                f"protocol {Path(protocol.path).name} [thresholds] min_pose_separation_deg")
+                f"default: protocol {name} has no [thresholds] min_pose_separation_deg")
     return CLUSTER_DEG, "default, the planner's default minimum pose separation"
 
 
@@ -578,29 +587,30 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         result = identify(model, tests, method=method, joints=joint_list,
                           noise=noise, covariance=covariance, robust=robust,
                           holdout_radius=np.radians(_holdout_deg(protocol)[0]))
-    result.assumptions = assumptions
     # what the run's reader warned about (a damaged run) stays with the result
     early = [n.removeprefix("WARNING: ") for n in info.notes if n.startswith("WARNING")]
-    result.warnings[:0] = early
-    result.tests_data = fingerprint(tests)
+    no_tool = []
     if measurements is not None and extras["tool"].source.startswith("none given"):
-        result.warnings.insert(0, (
+        no_tool = [
             "no tool point given: P assumed at the flange centre; if the displacements "
             "and wrench were measured at a tool point, give --tool-xyz-mm/--tool-rpy-deg "
-            "(a tool error need not show in the chi-square, it shows in k)"))
+            "(a tool error need not show in the chi-square, it shows in k)"]
+    result = replace(result, assumptions=assumptions, tests_data=fingerprint(tests),
+                     warnings=(*no_tool, *early, *result.warnings))
     refused = problems(result, model.nominal_stiffness)
     _release_freed_heap()  # the identification's freed pages, before the checks
     # a linear fit whose bias was corrected is a compliance of the exact model: its
     # residuals are the exact model's (as in the chi-square)
     corrected = (result.linear_bias or {}).get("reliable", False)
-    refused += _tool_problem(result, model, tests, noise,
-                             "exact" if corrected else method, extras["tool"])
+    tool_refusals, result = _tool_problem(result, model, tests, noise,
+                                          "exact" if corrected else method, extras["tool"])
+    refused += tool_refusals
     if refused and not o.accept_misfit:
         raise InputError(
             "refused, the data do not support this stiffness: " + " | ".join(refused)
             + "; to keep the result anyway rerun with --accept-misfit (results.json and "
             "the report then say so)", where=str(run_dir or measurements))
-    result.misfit_accepted = refused
+    result = replace(result, misfit_accepted=tuple(refused))
     _release_freed_heap()  # the identification's freed pages, before the writer's
     # everything is written into a new directory that replaces ``out`` as a whole at
     # the end: a refused or failed analysis leaves the earlier one untouched
@@ -610,7 +620,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     paths = {k: out / Path(p).relative_to(new) for k, p in paths.items()}
     return AnalyzeResult(json.loads((out / "results.json").read_text()),
                          json.loads((out / "analysis.json").read_text()), paths, result,
-                         len(early), assumptions)
+                         len(early), result.assumptions)
 
 
 def _operator_text(meta: dict) -> str:

@@ -1,7 +1,8 @@
 """The ``path_deflection`` job: the predicted deflection of P along a path, with its band.
 
-What ``compensate`` predicts before it compensates (the same path reader, the
-same checks of the joint limits and of the singularity, the same nonlinear
+What ``compensate`` predicts before it compensates (the same options record,
+extended by compensate's; the same path reader, :func:`load_path`; the same
+checks of the joint limits and of the singularity, the same nonlinear
 equilibrium and covariance of an identified model), without the compensation
 and without writing anything: the Use view draws it as the path is chosen.
 """
@@ -11,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,17 +20,26 @@ from analysis.errors import InputError
 from campaign.jobs.choices import WrenchFrame
 from campaign.jobs.common import floats, joint_stiffness, robot_and_tool
 
+if TYPE_CHECKING:
+    from analysis.model.robot_model import RobotModel
+    from campaign.use.path_file import PathInput
+
 #: points of a path read at most (a path is a program's moves, not a point cloud)
 MAX_POINTS = 20_000
 
 
 @dataclass(frozen=True)
 class PathDeflectionOptions:
-    """robot: model.toml from analyze, a built-in name, robot file or URDF; path: the path
-    CSV (the compensate job's format); controller_angles: the path's joints are pendant
-    angles; wrench_N_Nm: constant wrench at P when the path has none (N, N m);
-    wrench_frame: base or tool; joint_stiffness_Nm_per_rad: instead of the model's (no
-    band then); min_inv_kappa: refuse points where 1/kappa_F is below it."""
+    """A path under its process load, and the robot that follows it (the compensate job's
+    options extend this record).
+
+    robot: model.toml from analyze, a built-in name, robot file or URDF; path: the path
+    CSV (q1_deg..q6_deg per point as :mod:`campaign.use.path_file` says, optional wrench
+    columns); tip, tool_xyz_mm, tool_rpy_deg: as the stiffness job's; controller_angles:
+    the path's joints are pendant angles; wrench_N_Nm: constant wrench at P when the path
+    has none (N, N m); wrench_frame: base or tool; joint_stiffness_Nm_per_rad: instead of
+    the model's (no band, no uncertainty then); min_inv_kappa: refuse points where
+    1/kappa_F is below it."""
 
     robot: str
     path: Path
@@ -40,6 +51,39 @@ class PathDeflectionOptions:
     wrench_frame: WrenchFrame = WrenchFrame.base
     joint_stiffness_Nm_per_rad: Sequence[float] | None = None
     min_inv_kappa: float = 0.02
+
+
+@dataclass
+class LoadedPath:
+    """What :func:`load_path` read: the robot (6 joints), its joint stiffness k (6,)
+    (N m/rad), the covariance of its compliances (6, 6) or None (no identified model, or
+    --joint-stiffness given), the path in SI (:class:`campaign.use.path_file.PathInput`)
+    and where the stiffness came from, in words."""
+
+    robot: RobotModel
+    k: np.ndarray
+    cov: np.ndarray | None
+    path: PathInput
+    stiffness_source: str
+
+
+def load_path(o: PathDeflectionOptions) -> LoadedPath:
+    """Check ``o``'s numbers, load the robot and read the path (the one reader of both jobs)."""
+    from campaign.use.path_file import read_path
+
+    if not o.min_inv_kappa > 0:
+        raise InputError("expected a positive number", where="--min-inv-kappa")
+    r, _ = robot_and_tool(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
+    if r.n != 6:
+        raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
+    k = joint_stiffness(r, o.joint_stiffness_Nm_per_rad)
+    given_k = o.joint_stiffness_Nm_per_rad is not None
+    cov = None if given_k else r.compliance_covariance
+    w_const = None if o.wrench_N_Nm is None else floats(o.wrench_N_Nm, "--wrench", 6)
+    pin = read_path(Path(o.path), r, o.controller_angles, w_const, str(o.wrench_frame))
+    source = ("--joint-stiffness" if given_k else "identified (model.toml)"
+              if r.identification else "nominal (robot file)")
+    return LoadedPath(r, k, cov, pin, source)
 
 
 @dataclass
@@ -78,27 +122,16 @@ def run(o: PathDeflectionOptions) -> PathDeflectionResult:
     """Read the path and predict the deflection at each point (nothing is written)."""
     from analysis.kinetostatics.path_compensation import check_path, predict_path
     from analysis.kinetostatics.uncertainty import Z95
-    from campaign.use.path_file import read_path
 
-    if not o.min_inv_kappa > 0:
-        raise InputError("expected a positive number", where="--min-inv-kappa")
-    r, _ = robot_and_tool(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
-    if r.n != 6:
-        raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
-    k = joint_stiffness(r, o.joint_stiffness_Nm_per_rad)
-    given_k = o.joint_stiffness_Nm_per_rad is not None
-    cov = None if given_k else r.compliance_covariance
-    w_const = None if o.wrench_N_Nm is None else floats(o.wrench_N_Nm, "--wrench", 6)
-    path = Path(o.path)
-    pin = read_path(path, r, o.controller_angles, w_const, str(o.wrench_frame))
+    loaded = load_path(o)
+    r, cov, pin, path = loaded.robot, loaded.cov, loaded.path, Path(o.path)
     if len(pin.q) > MAX_POINTS:
         raise InputError(f"{len(pin.q)} points, more than {MAX_POINTS}", where=str(path))
     check_path(r, pin.q, pin.line, str(path), o.min_inv_kappa)
-    pred = predict_path(r, pin.q, k, pin.w, cov, pin.line, str(path))
+    pred = predict_path(r, pin.q, loaded.k, pin.w, cov, pin.line, str(path))
     lo, hi = pred.bounds(Z95) if cov is not None else (None, None)
-    source = ("--joint-stiffness" if given_k else "identified (model.toml)"
-              if r.identification else "nominal (robot file)")
     return PathDeflectionResult(
         r.name, np.asarray(pin.line), pred.screw, lo, hi,
         np.linalg.norm(pred.screw[:, :3], axis=1),
-        pred.norm_upper() if cov is not None else None, pin.wrench_source, source)
+        pred.norm_upper() if cov is not None else None, pin.wrench_source,
+        loaded.stiffness_source)

@@ -20,7 +20,7 @@ class PlanOptions:
     seed: seed of the candidate draw and random design; candidates: candidate poses drawn;
     tests: test poses (None: the protocol's); figure: draw plan_map.png;
     force: write into a non-empty ``out`` (its plan files are replaced);
-    map_points: also return the zone map's data (:func:`campaign.planning.plan_map.map_points`)."""
+    map_points: also return the zone map's data (:func:`campaign.planning.map_data.map_points`)."""
 
     protocol: Path
     out: Path
@@ -68,7 +68,7 @@ def run(o: PlanOptions, stage: Stage = no_stage) -> PlanResult:
         path = write_plan(plan, out, figure=o.figure)
     points = None
     if o.map_points:
-        from campaign.planning.plan_map import map_points
+        from campaign.planning.map_data import map_points
 
         points = map_points(plan)
     return PlanResult(json.loads((out / "summary.json").read_text()),

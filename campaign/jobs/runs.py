@@ -94,8 +94,10 @@ def _analysis(d: Path, rel: str) -> Entry:
          for j, v, c in zip(joints, ks, ci, strict=False)]
     refused = r.get("refused") or r.get("refusals")
     warnings = r.get("warnings") or []
-    status = "refused" if refused else ("identified, with warnings" if warnings
-                                        else "identified")
+    accepted = (r.get("misfit_accepted") or {}).get("accepted") is True
+    # a result written despite a refusal (--accept-misfit) says so, never "identified"
+    status = ("refused" if refused else "accepted despite a refusal" if accepted
+              else "identified, with warnings" if warnings else "identified")
     return Entry("analysis", rel, str(r.get("robot", "")), _mtime(d / "results.json"), status,
                  f"{r.get('method', '')}, {r.get('n_tests', '?')} tests", k)
 

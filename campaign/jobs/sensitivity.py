@@ -100,7 +100,7 @@ class JointSpread:
     q75: float
     predicted_se: float  # the planner's prediction (inf: not identifiable)
     std: float  # sample std over the accepted trials
-    rejected: int  # trials with a compliance <= 0 or not finite
+    rejected: int  # trials with a compliance <= 0 or not finite; all when not identifiable
 
 
 @dataclass(frozen=True)
@@ -246,8 +246,11 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
                              "on every source of a measured component); give a nonzero "
                              "tracker or F/T noise, or use ols", where="method") from None
         ok = np.isfinite(x) & (x > 0)
-        kk = np.where(ok, 1.0 / np.where(ok, x, 1.0), np.nan)
     se = curve[o.n_tests - 1] * k
+    # a joint these tests do not identify (singular information: equal poses, a singular
+    # pose): the least-squares k of each trial is an arbitrary number, never shown as one
+    ok &= np.isfinite(se)[None, :]
+    kk = np.where(ok, 1.0 / np.where(ok, x, 1.0), np.nan)
     joints = []
     for j in range(robot.n):
         v = kk[ok[:, j], j]

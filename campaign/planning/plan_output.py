@@ -91,6 +91,21 @@ def _criterion_dict(plan: Plan) -> dict:
     return out
 
 
+def _separation_dict(plan: Plan) -> dict:
+    """The minimum joint-space separation of distinct poses, its source, the closest pair."""
+    from campaign.planning.separation import min_pairwise_distance
+
+    thresholds = plan.protocol.thresholds
+    given = "min_pose_separation_deg" in thresholds.model_fields_set
+    q_deg = np.degrees(plan.candidates.q[np.unique(plan.chosen.pose)])
+    closest = min_pairwise_distance(q_deg)
+    return {"pose_separation": {
+        "min_deg": float(thresholds.min_pose_separation_deg),
+        "source": ("protocol [thresholds] min_pose_separation_deg" if given else
+                   "default (the protocol has no [thresholds] min_pose_separation_deg)"),
+        "closest_pair_deg": closest if np.isfinite(closest) else None}}
+
+
 def summary_dict(plan: Plan) -> dict:
     """Everything the summary files hold (plain types, no time stamps)."""
     cand = plan.candidates
@@ -108,6 +123,7 @@ def summary_dict(plan: Plan) -> dict:
             "poses_passing": int(np.sum(np.any(cand.valid, axis=1))),
             "rejected": dict(cand.rejected),
         },
+        **_separation_dict(plan),
         "characteristic_length_m": plan.length,
         "measurement_sigma_per_test": {
             "translation_m": float(plan.sigma[0]), "rotation_rad": float(plan.sigma[3])},
@@ -130,6 +146,7 @@ def summary_text(plan: Plan) -> str:
         f"strategy {s['strategy']}, seed {s['seed']}: {s['tests']} tests on {s['poses']} poses",
         f"candidates: {c['drawn']} drawn, {c['poses_passing']} pass the thresholds; rejected: "
         + ", ".join(f"{k} {v}" for k, v in c["rejected"].items()),
+        _separation_line(s["pose_separation"]),
         f"L = {s['characteristic_length_m']:.4f} m; sigma per averaged test: "
         f"{s['measurement_sigma_per_test']['translation_m'] * 1e6:.2f} um, "
         f"{s['measurement_sigma_per_test']['rotation_rad'] * 1e6:.2f} urad",
@@ -151,6 +168,12 @@ def summary_text(plan: Plan) -> str:
         )
     lines += _criterion_lines(s)
     return "\n".join(lines) + "\n"
+
+
+def _separation_line(sep: dict) -> str:
+    closest = sep["closest_pair_deg"]
+    return (f"poses at least {sep['min_deg']:g} deg apart in joint space ({sep['source']}); "
+            + ("one pose" if closest is None else f"closest pair {closest:.2f} deg"))
 
 
 def _criterion_lines(s: dict) -> list[str]:

@@ -27,7 +27,8 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.io.measurements import CSV_COLUMNS, R_COLS, from_csv_frame
+from analysis.identification.io.columns import CSV_COLUMNS, R_COLS
+from analysis.identification.io.csv_reader import from_csv_frame
 
 FORMAT_VERSION = 1
 STATUSES = ("running", "complete", "aborted", "failed")

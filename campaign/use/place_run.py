@@ -15,6 +15,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from rich.console import Console
@@ -22,6 +23,9 @@ from rich.console import Console
 from analysis.errors import InputError
 from analysis.model.ik import ALL_FLAGS
 from analysis.output_files import make_dir, replacing, write_text
+
+if TYPE_CHECKING:
+    from campaign.jobs.place import PlaceOptions
 
 OBJECTIVE_UNITS = {"max": "mm", "rms": "mm", "compliance": "mm/kN"}
 #: what each objective is, for the colour bar of objective_xy.png
@@ -45,47 +49,6 @@ DEFAULT_MAX_EVALUATIONS = 100_000_000
 #: Values one grid axis may have (a 1 um step over a metre): refused before the axis
 #: is made.
 MAX_AXIS_VALUES = 1_000_000
-
-
-@dataclass
-class PlaceOptions:
-    """The options of ``campaign place``, as the command line takes them (mm, deg; ranges
-    as ``A..B`` texts, lists as comma-separated texts); the defaults are the command's."""
-
-    robot: str
-    path: Path
-    out: Path
-    x_mm: str
-    y_mm: str
-    z_mm: str
-    tip: str | None = None
-    tool_xyz_mm: str | None = None
-    tool_rpy_deg: str | None = None
-    yaw_deg: str = "0"
-    x_step_mm: float = 100.0
-    y_step_mm: float = 100.0
-    z_step_mm: float = 100.0
-    yaw_step_deg: float = 15.0
-    tool_angle_deg: str = "-180..180"
-    tool_angle_step_deg: float = 10.0
-    max_joint_step_deg: float = 10.0
-    config: str = "any"
-    limit_margin_deg: float = 2.0
-    min_inv_kappa: float = 0.05
-    length: float | None = None
-    keep_out_mm: str | None = None
-    objective: str = "max"
-    upper_bound: bool = False
-    wrench: str | None = None
-    joint_stiffness: str | None = None
-    scheduler: str | None = None
-    workers: int | None = None
-    chunk: int | None = None
-    runner_ups: int = 5
-    program: str = "auto"
-    max_evaluations: float | None = None
-    max_memory_gib: float = 2.0
-    force: bool = False  # write into a non-empty out (its files are replaced)
 
 
 def parse_range(text: str, where: str) -> tuple[float, float]:

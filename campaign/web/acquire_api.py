@@ -192,16 +192,20 @@ def _spawn(ws: Path, run_dir: Path, options) -> dict:
     return record
 
 
-def _check_safety(fake: bool, confirm: bool) -> None:
+def _check_safety(fake: bool, confirm: bool, hardware: bool) -> None:
+    if not fake and not hardware:
+        raise HTTPException(403, "hardware: this GUI server was started without --hardware, "
+                                 "so it runs acquisitions on the simulated lab only (restart "
+                                 "it with `campaign gui --hardware` to drive a real robot)")
     if not fake and not confirm:
         raise HTTPException(400, "confirmation: the robot WILL move; a run on hardware needs "
                                  "confirm: true (the CLI's --yes)")
 
 
 @router.post("/start")
-def start(req: StartRequest, ws: Path = Depends(workspace)) -> dict:
+def start(req: StartRequest, request: Request, ws: Path = Depends(workspace)) -> dict:
     """Preflight (the dry run), then start a new run in its own process; answers at once."""
-    _check_safety(req.fake, req.confirm)
+    _check_safety(req.fake, req.confirm, request.app.state.hardware)
     plan, out = inside(ws, req.plan, "plan"), inside(ws, req.out, "out")
     with _starting:
         return _start(ws, req, plan, out)
@@ -221,9 +225,9 @@ def _start(ws: Path, req: StartRequest, plan: Path, out: Path) -> dict:
 
 
 @router.post("/resume")
-def resume(req: ResumeRequest, ws: Path = Depends(workspace)) -> dict:
+def resume(req: ResumeRequest, request: Request, ws: Path = Depends(workspace)) -> dict:
     """Continue a partial run from its first unfinished test, in its own process."""
-    _check_safety(req.fake, req.confirm)
+    _check_safety(req.fake, req.confirm, request.app.state.hardware)
     run_dir = inside(ws, req.run, "run")
     with _starting:
         return _resume(ws, req, run_dir)

@@ -146,7 +146,8 @@ def map_points(step_rad: float) -> float | None:
 
     if not (math.isfinite(step_rad) and step_rad > 0):
         return None
-    return (2 * math.pi / step_rad + 1) ** 2
+    per_axis = 2 * math.pi / step_rad + 1  # finite: step_rad >= the smallest float
+    return per_axis * per_axis if per_axis < 1e150 else math.inf  # no OverflowError
 
 
 def robot_path(ws: Path, robot: str, field: str = "robot") -> str:

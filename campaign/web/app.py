@@ -50,8 +50,13 @@ def _routers():
             log.warning("GUI: %s not available (%s); its views are off", name, err)
 
 
-def create_app(workspace: str | Path, token: str, password: str | None = None):
+def create_app(workspace: str | Path, token: str, password: str | None = None,
+               hardware: bool = False):
     """The FastAPI app serving ``workspace`` to clients holding ``token`` (or ``password``).
+
+    ``hardware``: the Acquire view may run on a real robot (the operator's ``--hardware``
+    at start; each run still needs its confirmation, limits and dry run); without it the
+    server runs acquisitions on the simulated lab only.
 
     Raises InputError when the workspace is not an existing directory.
     """
@@ -77,6 +82,7 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
     app.state.token = token
     app.state.csrf = security.csrf_value(token)
     app.state.password = password
+    app.state.hardware = bool(hardware)
     # Monte-Carlo requests of every tab and client share the CPUs: one per core at a time
     app.state.compute_slots = threading.BoundedSemaphore(os.cpu_count() or 1)
 
@@ -94,7 +100,9 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
             if offered is None:
                 return _denied(401, "no access token: open the URL `campaign gui` printed")
             if not security.same(offered, token):
-                return _denied(403, "wrong access token")
+                # a restarted server has a new token: a page left open says what to do
+                return _denied(403, "wrong access token (the server was restarted? open "
+                               "the URL `campaign gui` printed)")
             if request.method not in security.SAFE_METHODS and not security.same(
                     request.headers.get(security.CSRF_HEADER), app.state.csrf):
                 return _denied(403, f"missing or wrong {security.CSRF_HEADER} header")
@@ -113,7 +121,11 @@ def create_app(workspace: str | Path, token: str, password: str | None = None):
 
     @app.exception_handler(InputError)
     async def input_error(request: Request, err: InputError):
-        return JSONResponse({"detail": str(err), "where": err.where}, status_code=422)
+        # paths as the client gave them: relative to the workspace, not the server's disk
+        root = f"{app.state.workspace}{os.sep}"
+        return JSONResponse({"detail": str(err).replace(root, ""),
+                             "where": None if err.where is None else
+                             str(err.where).replace(root, "")}, status_code=422)
 
     @app.exception_handler(EquilibriumError)
     async def equilibrium_error(request: Request, err: EquilibriumError):

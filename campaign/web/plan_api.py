@@ -149,9 +149,9 @@ def _problems(text: str, keys: list[str]) -> list[dict]:
             for line in text.splitlines() if line.strip()]
 
 
-def _save(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONResponse:
-    """Write the form as ``protocols/NAME.toml``: (its path, the form's keys), or the
-    refusal naming the field."""
+def _save(ws: Path, body: PlanRequest) -> tuple[Path, list[str], bytes | None] | JSONResponse:
+    """Write the form as ``protocols/NAME.toml``: (its path, the form's keys, the file's
+    previous bytes or None when it is new), or the refusal naming the field."""
     import tomli_w
 
     from analysis.errors import InputError
@@ -180,8 +180,18 @@ def _save(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONResponse:
         if p.is_symlink():
             return _error(f"{p.relative_to(ws)}: a symbolic link; refused", "name")
     source = body.source.replace("\n", " ").splitlines()[0] if body.source else ""
+    previous = proto.read_bytes() if proto.is_file() else None
     proto.write_text(f"# edited in campaign gui from {source}\n" + tomli_w.dumps(doc))
-    return proto, keys
+    return proto, keys, previous
+
+
+def _restore(proto: Path, previous: bytes | None) -> None:
+    """Put back the protocol file a refused form replaced (or remove the new one): a
+    refused save leaves no unreadable protocol, nor a good one overwritten."""
+    if previous is None:
+        proto.unlink(missing_ok=True)
+    else:
+        proto.write_bytes(previous)
 
 
 def _refusal(ws: Path, err: Exception, keys: list[str]) -> JSONResponse:
@@ -227,11 +237,13 @@ def save_protocol(request: Request, body: PlanRequest):
     saved = _save(ws, body)
     if isinstance(saved, JSONResponse):
         return saved
-    proto, keys = saved
+    proto, keys, previous = saved
     try:
         load_protocol(proto)
     except InputError as err:
-        return _refusal(ws, err, keys)
+        refusal = _refusal(ws, err, keys)
+        _restore(proto, previous)
+        return refusal
     return {"protocol": str(proto.relative_to(ws))}
 
 
@@ -242,6 +254,7 @@ def run_plan(request: Request, body: PlanRequest):
     from analysis.errors import InputError
     from campaign.jobs.choices import Strategy
     from campaign.jobs.plan import PlanOptions, run
+    from campaign.protocol import load_protocol
 
     ws = Path(request.app.state.workspace)
     try:
@@ -252,8 +265,14 @@ def run_plan(request: Request, body: PlanRequest):
     saved = _save(ws, body)
     if isinstance(saved, JSONResponse):
         return saved
-    proto, keys = saved
+    proto, keys, previous = saved
     out = ws / "plans" / body.name
+    try:
+        load_protocol(proto)
+    except InputError as err:
+        refusal = _refusal(ws, err, keys)
+        _restore(proto, previous)
+        return refusal
     try:
         result = run(PlanOptions(protocol=proto, out=out, strategy=strategy, seed=body.seed,
                                  candidates=body.candidates, force=True, map_points=True))

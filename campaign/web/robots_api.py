@@ -143,7 +143,9 @@ class UrdfUpload(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     name: str = Field(max_length=90)
-    text: str = Field(max_length=MAX_URDF_BYTES)
+    # a cap on what is parsed at all; the size limit itself is the handler's, whose
+    # message names the file (a schema error would name only body.text)
+    text: str = Field(max_length=4 * MAX_URDF_BYTES)
     tip: str | None = Field(None, max_length=200)
     replace: bool = False
 

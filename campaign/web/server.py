@@ -31,6 +31,7 @@ class GuiOptions:
     password: str | None = None
     certfile: Path | None = None
     keyfile: Path | None = None
+    hardware: bool = False
 
 
 def bind(host: str, port: int) -> socket.socket:
@@ -91,7 +92,7 @@ def prepare(options: GuiOptions, token: str) -> Prepared:
     sock = bind(options.host, options.port)
     try:
         app = create_app(options.workspace, token, options.password if options.allow_remote
-                         else None)
+                         else None, hardware=options.hardware)
     except BaseException:
         sock.close()
         raise

@@ -9,11 +9,13 @@ router = APIRouter(prefix="/api", tags=["session"])
 
 
 class Session(BaseModel):
-    """The header value POST requests must carry, and the workspace's name."""
+    """The header value POST requests must carry, the workspace's name, and whether this
+    server may run acquisitions on hardware (``campaign gui --hardware``)."""
 
     csrf_header: str
     csrf_token: str
     workspace: str
+    hardware: bool = False
 
 
 @router.get("/session", response_model=Session)
@@ -22,4 +24,5 @@ def session(request: Request) -> Session:
     from campaign.web.security import CSRF_HEADER
 
     return Session(csrf_header=CSRF_HEADER, csrf_token=request.app.state.csrf,
-                   workspace=request.app.state.workspace.name)
+                   workspace=request.app.state.workspace.name,
+                   hardware=request.app.state.hardware)

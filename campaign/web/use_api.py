@@ -102,7 +102,8 @@ PROGRAM_SUFFIXES = (".src", ".dat", ".mod", ".script")
 
 @router.get("/program", response_class=PlainTextResponse)
 def program(request: Request, path: str = Query(..., max_length=1000)) -> PlainTextResponse:
-    """A robot program file in the workspace as plain text (the compensation's output)."""
+    """A robot program file in the workspace as plain text, byte for byte (the
+    compensation's output)."""
     from analysis.errors import InputError
     from campaign.web.security import inside_workspace
 
@@ -114,4 +115,5 @@ def program(request: Request, path: str = Query(..., max_length=1000)) -> PlainT
         raise InputError("no such file in the workspace", where="path")
     if p.stat().st_size > 20_000_000:
         raise InputError("file too large to serve", where="path")
-    return PlainTextResponse(p.read_text(encoding="utf-8", errors="replace"))
+    # the file's own bytes: a controller's line ends (KRL: CR LF) are not translated
+    return PlainTextResponse(p.read_bytes())

@@ -11,11 +11,11 @@ that name alone. Nothing else is written.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import secrets
 import shutil
-from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
@@ -23,7 +23,7 @@ from fastapi import APIRouter, Depends
 from fastapi.responses import JSONResponse
 from pydantic import Field
 
-from campaign.jobs.choices import WrenchFrame
+from campaign.jobs.path_deflection import PathDeflectionOptions
 from campaign.web.api_jobs import answer, inside, robot_path, workspace
 
 router = APIRouter(prefix="/api/use", tags=["use"])
@@ -34,20 +34,16 @@ NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}\.csv")
 
 
 @dataclass(frozen=True)
-class PathDeflectionRequest:
-    """robot: built-in name or a workspace model/robot file; path: a workspace path CSV, or
-    upload_name (a file name ending in .csv) with upload_text (its content); the other
-    fields are the path_deflection job's (SI: N, N m)."""
+class PathDeflectionRequest(PathDeflectionOptions):
+    """The path_deflection job's options (SI: N, N m; a tool point as the protocol's
+    ``[tool]`` gives it, mm and deg), with robot a built-in name or a workspace
+    model/robot file and path a workspace path CSV, or instead upload_name (a file name
+    ending in .csv) with upload_text (its content)."""
 
-    robot: str
     path: str | None = None
-    upload_name: str | None = None
-    upload_text: Annotated[str | None, Field(max_length=MAX_UPLOAD)] = None
-    controller_angles: bool = False
-    wrench_N_Nm: Sequence[float] | None = None
-    wrench_frame: WrenchFrame = WrenchFrame.base
-    joint_stiffness_Nm_per_rad: Sequence[float] | None = None
-    min_inv_kappa: float = 0.02
+    upload_name: str | None = field(default=None, kw_only=True)
+    upload_text: Annotated[str | None, Field(max_length=MAX_UPLOAD)] = field(
+        default=None, kw_only=True)
 
 
 def _refused(field: str, text: str) -> JSONResponse:
@@ -59,7 +55,7 @@ def _refused(field: str, text: str) -> JSONResponse:
 def deflection(req: PathDeflectionRequest, ws: Path = Depends(workspace)) -> JSONResponse:
     """Per point of the path: the deflection screw of P (m, rad; base frame), its 95 %
     interval (an identified model's covariance; null without), |dp| and its upper bound."""
-    from campaign.jobs.path_deflection import PathDeflectionOptions, run
+    from campaign.jobs.path_deflection import run
 
     upload = req.upload_text is not None
     if upload == (req.path is not None):
@@ -77,11 +73,9 @@ def deflection(req: PathDeflectionRequest, ws: Path = Depends(workspace)) -> JSO
         path.write_text(req.upload_text, encoding="utf-8")
     else:
         path = inside(ws, req.path, "path")
-    options = PathDeflectionOptions(
-        robot=robot_path(ws, req.robot), path=path, controller_angles=req.controller_angles,
-        wrench_N_Nm=req.wrench_N_Nm, wrench_frame=req.wrench_frame,
-        joint_stiffness_Nm_per_rad=req.joint_stiffness_Nm_per_rad,
-        min_inv_kappa=req.min_inv_kappa)
+    shared = {f.name: getattr(req, f.name) for f in dataclasses.fields(PathDeflectionOptions)}
+    options = PathDeflectionOptions(**{**shared, "robot": robot_path(ws, req.robot),
+                                       "path": path})
     try:
         answered = answer(ws, lambda: run(options), options)
     finally:

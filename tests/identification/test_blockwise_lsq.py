@@ -9,17 +9,19 @@ from analysis.identification.estimators.fitting import _full, fit
 from analysis.identification.linalg import lsq
 from analysis.identification.linalg.lsq import (
     block_diag_apply,
-    per_test_diagonal,
     qr_solve,
-    residual_variance_blocks,
-    sandwich,
-    sandwich_and_residual_variance,
     scaled_condition,
     stack_matrix,
     stack_vector,
     tall_r,
     tall_solve,
     weakest_column,
+)
+from analysis.identification.linalg.sandwich import (
+    per_test_diagonal,
+    residual_variance_blocks,
+    sandwich,
+    sandwich_and_residual_variance,
 )
 from analysis.identification.noise import NoiseModel
 from analysis.identification.uncertainty import residual_variance

@@ -10,7 +10,8 @@ import pytest
 from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
 from analysis.identification.estimators.fitting import fit_exact, fit_linear
 from analysis.identification.estimators.linear_model import design_block
-from analysis.identification.linalg.lsq import sandwich, whitening
+from analysis.identification.linalg.lsq import whitening
+from analysis.identification.linalg.sandwich import sandwich
 from analysis.identification.noise import NoiseModel
 from analysis.identification.studies.robustness import sample_poses
 

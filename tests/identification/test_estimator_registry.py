@@ -54,6 +54,12 @@ def test_the_registry_names_every_method_and_mode():
         for r in ("huber", "tukey"):
             e = estimator(m, r)
             assert (e.name, e.robust, e.linearised) == (m, r, m == "wls")
+    # one robust estimator for both modes: the mode is its data, and a wrong one is refused
+    from analysis.identification.estimators.robust_mode import RobustMode
+
+    assert type(estimator("wls", "huber")) is type(estimator("exact", "tukey")) is RobustMode
+    with pytest.raises(ValueError, match="unknown robust mode 'bisquare'"):
+        RobustMode(estimator("wls"), "bisquare")
 
 
 @pytest.mark.parametrize("method", METHODS)

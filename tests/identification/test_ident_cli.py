@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pandas as pd
 
-from analysis.identification.io.measurements import CSV_COLUMNS, table_from_arrays, to_csv_frame
+from analysis.identification.io.columns import CSV_COLUMNS
+from analysis.identification.io.measurements import table_from_arrays, to_csv_frame
 from analysis.identification.noise import NoiseModel
 from campaign.cli import main
 

@@ -7,13 +7,9 @@ import pandas as pd
 import pytest
 
 from analysis.errors import InputError
-from analysis.identification.io.measurements import (
-    CSV_COLUMNS,
-    read_csv,
-    table_from_arrays,
-    to_arrays,
-    to_csv_frame,
-)
+from analysis.identification.io.columns import CSV_COLUMNS
+from analysis.identification.io.csv_reader import read_csv
+from analysis.identification.io.measurements import table_from_arrays, to_arrays, to_csv_frame
 
 
 def _frame(rows: int = 3) -> pd.DataFrame:
@@ -121,7 +117,7 @@ def test_tidy_table_from_arrays_validates_rows():
 @pytest.mark.parametrize("rotations", ["full", "empty", "nan-text"])
 def test_numeric_fast_path_equals_the_text_path(tmp_path, rotations):
     """read_csv's C-parsed path gives the table of the cell-by-cell text path, bit for bit."""
-    from analysis.identification.io.measurements import _read_numeric, from_csv_frame
+    from analysis.identification.io.csv_reader import _read_numeric, from_csv_frame
 
     rng = np.random.default_rng(3)
     f = _frame(7)
@@ -167,7 +163,7 @@ def _row(pose="P1", q=(10, 20, 30, 40, 50, 60), w=(0, 2200, 2200, 200, 200, 0),
 def test_arrow_reader_equals_the_table_route(tmp_path, case):
     """read_test_arrays gives to_arrays(read_csv) bit for bit, whether Arrow reads the file
     (plain numbers) or it falls back to the text path (spaces around cells)."""
-    from analysis.identification.io.measurements import _read_arrow, read_test_arrays
+    from analysis.identification.io.csv_reader import _read_arrow, read_test_arrays
 
     rng = np.random.default_rng(7)
     rows = []
@@ -246,7 +242,7 @@ def test_arrow_reader_equals_the_table_route(tmp_path, case):
 def test_arrow_reader_refuses_as_the_table_route(tmp_path, edit, message):
     """Every refusal of read_csv, with its message (file, line, column), from read_test_arrays
     too: the checks run on the arrays, or the text path names the cell."""
-    from analysis.identification.io.measurements import read_test_arrays
+    from analysis.identification.io.csv_reader import read_test_arrays
 
     rows = [_row(f"P{i}") for i in range(6)]
     edit(rows)
@@ -261,7 +257,7 @@ def test_arrow_reader_refuses_as_the_table_route(tmp_path, edit, message):
 
 
 def test_arrow_reader_header_problems(tmp_path):
-    from analysis.identification.io.measurements import read_test_arrays
+    from analysis.identification.io.csv_reader import read_test_arrays
 
     path = tmp_path / "tests.csv"
     path.write_text(_text([_row()], header=",".join(c for c in CSV_COLUMNS if c != "dz_mm")))
@@ -286,7 +282,7 @@ def test_arrow_reader_header_problems(tmp_path):
 ])
 def test_arrow_path_checks_the_arrays(tmp_path, row, message):
     """Files Arrow reads are checked on the arrays (not handed to the text path)."""
-    from analysis.identification.io.measurements import _read_arrow
+    from analysis.identification.io.csv_reader import _read_arrow
 
     rows = [_row(f"P{i}") for i in range(6)]
     rows[2] = row

@@ -104,3 +104,68 @@ def test_bad_method_and_joint_lists(kr240, zone_poses, w_eff):
     with pytest.raises(InputError, match="--joints: list each joint once"):
         parse_joints("1,1")
     assert parse_joints("3, 1,2") == (0, 1, 2)
+
+
+def test_translational_misfit_names_the_rigid_wrist_first(kr240, zone_poses, w_eff):
+    """Translations only: joints 1-3 are identified and the wrist taken as rigid. Under
+    w_eff's 200 N m moments the real wrist (Table 2 stiffness) turns the flange by ~0.5 mrad,
+    moving P through the wrist offsets far beyond the tracker noise: the chi-square refuses
+    (a wrong k1..k3 is worse than an error), and the first cause named is that rigid wrist,
+    with the way out; the same campaign of a robot whose wrist is rigid is not refused."""
+    from analysis.identification.checks.plausibility import problems
+    from analysis.identification.noise import NoiseModel
+
+    noise = NoiseModel(translation_sigma_override=30e-6, rotation_sigma_override=40e-6)
+    tests = simulate(kr240, zone_poses, w_eff, kr240.nominal_stiffness, noise=noise,
+                     rotations=False)
+    res = identify(kr240, tests, noise=noise, validate=False)
+    assert res.joints == (0, 1, 2)
+    misfit = [p for p in problems(res, None) if p.startswith("misfit")]
+    assert len(misfit) == 1 and res.chi2_reduced > 3
+    assert "(1) the wrist joints 4-6 taken as rigid" in misfit[0]
+    assert "--joints 1,2,3,4,5" in misfit[0]
+    rigid = np.array(kr240.nominal_stiffness, dtype=float)
+    rigid[3:] *= 1e6
+    tests = simulate(kr240, zone_poses, w_eff, rigid, noise=noise, rotations=False)
+    res = identify(kr240, tests, noise=noise, validate=False)
+    assert not any(p.startswith("misfit") for p in problems(res, None)), res.chi2_reduced
+
+
+def test_unreliable_linear_correction_is_named_first(kr240, zone_poses, w_eff):
+    """At 45 x w_eff (~100 kN: past any real load, where the linearisation of ols is
+    so poor that its bias correction does not converge) the raw linear fit is kept and
+    refused. Its residuals are the linear model's, so the chi-square is huge (~1e7);
+    the first problem named is the linearisation with its way out (--method exact), and
+    the misfit's first cause is the linear model, not the tool point. The exact fit of
+    the same data is not refused and recovers the truth."""
+    from analysis.identification.checks.plausibility import problems
+    from analysis.identification.noise import NoiseModel
+
+    noise = NoiseModel(translation_sigma_override=30e-6, rotation_sigma_override=20e-6)
+    w = np.array([w_eff, w_eff * [1, -1, 1, -1, 1, 1], w_eff[[1, 0, 2, 4, 3, 5]]]) * 45.0
+    q = np.repeat(zone_poses[:6], 3, axis=0)
+    tests = simulate(kr240, q, np.tile(w, (6, 1)), kr240.nominal_stiffness, noise=noise)
+    res = identify(kr240, tests, method="ols", noise=noise, validate=False)
+    assert not res.linear_bias["reliable"]
+    found = problems(res, None)
+    assert found[0].startswith("linearisation bias") and "--method exact" in found[0]
+    misfit = [p for p in found if p.startswith("misfit")]
+    assert misfit and "(1) the linear model of ols at these loads" in misfit[0], found
+    exact = identify(kr240, tests, method="exact", noise=noise, validate=False)
+    assert not problems(exact, None)
+    z = (exact.k - kr240.nominal_stiffness) / exact.se_k
+    assert np.all(np.abs(z) < 4), z
+
+
+def test_missing_held_out_check_is_said(kr240, zone_poses, w_eff):
+    """The held-out check needs 3 folds; with fewer (2 poses here) the result says that it
+    was not made, instead of leaving the validation out silently."""
+    tests = simulate(kr240, zone_poses[:2], w_eff, kr240.nominal_stiffness)
+    res = identify(kr240, tests, validate=True)
+    assert res.validation is None
+    said = [w for w in res.warnings if w.startswith("no held-out validation")]
+    assert len(said) == 1 and "2 fold(s)" in said[0] and "2 poses" in said[0], res.warnings
+    res = identify(kr240, simulate(kr240, zone_poses[:3], w_eff, kr240.nominal_stiffness),
+                   validate=True)
+    assert res.validation is not None and len(res.validation) == 3
+    assert not any(w.startswith("no held-out validation") for w in res.warnings)

@@ -1,4 +1,4 @@
-"""analysis/identification holds no module-level cache.
+"""No package of the product (analysis, campaign, drivers) holds a module-level cache.
 
 Each module's syntax tree is scanned for state kept between calls: a module-level name
 bound to a mutable container (a dict, list or set display or comprehension, or a call of
@@ -8,7 +8,11 @@ assignment or deletion, ``.clear()``, ``.update()``, ``.append()``, ``.setdefaul
 ``functools.cache``/``lru_cache``. Constant tables (column lists, unit maps) are not
 changed and pass. What an identification computes once (J, the pose groups) lives on
 the problem object (:class:`analysis.identification.problem.IdentificationProblem`) or
-is passed.
+is passed; what a robot model computes once (its chain's axis-aligned frames) is an
+attribute of the model (:attr:`analysis.model.robot_model.Chain.normal`).
+
+:data:`NOT_CACHES` lists the module-level state that is not a cache: registries of the
+processes a server started, which its exit handlers must find.
 """
 
 from __future__ import annotations
@@ -16,9 +20,17 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import numpy as np
+
+import analysis
 import analysis.identification as package
 
 ROOT = Path(package.__file__).parent
+#: the product's packages (the repository's root holds them side by side)
+PACKAGES = ("analysis", "campaign", "drivers")
+#: "path:name" of module-level state that is not a cache (the processes a server started
+#: now, reaped or interrupted by its exit handlers)
+NOT_CACHES = {"campaign/web/acquire_api.py:_children", "campaign/web/job_process.py:LIVE"}
 MUTABLE_CALLS = {"dict", "list", "set", "bytearray", "defaultdict", "OrderedDict", "deque",
                  "Counter", "WeakValueDictionary", "WeakKeyDictionary", "ChainMap"}
 MUTATORS = {"clear", "update", "append", "extend", "insert", "setdefault", "pop",
@@ -104,3 +116,41 @@ def test_analysis_identification_has_no_module_level_cache():
              for p in files for line, what in module_level_state(p.read_text())]
     assert not found, "module-level cache (pass it or attach it to the problem " \
         "object):\n" + "\n".join(found)
+
+
+def test_no_package_has_a_module_level_cache():
+    repo = Path(analysis.__file__).parents[1]
+    files = [p for pkg in PACKAGES for p in sorted((repo / pkg).rglob("*.py"))]
+    assert len(files) > 200
+    assert any(p.match("analysis/model/kinematics.py") for p in files)
+    found, excused = [], set()
+    for p in files:
+        rel = p.relative_to(repo).as_posix()
+        for line, what in module_level_state(p.read_text()):
+            if f"{rel}:{what}" in NOT_CACHES:
+                excused.add(f"{rel}:{what}")
+            else:
+                found.append(f"{rel}:{line}: {what}")
+    assert not found, "module-level cache (pass it or attach it to the object it " \
+        "belongs to):\n" + "\n".join(found)
+    assert excused == NOT_CACHES  # an entry whose state is gone leaves the list
+
+
+def test_the_model_kinematics_frames_belong_to_the_chain(kr240):
+    from dataclasses import replace
+
+    from analysis.model.kinematics import jacobian
+
+    chain = kr240.chain
+    assert chain.normal is chain.normal  # made once per chain
+    q = np.array([[0.1, -1.2, 1.4, 0.3, 0.7, -0.2]])
+    J = jacobian(kr240, q)
+    # a new chain (the tool moved 0.1 m along the flange's z) gets frames of its own, and
+    # its Jacobian changes only through the moved tip: J's rotational rows are unchanged
+    tip = chain.tip.copy()
+    tip[:3, 3] += tip[:3, 2] * 0.1
+    moved = replace(kr240, chain=replace(chain, tip=tip))
+    assert moved.chain.normal is not chain.normal
+    Jm = jacobian(moved, q)
+    np.testing.assert_allclose(Jm[..., 3:, :], J[..., 3:, :], atol=1e-15)
+    assert np.max(np.abs(Jm[..., :3, :] - J[..., :3, :])) > 1e-3

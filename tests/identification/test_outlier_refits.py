@@ -14,7 +14,7 @@ from analysis.identification.checks.outliers import (
 )
 from analysis.identification.estimators.fitting import fit
 from analysis.identification.io.measurements import TestArrays
-from analysis.identification.linalg.lsq import sandwich
+from analysis.identification.linalg.sandwich import sandwich
 from analysis.identification.noise import NoiseModel
 
 from ._sim import simulate

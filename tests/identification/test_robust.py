@@ -12,7 +12,8 @@ from analysis.errors import InputError
 from analysis.identification.checks.plausibility import problems
 from analysis.identification.estimate import identify
 from analysis.identification.estimators.irls import HUBER_C, TUKEY_C, huber_weight, tukey_weight
-from analysis.identification.io.measurements import CSV_COLUMNS, table_from_arrays, to_csv_frame
+from analysis.identification.io.columns import CSV_COLUMNS
+from analysis.identification.io.measurements import table_from_arrays, to_csv_frame
 from analysis.identification.noise import NoiseModel
 from analysis.report.build import robust_blocks
 from campaign.cli import main

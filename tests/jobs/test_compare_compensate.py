@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from tests.jobs.conftest import cli, cli_error, cli_json
 
@@ -88,4 +89,62 @@ def test_compensate_refusals_same_line(ws, client, campaigns):
         answer = client.post("/api/jobs/compensate", json=body)
         assert answer.status_code == 400, answer.text
         assert answer.json()["detail"] == cli_error(ws, "compensate", *args)
+    assert not (ws / "o").exists()
+
+
+def test_path_deflection_is_compensate_before_compensating(ws, app, client, campaigns):
+    """One options record and one path reader: path_deflection's prediction, band and
+    sources are compensate's (identified model: a covariance, so a band); its refusals of
+    the shared fields are compensate's lines."""
+    import dataclasses
+
+    from campaign.jobs.compensate import CompensateOptions
+    from campaign.jobs.path_deflection import PathDeflectionOptions
+    from campaign.web import use_path_api
+
+    app.include_router(use_path_api.router)
+    shared = {f.name: f.default for f in dataclasses.fields(PathDeflectionOptions)}
+    assert {f.name: f.default for f in dataclasses.fields(CompensateOptions)
+            if f.name in shared} == shared
+    a, _ = campaigns
+    path, model, wrench = _path_csv(ws), f"{a}/model.toml", [500, 0, -1000, 0, 20, 0]
+    load = {"wrench_N_Nm": wrench, "wrench_frame": "tool"}
+    pd_answer = client.post("/api/use/deflection", json={"robot": model, "path": path, **load})
+    comp = client.post("/api/jobs/compensate", json={"robot": model, "path": path, "out": "c",
+                                                     **load})
+    assert pd_answer.status_code == 200, pd_answer.text
+    assert comp.status_code == 200, comp.text
+    got, summary = pd_answer.json(), comp.json()
+    table = pd.read_csv(ws / "c" / "compensated.csv")
+    screw, lo, hi = (np.asarray(got[k]) for k in ("deflection_m_rad", "lo95_m_rad",
+                                                   "hi95_m_rad"))
+    for j, name in enumerate(["dx_mm", "dy_mm", "dz_mm", "rx_mrad", "ry_mrad", "rz_mrad"]):
+        stem, unit = name.split("_")
+        assert np.allclose(1e3 * screw[:, j], table[name], rtol=1e-10, atol=1e-12), name
+        assert np.allclose(1e3 * lo[:, j], table[f"{stem}_lo95_{unit}"], rtol=1e-10), name
+        assert np.allclose(1e3 * hi[:, j], table[f"{stem}_hi95_{unit}"], rtol=1e-10), name
+    assert np.all(hi[:, :3] > lo[:, :3])  # a band of non-zero width
+    assert got["joint_stiffness_source"] == "identified (model.toml)"
+    assert f"joint stiffness: {got['joint_stiffness_source']}" in summary["assumptions"]
+    assert f"wrench: {got['wrench_source']}" in summary["assumptions"]
+    assert 1e3 * got["max_norm_p_m"] == pytest.approx(
+        summary["translation_m"]["before"]["max"] * 1e3, rel=1e-10)
+    # a tool point on a built-in robot (nominal k: no band): P moved, the same P in both
+    tool = {"robot": "kr240-2", "path": path, "wrench_N_Nm": wrench, "tool_xyz_mm": [0, 0, 150]}
+    one = client.post("/api/use/deflection", json=tool).json()
+    client.post("/api/jobs/compensate", json={**tool, "out": "t"})
+    flange = client.post("/api/use/deflection", json={**tool, "tool_xyz_mm": None}).json()
+    dx = pd.read_csv(ws / "t" / "compensated.csv")["dx_mm"]
+    assert np.allclose(1e3 * np.asarray(one["deflection_m_rad"])[:, 0], dx, rtol=1e-10)
+    assert abs(one["max_norm_p_m"] / flange["max_norm_p_m"] - 1) > 1e-3
+    for extra in ({"min_inv_kappa": 0}, {"wrench_N_Nm": [1, 2, 3]},
+                  {"joint_stiffness_Nm_per_rad": [1e6] * 5}, {"tool_xyz_mm": [0, 0, 150]}):
+        one = client.post("/api/use/deflection", json={"robot": model, "path": path, **extra})
+        two = client.post("/api/jobs/compensate", json={"robot": model, "path": path,
+                                                        "out": "o", **extra})
+        assert one.status_code == two.status_code == 400, (one.text, two.text)
+        assert one.json()["detail"] == two.json()["detail"], extra
+        # the identified model refuses a second tool point: on its robot
+        assert one.json()["field"] == two.json()["field"] == \
+            ("robot" if "tool_xyz_mm" in extra else next(iter(extra))), extra
     assert not (ws / "o").exists()

@@ -54,3 +54,32 @@ def test_place_refusals_same_line(ws, client):
     assert answer.json()["detail"] == cli_error(ws, "place", "--robot", "kr240-2", "--path",
                                                 part, "--out", "o", *_args(bad))
     assert not (ws / "o").exists()
+
+
+def test_place_options_one_record_for_both_faces():
+    """Every option of ``campaign place`` is a field of PlaceOptions with the record's
+    default (what the web API uses for an omitted field), and the record's module, which
+    the command line reads to build, imports no numerical library."""
+    import dataclasses
+    import subprocess
+    import sys
+
+    from campaign.cli.app import load_command
+    from campaign.jobs.place import DEFAULTS, PlaceOptions
+
+    cmd = load_command("place", "place")
+    fields = {f.name: f for f in dataclasses.fields(PlaceOptions)}
+    params = {p.name: p for p in cmd.params if p.name in fields}
+    assert set(params) == set(fields)
+    for name, f in fields.items():
+        if f.default is dataclasses.MISSING:
+            assert params[name].required, name
+        else:
+            assert params[name].default == f.default == DEFAULTS[name], name
+    assert (DEFAULTS["x_step_mm"], DEFAULTS["tool_angle_deg"], DEFAULTS["objective"]) == \
+        (100.0, "-180..180", "max")
+    probe = ("import sys, campaign.jobs.place; print(sorted(m for m in ('numpy', 'rich', "
+             "'campaign.use.place_run') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                         timeout=60, check=True).stdout.strip()
+    assert out == "[]"

@@ -67,3 +67,34 @@ def test_impossible_separation_is_refused_naming_the_key(kr_protocol):
     with pytest.raises(InputError, match="min_pose_separation_deg") as err:
         make_plan(_with_separation(kr_protocol, 300.0), "d-optimal", seed=0, candidates=500)
     assert "300 deg apart" in str(err.value)
+
+
+def test_plan_summary_states_the_separation_and_the_closest_pair(kr_protocol):
+    """The minimum separation is an assumption of the plan: the summary says its value,
+    where it came from (the shipped protocol has no key: the default) and the closest pair
+    of the poses chosen, which the plan's own angles reproduce."""
+    from campaign.planning.plan_output import summary_dict, summary_text
+
+    for protocol, deg, source in ((kr_protocol, 5.0, "default"),
+                                  (_with_separation(kr_protocol, 12.0), 12.0, "protocol")):
+        plan = make_plan(protocol, "d-optimal", seed=0, candidates=1500)
+        got = summary_dict(plan)["pose_separation"]
+        closest = min_pairwise_distance(_poses_deg(plan))
+        assert got["min_deg"] == deg and got["source"].startswith(source), got
+        assert got["closest_pair_deg"] == pytest.approx(closest, abs=1e-9)
+        assert closest >= deg
+        text = summary_text(plan)
+        assert f"poses at least {deg:g} deg apart" in text
+        assert f"closest pair {closest:.2f} deg" in text
+
+
+def test_analysis_names_where_its_holdout_radius_came_from(kr_protocol):
+    """analyze holds out together poses closer than the plan's separation; its assumption
+    line says whether the protocol gave the key or the default was used."""
+    from campaign.jobs.analyze import _holdout_deg
+
+    deg, source = _holdout_deg(kr_protocol)
+    assert deg == DEFAULT_MIN_SEPARATION_DEG and source.startswith("default: protocol")
+    deg, source = _holdout_deg(_with_separation(kr_protocol, 7.5))
+    assert deg == 7.5 and source.endswith("[thresholds] min_pose_separation_deg")
+    assert not source.startswith("default")

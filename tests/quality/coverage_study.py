@@ -6,6 +6,7 @@ component, F/T 0.5 N + 0.5 % of reading (``_coverage.NOISE``). With 1000 campaig
 binomial standard error of a 95 % coverage is 0.69 %, so 95 +- 3 % is resolved.
 
     PYTHONPATH=. python -m tests.quality.coverage_study [--trials 1000] [--seed 3]
+        [--robot arm|z1] [--setup-seed 0]
     PYTHONPATH=. python -m tests.quality.coverage_study --robust [--methods ols wls exact]
         [--exact-trials 1000] [--write-docs]
 
@@ -45,10 +46,15 @@ SCALES = (1.0, 2.0)
 DATA = (("clean", None), ("glitches", Glitches()))
 
 
-def study(trials: int, seed: int) -> dict:
-    """{method: {scale: (coverage (6,), campaigns given)}} of the Gaussian fits."""
+def study(trials: int, seed: int, robot_name: str = "arm", setup_seed: int = 0) -> dict:
+    """{method: {scale: (coverage (6,), campaigns given)}} of the Gaussian fits, on the
+    test-written 6R arm (``robot_name`` "arm") or the Unitree Z1 URDF ("z1",
+    :mod:`tests.quality._z1`); ``setup_seed``: the draw of the poses and the truth."""
+    from tests.quality import _z1
+
+    write = {"arm": write_protocol, "z1": _z1.write_protocol}[robot_name]
     with tempfile.TemporaryDirectory() as tmp:
-        robot, q, W, k = campaign_setup(write_protocol(Path(tmp)))
+        robot, q, W, k = campaign_setup(write(Path(tmp)), seed=setup_seed)
         return {m: {s: coverage(robot, q, W, k, m, s, trials, seed=seed) for s in SCALES}
                 for m in METHODS}
 
@@ -107,6 +113,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --robust: the robust modes to run")
     ap.add_argument("--exact-trials", type=int, default=None,
                     help="with --robust: campaigns per cell for exact (default --trials)")
+    ap.add_argument("--robot", choices=("arm", "z1"), default="arm",
+                    help="without --robust: the test-written 6R arm, or the Unitree Z1 URDF "
+                         "of example-robot-data")
+    ap.add_argument("--setup-seed", type=int, default=0,
+                    help="without --robust: seed of the poses and the true stiffness")
     ap.add_argument("--write-docs", action="store_true",
                     help="with --robust: put the rows into docs/identification.md")
     args = ap.parse_args(argv)
@@ -131,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.write_docs:
             write_docs(rows)
     else:
-        res = study(args.trials, args.seed)
+        res = study(args.trials, args.seed, args.robot, args.setup_seed)
         print("| method | nominal loads: coverage k1..k6 (%) | twice the loads (%) |")
         print("| --- | --- | --- |")
         for m, by_scale in res.items():

@@ -11,7 +11,7 @@ from report_runs import write_csv, write_run
 
 import analysis.identification.problem as identification
 from analysis.identification.estimate import analyze_table
-from analysis.identification.io.measurements import read_csv
+from analysis.identification.io.csv_reader import read_csv
 from analysis.model.robots import load_robot
 from campaign.cli import main
 from campaign.cli.commands import analyze as analyze_command

@@ -8,7 +8,8 @@ from report_runs import REPEATS, SIGMA, TRUE_K
 
 from analysis.errors import InputError
 from analysis.identification.estimate import analyze_table
-from analysis.identification.io.measurements import read_csv, to_arrays
+from analysis.identification.io.csv_reader import read_csv
+from analysis.identification.io.measurements import to_arrays
 from analysis.identification.noise import NoiseModel
 from analysis.model.robots import load_robot
 from analysis.report.design_robustness import design_robustness, design_tests, draw_tests

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.identification.io.measurements import CSV_COLUMNS
+from analysis.identification.io.columns import CSV_COLUMNS
 from analysis.kinetostatics.equilibrium import displacement_screw
 from analysis.model.robots import load_robot
 from campaign.cli import main

@@ -9,7 +9,7 @@ import pytest
 
 from analysis.errors import InputError
 from analysis.identification.estimate import analyze_table
-from analysis.identification.io.measurements import read_csv
+from analysis.identification.io.csv_reader import read_csv
 from analysis.identification.io.model_export import model_file_data, write_model_file
 from analysis.model.kinematics import pin_tool_pose, tool_pose
 from analysis.model.robot_files import load_robot_file

@@ -74,7 +74,7 @@ def test_map_candidates_are_the_planners(client, workspace, planned):
     assert d["axes"] == [2, 3]
     # the background: the Plan view's 1/kappa_F grid of the same plan (made from the plan
     # in memory), at the protocol's fixed joints
-    from campaign.planning.plan_map import map_points
+    from campaign.planning.map_data import map_points
 
     theirs = map_points(plan, size=len(d["grid"]["theta2_deg"]))["grid"]
     np.testing.assert_allclose(d["grid"]["inv_kappa"], theirs["inv_kappa"], atol=1e-6)

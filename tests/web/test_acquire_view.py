@@ -91,9 +91,27 @@ def test_paths_outside_the_workspace_and_hardware_refused(client, workspace, tmp
     assert r.status_code == 400 and "leads out" in r.json()["detail"]
     r = client.post("/api/acquire/dry-run", json={"plan": "../x"})
     assert r.status_code == 400
-    # a real robot without the explicit confirmation: refused before anything is read
-    r = client.post("/api/acquire/start", json={"plan": "plan", "out": "hw", "fake": False})
-    assert r.status_code == 400 and r.json()["detail"].startswith("confirmation")
+    # a real robot from a server started without --hardware: refused, confirmed or not
+    for confirm in (False, True):
+        r = client.post("/api/acquire/start", json={"plan": "plan", "out": "hw", "fake": False,
+                                                    "confirm": confirm})
+        assert r.status_code == 403 and r.json()["detail"].startswith("hardware"), r.text
+        r = client.post("/api/acquire/resume", json={"run": "plan", "fake": False,
+                                                     "confirm": confirm})
+        assert r.status_code == 403 and "--hardware" in r.json()["detail"], r.text
+    # with --hardware, still not without the explicit confirmation
+    from fastapi.testclient import TestClient
+
+    from campaign.web.app import create_app
+    from tests.web.conftest import TOKEN
+
+    hw = TestClient(create_app(workspace, TOKEN, hardware=True))
+    hw.get(f"/?token={TOKEN}")
+    assert hw.get("/api/session").json()["hardware"] is True
+    assert client.get("/api/session").json()["hardware"] is False
+    r = hw.post("/api/acquire/start", json={"plan": "plan", "out": "hw", "fake": False},
+                headers=client.headers)
+    assert r.status_code == 400 and r.json()["detail"].startswith("confirmation"), r.text
     assert not (workspace / "hw").exists() and not (tmp_path / "run").exists()
     r = client.post("/api/acquire/start", json={"plan": "missing", "out": "r2"})
     assert r.status_code == 400 and not (workspace / "r2").exists()

@@ -120,7 +120,8 @@ def test_upload_reads_with_the_cli_reader_and_refuses_bad_files(client, workspac
         assert client.post("/api/robots/urdf", json={"name": name, "text": "x"}
                            ).json()["field"] == "name"
     big = client.post("/api/robots/urdf", json={"name": "big.urdf", "text": "x" * 1_000_001})
-    assert big.status_code == 422
+    assert big.status_code == 400  # the line names the file and the limit
+    assert big.json()["detail"] == "big.urdf: 1000001 bytes; at most 1000000 bytes"
 
 
 def test_resolve_robot_keeps_files_inside_the_workspace(urdf_ws):

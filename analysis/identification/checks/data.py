@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.io.measurements import COMPONENTS, Q_COLS, W_COLS, TestArrays
+from analysis.identification.io.columns import COMPONENTS, Q_COLS, W_COLS
+from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg import lsq
 from analysis.identification.linalg.lsq import scaled_condition, stack_matrix, weakest_column
 from analysis.identification.noise import NoiseModel

@@ -17,7 +17,8 @@ from analysis.identification.estimators.linear_model import jacobian_blocks
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.io.residual_rows import ResidualRows
 from analysis.identification.io.results_json import RESIDUALS_LISTED
-from analysis.identification.linalg.lsq import blocks_of_tests, sandwich_and_residual_variance
+from analysis.identification.linalg.lsq import blocks_of_tests
+from analysis.identification.linalg.sandwich import sandwich_and_residual_variance
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
 from analysis.identification.streaming.per_test import apply
 from analysis.report.formatting import level
@@ -134,10 +135,13 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
             current = _refit_without(robot, rest, joints, noise, method, current, i, c,
                                      tests.d[i, c], J)
             if bias_se is not None:
-                from analysis.identification.corrections.linear_bias import correct_linear_bias
+                from analysis.identification.corrections.linear_bias import (
+                    correct_linear_bias,
+                    corrected_fit,
+                )
 
-                correct_linear_bias(robot, rest, joints, current, bias_se, method,
-                                    in_place=True)
+                current = corrected_fit(current, correct_linear_bias(
+                    robot, rest, joints, current, bias_se, method))
             t = None  # its 48 MB (1e6 tests) before the next
             t = _studentized_matrix(rest, current, scale)
         except InputError:

@@ -55,6 +55,12 @@ CAUSES_MISFIT = (
     "the noise figures (--translation-sigma-um, --rotation-sigma-urad, --force-sigma-N, "
     "--moment-sigma-Nm)",
 )
+#: first cause of a misfit of the translational-only variant (wrist taken as rigid)
+CAUSE_RIGID_WRIST = (
+    "the wrist joints 4-6 taken as rigid (no rotation measured: only k1..k3 are fitted); a "
+    "compliant wrist under the loads' moments moves P too: identify it with --joints "
+    "1,2,3,4,5 (joint 6 only if P is off its axis), measure rotations, or load with forces "
+    "whose line passes near the wrist")
 CAUSES_TOO_GOOD = (
     "units (displacements typed in m instead of mm, rotations in rad instead of mrad: "
     "1000 x too small)",
@@ -83,6 +89,24 @@ def worst_rows(result: IdentificationResult, n: int = WORST_ROWS) -> str:
     order = res["studentized"].abs().sort_values(ascending=False).index[:n]
     return ", ".join(f"line {int(r.line)} (pose {r.pose}) {r.component} t = {r.studentized:.2g}"
                      for r in res.loc[order].itertuples())
+
+
+def _linear_bias_unreliable(result: IdentificationResult) -> bool:
+    return result.linear_bias is not None and not result.linear_bias["reliable"]
+
+
+def _misfit_causes(result: IdentificationResult) -> tuple[str, ...]:
+    """CAUSES_MISFIT, led by the linear model when its bias correction was unreliable (the
+    residuals are then the raw linear fit's) and by the rigid wrist when the fit is the
+    translational-only variant."""
+    first = []
+    if _linear_bias_unreliable(result):
+        first.append(f"the linear model of {result.method} at these loads (its residuals "
+                     "hold the linearisation error: see the linearisation bias; --method "
+                     "exact)")
+    if any(w.startswith("translational-only variant") for w in result.warnings):
+        first.append(CAUSE_RIGID_WRIST)
+    return (*first, *CAUSES_MISFIT)
 
 
 def _causes(causes: tuple[str, ...]) -> str:
@@ -121,7 +145,7 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
         out.append(
             f"misfit: the model does not explain the data ({chi2}, P(chi2 >= observed) = "
             f"{result.p_value:.2g} < {MISFIT_P:g}); likely causes, most likely first: "
-            f"{_causes(CAUSES_MISFIT)}; worst rows: {worst_rows(result)}")
+            f"{_causes(_misfit_causes(result))}; worst rows: {worst_rows(result)}")
     rob = result.robust
     if rob is not None and len(rob["down_weighted"]) > MAX_DOWN_WEIGHTED * result.n_equations:
         out.append(
@@ -136,12 +160,13 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
             f"too good to be true: the residuals are far smaller than the noise figures "
             f"({chi2}, P(chi2 <= observed) = {low:.2g} < {MISFIT_P:g}); likely causes: "
             f"{_causes(CAUSES_TOO_GOOD)}")
-    bias = result.linear_bias
-    if bias is not None and not bias["reliable"]:
-        out.append(
+    if _linear_bias_unreliable(result):
+        # first: the residuals of a raw linear fit carry the linearisation error, so this
+        # also explains a misfit reported with it
+        out.insert(0,
             f"linearisation bias: {result.method} is biased by the linear model at these "
-            f"loads and the correction is unreliable ({bias['reason']}); use --method exact "
-            "(the nonlinear equilibrium fit)")
+            f"loads and the correction is unreliable ({result.linear_bias['reason']}); use "
+            "--method exact (the nonlinear equilibrium fit)")
     negative = _negative_joints(result)
     if negative:
         out.append(

@@ -36,7 +36,6 @@ from analysis.identification.estimators.exact_model import model_displacement_ma
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg.lsq import stack_vector
 from analysis.identification.streaming.blocks import EVAL_BLOCK
-from analysis.identification.streaming.per_test import apply
 from analysis.model.robot_model import RobotModel
 
 #: the correction is unreliable when || S^-1 B S ||_2 exceeds this (S = diag(se))
@@ -110,7 +109,7 @@ def _bias_and_slope(robot, tests, joints, x, G, A, slope: bool = True, out=None)
     return res[:, -1], (res[:, :p] if slope else None)
 
 
-@dataclass
+@dataclass(frozen=True)
 class BiasCorrection:
     """Outcome of :func:`correct_linear_bias` (compliances in rad/(N m)).
 
@@ -138,14 +137,14 @@ class BiasCorrection:
 
 
 def correct_linear_bias(robot: RobotModel, tests: TestArrays, joints: tuple[int, ...], fit,
-                        se_x: np.ndarray, method: str, limit: float | None = None,
-                        in_place: bool = False) -> BiasCorrection:
+                        se_x: np.ndarray, method: str,
+                        limit: float | None = None) -> BiasCorrection:
     """Solve ``x + G (f(x) - A x) = x_hat`` for the linear fit ``fit`` (its x, A, estimator).
 
     ``se_x`` (p,): standard errors of ``fit.x`` (rad/(N m)). See the module docstring
-    for the criterion of reliability. ``in_place``: the exact model's values are written
-    into ``fit.predicted`` (no second (m, 6) array: 48 MB at 1e6 tests), which then holds
-    f(x_c) when the correction is reliable and A x_hat again when it is not.
+    for the criterion of reliability. ``fit`` is not changed: a reliable correction
+    carries the exact model's values f(x_c) (m, 6) in ``predicted``
+    (:func:`corrected_fit` makes the fit whose residuals are those).
     """
     limit = CONTRACTION_LIMIT if limit is None else limit
     x_hat = np.asarray(fit.x, dtype=float)
@@ -169,29 +168,31 @@ def correct_linear_bias(robot: RobotModel, tests: TestArrays, joints: tuple[int,
     M = np.linalg.inv(np.eye(p) + B)
     x = x_hat - M @ b0
     residual = float("inf")
-    # the model at the last iterate (48 MB at 1e6 tests)
-    f = fit.predicted if in_place else np.empty(tests.measured.shape)
-
-    def undo(out: BiasCorrection) -> BiasCorrection:
-        if in_place:  # the linear model's values again
-            f[...] = apply(A, x_hat)
-        return out
-
+    f = np.empty(tests.measured.shape)  # the model at the last iterate (48 MB at 1e6 tests)
     for step in range(1, MAX_STEPS + 1):
         b, _ = _bias_and_slope(robot, tests, joints, x, G, A, slope=False, out=f)
         if not np.all(np.isfinite(b)):
-            return undo(give_up("the equilibrium cannot be solved at a corrected estimate",
-                                contraction, step))
+            return give_up("the equilibrium cannot be solved at a corrected estimate",
+                           contraction, step)
         r = x + b - x_hat
         residual = float(np.max(np.abs(r) / se_x))
         if residual <= TOLERANCE_SE:
             break
         x = x - M @ r
     else:
-        return undo(give_up(f"the correction did not converge in {MAX_STEPS} steps "
-                            f"(residual {residual:.2g} se)", contraction, MAX_STEPS))
+        return give_up(f"the correction did not converge in {MAX_STEPS} steps "
+                       f"(residual {residual:.2g} se)", contraction, MAX_STEPS)
     return BiasCorrection(method, joints, x_hat, b0, x, M, contraction, step, residual, True,
                           predicted=f)
+
+
+def corrected_fit(fit, c: BiasCorrection):
+    """``fit`` as the residuals see it after the correction ``c``: where ``c`` is reliable,
+    a new fit whose ``predicted`` is the exact model's f(x_c) (chi-square, outliers,
+    notes), else ``fit`` itself (its A x_hat)."""
+    from dataclasses import replace
+
+    return replace(fit, predicted=c.predicted) if c.reliable else fit
 
 
 def summary(c: BiasCorrection, se_raw: np.ndarray, se: np.ndarray) -> dict:

@@ -2,6 +2,6 @@
 
 ``base`` (the :class:`~analysis.identification.estimators.base.Estimator` protocol and
 its outcome, :class:`~analysis.identification.estimators.base.EstimatorFit`), ``ols``,
-``wls``, ``exact`` (the Gaussian fits), ``huber`` and ``tukey`` (the robust modes, IRLS
-around ols, wls or exact), ``registry`` (an estimator by name).
+``wls``, ``exact`` (the Gaussian fits), ``robust_mode`` (the robust modes huber and
+tukey, IRLS around ols, wls or exact), ``registry`` (an estimator by name).
 """

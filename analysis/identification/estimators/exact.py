@@ -3,12 +3,12 @@
 Started from OLS (:mod:`analysis.identification.estimators.gauss_newton`, with step halving); the
 maximum-likelihood estimate under the Gaussian noise model, free of the linear model's
 linearisation bias. A small campaign also gets the WLS fit, for comparison in
-results.json (its first weights are the exact fit's first ones). A large one (more
-than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS` tests) is streamed: no WLS
-(two passes over every test for a comparison only), and, for the Gaussian fit, the
-errors-in-variables S and the validation's per-fold sums are made in the pass that
-forms the final system
-(:class:`~analysis.identification.streaming.fold_sums.FinalPassSums`).
+results.json (its first weights are the exact fit's first ones). Where the systems
+are streamed (a large campaign) there is no WLS (two passes over every test for a
+comparison only), and, for the Gaussian fit, the errors-in-variables S and the
+validation's per-fold sums are made in the pass that forms the final system: the
+problem's :class:`~analysis.identification.streaming.systems.LinearisedSystems` says
+which (``compares_wls``, ``final_pass_sums``), not the campaign's size.
 """
 
 from __future__ import annotations
@@ -31,27 +31,19 @@ class Exact:
     final_pass_sums: bool = True
 
     def fit(self, problem) -> EstimatorFit:
-        tests = problem.tests
+        tests, systems = problem.tests, problem.systems
         first: dict = {}
-        if problem.large:
+        if systems.compares_wls:
+            x_ols, wls = ols_and_wls(problem, first_whitening=first)
+            linear = {"ols": x_ols, "wls": wls.x}
+            del wls
+        else:
             fit = fit_linear(problem.robot, tests, problem.joints, problem.noise,
                              weighted=False, design=problem.design)
             linear = {"ols": fit.x}
             del fit
-        else:
-            x_ols, wls = ols_and_wls(problem, first_whitening=first)
-            linear = {"ols": x_ols, "wls": wls.x}
-            del wls
         problem.release_design()
-        sums = None
-        if problem.large and self.final_pass_sums:
-            from analysis.identification.streaming.fold_sums import FinalPassSums
-
-            fold = problem.folds
-            n_folds = int(fold.max(initial=-1)) + 1
-            sums = FinalPassSums(tests, problem.joints, problem.noise,
-                                 fold if problem.options.validate and n_folds >= 3 else None,
-                                 n_folds)
+        sums = systems.final_pass_sums(problem) if self.final_pass_sums else None
         # the first Gauss-Newton weights are WLS's first ones (both at the OLS estimate)
         fit = fit_exact(problem.robot, tests, problem.joints, problem.noise,
                         start=linear["ols"], first_whitening=first or None, sums=sums,

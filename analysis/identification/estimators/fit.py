@@ -34,16 +34,17 @@ class FactoredEstimator:
         return self.bread @ acc
 
 
-@dataclass
+@dataclass(frozen=True)
 class Fit:
-    """One estimator's output on per-test blocks (internal).
+    """One estimator's output on per-test blocks (internal); a frozen record (the stages
+    after the fit make new ones with :func:`dataclasses.replace`).
 
     x (p,) compliances (rad/(N m)); A (m, 6, p) model (or its Jacobian) per
     test; cov (m, 6, 6) residual covariance per test; predicted (m, 6) model
     displacement (m, rad). The linear(ised) estimator x = G d is kept in
     factored form, G = bread A^T W with W = Linv^T Linv per test (identity
     when ``Linv`` is None, OLS) and bread (p, p) = (A^T W A)^-1: memory
-    linear in the number of tests (:mod:`analysis.identification.linalg.lsq` computes
+    linear in the number of tests (:mod:`analysis.identification.linalg.sandwich` computes
     its covariance and residual variances blockwise). ``deflection`` (m, 6): the
     exact fit's joint deflections at x (rad), None for the linear fits. ``eiv_shift``
     (p,): how far the wrench errors-in-variables correction moved x

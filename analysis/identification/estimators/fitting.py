@@ -25,6 +25,7 @@ from analysis.identification.linalg.lsq import (
 )
 from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming.covariances import (
+    covariance_and_whitening,
     covariances_per_test,
     per_test_covariance,
     whitening_per_test,
@@ -132,10 +133,8 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
                 cov, Lw = None, whitening_per_test(noise, J, _full(x, joints), tests.measured,
                                                    tests.w, weights)
             else:  # kept by the fit: made again block by block where used
-                cov = _fit_covariances(noise, J, _full(x, joints), tests.measured, tests.w,
-                                       weights)
-                Lw = None if isinstance(cov, np.ndarray) else whitening_per_test(
-                    noise, J, _full(x, joints), tests.measured, tests.w, weights)
+                cov, Lw = covariance_and_whitening(noise, J, _full(x, joints), tests.measured,
+                                                   tests.w, weights)
             x0 = x
             x, bread, Linv = _linear_estimator(A, tests.d, tests.measured, cov, weighted=True,
                                                Linv=Lw)

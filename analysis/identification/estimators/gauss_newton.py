@@ -11,13 +11,13 @@ that raises the cost is halved (per campaign) until it does not.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming import blocks
-from analysis.identification.streaming.systems import Context, HeldSystems, StreamedSystems
+from analysis.identification.streaming.systems import Context, systems_for
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
@@ -98,15 +98,13 @@ def gauss_newton(
     then made when sliced, and ``R`` is the triangular factor of the final whitened
     system [Linv F | Linv r].
     """
-    from analysis.identification.streaming import per_test
-
     cols = list(joints)
     dz = np.where(measured, d, 0.0)
     J = jacobian(robot, q) if J is None else J
     batch = q.shape[:-2]
     ctx = Context(robot, q, w, dz, measured, cols, noise, J, weights, batch, {})
-    streamed = not batch and q.shape[0] > per_test.LAZY_TESTS
-    systems = StreamedSystems(ctx) if streamed else HeldSystems(ctx)
+    systems = systems_for(q.shape[-2], batch)(ctx)
+    streamed = systems.streamed
 
     x = np.array(x0, dtype=float)
     valid = np.all(np.isfinite(x), axis=-1)
@@ -134,55 +132,8 @@ def gauss_newton(
                 break
 
         follow = iterations + 1 <= reweight_iterations  # the next weights at the next x?
-
-        # the next model Jacobian comes with the step's evaluation, into F's array
-        F_buf = state.F if one_campaign else None
-        dq = state.dq
-        t = np.ones(batch)
-        accepted = np.zeros(batch, dtype=bool)
-        # one campaign: the accepted trial is taken as it is (no (m, 6) copies: ``ok`` is
-        # one bool), else merged campaign by campaign
-        x_new, f_new, dq_new = (x, state.f, dq) if not batch else (
-            x.copy(), state.f.copy(), dq.copy())
-        state = None
-        full = None
-        for halving in range(12):
-            x_try = x + t[..., None] * step
-            # the full step is usually accepted: its model Jacobian then serves the next
-            # iteration (one equilibrium solve per iteration instead of two)
-            # Newton starts from the deflections at x scaled joint by joint to x_try (the
-            # first-order deflection is proportional to the compliance): ~2.2 Newton
-            # evaluations per test instead of 3 for a step of 10 %
-            with np.errstate(divide="ignore", invalid="ignore"):
-                xf, xt = ctx.full(x), ctx.full(x_try)
-                dq_scale = np.where((xf != 0) & np.isfinite(xt / xf), xt / xf, 1.0)
-            trial = systems.evaluate(x_try, halving == 0, dq, True, x_try if follow else wx,
-                                     dq_scale=dq_scale,
-                                     out=F_buf)
-            F_buf = None
-            if halving == 0:
-                full = trial
-            ok = ~accepted & trial.ok & (trial.cost <= cost0 * (1 + 1e-8))
-            if not batch:
-                if ok:
-                    x_new, f_new, dq_new = x_try, trial.f, trial.dq
-            else:
-                x_new = np.where(ok[..., None], x_try, x_new)
-                f_new = np.where(ok[..., None, None], trial.f, f_new)
-                dq_new = np.where(ok[..., None, None], trial.dq, dq_new)
-            del trial
-            accepted |= ok
-            if np.all(accepted):
-                break
-            t = np.where(accepted, t, 0.5 * t)
-        moved = np.max(np.abs(np.where(accepted[..., None], t[..., None] * step, 0.0)), axis=-1)
-        x, dq = x_new, dq_new
-        if full is not None and np.all(accepted & (t == 1.0)):
-            state = full
-            state.f, state.dq = f_new, dq
-        else:
-            state = systems.evaluate(x, True, dq, False, x if follow else wx)
-        del full
+        x, state, moved, accepted = _descend(systems, x, step, state, cost0, wx, follow,
+                                             one_campaign)
         # a step no halving can make descend means the cost is at its floor
         converged = (moved <= tol * np.max(np.abs(x), axis=-1)) | ~accepted
         if np.all(converged | ~valid):
@@ -195,3 +146,59 @@ def gauss_newton(
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)
     return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,
                           converged=converged & valid, valid=valid, dq=dq, Linv=Linv, R=R)
+
+
+def _descend(systems, x, step, state, cost0, wx, follow: bool, one_campaign: bool):
+    """(x, state, moved, accepted): one Gauss-Newton step from x, halved campaign by
+    campaign (up to 12 times) until the cost under the current weights does not rise
+    above ``cost0``; the state (model, Jacobian, deflections) at the new x, whitened at
+    the new x when the weights ``follow`` it, else at ``wx``; ``moved`` (...) the largest
+    step taken, ``accepted`` (...) where some step descended."""
+    ctx = systems.c
+    batch = ctx.batch
+    # the next model Jacobian comes with the step's evaluation, into F's array
+    F_buf = state.F if one_campaign else None
+    dq = state.dq
+    t = np.ones(batch)
+    accepted = np.zeros(batch, dtype=bool)
+    # one campaign: the accepted trial is taken as it is (no (m, 6) copies: ``ok`` is
+    # one bool), else merged campaign by campaign
+    x_new, f_new, dq_new = (x, state.f, dq) if not batch else (
+        x.copy(), state.f.copy(), dq.copy())
+    state = None
+    full = None
+    for halving in range(12):
+        x_try = x + t[..., None] * step
+        # the full step is usually accepted: its model Jacobian then serves the next
+        # iteration (one equilibrium solve per iteration instead of two)
+        # Newton starts from the deflections at x scaled joint by joint to x_try (the
+        # first-order deflection is proportional to the compliance): ~2.2 Newton
+        # evaluations per test instead of 3 for a step of 10 %
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xf, xt = ctx.full(x), ctx.full(x_try)
+            dq_scale = np.where((xf != 0) & np.isfinite(xt / xf), xt / xf, 1.0)
+        trial = systems.evaluate(x_try, halving == 0, dq, True, x_try if follow else wx,
+                                 dq_scale=dq_scale,
+                                 out=F_buf)
+        F_buf = None
+        if halving == 0:
+            full = trial
+        ok = ~accepted & trial.ok & (trial.cost <= cost0 * (1 + 1e-8))
+        if not batch:
+            if ok:
+                x_new, f_new, dq_new = x_try, trial.f, trial.dq
+        else:
+            x_new = np.where(ok[..., None], x_try, x_new)
+            f_new = np.where(ok[..., None, None], trial.f, f_new)
+            dq_new = np.where(ok[..., None, None], trial.dq, dq_new)
+        del trial
+        accepted |= ok
+        if np.all(accepted):
+            break
+        t = np.where(accepted, t, 0.5 * t)
+    moved = np.max(np.abs(np.where(accepted[..., None], t[..., None] * step, 0.0)), axis=-1)
+    if full is not None and np.all(accepted & (t == 1.0)):
+        state = replace(full, f=f_new, dq=dq_new)
+    else:
+        state = systems.evaluate(x_new, True, dq_new, False, x_new if follow else wx)
+    return x_new, state, moved, accepted

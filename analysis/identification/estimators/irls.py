@@ -61,8 +61,9 @@ from analysis.identification.estimators.robust_covariance import (
     RobustCovariance,
     robust_covariance,
 )
-from analysis.identification.io.measurements import COMPONENTS, TestArrays
-from analysis.identification.linalg.lsq import sandwich
+from analysis.identification.io.columns import COMPONENTS
+from analysis.identification.io.measurements import TestArrays
+from analysis.identification.linalg.sandwich import sandwich
 from analysis.identification.streaming.per_test import apply
 
 ROBUST_METHODS = ("none", "huber", "tukey")

@@ -51,7 +51,7 @@ def jacobian_blocks(robot: RobotModel, q: np.ndarray):
     it to every fit of the same joint angles.
     """
     q = np.asarray(q, dtype=float)
-    if q.ndim == 2 and q.shape[0] > per_test.LAZY_TESTS:
+    if per_test.streamed(q.shape[-2], q.shape[:-2]):
         return PerTestJacobian(robot, q)
     # in blocks of tests: the chain state of many poses at once is ~2.6 kB per pose
     J = np.empty((*q.shape[:-1], 6, q.shape[-1]))

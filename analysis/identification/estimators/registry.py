@@ -5,15 +5,14 @@ from __future__ import annotations
 from types import MappingProxyType
 
 from analysis.identification.estimators.exact import Exact
-from analysis.identification.estimators.huber import Huber
 from analysis.identification.estimators.ols import OLS
-from analysis.identification.estimators.tukey import Tukey
+from analysis.identification.estimators.robust_mode import MODES, RobustMode
 from analysis.identification.estimators.wls import WLS
 
 #: the Gaussian fits (``--method``)
 GAUSSIAN = MappingProxyType({"ols": OLS, "wls": WLS, "exact": Exact})
-#: the robust modes (``--robust``), each around a Gaussian fit
-ROBUST = MappingProxyType({"huber": Huber, "tukey": Tukey})
+#: the robust modes (``--robust``), each around a Gaussian fit: name -> what it does
+ROBUST = MODES
 
 
 def estimator(method: str, robust: str = "none"):
@@ -22,4 +21,4 @@ def estimator(method: str, robust: str = "none"):
     if robust == "none":
         return GAUSSIAN[method]()
     base = GAUSSIAN[method](final_pass_sums=False) if method == "exact" else GAUSSIAN[method]()
-    return ROBUST[robust](base)
+    return RobustMode(base, robust)

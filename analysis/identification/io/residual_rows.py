@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.identification.io.measurements import COMPONENTS, TestArrays
+from analysis.identification.io.columns import COMPONENTS
+from analysis.identification.io.measurements import TestArrays
 
 #: bin edges of the histogram of studentized residuals in results.json
 HISTOGRAM_EDGES = np.array([-np.inf, -6, -5, -4, -3, -2, -1, 0, 1, 2, 3, 4, 5, 6, np.inf])

@@ -12,9 +12,15 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.identification.linalg.lsq import whitening
+from analysis.identification.linalg.sandwich import per_test_diagonal
 from analysis.identification.noise import residual_covariance
 from analysis.identification.streaming import blocks
-from analysis.identification.streaming.per_test import PerTestBlocks, PerTestWhitening
+from analysis.identification.streaming.per_test import (
+    PerTestBlocks,
+    PerTestSigma,
+    PerTestWhitening,
+    is_lazy,
+)
 
 
 def covariances_per_test(noise, J, x_full, measured, w=None, weights=None,
@@ -51,8 +57,9 @@ class PerTestCovariance(PerTestBlocks):
 
     ``cov[s:e]`` is :func:`covariances_per_test` of those tests (the same numbers as a
     slice of the whole array); the (m, 6, 6) array (0.3 GB at 1e6 tests) is never held.
-    The passes over it (:func:`analysis.identification.linalg.lsq.sandwich_and_residual_variance`,
-    the chi-square's whitening, :func:`~analysis.identification.linalg.lsq.per_test_diagonal`)
+    The passes over it
+    (:func:`analysis.identification.linalg.sandwich.sandwich_and_residual_variance`, the
+    chi-square's whitening, :func:`~analysis.identification.linalg.sandwich.per_test_diagonal`)
     take it by blocks of consecutive tests. ``J`` (m, 6, 6) is the Jacobian at the tests'
     joint angles, ``x_full`` (6,) the compliances the covariances are evaluated at.
     """
@@ -83,6 +90,24 @@ def per_test_covariance(noise, J, x_full, measured, w=None, weights=None):
     if J.ndim == 3 and J.shape[0] > blocks.EVAL_BLOCK:
         return PerTestCovariance(noise, J, x_full, measured, w, weights)
     return covariances_per_test(noise, J, x_full, measured, w, weights)
+
+
+def covariance_and_whitening(noise, J, x_full, measured, w=None, weights=None):
+    """(cov, Linv): a fit's covariances (:func:`per_test_covariance`) and their whitening,
+    both arrays for a small campaign, made block by block or when sliced for a larger one
+    (:func:`whitening_per_test`)."""
+    cov = per_test_covariance(noise, J, x_full, measured, w, weights)
+    if isinstance(cov, np.ndarray):
+        return cov, whitening(cov, measured)
+    return cov, whitening_per_test(noise, J, x_full, measured, w, weights)
+
+
+def component_sigmas(cov):
+    """(m, 6) the standard deviation of each residual component (m, rad) of per-test
+    covariances ``cov``: an array, or for covariances made when sliced a
+    :class:`~analysis.identification.streaming.per_test.PerTestSigma` (48 MB not held at
+    1e6 tests)."""
+    return PerTestSigma(cov) if is_lazy(cov) else np.sqrt(per_test_diagonal(cov))
 
 
 def whitening_per_test(noise, J, x_full, measured, w=None, weights=None,

@@ -5,7 +5,7 @@ the Jacobian J(q) (m, 6, 6), the design A (m, 6, p) of the linear model, the
 whitening of the residual covariances. At 1e6 tests each is 0.3 GB. Above
 :data:`LAZY_TESTS` tests they are not held: these objects stand in for them, and
 ``obj[s:e]`` computes the rows of tests s..e-1 (the same numbers as a slice of the
-full array). Every pass of :mod:`analysis.identification.linalg.lsq` and of the fits
+full array). Every pass of :mod:`analysis.identification.linalg.sandwich` and of the fits
 already walks the tests in blocks, so they take either. Recomputing J costs about
 1.3 us per test and pass; holding it would cost 288 bytes per test.
 
@@ -22,6 +22,14 @@ import numpy as np
 #: campaigns of more tests than this hold no (m, 6, n) per-test arrays (29 MB each at
 #: this size; 0.3 GB at 1e6 tests)
 LAZY_TESTS = 100_000
+
+
+def streamed(m: int, batch: tuple[int, ...] = ()) -> bool:
+    """Is a fit of ``m`` tests (in a batch of campaigns of shape ``batch``) streamed: one
+    campaign of more than :data:`LAZY_TESTS` tests, whose per-test blocks are made when
+    sliced. The one place the campaign's size is decided
+    (:func:`analysis.identification.streaming.systems.systems_for`, the Jacobian's blocks)."""
+    return not batch and m > LAZY_TESTS
 
 
 class PerTestBlocks(ABC):
@@ -199,6 +207,12 @@ class PerTestModelJacobian(PerTestBlocks):
                                                True, None if self.dq is None else self.dq[sl])
         self._values = ((start, stop), f)
         return F[..., self.cols] * self.measured[sl, :, None]
+
+    def cold(self) -> PerTestModelJacobian:
+        """The same F whose blocks are made from the equilibrium's cold start (without
+        ``dq``: 48 MB let go at 1e6 tests)."""
+        return PerTestModelJacobian(self.robot, self.q, self.w, self.measured, self.cols,
+                                    self.x_full, None)
 
     def values(self, sl: slice) -> np.ndarray:
         """The model's displacements f (b, 6) (m, rad) of the tests ``sl`` at x_full, from

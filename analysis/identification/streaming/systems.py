@@ -27,7 +27,7 @@ from analysis.identification.linalg.lsq import (
     whitening,
 )
 from analysis.identification.noise import NoiseModel
-from analysis.identification.streaming import blocks
+from analysis.identification.streaming import blocks, per_test
 from analysis.identification.streaming.blocks import model_in_blocks
 from analysis.identification.streaming.covariances import (
     PerTestCovariance,
@@ -39,9 +39,25 @@ from analysis.model.robot_model import RobotModel
 
 
 class LinearisedSystems(ABC):
-    """The systems of one :func:`gauss_newton` call; ``streamed``: never held."""
+    """The systems of one :func:`gauss_newton` call; ``streamed``: never held.
+
+    The implementation (:func:`systems_for`) also answers what the estimators do
+    differently at a campaign's size, so that they never ask for it:
+    ``compares_wls``: the exact fit also makes the WLS fit for results.json's comparison;
+    :meth:`final_pass_sums`: the per-test sums made in the pass that forms the final
+    system.
+    """
 
     streamed: bool
+    compares_wls: bool
+
+    @classmethod
+    def final_pass_sums(cls, problem):
+        """What the final pass also sums for ``problem`` (an
+        :class:`~analysis.identification.problem.IdentificationProblem`): None, or the
+        errors-in-variables S and the validation's per-fold sums
+        (:class:`~analysis.identification.streaming.fold_sums.FinalPassSums`)."""
+        return None
 
     @abstractmethod
     def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, dq_scale=None):
@@ -73,6 +89,7 @@ class HeldSystems(LinearisedSystems):
     and the whitening (..., m, 6, 6) of every test (small campaigns, batches of them)."""
 
     streamed = False
+    compares_wls = True
 
     def __init__(self, ctx) -> None:
         self.c = ctx
@@ -138,6 +155,19 @@ class StreamedSystems(LinearisedSystems):
     """
 
     streamed = True
+    compares_wls = False  # two passes over every test for a comparison only
+
+    @classmethod
+    def final_pass_sums(cls, problem):
+        """The errors-in-variables S and the validation's per-fold sums (when validating
+        over at least 3 folds) made in the final pass: no pass of their own."""
+        from analysis.identification.streaming.fold_sums import FinalPassSums
+
+        fold = problem.folds
+        n_folds = int(fold.max(initial=-1)) + 1
+        return FinalPassSums(problem.tests, problem.joints, problem.noise,
+                             fold if problem.options.validate and n_folds >= 3 else None,
+                             n_folds)
 
     def __init__(self, ctx) -> None:
         self.c = ctx
@@ -218,6 +248,14 @@ class StreamedSystems(LinearisedSystems):
         _, cov_x, _ = from_r(last.R)
         F = PerTestModelJacobian(c.robot, c.q, c.w, c.measured, c.cols, xf, last.dq)
         return cov, PerTestWhitening(cov, c.measured), cov_x, F, last.R, last.f, last.dq
+
+
+def systems_for(m: int, batch: tuple[int, ...] = ()) -> type[LinearisedSystems]:
+    """The systems of a fit of ``m`` tests (a batch of campaigns of shape ``batch``):
+    :class:`StreamedSystems` for one campaign whose blocks are made when sliced
+    (:func:`~analysis.identification.streaming.per_test.streamed`), else
+    :class:`HeldSystems`."""
+    return StreamedSystems if per_test.streamed(m, batch) else HeldSystems
 
 
 def from_r(R):

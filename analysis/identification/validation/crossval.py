@@ -38,7 +38,8 @@ from analysis.identification.estimators.exact_model import (
 from analysis.identification.estimators.fitting import fit, fit_exact
 from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.io.measurements import TestArrays
-from analysis.identification.linalg.lsq import sandwich_and_residual_variance, whitening
+from analysis.identification.linalg.lsq import whitening
+from analysis.identification.linalg.sandwich import sandwich_and_residual_variance
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.identification.poses import group_names, pose_groups, pose_tolerance
 from analysis.identification.validation.downdate import downdate_folds, system_of, with_total

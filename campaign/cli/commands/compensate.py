@@ -73,11 +73,14 @@ def register(app: typer.Typer) -> None:
         from campaign.options import numbers_option
 
         result = run(CompensateOptions(
-            robot, path, out, tip, numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
-            numbers_option(tool_rpy_deg, "--tool-rpy-deg"), controller,
-            numbers_option(wrench, "--wrench"), wrench_frame,
-            numbers_option(joint_stiffness, "--joint-stiffness"), min_inv_kappa, verify_fake,
-            protocol, readings, program, force))
+            robot=robot, path=path, out=out, tip=tip,
+            tool_xyz_mm=numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
+            tool_rpy_deg=numbers_option(tool_rpy_deg, "--tool-rpy-deg"),
+            controller_angles=controller, wrench_N_Nm=numbers_option(wrench, "--wrench"),
+            wrench_frame=wrench_frame,
+            joint_stiffness_Nm_per_rad=numbers_option(joint_stiffness, "--joint-stiffness"),
+            min_inv_kappa=min_inv_kappa, verify_fake=verify_fake, protocol=protocol,
+            readings=readings, program=program, force=force))
         summ = result.summary
         for a in summ["assumptions"]:
             echo(f"assumption: {a}")

@@ -7,9 +7,13 @@ from pathlib import Path
 import typer
 
 
-def _announce(workspace: Path, url: str, cert) -> None:
-    """The start-up lines: what is served, the URL, and the certificate to check."""
+def _announce(workspace: Path, url: str, cert, hardware: bool = False) -> None:
+    """The start-up lines: what is served, the URL, the certificate to check, and whether
+    acquisitions may run on hardware."""
     typer.echo(f"campaign gui: serving {workspace.resolve()}\nopen {url}")
+    typer.echo("acquisitions: on hardware allowed (--hardware; each run asks its confirmation)"
+               if hardware else "acquisitions: simulated lab only (start with --hardware to "
+               "drive a real robot)")
     if cert is not None:
         typer.echo(f"TLS certificate ({cert.source}) SHA-256 fingerprint:\n"
                    f"  {cert.fingerprint}\n"
@@ -35,6 +39,10 @@ def register(app: typer.Typer) -> None:
                                       "self-signed one is made at start."),
         keyfile: Path = typer.Option(None, "--keyfile", help="Private key (PEM) of "
                                      "--certfile."),
+        hardware: bool = typer.Option(False, "--hardware", help="Let the Acquire view run "
+                                      "on a real robot (each run still after its "
+                                      "confirmation, limits and dry run); without it, the "
+                                      "simulated lab only."),
     ) -> None:
         """Start the GUI on a local web server and print its URL with the access token.
 
@@ -49,5 +57,6 @@ def register(app: typer.Typer) -> None:
 
         options = GuiOptions(workspace=workspace, host=host, port=port,
                              open_browser=not no_browser, allow_remote=allow_remote,
-                             password=password, certfile=certfile, keyfile=keyfile)
-        serve(options, new_token(), lambda url, cert: _announce(workspace, url, cert))
+                             password=password, certfile=certfile, keyfile=keyfile,
+                             hardware=hardware)
+        serve(options, new_token(), lambda url, cert: _announce(workspace, url, cert, hardware))

@@ -58,7 +58,9 @@ function route(openapi, tag, method) {
 function buildSliders(schema, defaults) {
   const box = $("sliders");
   for (const [key, label, unit, max, step] of SLIDERS) {
-    const prop = schema.properties[key] || {};
+    // an optional field's bounds are in its anyOf (number | null)
+    const field = schema.properties[key] || {};
+    const prop = (field.anyOf || [field]).find((s) => s.type === "number" || s.type === "integer") || {};
     const hi = Math.min(max, prop.maximum ?? max);
     const lo = prop.minimum ?? (key === "n_tests" ? 1 : 0);
     const start = key === "n_tests" ? 10 : Math.min(hi, defaults[key]);
@@ -254,6 +256,14 @@ async function start() {
   state.csrf = session.csrf_token;
   state.header = session.csrf_header;
   $("workspace").textContent = `workspace: ${session.workspace}`;
+  if (!session.hardware) {
+    // started without --hardware: the server refuses a run on hardware, so the page offers none
+    $("acq-fake").checked = true;
+    $("acq-fake").disabled = true;
+    $("acq-fake").title = "this GUI was started without --hardware: simulated lab only";
+    $("acq-confirm-row").hidden = true;
+    $("acq-hardware-note").hidden = false;
+  }
   state.api.sensitivity = route(openapi, "sensitivity", "post");
   const defaults = await getJSON(route(openapi, "sensitivity", "get"));
   robotFillDatalist($("robots"), await robotChoices());

@@ -30,7 +30,8 @@
     el("acq-run").textContent = s.run_dir;
     el("acq-running").textContent = s.running ? "running" : "not running";
     el("acq-status").textContent = s.running ? "running" : (s.status || dash);
-    el("acq-reason").textContent = s.reason || s.log || "";
+    // the reason a run stopped (metadata.json keeps it): not shown once it runs again
+    el("acq-reason").textContent = s.running ? "" : (s.reason || s.log || "");
     const live = s.live || {};
     el("acq-stage").textContent = s.stage || dash;
     el("acq-test").textContent = live.test_id === undefined ? dash

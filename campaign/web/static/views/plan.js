@@ -455,14 +455,16 @@ function anLink(files, key, label) {
   return `<a href="/api/runs/file?path=${encodeURIComponent(f[1])}" target="_blank" rel="noopener">${label}</a>`;
 }
 
-async function anRun() {
+// acceptOnce: the "accept the refusal" button, for the refusal shown only (the CLI's
+// --accept-misfit is one invocation's): the box stays as the user set it
+async function anRun(acceptOnce = false) {
   pvEl("an-error").textContent = "";
   pvEl("an-refused").hidden = true;
   pvEl("an-status").textContent = "analysing\u2026";
   document.body.dataset.analyze = "running";
   const body = { run_dir: pvEl("an-run").value, method: pvEl("an-method").value,
                  robust: pvEl("an-robust").value, force: pvEl("an-force").checked,
-                 accept_misfit: pvEl("an-accept").checked };
+                 accept_misfit: acceptOnce === true || pvEl("an-accept").checked };
   const [ok, d] = await pvPost("/api/analyze/run", body);
   pvEl("an-status").textContent = "";
   if (!ok) {
@@ -508,7 +510,7 @@ async function anRun() {
     (run.partial ? " (PARTIAL RUN: fewer tests than planned)" : "") +
     (run.failed_rows ? `, ${run.failed_rows} failed test row(s)` : "") +
     `; ${d.method}, robust ${body.robust}`;
-  pvEl("an-force").checked = true;  // the next run of this view re-analyses
+  pvEl("an-force").checked = true;  // the next analysis of this run re-analyses it
   document.body.dataset.analyze = "done";
 }
 
@@ -535,9 +537,13 @@ async function pvStart() {
   pvEl("plan-compact").addEventListener("change", () =>
     pvEl("plan-fields").classList.toggle("pv-compact", pvEl("plan-compact").checked));
   pvEl("plan-target").addEventListener("change", () => { if (pv.last) planPlotSe(pv.last.summary); });
-  pvEl("an-run-btn").addEventListener("click", anRun);
+  pvEl("an-run-btn").addEventListener("click", () => anRun());
+  // "Re-analyse" and "Accept" were for the run analysed: another run starts without them
+  pvEl("an-run").addEventListener("change", () => {
+    pvEl("an-force").checked = false; pvEl("an-accept").checked = false;
+  });
   pvEl("an-refresh").addEventListener("click", anLoadRuns);
-  pvEl("an-retry").addEventListener("click", () => { pvEl("an-accept").checked = true; anRun(); });
+  pvEl("an-retry").addEventListener("click", () => anRun(true));
   await planLoadForm();
   await anLoadRuns();
   document.body.dataset.planview = "ready";

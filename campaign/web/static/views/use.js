@@ -381,6 +381,8 @@ function fileLink(path) {
   const program = /\.(src|dat|mod|script)$/i.test(path);
   a.href = (program ? "/api/use/program?path=" : "/api/runs/file?path=") + encodeURIComponent(path);
   a.textContent = path; a.target = "_blank";
+  // a robot program is for the controller: the link saves the file under its own name
+  if (program) a.download = path.split("/").pop();
   return a;
 }
 
@@ -553,6 +555,8 @@ async function runPlace() {
       view.dataset.place = "cancelled";
     } else {
       showFieldError(form, err, u$("pl-error"));
+      // the job's line is shown beside the form in its terms; not again with the CLI's options
+      u$("pl-text").textContent = "failed";
       view.dataset.place = "error";
     }
   } finally {
