@@ -59,8 +59,9 @@ def main() -> None:
         base, token = url.split("/?token=")
         client = _Client(base, {"Cookie": f"{COOKIE}={token}",
                                 CSRF_HEADER: csrf_value(token)})
-        api_ms, job_ms, worst_diff, bodies = _measure(
-            client, args, ws, run_sensitivity, SensitivityRequest, options_from_request)
+        api_ms, job_ms, worst_diff, bodies, server_cpu_ms, job_cpu_ms = _measure(
+            client, args, ws, run_sensitivity, SensitivityRequest, options_from_request,
+            server.pid)
     finally:
         server.terminate()
         server.wait(10)
@@ -73,12 +74,21 @@ def main() -> None:
     print(f"API round trip: median {med} ms, p90 {q(api_ms, 90)} ms, max {max(api_ms):.1f} ms")
     print(f"job in-process: median {job} ms; HTTP + JSON overhead {med - job:.1f} ms")
     print(f"API numbers vs the job's: max relative difference {worst_diff:.1e}")
+    cpu = {}
+    if server_cpu_ms:
+        # what the server computes per move, whatever else the machine runs: on a loaded
+        # machine the wall time is this CPU time plus the wait for a core
+        cpu = {"server_cpu_ms_median": round(statistics.median(server_cpu_ms), 1),
+               "server_cpu_ms_p90": q(server_cpu_ms, 90)}
+        print(f"server CPU per move: median {cpu['server_cpu_ms_median']} ms, "
+              f"p90 {cpu['server_cpu_ms_p90']} ms (user + system, /proc)")
+    cpu["job_cpu_ms_median"] = round(statistics.median(job_cpu_ms), 1)
     load.emit({
         "benchmark": "gui_sensitivity", "robot": "KR240-2", "poses": "zones",
         "trials": args.trials, "method": args.method, "moves": len(bodies),
         "round_trip_ms_median": med, "round_trip_ms_p90": q(api_ms, 90),
         "round_trip_ms_max": round(max(api_ms), 1), "job_ms_median": job,
-        "overhead_ms_median": round(med - job, 1), "max_rel_diff": worst_diff,
+        "overhead_ms_median": round(med - job, 1), "max_rel_diff": worst_diff, **cpu,
         "cpus": os.cpu_count(),
         "baseline": "the job called in-process on the same settings (no HTTP, no JSON)",
         "timing": "wall time (time.perf_counter) per call, interleaved with the baseline; "
@@ -124,22 +134,37 @@ def _url(server) -> str:
     raise SystemExit("campaign gui did not print its URL")
 
 
-def _measure(client, args, ws, run_sensitivity, SensitivityRequest, options_from_request):
+def _process_cpu_s(pid: int) -> float | None:
+    """User + system CPU time (s) of process ``pid`` so far (Linux /proc; None elsewhere)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _measure(client, args, ws, run_sensitivity, SensitivityRequest, options_from_request,
+             server_pid: int):
     bodies = [{"trials": args.trials, "method": args.method, key: v}
               for _ in range(args.repeat) for key, values in SWEEPS.items() for v in values]
     client.post("/api/sensitivity", json=bodies[0])  # warm up
-    api_ms, job_ms, worst_diff = [], [], 0.0
+    api_ms, job_ms, worst_diff, server_cpu_ms, job_cpu_ms = [], [], 0.0, [], []
     for body in bodies:
+        c0 = _process_cpu_s(server_pid)
         t0 = time.perf_counter()
         got = client.post("/api/sensitivity", json=body)
         api_ms.append(1e3 * (time.perf_counter() - t0))
-        t0 = time.perf_counter()
+        c1 = _process_cpu_s(server_pid)
+        if c0 is not None and c1 is not None:
+            server_cpu_ms.append(1e3 * (c1 - c0))
+        t0, c0 = time.perf_counter(), time.process_time()
         want = run_sensitivity(options_from_request(SensitivityRequest(**body), ws)).to_dict()
         job_ms.append(1e3 * (time.perf_counter() - t0))
+        job_cpu_ms.append(1e3 * (time.process_time() - c0))
         for a, b in zip(got["joints"], want["joints"], strict=True):
             for key in ("median_Nm_per_rad", "std_Nm_per_rad", "predicted_se_Nm_per_rad"):
                 worst_diff = max(worst_diff, abs(a[key] - b[key]) / abs(b[key]))
-    return api_ms, job_ms, worst_diff, bodies
+    return api_ms, job_ms, worst_diff, bodies, server_cpu_ms, job_cpu_ms
 
 
 if __name__ == "__main__":

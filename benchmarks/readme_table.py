@@ -294,8 +294,13 @@ def _generic(f: Fig) -> tuple[str, str, str, str]:
 def _gui_sensitivity(f: Fig) -> tuple[str, str, str, str]:
     return (f"sensitivity explorer of `campaign gui`: {f['moves']} slider moves, "
             f"{num(f['trials'])} trials ({f['method']}), API round trip over loopback",
-            f"median {f['round_trip_ms_median']} ms, p90 {f['round_trip_ms_p90']} ms wall",
-            f"the job in-process {f['job_ms_median']} ms (numbers equal: max relative "
+            f"median {f['round_trip_ms_median']} ms, p90 {f['round_trip_ms_p90']} ms wall"
+            + (f"; the server's CPU per move median {f['server_cpu_ms_median']} ms, p90 "
+               f"{f['server_cpu_ms_p90']} ms (user + system, 10 ms ticks)"
+               if "server_cpu_ms_p90" in f.figures else ""),
+            f"the job in-process {f['job_ms_median']} ms"
+            + (f" ({f['job_cpu_ms_median']} ms CPU)" if "job_cpu_ms_median" in f.figures
+               else "") + " (numbers equal: max relative "
             f"difference {f['max_rel_diff']}). Timed: {f['timing']}",
             f"HTTP + JSON {f['overhead_ms_median']} ms")
 

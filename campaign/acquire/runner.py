@@ -226,8 +226,13 @@ class Runner:
         shown to the operator.
         """
         main = threading.current_thread() is threading.main_thread()
-        old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        # the handler is read before and replaced inside the try: a Ctrl-C still pending
+        # when SIG_IGN is set is raised right after that call, and must reach the finally
+        # (else Ctrl-C would stay ignored for the rest of the process)
+        old = signal.getsignal(signal.SIGINT) if main else None
         try:
+            if main:
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
             if status != "complete":
                 try:
                     self.inst.robot.stop()
@@ -253,7 +258,7 @@ class Runner:
                     self._record("load_left", reason=self.load_left)
         finally:
             if main:
-                signal.signal(signal.SIGINT, old)
+                signal.signal(signal.SIGINT, signal.SIG_DFL if old is None else old)
 
     def _run_test(self, test: PlannedTest, repeat: int) -> None:
         for attempt in (1, 2):

@@ -30,7 +30,7 @@ import numpy as np
 
 from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.noise import NoiseModel, residual_covariance
-from campaign.planning.design import greedy_exchange, information, random_design
+from campaign.planning.design import greedy_exchange, information, random_design, zones_of
 from campaign.planning.separation import Separation, blocked
 
 GUARD_PENALTY = 10.0
@@ -50,6 +50,7 @@ def candidate_information(
     k_prior: np.ndarray,
     rows: int = 1,
     dJ: np.ndarray | None = None,
+    compliance: np.ndarray | None = None,
 ) -> np.ndarray:
     """Information (..., n, n) of the relative compliances for tests (J, w) of ``rows`` repeats.
 
@@ -59,6 +60,8 @@ def candidate_information(
     noise : noise model of one test row. k_prior : (n,) prior stiffness (N m/rad).
     rows : independent repeats of each test. dJ : (..., 6, n, n) dJ/dq (last axis the
         joint differentiated), for the encoder term; left out when None.
+    compliance : (..., 6, 6) :func:`cartesian_compliance` of J when the caller has it
+        (tests sharing a pose share it); computed here when None.
     """
     w = np.broadcast_to(np.asarray(wrenches, dtype=float), (*J.shape[:-2], 6))
     if J.ndim == 3 and J.shape[0] > BLOCK:
@@ -70,12 +73,13 @@ def candidate_information(
         with threadpool_limits(limits=1):
             for lo in range(0, J.shape[0], BLOCK):
                 sl = slice(lo, lo + BLOCK)
-                out[sl] = candidate_information(J[sl], w[sl], noise, k_prior, rows,
-                                                None if dJ is None else dJ[sl])
+                out[sl] = candidate_information(
+                    J[sl], w[sl], noise, k_prior, rows, None if dJ is None else dJ[sl],
+                    None if compliance is None else compliance[sl])
         return out
     x0 = 1.0 / np.asarray(k_prior, dtype=float)
     A = design_block(J, w)
-    C = np.einsum("...ij,j,...kj->...ik", J, x0, J)
+    C = cartesian_compliance(J, k_prior) if compliance is None else compliance
     G = None
     if dJ is not None:
         # d(J X J^T w)/dq_k = dJ_k X J^T w + J X dJ_k^T w
@@ -94,6 +98,60 @@ def candidate_information(
     else:
         B = np.linalg.solve(np.linalg.cholesky(S), A) * x0
     return rows * information(B)
+
+
+def cartesian_compliance(J: np.ndarray, k_prior: np.ndarray) -> np.ndarray:
+    """C = J K^-1 J^T (..., 6, 6) (m/N, rad/(N m), ...) for Jacobians J (..., 6, n) at P."""
+    x0 = 1.0 / np.asarray(k_prior, dtype=float)
+    return np.einsum("...ij,j,...kj->...ik", J, x0, J)
+
+
+def pose_compliance(J: np.ndarray, k_prior: np.ndarray) -> np.ndarray:
+    """:func:`cartesian_compliance` of every pose of J (N, 6, n), in blocks of :data:`BLOCK`."""
+    out = np.empty((J.shape[0], 6, 6))
+    for lo in range(0, J.shape[0], BLOCK):
+        out[lo:lo + BLOCK] = cartesian_compliance(J[lo:lo + BLOCK], k_prior)
+    return out
+
+
+def tests_information(
+    J: np.ndarray,
+    pose: np.ndarray,
+    wrenches: np.ndarray,
+    case: np.ndarray | None,
+    noise: NoiseModel,
+    k_prior: np.ndarray,
+    rows: int = 1,
+    compliance: np.ndarray | None = None,
+) -> np.ndarray:
+    """Information (T, n, n) of T candidate tests, each a pose of J under a load case.
+
+    Equal to ``candidate_information(J[pose], wrenches[case], ...)`` (``wrenches`` itself,
+    one (6,) wrench for every test, when ``case`` is None), computed in the same blocks of
+    :data:`BLOCK` tests, but each block gathers its own Jacobians and wrenches: the
+    (T, 6, n) copy of ``J[pose]`` (~110 MB at 1e5 candidates of four load cases) and its
+    page faults are never made; the Cartesian compliance is computed once per pose
+    (``compliance``, :func:`pose_compliance` of J, when the caller has it), not per test.
+
+    Parameters
+    ----------
+    J : (N, 6, n) Jacobians of the candidate poses (m/rad, rad/rad). pose : (T,) index into J.
+    wrenches : (m, 6) load cases (N, N m), or (6,) with ``case`` None. case : (T,) index or None.
+    noise, k_prior, rows : as :func:`candidate_information`.
+    compliance : (N, 6, 6) :func:`pose_compliance` of J, or None.
+    """
+    from threadpoolctl import threadpool_limits
+
+    pose = np.asarray(pose)
+    out = np.empty((pose.size, J.shape[-1], J.shape[-1]))
+    with threadpool_limits(limits=1):
+        C = pose_compliance(J, k_prior) if compliance is None else compliance
+        for lo in range(0, pose.size, BLOCK):
+            sl = slice(lo, lo + BLOCK)
+            w = wrenches if case is None else wrenches[case[sl]]
+            out[sl] = candidate_information(J[pose[sl]], w, noise, k_prior, rows,
+                                            compliance=C[pose[sl]])
+    return out
 
 
 def relative_se(M: np.ndarray) -> np.ndarray:
@@ -212,8 +270,9 @@ def random_reference(
     sep: Separation | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Relative se (designs, n_joints) of seeded random zone designs, and their per-joint median."""
+    zones = zones_of(zone)
     rel = np.stack([
-        relative_se(F[random_design(group, zone, n, seed + 1000 + i, sep)].sum(axis=0))
+        relative_se(F[random_design(group, zone, n, seed + 1000 + i, sep, zones)].sum(axis=0))
         for i in range(designs)
     ])
     return rel, np.median(rel, axis=0)
@@ -239,7 +298,8 @@ def choose(
     guard = (GUARD_FRACTION * random_reference(F, group, zone, n, seed, sep=sep)[1]
              if kind == "worst" else None)
     inits = [greedy_exchange(F, group, n, kind="d", sep=sep)]
-    inits += [random_design(group, zone, n, seed + 17 + i, sep) for i in range(starts - 1)]
+    zones = zones_of(zone)
+    inits += [random_design(group, zone, n, seed + 17 + i, sep, zones) for i in range(starts - 1)]
     best, best_score = inits[0], np.inf
     for init in inits:
         picks, score = exchange(F, group, init, kind, weights, guard, sep=sep)

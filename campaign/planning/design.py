@@ -208,14 +208,24 @@ def greedy_exchange(
     return np.sort(np.array(chosen, dtype=int))
 
 
+def zones_of(zone: np.ndarray) -> np.ndarray:
+    """The distinct zone indices of ``zone`` (N,), sorted (= ``np.unique``, cheaper for ints)."""
+    zone = np.asarray(zone)
+    if zone.dtype.kind in "iu" and zone.size and zone.min() >= 0:
+        return np.flatnonzero(np.bincount(zone))  # = np.unique(zone), without its hashing
+    return np.unique(zone)
+
+
 def random_design(group: np.ndarray, zone: np.ndarray, n: int, seed: int,
-                  sep: Separation | None = None) -> np.ndarray:
+                  sep: Separation | None = None, zones: np.ndarray | None = None) -> np.ndarray:
     """The paper's practice: n distinct poses drawn at random, cycling through the zones.
 
     Parameters
     ----------
     group : (N,) pose of each candidate; zone : (N,) zone index of each candidate.
     sep : also keep the poses apart by its minimum separation (:mod:`campaign.planning.separation`).
+    zones : ``zones_of(zone)`` when the caller draws many designs from the same candidates
+        (its count over 4e5 candidates costs more than the design).
     Returns (n,) sorted candidate indices (one candidate per pose, chosen at random).
 
     Each pick is uniform over the zone's candidates whose pose is not used yet. It is
@@ -225,10 +235,7 @@ def random_design(group: np.ndarray, zone: np.ndarray, n: int, seed: int,
     """
     rng = np.random.default_rng(seed)
     group, zone = np.asarray(group), np.asarray(zone)
-    if zone.dtype.kind in "iu" and zone.size and zone.min() >= 0:
-        zones = np.flatnonzero(np.bincount(zone))  # = np.unique(zone), without its hashing
-    else:
-        zones = np.unique(zone)
+    zones = zones_of(zone) if zones is None else zones
     picked: list[int] = []
     used: set[int] = set()
     order = rng.permutation(zones)

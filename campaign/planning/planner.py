@@ -18,7 +18,14 @@ from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
 from analysis.model.robot_model import RobotModel
 from campaign.planning.candidates import Candidates, check_enough, evaluate, sample
-from campaign.planning.criteria import candidate_information, choose, random_reference, relative_se
+from campaign.planning.criteria import (
+    candidate_information,
+    choose,
+    pose_compliance,
+    random_reference,
+    relative_se,
+    tests_information,
+)
 from campaign.planning.design import criterion, greedy_exchange, random_design
 from campaign.planning.plan_output import COLUMNS, read_plan, write_plan
 from campaign.planning.separation import Separation
@@ -240,12 +247,12 @@ def make_plan(
     wrenches = protocol.wrenches()
     pose, case, group = _tests(cand, protocol.loads.selection)
     if case.size and case[0] < 0:
-        F = sum(
-            candidate_information(cand.J[pose], wrenches[c], noise, k_prior, rows)
-            for c in range(len(wrenches))
-        )
+        C = pose_compliance(cand.J, k_prior)
+        F = tests_information(cand.J, pose, wrenches[0], None, noise, k_prior, rows, C)
+        for c in range(1, len(wrenches)):
+            F += tests_information(cand.J, pose, wrenches[c], None, noise, k_prior, rows, C)
     else:
-        F = candidate_information(cand.J[pose], wrenches[case], noise, k_prior, rows)
+        F = tests_information(cand.J, pose, wrenches, case, noise, k_prior, rows)
     inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches),
               "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows}
     n = protocol.campaign.tests

@@ -36,6 +36,9 @@ class Separation:
         self.q = np.asarray(q, dtype=float)
         self.group = np.asarray(group)
         self.min2 = float(min_rad) ** 2
+        # joint-major copy: a distance to every candidate is then a few passes over
+        # contiguous (N,) vectors instead of a reduction over rows of length n
+        self._q_by_joint = np.ascontiguousarray(self.q.T)
 
     def blocked(self, chosen: Sequence[int]) -> np.ndarray:
         """(N,) bool: candidates of a chosen pose or closer than the minimum to one."""
@@ -43,8 +46,21 @@ class Separation:
         out = np.isin(self.group, self.group[chosen])
         if self.min2 > 0:
             for c in chosen:  # a few chosen poses against every candidate: O(N n) each
-                out |= np.sum((self.q - self.q[c]) ** 2, axis=1) < self.min2
+                out |= self._distance2(c) < self.min2
         return out
+
+    def _distance2(self, c: int) -> np.ndarray:
+        """(N,) ||q_i - q_c||^2 (rad^2), summed over the joints in order (as ``np.sum``)."""
+        d2 = np.empty(self._q_by_joint.shape[1])
+        tmp = np.empty_like(d2)
+        for j, qj in enumerate(self._q_by_joint):
+            np.subtract(qj, qj[c], out=tmp)
+            np.multiply(tmp, tmp, out=tmp)
+            if j == 0:
+                d2[:] = tmp
+            else:
+                d2 += tmp
+        return d2
 
     def conflicts(self, j: int, chosen: Sequence[int]) -> bool:
         """Candidate ``j`` shares a pose with, or is too close to, one of ``chosen``."""

@@ -54,3 +54,41 @@ def test_blocked_evaluation_matches_per_candidate(kr_protocol, monkeypatch):
         v_p, v_r = kc_influence(robot, q[rows], k, w)
         np.testing.assert_allclose(cand.v_p[rows, c], v_p, rtol=1e-9, atol=1e-15)
         np.testing.assert_allclose(cand.v_r[rows, c], v_r, rtol=1e-9, atol=1e-15)
+
+
+def test_tests_information_equals_the_gathered_batch(kr_protocol, monkeypatch):
+    """Gathering J per block and sharing C per pose changes no bit of the information."""
+    import campaign.planning.criteria as criteria
+    from campaign.run_noise import noise_from_protocol
+
+    monkeypatch.setattr(criteria, "BLOCK", 29)  # several blocks, one ragged
+    rng = np.random.default_rng(11)
+    robot = protocol_robot(kr_protocol)
+    J = jacobian(robot, rng.uniform(-2, 2, (40, 6)))
+    wrenches, k = kr_protocol.wrenches(), robot.nominal_stiffness
+    noise = noise_from_protocol(kr_protocol)
+    pose = np.sort(rng.integers(0, 40, 100))
+    case = rng.integers(0, len(wrenches), 100)
+    ref = criteria.candidate_information(J[pose], wrenches[case], noise, k, 3)
+    got = criteria.tests_information(J, pose, wrenches, case, noise, k, 3)
+    assert np.array_equal(got, ref) and np.abs(ref).max() > 0
+    C = criteria.pose_compliance(J, k)
+    for w in wrenches:  # one wrench for every test (the "all" selection)
+        ref = criteria.candidate_information(J[pose], w, noise, k, 2)
+        assert np.array_equal(criteria.tests_information(J, pose, w, None, noise, k, 2, C), ref)
+
+
+def test_random_design_with_given_zones_and_separation_distance():
+    from campaign.planning.design import random_design, zones_of
+    from campaign.planning.separation import Separation
+
+    rng = np.random.default_rng(2)
+    q = rng.uniform(-1, 1, (3000, 6))
+    group, zone = np.repeat(np.arange(1500), 2), np.repeat(rng.integers(0, 4, 1500), 2)
+    sep = Separation(q, group, 0.3)
+    assert np.array_equal(zones_of(zone), np.unique(zone))
+    for seed in range(5):
+        assert np.array_equal(random_design(group, zone, 6, seed, sep, zones_of(zone)),
+                              random_design(group, zone, 6, seed, sep))
+    for c in (0, 17, 2999):  # bit-equal to the row reduction it replaces
+        assert np.array_equal(sep._distance2(c), np.sum((q - q[c]) ** 2, axis=1))

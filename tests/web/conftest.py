@@ -1,15 +1,24 @@
-"""Fixtures of the GUI tests: a workspace with a plan, an app, an authenticated client."""
+"""Fixtures of the GUI tests: a workspace with a plan, an app, an authenticated client; a
+GUI server in a thread and one headless Chromium for the session (each test its own
+browser context), written once for every browser test."""
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 TOKEN = "test-token-0123456789"
+#: the token of the servers the browser tests open
+BROWSER_TOKEN = "browser-token-0123456789"
+CHROMIUM = Path("/usr/bin/chromium")
+#: the page size of every browser test (px)
+VIEWPORT = {"width": 1300, "height": 1000}
 #: three KR240-2 poses in its zones (model convention, deg), drawn once (seed 7)
 POSES_DEG = [[-11.0, 6.0, 11.0, 70.0, 40.0, -35.0], [25.0, 22.0, -4.0, -60.0, 55.0, 20.0],
              [5.0, 15.0, 20.0, 30.0, -50.0, 80.0]]
@@ -67,20 +76,75 @@ def client(app):
     return c
 
 
-@pytest.fixture
-def server(workspace):
-    """(base URL, token) of a GUI server on 127.0.0.1 serving ``workspace``."""
+@contextlib.contextmanager
+def gui_server(workspace: Path, token: str = BROWSER_TOKEN, *,
+               jobs_in_threads: bool = False) -> Iterator[str]:
+    """A GUI server on 127.0.0.1 (a free port) in a thread, serving ``workspace``; yields
+    its URL with the token. ``jobs_in_threads``: the queue's jobs run in its threads (for
+    tests of the page, not of the job processes)."""
     from campaign.web.server import GuiOptions, make_server, url_of
 
-    token = "browser-token-0123456789"
     srv, sock = make_server(GuiOptions(workspace=workspace, port=0, open_browser=False), token)
+    if jobs_in_threads:
+        srv.config.app.state.jobs_in_threads = True
     thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    for _ in range(200):
-        if srv.started:
-            break
+    end = time.monotonic() + 60
+    while not srv.started:
+        assert thread.is_alive() and time.monotonic() < end, "the GUI server did not start"
         time.sleep(0.02)
     assert sock.getsockname()[0] == "127.0.0.1"
-    yield url_of(sock, token)
-    srv.should_exit = True
-    thread.join(10)
+    try:
+        yield url_of(sock, token)
+    finally:
+        srv.should_exit = True
+        thread.join(10)
+
+
+@pytest.fixture
+def server(workspace):
+    """The URL (with its token) of a GUI server on 127.0.0.1 serving ``workspace``."""
+    with gui_server(workspace) as url:
+        yield url
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """One headless Chromium (Debian's ``chromium``, through Playwright) for the whole
+    session: a launch costs seconds on a loaded machine; the tests' pages each get their own
+    context (no cookie or storage shared)."""
+    if not CHROMIUM.exists():
+        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
+    sync_api = pytest.importorskip("playwright.sync_api",
+                                   reason="browser tests need pip install playwright")
+    p = sync_api.sync_playwright().start()
+    try:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
+        yield b
+        b.close()
+    finally:
+        p.stop()
+
+
+@contextlib.contextmanager
+def browser_page(browser, url: str, errors: list[str] | None = None):
+    """A page of ``url`` in a new context of ``browser``; its uncaught exceptions are
+    collected in ``errors`` and, when the block ends without an exception, asserted none."""
+    errors = [] if errors is None else errors
+    context = browser.new_context(viewport=VIEWPORT)
+    try:
+        page = context.new_page()
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(url)
+        yield page
+    finally:
+        context.close()
+    assert not errors, errors
+
+
+@pytest.fixture
+def open_url(browser):
+    """A function (url) -> a page of it in its own browser context; at the test's end the
+    contexts are closed and no page may have raised an uncaught exception."""
+    with contextlib.ExitStack() as stack:
+        yield lambda url: stack.enter_context(browser_page(browser, url))

@@ -17,7 +17,6 @@ import pytest
 
 pytestmark = pytest.mark.timeout(120)
 PROTOCOL = Path(__file__).parents[2] / "protocols" / "kr240-2.toml"
-CHROMIUM = Path("/usr/bin/chromium")
 #: the simulated lab's clock runs this much faster than the wall clock
 FAST = 200.0
 
@@ -224,74 +223,63 @@ def _page_map(page) -> dict:
                  ringed: count(6) }; }""")
 
 
-def test_browser_map_marks_the_finished_poses(server, workspace, planned):
-    if not CHROMIUM.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="browser tests need pip install playwright")
+def test_browser_map_marks_the_finished_poses(server, workspace, planned, open_url):
     run = workspace / "map-run"
     passing = int(np.any(planned[0].candidates.valid, axis=1).sum())
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        page = browser.new_page(viewport={"width": 1300, "height": 1000})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(server)
-        page.click("#tab-acquire")
-        page.fill("#acq-plan", "plan")
-        page.fill("#acq-out", "map-run")
-        page.fill("#acq-scale", str(FAST))
-        page.click("#acq-dry")  # the plan's map, before any run
-        page.wait_for_function("() => document.getElementById('acq-map').dataset.chosen === '3'")
-        assert _page_map(page)["candidates"] == passing
-        page.click("#acq-start")
-        seen = []
-        deadline = time.monotonic() + 60
-        reloaded = False
-        while time.monotonic() < deadline:
-            page.wait_for_function("() => document.getElementById('acq-map').dataset.rows"
-                                   " !== undefined", timeout=30_000)
-            m = _page_map(page)
-            status = page.locator("#acq-status").text_content()
-            # exactly the poses whose every row is in tests.csv (as far as the page read it)
-            assert m["done"] == _done_from_file(run, m["rows"]), m
-            assert m["doneDrawn"] == len(m["done"]) and m["drawn"] == 3
-            assert m["candidates"] == passing
-            if status == "running" and m["current"]:
-                assert m["current"] in ("1", "2", "3") and m["ringed"] == 1
-            seen.append((m["rows"], tuple(m["done"])))
-            if status == "complete" and m["rows"] == 6:
-                break
-            if not reloaded and 0 < m["rows"] < 6:
-                page.reload()  # state from the files: the map comes back as it was
-                page.click("#tab-acquire")
-                reloaded = True
-                page.wait_for_function("() => document.getElementById('acq-map').dataset"
-                                       ".rows !== undefined", timeout=30_000)
-                again = _page_map(page)
-                assert again["done"] == _done_from_file(run, again["rows"])
-                assert again["rows"] >= m["rows"]
-            time.sleep(0.15)
-        assert reloaded and seen[-1] == (6, ("1", "2", "3")), seen
-        assert any(0 < rows < 6 for rows, _ in seen)  # the map was seen mid-run
-        assert _page_map(page)["current"] == "" and _page_map(page)["ringed"] == 0
-        # the finished test's screw beside the trace: the last row of tests.csv (mm, mrad)
-        last = list(csv.DictReader(open(run / "tests.csv")))[-1]
-        assert page.locator("#acq-trace-d").text_content() == ", ".join(
-            f"{float(last[c]):.3f}" for c in ("dx_mm", "dy_mm", "dz_mm"))
-        assert page.locator("#acq-trace-r").text_content() == ", ".join(
-            f"{float(last[c]):.4f}" for c in ("rx_mrad", "ry_mrad", "rz_mrad"))
-        assert int(page.locator("#acq-trace-readings").text_content()) >= 1
-        # hover a chosen pose: its number and joint angles (deg), as plan.csv has them
-        rows = list(csv.DictReader(open(run / "plan.csv")))
-        for r in rows:
-            x, y = page.evaluate("""(q) => { const u = window.acqMap.state.plot;
-                return [u.valToPos(q[0], 'x'), u.valToPos(q[1], 'y')]; }""",
-                                 [float(r["q2_model_deg"]), float(r["q3_model_deg"])])
-            page.locator("#acq-map .u-over").hover(position={"x": x, "y": y})
-            info = page.locator("#acq-map-info").text_content()
-            q = ", ".join(f"{float(r[f'q{j}_model_deg']):.3f}" for j in range(1, 7))
-            assert info.startswith(f"pose {r['pose']} (") and info.endswith(
-                f"done): q1..q6 = {q} deg"), info
-        browser.close()
-        assert not errors, errors
+    page = open_url(server)
+    page.click("#tab-acquire")
+    page.fill("#acq-plan", "plan")
+    page.fill("#acq-out", "map-run")
+    page.fill("#acq-scale", str(FAST))
+    page.click("#acq-dry")  # the plan's map, before any run
+    page.wait_for_function("() => document.getElementById('acq-map').dataset.chosen === '3'")
+    assert _page_map(page)["candidates"] == passing
+    page.click("#acq-start")
+    seen = []
+    deadline = time.monotonic() + 60
+    reloaded = False
+    while time.monotonic() < deadline:
+        page.wait_for_function("() => document.getElementById('acq-map').dataset.rows"
+                               " !== undefined", timeout=30_000)
+        m = _page_map(page)
+        status = page.locator("#acq-status").text_content()
+        # exactly the poses whose every row is in tests.csv (as far as the page read it)
+        assert m["done"] == _done_from_file(run, m["rows"]), m
+        assert m["doneDrawn"] == len(m["done"]) and m["drawn"] == 3
+        assert m["candidates"] == passing
+        if status == "running" and m["current"]:
+            assert m["current"] in ("1", "2", "3") and m["ringed"] == 1
+        seen.append((m["rows"], tuple(m["done"])))
+        if status == "complete" and m["rows"] == 6:
+            break
+        if not reloaded and 0 < m["rows"] < 6:
+            page.reload()  # state from the files: the map comes back as it was
+            page.click("#tab-acquire")
+            reloaded = True
+            page.wait_for_function("() => document.getElementById('acq-map').dataset"
+                                   ".rows !== undefined", timeout=30_000)
+            again = _page_map(page)
+            assert again["done"] == _done_from_file(run, again["rows"])
+            assert again["rows"] >= m["rows"]
+        time.sleep(0.15)
+    assert reloaded and seen[-1] == (6, ("1", "2", "3")), seen
+    assert any(0 < rows < 6 for rows, _ in seen)  # the map was seen mid-run
+    assert _page_map(page)["current"] == "" and _page_map(page)["ringed"] == 0
+    # the finished test's screw beside the trace: the last row of tests.csv (mm, mrad)
+    last = list(csv.DictReader(open(run / "tests.csv")))[-1]
+    assert page.locator("#acq-trace-d").text_content() == ", ".join(
+        f"{float(last[c]):.3f}" for c in ("dx_mm", "dy_mm", "dz_mm"))
+    assert page.locator("#acq-trace-r").text_content() == ", ".join(
+        f"{float(last[c]):.4f}" for c in ("rx_mrad", "ry_mrad", "rz_mrad"))
+    assert int(page.locator("#acq-trace-readings").text_content()) >= 1
+    # hover a chosen pose: its number and joint angles (deg), as plan.csv has them
+    rows = list(csv.DictReader(open(run / "plan.csv")))
+    for r in rows:
+        x, y = page.evaluate("""(q) => { const u = window.acqMap.state.plot;
+            return [u.valToPos(q[0], 'x'), u.valToPos(q[1], 'y')]; }""",
+                             [float(r["q2_model_deg"]), float(r["q3_model_deg"])])
+        page.locator("#acq-map .u-over").hover(position={"x": x, "y": y})
+        info = page.locator("#acq-map-info").text_content()
+        q = ", ".join(f"{float(r[f'q{j}_model_deg']):.3f}" for j in range(1, 7))
+        assert info.startswith(f"pose {r['pose']} (") and info.endswith(
+            f"done): q1..q6 = {q} deg"), info

@@ -14,7 +14,6 @@ from pathlib import Path
 import pytest
 
 pytestmark = pytest.mark.timeout(150)
-CHROMIUM = Path("/usr/bin/chromium")
 PROTOCOL = Path(__file__).parents[2] / "protocols" / "kr240-2.toml"
 
 
@@ -135,52 +134,41 @@ def _plotted(page) -> dict:
                  resPoints: document.getElementById('an-res-fig').dataset.points }; }""")
 
 
-def test_page_plots_after_an_analysis_and_a_reanalysis(server, analysed):
-    if not CHROMIUM.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="browser tests need pip install playwright")
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        page = browser.new_page(viewport={"width": 1300, "height": 1000})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(server)
-        page.wait_for_function("() => document.body.dataset.planview === 'ready'",
-                               timeout=30_000)
-        page.click("#tab-plan")
-        page.select_option("#an-run", "run")  # analysed already (ols): its plots shown
-        page.wait_for_function("() => document.getElementById('an-plots').dataset.ready")
-        _check(page, analysed, "ols")
-        page.select_option("#an-method", "wls")
-        page.check("#an-force")
-        page.evaluate("() => { document.getElementById('an-plots').dataset.ready = ''; }")
-        page.click("#an-run-btn")
-        page.wait_for_function("() => document.body.dataset.analyze === 'done'",
-                               timeout=90_000)
-        page.wait_for_function("() => document.getElementById('an-plots').dataset.ready")
-        _check(page, analysed, "wls")
-        page.select_option("#an-run", "run2")  # the run with a gross error (accepted)
-        page.wait_for_function("() => document.getElementById('an-plots').dataset.run"
-                               " === 'run2'")
-        got = _check(page, analysed, "ols", "run2")
-        assert got["outliers"] >= 1 and got["beyond"] >= 1
-        assert page.locator("#an-val-fig").get_attribute("data-beyond") == ",".join(
-            str(p) for p in _results(analysed, "run2")["validation_summary"]
-            ["poses_beyond_limit"])
-        page.select_option("#an-run", "run")
-        page.wait_for_function("() => document.getElementById('an-plots').dataset.run"
-                               " === 'run'")
-        # hover: the row under the cursor, its values as in residuals.csv
-        page.locator("#an-res-fig .u-over").hover(position={"x": 5, "y": 100})
-        info = page.locator("#an-res-info").text_content()
-        first = _residuals_csv(analysed)[0]
-        test = int(float(first["test"]))
-        assert info.startswith(f"row 1: test {test}, pose {first['pose']}, "
-                               f"{first['component']}: studentized "
-                               f"{float(first['studentized']):.3f}"), info
-        browser.close()
-        assert not errors, errors
+def test_page_plots_after_an_analysis_and_a_reanalysis(server, analysed, open_url):
+    page = open_url(server)
+    page.wait_for_function("() => document.body.dataset.planview === 'ready'",
+                           timeout=30_000)
+    page.click("#tab-plan")
+    page.select_option("#an-run", "run")  # analysed already (ols): its plots shown
+    page.wait_for_function("() => document.getElementById('an-plots').dataset.ready")
+    _check(page, analysed, "ols")
+    page.select_option("#an-method", "wls")
+    page.check("#an-force")
+    page.evaluate("() => { document.getElementById('an-plots').dataset.ready = ''; }")
+    page.click("#an-run-btn")
+    page.wait_for_function("() => document.body.dataset.analyze === 'done'",
+                           timeout=90_000)
+    page.wait_for_function("() => document.getElementById('an-plots').dataset.ready")
+    _check(page, analysed, "wls")
+    page.select_option("#an-run", "run2")  # the run with a gross error (accepted)
+    page.wait_for_function("() => document.getElementById('an-plots').dataset.run"
+                           " === 'run2'")
+    got = _check(page, analysed, "ols", "run2")
+    assert got["outliers"] >= 1 and got["beyond"] >= 1
+    assert page.locator("#an-val-fig").get_attribute("data-beyond") == ",".join(
+        str(p) for p in _results(analysed, "run2")["validation_summary"]
+        ["poses_beyond_limit"])
+    page.select_option("#an-run", "run")
+    page.wait_for_function("() => document.getElementById('an-plots').dataset.run"
+                           " === 'run'")
+    # hover: the row under the cursor, its values as in residuals.csv
+    page.locator("#an-res-fig .u-over").hover(position={"x": 5, "y": 100})
+    info = page.locator("#an-res-info").text_content()
+    first = _residuals_csv(analysed)[0]
+    test = int(float(first["test"]))
+    assert info.startswith(f"row 1: test {test}, pose {first['pose']}, "
+                           f"{first['component']}: studentized "
+                           f"{float(first['studentized']):.3f}"), info
 
 
 def _check(page, ws: Path, method: str, run: str = "run") -> dict:

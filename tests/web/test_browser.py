@@ -11,26 +11,12 @@ from pathlib import Path
 
 import pytest
 
-CHROMIUM = Path("/usr/bin/chromium")
-if not CHROMIUM.exists():
-    pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)",
-                allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="browser tests need pip install playwright")
-
 
 @pytest.fixture
-def page(server):
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        pg = browser.new_page(viewport={"width": 1300, "height": 1000})
-        errors: list[str] = []
-        pg.on("pageerror", lambda e: errors.append(str(e)))
-        pg.goto(server)
-        pg.wait_for_selector("#row-k6", timeout=30_000)
-        yield pg
-        browser.close()
-        assert not errors, errors
+def page(server, open_url):
+    pg = open_url(server)
+    pg.wait_for_selector("#row-k6", timeout=30_000)
+    return pg
 
 
 def _settings(page) -> dict:

@@ -12,8 +12,6 @@ plan job run directly on the saved protocol.
 from __future__ import annotations
 
 import re
-import threading
-import time
 from pathlib import Path
 
 import pandas as pd
@@ -21,7 +19,6 @@ import pytest
 
 from tests.web.conftest import TOKEN  # noqa: F401  (the fixtures' token)
 
-CHROMIUM = Path("/usr/bin/chromium")
 SHIPPED = Path(__file__).parents[2] / "campaign" / "protocols"
 
 
@@ -169,33 +166,11 @@ def test_rows_are_renumbered_and_bad_tables_named(client, workspace):
 # ---- the page ----
 
 @pytest.fixture
-def plan_page(workspace):
-    if not CHROMIUM.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="browser tests need pip install playwright")
-    from campaign.web.server import GuiOptions, make_server, url_of
-
-    token = "browser-token-0123456789"
-    srv, sock = make_server(GuiOptions(workspace=workspace, port=0, open_browser=False), token)
-    thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    while not srv.started:
-        time.sleep(0.02)
-    p = sync_api.sync_playwright().start()
-    browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-    page = browser.new_page(viewport={"width": 1300, "height": 1000})
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(url_of(sock, token))
+def plan_page(server, open_url):
+    page = open_url(server)
     page.wait_for_function("() => document.body.dataset.planview === 'ready'", timeout=30_000)
     page.click("#tab-plan")
-    yield page
-    browser.close()
-    p.stop()
-    srv.should_exit = True
-    thread.join(10)
-    assert not errors, errors
+    return page
 
 
 def test_page_fills_keys_plans_and_shows_the_jobs_numbers(plan_page, workspace, tmp_path):

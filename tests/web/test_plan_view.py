@@ -7,18 +7,19 @@ message beside its field.
 
 from __future__ import annotations
 
+import contextlib
 import json
-import threading
-import time
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
-from tests.web.conftest import TOKEN  # noqa: F401  (the fixtures' token)
+from tests.web.conftest import (
+    TOKEN,  # noqa: F401  (the fixtures' token)
+    browser_page,
+    gui_server,
+)
 from tests.web.pages import wait_job
-
-CHROMIUM = Path("/usr/bin/chromium")
 
 
 def _cli_message(tmp_path: Path, key_line: str, bad_line: str) -> str:
@@ -144,47 +145,19 @@ def test_refusal_reasons_are_split():
 
 # ---- the page ----
 
-def _browser_ready():
-    if not CHROMIUM.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    return pytest.importorskip("playwright.sync_api",
-                               reason="browser tests need pip install playwright")
-
-
 @pytest.fixture
-def open_page():
+def open_page(browser):
     """A function (workspace) -> a Chromium page on a GUI server of that workspace."""
-    sync_api = _browser_ready()
-    from campaign.web.server import GuiOptions, make_server, url_of
+    with contextlib.ExitStack() as stack:
+        def make(ws: Path):
+            page = stack.enter_context(browser_page(browser, stack.enter_context(
+                gui_server(ws))))
+            page.wait_for_function("() => document.body.dataset.planview === 'ready'",
+                                   timeout=30_000)
+            page.click("#tab-plan")
+            return page
 
-    started = []
-
-    def make(ws: Path):
-        token = "browser-token-0123456789"
-        srv, sock = make_server(GuiOptions(workspace=ws, port=0, open_browser=False), token)
-        thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-        thread.start()
-        while not srv.started:
-            time.sleep(0.02)
-        p = sync_api.sync_playwright().start()
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        page = browser.new_page(viewport={"width": 1300, "height": 1000})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(url_of(sock, token))
-        page.wait_for_function("() => document.body.dataset.planview === 'ready'",
-                               timeout=30_000)
-        page.click("#tab-plan")
-        started.append((srv, thread, p, browser, errors))
-        return page
-
-    yield make
-    for srv, thread, p, browser, errors in started:
-        browser.close()
-        p.stop()
-        srv.should_exit = True
-        thread.join(10)
-        assert not errors, errors
+        yield make
 
 
 def test_page_plans_and_shows_the_jobs_numbers(open_page, workspace):

@@ -15,7 +15,6 @@ import pytest
 
 from tests.web.conftest import TOKEN  # noqa: F401  (the fixtures' token)
 
-CHROMIUM = Path("/usr/bin/chromium")
 #: joint origins (m) and axes of a 6R arm (anthropomorphic, spherical-ish wrist)
 JOINTS = [((0, 0, 0.4), (0, 0, 1)), ((0.1, 0, 0.3), (0, 1, 0)), ((0, 0, 0.7), (0, 1, 0)),
           ((0.5, 0, 0.1), (1, 0, 0)), ((0.3, 0, 0), (0, 1, 0)), ((0.1, 0, 0), (1, 0, 0))]
@@ -186,22 +185,10 @@ def test_plan_form_plans_a_urdf_robot(client, urdf_ws):
 # ---- the page ----
 
 @pytest.fixture
-def page_of(server):
-    if not CHROMIUM.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="browser tests need pip install playwright")
-    p = sync_api.sync_playwright().start()
-    browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-    page = browser.new_page(viewport={"width": 1300, "height": 1000})
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(server)
+def page_of(server, open_url):
+    page = open_url(server)
     page.wait_for_selector("#row-k6", timeout=60_000)
-    yield page
-    browser.close()
-    p.stop()
-    assert not errors, errors
+    return page
 
 
 def test_page_offers_an_uploaded_urdf_and_shows_the_jobs_numbers(page_of, workspace, tmp_path):

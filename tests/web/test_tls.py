@@ -211,22 +211,13 @@ def test_tls_options_refused_with_one_line(tmp_path, args, word):
     assert len(errors) == 1 and word in errors[0], r.stderr
 
 
-def test_the_page_works_over_https(tmp_path):
+def test_the_page_works_over_https(tmp_path, browser):
     """Chromium opens the https URL (the self-signed certificate accepted, as a user does
     after comparing the fingerprint): the token becomes a Secure cookie, the page's own
     requests (GET /api/session, POST with the CSRF header) run over TLS."""
-    from pathlib import Path
-
-    chromium = Path("/usr/bin/chromium")
-    if not chromium.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="browser tests need pip install playwright")
-    with Running(_options(tmp_path, allow_remote=True, password=PASSWORD)) as running, \
-            sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(chromium), args=["--no-sandbox"])
+    with Running(_options(tmp_path, allow_remote=True, password=PASSWORD)) as running:
+        context = browser.new_context(ignore_https_errors=True)
         try:
-            context = browser.new_context(ignore_https_errors=True)
             page = context.new_page()
             errors: list[str] = []
             page.on("pageerror", lambda e: errors.append(str(e)))
@@ -239,4 +230,4 @@ def test_the_page_works_over_https(tmp_path):
             assert any(ch.isdigit() for ch in median), median  # the POST's answer is shown
             assert not errors, errors
         finally:
-            browser.close()
+            context.close()

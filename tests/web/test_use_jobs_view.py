@@ -14,19 +14,13 @@ import json
 import math
 import re
 import shutil
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-CHROMIUM = Path("/usr/bin/chromium")
-if not CHROMIUM.exists():
-    pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)",
-                allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="browser tests need pip install playwright")
+from tests.web.conftest import browser_page, gui_server
 
 ROOT = Path(__file__).parents[2]
 TOKEN = "use-jobs-token-0123456789"
@@ -52,33 +46,14 @@ def ws(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def page(ws):
-    from campaign.web.server import GuiOptions, make_server, url_of
-
-    srv, sock = make_server(GuiOptions(workspace=ws, port=0, open_browser=False), TOKEN)
+def page(browser, ws):
     # the page is the point here: its jobs run in the queue's threads (no process start-up
     # per job); the processes are tested over HTTP in test_jobs_queue.py
-    srv.config.app.state.jobs_in_threads = True
-    thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    for _ in range(200):
-        if srv.started:
-            break
-        time.sleep(0.02)
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        pg = browser.new_page(viewport={"width": 1300, "height": 1000})
-        errors: list[str] = []
-        pg.on("pageerror", lambda e: errors.append(str(e)))
-        pg.goto(url_of(sock, TOKEN))
+    with gui_server(ws, TOKEN, jobs_in_threads=True) as url, browser_page(browser, url) as pg:
         pg.wait_for_selector("#view-use[data-ready='1']", state="attached", timeout=30_000)
         pg.click("#tab-use")
         pg.wait_for_selector("#view-use", state="visible")
         yield pg
-        browser.close()
-        assert not errors, errors
-    srv.should_exit = True
-    thread.join(10)
 
 
 def _close(shown: str, value: float, rel: float = 1e-4) -> None:

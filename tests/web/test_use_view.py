@@ -12,21 +12,13 @@ import json
 import math
 import re
 import shutil
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.web.conftest import browser_page, gui_server
 from tests.web.pages import wait_use_shown
-
-CHROMIUM = Path("/usr/bin/chromium")
-if not CHROMIUM.exists():
-    pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)",
-                allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="browser tests need pip install playwright")
 
 ROOT = Path(__file__).parents[2]
 WRENCH = [0.0, 0.0, -2000.0, 0.0, 200.0, 0.0]  # the page's default at a pose
@@ -59,32 +51,13 @@ def ws(tmp_path_factory, analyses) -> Path:
 
 
 @pytest.fixture(scope="module")
-def page(ws):
-    from campaign.web.server import GuiOptions, make_server, url_of
-
-    srv, sock = make_server(GuiOptions(workspace=ws, port=0, open_browser=False),
-                            "use-view-token-0123456789")
-    thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    for _ in range(200):
-        if srv.started:
-            break
-        time.sleep(0.02)
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        pg = browser.new_page(viewport={"width": 1300, "height": 1000})
-        errors: list[str] = []
-        pg.on("pageerror", lambda e: errors.append(str(e)))
-        pg.goto(url_of(sock, "use-view-token-0123456789"))
+def page(browser, ws):
+    with gui_server(ws, "use-view-token-0123456789") as url, browser_page(browser, url) as pg:
         pg.wait_for_selector("#row-k6", timeout=30_000)  # the page's tabs are live
         pg.wait_for_selector("#view-use[data-ready='1']", state="attached", timeout=30_000)
         pg.click("#tab-use")
         pg.wait_for_selector("#view-use", state="visible")
         yield pg
-        browser.close()
-        assert not errors, errors
-    srv.should_exit = True
-    thread.join(10)
 
 
 def _settled(page) -> list[float]:
