@@ -3,38 +3,27 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
 from tests.web.pages import acquire_dry_run, wait_text
 from tests.web.test_acquire_view import plan_dir, workspace  # noqa: F401  (fixtures)
 
 pytestmark = pytest.mark.timeout(150)
-CHROMIUM = Path("/usr/bin/chromium")
 
 
-def test_resumed_run_shows_no_stop_reason(server, workspace):  # noqa: F811
-    if not CHROMIUM.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="browser tests need pip install playwright")
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        page = browser.new_page(viewport={"width": 1300, "height": 1000})
-        page.goto(server)
-        assert acquire_dry_run(page, "plan", "run", 10) >= 3
-        page.click("#acq-start")
-        wait_text(page, "#acq-stage", "load", "settle", "measure", timeout=30_000)
-        page.click("#acq-abort")
-        wait_text(page, "#acq-status", "aborted")
-        assert "Ctrl-C" in page.locator("#acq-reason").text_content()
-        page.click("#acq-resume")
-        wait_text(page, "#acq-running", "running", timeout=30_000)
-        page.wait_for_timeout(300)  # a state read after the start
-        if page.locator("#acq-running").text_content() == "running":
-            assert page.locator("#acq-reason").text_content() == ""
-        wait_text(page, "#acq-status", "complete", timeout=90_000)
+def test_resumed_run_shows_no_stop_reason(server, workspace, open_url):  # noqa: F811
+    page = open_url(server)
+    assert acquire_dry_run(page, "plan", "run", 10) >= 3
+    page.click("#acq-start")
+    wait_text(page, "#acq-stage", "load", "settle", "measure", timeout=30_000)
+    page.click("#acq-abort")
+    wait_text(page, "#acq-status", "aborted")
+    assert "Ctrl-C" in page.locator("#acq-reason").text_content()
+    page.click("#acq-resume")
+    wait_text(page, "#acq-running", "running", timeout=30_000)
+    page.wait_for_timeout(300)  # a state read after the start
+    if page.locator("#acq-running").text_content() == "running":
         assert page.locator("#acq-reason").text_content() == ""
-        assert page.locator("#acq-done").text_content() == "3"
-        browser.close()
+    wait_text(page, "#acq-status", "complete", timeout=90_000)
+    assert page.locator("#acq-reason").text_content() == ""
+    assert page.locator("#acq-done").text_content() == "3"
