@@ -28,12 +28,12 @@ def loopback_only() -> bool:
 
 
 def is_loopback_host(host: str) -> bool:
-    """True for a loopback IP literal or ``localhost`` (no name is resolved)."""
-    host = host.strip().strip("[]").lower()
-    if host == "localhost":
+    """True for a loopback IP literal (127.0.0.0/8, ``::1``, bracketed or not) or
+    ``localhost`` (no name is resolved)."""
+    if host.strip().lower() == "localhost":
         return True
     try:
-        return ipaddress.ip_address(host).is_loopback
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
     except ValueError:
         return False
 

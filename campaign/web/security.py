@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import hashlib
 import hmac
-import ipaddress
 import secrets
 from pathlib import Path, PurePosixPath
 
@@ -45,13 +44,10 @@ def same(a: str | None, b: str) -> bool:
 
 
 def is_loopback(host: str) -> bool:
-    """True for localhost and loopback addresses (127.0.0.0/8, ::1)."""
-    if host.strip().lower() == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
+    """True for localhost and loopback addresses (127.0.0.0/8, ::1): the drivers' test."""
+    from drivers.loopback_guard import is_loopback_host
+
+    return is_loopback_host(host)
 
 
 def check_bind(host: str, allow_remote: bool, password: str | None) -> None:
