@@ -225,15 +225,12 @@ def _copy_warnings(proto: Path, out: Path) -> list[str]:
             "give its absolute path, or copy the robot file there"]
 
 
-@router.post("/save")
-def save_protocol(request: Request, body: PlanRequest):
-    """Save the form as ``protocols/NAME.toml`` and read it back with the protocol reader
-    (``load_protocol``: schema, units, safety limits, drivers and addresses); the
-    answer: the saved path, or the reader's message per field."""
+def _save_checked(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONResponse:
+    """Write the form as its protocol file and read it back with the protocol reader: the
+    (path, field keys), or the reader's refusal with the former file put back."""
     from analysis.errors import InputError
     from campaign.protocol import load_protocol
 
-    ws = Path(request.app.state.workspace)
     saved = _save(ws, body)
     if isinstance(saved, JSONResponse):
         return saved
@@ -244,6 +241,19 @@ def save_protocol(request: Request, body: PlanRequest):
         refusal = _refusal(ws, err, keys)
         _restore(proto, previous)
         return refusal
+    return proto, keys
+
+
+@router.post("/save")
+def save_protocol(request: Request, body: PlanRequest):
+    """Save the form as ``protocols/NAME.toml`` and read it back with the protocol reader
+    (``load_protocol``: schema, units, safety limits, drivers and addresses); the
+    answer: the saved path, or the reader's message per field."""
+    ws = Path(request.app.state.workspace)
+    saved = _save_checked(ws, body)
+    if isinstance(saved, JSONResponse):
+        return saved
+    proto, _ = saved
     return {"protocol": str(proto.relative_to(ws))}
 
 
@@ -254,7 +264,6 @@ def run_plan(request: Request, body: PlanRequest):
     from analysis.errors import InputError
     from campaign.jobs.choices import Strategy
     from campaign.jobs.plan import PlanOptions, run
-    from campaign.protocol import load_protocol
 
     ws = Path(request.app.state.workspace)
     try:
@@ -262,17 +271,11 @@ def run_plan(request: Request, body: PlanRequest):
     except ValueError:
         return _error(f"strategy: {body.strategy!r} is not one of {', '.join(_strategies())}",
                       "strategy")
-    saved = _save(ws, body)
+    saved = _save_checked(ws, body)
     if isinstance(saved, JSONResponse):
         return saved
-    proto, keys, previous = saved
+    proto, keys = saved
     out = ws / "plans" / body.name
-    try:
-        load_protocol(proto)
-    except InputError as err:
-        refusal = _refusal(ws, err, keys)
-        _restore(proto, previous)
-        return refusal
     try:
         result = run(PlanOptions(protocol=proto, out=out, strategy=strategy, seed=body.seed,
                                  candidates=body.candidates, force=True, map_points=True))
