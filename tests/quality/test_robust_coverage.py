@@ -73,6 +73,21 @@ def test_robust_coverage_quick(setup, robust, method, scale, glitches):
     assert np.all(np.abs(cov - 0.95) <= QUICK_TOL), cov
 
 
+def _noise_free_at_twice_the_loads(setup):
+    """(robot, tests): every pose of ``setup`` under each load case at twice its size, the
+    displacements from the exact equilibrium with no noise."""
+    from analysis.identification.io.measurements import TestArrays
+    from analysis.kinetostatics.equilibrium import displacement_screw
+
+    robot, q, W, k = setup
+    qq = np.repeat(q, len(W), axis=0)
+    ww = np.tile(2.0 * W, (len(q), 1))
+    d = displacement_screw(robot, qq, k, ww)
+    return robot, TestArrays(pose=np.repeat([f"P{i}" for i in range(len(q))], len(W)), q=qq,
+                             w=ww, d=d, measured=np.ones(d.shape, bool),
+                             line=np.arange(len(qq)) + 2)
+
+
 def test_sandwich_scores_are_the_exact_models_residuals(setup):
     """Noise-free campaign at twice the loads: the robust ols fit's sandwich is estimated
     from the residuals d - f(x_c) of the exact model at the bias-corrected estimate, which
@@ -81,15 +96,8 @@ def test_sandwich_scores_are_the_exact_models_residuals(setup):
     same in every campaign: 21-61 % of the fixed-weight se (the former over-coverage of
     robust ols at twice the loads, 97-99.5 %)."""
     from analysis.identification.estimate import identify
-    from analysis.identification.io.measurements import TestArrays
-    from analysis.kinetostatics.equilibrium import displacement_screw
 
-    robot, q, W, k = setup
-    qq = np.repeat(q, len(W), axis=0)
-    ww = np.tile(2.0 * W, (len(q), 1))
-    d = displacement_screw(robot, qq, k, ww)
-    tests = TestArrays(pose=np.repeat([f"P{i}" for i in range(len(q))], len(W)), q=qq, w=ww,
-                       d=d, measured=np.ones(d.shape, bool), line=np.arange(len(qq)) + 2)
+    robot, tests = _noise_free_at_twice_the_loads(setup)
     res = identify(robot, tests, method="ols", noise=NOISE, validate=False, robust="huber")
     assert res.linear_bias["reliable"]
     ratio = np.array(res.robust["covariance"]["se_over_fixed_weights"])
@@ -166,15 +174,8 @@ def test_linear_misfit_is_not_down_weighted(setup, method):
     / 4 (wls) clean components, Huber and Tukey (Tukey weights 0.05-0.41), and moved k by
     1.5e-3 to 3.2e-3 se (the largest joint of each fit)."""
     from analysis.identification.estimate import identify
-    from analysis.identification.io.measurements import TestArrays
-    from analysis.kinetostatics.equilibrium import displacement_screw
 
-    robot, q, W, k = setup
-    qq = np.repeat(q, len(W), axis=0)
-    ww = np.tile(2.0 * W, (len(q), 1))
-    d = displacement_screw(robot, qq, k, ww)
-    tests = TestArrays(pose=np.repeat([f"P{i}" for i in range(len(q))], len(W)), q=qq, w=ww,
-                       d=d, measured=np.ones(d.shape, bool), line=np.arange(len(qq)) + 2)
+    robot, tests = _noise_free_at_twice_the_loads(setup)
     gauss = identify(robot, tests, method=method, noise=NOISE, validate=False)
     assert gauss.linear_bias["reliable"]
     for robust in ("huber", "tukey"):
