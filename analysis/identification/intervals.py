@@ -106,7 +106,7 @@ def reported_intervals(problem, outcome, stats, corr) -> Intervals:
                      " residuals do not match the noise model; check the noise figures or "
                      "use covariance='residual'")
     for idx, j in enumerate(joints):
-        if x_out[idx] - crit * se_x[idx] <= 0:
+        if x_out[idx] - np.broadcast_to(crit, se_x.shape)[idx] * se_x[idx] <= 0:
             notes.append(f"joint {j + 1}: the {level(options.confidence)} interval of its "
                          "compliance reaches 0, the data do not bound k from above")
     return Intervals(x=x_out, cov_x=cov_x, se_x=se_x, ci=ci, crit=crit, scale=scale,

@@ -21,11 +21,16 @@ import numpy as np
 from scipy import special
 
 
-def critical_value(confidence: float = 0.95, dof: float | None = None) -> float:
-    """Two-sided critical value: normal, or Student t with ``dof`` degrees of freedom."""
+def critical_value(confidence: float = 0.95, dof=None):
+    """Two-sided critical value: normal, or Student t with ``dof`` degrees of freedom
+    (a number, or an array of them: one value each; inf gives the normal's)."""
     p = 0.5 + confidence / 2.0
     if dof is None:
         return float(special.ndtri(p))
+    if np.ndim(dof):
+        dof = np.asarray(dof, dtype=float)
+        return np.where(np.isfinite(dof), special.stdtrit(np.where(np.isfinite(dof), dof, 1.0),
+                                                          p), special.ndtri(p))
     return float(special.stdtrit(dof, p))
 
 

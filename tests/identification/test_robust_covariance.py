@@ -69,12 +69,50 @@ def _dense(A, cov, e, kept, robust_mode, weighted, skip=None):
     return psi(np.zeros(P)), J
 
 
+def _dense_scaled(A, cov, e, kept, robust_mode, weighted, H):
+    """The per-test-scale sandwich and its Satterthwaite dof written densely: the fixed
+    weights' estimator as one (n, n) residual-maker L (r = L eps on the kept components,
+    eps ~ N(0, R) the whitened noise), E[r_t^T N_t r_t] from L R L^T."""
+    idx = [(t, i) for t in range(M) for i in range(6) if kept[t, i]]
+    n = len(idx)
+    sig = np.sqrt(np.array([cov[t, i, i] for t, i in idx]))
+    r = np.array([e[t, i] for t, i in idx]) / sig
+    w = _weights(robust_mode, r)
+    Z = np.array([A[t, i] for t, i in idx]) / sig[:, None]
+    X = Z if weighted else Z * sig[:, None] ** 2
+    R = np.zeros((n, n))
+    for a_, (t, i) in enumerate(idx):
+        for b_, (s_, j) in enumerate(idx):
+            if t == s_:
+                R[a_, b_] = cov[t, i, j] / (sig[a_] * sig[b_])
+    C = R if weighted else np.eye(n)
+    Q = np.sqrt(w)[:, None] * np.linalg.inv(C) * np.sqrt(w)[None, :]  # block-diagonal
+    Hf = X.T @ Q @ Z
+    L = np.eye(n) - Z @ np.linalg.solve(Hf, X.T @ Q)
+    E = L @ R @ L.T
+    Hi = np.linalg.inv(H)
+    meat, v = np.zeros((P, P)), []
+    for t in range(M):
+        k = [a_ for a_, (tt, _) in enumerate(idx) if tt == t]
+        N = Q[np.ix_(k, k)] @ C[np.ix_(k, k)] @ Q[np.ix_(k, k)]
+        rho = r[k] @ N @ r[k] / np.trace(N @ E[np.ix_(k, k)])
+        Xq = X[k].T @ Q[np.ix_(k, k)]
+        meat_t = Xq @ R[np.ix_(k, k)] @ Xq.T
+        meat += rho * meat_t
+        NR = N @ R[np.ix_(k, k)]
+        v.append((rho * np.diag(Hi @ meat_t @ Hi.T), 2 * np.trace(NR @ NR) / np.trace(NR) ** 2))
+    tot = sum(vt for vt, _ in v)
+    spread = sum(vt**2 * rv for vt, rv in v)
+    return Hi @ meat @ Hi.T, 2 * tot**2 / spread
+
+
 @pytest.mark.parametrize("weighted", [True, False], ids=["wls-exact", "ols"])
 @pytest.mark.parametrize("robust_mode", ["huber", "tukey"])
 def test_sandwich_against_dense_definition(robust_mode, weighted):
-    """H, B, the sandwich and the jackknife equal the dense computation to 1e-6 (central
-    differences of step 1e-6 on residuals of ~0.1: truncation ~1e-10 relative; the weights
-    are piecewise smooth and no residual sits within 1e-5 of a kink)."""
+    """H, B, the uncorrected sandwich and the reported per-test-scale sandwich with its
+    Satterthwaite dof equal the dense computation to 1e-6 (central differences of step
+    1e-6 on residuals of ~0.1: truncation ~1e-10 relative; the weights are piecewise
+    smooth and no residual sits within 1e-5 of a kink)."""
     A, cov, e, kept = _problem(1, robust_mode)
     c = HUBER_C if robust_mode == "huber" else TUKEY_C
     out = robust_covariance(A, cov, e, kept, robust_mode, c, weighted=weighted,
@@ -85,18 +123,29 @@ def test_sandwich_against_dense_definition(robust_mode, weighted):
     sandwich = Hi @ (g.T @ g) @ Hi.T
     np.testing.assert_allclose(out.sandwich, sandwich, rtol=1e-6,
                                atol=1e-6 * np.abs(sandwich).max())
-    # jackknife: one Newton step from x_hat for each problem without test t, its
-    # Jacobian again by central differences
-    steps = []
-    for t in range(M):
-        psi_t, H_t = _dense(A, cov, e, kept, robust_mode, weighted, skip=t)
-        # the full problem's Psi is taken as 0 at x_hat: without test t it is -g_t
-        steps.append(np.linalg.solve(H_t, psi_t - g.sum(0)))
-    steps = np.array(steps)
-    d = steps - steps.mean(0)
-    jack = (M - 1) / M * d.T @ d
-    np.testing.assert_allclose(out.cov, jack, rtol=1e-6, atol=1e-6 * np.abs(jack).max())
-    assert out.tests == M and out.dof == M - P
+    scaled, dof = _dense_scaled(A, cov, e, kept, robust_mode, weighted, H)
+    np.testing.assert_allclose(out.cov, scaled, rtol=1e-6, atol=1e-6 * np.abs(scaled).max())
+    np.testing.assert_allclose(out.dof, dof, rtol=1e-6)
+    assert out.tests == M and np.all((out.dof > 1) & (out.dof < 6 * M))
+
+
+def test_scaled_sandwich_on_gaussian_replicates():
+    """Known values: M identical tests, unit weights (every |r| tiny), weighted: each test's
+    scale is r^T R^-1 r over its expectation (n_t - p/M) ... and the dof are
+    Satterthwaite's for M equal terms of relative variance 2/6: 6 M = 72."""
+    A1 = np.random.default_rng(5).normal(size=(6, P))
+    A = np.broadcast_to(A1, (M, 6, P)).copy()
+    cov = np.broadcast_to(np.diag([1.0, 2.0, 0.5, 1.5, 1.0, 3.0]) * 1e-2, (M, 6, 6)).copy()
+    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1))
+    e = np.full((M, 6), 0.3) * sig  # |r| = 0.3 < c: weights 1
+    kept = np.ones((M, 6), bool)
+    out = robust_covariance(A, cov, e, kept, "huber", HUBER_C, True, np.eye(P))
+    np.testing.assert_allclose(out.dof, 6 * M, rtol=1e-12)
+    # rho = (6 x 0.09) / (6 - P / M x ... ): the expectation of r^T r at x_hat is
+    # n_t - p / M per test (the hat matrix's trace p shared by M equal tests)
+    rho = 6 * 0.09 / (6 - P / M)
+    Z = A1 / sig[0][:, None]
+    np.testing.assert_allclose(out.cov, rho * np.linalg.inv(M * Z.T @ Z), rtol=1e-10)
 
 
 def test_sandwich_is_the_same_block_by_block():
@@ -108,6 +157,7 @@ def test_sandwich_is_the_same_block_by_block():
                                block=5)
     np.testing.assert_allclose(blocks.cov, one.cov, rtol=1e-12)
     np.testing.assert_allclose(blocks.sandwich, one.sandwich, rtol=1e-12)
+    np.testing.assert_allclose(blocks.dof, one.dof, rtol=1e-12)
 
 
 def test_sqrt_weight_derivative():

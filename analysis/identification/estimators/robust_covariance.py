@@ -97,11 +97,12 @@ class RobustCovariance:
     sandwich: np.ndarray
     fixed: np.ndarray
     tests: int
+    dof_per_joint: np.ndarray
 
     @property
-    def dof(self) -> int:
-        """Degrees of freedom of the interval's Student t: tests G minus unknowns p."""
-        return max(self.tests - self.cov.shape[0], 1)
+    def dof(self) -> np.ndarray:
+        """(p,) degrees of freedom of each joint's Student t (Satterthwaite)."""
+        return self.dof_per_joint
 
     def describe(self) -> dict:
         """JSON-ready: the form, the correction and how the se compare to the other forms."""
@@ -111,8 +112,8 @@ class RobustCovariance:
                     "B = sum over tests of the test's score g g^T (cluster = test)",
             "small_sample_correction": CORRECTION,
             "clusters": self.tests,
-            "interval": f"Student t with G - p = {self.dof} degrees of freedom",
-            "degrees_of_freedom": self.dof,
+            "interval": "Student t, each joint's degrees of freedom by Satterthwaite",
+            "degrees_of_freedom": [float(v) for v in self.dof],
             # per identified joint, in the order of the joints
             "se_over_uncorrected_sandwich": [
                 float(v) for v in se / np.sqrt(np.diag(self.sandwich))],
@@ -121,8 +122,10 @@ class RobustCovariance:
 
 
 def _block_terms(A, cov, resid, kept, robust, c, weighted):
-    """Per test of one block: score g = X^T h (b, p), H_t = -dg/dx = X^T M Z (b, p, p),
-    Z = -dr/dx = diag(1/sigma) A (X = Z for the weighted fits)."""
+    """Per test of one block (b tests): the score g = X^T h (b, p), H_t = -dg/dx = X^T M Z
+    (b, p, p), and the fixed-weight pieces Q = U C^-1 U (h = Q r), the noise correlation R
+    of the whitened residuals, X and Z (b, 6, p), Z = -dr/dx = diag(1/sigma) A (X = Z for
+    the weighted fits); C, R the identity on the components not kept."""
     A = np.asarray(A, dtype=float)
     S = np.asarray(cov, dtype=float)
     sig = np.sqrt(np.where(kept, np.diagonal(S, axis1=-2, axis2=-1), 1.0))
@@ -131,20 +134,60 @@ def _block_terms(A, cov, resid, kept, robust, c, weighted):
     u, du = u * kept, du * kept
     eye = np.eye(6)
     Z = A / sig[..., None] * kept[..., None]  # -dr/dx
+    both = kept[..., :, None] & kept[..., None, :]
+    R = np.where(both, S / (sig[..., :, None] * sig[..., None, :]), eye)
     if weighted:
-        both = kept[..., :, None] & kept[..., None, :]
-        C = np.where(both, S / (sig[..., :, None] * sig[..., None, :]), eye)
-        Ci = np.linalg.inv(C)  # C_kept^-1 on the kept block, identity elsewhere
+        C, Ci = R, np.linalg.inv(R)  # C_kept^-1 on the kept block, identity elsewhere
         X = Z
     else:
-        Ci = np.broadcast_to(eye, S.shape)
+        C = Ci = np.broadcast_to(eye, S.shape)
         X = A * sig[..., None] * kept[..., None]
     Civ = np.einsum("bij,bj->bi", Ci, u * r)
     h = u * Civ
     M = (du * Civ)[..., :, None] * eye + u[..., :, None] * Ci * (u + du * r)[..., None, :]
     g = np.einsum("bip,bi->bp", X, h)
     Ht = np.swapaxes(X, -1, -2) @ M @ Z
-    return g, Ht
+    Q = u[..., :, None] * Ci * u[..., None, :]
+    return _Terms(g=g, Ht=Ht, Q=Q, C=C, R=R, X=X, Z=Z, r=r)
+
+
+@dataclass(frozen=True)
+class _Terms:
+    """:func:`_block_terms`' per-test arrays of one block."""
+
+    g: np.ndarray
+    Ht: np.ndarray
+    Q: np.ndarray
+    C: np.ndarray
+    R: np.ndarray
+    X: np.ndarray
+    Z: np.ndarray
+    r: np.ndarray
+
+
+def _test_scales(t: _Terms, Hf_inv: np.ndarray, Vf: np.ndarray):
+    """Per test of a block: (rho (b,), its relative variance under the noise model (b,),
+    the test's model meat X^T Q R Q X (b, p, p)).
+
+    rho = r^T N r / E[r^T N r], N = Q C Q (r^T N r = h^T C h, the test's squared score),
+    the expectation under the noise model with the weights held fixed, at the fitted
+    x_hat (the residuals r = e - Z (x_hat - x) shrunk by the test's own leverage):
+    tr(N R) - 2 tr(N Z Hf^-1 X^T Q R) + tr(Z^T N Z Vf)."""
+    Xt = np.swapaxes(t.X, -1, -2)
+    N = t.Q @ t.C @ t.Q
+    obs = np.einsum("bi,bij,bj->b", t.r, N, t.r)
+    NR = N @ t.R
+    QR = t.Q @ t.R
+    cross = np.einsum("bij,bji->b", N, (t.Z @ Hf_inv) @ (Xt @ QR))
+    quad = np.einsum("bij,bji->b", N, (t.Z @ Vf) @ np.swapaxes(t.Z, -1, -2))
+    expect = np.einsum("bii->b", NR) - 2.0 * cross + quad
+    ok = expect > 0
+    rho = np.where(ok, obs / np.where(ok, expect, 1.0), 0.0)
+    tr2 = np.einsum("bij,bji->b", NR, NR)
+    tr1 = np.einsum("bii->b", NR)
+    relvar = np.where(tr1 > 0, 2.0 * tr2 / np.where(tr1 > 0, tr1, 1.0) ** 2, 0.0)
+    meat = Xt @ QR @ t.Q @ t.X
+    return rho, relvar, meat
 
 
 def robust_covariance(A, cov, resid: np.ndarray, kept: np.ndarray, robust: str, c: float,
@@ -172,27 +215,38 @@ def robust_covariance(A, cov, resid: np.ndarray, kept: np.ndarray, robust: str, 
     block = lsq.TEST_BLOCK if block is None else block
     H = np.zeros((p, p))
     B = np.zeros((p, p))
+    Hf = np.zeros((p, p))
+    K = np.zeros((p, p))
     for s in range(0, m, block):
         sl = slice(s, s + block)
-        g, Ht = _block_terms(A[sl], cov[sl], resid[sl], kept[sl], robust, c, weighted)
-        H += Ht.sum(axis=0)
-        B += g.T @ g
+        t = _block_terms(A[sl], cov[sl], resid[sl], kept[sl], robust, c, weighted)
+        H += t.Ht.sum(axis=0)
+        B += t.g.T @ t.g
+        Xt = np.swapaxes(t.X, -1, -2)
+        Hf += (Xt @ t.Q @ t.Z).sum(axis=0)
+        K += (Xt @ t.Q @ t.R @ t.Q @ t.X).sum(axis=0)
     if S is not None:
         H = H - S
     Hi = np.linalg.inv(H)
     sandwich = Hi @ B @ Hi.T
-    # second pass: the jackknife's leave-one-test-out steps
-    G = int(np.any(kept, axis=1).sum())
-    tot = np.zeros(p)
-    sq = np.zeros((p, p))
+    Hf_inv = np.linalg.inv(Hf)
+    Vf = Hf_inv @ K @ Hf_inv.T
+    # second pass: each test's scale rho_t and the per-joint Satterthwaite sums
+    meat = np.zeros((p, p))
+    total = np.zeros(p)  # sum_t rho_t v_tj, v_t = diag(H^-1 meat_t H^-T)
+    spread = np.zeros(p)  # sum_t (rho_t v_tj)^2 relvar_t
+    G = 0
     for s in range(0, m, block):
         sl = slice(s, s + block)
-        g, Ht = _block_terms(A[sl], cov[sl], resid[sl], kept[sl], robust, c, weighted)
-        delta = -np.linalg.solve(H - Ht, g[..., None])[..., 0]
-        delta = delta * np.any(kept[sl], axis=1)[:, None]
-        tot += delta.sum(axis=0)
-        sq += delta.T @ delta
-    mean = tot / max(G, 1)
-    jack = (G - 1) / max(G, 1) * (sq - G * np.outer(mean, mean))
-    return RobustCovariance(cov=0.5 * (jack + jack.T), sandwich=0.5 * (sandwich + sandwich.T),
-                            fixed=fixed, tests=G)
+        t = _block_terms(A[sl], cov[sl], resid[sl], kept[sl], robust, c, weighted)
+        rho, relvar, meat_t = _test_scales(t, Hf_inv, Vf)
+        G += int(np.any(kept[sl], axis=1).sum())
+        meat += np.einsum("b,bpq->pq", rho, meat_t)
+        v = rho[:, None] * np.einsum("jp,bpq,jq->bj", Hi, meat_t, Hi)
+        total += v.sum(axis=0)
+        spread += (v**2 * relvar[:, None]).sum(axis=0)
+    cov_x = Hi @ meat @ Hi.T
+    dof = np.where(spread > 0, 2.0 * total**2 / np.where(spread > 0, spread, 1.0), np.inf)
+    return RobustCovariance(cov=0.5 * (cov_x + cov_x.T),
+                            sandwich=0.5 * (sandwich + sandwich.T), fixed=fixed, tests=G,
+                            dof_per_joint=np.maximum(dof, 1.0))
