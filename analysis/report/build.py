@@ -236,9 +236,11 @@ def robust_blocks(result: IdentificationResult) -> list:
         return []
     text = (f"Robust fit: {rob['method']} IRLS, c = {rob['constant']:g} on residuals whitened "
             f"by the noise model's sigma (scale 1), {rob['iterations']} reweighting "
-            "iterations; covariance: the M-estimator sandwich clustered by test (cluster "
-            "jackknife), intervals with Student t"
-            + (f" ({rob['covariance']['degrees_of_freedom']} degrees of freedom)."
+            "iterations; covariance: the M-estimator sandwich with one scale per test "
+            "(the test's squared score over its expectation under the noise model), "
+            "intervals with Student t"
+            + (" (" + ", ".join(f"{v:.3g}" for v in rob["covariance"]["degrees_of_freedom"])
+               + " degrees of freedom per joint, Satterthwaite)."
                if rob.get("covariance") else "."))
     if not rob["down_weighted"]:
         return [Paragraph(f"{text} No component down-weighted below "

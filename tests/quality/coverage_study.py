@@ -8,7 +8,8 @@ binomial standard error of a 95 % coverage is 0.69 %, so 95 +- 3 % is resolved.
     PYTHONPATH=. python -m tests.quality.coverage_study [--trials 1000] [--seed 3]
         [--robot arm|z1] [--setup-seed 0]
     PYTHONPATH=. python -m tests.quality.coverage_study --robust [--methods ols wls exact]
-        [--exact-trials 1000] [--write-docs] [--resume DIR]
+        [--modes huber tukey] [--exact-trials 1000] [--write-docs] [--resume DIR]
+        [--robot arm|z1] [--scales 1 2] [--data clean glitches]
 
 The first prints the table of ols, wls and exact at the nominal loads and twice them;
 ``--robust`` the table of Huber and Tukey around ols, wls and exact, on clean campaigns
@@ -77,21 +78,30 @@ def study(trials: int, seed: int, robot_name: str = "arm", setup_seed: int = 0,
 
 def robust_study(trials: int, seed: int, methods=ROBUST_METHODS,
                  exact_trials: int | None = None, modes=ROBUST,
-                 resume: Path | None = None) -> dict:
+                 resume: Path | None = None, robot_name: str = "arm",
+                 scales=SCALES, data=tuple(label for label, _ in DATA)) -> dict:
     """{"huber (wls)": {"clean x1": (coverage (6,), given), ...}, ...} of the robust fits;
-    ``exact_trials`` campaigns per cell for exact (``trials`` if None)."""
+    ``exact_trials`` campaigns per cell for exact (``trials`` if None); ``robot_name``
+    "arm" (the table's) or "z1" (the Unitree Z1 URDF, its poses and truth of setup seed
+    0); ``scales``, ``data``: the loads and data ("clean", "glitches") of the cells run."""
+    from tests.quality import _z1
+
+    write = {"arm": write_protocol, "z1": _z1.write_protocol}[robot_name]
+    prefix = "" if robot_name == "arm" else f"{robot_name}-"
     with tempfile.TemporaryDirectory() as tmp:
-        robot, q, W, k = campaign_setup(write_protocol(Path(tmp)))
+        robot, q, W, k = campaign_setup(write(Path(tmp)))
     out = {}
     for m in methods:
         n = trials if m != "exact" or exact_trials is None else exact_trials
         for r in modes:
             row = out[f"{r} ({m})"] = {}
             for label, g in DATA:
-                for s in SCALES:
+                if label not in data:
+                    continue
+                for s in scales:
                     row[f"{label} x{s:g}"] = coverage(
                         robot, q, W, k, m, s, n, seed=seed, robust=r, glitches=g,
-                        checkpoint=_checkpoint(resume, f"{r}-{m}-{label}-x{s:g}"))
+                        checkpoint=_checkpoint(resume, f"{prefix}{r}-{m}-{label}-x{s:g}"))
                     cov, given = row[f"{label} x{s:g}"]
                     print(f"# {r} ({m}) {label} x{s:g}: " + " ".join(f"{100 * c:.1f}"
                                                                     for c in cov)
@@ -132,8 +142,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--exact-trials", type=int, default=None,
                     help="with --robust: campaigns per cell for exact (default --trials)")
     ap.add_argument("--robot", choices=("arm", "z1"), default="arm",
-                    help="without --robust: the test-written 6R arm, or the Unitree Z1 URDF "
-                         "of example-robot-data")
+                    help="the test-written 6R arm, or the Unitree Z1 URDF of "
+                         "example-robot-data (with --robust: not with --write-docs)")
+    ap.add_argument("--scales", nargs="+", type=float, default=list(SCALES),
+                    help="with --robust: the load scales of the cells run (default 1 2)")
+    ap.add_argument("--data", nargs="+", choices=[label for label, _ in DATA],
+                    default=[label for label, _ in DATA],
+                    help="with --robust: clean campaigns, glitched ones, or both")
     ap.add_argument("--setup-seed", type=int, default=0,
                     help="without --robust: seed of the poses and the true stiffness")
     ap.add_argument("--write-docs", action="store_true",
@@ -141,12 +156,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--resume", type=Path, default=None, metavar="DIR",
                     help="save each cell's progress in DIR and go on from it")
     args = ap.parse_args(argv)
+    if args.robust and args.write_docs and (args.robot != "arm" or args.scales != list(SCALES)
+                                            or len(args.data) != len(DATA)):
+        print("coverage_study: --write-docs fills the table of the arm's every cell; drop "
+              "--robot z1, --scales and --data", file=sys.stderr)
+        return 2
     t0 = time.process_time()
     out = {}
     if args.robust:
         res = robust_study(args.trials, args.seed, tuple(args.methods), args.exact_trials,
-                           tuple(args.modes), args.resume)
-        cols = [f"{label} x{s:g}" for label, _ in DATA for s in SCALES]
+                           tuple(args.modes), args.resume, args.robot, tuple(args.scales),
+                           tuple(args.data))
+        cols = [f"{label} x{s:g}" for label, _ in DATA if label in args.data
+                for s in args.scales]
         print(HEADER)
         rows = {}
         for name, row in res.items():

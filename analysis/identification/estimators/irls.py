@@ -43,9 +43,10 @@ Weights have converged when none changes by more than :data:`WEIGHT_TOL`
 between iterations (at most :data:`MAX_ITER`). A zero weight (Tukey) takes
 the component out of the fit.
 
-Covariance: the M-estimator sandwich H^-1 B H^-T clustered by test, with the
-cluster jackknife as small-sample correction and Student t intervals with G - p
-degrees of freedom (:mod:`analysis.identification.estimators.robust_covariance`).
+Covariance: the M-estimator sandwich H^-1 B H^-T, its meat each test's score covariance
+under the noise model times a scale estimated from that test, and Student t intervals
+with per-joint Satterthwaite degrees of freedom
+(:mod:`analysis.identification.estimators.robust_covariance`).
 ``ols`` is the unweighted fit with the robust weights (min sum w e^2), its weights
 from the same whitened residuals.
 """
