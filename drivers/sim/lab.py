@@ -86,9 +86,10 @@ class Lab:
 
             return FakeNetFT(self.world)
         if name == "robotiq-ft300":
-            from drivers.sim.fake_ft300 import FakeFT300
+            from drivers.sim.fake_ft300 import FakeFT300, stream_rate
 
-            return FakeFT300(self.world)
+            # 100 Hz of simulated time: a sped-up lab streams faster (capped)
+            return FakeFT300(self.world, stream_rate(self.settings.time_scale))
         if name == "ati-netcan":
             from drivers.sim.fake_netcan import FakeNetCAN
 
