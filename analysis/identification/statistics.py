@@ -16,8 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identification.linalg import lsq
-from analysis.identification.linalg.lsq import TallR, blocks_of_tests, stack_matrix, whitening
+from analysis.identification.linalg.lsq import StackedRows, blocks_of_tests, whitening
 from analysis.identification.linalg.sandwich import sandwich_and_residual_variance
 from analysis.identification.uncertainty import chi2_summary
 
@@ -97,18 +96,15 @@ def held_statistics(problem, outcome) -> FitStatistics:
     cov_x, var_r = sandwich_and_residual_variance(chosen.A, chosen.cov, chosen.bread,
                                                   chosen.Linv)
     # the fit's own whitening when it used the same components, else made block by
-    # block (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the R of
-    # the whitened system, for its scaled condition without the (6m, p) Linv A
+    # block (an (m, 6, 6) array is 0.3 GB at 1e6 tests); the same pass gives the whitened
+    # system (a tall one's R), for its scaled condition without the (6m, p) Linv A
     own = chosen.Linv if outcome.robust is None and chosen.Linv is not None else None
-    acc = TallR() if tests.m > lsq.TEST_BLOCK else None
+    acc = StackedRows(6 * tests.m)
     chi2 = 0.0
     for sl in blocks_of_tests(tests.m):
         Lb = own[sl] if own is not None else whitening(chosen.cov[sl], kept[sl])
         rb = np.where(kept[sl], tests.d[sl] - chosen.predicted[sl], 0.0)
         chi2 += float(np.sum(np.einsum("mij,mj->mi", Lb, rb) ** 2))
-        if acc is not None:
-            acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
+        acc.add((Lb @ chosen.A[sl]).reshape(-1, p))
     chi2_red, p_value = chi2_summary(chi2, dof)
-    Aw = acc.r() if acc is not None else stack_matrix(
-        (own if own is not None else whitening(chosen.cov, kept)) @ chosen.A)
-    return FitStatistics(cov_x, var_r, chi2_red, p_value, dof, Aw)
+    return FitStatistics(cov_x, var_r, chi2_red, p_value, dof, acc.matrix())

@@ -15,14 +15,7 @@ from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv
 from analysis.identification.estimators.fit import Fit
 from analysis.identification.estimators.gauss_newton import gauss_newton
 from analysis.identification.estimators.linear_model import jacobian_blocks, tests_design
-from analysis.identification.linalg import lsq
-from analysis.identification.linalg.lsq import (
-    qr_solve,
-    stack_matrix,
-    stack_vector,
-    whitened_lstsq,
-    whitening,
-)
+from analysis.identification.linalg.lsq import solve_blocks, whitening
 from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming.covariances import (
     covariance_and_whitening,
@@ -64,11 +57,7 @@ def _linear_estimator(A, d, measured, cov, weighted: bool, Linv=None):
         Linv = whitening(cov, measured)
     elif not weighted:
         Linv = None
-    if A.shape[0] * 6 > lsq.TALL_ROWS:
-        x, bread = whitened_lstsq(A, dz, Linv)  # blockwise: no stacked (6m, p) copy
-        return x, bread, Linv
-    Aw, dw = (A, dz) if Linv is None else (Linv @ A, np.einsum("...ij,...j->...i", Linv, dz))
-    x, bread, _ = qr_solve(stack_matrix(Aw), stack_vector(dw), with_pinv=False)
+    x, bread = solve_blocks(A, dz, Linv)
     return x, bread, Linv
 
 

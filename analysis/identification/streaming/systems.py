@@ -21,13 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.linalg import lsq
-from analysis.identification.linalg.lsq import (
-    qr_solve,
-    stack_matrix,
-    stack_vector,
-    whitened_lstsq,
-    whitening,
-)
+from analysis.identification.linalg.lsq import solve_blocks, whitening
 from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming import blocks, per_test
 from analysis.identification.streaming.blocks import model_in_blocks
@@ -93,13 +87,6 @@ class LinearisedSystems(ABC):
         that do not stream refuse ``rows``: they make no final pass)."""
 
 
-def defined(Aw: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Aw with the systems of invalid campaigns replaced by I (keeps their QR defined)."""
-    if np.all(valid):
-        return Aw  # no copy (one campaign of 1e6 tests: 0.3 GB)
-    return np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))
-
-
 class HeldSystems(LinearisedSystems):
     """The linearised systems of :func:`gauss_newton` from held arrays: F (..., m, 6, p)
     and the whitening (..., m, 6, 6) of every test (small campaigns, batches of them)."""
@@ -133,14 +120,9 @@ class HeldSystems(LinearisedSystems):
     def solve(self, state, valid):
         """Gauss-Newton step, (F^T W F)^-1 and the cost sum r^T W r at ``state``."""
         c = self.c
-        F, f, Linv = state.F, state.f, self.Linv
-        r = c.whitened(Linv, f)
-        if F.ndim == 3 and F.shape[0] * 6 > lsq.TALL_ROWS and np.all(valid):
-            # one large campaign: blockwise, without the stacked (6m, p) Linv F
-            step, cov_unit = whitened_lstsq(F, np.where(c.measured, c.dz - f, 0.0), Linv)
-        else:
-            Aw = defined(stack_matrix(Linv @ F), valid)
-            step, cov_unit, _ = qr_solve(Aw, stack_vector(r), with_pinv=False)
+        rhs = np.where(c.measured, c.dz - state.f, 0.0)
+        r = np.einsum("...ij,...j->...i", self.Linv, rhs)  # whitened (the cost's residuals)
+        step, cov_unit = solve_blocks(state.F, rhs, self.Linv, valid, Lr=r)
         return step, cov_unit, np.sum(r**2, axis=(-2, -1))
 
     def final(self, x, state, valid, rows=None, values: bool = True):
