@@ -189,10 +189,16 @@ def correct_linear_bias(robot: RobotModel, tests: TestArrays, joints: tuple[int,
 def corrected_fit(fit, c: BiasCorrection):
     """``fit`` as the residuals see it after the correction ``c``: where ``c`` is reliable,
     a new fit whose ``predicted`` is the exact model's f(x_c) (chi-square, outliers,
-    notes), else ``fit`` itself (its A x_hat)."""
+    notes), else the linear model's A x_hat (``fit`` itself, or, when its prediction was
+    let go during the correction, a new fit with it made again: no (m, 6) array held
+    beside f(x_c) while the correction runs)."""
     from dataclasses import replace
 
-    return replace(fit, predicted=c.predicted) if c.reliable else fit
+    from analysis.identification.streaming.per_test import apply
+
+    if c.reliable:
+        return replace(fit, predicted=c.predicted)
+    return fit if fit.predicted is not None else replace(fit, predicted=apply(fit.A, fit.x))
 
 
 def summary(c: BiasCorrection, se_raw: np.ndarray, se: np.ndarray) -> dict:
