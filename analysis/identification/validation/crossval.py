@@ -27,8 +27,6 @@ by bincount).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pandas as pd
 
@@ -45,6 +43,7 @@ from analysis.identification.linalg.sandwich import sandwich_and_residual_varian
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.identification.poses import group_names, pose_groups, pose_tolerance
 from analysis.identification.validation.downdate import downdate_folds, system_of, with_total
+from analysis.identification.validation.folds import Folds
 from analysis.identification.validation.holdout_check import (
     CLUSTER_DEG,
     PredictiveSums,
@@ -59,24 +58,6 @@ from analysis.model.robot_model import RobotModel
 EXACT_REFITS_MAX = 50
 ONE_STEP_NOTE = ("one Gauss-Newton step from the full-data estimate (more than "
                  f"{EXACT_REFITS_MAX} poses)")
-
-
-@dataclass(frozen=True)
-class _Folds:
-    """What every path of one validation shares: the robot, tests, estimator
-    (``method``), joints (0-based) and noise model of the fit validated, the tests' folds
-    ``group`` (m,) and pose groups ``poses`` (m,), the folds' names, and the tests'
-    Jacobians ``J`` (None: made where needed)."""
-
-    robot: RobotModel
-    tests: TestArrays
-    method: str
-    joints: tuple[int, ...]
-    noise: NoiseModel
-    group: np.ndarray
-    poses: np.ndarray
-    names: list
-    J: object = None
 
 
 def _rms(values: np.ndarray) -> float:
@@ -117,7 +98,7 @@ def leave_one_pose_out(
     if group is None:
         radius = CLUSTER_DEG * np.pi / 180.0 if cluster_rad is None else cluster_rad
         group = holdout_folds(tests.q, poses, radius)
-    folds = _Folds(robot, tests, method, tuple(joints), noise, group, poses,
+    folds = Folds(robot, tests, method, tuple(joints), noise, group, poses,
                    group_names(tests.pose, group), J)
     table = _leave_out(folds, batched, max_exact_refits, full_fit, fold_sums, linear_shift)
     if table is None:
@@ -143,7 +124,7 @@ def _deg(radius: float | None) -> str:
     return f"{CLUSTER_DEG if radius is None else radius * 180.0 / np.pi:g} deg"
 
 
-def _leave_out(folds: _Folds, batched, max_exact_refits, full_fit, fold_sums,
+def _leave_out(folds: Folds, batched, max_exact_refits, full_fit, fold_sums,
                linear_shift) -> pd.DataFrame | None:
     """The table of :func:`leave_one_pose_out` over the folds ``folds.group`` (m,) ints.
 
@@ -185,11 +166,10 @@ def _leave_out(folds: _Folds, batched, max_exact_refits, full_fit, fold_sums,
     return _refit_each(folds, start, linear_shift)
 
 
-def _batched_ols(folds: _Folds, full_fit, linear_shift) -> pd.DataFrame | None:
+def _batched_ols(folds: Folds, full_fit, linear_shift) -> pd.DataFrame | None:
     """Every OLS fold by downdates of the full system (:func:`downdate_folds`), or None
     when the row checks refuse the tests (the reference path then names the folds)."""
-    robot, tests, joints, noise = folds.robot, folds.tests, folds.joints, folds.noise
-    poses = folds.poses
+    robot, tests, joints, poses = folds.robot, folds.tests, folds.joints, folds.poses
     try:
         # row checks hold for every subset then
         check_tests(robot, tests, joints, group=poses)
@@ -209,15 +189,14 @@ def _batched_ols(folds: _Folds, full_fit, linear_shift) -> pd.DataFrame | None:
         offset = (full_fit.predicted, full_fit.x + linear_shift[0])
         rhs = _LessOffset(tests.d, A, *offset)
         shift = (np.zeros(len(joints)), linear_shift[1])
-    table = downdate_folds(robot, tests, folds.group, folds.names, joints, noise, A, rhs,
-                           np.zeros(len(joints)), folds.method, linear_shift=shift,
+    table = downdate_folds(folds, A, rhs, np.zeros(len(joints)), linear_shift=shift,
                            offset=offset)
     if linear_shift is not None:
         table["note"] = [n or SHIFT_NOTE for n in table["note"]]
     return table
 
 
-def _batched_exact(folds: _Folds, full_fit, fold_sums, max_exact_refits):
+def _batched_exact(folds: Folds, full_fit, fold_sums, max_exact_refits):
     """(start, table): the full-data exact estimate (None when it cannot be fitted) and,
     with more than ``max_exact_refits`` poses, every fold by one Gauss-Newton step from
     it (:func:`downdate_folds`), else None (each fold is refitted from ``start``)."""
@@ -235,17 +214,15 @@ def _batched_exact(folds: _Folds, full_fit, fold_sums, max_exact_refits):
         sums = None if fold_sums is None else fold_sums.folds
         # the residuals are only read when the folds are summed here (48 MB at 1e6)
         resid = None if sums is not None else tests.d - full.predicted
-        table = downdate_folds(robot, tests, folds.group, folds.names, joints, noise,
-                               full.A, resid, full.x, folds.method, dq0=full.deflection,
-                               Linv=full.Linv,
-                               system=system_of(full), sums=sums, shift=full.eiv_shift,
-                               J=J)
+        table = downdate_folds(folds, full.A, resid, full.x, dq0=full.deflection,
+                               Linv=full.Linv, system=system_of(full), sums=sums,
+                               shift=full.eiv_shift)
         table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
         return start, table
     return start, None
 
 
-def _refit_each(folds: _Folds, start, linear_shift) -> pd.DataFrame:
+def _refit_each(folds: Folds, start, linear_shift) -> pd.DataFrame:
     """The reference path: every fold refitted (exact: from ``start`` when given) and its
     held-out tests predicted; a fold that cannot be fitted gets its refusal as note."""
     robot, tests, group, names = folds.robot, folds.tests, folds.group, folds.names
