@@ -198,3 +198,38 @@ def test_a_process_started_in_a_fake_run_inherits_its_mode(monkeypatch):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=60, env=env).stdout
     assert out.startswith("ConnectionFailed") and "192.168.1.1" in out, out
+
+
+def test_two_acquisition_jobs_in_threads_fake_and_hardware(monkeypatch, tmp_path):
+    """The GUI's thread-mode jobs: a fake acquisition and a hardware one run at once in
+    two threads of one process; inside its session each sees its own mode, and the fake
+    one's drivers refuse 192.168.x."""
+    import campaign.acquire.session as session
+    from campaign.jobs import acquire
+
+    both_inside = threading.Barrier(2, timeout=10)
+    seen, refused = {}, {}
+
+    class Outcome:
+        status, reason, run_dir, ok, failed, exported = "complete", "", tmp_path, 0, 0, None
+
+    def fake_session(plan, out, resume, opts, *a, **k):
+        both_inside.wait()
+        seen[opts.fake] = loopback_only()
+        if opts.fake:
+            with pytest.raises(ConnectionFailed, match="not a loopback address"):
+                open_driver("ati-netft", "udp://192.168.1.1:49152").connect()
+            refused[opts.fake] = True
+        both_inside.wait()
+        return Outcome()
+
+    monkeypatch.delenv(ENV)
+    monkeypatch.setattr(session, "acquire", fake_session)
+
+    def job(fake):
+        return lambda: acquire.run(acquire.AcquireJobOptions(
+            plan=tmp_path, out=tmp_path / f"run-{fake}", fake=fake, assume_yes=True),
+            say=lambda s: None)
+
+    _in_threads(job(True), job(False))
+    assert seen == {True: True, False: False} and refused == {True: True}
