@@ -1,54 +1,140 @@
-"""A seeded ``acquire --fake`` gives the same tests.csv every time.
+"""A seeded ``acquire --fake`` (and ``campaign demo``) gives the same tests.csv, byte for byte.
 
 Every reading of the simulated lab draws its noise from a generator seeded by
-(seed, instrument, test, repeat, attempt, phase, window, sample), and the
-settling ends exactly six time constants after a change, so neither the order
-in which the fakes' threads run, the number of settling reads nor the time scale
-changes a measured number. What differs between two runs is the wall-clock time stamp
-``t_utc`` (the last column) and, in samples.jsonl, the time stamps and the
-number of settling reads.
+(seed, instrument, test, repeat, attempt, phase, window, sample), the settling ends
+exactly six time constants after a change, and the readings are stamped by the lab's
+own clock (:mod:`campaign.acquire.clock`: from 2000-01-01T00:00:00 UTC, advanced by
+simulated motion, settling and sampling durations only), so neither the order in which
+the fakes' threads run, the number of settling reads, the time scale nor a ``kill -9``
+and ``--resume`` changes a byte of tests.csv. What differs between two runs: the
+wall-clock records (metadata.json ``started_utc``, ``ended_utc``, ``sessions``, the
+lab's port numbers, ``command``; events.jsonl) and, in samples.jsonl, the number of
+settling reads.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import signal
+import subprocess
+import sys
 import threading
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from campaign.acquire.clock import SIM_EPOCH_UTC
 from drivers.sim.noise import NoiseStreams
 from drivers.sim.settings import LabSettings
 from drivers.sim.world import SETTLED_AFTER, World
+from tests.acquire.conftest import ROOT, variant
 
 pytestmark = pytest.mark.timeout(240)
 
 
-def _without_time_stamps(text: str) -> list[str]:
-    lines = text.splitlines()
-    assert lines[0].endswith(",t_utc"), lines[0]
-    return [line.rsplit(",", 1)[0] for line in lines]
+def _acquire(args: list[str]) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "campaign", "acquire", *args, "--fake",
+                             "--yes", "--quiet"], cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
 
 
-def test_seeded_fake_acquisition_gives_the_same_tests_csv_twice(kr240_plan, make_variant,
-                                                                tmp_path, cli):
-    plan = make_variant(kr240_plan, tmp_path / "plan", repeats=1)
-    texts = []
-    # two time scales: the numbers follow neither the wall clock nor the threads' order
-    for name, scale in (("a", "200"), ("b", "120")):
-        done = cli("acquire", "--plan", str(plan), "--fake", "--yes", "--quiet", "--out",
-                   str(tmp_path / name), "--time-scale", scale)
-        assert done.returncode == 0, done.stderr
-        texts.append((tmp_path / name / "tests.csv").read_text())
-    a, b = (_without_time_stamps(t) for t in texts)
-    assert len(a) == 6 and all(",ok," in row for row in a[1:]), a
-    assert a == b  # every byte but the time stamps
-    assert texts[0] != texts[1]  # the time stamps are the wall clock's
+def _done(proc: subprocess.Popen) -> None:
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+
+
+@pytest.fixture(scope="module")
+def seeded_run(kr240_plan, tmp_path_factory) -> tuple[Path, Path]:
+    """(plan, run) of the KR240-2 plan with one repeat (5 measurements) acquired on the
+    simulated lab at time scale 200, uninterrupted."""
+    base = tmp_path_factory.mktemp("repro")
+    plan = variant(kr240_plan, base / "plan", repeats=1)
+    _done(_acquire(["--plan", str(plan), "--out", str(base / "a"), "--time-scale", "200"]))
+    return plan, base / "a"
+
+
+def test_seeded_fake_acquisition_gives_the_same_tests_csv_twice(seeded_run, tmp_path):
+    plan, run_a = seeded_run
+    # another time scale: the numbers and stamps follow neither the wall clock nor the
+    # threads' order
+    _done(_acquire(["--plan", str(plan), "--out", str(tmp_path / "b"), "--time-scale", "120"]))
+    a = (run_a / "tests.csv").read_bytes()
+    assert a == (tmp_path / "b" / "tests.csv").read_bytes()
+    rows = a.decode().splitlines()
+    header = rows[0].split(",")
+    assert len(rows) == 6 and all(",ok," in row for row in rows[1:]), rows
+    # the stamps are the lab's clock: after its epoch, increasing, a few tens of seconds
+    # of robot time per measurement (3 settlings of 6.6 s, motions at 10 deg/s or more)
+    assert header[-1] == "t_utc"
+    from datetime import datetime
+
+    epoch = datetime.fromisoformat(SIM_EPOCH_UTC)
+    t = np.array([(datetime.fromisoformat(r.split(",")[-1]) - epoch).total_seconds()
+                  for r in rows[1:]])
+    assert t[0] > 3 * 6.6 and np.all(np.diff(t) > 3 * 6.6) and t[-1] < 5 * 120, t
+    meta = json.loads((run_a / "metadata.json").read_text())
+    assert meta["time_stamps"]["clock"] == "simulated"
+    assert meta["time_stamps"]["epoch_utc"] == SIM_EPOCH_UTC
+    assert meta["started_utc"][:4] != "2000"  # the session's wall clock stays
     # the numbers carry the lab's noise (not a noise-free lab that repeats trivially):
     # the tracker's repeatability is of the order of its 30 um noise, never 0
-    rep = [float(r.split(",")[23]) for r in a[2:] if r.split(",")[23]]
-    header = a[0].split(",")
     assert header[23] == "repeatability_mm"
+    rep = [float(r.split(",")[23]) for r in rows[2:] if r.split(",")[23]]
     assert all(0 < v < 0.2 for v in rep), rep
+    # samples.jsonl: every reading but the settling reads is the same, stamps included
+    def readings(run):
+        lines = (run / "samples.jsonl").read_text().splitlines()
+        out = []
+        for line in lines:
+            rec = json.loads(line)
+            if rec["quantity"] != "point":
+                out.append(line)
+        return out
+
+    assert readings(run_a) == readings(tmp_path / "b")
+
+
+def _lines(path: Path) -> int:
+    try:
+        return path.read_bytes().count(b"\n")
+    except FileNotFoundError:
+        return 0
+
+
+def _kill_in_test(proc: subprocess.Popen, run: Path, rows: int, after: int) -> None:
+    """kill -9 ``proc`` ``after`` lines of samples.jsonl after tests.csv has ``rows`` rows."""
+    deadline = time.monotonic() + 90
+    mark = None
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, "the run ended before the kill"
+        n = _lines(run / "samples.jsonl")
+        if mark is None and _lines(run / "tests.csv") - 1 >= rows:
+            mark = n
+        if mark is not None and n >= mark + after:
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait()
+            return
+        time.sleep(0.001)
+    proc.kill()
+    raise AssertionError("acquire did not progress")
+
+
+def test_kill9_and_resume_gives_the_same_tests_csv(seeded_run, tmp_path):
+    plan, run_a = seeded_run
+    run = tmp_path / "run"
+    # killed twice: in the second measurement (3 readings in, before its load) and 20
+    # readings into the fourth, at time scales slow enough to land there
+    proc = _acquire(["--plan", str(plan), "--out", str(run), "--time-scale", "50"])
+    _kill_in_test(proc, run, rows=1, after=3)
+    proc = _acquire(["--resume", str(run), "--time-scale", "80"])
+    _kill_in_test(proc, run, rows=3, after=20)
+    _done(_acquire(["--resume", str(run), "--time-scale", "200"]))
+    meta = json.loads((run / "metadata.json").read_text())
+    assert meta["status"] == "complete" and len(meta["sessions"]) == 3
+    assert (run / "tests.csv").read_bytes() == (run_a / "tests.csv").read_bytes()
 
 
 def test_noise_streams_do_not_depend_on_the_order_of_the_threads():
