@@ -127,9 +127,9 @@ def test_kill9_and_resume_gives_the_same_tests_csv(seeded_run, tmp_path):
     run = tmp_path / "run"
     # killed twice: in the second measurement (3 readings in, before its load) and 20
     # readings into the fourth, at time scales slow enough to land there
-    proc = _acquire(["--plan", str(plan), "--out", str(run), "--time-scale", "50"])
+    proc = _acquire(["--plan", str(plan), "--out", str(run), "--time-scale", "100"])
     _kill_in_test(proc, run, rows=1, after=3)
-    proc = _acquire(["--resume", str(run), "--time-scale", "80"])
+    proc = _acquire(["--resume", str(run), "--time-scale", "150"])
     _kill_in_test(proc, run, rows=3, after=20)
     _done(_acquire(["--resume", str(run), "--time-scale", "200"]))
     meta = json.loads((run / "metadata.json").read_text())
@@ -220,3 +220,64 @@ def test_control_channel_mark_sets_the_context_of_the_noise():
     for bad in ([-1], "loaded", [1.5], [True]):
         reply = handle_command(world, {"cmd": "mark", "context": bad}, {})
         assert not reply["ok"] and "context" in reply["error"], reply
+
+
+#: metadata.json keys that are the session's wall clock or where it ran (lab ports, paths)
+WALL_CLOCK_AND_IDENTITY = ("started_utc", "ended_utc", "sessions", "instruments",
+                           "plan_source", "protocol_source", "command")
+
+
+def _demo(out: Path, protocol: Path):
+    from campaign.jobs import demo
+
+    result = demo.run(demo.DemoOptions(out=out, protocol=protocol, report=False, tests=3,
+                                       candidates=300, time_scale=300))
+    assert result.succeeded, result.acquisition.reason
+    return result
+
+
+def test_demo_twice_gives_the_same_bytes_and_another_seed_other_numbers(tmp_path):
+    from analysis.report.summary import CampaignInfo, summary_table
+    from campaign.protocol import load_protocol
+    from campaign.run_format.reader import read_run
+    from campaign.run_format.trace import run_trace
+
+    text = (ROOT / "protocols" / "kr240-2.toml").read_text()
+    assert text.count("\nseed = 1\n") == 1
+    seeds = {}
+    for seed in (1, 2):
+        seeds[seed] = tmp_path / f"seed{seed}.toml"
+        seeds[seed].write_text(text.replace("\nseed = 1\n", f"\nseed = {seed}\n"))
+    one, two, other = (tmp_path / n for n in ("one", "two", "other"))
+    _demo(one, seeds[1])
+    _demo(two, seeds[1])
+    _demo(other, seeds[2])
+    # byte for byte: the plan, the measurements and every result (the report ID, a hash
+    # of the inputs and results, too)
+    for name in ("plan/plan.csv", "run/tests.csv", "run/tests.parquet",
+                 "run/analysis/results.json", "run/analysis/residuals.csv",
+                 "run/analysis/validation.csv"):
+        assert (one / name).read_bytes() == (two / name).read_bytes(), name
+    # the run's metadata differs in the session's wall-clock records and where it ran only
+    meta = [json.loads((d / "run" / "metadata.json").read_text()) for d in (one, two)]
+    assert meta[0]["started_utc"] != meta[1]["started_utc"]
+    for m in meta:
+        for key in WALL_CLOCK_AND_IDENTITY:
+            m.pop(key)
+    assert meta[0] == meta[1]
+    # another seed: the same plan and clock, other noise, other numbers
+    assert (one / "plan/plan.csv").read_bytes() == (other / "plan/plan.csv").read_bytes()
+    rows = [(d / "run/tests.csv").read_text().splitlines() for d in (one, other)]
+    for a, b in zip(rows[0][1:], rows[1][1:], strict=True):
+        a, b = a.split(","), b.split(",")
+        assert a[:7] == b[:7] and a[-1] == b[-1]  # pose, joint angles, time stamp
+        assert all(x != y for x, y in zip(a[13:16], b[13:16], strict=True))  # dx, dy, dz
+    k = [json.loads((d / "run/analysis/results.json").read_text()) for d in (one, other)]
+    assert all(a != b for a, b in zip(*(r["joint_stiffness_Nm_per_rad"] for r in k),
+                                      strict=True))
+    # the report's Campaign table says the time stamps are simulated
+    run = read_run(one / "run", export=False)
+    info = CampaignInfo(source="run", location=str(run.path), robot="KUKA KR240-2",
+                        **run_trace(run, load_protocol(one / "run" / "protocol.toml")))
+    rows = {r[0]: r[1] for r in summary_table(info).rows}
+    assert "SIMULATED lab clock from 2000-01-01T00:00:00Z" in rows["time stamps"], rows
