@@ -194,6 +194,31 @@ def test_world_readings_are_the_same_whatever_other_threads_draw():
     assert np.all((spread > 1e-6) & (spread < 5e-5)), spread
 
 
+def test_polled_joint_angles_do_not_depend_on_the_number_of_polls():
+    # the UR fake polls the world's state every 5 ms: its encoder noise is one draw held
+    # per phase, not the n-th sample of a count that follows the wall clock
+    def polled(polls: int) -> np.ndarray:
+        world = World(LabSettings(seed=5, time_scale=1e6, encoder_noise=2e-6,
+                                  can_interface="virtual"))
+        world.noise_streams.mark(2, 1, 1, "move")
+        for _ in range(polls):
+            world.state()
+        return np.asarray(world.state()["q"])
+
+    once, many = polled(0), polled(40)
+    assert np.array_equal(once, many)
+    world = World(LabSettings(seed=5, time_scale=1e6, encoder_noise=2e-6,
+                              can_interface="virtual"))
+    q_cmd = world._q_cmd.copy()
+    # the held noise is the encoder noise (2 urad), and another phase draws another one
+    assert 0 < np.max(np.abs(once - q_cmd)) < 6 * 2e-6
+    world.noise_streams.mark(2, 1, 1, "loaded")
+    other = np.asarray(world.state()["q"])
+    assert not np.array_equal(other, once)
+    # a request/response fake still reads the next sample of its stream each time
+    assert not np.array_equal(world.joint_angles("kvp"), world.joint_angles("kvp"))
+
+
 def test_settling_is_exactly_over_after_six_time_constants():
     world = World(LabSettings(seed=0, time_scale=1.0, settle_time=0.5, can_interface="virtual"))
     world.apply_load(np.array([0.0, 2000.0, 2000.0, 100.0, 0.0, 0.0]))
