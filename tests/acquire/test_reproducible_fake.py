@@ -306,3 +306,40 @@ def test_demo_twice_gives_the_same_bytes_and_another_seed_other_numbers(tmp_path
                         **run_trace(run, load_protocol(one / "run" / "protocol.toml")))
     rows = {r[0]: r[1] for r in summary_table(info).rows}
     assert "SIMULATED lab clock from 2000-01-01T00:00:00Z" in rows["time stamps"], rows
+
+
+def test_simulated_clock_resumes_exactly_and_refuses_a_bad_stamp(tmp_path):
+    from types import SimpleNamespace
+
+    from analysis.errors import InputError
+    from campaign.acquire.clock import SimulatedClock
+    from campaign.acquire.rundir import TEST_COLUMNS
+    from campaign.acquire.session import run_clock
+    from campaign.protocol import load_protocol
+    from campaign.protocol_robot import protocol_robot
+
+    clock = SimulatedClock(speed=0.5, acceleration=1.0, settle_s=6.6, interval_s=0.4)
+    clock.move(np.zeros(6))  # the first motion counts 0
+    assert clock.stamp() == SIM_EPOCH_UTC
+    clock.move(np.array([0.0, 1.0, 0, 0, 0, 0]))  # 1 rad: 1 / 0.5 + 0.5 / 1 = 2.5 s
+    clock.settle_start()
+    for _ in range(30):  # more readings than the phase holds: the last ones at its end
+        clock.settle_read()
+    assert clock.stamp() == "2000-01-01T00:00:09.100000+00:00"
+    clock.settle_end()
+    clock.wait(0.1)
+    again = SimulatedClock(speed=0.5, acceleration=1.0, settle_s=6.6, interval_s=0.4)
+    again.resume(clock.stamp(), clock.q_last)
+    assert again.now_us == clock.now_us == 9_200_000
+    protocol = load_protocol(ROOT / "protocols" / "kr240-2.toml")
+    row = dict.fromkeys(TEST_COLUMNS, "1")
+    row.update(status="ok", flags="", t_utc="yesterday")
+    (tmp_path / "tests.csv").write_text(",".join(TEST_COLUMNS) + "\n"
+                                        + ",".join(row[c] for c in TEST_COLUMNS) + "\n")
+    run = SimpleNamespace(path=tmp_path, metadata={"time_stamps": {"clock": "simulated"}})
+    with pytest.raises(InputError, match=r"tests\.csv: line 2: t_utc 'yesterday' is not an "
+                                         "ISO 8601 time"):
+        run_clock(run, protocol, protocol_robot(protocol), [], 0.5)
+    # a run without time_stamps (hardware, or written before the lab's clock): wall clock
+    run.metadata = {}
+    assert not run_clock(run, protocol, protocol_robot(protocol), [], 0.5).simulated
