@@ -312,7 +312,7 @@ def test_simulated_clock_resumes_exactly_and_refuses_a_bad_stamp(tmp_path):
     from types import SimpleNamespace
 
     from analysis.errors import InputError
-    from campaign.acquire.clock import SimulatedClock
+    from campaign.acquire.clock import SimulatedClock, describe
     from campaign.acquire.rundir import TEST_COLUMNS
     from campaign.acquire.session import run_clock
     from campaign.protocol import load_protocol
@@ -341,5 +341,7 @@ def test_simulated_clock_resumes_exactly_and_refuses_a_bad_stamp(tmp_path):
                                          "ISO 8601 time"):
         run_clock(run, protocol, protocol_robot(protocol), [], 0.5)
     # a run without time_stamps (hardware, or written before the lab's clock): wall clock
-    run.metadata = {}
-    assert not run_clock(run, protocol, protocol_robot(protocol), [], 0.5).simulated
+    for meta in ({}, {"time_stamps": describe(False)}):
+        run.metadata = meta
+        wall = run_clock(run, protocol, protocol_robot(protocol), [], 0.5)
+        assert not wall.simulated and wall.stamp(946684800.25) == "2000-01-01T00:00:00.250000+00:00"
