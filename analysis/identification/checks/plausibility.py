@@ -101,7 +101,7 @@ def _linear_bias_unreliable(result: IdentificationResult) -> bool:
 def _misfit_causes(result: IdentificationResult) -> tuple[str, ...]:
     """CAUSES_MISFIT, led by the linear model when its bias correction was unreliable (the
     residuals are then the raw linear fit's) and by the rigid wrist when the fit is the
-    translational-only variant."""
+    translational-only variant, or by the joints taken as rigid when --joints left some out."""
     first = []
     if _linear_bias_unreliable(result):
         first.append(f"the linear model of {result.method} at these loads (its residuals "
@@ -109,6 +109,12 @@ def _misfit_causes(result: IdentificationResult) -> tuple[str, ...]:
                      "exact)")
     if any(w.startswith("translational-only variant") for w in result.warnings):
         first.append(CAUSE_RIGID_WRIST)
+    elif len(result.joints) < len(result.k):
+        rigid = ", ".join(str(j + 1) for j in range(len(result.k)) if j not in result.joints)
+        first.append(
+            f"joint(s) {rigid} taken as rigid (--joints): a compliant joint fitted as rigid "
+            "moves P under load without the model seeing it; identify all of them (--joints "
+            f"{','.join(str(j + 1) for j in range(len(result.k)))}) or the ones the data can")
     return (*first, *CAUSES_MISFIT)
 
 
