@@ -54,6 +54,10 @@ def test_method_and_acceptance_are_read_from_results_json(tmp_path):
     p.write_text(json.dumps(doc))
     c = load_campaign(p)
     assert c.method == "wls" and c.accepted is True and c.joints == (0, 1, 2)
+    doc["robust"] = {"method": "huber", "constant": 1.345}
+    p.write_text(json.dumps(doc))
+    assert load_campaign(p).method == "wls, huber"
+    doc["robust"] = None
     doc["misfit_accepted"] = {"accepted": False, "problems": []}
     del doc["method"]
     p.write_text(json.dumps(doc))
