@@ -28,8 +28,9 @@ class Campaign:
     cov_x (n, n) compliance covariance ((rad/(N m))^2, zero for joints not identified);
     joints : 0-based identified joints; model : model.toml beside it (mapping) or None;
     tests_data : results.json ``tests_data`` (:mod:`analysis.identification.io.data_fingerprint`),
-    None when the file predates it; method : the estimator named in results.json (None when
-    absent); accepted : the result was kept despite a refusal (``misfit_accepted``).
+    None when the file predates it; method : the estimator named in results.json, with its
+    robust mode when there is one, e.g. "exact, huber" (None when absent); accepted : the
+    result was kept despite a refusal (``misfit_accepted``).
     """
 
     source: str
@@ -184,6 +185,10 @@ def load_campaign(path: str | Path) -> Campaign:
     with np.errstate(divide="ignore", invalid="ignore"):
         x = np.where(np.isfinite(k) & (k > 0), 1.0 / k, np.nan)
     method = doc.get("method")
+    robust = doc.get("robust")
+    if isinstance(method, str) and isinstance(robust, dict) and isinstance(
+            robust.get("method"), str):
+        method = f"{method}, {robust['method']}"
     accepted = doc.get("misfit_accepted")
     return Campaign(where, robot, k, x, cov, joints, _model(rp.parent / "model.toml"),
                     _tests_data(doc, where), method if isinstance(method, str) else None,
