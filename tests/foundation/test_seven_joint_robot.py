@@ -46,6 +46,22 @@ def test_seven_joints_refused_in_one_line(tmp_path, capsys, args):
                    watch=[tmp_path])
 
 
+def test_analyze_refuses_before_printing_its_assumptions(tmp_path, capsys):
+    """analyze names the joint count first (it printed the assumptions of a six-joint fit,
+    "joints all six", before "the test format has 6")."""
+    urdf = tmp_path / "arm7.urdf"
+    urdf.write_text(_urdf(7), encoding="utf-8")
+    csv = tmp_path / "tests.csv"
+    csv.write_text("pose,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,fx_N,fy_N,fz_N,mx_Nm,"
+                   "my_Nm,mz_Nm,dx_mm,dy_mm,dz_mm,rx_mrad,ry_mrad,rz_mrad\n"
+                   "1,0,30,0,-60,0,60,0,10,10,1,1,0,0.1,0.1,0.1,,,\n", encoding="utf-8")
+    out = tmp_path / "out"
+    assert_refused(capsys, ["analyze", "--measurements", str(csv), "--robot", f"{urdf}#tip",
+                            "--out", str(out), "--no-report"],
+                   "--robot: arm7 has 7 joints: this method needs a six-joint arm",
+                   watch=[tmp_path])
+
+
 def test_the_same_file_with_six_joints_is_accepted(tmp_path, capsys):
     """The refusal is about the joint count, not the hand-written URDF."""
     import json
