@@ -9,6 +9,7 @@ noise model's noise (joint angles, wrench, displacement).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -19,6 +20,36 @@ from analysis.kinetostatics.equilibrium import displacement_screw
 from analysis.model.robots import load_robot
 
 
+class Draws(NamedTuple):
+    """The random part of a simulated campaign, drawn in this order from one generator."""
+
+    index: np.ndarray        #: (n,) pose of each test (row of ``poses``)
+    poses: np.ndarray        #: (P, 6) true joint angles, rad
+    wrench: np.ndarray       #: (n, 6) true wrench, N and N m
+    e_d: np.ndarray          #: (n, 6) displacement noise, m and rad
+    e_w: np.ndarray          #: (n, 6) wrench noise, N and N m
+    e_q: np.ndarray          #: (n, 6) encoder noise, rad
+
+
+def simulated_draws(robot, n: int, per_pose: int = 10, seed: int = 0,
+                    noise: NoiseModel | None = None) -> Draws:
+    """Poses, loads and noise of :func:`simulated_tests`: the same numbers for the same
+    (n, per_pose, seed), whatever the noise figures (a zero figure gives zero noise)."""
+    rng = np.random.default_rng(seed)
+    n_poses = max(3, -(-n // per_pose))
+    qp = sample_poses(robot, n_poses, rng)
+    idx = np.repeat(np.arange(n_poses), per_pose)[:n]
+    f = rng.normal(size=(n, 3))
+    f *= rng.uniform(1000, 2500, (n, 1)) / np.linalg.norm(f, axis=1, keepdims=True)
+    mo = rng.normal(size=(n, 3))
+    mo *= rng.uniform(100, 300, (n, 1)) / np.linalg.norm(mo, axis=1, keepdims=True)
+    noise = NoiseModel() if noise is None else noise
+    e_d = rng.normal(size=(n, 6)) * noise.displacement_sigma
+    e_w = rng.normal(size=(n, 6)) * noise.wrench_sigma
+    e_q = rng.normal(size=(n, 6)) * noise.joint_sigma
+    return Draws(idx, qp, np.hstack([f, mo]), e_d, e_w, e_q)
+
+
 def simulated_tests(n: int, per_pose: int = 10, seed: int = 0, noise: NoiseModel | None = None):
     """(pose labels, q rad, w N/N m, d m/rad) of n tests (noisy, as measured).
 
@@ -27,26 +58,14 @@ def simulated_tests(n: int, per_pose: int = 10, seed: int = 0, noise: NoiseModel
     unchanged (the same random numbers are drawn whatever the figures).
     """
     robot = load_robot("kr240-2")
-    rng = np.random.default_rng(seed)
-    n_poses = max(3, -(-n // per_pose))
-    qp = sample_poses(robot, n_poses, rng)
-    idx = np.repeat(np.arange(n_poses), per_pose)[:n]
-    q = qp[idx]
-    f = rng.normal(size=(n, 3))
-    f *= rng.uniform(1000, 2500, (n, 1)) / np.linalg.norm(f, axis=1, keepdims=True)
-    mo = rng.normal(size=(n, 3))
-    mo *= rng.uniform(100, 300, (n, 1)) / np.linalg.norm(mo, axis=1, keepdims=True)
-    w = np.hstack([f, mo])
+    dr = simulated_draws(robot, n, per_pose, seed, noise)
+    q, w = dr.poses[dr.index], dr.wrench
     d = np.empty((n, 6))
     for s in range(0, n, 50_000):
         sl = slice(s, min(n, s + 50_000))
         d[sl] = displacement_screw(robot, q[sl], robot.nominal_stiffness, w[sl])
-    noise = NoiseModel() if noise is None else noise
-    d = d + rng.normal(size=d.shape) * noise.displacement_sigma
-    w = w + rng.normal(size=w.shape) * noise.wrench_sigma
-    q = q + rng.normal(size=q.shape) * noise.joint_sigma
-    labels = np.char.add("P", (idx + 1).astype(str))
-    return labels, q, w, d
+    labels = np.char.add("P", (dr.index + 1).astype(str))
+    return labels, q + dr.e_q, w + dr.e_w, d + dr.e_d
 
 
 def write_csv(path: Path, n: int, per_pose: int = 10, seed: int = 0) -> None:

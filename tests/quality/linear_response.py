@@ -26,6 +26,18 @@ Returns, per joint of k,
 
 prints one JSON line (``fit_z`` too with ``--fit``: the fit's z for comparison).
 Memory: blocks of 20 000 tests; CPU ~55 s at 1e6 tests (13 model evaluations a test).
+
+:func:`linear_model_response` is the same response of the linear model (F = A, the
+wrench noise through J C J^T, no equilibrium solved; the tracker and F/T parts, the
+encoders' left out), ~5 s at 1e6 tests, for many seeds:
+
+    PYTHONPATH=. python -m tests.quality.linear_response --linear --tests 1e6 \
+        --seed 1100 --seeds 200
+
+prints a JSON line per seed and a last one with the mean and sd of z_lin per joint. Given
+the poses, that z_lin is exactly normal with variance B (sum A^T W Sigma W A) B / B_jj <= 1
+(Sigma the simulated covariance; W leaves out only the encoders' part of Sigma^-1), so its
+spread over seeds says how wide the fit's z may scatter by chance alone at that N.
 """
 
 from __future__ import annotations
@@ -42,7 +54,7 @@ from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming.covariances import covariances_per_test
 from analysis.model.kinematics import jacobian
 from analysis.model.robots import load_robot
-from tests.quality.zscore_study import _simulation
+from tests.quality.zscore_study import _draws, _simulation
 
 BLOCK = 20_000
 #: central-difference steps: N, N m, rad (the model is smooth; errors ~h^2, far below 1e-6)
@@ -113,6 +125,35 @@ def linear_response(n: int, seed: int, noise: NoiseModel | None = None,
             "se_k": (se_x / x**2).tolist(), "cpu_s": round(time.process_time() - t0, 1)}
 
 
+def linear_model_response(n: int, seed: int, noise: NoiseModel | None = None) -> dict:
+    """The linear model's first-order response to campaign (n, seed)'s tracker and F/T
+    draws (see the module docstring): z_lin = z_d + z_w per joint of k."""
+    t0 = time.process_time()
+    noise = NoiseModel() if noise is None else noise
+    robot = load_robot("kr240-2")
+    dr = _draws()(robot, n, seed=seed, noise=noise)
+    x = 1.0 / robot.nominal_stiffness
+    J_pose = jacobian(robot, dr.poses)
+    M = np.zeros((6, 6))
+    b = {s: np.zeros(6) for s in "dw"}
+    for s in range(0, n, BLOCK):
+        sl = slice(s, min(n, s + BLOCK))
+        J, w = J_pose[dr.index[sl]], dr.wrench[sl]
+        A = J * np.einsum("mij,mi->mj", J, w)[:, None, :]   # column j: J_j (J_j . w)
+        W = np.linalg.inv(covariances_per_test(noise, J, x, np.ones((len(J), 6), bool), w))
+        WA = W @ A
+        M += np.einsum("mij,mik->jk", A, WA)
+        b["d"] += np.einsum("mij,mi->j", WA, dr.e_d[sl])
+        C = (J * x) @ np.swapaxes(J, -1, -2)
+        b["w"] -= np.einsum("mij,mi->j", WA, np.einsum("mij,mj->mi", C, dr.e_w[sl]))
+    B = np.linalg.inv(M)
+    se_x = np.sqrt(np.diag(B))
+    z = {src: -(B @ b[src]) / se_x for src in "dw"}
+    return {"tests": n, "seed": seed, "z_lin": (z["d"] + z["w"]).tolist(),
+            "z_d": z["d"].tolist(), "z_w": z["w"].tolist(),
+            "cpu_s": round(time.process_time() - t0, 1)}
+
+
 def main(argv: list[str] | None = None) -> int:
     from tests.quality.zscore_study import _size, campaign
 
@@ -120,7 +161,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tests", type=_size, default=10_000)
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--fit", action="store_true", help="also fit the campaign (its z)")
+    ap.add_argument("--linear", action="store_true",
+                    help="the linear model's response (tracker and F/T, ~5 s at 1e6 tests)")
+    ap.add_argument("--seeds", type=int, default=1, help="with --linear: seeds from --seed on")
     args = ap.parse_args(argv)
+    if args.linear:
+        rows = []
+        for seed in range(args.seed, args.seed + max(1, args.seeds)):
+            rows.append(linear_model_response(args.tests, seed))
+            print(json.dumps({k: np.round(v, 4).tolist() if isinstance(v, list) else v
+                              for k, v in rows[-1].items()}), flush=True)
+        z = np.array([r["z_lin"] for r in rows])
+        print(json.dumps({"tests": args.tests, "seeds": len(rows),
+                          "mean_z_lin": np.round(z.mean(axis=0), 3).tolist(),
+                          "sd_z_lin": np.round(z.std(axis=0, ddof=1), 3).tolist()
+                          if len(rows) > 1 else None}))
+        return 0
     out = linear_response(args.tests, args.seed)
     if args.fit:
         out["fit_z"] = campaign(args.tests, args.seed)["z"]

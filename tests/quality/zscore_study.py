@@ -46,12 +46,20 @@ SOURCES = ("tracker", "ft", "encoders")
 MEAN_LIMIT, SD_RANGE = 0.5, (0.8, 1.25)
 
 
-def _simulation():
+def _large_csv():
     spec = importlib.util.spec_from_file_location("_large_csv",
                                                   ROOT / "benchmarks" / "_large_csv.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module.simulated_tests
+    return module
+
+
+def _simulation():
+    return _large_csv().simulated_tests
+
+
+def _draws():
+    return _large_csv().simulated_draws
 
 
 def noise_models(sources: tuple[str, ...]) -> tuple[NoiseModel, NoiseModel]:
