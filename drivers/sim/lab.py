@@ -23,6 +23,7 @@ import sys
 import threading
 from pathlib import Path
 
+from drivers.loopback_guard import child_environment
 from drivers.sim.base import FakeServer
 from drivers.sim.control import ControlServer
 from drivers.sim.settings import LabSettings
@@ -143,7 +144,8 @@ class Lab:
 
     def _start_ur(self) -> None:
         root = str(Path(__file__).resolve().parents[2])
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        # the fake's process is held to loopback as the run that starts it
+        env = dict(child_environment(), PYTHONPATH=os.pathsep.join(
             [root, *filter(None, [os.environ.get("PYTHONPATH")])]))
         self._ur = subprocess.Popen(
             [sys.executable, "-m", "drivers.sim.fake_rtde", "--control", self.control.url],

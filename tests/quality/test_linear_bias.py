@@ -127,6 +127,33 @@ def test_unreliable_correction_is_refused_and_can_be_accepted(setup, monkeypatch
     np.testing.assert_allclose(bad.ci, lo, rtol=1e-6)
 
 
+def test_a_fit_without_its_prediction_gets_the_right_one_back(setup):
+    """identify lets the raw prediction A x_hat go while the correction runs (one (m, 6)
+    array held at a time): a reliable correction gives the fit f(x_c), the very array it
+    made; an unreliable one A x_hat made again, equal to the fit's own bit for bit."""
+    from dataclasses import replace
+
+    from analysis.identification.corrections.linear_bias import (
+        correct_linear_bias,
+        corrected_fit,
+    )
+    from analysis.identification.linalg.sandwich import sandwich
+
+    robot, q, W, k = setup
+    t = _tests(robot, q, W, k, 2.0, np.random.default_rng(3))
+    joints = tuple(range(6))
+    fit = fit_linear(robot, t, joints, NOISE, weighted=False)
+    se = np.sqrt(np.diag(sandwich(fit.A, fit.cov, fit.bread, fit.Linv)))
+    bare = replace(fit, predicted=None)
+    good = correct_linear_bias(robot, t, joints, bare, se, "ols")
+    bad = correct_linear_bias(robot, t, joints, bare, se, "ols", limit=0.0)
+    assert good.reliable and not bad.reliable
+    assert corrected_fit(bare, good).predicted is good.predicted
+    assert not np.array_equal(good.predicted, fit.predicted)  # f(x_c) is not A x_hat
+    np.testing.assert_array_equal(corrected_fit(bare, bad).predicted, fit.predicted)
+    assert corrected_fit(fit, bad) is fit
+
+
 def test_linear_result_states_the_correction(setup):
     robot, q, W, k = setup
     t = _tests(robot, q, W, k, 1.0, np.random.default_rng(0))

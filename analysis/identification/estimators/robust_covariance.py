@@ -111,7 +111,11 @@ class RobustCovariance:
                     "B = sum over tests of the test's score g g^T (cluster = test)",
             "small_sample_correction": CORRECTION,
             "clusters": self.tests,
-            "interval": f"Student t with G - p = {self.dof} degrees of freedom",
+            "interval": (f"Student t with G - p = {self.dof} degrees of freedom"
+                         if self.tests > self.cov.shape[0] else
+                         f"Student t with 1 degree of freedom (G - p = "
+                         f"{self.tests - self.cov.shape[0]}: too few tests, refused unless "
+                         "accepted)"),
             "degrees_of_freedom": self.dof,
             # per identified joint, in the order of the joints
             "se_over_uncorrected_sandwich": [
