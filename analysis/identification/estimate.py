@@ -161,6 +161,9 @@ def _solve(problem: IdentificationProblem) -> IdentificationResult:
         per_test.release_freed_heap()  # the fit's freed pages, before the validation
     corr = None
     if est.linearised:
+        # the raw prediction A x_hat let go before the correction makes f(x_c) (48 MB
+        # each at 1e6 tests: one of them held at a time)
+        outcome = _without_prediction(outcome)
         outcome, corr = _linear_bias(problem, outcome)
     if outcome.robust is not None:
         outcome = _with_robust_covariance(outcome)
@@ -220,11 +223,19 @@ def _checked(problem: IdentificationProblem) -> tuple[float, list[str]]:
     return cond, warnings
 
 
+def _without_prediction(outcome):
+    """``outcome`` whose fit holds no prediction (:func:`_linear_bias` makes it again)."""
+    from dataclasses import replace
+
+    return replace(outcome, fit=replace(outcome.fit, predicted=None))
+
+
 def _linear_bias(problem: IdentificationProblem, outcome):
     """(outcome, correction): the linear model's bias corrected (before the validation,
     which corrects its folds too); where reliable, the residuals (chi-square, outliers,
     notes) are those of the exact model at the corrected estimate: the new outcome's fit
-    predicts f(x_c)."""
+    predicts f(x_c), else the linear model's A x_hat (made again here: the caller let it
+    go, :func:`_without_prediction`)."""
     from dataclasses import replace
 
     from analysis.identification.corrections.linear_bias import (
@@ -272,11 +283,10 @@ def _no_validation_note(problem: IdentificationProblem) -> str:
 
 def _released(outcome):
     """``outcome`` without what only the validation used: a streamed fit's per-fold sums
-    and its deflections (48 MB at 1e6 tests)."""
+    and an exact fit's deflections (48 MB at 1e6 tests)."""
     from dataclasses import replace
 
-    fit = replace(outcome.fit, deflection=None) if outcome.fit.R is not None else outcome.fit
-    return replace(outcome, fit=fit, sums=None)
+    return replace(outcome, fit=replace(outcome.fit, deflection=None), sums=None)
 
 
 def _residuals(problem: IdentificationProblem, outcome, stats, iv, sigma):

@@ -153,6 +153,39 @@ def stiffness_table(result: IdentificationResult, inp: ReportInputs) -> Table:
                                                                     is not None else []))
 
 
+def linear_bias_blocks(result: IdentificationResult) -> list:
+    """ols/wls: the raw linear estimate beside the reported (bias-corrected) one, per joint,
+    with the criterion of the correction (none for the exact fit)."""
+    b = result.linear_bias
+    if b is None:
+        return []
+    m = result.method
+    raw, raw_se = b["raw_joint_stiffness_Nm_per_rad"], b["raw_standard_error_Nm_per_rad"]
+    rows = []
+    for j in range(6):
+        if raw[j] is None or not np.isfinite(result.k[j]):
+            rows.append([f"k{j + 1}", "-", "-", "-", "-", "-"])
+            continue
+        rows.append([f"k{j + 1}", k_kNm(result.k[j]), k_kNm(raw[j]),
+                     sig(raw_se[j] / 1e3, 3, zeros=True),
+                     fixed(b["bias_in_standard_errors"][j], 2),
+                     percent(b["relative_change_of_k"][j])])
+    verdict = (f"the correction is reliable ({b['criterion']}; value "
+               f"{sig(b['contraction'], 2)}, limit {b['contraction_limit']:g}), so k is the "
+               "corrected estimate" if b["reliable"] else
+               f"the correction is unreliable ({b['reason']}): k is the raw estimate, its "
+               "interval widened by |bias|, and the result refused")
+    return [Table(
+        f"Linearisation bias of {m}: raw and corrected estimates",
+        ["joint", "k reported (kN m/rad)", f"raw {m} (kN m/rad)", f"raw {m} se (kN m/rad)",
+         "bias of 1/k (raw se)", "corrected vs raw (%)"], rows, [False] * 6,
+        caption=f"The linear model A x of {m} is the first-order approximation of the "
+        "equilibrium; its bias b = G (f(x) - A x) is estimated and corrected (the "
+        f"compliances whose expected linear fit is the one observed). Here {verdict}. "
+        "'bias of 1/k': the raw compliance's bias in its standard errors.",
+        widths=[0.6, 1.2, 1.2, 1.2, 1.2, 1.2])]
+
+
 def fit_paragraph(result: IdentificationResult) -> Paragraph:
     return Paragraph(
         f"Method {result.method} ({result.covariance} covariance), {result.n_tests} tests at "
@@ -504,7 +537,7 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
         summary_table(inp.info), *([instruments] if instruments is not None else []),
         Paragraph("Data quality", "heading"), *quality_blocks(inp.info)])
     ident_sec = Section(SECTION_TITLES[1], [
-        stiffness_table(result, inp), fit_paragraph(result),
+        stiffness_table(result, inp), *linear_bias_blocks(result), fit_paragraph(result),
         *[Paragraph(w, "warning") for w in result.warnings],
         *([rms_table] if rms_table is not None else []),
         figures.stiffness_bars(result.k, result.ci, inp.nominal, inp.nominal_label,

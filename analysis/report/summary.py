@@ -36,6 +36,8 @@ class CampaignInfo:
     notes : remarks from reading the input (hash mismatch, dropped line, ...).
     campaign : the protocol's ``[campaign] name`` ('' unknown).
     simulated : the run came from the simulated lab (metadata ``fake``/``fake_lab``).
+    time_stamps : which clock the readings' ``t_utc`` follows (metadata ``time_stamps``
+        ``text``: the UTC wall clock, or the simulated lab's clock); '' when not recorded.
     tests_sha256, plan_sha256 : SHA-256 of the run's tests.csv and plan.csv ('' unknown).
     instrument_records : one dict per instrument: role, model, serial, calibration_date,
         calibration_due, certificate, driver, address (protocol keys, device reports).
@@ -67,6 +69,7 @@ class CampaignInfo:
     notes: list[str] = field(default_factory=list)
     campaign: str = ""
     simulated: bool = False
+    time_stamps: str = ""
     tests_sha256: str = ""
     plan_sha256: str = ""
     instrument_records: list[dict] = field(default_factory=list)
@@ -133,6 +136,8 @@ def summary_table(info: CampaignInfo) -> Table:
     if info.simulated:  # said only when true: a real run's report never says "simulated"
         rows.append(["data", "SIMULATED DATA from the simulated lab (metadata fake), not a "
                      "measurement of a real robot"])
+    if info.time_stamps:
+        rows.append(["time stamps", info.time_stamps])
     if info.software:
         rows.append(["software (acquisition)",
                      ", ".join(f"{k} {v}" for k, v in info.software.items())])

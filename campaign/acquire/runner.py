@@ -18,10 +18,8 @@ from __future__ import annotations
 
 import signal
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -29,6 +27,7 @@ import numpy as np
 from analysis.model.kinematics import rotation_vector, tool_pose
 from analysis.model.robot_model import RobotModel
 from campaign.acquire.checks import Limits, evaluate
+from campaign.acquire.clock import WallClock, utc
 from campaign.acquire.geometry import (
     base_in_tracker_rotation,
     displacement,
@@ -45,12 +44,6 @@ from drivers.errors import DriverError, SafetyRefusal
 from drivers.readings import Pose
 from drivers.roles import LoadCase
 from drivers.safety import check_force
-
-
-def utc(wall: float | None = None) -> str:
-    """ISO 8601 UTC time stamp with microseconds."""
-    t = time.time() if wall is None else wall
-    return datetime.fromtimestamp(t, UTC).isoformat(timespec="microseconds")
 
 
 def load_may_hang(run_path) -> bool:
@@ -91,13 +84,20 @@ class RunSettings:
 
 
 class Runner:
-    """Runs the remaining tests of a run directory with connected instruments."""
+    """Runs the remaining tests of a run directory with connected instruments.
+
+    ``clock`` stamps the readings (``t_utc`` of samples.jsonl and tests.csv): the wall
+    clock by default, the simulated lab's :class:`~campaign.acquire.clock.SimulatedClock`
+    on ``--fake``; the events keep the wall clock.
+    """
 
     def __init__(self, run: RunDir, robot: RobotModel, tests: list[PlannedTest],
                  inst: Instruments, reporter: Reporter, limits: Limits, motion: Motion,
                  settings: RunSettings, max_force: float, max_moment: float,
-                 on_event: Callable[[dict[str, Any]], None] | None = None) -> None:
+                 on_event: Callable[[dict[str, Any]], None] | None = None,
+                 clock: WallClock | None = None) -> None:
         self.run_dir, self.robot, self.tests, self.inst = run, robot, tests, inst
+        self.clock = clock or WallClock()
         self.reporter, self.limits, self.motion, self.settings = reporter, limits, motion, settings
         self.max_force, self.max_moment = max_force, max_moment
         self.on_event = on_event
@@ -114,7 +114,7 @@ class Runner:
     def _sample(self, phase: str, instrument: str, quantity: str, unit: str, frame: str,
                 value: Any, sigma: Any = None, wall: float | None = None, **extra: Any) -> None:
         self.run_dir.sample({
-            "t_utc": utc(wall), "session": self.run_dir.session,
+            "t_utc": self.clock.stamp(wall), "session": self.run_dir.session,
             "test_id": self.ctx.get("test_id"),
             "repeat": self.ctx.get("repeat"), "attempt": self.ctx.get("attempt"),
             "phase": phase, "instrument": instrument, "quantity": quantity, "unit": unit,
@@ -306,8 +306,10 @@ class Runner:
     def _move(self, q_model: np.ndarray, phase: str) -> np.ndarray:
         self._phase(phase, q_deg=np.rad2deg(q_model),
                     q_ctrl_deg=np.rad2deg(self.robot.to_controller(q_model)))
-        reached = self.inst.robot.move_joints(self.robot.to_controller(q_model),
-                                              self.motion.speed, self.motion.acceleration)
+        q_ctrl = self.robot.to_controller(q_model)
+        reached = self.inst.robot.move_joints(q_ctrl, self.motion.speed,
+                                              self.motion.acceleration)
+        self.clock.move(q_ctrl)
         self._sample(phase, "robot", "joint_angles", "rad", "controller", reached.value,
                      wall=reached.wall_time)
         return self.robot.from_controller(reached.value)
@@ -318,12 +320,15 @@ class Runner:
 
         def read() -> np.ndarray:
             p = self.inst.read_point()
+            self.clock.settle_read()
             self._sample(phase, "pose", "point", "m", "tracker", p)
             if ref is not None and r_base is not None:
                 self.reporter.phase(deflection_mm=r_base.T @ (p - ref) * 1e3)
             return p
 
+        self.clock.settle_start()
         wait_settled(read, self.settings.settle)
+        self.clock.settle_end()
 
     def _pose(self, phase: str) -> Pose:
         self._phase(phase)
@@ -345,6 +350,7 @@ class Runner:
         self._settle("settle_unloaded_before")
         self._phase("tare")
         bias = inst.ft.tare(self.settings.tare_samples)
+        self.clock.wait(self.settings.tare_samples / inst.ft.rate_hz)
         self._sample("tare", "force_torque", "bias", "N, N m", "sensor", bias)
         P0 = self._pose("unloaded_before")
         R = base_in_tracker_rotation(P0.value, T_fk)
@@ -357,6 +363,7 @@ class Runner:
         self._settle("settle_loaded", ref_point, R)
         self._phase("loaded")
         W = inst.ft.read_wrench(self.settings.wrench_samples)
+        self.clock.wait(self.settings.wrench_samples / inst.ft.rate_hz)
         # the mean is the value; every raw sample of the window is kept beside it
         raw = None if W.raw is None else np.asarray(W.raw, float).tolist()
         self._sample("loaded", "force_torque", "wrench", "N, N m", "sensor", W.value,
@@ -392,7 +399,7 @@ class Runner:
         row.update(test_id=test.test_id, repeat=repeat, status="ok", flags="",
                    repeatability_mm=res.repeatability * 1e3, drift_mm=res.drift * 1e3,
                    wrench_error_N=res.wrench_error, tracker_sigma_mm=res.tracker_sigma * 1e3,
-                   t_utc=utc())
+                   t_utc=self.clock.stamp())
         self.reporter.phase(deflection_mm=screw[:3] * 1e3, rotation_mrad=screw[3:] * 1e3,
                             wrench=w_base)
         if res.flags:

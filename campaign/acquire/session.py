@@ -21,6 +21,7 @@ from typing import Any
 
 from analysis.errors import InputError
 from campaign.acquire.checks import limits_for
+from campaign.acquire.clock import SimulatedClock, WallClock, describe, utc
 from campaign.acquire.ending import ending
 from campaign.acquire.instruments import open_instruments
 from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
@@ -34,7 +35,7 @@ from campaign.acquire.rundir import (
     read_tests,
     require_new_run_dir,
 )
-from campaign.acquire.runner import Runner, RunSettings, utc
+from campaign.acquire.runner import Runner, RunSettings
 from campaign.acquire.settle import SettleRule, rule_for
 from campaign.planning.plan_output import load_plan
 from campaign.protocol import Protocol
@@ -145,6 +146,7 @@ def base_metadata(protocol: Protocol, plan_text: str, plan_source: Path, robot: 
         "n_planned_tests": n_tests, "repeats": repeats,
         "n_planned_measurements": n_measurements,
         "fake": opts.fake, "fake_lab": None, "time_scale": time_scale,
+        "time_stamps": describe(opts.fake),
         "command": sys.argv, "sessions": [],
     }
     if opts.fake and protocol.lab is not None:
@@ -273,6 +275,46 @@ def _settle_rule(protocol: Protocol, time_scale: float, settle_scale: float) -> 
     return rule_for(noise, time_scale, settle_scale)
 
 
+def run_clock(run: RunDir, protocol: Protocol, robot: Any, tests: list,
+              settle_scale: float) -> WallClock:
+    """The clock of the readings' time stamps (:mod:`campaign.acquire.clock`): the lab's
+    for a run whose metadata says ``time_stamps`` ``simulated`` (continued from the last
+    row of tests.csv on resume), else the wall clock (hardware, or a fake run started
+    before the lab had its clock).
+
+    Raises
+    ------
+    InputError
+        The last row's ``t_utc`` is not an ISO 8601 time (names tests.csv and its line).
+    """
+    stamps = run.metadata.get("time_stamps")
+    if not (isinstance(stamps, dict) and stamps.get("clock") == "simulated"):
+        return WallClock()
+    from drivers.sim.settings import settings_from_protocol
+    from drivers.sim.world import SETTLED_AFTER
+
+    rule = _settle_rule(protocol, 1.0, settle_scale)  # robot (simulated) seconds
+    lab_settle = settings_from_protocol(protocol.lab or {}).settle_time
+    motion = motion_limits(protocol)
+    clock = SimulatedClock(motion.speed, motion.acceleration,
+                           settle_s=SETTLED_AFTER * lab_settle
+                           + (rule.window - 1) * rule.interval,
+                           interval_s=rule.interval)
+    rows = read_tests(run.path)
+    if rows.empty:
+        return clock
+    last = rows.iloc[-1]
+    by_id = {t.test_id: t for t in tests}
+    test = by_id.get(int(last["test_id"]))
+    try:
+        clock.resume(str(last["t_utc"]), None if test is None
+                     else robot.to_controller(test.q))
+    except ValueError:
+        raise InputError(f"t_utc {last['t_utc']!r} is not an ISO 8601 time",
+                         where=f"{run.path / TESTS}: line {len(rows) + 1}") from None
+    return clock
+
+
 def _run_session(run: RunDir, inst: Any, robot: Any, tests: list, protocol: Protocol,
                  opts: AcquireOptions, lab_scale: float | None, reporter: Reporter,
                  on_event: Callable[[dict[str, Any]], None] | None,
@@ -291,7 +333,8 @@ def _run_session(run: RunDir, inst: Any, robot: Any, tests: list, protocol: Prot
     settings = RunSettings(settle=_settle_rule(protocol, lab_scale or 1.0, opts.settle_scale))
     runner = Runner(run, robot, tests, inst, reporter, limits_for(protocol),
                     motion_limits(protocol), settings, protocol.safety.max_force_N,
-                    protocol.safety.max_moment_N_m, on_event=on_event)
+                    protocol.safety.max_moment_N_m, on_event=on_event,
+                    clock=run_clock(run, protocol, robot, tests, opts.settle_scale))
     status, reason = runner.run()
     counts.update(runner.counts)
     try:

@@ -25,7 +25,7 @@ import numpy as np
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
 from campaign.jobs.choices import DEFAULT_METHOD, DEFAULT_TRIALS, Covariance, Method, Robust
-from campaign.jobs.common import Stage, floats, no_stage, tool_texts
+from campaign.jobs.common import Stage, floats, no_stage, six_joints, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
 
@@ -312,6 +312,7 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
     tests = read_test_arrays(path)
     robot, tool = robot_and_tool(robot_spec, tip, tool_xyz, tool_rpy,
                                  meta.tool if meta else None)
+    six_joints(robot)  # before the assumptions are printed: the test format has 6 joints
     noise, noise_source = NoiseModel(), "defaults of analysis/identification/noise.py " \
         "(no sidecar)"
     if meta is not None and meta.noise is not None:

@@ -85,7 +85,17 @@ def robot_and_tool(robot: str, tip: str | None, tool_xyz_mm: Sequence[float] | N
     """
     from campaign.options import robot_and_tool as _parsed
 
-    return _parsed(robot, tip, *tool_texts(tool_xyz_mm, tool_rpy_deg), default_tool)
+    model, tool = _parsed(robot, tip, *tool_texts(tool_xyz_mm, tool_rpy_deg), default_tool)
+    six_joints(model)
+    return model, tool
+
+
+def six_joints(robot) -> None:
+    """Refuse a robot that is not a six-joint arm: the method (K_X = J^-T (K_theta - K_C)
+    J^-1, the 1/kappa_F maps, the six-component tests) needs a square 6 x 6 Jacobian."""
+    if robot.n != 6:
+        raise InputError(f"{robot.name} has {robot.n} joints: this method needs a six-joint "
+                         "arm (a square 6 x 6 Jacobian)", where="--robot")
 
 
 def tool_texts(tool_xyz_mm: Sequence[float] | None,

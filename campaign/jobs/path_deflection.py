@@ -74,8 +74,6 @@ def load_path(o: PathDeflectionOptions) -> LoadedPath:
     if not o.min_inv_kappa > 0:
         raise InputError("expected a positive number", where="--min-inv-kappa")
     r, _ = robot_and_tool(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
-    if r.n != 6:
-        raise InputError(f"{r.name} has {r.n} joints; paths have 6", where="--robot")
     k = joint_stiffness(r, o.joint_stiffness_Nm_per_rad)
     given_k = o.joint_stiffness_Nm_per_rad is not None
     cov = None if given_k else r.compliance_covariance

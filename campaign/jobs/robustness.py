@@ -144,7 +144,7 @@ def method_note(method: str) -> str:
 def linear_bias_note(summary, method: str) -> str | None:
     """For ols/wls: how far the mean is biased by the linear model, per joint, and why.
 
-    The size is the median over noise-free campaigns of the study's designs
+    The size is the mean over noise-free campaigns of the study's designs
     (``linearisation_bias_relative``), the median over the numbers of tests."""
     if method not in ("ols", "wls"):
         return None

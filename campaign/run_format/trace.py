@@ -1,10 +1,11 @@
 """What the report's traceability needs from a run directory (campaign side).
 
 :func:`run_trace` reads the campaign name, whether the run came from the
-simulated lab, the SHA-256 of ``tests.csv`` and ``plan.csv``, the instruments'
-model, serial and calibration (the protocol's documented keys, else what the
-device reported at connection) and each row's repeatability, as keyword
-arguments of :class:`analysis.report.summary.CampaignInfo`.
+simulated lab, which clock its readings' time stamps follow, the SHA-256 of
+``tests.csv`` and ``plan.csv``, the instruments' model, serial and calibration
+(the protocol's documented keys, else what the device reported at connection)
+and each row's repeatability, as keyword arguments of
+:class:`analysis.report.summary.CampaignInfo`.
 """
 
 from __future__ import annotations
@@ -53,10 +54,12 @@ def run_trace(run, protocol) -> dict:
                 rep[int(line)] = float(v)
             except (TypeError, ValueError):
                 rep[int(line)] = float("nan")
+    stamps = meta.get("time_stamps")
     campaign = meta.get("campaign") or (protocol.campaign.name if protocol is not None else "")
     return {
         "campaign": str(campaign or ""),
         "simulated": bool(meta.get("fake")) or bool(meta.get("fake_lab")),
+        "time_stamps": str(stamps.get("text") or "") if isinstance(stamps, dict) else "",
         "tests_sha256": _hash(run.path / "tests.csv"),
         "plan_sha256": _hash(run.path / str(meta.get("plan_file") or "plan.csv")),
         "instrument_records": instrument_records(meta, protocol),

@@ -23,6 +23,7 @@ import sys
 import threading
 from pathlib import Path
 
+from drivers.loopback_guard import child_environment
 from drivers.sim.base import FakeServer
 from drivers.sim.control import ControlServer
 from drivers.sim.settings import LabSettings
@@ -86,9 +87,10 @@ class Lab:
 
             return FakeNetFT(self.world)
         if name == "robotiq-ft300":
-            from drivers.sim.fake_ft300 import FakeFT300
+            from drivers.sim.fake_ft300 import FakeFT300, stream_rate
 
-            return FakeFT300(self.world)
+            # 100 Hz of simulated time: a sped-up lab streams faster (capped)
+            return FakeFT300(self.world, stream_rate(self.settings.time_scale))
         if name == "ati-netcan":
             from drivers.sim.fake_netcan import FakeNetCAN
 
@@ -142,7 +144,8 @@ class Lab:
 
     def _start_ur(self) -> None:
         root = str(Path(__file__).resolve().parents[2])
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        # the fake's process is held to loopback as the run that starts it
+        env = dict(child_environment(), PYTHONPATH=os.pathsep.join(
             [root, *filter(None, [os.environ.get("PYTHONPATH")])]))
         self._ur = subprocess.Popen(
             [sys.executable, "-m", "drivers.sim.fake_rtde", "--control", self.control.url],

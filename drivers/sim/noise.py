@@ -19,6 +19,11 @@ whose spawn key names what is measured:
 So the k-th sample of a window, or the k-th pose reading of a phase, carries
 the same noise whatever the threads did before it; readings a client takes a
 timing-dependent number of times (settling detection) stay in their own phase.
+
+A value a fake reads over and over at its own pace and streams (the UR fake's
+joint angles, polled from the world every 5 ms) cannot be numbered by the
+client's reads: :meth:`NoiseStreams.held` gives it one draw per context instead
+(the same whatever the number of polls), like an encoder at standstill.
 """
 
 from __future__ import annotations
@@ -76,3 +81,11 @@ class NoiseStreams:
         """A generator for the next sample of ``instrument``."""
         seq = np.random.SeedSequence(self.seed, spawn_key=self.key(instrument))
         return np.random.Generator(np.random.PCG64(seq))
+
+    def held(self, instrument: str) -> np.random.Generator:
+        """A generator of the one draw of ``instrument`` held through the current
+        context (not counted: every call in the context gives the same numbers)."""
+        with self._lock:
+            key = (code(f"{instrument}/held"), *self.context)
+        return np.random.Generator(np.random.PCG64(np.random.SeedSequence(self.seed,
+                                                                          spawn_key=key)))

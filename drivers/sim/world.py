@@ -148,15 +148,19 @@ class World:
         """True while a commanded motion is still under way."""
         return time.monotonic() < self._motion_end
 
-    def joint_angles(self, source: str = "encoders") -> np.ndarray:
+    def joint_angles(self, source: str = "encoders", held: bool = False) -> np.ndarray:
         """Reported joint angles (rad, controller convention): motor side, no deflection.
 
-        ``source`` names the noise stream (the fake reading them).
+        ``source`` names the noise stream (the fake reading them); ``held``: the
+        encoder noise is one draw held through the acquisition's current phase
+        (for a fake that polls the world at its own pace, whose number of reads
+        follows the wall clock), else the next sample of the stream.
         """
         with self._lock:
             q = self._q_cmd.copy()
         if self.settings.encoder_noise:
-            rng = self.noise_streams.generator(source)
+            rng = (self.noise_streams.held(source) if held
+                   else self.noise_streams.generator(source))
             q += rng.normal(0, self.settings.encoder_noise, q.shape)
         return q
 
@@ -225,10 +229,11 @@ class World:
         return T
 
     def state(self) -> dict:
-        """JSON-able snapshot for the control channel."""
+        """JSON-able snapshot for the control channel; ``q`` carries the held encoder
+        noise (its readers poll it at their own pace, see :meth:`joint_angles`)."""
         T = self.nominal_tool_pose()
         return {
-            "q": self.joint_angles().tolist(),
+            "q": self.joint_angles(held=True).tolist(),
             "tcp_pose": [*T[:3, 3].tolist(), *matrix_to_rotvec(T[:3, :3]).tolist()],
             "load": self.load().tolist(),
             "load_name": self.load_name,

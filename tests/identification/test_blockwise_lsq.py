@@ -66,6 +66,76 @@ def test_tall_condition_and_weakest_column_equal_the_dense_ones(monkeypatch):
     np.testing.assert_allclose(cov1, cov0, rtol=1e-8)
 
 
+def _whitened_blocks(rng, shape, p):
+    """Per-test blocks A (..., m, 6, p), r (..., m, 6) and a lower-triangular Linv."""
+    A = rng.normal(size=(*shape, 6, p)) * np.array([1e-6, 1.0, 1e3, 2.0][:p])
+    r = rng.normal(size=(*shape, 6))
+    Linv = np.tril(rng.normal(size=(*shape, 6, 6))) + 3 * np.eye(6)
+    return A, r, Linv
+
+
+def test_solve_blocks_chooses_the_factorisation_by_size_with_the_same_estimate(
+        monkeypatch):
+    """The one place the fits' factorisation is chosen: one QR of the stacked whitened
+    system up to TALL_ROWS rows, the blockwise TSQR beyond; both equal the dense normal
+    equations' solution (an independent formula) to 1e-9 relative."""
+    rng = np.random.default_rng(7)
+    A, r, Linv = _whitened_blocks(rng, (120,), 4)
+    LA, Lr = (Linv @ A).reshape(-1, 4), np.einsum("mij,mj->mi", Linv, r).reshape(-1)
+    cov_ref = np.linalg.inv(LA.T @ LA)
+    x_ref = cov_ref @ LA.T @ Lr
+    called = []
+    real = lsq.whitened_lstsq
+    monkeypatch.setattr(lsq, "whitened_lstsq", lambda *a, **k: called.append(1) or real(*a))
+    small = lsq.solve_blocks(A, r, Linv)
+    assert called == []  # 720 rows: stacked
+    monkeypatch.setattr(lsq, "TALL_ROWS", 600)
+    tall = lsq.solve_blocks(A, r, Linv)
+    assert called == [1]
+    for x, cov in (small, tall):
+        np.testing.assert_allclose(x, x_ref, rtol=1e-9)
+        np.testing.assert_allclose(cov, cov_ref, rtol=1e-9)
+    # unweighted: the plain least squares
+    x_ols, _ = lsq.solve_blocks(A, r)
+    np.testing.assert_allclose(x_ols, np.linalg.lstsq(A.reshape(-1, 4), r.reshape(-1),
+                                                      rcond=None)[0], rtol=1e-9)
+
+
+def test_solve_blocks_of_a_batch_with_an_invalid_campaign():
+    """A batch is solved stacked; an invalid campaign's system is replaced by I and the
+    valid campaigns get their own solutions (each equal to its solve alone, 1e-12)."""
+    rng = np.random.default_rng(8)
+    A, r, Linv = _whitened_blocks(rng, (3, 20), 3)
+    A[1] = np.nan  # a campaign whose model could not be evaluated
+    valid = np.array([True, False, True])
+    x, cov = lsq.solve_blocks(A, r, Linv, valid)
+    assert np.all(np.isfinite(x[[0, 2]])) and np.all(np.isfinite(cov[[0, 2]]))
+    for i in (0, 2):
+        xi, covi = lsq.solve_blocks(A[i], r[i], Linv[i])
+        np.testing.assert_allclose(x[i], xi, rtol=1e-12)
+        np.testing.assert_allclose(cov[i], covi, rtol=1e-12)
+
+
+def test_stacked_rows_keep_the_singular_values_small_or_tall(monkeypatch):
+    rng = np.random.default_rng(9)
+    blocks = [rng.normal(size=(30, 3)) for _ in range(5)]
+    dense = np.concatenate(blocks)
+    acc = lsq.StackedRows(150)
+    for b in blocks:
+        acc.add(b)
+    np.testing.assert_array_equal(acc.matrix(), dense)  # small: the rows themselves
+    monkeypatch.setattr(lsq, "TALL_ROWS", 100)
+    for tall in (lsq.StackedRows(150), lsq.StackedRows(10, tall=True)):
+        for b in blocks:
+            tall.add(b)
+        R = tall.matrix()
+        assert R.shape == (3, 3)
+        np.testing.assert_allclose(np.linalg.svd(R, compute_uv=False),
+                                   np.linalg.svd(dense, compute_uv=False), rtol=1e-12)
+        assert float(scaled_condition(R)) == pytest.approx(float(scaled_condition(dense)),
+                                                           rel=1e-12)
+
+
 @pytest.mark.parametrize("method", ["ols", "wls", "exact"])
 def test_sandwich_and_residual_variance_equal_the_hat_matrix_forms(kr240, zone_poses, w_eff,
                                                                    method):

@@ -132,17 +132,19 @@ def test_translational_misfit_names_the_rigid_wrist_first(kr240, zone_poses, w_e
 
 
 def test_unreliable_linear_correction_is_named_first(kr240, zone_poses, w_eff):
-    """At 45 x w_eff (~100 kN: past any real load, where the linearisation of ols is
-    so poor that its bias correction does not converge) the raw linear fit is kept and
-    refused. Its residuals are the linear model's, so the chi-square is huge (~1e7);
-    the first problem named is the linearisation with its way out (--method exact), and
-    the misfit's first cause is the linear model, not the tool point. The exact fit of
-    the same data is not refused and recovers the truth."""
+    """At 70 x w_eff (~220 kN: past any real load, where the linearisation of ols is
+    so poor that its bias moves by 0.53 se per se of x, beyond the 0.5 limit) the raw
+    linear fit is kept and refused (at 45 x, once refused for 6 steps not being enough,
+    the correction converges in 8 steps to within 1 se of the truth). Its residuals are
+    the linear model's, so the chi-square is huge (~1e7); the first problem named is the
+    linearisation with its way out (--method exact), and the misfit's first cause is the
+    linear model, not the tool point. The exact fit of the same data is not refused and
+    recovers the truth."""
     from analysis.identification.checks.plausibility import problems
     from analysis.identification.noise import NoiseModel
 
     noise = NoiseModel(translation_sigma_override=30e-6, rotation_sigma_override=20e-6)
-    w = np.array([w_eff, w_eff * [1, -1, 1, -1, 1, 1], w_eff[[1, 0, 2, 4, 3, 5]]]) * 45.0
+    w = np.array([w_eff, w_eff * [1, -1, 1, -1, 1, 1], w_eff[[1, 0, 2, 4, 3, 5]]]) * 70.0
     q = np.repeat(zone_poses[:6], 3, axis=0)
     tests = simulate(kr240, q, np.tile(w, (6, 1)), kr240.nominal_stiffness, noise=noise)
     res = identify(kr240, tests, method="ols", noise=noise, validate=False)

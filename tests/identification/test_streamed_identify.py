@@ -154,3 +154,43 @@ def test_blockwise_covariances_with_a_held_jacobian(kr240, campaign, method, mon
     for col in ("sigma", "studentized", "predicted"):
         np.testing.assert_allclose(res.residuals[col], ref.residuals[col], rtol=1e-7,
                                    atol=1e-10 * np.abs(ref.residuals[col]).max(), err_msg=col)
+
+
+def test_the_problem_systems_choose_the_statistics_and_both_agree(kr240, campaign,
+                                                                  monkeypatch):
+    """The statistics are the problem's systems' to choose: a streamed exact fit's come
+    from the R of its final pass, and equal those of a pass of their own over the same
+    fit (:func:`held_statistics`: the meat summed block by block, the chi-square from the
+    residuals) to rounding, 1e-9; a linear fit of the same streamed campaign, which has
+    no final pass, gets the pass of its own; a small campaign's systems are held."""
+    from analysis.identification.estimators.registry import estimator
+    from analysis.identification.problem import IdentificationProblem
+    from analysis.identification.statistics import (
+        final_pass_statistics,
+        fit_statistics,
+        held_statistics,
+    )
+    from analysis.identification.streaming.systems import HeldSystems, StreamedSystems
+
+    assert IdentificationProblem.make(kr240, campaign, noise=NOISE).systems is HeldSystems
+    _streamed(monkeypatch)
+    problem = IdentificationProblem.make(kr240, campaign, noise=NOISE)
+    assert problem.systems is StreamedSystems
+    outcome = estimator("exact").fit(problem)
+    assert outcome.fit.predicted is None  # deferred to the statistics pass
+    stats, done = fit_statistics(problem, outcome)
+    again, _ = final_pass_statistics(problem, outcome)
+    np.testing.assert_array_equal(stats.cov_x, again.cov_x)  # the same implementation
+    assert done.fit.predicted is not None and done.fit.predicted_shifted
+    own = held_statistics(problem, done)
+    np.testing.assert_allclose(stats.cov_x, own.cov_x, rtol=1e-9)
+    np.testing.assert_allclose(stats.var_r, own.var_r, rtol=1e-9, atol=1e-24)
+    assert stats.chi2_reduced == pytest.approx(own.chi2_reduced, rel=1e-9)
+    assert stats.dof == own.dof == int(campaign.measured.sum()) - 6
+    # the singular values of the whitened system: its R either way
+    np.testing.assert_allclose(np.linalg.svd(stats.Aw, compute_uv=False),
+                               np.linalg.svd(own.Aw, compute_uv=False), rtol=1e-9)
+    lin = estimator("ols").fit(problem)
+    lin_stats, lin_out = fit_statistics(problem, lin)
+    assert lin_out is lin
+    np.testing.assert_array_equal(lin_stats.cov_x, held_statistics(problem, lin).cov_x)

@@ -1,4 +1,5 @@
-"""``campaign analyze`` imports matplotlib only to make the report's figures, never pyplot.
+"""``campaign analyze`` imports matplotlib only to make the report's figures, never pyplot;
+scipy.spatial (the k-d tree of the held-out clusters) only for hundreds of poses.
 
 Each run is a fresh interpreter, so ``sys.modules`` holds what that path imported.
 """
@@ -14,7 +15,8 @@ import json, sys
 from campaign.cli import main
 status = main({args!r})
 print("PROBE=" + json.dumps({{"status": status, "modules": sorted(
-    m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib."))}}))
+    m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")),
+    "spatial": "scipy.spatial" in sys.modules}}))
 """
 
 
@@ -31,6 +33,7 @@ def test_analyze_without_report_imports_no_matplotlib(complete_run, tmp_path):
     probe = run_analyze(["analyze", str(complete_run), "--no-report", "--out", str(out)])
     assert probe["status"] == 0
     assert probe["modules"] == []
+    assert not probe["spatial"]  # a few poses: their close pairs without the k-d tree
     assert json.loads((out / "results.json").read_text())["joint_stiffness_Nm_per_rad"]
     assert not (out / "report.html").exists()
 

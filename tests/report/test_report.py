@@ -93,6 +93,41 @@ def test_html_is_self_contained_with_plots_of_the_expected_size(complete):
         assert pixels.std() > 0.05  # not a blank image
 
 
+def test_grey_figure_is_stored_as_grey_and_colour_figures_as_rgb(complete):
+    """The 1/kappa_F map (grey colour map, black and white marks) is an 8-bit grey PNG
+    (IHDR colour type 0) in the HTML and a DeviceGray image in the PDF; the five colour
+    figures stay RGB (colour type 2)."""
+    html = (complete["out"] / "report.html").read_text(encoding="utf-8")
+    found = re.findall(r'<figure id="fig-(\w+)"><img src="data:image/png;base64,([^"]+)"',
+                       html)
+    types = {name: base64.b64decode(data)[25] for name, data in found}
+    assert len(types) == 6
+    assert types.pop("poses_kappa_map") == 0
+    assert set(types.values()) == {2}
+    spaces = []
+    for page in PdfReader(complete["out"] / "report.pdf").pages:
+        xobjects = page["/Resources"].get("/XObject", {})
+        spaces += [str(xobjects[k].get_object()["/ColorSpace"]) for k in xobjects]
+    assert sorted(spaces) == ["/DeviceGray"] + ["/DeviceRGB"] * 5
+
+
+def test_grey_or_rgb_keeps_every_pixel():
+    """grey_or_rgb: all-grey pixels -> their (h, w) levels; one colour pixel anywhere
+    (on a row the 1-in-16 sample skips, too) -> the RGB array unchanged."""
+    from analysis.report.figures import grey_or_rgb
+
+    rng = np.random.default_rng(3)
+    levels = rng.integers(0, 256, size=(40, 30), dtype=np.uint8)
+    rgb = np.repeat(levels[..., None], 3, axis=2)
+    grey = grey_or_rgb(rgb)
+    assert grey.shape == (40, 30) and np.array_equal(grey, levels)
+    for row in (0, 5, 39):  # sampled (0), skipped by the sample (5, 39)
+        tinted = rgb.copy()
+        tinted[row, 7, 2] ^= 1
+        out = grey_or_rgb(tinted)
+        assert out.shape == (40, 30, 3) and np.array_equal(out, tinted)
+
+
 def test_html_shows_flags_and_failed_row(complete):
     doc = complete["html"]
     flagged = doc.tables["Flagged and failed test rows"]

@@ -97,7 +97,9 @@ def test_figures_fill_their_canvas_without_clipping(run_report):
     import matplotlib.image as mpimg
 
     for alt, png in run_report["page"].figures:
-        px = mpimg.imread(io.BytesIO(png))[..., :3]
+        px = mpimg.imread(io.BytesIO(png))
+        # a grey figure is an 8-bit grey PNG (h, w); a colour one RGB (h, w, 3)
+        px = np.repeat(px[..., None], 3, axis=2) if px.ndim == 2 else px[..., :3]
         assert px.std() > 0.05, alt
         border = np.concatenate([px[:2].reshape(-1, 3), px[-2:].reshape(-1, 3),
                                  px[:, :2].reshape(-1, 3), px[:, -2:].reshape(-1, 3)])

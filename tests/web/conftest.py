@@ -55,6 +55,40 @@ def _write_plan(d: Path) -> None:
     pd.DataFrame(rows, columns=COLUMNS).to_csv(d / "plan.csv", index=False)
 
 
+@pytest.fixture(scope="session")
+def acquired_kr240(tmp_path_factory) -> Path:
+    """A directory holding ``plan`` (6 KR240-2 tests, 1 repeat; 400 candidates, seed 1) and
+    ``run``, its acquisition on the simulated lab (the acquire job, time x 300), not
+    analysed. Acquired once for the session (seeded: every acquisition of it gives the
+    same numbers) and never changed: a test copies it with :func:`copy_acquired`."""
+    import pandas as pd
+
+    from campaign.jobs.acquire import AcquireJobOptions
+    from campaign.jobs.acquire import run as acquire
+    from campaign.planning.planner import make_plan, write_plan
+    from campaign.protocol import load_protocol
+
+    src = tmp_path_factory.mktemp("kr240-acquired")
+    protocol = Path(__file__).parents[2] / "protocols" / "kr240-2.toml"
+    write_plan(make_plan(load_protocol(protocol), candidates=400, seed=1, tests=6),
+               src / "plan", figure=False)
+    df = pd.read_csv(src / "plan" / "plan.csv", dtype={"zone": str, "load_case": str,
+                                                       "method": str})
+    df.assign(repeats=1).to_csv(src / "plan" / "plan.csv", index=False)
+    acquire(AcquireJobOptions(plan=src / "plan", out=src / "run", fake=True, assume_yes=True,
+                              time_scale=300.0), say=lambda s: None)
+    assert (src / "run" / "tests.csv").is_file()
+    return src
+
+
+def copy_acquired(source: Path, ws: Path) -> Path:
+    """``ws`` (created) holding copies of ``plan`` and ``run`` of :func:`acquired_kr240`."""
+    ws.mkdir(parents=True, exist_ok=True)
+    for name in ("plan", "run"):
+        shutil.copytree(source / name, ws / name)
+    return ws
+
+
 @pytest.fixture
 def app(workspace):
     from campaign.web.app import create_app

@@ -13,31 +13,21 @@ from pathlib import Path
 
 import pytest
 
+from tests.web.conftest import copy_acquired
+
 pytestmark = pytest.mark.timeout(150)
-PROTOCOL = Path(__file__).parents[2] / "protocols" / "kr240-2.toml"
 
 
 @pytest.fixture(scope="module")
-def analysed(tmp_path_factory) -> Path:
+def analysed(tmp_path_factory, acquired_kr240) -> Path:
     """A workspace with a run of 6 KR240-2 tests on the simulated lab, analysed (ols)."""
     import pandas as pd
 
-    from campaign.jobs.acquire import AcquireJobOptions
-    from campaign.jobs.acquire import run as acquire
     from campaign.jobs.analyze import AnalyzeOptions
     from campaign.jobs.analyze import run as analyze
     from campaign.jobs.choices import Method
-    from campaign.planning.planner import make_plan, write_plan
-    from campaign.protocol import load_protocol
 
-    ws = tmp_path_factory.mktemp("plots-ws")
-    write_plan(make_plan(load_protocol(PROTOCOL), candidates=400, seed=1, tests=6),
-               ws / "plan", figure=False)
-    df = pd.read_csv(ws / "plan" / "plan.csv", dtype={"zone": str, "load_case": str,
-                                                      "method": str})
-    df.assign(repeats=1).to_csv(ws / "plan" / "plan.csv", index=False)
-    acquire(AcquireJobOptions(plan=ws / "plan", out=ws / "run", fake=True, assume_yes=True,
-                              time_scale=300.0), say=lambda s: None)
+    ws = copy_acquired(acquired_kr240, tmp_path_factory.mktemp("plots-ws"))
     # run2: the same tests with a gross error (dz of the 5th test +0.5 mm), accepted
     shutil.copytree(ws / "run", ws / "run2", ignore=shutil.ignore_patterns("*.parquet"))
     tests = pd.read_csv(ws / "run2" / "tests.csv")

@@ -11,36 +11,25 @@ from pathlib import Path
 
 import pytest
 
+from tests.web.conftest import copy_acquired
 from tests.web.pages import wait_job
 from tests.web.test_plan_view import open_page  # noqa: F401  (the browser page fixture)
 
 pytestmark = pytest.mark.timeout(240)
-PROTOCOL = Path(__file__).parents[2] / "protocols" / "kr240-2.toml"
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory) -> Path:
+def runs(tmp_path_factory, acquired_kr240) -> Path:
     """A workspace: ``run`` (6 KR240-2 tests on the simulated lab, analysed, ols), and
     ``bad``, ``bad2``: copies of it with a gross error (dx of test 3 +0.5 mm), not
     analysed; the analysis refuses them (misfit)."""
     import pandas as pd
 
-    from campaign.jobs.acquire import AcquireJobOptions
-    from campaign.jobs.acquire import run as acquire
     from campaign.jobs.analyze import AnalyzeOptions
     from campaign.jobs.analyze import run as analyze
     from campaign.jobs.choices import Method
-    from campaign.planning.planner import make_plan, write_plan
-    from campaign.protocol import load_protocol
 
-    ws = tmp_path_factory.mktemp("accept-ws")
-    write_plan(make_plan(load_protocol(PROTOCOL), candidates=400, seed=1, tests=6),
-               ws / "plan", figure=False)
-    df = pd.read_csv(ws / "plan" / "plan.csv", dtype={"zone": str, "load_case": str,
-                                                      "method": str})
-    df.assign(repeats=1).to_csv(ws / "plan" / "plan.csv", index=False)
-    acquire(AcquireJobOptions(plan=ws / "plan", out=ws / "run", fake=True, assume_yes=True,
-                              time_scale=300.0), say=lambda s: None)
+    ws = copy_acquired(acquired_kr240, tmp_path_factory.mktemp("accept-ws"))
     for name in ("bad", "bad2"):
         shutil.copytree(ws / "run", ws / name, ignore=shutil.ignore_patterns("*.parquet"))
         tests = pd.read_csv(ws / name / "tests.csv")

@@ -17,6 +17,7 @@ import pytest
 from tests.web.conftest import (
     TOKEN,  # noqa: F401  (the fixtures' token)
     browser_page,
+    copy_acquired,
     gui_server,
 )
 from tests.web.pages import wait_job
@@ -86,20 +87,11 @@ def test_plan_endpoint_refuses_bad_requests(client):
 
 
 @pytest.fixture(scope="module")
-def demo_ws(tmp_path_factory) -> Path:
+def demo_ws(tmp_path_factory, acquired_kr240) -> Path:
     """A workspace holding a run of 6 tests (1 repeat) of the KR240-2 on the simulated
-    lab, planned through the Plan endpoint and acquired by the acquire job (time x 200)."""
-    from campaign.jobs.acquire import AcquireJobOptions, run
-
-    ws = tmp_path_factory.mktemp("analyze-ws")
-    r = _client(ws).post("/api/plan/run", json={
-        "values": {"campaign.tests": "6", "campaign.repeats": "1"}, "candidates": 500,
-        "name": "p6"})
-    assert r.status_code == 200, r.text
-    res = run(AcquireJobOptions(plan=ws / "plans" / "p6", out=ws / "run", fake=True,
-                                assume_yes=True, time_scale=200.0), say=lambda s: None)
-    assert (ws / "run" / "tests.csv").is_file(), res
-    return ws
+    lab (a copy of the session's :func:`~tests.web.conftest.acquired_kr240`: one
+    acquisition for every module that analyses such a run)."""
+    return copy_acquired(acquired_kr240, tmp_path_factory.mktemp("analyze-ws"))
 
 
 def _client(ws: Path):

@@ -14,7 +14,7 @@ from analysis.errors import InputError
 from analysis.identification.io.columns import COMPONENTS, Q_COLS, W_COLS
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg import lsq
-from analysis.identification.linalg.lsq import scaled_condition, stack_matrix, weakest_column
+from analysis.identification.linalg.lsq import scaled_condition, weakest_column
 from analysis.identification.noise import NoiseModel
 from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, count_poses, pose_tolerance
 from analysis.identification.streaming.per_test import is_lazy
@@ -78,15 +78,12 @@ def check_identifiable(
     A: np.ndarray, joints: tuple[int, ...], cond_limit: float = COND_LIMIT
 ) -> float:
     """Condition number of the column-scaled A (m, 6, p); refuse naming the weakest joint."""
-    if is_lazy(A) or A.shape[0] * 6 > lsq.TALL_ROWS:
-        # one pass: the R of the tall A has its column norms and singular values (Householder
-        # QR's backward error is column-wise, so scaling after it loses nothing)
-        acc = lsq.TallR()
-        for s in range(0, A.shape[0], lsq.TEST_BLOCK):
-            acc.add(A[s:s + lsq.TEST_BLOCK].reshape(-1, A.shape[-1]))
-        stacked = acc.r()
-    else:
-        stacked = stack_matrix(A)
+    # one pass: a tall A's R has its column norms and singular values (Householder QR's
+    # backward error is column-wise, so scaling after it loses nothing)
+    acc = lsq.StackedRows(6 * A.shape[0], tall=is_lazy(A))
+    for s in range(0, A.shape[0], lsq.TEST_BLOCK):
+        acc.add(A[s:s + lsq.TEST_BLOCK].reshape(-1, A.shape[-1]))
+    stacked = acc.matrix()
     norms = np.linalg.norm(stacked, axis=0)
     if np.any(norms == 0):
         j = joints[int(np.flatnonzero(norms == 0)[0])]

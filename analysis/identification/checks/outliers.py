@@ -8,6 +8,8 @@ makes the residual table and its warning.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from analysis.errors import InputError
@@ -128,6 +130,7 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
         flags[i, c] = True
         if int(flags.sum()) > budget:
             break
+        t = None  # read again only once remade (48 MB at 1e6 tests, not held by the refit)
         keep = tests.measured & ~flags
         # d as it is: components not ``measured`` are not read (no 48 MB copy at 1e6 tests)
         rest = TestArrays(tests.pose, tests.q, tests.w, tests.d, keep, tests.line)
@@ -140,9 +143,11 @@ def flag_outliers(robot, tests: TestArrays, joints, noise, method: str, first: F
                     corrected_fit,
                 )
 
+                # the refit's A x let go while the correction makes f(x_c) (one (m, 6)
+                # array at a time; made again where the correction is unreliable)
+                current = replace(current, predicted=None)
                 current = corrected_fit(current, correct_linear_bias(
                     robot, rest, joints, current, bias_se, method))
-            t = None  # its 48 MB (1e6 tests) before the next
             t = _studentized_matrix(rest, current, scale)
         except InputError:
             break

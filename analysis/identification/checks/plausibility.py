@@ -14,6 +14,9 @@ Checks, each a refusal unless the user accepts the result anyway
   than :data:`MAX_DOWN_WEIGHTED` of the components: that is not a few glitches
   but data the model does not explain, which down-weighting would hide from
   the chi-square;
+* **robust interval without degrees of freedom**: a robust fit's covariance is
+  estimated from its G tests' scores, and with no more tests than fitted joints
+  (G - p <= 0) that estimate has no degrees of freedom left;
 * **negative compliance**: an identified compliance x = 1/k is below zero by
   more than its interval half-width (the whole interval is negative): no
   joint pushes back, so the signs of the data disagree with the model, most
@@ -98,7 +101,7 @@ def _linear_bias_unreliable(result: IdentificationResult) -> bool:
 def _misfit_causes(result: IdentificationResult) -> tuple[str, ...]:
     """CAUSES_MISFIT, led by the linear model when its bias correction was unreliable (the
     residuals are then the raw linear fit's) and by the rigid wrist when the fit is the
-    translational-only variant."""
+    translational-only variant, or by the joints taken as rigid when --joints left some out."""
     first = []
     if _linear_bias_unreliable(result):
         first.append(f"the linear model of {result.method} at these loads (its residuals "
@@ -106,6 +109,12 @@ def _misfit_causes(result: IdentificationResult) -> tuple[str, ...]:
                      "exact)")
     if any(w.startswith("translational-only variant") for w in result.warnings):
         first.append(CAUSE_RIGID_WRIST)
+    elif len(result.joints) < len(result.k):
+        rigid = ", ".join(str(j + 1) for j in range(len(result.k)) if j not in result.joints)
+        first.append(
+            f"joint(s) {rigid} taken as rigid (--joints): a compliant joint fitted as rigid "
+            "moves P under load without the model seeing it; identify all of them (--joints "
+            f"{','.join(str(j + 1) for j in range(len(result.k)))}) or the ones the data can")
     return (*first, *CAUSES_MISFIT)
 
 
@@ -154,6 +163,17 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
             f"{rob['reported_below_weight']:g} (more than {level(MAX_DOWN_WEIGHTED)}; glitches are "
             f"a few rows); likely causes, most likely first: {_causes(CAUSES_MISFIT)}; worst "
             f"rows: {worst_rows(result)}")
+    clusters = ((rob or {}).get("covariance") or {}).get("clusters")
+    if clusters is not None:
+        g, p = int(clusters), len(result.joints)
+        if g <= p:
+            out.append(
+                f"too few tests for the robust fit's interval: its covariance is estimated "
+                f"from the scores of G = {g} tests and p = {p} joints are fitted (G - p = "
+                f"{g - p} degrees of freedom; at least {p + 1} tests are needed, many more for "
+                "a stable standard error); likely causes: (1) a campaign too small for "
+                "--robust: measure more tests, or use the Gaussian fit (--robust none), "
+                "whose interval rests on the noise figures")
     low = chi2_lower_tail(result)
     if np.isfinite(low) and low < MISFIT_P:
         out.append(

@@ -91,7 +91,33 @@ def check_comparable(a: Campaign, b: Campaign) -> tuple[list[int], list[str]]:
         if bad:
             raise InputError(f"joint(s) {bad} have no usable estimate or variance "
                              "(covariance_of_compliance diagonal)", where=c.source)
-    return common, notes
+    return common, notes + _caveats(a, b)
+
+
+def _joint_list(joints) -> str:
+    return ", ".join(str(j + 1) for j in joints)
+
+
+def _caveats(a: Campaign, b: Campaign) -> list[str]:
+    """Notes on what makes a 'changed' verdict less than a change of the robot: different
+    joint sets (a joint taken as rigid in one fit moves the others' estimates), different
+    estimators, a result kept despite a refusal."""
+    out = []
+    if set(a.joints) != set(b.joints):
+        only = sorted(set(a.joints) ^ set(b.joints))
+        out.append(f"A identified joints {_joint_list(a.joints)}, B joints "
+                   f"{_joint_list(b.joints)}: joint(s) {_joint_list(only)} are taken as rigid "
+                   "in one fit, which moves the other joints' estimates when they are not; "
+                   "a 'changed' verdict may be that model difference, not a change of the "
+                   "robot (compare fits of the same joints)")
+    if a.method is not None and b.method is not None and a.method != b.method:
+        out.append(f"the estimators differ (A {a.method}, B {b.method}): each campaign's "
+                   "interval is its own method's")
+    for name, c in (("A", a), ("B", b)):
+        if c.accepted:
+            out.append(f"{name} was kept despite a refusal (--accept-misfit: results.json "
+                       "misfit_accepted): its k and intervals are not supported by its data")
+    return out
 
 
 def critical_z(alpha: float, m: int) -> float:

@@ -28,7 +28,9 @@ class Campaign:
     cov_x (n, n) compliance covariance ((rad/(N m))^2, zero for joints not identified);
     joints : 0-based identified joints; model : model.toml beside it (mapping) or None;
     tests_data : results.json ``tests_data`` (:mod:`analysis.identification.io.data_fingerprint`),
-    None when the file predates it.
+    None when the file predates it; method : the estimator named in results.json, with its
+    robust mode when there is one, e.g. "exact, huber" (None when absent); accepted : the
+    result was kept despite a refusal (``misfit_accepted``).
     """
 
     source: str
@@ -39,6 +41,8 @@ class Campaign:
     joints: tuple[int, ...]
     model: dict | None = None
     tests_data: dict | None = None
+    method: str | None = None
+    accepted: bool = False
 
 
 def _results_path(path: Path) -> Path:
@@ -173,12 +177,19 @@ def load_campaign(path: str | Path) -> Campaign:
     for j in joints:
         if not (math.isfinite(k[j]) and k[j] > 0):
             raise InputError(f"joint_stiffness_Nm_per_rad[{j}]: joint {j + 1} is in "
-                             f"joints_identified but its stiffness is {k[j]!r} (expected a "
+                             f"joints_identified but its stiffness is {k[j]:g} (expected a "
                              "positive number)", where=where)
     n = len(k)
     cov = np.zeros((n, n))
     cov[np.ix_(joints, joints)] = cov_p
     with np.errstate(divide="ignore", invalid="ignore"):
         x = np.where(np.isfinite(k) & (k > 0), 1.0 / k, np.nan)
+    method = doc.get("method")
+    robust = doc.get("robust")
+    if isinstance(method, str) and isinstance(robust, dict) and isinstance(
+            robust.get("method"), str):
+        method = f"{method}, {robust['method']}"
+    accepted = doc.get("misfit_accepted")
     return Campaign(where, robot, k, x, cov, joints, _model(rp.parent / "model.toml"),
-                    _tests_data(doc, where))
+                    _tests_data(doc, where), method if isinstance(method, str) else None,
+                    isinstance(accepted, dict) and accepted.get("accepted") is True)

@@ -47,5 +47,5 @@ class Exact:
         # the first Gauss-Newton weights are WLS's first ones (both at the OLS estimate)
         fit = fit_exact(problem.robot, tests, problem.joints, problem.noise,
                         start=linear["ols"], first_whitening=first or None, sums=sums,
-                        defer_shift=sums is not None, J=problem.jacobian)
+                        J=problem.jacobian)
         return EstimatorFit(fit=fit, linear=linear, kept=tests.measured, sums=sums)

@@ -15,14 +15,7 @@ from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv
 from analysis.identification.estimators.fit import Fit
 from analysis.identification.estimators.gauss_newton import gauss_newton
 from analysis.identification.estimators.linear_model import jacobian_blocks, tests_design
-from analysis.identification.linalg import lsq
-from analysis.identification.linalg.lsq import (
-    qr_solve,
-    stack_matrix,
-    stack_vector,
-    whitened_lstsq,
-    whitening,
-)
+from analysis.identification.linalg.lsq import solve_blocks, whitening
 from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming.covariances import (
     covariance_and_whitening,
@@ -64,11 +57,7 @@ def _linear_estimator(A, d, measured, cov, weighted: bool, Linv=None):
         Linv = whitening(cov, measured)
     elif not weighted:
         Linv = None
-    if A.shape[0] * 6 > lsq.TALL_ROWS:
-        x, bread = whitened_lstsq(A, dz, Linv)  # blockwise: no stacked (6m, p) copy
-        return x, bread, Linv
-    Aw, dw = (A, dz) if Linv is None else (Linv @ A, np.einsum("...ij,...j->...i", Linv, dz))
-    x, bread, _ = qr_solve(stack_matrix(Aw), stack_vector(dw), with_pinv=False)
+    x, bread = solve_blocks(A, dz, Linv)
     return x, bread, Linv
 
 
@@ -153,7 +142,7 @@ def fit_linear(robot, tests, joints, noise, weighted: bool, weights=None, start=
 
 def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
               eiv: bool = True, first_whitening: dict | None = None, sums=None,
-              defer_shift: bool = False, J=None) -> Fit:
+              J=None) -> Fit:
     """Weighted Gauss-Newton on the exact equilibrium model, from compliances ``start`` (p,).
 
     ``weights`` (m, 6): robust weights (:func:`_covariances`); ``cov`` of the result is
@@ -164,12 +153,13 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     first iteration's whitening when its x equals ``start`` (the same array
     Gauss-Newton would compute: computed once).
 
-    One large (streamed) campaign: ``sums`` a
-    :class:`~analysis.identification.streaming.fold_sums.FinalPassSums` filled in the pass
-    that forms the final system (the errors-in-variables S comes from it);
-    ``defer_shift``: ``predicted`` is left None, for the caller to make from ``A`` (the
-    model Jacobian, whose blocks come with the model's values) and move by A eiv_shift in
-    a pass of its own (``predicted_shifted`` False). ``J``: the tests'
+    ``sums``: a :class:`~analysis.identification.streaming.fold_sums.FinalPassSums` to fill
+    in the pass that forms the final system, where the systems make one
+    (:meth:`~analysis.identification.streaming.systems.LinearisedSystems.final_pass_sums`;
+    the others refuse it): the errors-in-variables S comes from it, and ``predicted`` is
+    left None, for the statistics pass to make from ``A`` (the model Jacobian, whose blocks
+    come with the model's values) and move by A eiv_shift (``predicted_shifted`` False).
+    ``J``: the tests'
     :func:`~analysis.identification.estimators.linear_model.jacobian_blocks` if the caller has it.
     """
     Linv0 = None
@@ -178,7 +168,7 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
         Linv0 = first_whitening["Linv"]
     J = jacobian_blocks(robot, tests.q) if J is None else J
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
-                      weights=weights, J=J, Linv0=Linv0, rows=sums, values=not defer_shift)
+                      weights=weights, J=J, Linv0=Linv0, rows=sums, values=sums is None)
     if not gn.valid:
         raise InputError(
             "the exact fit cannot start: the equilibrium has no solution at the linear "
@@ -188,9 +178,9 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
     x, bread, f, Linv, shift = gn.x, gn.cov_x, gn.f, gn.Linv, None
     shifted = True
     if eiv:
-        S = sums.S if sums is not None and gn.R is not None else None
+        S = sums.S if sums is not None else None
         x, bread, shift = _wrench_eiv(noise, J, tests, joints, x, bread, Linv, S)
-        if defer_shift and gn.R is not None:
+        if sums is not None:
             shifted = False
         else:
             f = f + apply(gn.F, shift)  # first order: the shift is ~1e-4 of x

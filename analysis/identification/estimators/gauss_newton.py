@@ -104,7 +104,6 @@ def gauss_newton(
     batch = q.shape[:-2]
     ctx = Context(robot, q, w, dz, measured, cols, noise, J, weights, batch, {})
     systems = systems_for(q.shape[-2], batch)(ctx)
-    streamed = systems.streamed
 
     x = np.array(x0, dtype=float)
     valid = np.all(np.isfinite(x), axis=-1)
@@ -139,9 +138,7 @@ def gauss_newton(
         if np.all(converged | ~valid):
             break
     ctx.tips.clear()  # the unloaded tool poses (0.13 GB at 1e6 tests) before the last arrays
-    if streamed:
-        systems.rows, systems.values = rows, values
-    cov, Linv, cov_x, F, R, f, dq = systems.final(x, state, valid)
+    cov, Linv, cov_x, F, R, f, dq = systems.final(x, state, valid, rows, values)
     x = np.where(valid[..., None], x, np.nan)
     cov_x = np.where(valid[..., None, None], cov_x, np.nan)
     return GaussNewtonFit(x=x, F=F, f=f, cov=cov, cov_x=cov_x, iterations=iterations,

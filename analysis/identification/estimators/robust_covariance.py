@@ -137,7 +137,10 @@ class RobustCovariance:
                     "the noise model (tests independent)",
             "small_sample_correction": CORRECTION,
             "clusters": self.tests,
-            "interval": "Student t, each joint's degrees of freedom by Satterthwaite",
+            "interval": ("Student t, each joint's degrees of freedom by Satterthwaite"
+                         + ("" if self.tests > self.cov.shape[0] else
+                            f" (G - p = {self.tests - self.cov.shape[0]}: too few tests, "
+                            "refused unless accepted)")),
             "degrees_of_freedom": [float(v) for v in self.dof],
             # per identified joint, in the order of the joints
             "se_over_uncorrected_sandwich": [

@@ -62,44 +62,14 @@ def model_file_data(result: IdentificationResult, robot: RobotModel, *, source_r
                          "needs its geometry in the robot-file format", where=str(src))
     data, _ = read_mapping_file(Path(src), "robot file")
     data = dict(data)
-    joints = [dict(j) for j in data["joints"]]
-    ls, ang = _LENGTH[data["length_unit"]], _ANGLE[data["angle_unit"]]
-    old_unit = _STIFF[data.get("stiffness_unit", "N m/rad")]
     k = np.asarray(result.k, dtype=float)
-    cov = np.zeros((robot.n, robot.n))
     ident_idx = [j for j in result.joints if np.isfinite(k[j]) and k[j] > 0]
-    notes = []
-    for j in set(result.joints) - set(ident_idx):
-        notes.append(f"k{j + 1}: the identified compliance is not positive; nominal kept")
-    cols = list(result.joints)
-    for a, ja in enumerate(cols):
-        for b, jb in enumerate(cols):
-            if ja in ident_idx and jb in ident_idx:
-                cov[ja, jb] = result.cov_x[a, b]
+    notes = [f"k{j + 1}: the identified compliance is not positive; nominal kept"
+             for j in set(result.joints) - set(ident_idx)]
     nominal_idx = [j for j in range(robot.n) if j not in ident_idx]
-    for j in range(robot.n):
-        if j in ident_idx:
-            joints[j]["stiffness"] = float(k[j])
-        elif joints[j].get("stiffness") is not None:
-            joints[j]["stiffness"] = float(joints[j]["stiffness"]) * old_unit
-        else:
-            raise InputError(f"k{j + 1} was not identified and {robot.name} has no nominal "
-                             "value for it: model.toml needs every joint's stiffness "
-                             "(identify all joints, or add the nominal one to the robot file)",
-                             where=src)
-    data["joints"] = joints
+    data["joints"] = _joint_stiffness(data, robot, k, ident_idx, src)
     data["stiffness_unit"] = "N m/rad"
-    tool = _tool_in_flange(robot)
-    old_tool = data.get("tool") or {}
-    xyz = [float(v) for v in tool[:3, 3] / ls]
-    rpy = [float(v) for v in _rpy(tool[:3, :3]) / ang]
-    moved = not (np.allclose(xyz, old_tool.get("xyz", [0, 0, 0]), atol=1e-9)
-                 and np.allclose(rpy, old_tool.get("rpy", [0, 0, 0]), atol=1e-9))
-    data["tool"] = {"xyz": xyz, "rpy": rpy}
-    if moved:
-        # published FK checks are of the file's own tool point
-        data.pop("reference_poses", None)
-        notes.append("tool of the run composed into [tool]; reference_poses dropped")
+    notes += _set_tool(data, robot)
     data.pop("aliases", None)  # a model file is named by its path, never by a built-in name
     sources = dict(data.get("sources") or {})
     ident_txt = ", ".join(f"k{j + 1}" for j in ident_idx) or "none"
@@ -109,10 +79,10 @@ def model_file_data(result: IdentificationResult, robot: RobotModel, *, source_r
         stiff_src += f"; {nom_txt} nominal: {sources.get('stiffness', 'robot file')}"
     sources["stiffness"] = stiff_src
     data["sources"] = sources
-    ident = {
+    data["identification"] = {
         "quantity": "compliance",
         "covariance_unit": "(rad/(N m))^2",
-        "covariance": cov.tolist(),
+        "covariance": _identified_covariance(result, robot.n, ident_idx).tolist(),
         "joints_identified": [j + 1 for j in ident_idx],
         "joints_nominal": [j + 1 for j in nominal_idx],
         "method": result.method,
@@ -126,8 +96,55 @@ def model_file_data(result: IdentificationResult, robot: RobotModel, *, source_r
         "software": software,
         "notes": notes,
     }
-    data["identification"] = ident
     return data
+
+
+def _identified_covariance(result: IdentificationResult, n: int, ident_idx) -> np.ndarray:
+    """(n, n) covariance of the compliances ((rad/(N m))^2) of the joints ``ident_idx``
+    (identified with a positive k), zero for the others."""
+    cov = np.zeros((n, n))
+    cols = list(result.joints)
+    for a, ja in enumerate(cols):
+        for b, jb in enumerate(cols):
+            if ja in ident_idx and jb in ident_idx:
+                cov[ja, jb] = result.cov_x[a, b]
+    return cov
+
+
+def _joint_stiffness(data: dict, robot: RobotModel, k: np.ndarray, ident_idx, src) -> list:
+    """The robot file's joints with each stiffness (N m/rad): the identified k where
+    ``ident_idx``, else the file's nominal one; refused when a joint has neither."""
+    joints = [dict(j) for j in data["joints"]]
+    old_unit = _STIFF[data.get("stiffness_unit", "N m/rad")]
+    for j in range(robot.n):
+        if j in ident_idx:
+            joints[j]["stiffness"] = float(k[j])
+        elif joints[j].get("stiffness") is not None:
+            joints[j]["stiffness"] = float(joints[j]["stiffness"]) * old_unit
+        else:
+            raise InputError(f"k{j + 1} was not identified and {robot.name} has no nominal "
+                             "value for it: model.toml needs every joint's stiffness "
+                             "(identify all joints, or add the nominal one to the robot file)",
+                             where=src)
+    return joints
+
+
+def _set_tool(data: dict, robot: RobotModel) -> list[str]:
+    """Write the run's tool (in the file's length and angle units) into ``data["tool"]``;
+    the note when it moved the file's tool point (its reference poses are then dropped)."""
+    ls, ang = _LENGTH[data["length_unit"]], _ANGLE[data["angle_unit"]]
+    tool = _tool_in_flange(robot)
+    old_tool = data.get("tool") or {}
+    xyz = [float(v) for v in tool[:3, 3] / ls]
+    rpy = [float(v) for v in _rpy(tool[:3, :3]) / ang]
+    moved = not (np.allclose(xyz, old_tool.get("xyz", [0, 0, 0]), atol=1e-9)
+                 and np.allclose(rpy, old_tool.get("rpy", [0, 0, 0]), atol=1e-9))
+    data["tool"] = {"xyz": xyz, "rpy": rpy}
+    if not moved:
+        return []
+    # published FK checks are of the file's own tool point
+    data.pop("reference_poses", None)
+    return ["tool of the run composed into [tool]; reference_poses dropped"]
 
 
 def write_model_file(data: dict, path: Path) -> Path:

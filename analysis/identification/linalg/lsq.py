@@ -148,7 +148,9 @@ TEST_BLOCK = 8_000
 #: tests per block of :func:`whitening`: its working set (~10 arrays of 36 x 4096
 #: doubles) stays in cache
 WHITEN_BLOCK = 4_096
-#: stacked systems with more rows than this are factorised blockwise (no Q, no A^+)
+#: stacked systems with more rows than this are factorised blockwise (no Q, no A^+); read
+#: in this module only (:func:`solve_blocks`, :class:`StackedRows`, :func:`qr_solve`,
+#: :func:`scaled_condition`, :func:`weakest_column`): no estimator chooses by size
 TALL_ROWS = 192_000
 
 
@@ -184,6 +186,30 @@ class TallR:
         """R (q, q) of all the rows added (q = their number of columns)."""
         q = self.Rs[0].shape[-1]
         return np.linalg.qr(np.vstack(self.Rs), mode="r")[:q]
+
+
+class StackedRows:
+    """The rows of a stacked system fed block by block, kept as a matrix with its column
+    norms and singular values (for :func:`scaled_condition` and :func:`weakest_column`):
+    the stacked rows themselves up to :data:`TALL_ROWS` rows, else their R
+    (:class:`TallR`, O(p^2) memory). ``rows``: how many the system has; ``tall``: take
+    the R whatever the number (rows made when sliced: the system is not held).
+    """
+
+    def __init__(self, rows: int, tall: bool = False) -> None:
+        self.acc = TallR() if tall or rows > TALL_ROWS else None
+        self.parts: list[np.ndarray] = []
+
+    def add(self, rows: np.ndarray) -> None:
+        """Append rows (r, p) of the system."""
+        if self.acc is not None:
+            self.acc.add(rows)
+        else:
+            self.parts.append(rows)
+
+    def matrix(self) -> np.ndarray:
+        """The stacked rows (r, p), or their R (p, p)."""
+        return self.acc.r() if self.acc is not None else np.concatenate(self.parts)
 
 
 def tall_r(A: np.ndarray, d: np.ndarray | None = None, block: int | None = None,
@@ -229,6 +255,34 @@ def tall_solve(A: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Rinv = np.linalg.inv(R[:p, :p])
     x = (Rinv @ R[:p, p]) / scale
     cov_unit = (Rinv @ Rinv.T) / (scale[:, None] * scale[None, :])
+    return x, cov_unit
+
+
+def solve_blocks(A, r: np.ndarray, Linv=None, valid: np.ndarray | None = None,
+                 Lr: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """x, (A^T W A)^-1 of the least squares ``Linv A x ~ Linv r`` for per-test blocks.
+
+    ``A`` (..., m, 6, p) per-test design (zero rows where not measured; one campaign's
+    may be made when sliced), ``r`` (..., m, 6) right-hand side (0 where not measured),
+    ``Linv`` (..., m, 6, 6) per-test whitening (None: unweighted), W = Linv^T Linv;
+    ``valid`` (...): campaigns of a batch whose system is defined (the others get I and
+    a meaningless x); ``Lr``: the whitened right-hand side, if the caller has it.
+
+    The one place the fits choose how to factorise their systems, by size: one campaign
+    of more than :data:`TALL_ROWS` stacked rows (all valid) by the blockwise TSQR of
+    :func:`whitened_lstsq` (no stacked (6m, p) copy), every other system by one QR of
+    the stacked, column-scaled system (:func:`qr_solve`); the same estimate to rounding.
+    """
+    if A.ndim == 3 and A.shape[0] * 6 > TALL_ROWS and (valid is None or np.all(valid)):
+        return whitened_lstsq(A, r, Linv)
+    if Linv is not None:
+        A = Linv @ A
+        r = np.einsum("...ij,...j->...i", Linv, r) if Lr is None else Lr
+    Aw = stack_matrix(A)
+    if valid is not None and not np.all(valid):
+        # the systems of invalid campaigns replaced by I (keeps their QR defined)
+        Aw = np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))
+    x, cov_unit, _ = qr_solve(Aw, stack_vector(r), with_pinv=False)
     return x, cov_unit
 
 

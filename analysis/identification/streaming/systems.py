@@ -5,7 +5,9 @@
 it solves, whatever the campaign's size: :meth:`~LinearisedSystems.evaluate` the model
 (and its Jacobian) at x, :meth:`~LinearisedSystems.weigh` (the weights at x),
 :meth:`~LinearisedSystems.solve` (the step) and :meth:`~LinearisedSystems.final` (the
-covariances at the solution). :class:`HeldSystems` holds F and the whitening of every
+covariances at the solution); and what the identification's stages ask of a fit made on
+them, :meth:`~LinearisedSystems.statistics` (its covariance, residual variances and
+chi-square). :class:`HeldSystems` holds F and the whitening of every
 test (small campaigns, batches of them); :class:`StreamedSystems` never holds them (one
 campaign of more than :data:`~analysis.identification.streaming.per_test.LAZY_TESTS`
 tests): the same numbers to rounding.
@@ -19,13 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.linalg import lsq
-from analysis.identification.linalg.lsq import (
-    qr_solve,
-    stack_matrix,
-    stack_vector,
-    whitened_lstsq,
-    whitening,
-)
+from analysis.identification.linalg.lsq import solve_blocks, whitening
 from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming import blocks, per_test
 from analysis.identification.streaming.blocks import model_in_blocks
@@ -41,11 +37,11 @@ from analysis.model.robot_model import RobotModel
 class LinearisedSystems(ABC):
     """The systems of one :func:`gauss_newton` call; ``streamed``: never held.
 
-    The implementation (:func:`systems_for`) also answers what the estimators do
-    differently at a campaign's size, so that they never ask for it:
+    The implementation (:func:`systems_for`) also answers what the estimators and the
+    statistics do differently at a campaign's size, so that they never ask for it:
     ``compares_wls``: the exact fit also makes the WLS fit for results.json's comparison;
     :meth:`final_pass_sums`: the per-test sums made in the pass that forms the final
-    system.
+    system; :meth:`statistics`: how a fit's statistics are made.
     """
 
     streamed: bool
@@ -58,6 +54,18 @@ class LinearisedSystems(ABC):
         errors-in-variables S and the validation's per-fold sums
         (:class:`~analysis.identification.streaming.fold_sums.FinalPassSums`)."""
         return None
+
+    @classmethod
+    def statistics(cls, problem, outcome):
+        """(statistics, outcome): the
+        :class:`~analysis.identification.statistics.FitStatistics` of ``outcome`` (an
+        :class:`~analysis.identification.estimators.base.EstimatorFit` of ``problem``) and
+        the outcome the later stages use: here from a pass over the fit's blocks of its
+        own (:func:`~analysis.identification.statistics.held_statistics`), the outcome as
+        it is."""
+        from analysis.identification.statistics import held_statistics
+
+        return held_statistics(problem, outcome), outcome
 
     @abstractmethod
     def evaluate(self, x, with_jacobian, dq0, cost, system_at, out=None, dq_scale=None):
@@ -73,15 +81,10 @@ class LinearisedSystems(ABC):
         """(step, (F^T W F)^-1, r^T W r) at ``state``."""
 
     @abstractmethod
-    def final(self, x, state, valid):
-        """(cov, Linv, cov_x, F, R, f, dq) at the solution x."""
-
-
-def defined(Aw: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Aw with the systems of invalid campaigns replaced by I (keeps their QR defined)."""
-    if np.all(valid):
-        return Aw  # no copy (one campaign of 1e6 tests: 0.3 GB)
-    return np.where(valid[..., None, None], Aw, np.eye(*Aw.shape[-2:]))
+    def final(self, x, state, valid, rows=None, values: bool = True):
+        """(cov, Linv, cov_x, F, R, f, dq) at the solution x; ``rows`` and ``values``: see
+        :func:`~analysis.identification.estimators.gauss_newton.gauss_newton` (systems
+        that do not stream refuse ``rows``: they make no final pass)."""
 
 
 class HeldSystems(LinearisedSystems):
@@ -117,18 +120,15 @@ class HeldSystems(LinearisedSystems):
     def solve(self, state, valid):
         """Gauss-Newton step, (F^T W F)^-1 and the cost sum r^T W r at ``state``."""
         c = self.c
-        F, f, Linv = state.F, state.f, self.Linv
-        r = c.whitened(Linv, f)
-        if F.ndim == 3 and F.shape[0] * 6 > lsq.TALL_ROWS and np.all(valid):
-            # one large campaign: blockwise, without the stacked (6m, p) Linv F
-            step, cov_unit = whitened_lstsq(F, np.where(c.measured, c.dz - f, 0.0), Linv)
-        else:
-            Aw = defined(stack_matrix(Linv @ F), valid)
-            step, cov_unit, _ = qr_solve(Aw, stack_vector(r), with_pinv=False)
+        rhs = np.where(c.measured, c.dz - state.f, 0.0)
+        r = np.einsum("...ij,...j->...i", self.Linv, rhs)  # whitened (the cost's residuals)
+        step, cov_unit = solve_blocks(state.F, rhs, self.Linv, valid, Lr=r)
         return step, cov_unit, np.sum(r**2, axis=(-2, -1))
 
-    def final(self, x, state, valid):
-        """cov, Linv, cov_x and F at the solution x."""
+    def final(self, x, state, valid, rows=None, values: bool = True):
+        """cov, Linv, cov_x and F at the solution x (f always kept: ``values`` unused)."""
+        if rows is not None:  # a logic error: the sums' owner would get nothing
+            raise ValueError("held systems make no final pass for per-test sums")
         c = self.c
         one_campaign = state.F.ndim == 3 and state.F.shape[0] > blocks.EVAL_BLOCK
         if one_campaign:  # the covariances are made again block by block where needed
@@ -168,6 +168,19 @@ class StreamedSystems(LinearisedSystems):
         return FinalPassSums(problem.tests, problem.joints, problem.noise,
                              fold if problem.options.validate and n_folds >= 3 else None,
                              n_folds)
+
+    @classmethod
+    def statistics(cls, problem, outcome):
+        """A fit made by these systems' final pass (the Gaussian exact fit: it carries
+        that pass's R, whitened by its own covariances) from R, in one pass that also
+        makes the prediction the fit deferred
+        (:func:`~analysis.identification.statistics.final_pass_statistics`); a fit made
+        without it (a linear model's, a robust fit) by a pass of its own, as held ones."""
+        if outcome.fit.R is None:
+            return super().statistics(problem, outcome)
+        from analysis.identification.statistics import final_pass_statistics
+
+        return final_pass_statistics(problem, outcome)
 
     def __init__(self, ctx) -> None:
         self.c = ctx
@@ -236,15 +249,15 @@ class StreamedSystems(LinearisedSystems):
             raise RuntimeError("the system was whitened at other weights than the step's")
         return from_r(state.R)
 
-    def final(self, x, state, valid):
+    def final(self, x, state, valid, rows=None, values: bool = True):
         c = self.c
         xf = c.full(x)
         cov = PerTestCovariance(c.noise, c.J, xf, c.measured, c.w, c.weights)
         self.weigh(x)
         # the model values at the solution come from this pass (the iterations kept only
         # the deflections), which also writes the deflections in place
-        last = self.evaluate(x, True, state.dq, False, x, rows=getattr(self, "rows", None),
-                             keep_f=getattr(self, "values", True), dq_out=state.dq)
+        last = self.evaluate(x, True, state.dq, False, x, rows=rows, keep_f=values,
+                             dq_out=state.dq)
         _, cov_x, _ = from_r(last.R)
         F = PerTestModelJacobian(c.robot, c.q, c.w, c.measured, c.cols, xf, last.dq)
         return cov, PerTestWhitening(cov, c.measured), cov_x, F, last.R, last.f, last.dq

@@ -43,6 +43,7 @@ from analysis.identification.linalg.sandwich import sandwich_and_residual_varian
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.identification.poses import group_names, pose_groups, pose_tolerance
 from analysis.identification.validation.downdate import downdate_folds, system_of, with_total
+from analysis.identification.validation.folds import Folds
 from analysis.identification.validation.holdout_check import (
     CLUSTER_DEG,
     PredictiveSums,
@@ -97,8 +98,9 @@ def leave_one_pose_out(
     if group is None:
         radius = CLUSTER_DEG * np.pi / 180.0 if cluster_rad is None else cluster_rad
         group = holdout_folds(tests.q, poses, radius)
-    table = _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits,
-                       full_fit, group, fold_sums, linear_shift, J, poses)
+    folds = Folds(robot, tests, method, tuple(joints), noise, group, poses,
+                   group_names(tests.pose, group), J)
+    table = _leave_out(folds, batched, max_exact_refits, full_fit, fold_sums, linear_shift)
     if table is None:
         return None
     # poses per fold: distinct (fold, pose) pairs counted per fold (one each when there
@@ -122,18 +124,16 @@ def _deg(radius: float | None) -> str:
     return f"{CLUSTER_DEG if radius is None else radius * 180.0 / np.pi:g} deg"
 
 
-def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, full_fit,
-               group, fold_sums, linear_shift, J=None,
-               poses=None) -> pd.DataFrame | None:
-    """The table of :func:`leave_one_pose_out` over the folds ``group`` (m,) ints.
+def _leave_out(folds: Folds, batched, max_exact_refits, full_fit, fold_sums,
+               linear_shift) -> pd.DataFrame | None:
+    """The table of :func:`leave_one_pose_out` over the folds ``folds.group`` (m,) ints.
 
     ``batched=False`` refits from scratch for every pose (the reference path).
     ``max_exact_refits`` (default :data:`EXACT_REFITS_MAX`): with more poses than
     this, exact folds take one Gauss-Newton step from the full-data estimate.
     ``full_fit``: the :class:`analysis.identification.estimators.fit.Fit` of ``method`` on all
-    the tests, if the caller has it (saves refitting the full data). ``group``: the
-    tests' pose groups (:func:`~analysis.identification.poses.pose_groups`) if the caller
-    has them. ``fold_sums``: the per-pose sums of a streamed exact ``full_fit``
+    the tests, if the caller has it (saves refitting the full data). ``fold_sums``: the
+    per-pose sums of a streamed exact ``full_fit``
     (:class:`~analysis.identification.streaming.fold_sums.FinalPassSums`, made in its
     final pass).
     ``linear_shift``: for ols/wls whose linearisation bias was corrected
@@ -149,31 +149,27 @@ def _leave_out(robot, tests, method, joints, noise, batched, max_exact_refits, f
     """
     if max_exact_refits is None:
         max_exact_refits = EXACT_REFITS_MAX
-    names = group_names(tests.pose, group)
-    if len(names) < 3:
+    if len(folds.names) < 3:
         return None
-    per_fold_correction = linear_shift is not None and len(names) <= max_exact_refits
+    per_fold_correction = linear_shift is not None and len(folds.names) <= max_exact_refits
     if per_fold_correction:
         batched = False  # each fold is refitted and corrected (the reference path)
-    if batched and method == "ols":
-        table = _batched_ols(robot, tests, group, names, joints, noise, method, full_fit,
-                             linear_shift, poses)
+    if batched and folds.method == "ols":
+        table = _batched_ols(folds, full_fit, linear_shift)
         if table is not None:
             return table
     start = None
-    if batched and method == "exact":
-        start, table = _batched_exact(robot, tests, group, names, joints, noise, method,
-                                      full_fit, fold_sums, max_exact_refits, J)
+    if batched and folds.method == "exact":
+        start, table = _batched_exact(folds, full_fit, fold_sums, max_exact_refits)
         if table is not None:
             return table
-    return _refit_each(robot, tests, group, names, joints, noise, method, start,
-                       linear_shift)
+    return _refit_each(folds, start, linear_shift)
 
 
-def _batched_ols(robot, tests, group, names, joints, noise, method, full_fit, linear_shift,
-                 poses) -> pd.DataFrame | None:
+def _batched_ols(folds: Folds, full_fit, linear_shift) -> pd.DataFrame | None:
     """Every OLS fold by downdates of the full system (:func:`downdate_folds`), or None
     when the row checks refuse the tests (the reference path then names the folds)."""
+    robot, tests, joints, poses = folds.robot, folds.tests, folds.joints, folds.poses
     try:
         # row checks hold for every subset then
         check_tests(robot, tests, joints, group=poses)
@@ -193,43 +189,44 @@ def _batched_ols(robot, tests, group, names, joints, noise, method, full_fit, li
         offset = (full_fit.predicted, full_fit.x + linear_shift[0])
         rhs = _LessOffset(tests.d, A, *offset)
         shift = (np.zeros(len(joints)), linear_shift[1])
-    table = downdate_folds(robot, tests, group, names, joints, noise, A, rhs,
-                           np.zeros(len(joints)), method, linear_shift=shift, offset=offset)
+    table = downdate_folds(folds, A, rhs, np.zeros(len(joints)), linear_shift=shift,
+                           offset=offset)
     if linear_shift is not None:
         table["note"] = [n or SHIFT_NOTE for n in table["note"]]
     return table
 
 
-def _batched_exact(robot, tests, group, names, joints, noise, method, full_fit, fold_sums,
-                   max_exact_refits, J):
+def _batched_exact(folds: Folds, full_fit, fold_sums, max_exact_refits):
     """(start, table): the full-data exact estimate (None when it cannot be fitted) and,
     with more than ``max_exact_refits`` poses, every fold by one Gauss-Newton step from
     it (:func:`downdate_folds`), else None (each fold is refitted from ``start``)."""
+    robot, tests, joints, noise, J = folds.robot, folds.tests, folds.joints, folds.noise, \
+        folds.J
     start = None
     try:
         full = full_fit if full_fit is not None else fit(robot, tests, joints, noise,
-                                                         method, J=J)
+                                                         folds.method, J=J)
         start = full.x
     except InputError:
         start = None
-    if start is not None and len(names) > max_exact_refits:
+    if start is not None and len(folds.names) > max_exact_refits:
         # one Gauss-Newton step per fold from the full-data estimate (module docstring)
         sums = None if fold_sums is None else fold_sums.folds
         # the residuals are only read when the folds are summed here (48 MB at 1e6)
         resid = None if sums is not None else tests.d - full.predicted
-        table = downdate_folds(robot, tests, group, names, joints, noise, full.A, resid,
-                               full.x, method, dq0=full.deflection, Linv=full.Linv,
-                               system=system_of(full), sums=sums, shift=full.eiv_shift,
-                               J=J)
+        table = downdate_folds(folds, full.A, resid, full.x, dq0=full.deflection,
+                               Linv=full.Linv, system=system_of(full), sums=sums,
+                               shift=full.eiv_shift)
         table["note"] = [n or ONE_STEP_NOTE for n in table["note"]]
         return start, table
     return start, None
 
 
-def _refit_each(robot, tests, group, names, joints, noise, method, start,
-                linear_shift) -> pd.DataFrame:
+def _refit_each(folds: Folds, start, linear_shift) -> pd.DataFrame:
     """The reference path: every fold refitted (exact: from ``start`` when given) and its
     held-out tests predicted; a fold that cannot be fitted gets its refusal as note."""
+    robot, tests, group, names = folds.robot, folds.tests, folds.group, folds.names
+    joints, noise, method = folds.joints, folds.noise, folds.method
     rows = []
     cols = list(joints)
     p = len(cols)

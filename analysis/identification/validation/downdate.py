@@ -63,10 +63,13 @@ def system_of(fit):
     return R / scale, c, scale
 
 
-def downdate_folds(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method,
-                      dq0=None, Linv=None, system=None, sums=None, shift=None,
-                      linear_shift=None, offset=None, J=None) -> pd.DataFrame:
+def downdate_folds(folds, Aw, rw, x0, dq0=None, Linv=None, system=None, sums=None,
+                   shift=None, linear_shift=None, offset=None) -> pd.DataFrame:
     """Every fold's estimate from one factorisation of the full (whitened) system.
+
+    ``folds``: the fit validated and its folds
+    (:class:`~analysis.identification.validation.folds.Folds`: robot, tests, method,
+    joints, noise, each test's fold, the folds' labels, the tests' Jacobians).
 
     ``Aw`` (m, 6, p) and ``rw`` (m, 6) are the design and right-hand side: for ols the
     design and the measured displacements (``x0`` = 0, the fold estimate is the exact
@@ -91,7 +94,6 @@ def downdate_folds(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
     corrected estimate x_c: the folds' predictions are then the linear ones plus the
     full fit's linearisation error f - A x_c (its change between x_c and a fold's
     estimate is second order: ~1 % of a change of ~se/x) instead of the model's.
-    ``J``: the tests' Jacobians if the caller has them.
 
     The folds' covariances for the total-uncertainty check: (A^T W A)_-h^-1 for a fit
     whitened by its own covariances, the sandwich bread_-h meat_-h bread_-h for ols
@@ -101,6 +103,8 @@ def downdate_folds(robot, tests, fold, labels, joints, noise, Aw, rw, x0, method
 
     from analysis.identification.linalg.lsq import TEST_BLOCK
 
+    robot, tests, fold, labels = folds.robot, folds.tests, folds.group, folds.names
+    joints, noise, method, J = folds.joints, folds.noise, folds.method, folds.J
     cols = list(joints)
     m, p = Aw.shape[0], Aw.shape[-1]
     P = len(labels)  # fold: the pose group of each test, as in the reference path

@@ -39,6 +39,10 @@ CLUSTER_DEG = 5.0
 #: many poses in the refit, too small a share of its information to make the check
 #: optimistic (and the search would cost ~40 MB at 1e5 poses)
 CLUSTER_MAX_POSES = 20_000
+#: up to this many poses the close pairs come from the full (G, G) distance matrix (its
+#: (G, G, 6) differences: 3 MB at 256 poses); above, from scipy's k-d tree, whose import
+#: (scipy.spatial, with scipy.sparse) costs more CPU than a planned campaign's search
+DENSE_PAIRS_MAX_POSES = 256
 LIMIT_TEXT = (
     "a held-out pose is flagged (beyond_limit) when q = e^T (Sigma + F C F^T)^-1 e of its n "
     "measured components exceeds the chi-square(n) quantile at 1 - a, a = 1 - (1 - "
@@ -147,6 +151,21 @@ def flag_columns(q: np.ndarray, n: np.ndarray, level: float = HOLDOUT_FAMILY_LEV
             "beyond_limit": valid & (p_value < per_pose)}
 
 
+def close_pairs(points: np.ndarray, radius: float) -> np.ndarray:
+    """Pairs (k, 2) of row indices i < j of ``points`` (G, n) with
+    ||points_i - points_j|| <= ``radius`` (Euclidean, the points' unit), in any order.
+
+    Up to :data:`DENSE_PAIRS_MAX_POSES` points from the distance matrix, else from
+    scipy's ``cKDTree.query_pairs``: the same pairs either way."""
+    if len(points) > DENSE_PAIRS_MAX_POSES:
+        from scipy.spatial import cKDTree
+
+        return cKDTree(points).query_pairs(radius, output_type="ndarray")
+    d2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=-1)  # (G, G)
+    i, j = np.nonzero(np.triu(d2 <= radius * radius, k=1))
+    return np.column_stack([i, j])
+
+
 def holdout_folds(q: np.ndarray, group: np.ndarray, radius: float) -> np.ndarray:
     """Fold (m,) of each test: its pose ``group`` (m,) ints, with the poses whose joint
     angles are within ``radius`` (rad, Euclidean norm over the joints of q (m, n) rad)
@@ -162,12 +181,10 @@ def holdout_folds(q: np.ndarray, group: np.ndarray, radius: float) -> np.ndarray
     n_groups = int(group.max(initial=-1)) + 1
     if radius <= 0 or n_groups < 2 or n_groups > CLUSTER_MAX_POSES:
         return group  # the poses themselves (no copy: 8 MB at 1e6 tests)
-    from scipy.spatial import cKDTree
-
     _, first = np.unique(group, return_index=True)  # groups are 0..G-1 by first appearance
     rep = np.asarray(q, dtype=float)[first]  # (G, n) a reading of each pose
     # only the close pairs (i < j), as one array: few in a planned campaign
-    pairs = cKDTree(rep).query_pairs(radius * (1 + 1e-12), output_type="ndarray")
+    pairs = close_pairs(rep, radius * (1 + 1e-12))
     fold_of = np.full(n_groups, -1)
     if len(pairs):
         # each pose's later neighbours, by the pair list sorted on its first member

@@ -130,7 +130,8 @@ def register(app: typer.Typer) -> None:
         robust: Robust = typer.Option(
             "none", help="Robust fit for campaigns with glitches: none (the Gaussian fit), "
             "huber (c = 1.345) or tukey (c = 4.685) IRLS on the whitened residuals; the "
-            "down-weighted rows are reported. Needs --method exact or wls.", rich_help_panel=_FIT),
+            "down-weighted rows are reported. Around --method exact, wls or ols.",
+            rich_help_panel=_FIT),
         covariance: Covariance = typer.Option(
             "model", help="model (the noise figures are known) or residual (scaled by the "
             "reduced chi-square).", rich_help_panel=_FIT),

@@ -1,0 +1,43 @@
+"""A robust fit with no more tests than joints is refused: its covariance is estimated
+from its G tests (one scale per test), and with G <= p no test is left over the fitted
+joints. The audit found 6 tests and 6
+joints accepted with the text "Student t with G - p = 1 degrees of freedom" (G - p was 0;
+the dof was clamped to 1 and the interval shown without a word)."""
+
+from __future__ import annotations
+
+import pytest
+
+from analysis.identification.checks.plausibility import problems
+from analysis.identification.estimate import identify
+from analysis.identification.noise import NoiseModel
+
+from ._sim import simulate
+
+NOISE = NoiseModel()
+
+
+@pytest.mark.parametrize("m, refused", [(6, True), (8, False)])
+def test_robust_fit_needs_more_tests_than_joints(kr240, zone_poses, w_eff, m, refused):
+    k0 = kr240.nominal_stiffness
+    tests = simulate(kr240, zone_poses[:m], w_eff, k0, NOISE, seed=5)
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False, robust="huber")
+    cov = res.robust["covariance"]
+    assert cov["clusters"] == m
+    found = [p for p in problems(res, k0) if p.startswith("too few tests for the robust")]
+    if refused:
+        assert len(found) == 1
+        assert "G = 6 tests and p = 6 joints" in found[0]
+        assert "G - p = 0 degrees of freedom; at least 7 tests" in found[0]
+        assert "--robust none" in found[0]
+        assert "G - p = 0: too few tests" in cov["interval"]
+    else:
+        assert found == []
+        assert cov["interval"] == ("Student t, each joint's degrees of freedom by "
+                                   "Satterthwaite")
+        # Satterthwaite's per joint: between 1 and 6 G (G equal tests of 6 components)
+        assert all(1 <= v <= 6 * m for v in cov["degrees_of_freedom"])
+    # the Gaussian fit of the same tests is not concerned (its interval rests on the
+    # noise figures)
+    gauss = identify(kr240, tests, "exact", noise=NOISE, validate=False)
+    assert not any(p.startswith("too few tests") for p in problems(gauss, k0))
