@@ -27,8 +27,8 @@ def test_robust_fit_needs_more_tests_than_joints(kr240, zone_poses, w_eff, m, re
     found = [p for p in problems(res, k0) if p.startswith("too few tests for the robust")]
     if refused:
         assert len(found) == 1
-        assert "G = 6 tests and p = 6 joints" in found[0]
-        assert "G - p = 0 degrees of freedom; at least 7 tests" in found[0]
+        assert "G = 6 tests for p = 6 fitted joints" in found[0]
+        assert "(G - p = 0; at least 7 tests" in found[0]
         assert "--robust none" in found[0]
         assert "G - p = 0: too few tests" in cov["interval"]
     else:

@@ -168,10 +168,11 @@ def problems(result: IdentificationResult, nominal: np.ndarray | None,
         g, p = int(clusters), len(result.joints)
         if g <= p:
             out.append(
-                f"too few tests for the robust fit's interval: its covariance is estimated "
-                f"from the scores of G = {g} tests and p = {p} joints are fitted (G - p = "
-                f"{g - p} degrees of freedom; at least {p + 1} tests are needed, many more for "
-                "a stable standard error); likely causes: (1) a campaign too small for "
+                f"too few tests for the robust fit's interval: its covariance scales each "
+                f"test's noise by that test's own residuals, and G = {g} tests for p = {p} "
+                f"fitted joints leave them too few degrees of freedom (G - p = {g - p}; at "
+                f"least {p + 1} tests are needed, many more for a stable standard error); "
+                "likely causes: (1) a campaign too small for "
                 "--robust: measure more tests, or use the Gaussian fit (--robust none), "
                 "whose interval rests on the noise figures")
     low = chi2_lower_tail(result)
