@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.uncertainty import critical_value, stiffness_interval
+from analysis.identification.uncertainty import interval_critical_value, stiffness_interval
 from analysis.report.formatting import level
 
 #: the errors-in-variables corrections are a warning when they move some k by this many se
@@ -50,20 +50,21 @@ def reported_intervals(problem, outcome, stats, corr) -> Intervals:
     options, joints, chosen = problem.options, problem.joints, outcome.fit
     notes: list[str] = []
     scale = 1.0
-    crit = critical_value(options.confidence)
     if options.covariance == "residual":
         if stats.dof <= 0:
             raise InputError("no residual degrees of freedom to estimate the variance",
                              where="covariance")
         scale = stats.chi2_reduced
-        crit = critical_value(options.confidence, stats.dof)
     cov_x = stats.cov_x * scale
+    robust_dof = None
     if outcome.robust is not None:
-        # the M-estimator's sandwich, estimated from the tests' scores (not scaled by the
-        # chi-square); its G scores give the interval G - p degrees of freedom
+        # the M-estimator's sandwich with one noise scale per test (not scaled by the
+        # chi-square), each joint's t by Satterthwaite
         # (analysis.identification.estimators.robust_covariance)
-        crit = critical_value(options.confidence, outcome.robust.covariance.dof)
+        robust_dof = outcome.robust.covariance.dof
         cov_x = outcome.robust.covariance.cov
+    crit = interval_critical_value(options.confidence, options.covariance, stats.dof,
+                                   robust_dof)
     se_x = np.sqrt(np.diag(cov_x))
     x_out = chosen.x  # the raw linear estimate for ols/wls (the outlier refits start there)
     bias = None

@@ -34,6 +34,19 @@ def critical_value(confidence: float = 0.95, dof=None):
     return float(special.stdtrit(dof, p))
 
 
+def interval_critical_value(confidence: float, covariance: str = "model", dof: int = 0,
+                            robust_dof=None):
+    """The critical value of a fit's reported intervals: Student t with each joint's
+    Satterthwaite ``robust_dof`` (p,) for a robust fit; t with the residual ``dof`` when
+    the covariance is scaled by the residuals (``covariance`` "residual", dof > 0); else
+    the normal's (the noise figures taken as known)."""
+    if robust_dof is not None:
+        return critical_value(confidence, np.asarray(robust_dof, dtype=float))
+    if covariance == "residual" and dof > 0:
+        return critical_value(confidence, dof)
+    return critical_value(confidence)
+
+
 def compliance_interval(x: np.ndarray, se_x: np.ndarray, c: float) -> np.ndarray:
     """(..., 2) interval [lo, hi] of x (rad/(N m))."""
     return np.stack([x - c * se_x, x + c * se_x], axis=-1)

@@ -41,3 +41,33 @@ def test_robust_fit_needs_more_tests_than_joints(kr240, zone_poses, w_eff, m, re
     # noise figures)
     gauss = identify(kr240, tests, "exact", noise=NOISE, validate=False)
     assert not any(p.startswith("too few tests") for p in problems(gauss, k0))
+
+
+def test_negative_stiffness_check_uses_the_intervals_student_t(kr240, zone_poses, w_eff):
+    """The negative-stiffness check judges a joint at the critical value of the result's
+    own interval: for a robust fit, Student t with that joint's Satterthwaite dof (the
+    audit found the normal's 1.96 there). A compliance 2.0 se below 0 is refused at the
+    normal's 1.96 but not at t's > 2.0 (8 tests: dof well below 60, where t(dof, 97.5 %)
+    falls under 2.0)."""
+    import dataclasses
+
+    import numpy as np
+
+    from analysis.identification.uncertainty import critical_value
+
+    k0 = kr240.nominal_stiffness
+    tests = simulate(kr240, zone_poses[:8], w_eff, k0, NOISE, seed=5)
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False, robust="huber")
+    dof = np.array(res.robust["covariance"]["degrees_of_freedom"])
+    j = int(np.argmin(dof))
+    assert critical_value(0.95, dof[j]) > 2.0 > critical_value(0.95)
+    se = np.sqrt(np.diag(res.cov_x))
+    x = np.array(res.x, dtype=float)
+    x[res.joints[j]] = -2.0 * se[j]
+    moved = dataclasses.replace(res, x=x)
+    negative = [p for p in problems(moved, k0) if p.startswith("negative stiffness")]
+    assert negative == []
+    x[res.joints[j]] = -2.0 * se[j] - (critical_value(0.95, dof[j]) - 2.0) * se[j] * 1.01
+    negative = [p for p in problems(dataclasses.replace(res, x=x), k0)
+                if p.startswith("negative stiffness")]
+    assert len(negative) == 1 and f"x{res.joints[j] + 1} = 1/k" in negative[0]

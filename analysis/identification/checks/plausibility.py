@@ -132,16 +132,22 @@ def chi2_lower_tail(result: IdentificationResult) -> float:
 
 
 def _negative_joints(result: IdentificationResult) -> list[str]:
-    """'x3 = -1.1e-06 +- 2e-08 rad/(N m)' for each joint whose compliance interval is below 0."""
-    from scipy import special  # norm.isf, without importing scipy.stats
+    """'x3 = -1.1e-06 +- 2e-08 rad/(N m)' for each joint whose compliance interval is below 0,
+    at the critical value of the result's own intervals (Student t for a robust fit or a
+    residual-scaled covariance, as
+    :func:`~analysis.identification.intervals.reported_intervals` chooses it)."""
+    from analysis.identification.uncertainty import interval_critical_value
 
-    crit = float(-special.ndtri((1.0 - result.confidence) / 2.0))
+    robust_dof = ((result.robust or {}).get("covariance") or {}).get("degrees_of_freedom")
+    crit = np.broadcast_to(interval_critical_value(result.confidence, result.covariance,
+                                                   result.dof, robust_dof),
+                           (len(result.joints),))
     se = np.sqrt(np.clip(np.diag(result.cov_x), 0.0, None))
     out = []
     for idx, j in enumerate(result.joints):
-        x = float(result.x[j])
-        if x + crit * se[idx] < 0.0:
-            out.append(f"x{j + 1} = 1/k{j + 1} = {x:.3g} +- {crit * se[idx]:.2g} rad/(N m)")
+        x, half = float(result.x[j]), float(crit[idx] * se[idx])
+        if x + half < 0.0:
+            out.append(f"x{j + 1} = 1/k{j + 1} = {x:.3g} +- {half:.2g} rad/(N m)")
     return out
 
 
