@@ -90,12 +90,13 @@ def robot_and_tool(robot: str, tip: str | None, tool_xyz_mm: Sequence[float] | N
     return model, tool
 
 
-def six_joints(robot) -> None:
+def six_joints(robot, where: str = "--robot") -> None:
     """Refuse a robot that is not a six-joint arm: the method (K_X = J^-T (K_theta - K_C)
-    J^-1, the 1/kappa_F maps, the six-component tests) needs a square 6 x 6 Jacobian."""
+    J^-1, the 1/kappa_F maps, the six-component tests) needs a square 6 x 6 Jacobian;
+    ``where``: the option or field that named the robot."""
     if robot.n != 6:
         raise InputError(f"{robot.name} has {robot.n} joints: this method needs a six-joint "
-                         "arm (a square 6 x 6 Jacobian)", where="--robot")
+                         "arm (a square 6 x 6 Jacobian)", where=where)
 
 
 def tool_texts(tool_xyz_mm: Sequence[float] | None,

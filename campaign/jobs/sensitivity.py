@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.errors import InputError
+from campaign.jobs.common import six_joints
 
 METHODS = ("ols", "wls", "exact")
 POSE_SOURCES = ("zones", "plan", "typed")
@@ -213,6 +214,8 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
         from analysis.model.robots import load_robot
 
         robot = load_robot(o.robot, where="robot")
+    # the simulated campaigns are six-component tests of a six-joint arm
+    six_joints(robot, where="robot")
     if o.joint_stiffness is not None:
         k = np.asarray(o.joint_stiffness, dtype=float)
         if k.shape != (robot.n,) or not np.all(np.isfinite(k)) or np.any(k <= 0):

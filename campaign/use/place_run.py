@@ -138,10 +138,10 @@ def build_problem(o: PlaceOptions, console: Console):
         raise InputError("expected a positive number of evaluations", where="--max-evaluations")
     if not (o.max_memory_gib > 0 and np.isfinite(o.max_memory_gib)):
         raise InputError("expected a positive size in GiB", where="--max-memory-gib")
+    from campaign.jobs.common import six_joints
+
     robot = robot_option(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
-    if robot.n != 6:
-        raise InputError(f"{robot.name} has {robot.n} joints: placement needs a 6-axis arm",
-                         where="--robot")
+    six_joints(robot)
     k = stiffness_option(robot, o.joint_stiffness)
     part = read_part_path(o.path)
     assumptions = []

@@ -76,3 +76,18 @@ def test_the_same_file_with_six_joints_is_accepted(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     J = doc["J_m_rad_per_rad"]
     assert len(J) == 6 and all(len(row) == 6 for row in J)
+
+
+def test_sensitivity_job_refuses_seven_joints(tmp_path):
+    """The GUI's sensitivity job (the paper's Fig. 6) loads its robot itself: the same
+    refusal, naming its field, instead of a shape error deep in the simulated campaigns."""
+    from analysis.errors import InputError
+    from campaign.jobs.sensitivity import SensitivityOptions, run_sensitivity
+
+    urdf = tmp_path / "arm7.urdf"
+    urdf.write_text(_urdf(7), encoding="utf-8")
+    with pytest.raises(InputError) as err:
+        run_sensitivity(SensitivityOptions(robot=f"{urdf}#tip",
+                                           joint_stiffness=[1e4] * 7))
+    assert err.value.where == "robot"
+    assert "arm7 has 7 joints: this method needs a six-joint arm" in str(err.value)
