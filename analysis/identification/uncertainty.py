@@ -47,11 +47,6 @@ def interval_critical_value(confidence: float, covariance: str = "model", dof: i
     return critical_value(confidence)
 
 
-def compliance_interval(x: np.ndarray, se_x: np.ndarray, c: float) -> np.ndarray:
-    """(..., 2) interval [lo, hi] of x (rad/(N m))."""
-    return np.stack([x - c * se_x, x + c * se_x], axis=-1)
-
-
 def stiffness_interval(x: np.ndarray, se_x: np.ndarray, c: float) -> np.ndarray:
     """(..., 2) interval [lo, hi] of k = 1/x (N m/rad), mapped from the x interval.
 

@@ -619,8 +619,3 @@ def assumption_blocks(result: IdentificationResult) -> list:
         elif key in a and not (key == "robust" and str(a[key]).startswith("none")):
             rows.append([key, str(a[key])])
     return [Table("Assumptions", ["item", "value"], rows, widths=[1, 3.2])]
-
-
-def pm_text(value: float) -> str:
-    """A relative half-width as '\u00b1x.xx %'."""
-    return "-" if not np.isfinite(value) else f"\u00b1{100 * value:.2f} %"
