@@ -38,6 +38,8 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
                    "compensated joints."),
     "demo": ("demo", "Plan, acquire on the simulated lab and analyse the KR240-2 campaign "
              "(Dumas et al. 2011)."),
+    "export": ("export", "Write the robot as a simulator file: MJCF, URDF or SDF with its joint "
+               "springs."),
     "gui": ("gui", "Start the GUI on a local web server and print its URL with the access "
             "token."),
     "lab": ("lab", "Start fake instruments on loopback that speak the real protocols."),

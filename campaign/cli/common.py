@@ -22,6 +22,7 @@ from campaign.jobs.choices import (  # noqa: F401 (the commands' choices, re-exp
     Program,
     Robust,
     RotationSource,
+    SimFormat,
     Strategy,
     TableFormat,
     WrenchFrame,

@@ -77,6 +77,14 @@ class Program(StrEnum):
     none = "none"
 
 
+class SimFormat(StrEnum):
+    """Simulator description written by ``campaign export`` (analysis.export.sim_model)."""
+
+    mjcf = "mjcf"
+    urdf = "urdf"
+    sdf = "sdf"
+
+
 class RotationSource(StrEnum):
     reflectors = "reflectors"
     probe = "probe"
