@@ -15,7 +15,7 @@ import pytest
 
 COMMANDS = Path(__file__).parents[2] / "campaign" / "cli" / "commands"
 JOBS = ("plan", "acquire", "analyze", "stiffness", "maps", "robustness", "compensate",
-        "compare", "place", "robots", "demo", "lab")
+        "compare", "place", "robots", "demo", "lab", "export")
 #: what a face may import from analysis/: its error class and presentation helpers
 PRESENTATION = {"analysis.errors", "analysis.report.formatting",
                 "analysis.identification.compare.comparison"}  # level_text: the verdict's wording
