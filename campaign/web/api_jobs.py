@@ -7,7 +7,7 @@ server's bounds on trials, candidates, evaluations and map points: 400 naming
 the limit), answers 202 with the job (``id``, ``state``...; 429 when the queue is
 full), and ``GET /api/jobs/{id}`` gives its state, progress, result or error
 (``/events``: the same as server-sent events; ``DELETE`` or ``POST .../cancel``
-stops it, its outputs removed). robots, stiffness and compare answer at once.
+stops it, its outputs removed). robots, stiffness, compare and export answer at once.
 
 Request bodies are the jobs' options records themselves (FastAPI reads the
 dataclasses), so the units are the records' SI units (radians, N, N m, m),
@@ -45,6 +45,7 @@ from campaign.jobs.analyze import AnalyzeOptions
 from campaign.jobs.choices import json_ready
 from campaign.jobs.compare import CompareOptions
 from campaign.jobs.compensate import CompensateOptions
+from campaign.jobs.export import ExportOptions
 from campaign.jobs.maps import MapsOptions
 from campaign.jobs.place import PlaceOptions
 from campaign.jobs.plan import PlanOptions
@@ -221,6 +222,17 @@ def compare(options: CompareOptions, ws: Path = Depends(workspace)) -> JSONRespo
         options, a=inside(ws, options.a, "a"), b=inside(ws, options.b, "b"),
         plot=None if options.plot is None else inside(ws, options.plot, "plot"),
         report=None if options.report is None else inside(ws, options.report, "report"))
+    return answer(ws, lambda: run(options), options)
+
+
+@router.post("/export")
+def export(options: ExportOptions, ws: Path = Depends(workspace)) -> JSONResponse:
+    """The robot as an MJCF, URDF or SDF file ``out`` with its joint springs (workspace
+    paths); answered at once (writing one file takes milliseconds)."""
+    from campaign.jobs.export import run
+
+    options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
+                                  out=inside(ws, options.out, "out"))
     return answer(ws, lambda: run(options), options)
 
 

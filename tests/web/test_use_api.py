@@ -33,3 +33,24 @@ def test_program_files_only_inside_the_workspace(client, workspace):
         r = client.get("/api/use/program", params={"path": bad})
         assert r.status_code in (400, 422), (bad, r.status_code)
         assert "path" in r.json()["detail"] or r.json().get("where") == "path"
+
+
+def test_export_writes_a_simulator_file_inside_the_workspace(client, workspace):
+    """``POST /api/jobs/export``: the export job, answered at once; paths stay inside."""
+    import xml.etree.ElementTree as ET
+
+    r = client.post("/api/jobs/export", json={"robot": "robot.toml", "format": "sdf",
+                                              "out": "robot.sdf"})
+    assert r.status_code == 200, r.text
+    doc = r.json()
+    assert doc["file"] == "robot.sdf" and doc["stiffness_source"].startswith("nominal")
+    springs = [float(e.text) for e in ET.parse(workspace / "robot.sdf").iter(
+        "spring_stiffness")]
+    assert springs == doc["stiffness_Nm_per_rad"] and len(springs) == 6
+    r = client.post("/api/jobs/export", json={"robot": "ur10e", "format": "mjcf",
+                                              "out": "u.xml"})
+    assert r.status_code == 400 and "has no joint stiffness" in r.json()["detail"]
+    assert not (workspace / "u.xml").exists()
+    r = client.post("/api/jobs/export", json={"robot": "kr240-2", "format": "urdf",
+                                              "out": "../k.urdf"})
+    assert r.status_code == 400 and "out" in r.json()["detail"]

@@ -270,3 +270,33 @@ def test_compare_shows_the_jobs_numbers(page, ws):
         assert tr.locator(".verdict").inner_text().startswith(row["verdict"])
     verdicts = {r["joint"]: r["verdict"] for r in res["joints"]}
     assert verdicts[2] == "changed"  # B's joint 2 is 10 % stiffer
+
+
+def test_export_writes_the_jobs_file_and_says_what_it_leaves_out(page, ws):
+    """The export form: an identified model to SDF (the file is the job's, byte for byte),
+    then a robot without stiffness refused with the job's line."""
+    from campaign.jobs.choices import SimFormat
+    from campaign.jobs.export import ExportOptions, run
+
+    page.select_option("#exp-robot", "A/model.toml")
+    page.select_option("#exp-format", "sdf")
+    assert page.input_value("#exp-out") == "robot.sdf"  # the name follows the format
+    page.fill("#exp-out", "A.sdf")
+    page.click("#exp-run")
+    page.wait_for_selector("#view-use[data-exp='done']", timeout=30_000)
+    res = run(ExportOptions(robot=str(ws / "A" / "model.toml"), format=SimFormat.sdf,
+                            out=ws / "A-job.sdf"))
+    assert (ws / "A.sdf").read_text().replace(str(ws / "A.sdf"), "") == \
+        res.file.read_text().replace(str(ws / "A-job.sdf"), "")
+    wrote = page.inner_text("#exp-wrote")
+    assert "A.sdf" in wrote and res.report_id in wrote
+    for v in res.stiffness_Nm_per_rad:
+        assert f"{float(f'{v / 1e3:.5g}'):g}" in wrote
+    items = page.locator("#exp-left li").all_inner_texts()
+    assert items == res.left_out and any("covariance" in t for t in items)
+    page.select_option("#exp-robot", "ur10e")
+    page.fill("#exp-out", "u.sdf")
+    page.click("#exp-run")
+    page.wait_for_selector("#view-use[data-exp='error']", timeout=30_000)
+    assert "has no joint stiffness" in page.inner_text("#exp-error")
+    assert not (ws / "u.sdf").exists()

@@ -1,8 +1,8 @@
 // campaign gui, the Use view: K_X and the deflection at a pose (joint sliders, in the model
 // or the pendant convention), the deflection along a path with its band, the placement
 // search (a queued job, its progress from server-sent events), the compensation of a path
-// and the comparison of two analyses. Every number comes from a job of the server (POST
-// /api/jobs/stiffness, /place, /compensate, /compare, /api/use/deflection; SI in the bodies
+// the comparison of two analyses and the export to a simulator. Every number comes from a job of the server (POST
+// /api/jobs/stiffness, /place, /compensate, /compare, /export, /api/use/deflection; SI in the bodies
 // but place's, in the command line's mm and deg); the page converts only at its edge: deg
 // for joints, mm and mrad, N/mm and N m/mrad, kN m/rad. A job's refusal is shown in the
 // page's terms: the command-line options it names become the labels of this page's fields.
@@ -672,6 +672,44 @@ async function runCompare() {
   }
 }
 
+// ---- export to a simulator (MJCF, URDF, SDF) --------------------------------------------
+
+const EXPORT_SUFFIX = { mjcf: ".xml", urdf: ".urdf", sdf: ".sdf" };
+
+function exportFormatChanged() {  // a name still ending in a format's suffix follows the format
+  const out = u$("exp-out");
+  const m = out.value.match(/^(.*)\.(xml|mjcf|urdf|sdf)$/);
+  if (m) out.value = m[1] + EXPORT_SUFFIX[u$("exp-format").value];
+}
+
+async function runExport() {
+  u$("exp-error").textContent = "";
+  const view = u$("view-use");
+  view.dataset.exp = "running";
+  try {
+    const res = await usePost("/api/jobs/export", {
+      robot: u$("exp-robot").value, format: u$("exp-format").value, out: u$("exp-out").value,
+      no_springs: u$("exp-nosprings").checked, force: u$("exp-force").checked });
+    const k = res.stiffness_Nm_per_rad;
+    u$("exp-wrote").textContent = `wrote ${res.file} (${res.format}) for ${res.robot}; ` +
+      `joint stiffness: ${res.stiffness_source}` +
+      (k ? ` [${k.map((v) => fmt(v / 1e3)).join(", ")}] kN m/rad` : "") +
+      (res.report_id ? `; report ID ${res.report_id}` : "");
+    u$("exp-left").innerHTML = "";
+    for (const item of res.left_out) {
+      const li = document.createElement("li");
+      li.textContent = item;
+      u$("exp-left").appendChild(li);
+    }
+    u$("exp-result").hidden = false;
+    view.dataset.exp = "done";
+  } catch (err) {
+    u$("exp-error").textContent = String(err.message || err);
+    u$("exp-result").hidden = true;
+    view.dataset.exp = "error";
+  }
+}
+
 // ---- start -----------------------------------------------------------------------------
 
 async function refreshFiles() {
@@ -684,6 +722,7 @@ async function refreshFiles() {
   fillSelect(u$("comp-robot"), models, true);
   fillSelect(u$("comp-path"), f.paths.map((p) => [p, p]), true);
   fillSelect(u$("pd-robot"), models, true);
+  fillSelect(u$("exp-robot"), models, true);
   fillSelect(u$("pd-path"), f.paths.map((p) => [p, p]), true);
   fillSelect(u$("pl-path"), f.parts.map((p) => [p, p]), true);
   const firstPlace = !u$("pl-robot").options.length;
@@ -710,6 +749,8 @@ async function startUse() {
   u$("pl-cancel").addEventListener("click", () => cancelPlace().catch((e) => { u$("pl-error").textContent = String(e.message || e); }));
   u$("use-pendant-mode").addEventListener("change", () => setConvention(u$("use-pendant-mode").checked));
   u$("cmp-run").addEventListener("click", runCompare);
+  u$("exp-run").addEventListener("click", runExport);
+  u$("exp-format").addEventListener("change", exportFormatChanged);
   u$("tab-use").addEventListener("click", () => refreshFiles().catch(() => {}));
   await loadRobot();
   u$("view-use").dataset.ready = "1";
