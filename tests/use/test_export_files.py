@@ -136,7 +136,7 @@ def test_every_builtin_robot_in_every_format(tmp_path, key):
     assert "Plain URDF readers" in (tmp_path / f"{key}.urdf").read_text()
 
 
-@pytest.mark.parametrize("key", ["kr240-2", "ur10e", "puma560"])
+@pytest.mark.parametrize("key", [*builtin_names(), f"{Z1_URDF}#gripperStator"])
 def test_urdf_read_back_gives_the_same_forward_kinematics(tmp_path, key):
     robot = load_robot(key)
     path = export(tmp_path / "r.urdf", key, "urdf", no_springs=True).file
@@ -158,7 +158,7 @@ def test_urdf_read_back_gives_the_same_forward_kinematics(tmp_path, key):
     assert worst < 1e-9
 
 
-@pytest.mark.parametrize("key", ["kr240-2", "ur10e"])
+@pytest.mark.parametrize("key", [*builtin_names(), f"{Z1_URDF}#gripperStator"])
 def test_sdf_is_sdformat_19_and_gives_the_same_forward_kinematics(tmp_path, key):
     robot = load_robot(key)
     res = export(tmp_path / "r.sdf", key, "sdf", joint_stiffness_Nm_per_rad=TEST_K)
