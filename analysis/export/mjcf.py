@@ -31,7 +31,7 @@ def mjcf_text(model: SimModel) -> str:
         "MuJoCo MJCF. Units: m, rad, kg, N m/rad (joint stiffness). Joint values are the",
         "model's joint angles. Springs: stiffness = the joint stiffness, springref = 0;",
         "set model.qpos_spring to the commanded pose before simulating a load.",
-    ] + left_out_lines(model.left_out)
+    ] + left_out_lines(model)
     lines = [f"<mujoco model={attr(model.name)}>", comment(notes, "  "),
              '  <compiler angle="radian" autolimits="true"/>', "  <worldbody>"]
     indent = "    "

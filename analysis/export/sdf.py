@@ -35,7 +35,7 @@ def sdf_text(model: SimModel) -> str:
     notes = list(model.header) + [
         "SDFormat 1.9. Units: m, rad, kg, N m/rad (spring_stiffness); joint values are the",
         "model's joint angles. spring_reference = 0: set it to the commanded pose.",
-    ] + left_out_lines(model.left_out)
+    ] + left_out_lines(model)
     lines = ['<?xml version="1.0"?>', comment(notes), '<sdf version="1.9">',
              f"  <model name={attr(model.name)}>", f"    <link name={attr(model.base_link)}/>",
              '    <joint name="base_fixed" type="fixed">', "      <parent>world</parent>",

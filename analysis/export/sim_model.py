@@ -68,7 +68,8 @@ class SimModel:
     base_link: name of the fixed base link; joints: base to tip; tool (4, 4): P in the
     last link's frame (m); flange (4, 4) or None: the flange in the last link's frame;
     header: lines saying what the file is (source, report_id, units, stiffness source);
-    left_out: what the robot model has and no simulator format carries.
+    left_out: what the robot model has and no simulator format carries; notes: what the
+    file holds that is not the robot model's (placeholders) and how to use it.
     """
 
     name: str
@@ -78,6 +79,7 @@ class SimModel:
     flange: np.ndarray | None
     header: tuple[str, ...]
     left_out: tuple[str, ...]
+    notes: tuple[str, ...] = ()
 
     @property
     def springs(self) -> bool:
@@ -129,9 +131,6 @@ def left_out_items(robot: RobotModel) -> list[str]:
         items.append("the joint-space zones (" + ", ".join(z.name for z in robot.zones) + ")")
     if robot.characteristic_length is not None:
         items.append(f"the characteristic length ({robot.characteristic_length:g} m)")
-    items.append("K_C, the stiffness the load adds through the changing geometry: not a "
-                 "parameter; a simulator that applies the load at the deflected pose "
-                 "reproduces it")
     return items
 
 
@@ -155,12 +154,17 @@ def sim_model(robot: RobotModel, stiffness: np.ndarray | None,
             lower_rad=float(robot.lower[i]), upper_rad=float(robot.upper[i]),
             stiffness_Nm_per_rad=None if k is None else float(k[i]),
             inertial=_inertial(robot.model.inertias[i + 1])))
-    left = left_out_items(robot)
-    if any(j.inertial.placeholder for j in joints):
-        left.append(f"link mass properties: the robot model has none for some links; those "
-                    f"get a placeholder ({PLACEHOLDER_MASS_KG:g} kg at the link origin, "
-                    f"{PLACEHOLDER_INERTIA_KG_M2:g} kg m^2 about each axis) that MuJoCo "
-                    "accepts: replace it before simulating dynamics or gravity")
+    notes = ["K_C, the stiffness the load adds through the changing geometry, is not a "
+             "parameter: a simulator that applies the load at the deflected pose reproduces "
+             "it"]
+    empty = [j.link for j in joints if j.inertial.placeholder]
+    if empty:
+        notes.append(f"placeholder inertials: the robot model has no mass properties for "
+                     f"{', '.join(empty)}; each gets {PLACEHOLDER_MASS_KG:g} kg at the link "
+                     f"origin and {PLACEHOLDER_INERTIA_KG_M2:g} kg m^2 about each axis, which "
+                     "MuJoCo needs for a moving body: replace them before simulating "
+                     "dynamics or gravity (statics without gravity do not depend on them)")
     return SimModel(name=robot.name, base_link="base", joints=tuple(joints),
                     tool=np.array(chain.tip, dtype=float), flange=_flange(robot),
-                    header=tuple(header), left_out=tuple(left))
+                    header=tuple(header), left_out=tuple(left_out_items(robot)),
+                    notes=tuple(notes))

@@ -51,7 +51,7 @@ def urdf_text(model: SimModel) -> str:
             "Gazebo's URDF extension. Plain URDF readers (Pinocchio, MoveIt, yourdfpy, ...)",
             "drop them: this file read by those is the rigid robot.",
         ]
-    notes += left_out_lines(model.left_out)
+    notes += left_out_lines(model)
     lines = ['<?xml version="1.0"?>', comment(notes), f"<robot name={attr(model.name)}>",
              f"  <link name={attr(model.base_link)}/>"]
     parent = model.base_link

@@ -70,9 +70,13 @@ def comment(lines, indent: str = "") -> str:
     return "\n".join([f"{indent}<!--", *body, f"{indent}-->"])
 
 
-def left_out_lines(left_out) -> list[str]:
-    """The comment lines naming what the model has and this file does not carry."""
-    if not left_out:
-        return []
-    return ["Not carried by this file (the robot model has them):",
-            *[f"- {item}" for item in left_out]]
+def left_out_lines(model) -> list[str]:
+    """The comment lines naming what the robot model has and this file does not carry, then
+    the notes (placeholders, K_C) of a :class:`~analysis.export.sim_model.SimModel`."""
+    lines = []
+    if model.left_out:
+        lines += ["Not carried by this file (the robot model has them):",
+                  *[f"- {item}" for item in model.left_out]]
+    if model.notes:
+        lines += ["Notes:", *[f"- {item}" for item in model.notes]]
+    return lines

@@ -43,7 +43,8 @@ class ExportOptions:
 class ExportResult:
     """file: what was written; stiffness_Nm_per_rad: the springs (None: none written) and
     stiffness_source; report_id: of the analysis the model.toml comes from (None: not an
-    identified model, or no results.json beside it); left_out: what the file does not carry."""
+    identified model, or no results.json beside it); left_out: what the file does not carry;
+    notes: what it holds that is not the robot model's (placeholder inertials), K_C."""
 
     file: Path
     format: str
@@ -55,6 +56,7 @@ class ExportResult:
     report_id: str | None
     placeholder_inertials: bool
     left_out: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict:
         """The document ``campaign export --json`` prints (SI units)."""
@@ -150,4 +152,5 @@ def run(o: ExportOptions) -> ExportResult:
         file=out, format=str(fmt), robot=robot.name, source=source, tool=tool.describe(),
         stiffness_Nm_per_rad=None if k is None else np.asarray(k, float).tolist(),
         stiffness_source=k_source, report_id=rid,
-        placeholder_inertials=model.placeholder_inertials, left_out=list(model.left_out))
+        placeholder_inertials=model.placeholder_inertials, left_out=list(model.left_out),
+        notes=list(model.notes))

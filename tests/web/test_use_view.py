@@ -294,6 +294,7 @@ def test_export_writes_the_jobs_file_and_says_what_it_leaves_out(page, ws):
         assert f"{float(f'{v / 1e3:.5g}'):g}" in wrote
     items = page.locator("#exp-left li").all_inner_texts()
     assert items == res.left_out and any("covariance" in t for t in items)
+    assert page.locator("#exp-notes li").all_inner_texts() == res.notes
     page.select_option("#exp-robot", "ur10e")
     page.fill("#exp-out", "u.sdf")
     page.click("#exp-run")

@@ -51,4 +51,6 @@ def register(app: typer.Typer) -> None:
         echo(f"joint stiffness: {result.stiffness_source}")
         for item in result.left_out:
             echo(f"not carried by the file: {item}")
+        for item in result.notes:
+            echo(f"note: {item}")
         echo(f"wrote {result.file} ({result.format})")

@@ -695,11 +695,13 @@ async function runExport() {
       `joint stiffness: ${res.stiffness_source}` +
       (k ? ` [${k.map((v) => fmt(v / 1e3)).join(", ")}] kN m/rad` : "") +
       (res.report_id ? `; report ID ${res.report_id}` : "");
-    u$("exp-left").innerHTML = "";
-    for (const item of res.left_out) {
-      const li = document.createElement("li");
-      li.textContent = item;
-      u$("exp-left").appendChild(li);
+    for (const [id, items] of [["exp-left", res.left_out], ["exp-notes", res.notes]]) {
+      u$(id).innerHTML = "";
+      for (const item of items) {
+        const li = document.createElement("li");
+        li.textContent = item;
+        u$(id).appendChild(li);
+      }
     }
     u$("exp-result").hidden = false;
     view.dataset.exp = "done";
