@@ -9,7 +9,9 @@
   deflection (the stiffness job's ``deflection_nonlinear_m_rad``) within 1 % or 1 um
   (rotation: 1 % or 1 urad) at 20 random dexterous poses (1/kappa_F of the normalized
   Jacobian >= 0.15) of the KR240-2, the UR10e and a model.toml identified by ``campaign
-  analyze``. The settling code is the example of docs/use.md, run from the document.
+  analyze``; the KR240-2 with a spindle (P 0.29 m from the last body's origin, where its
+  placeholder CoM is). The settling code is the example of docs/use.md, run from the
+  document.
 """
 
 from __future__ import annotations
@@ -66,24 +68,32 @@ def example():
     return doc_example()["tool_deflection"]
 
 
+#: a spindle on the KR240-2's flange (mm, deg): P away from the last body's origin, so that
+#: the moment of xfrc_applied needs its correction from the body's CoM to P
+SPINDLE = ([60.0, 0.0, 280.0], [0.0, 30.0, 0.0])
+
+
 def _cases(identified: Path):
-    return [("kr240-2", None, WORST_CASE_WRENCH),
-            ("ur10e", TEST_K, UR_WRENCH),
-            (str(identified / "model.toml"), None, WORST_CASE_WRENCH)]
+    """(robot, joint stiffness or None, wrench, tool xyz mm and rpy deg or None)."""
+    return [("kr240-2", None, WORST_CASE_WRENCH, SPINDLE),
+            ("ur10e", TEST_K, UR_WRENCH, None),
+            (str(identified / "model.toml"), None, WORST_CASE_WRENCH, None)]
 
 
 @pytest.mark.parametrize("case", [0, 1, 2], ids=["kr240-2", "ur10e", "model.toml"])
 def test_mujoco_settles_at_campaign_stiffness_deflection(tmp_path, identified, example, case):
-    spec, k, w = _cases(identified)[case]
+    spec, k, w, tool = _cases(identified)[case]
+    xyz, rpy = tool or (None, None)
     path = export(ExportOptions(robot=spec, format=SimFormat.mjcf, out=tmp_path / "r.xml",
-                                joint_stiffness_Nm_per_rad=k)).file
+                                joint_stiffness_Nm_per_rad=k, tool_xyz_mm=xyz,
+                                tool_rpy_deg=rpy)).file
     robot = load_robot(spec)
     worst_dp = worst_dr = 0.0
     sizes = []
     for q in dexterous_poses(robot, 20, seed=case):
         ours = np.array(stiffness(StiffnessOptions(
-            robot=spec, q_rad=q.tolist(), joint_stiffness_Nm_per_rad=k,
-            wrench_N_Nm=w.tolist())).deflection_nonlinear_m_rad)
+            robot=spec, q_rad=q.tolist(), joint_stiffness_Nm_per_rad=k, tool_xyz_mm=xyz,
+            tool_rpy_deg=rpy, wrench_N_Nm=w.tolist())).deflection_nonlinear_m_rad)
         dp, dR, at_rest = example(path, q, w)
         assert at_rest
         err_p = np.linalg.norm(dp - ours[:3])
