@@ -150,6 +150,7 @@ def test_urdf_read_back_gives_the_same_forward_kinematics(tmp_path, key):
 
     u = yourdfpy.URDF.load(str(path), load_meshes=False, build_collision_scene_graph=False,
                            load_collision_meshes=False)
+    assert u.validate()  # yourdfpy's own check of the URDF's structure
     assert u.actuated_joint_names == [f"joint{i}" for i in range(1, 7)]
     worst = 0.0
     for qi in q[:50]:
@@ -237,3 +238,21 @@ def test_refusals_are_one_line(tmp_path):
     assert not (tmp_path / "elsewhere.sdf").exists()
     with pytest.raises(InputError, match="expected 6"):
         export(tmp_path / "x.xml", "kr240-2", "mjcf", joint_stiffness_Nm_per_rad=[1e5] * 5)
+
+
+def test_command_line_writes_and_reports(tmp_path):
+    """``campaign export ... --json``: the job's record, SI units; the file is written."""
+    import contextlib
+    import io
+
+    from campaign.cli import main
+
+    out = io.StringIO()
+    with contextlib.chdir(tmp_path), contextlib.redirect_stdout(out):
+        assert main(["export", "--robot", "kr240-2", "--format", "mjcf", "--out", "k.xml",
+                     "--json"]) == 0
+    doc = json.loads(out.getvalue())
+    assert doc["file"] == "k.xml" and doc["format"] == "mjcf" and doc["report_id"] is None
+    assert doc["stiffness_Nm_per_rad"] == load_robot("kr240-2").nominal_stiffness.tolist()
+    assert any("pendant" in item for item in doc["left_out"])
+    assert ET.parse(tmp_path / "k.xml").getroot().tag == "mujoco"
