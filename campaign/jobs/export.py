@@ -88,8 +88,8 @@ def _stiffness(robot, o: ExportOptions) -> tuple[np.ndarray | None, str]:
 
 
 def _report_id(robot) -> str | None:
-    """report_id of results.json beside an identified model file (campaign analyze writes
-    both into one directory), None without one."""
+    """report_id of the results.json beside an identified model file that names it as its
+    ``model_file`` (campaign analyze writes both into one directory), else None."""
     if robot.identification is None or not robot.source_file:
         return None
     results = Path(robot.source_file).parent / "results.json"
@@ -98,7 +98,9 @@ def _report_id(robot) -> str | None:
     except (OSError, ValueError):
         return None
     rid = doc.get("report_id") if isinstance(doc, dict) else None
-    return str(rid) if rid and doc.get("model_file") == "model.toml" else None
+    # results.json names the model file it wrote beside itself: another file there is not it
+    named = doc.get("model_file") == Path(robot.source_file).name
+    return str(rid) if rid and named else None
 
 
 def _out_path(o: ExportOptions) -> Path:
