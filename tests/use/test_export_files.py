@@ -256,3 +256,14 @@ def test_command_line_writes_and_reports(tmp_path):
     assert doc["stiffness_Nm_per_rad"] == load_robot("kr240-2").nominal_stiffness.tolist()
     assert any("pendant" in item for item in doc["left_out"])
     assert ET.parse(tmp_path / "k.xml").getroot().tag == "mujoco"
+
+
+def test_report_id_only_from_the_results_that_wrote_the_model(tmp_path, identified):
+    """A model file copied under another name beside results.json is not the one it names."""
+    import shutil
+
+    shutil.copytree(identified, tmp_path / "an")
+    shutil.copy(tmp_path / "an" / "model.toml", tmp_path / "an" / "edited.toml")
+    assert export(tmp_path / "a.xml", str(tmp_path / "an" / "model.toml"), "mjcf").report_id
+    res = export(tmp_path / "b.xml", str(tmp_path / "an" / "edited.toml"), "mjcf")
+    assert res.report_id is None and "report_id: none" in res.file.read_text()
