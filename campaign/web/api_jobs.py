@@ -223,16 +223,39 @@ def compensate(options: CompensateOptions, request: Request,
     return submit(request, ws, "compensate", options, job_tasks.compensate)
 
 
+def _without(record: type, *names: str) -> type:
+    """A dataclass of ``record``'s fields but ``names`` (same types and defaults): a request
+    body that cannot carry what the server's operator chooses."""
+    import typing
+
+    hints = typing.get_type_hints(record)
+    kept = [(f.name, hints[f.name], dataclasses.field(default=f.default)
+             if f.default is not dataclasses.MISSING else dataclasses.field())
+            for f in dataclasses.fields(record) if f.name not in names]
+    made = dataclasses.make_dataclass(f"{record.__name__}Request", kept)
+    made.__doc__ = f"{record.__doc__}\n\nWithout {', '.join(names)}: the server's choice."
+    return made
+
+
+#: the place job's options but the Dask scheduler: the server connects to the scheduler
+#: its operator gave (``campaign gui --scheduler``), never to one a request names
+PlaceRequest = _without(PlaceOptions, "scheduler")
+
+
 @router.post("/place", status_code=202, responses=QUEUED)
-def place(options: PlaceOptions, request: Request,
+def place(body: PlaceRequest, request: Request,
           ws: Path = Depends(workspace)) -> JSONResponse:
     """The placement search (options in the command line's units: mm, deg, ``A..B`` ranges);
     the options and the search's size are checked at once (400; at most
     :data:`MAX_EVALUATIONS` evaluations), then the search is queued (202 with the job,
     whose result is placement.json). ``workers`` 0 runs it in the server's process, else
-    on a local Dask cluster as the command line."""
+    on a local Dask cluster as the command line, or on the operator's scheduler
+    (``campaign gui --scheduler``)."""
     from campaign.use.place_run import check_search
 
+    options = PlaceOptions(**{f.name: getattr(body, f.name)
+                              for f in dataclasses.fields(body)},
+                           scheduler=getattr(request.app.state, "scheduler", None))
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   path=inside(ws, options.path, "path"),
                                   out=inside(ws, options.out, "out"))
