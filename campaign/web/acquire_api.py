@@ -222,7 +222,7 @@ def _claimed(ws: Path, directory: Path) -> int | None:
 @router.post("/start")
 def start(req: StartRequest, request: Request, ws: Path = Depends(workspace)) -> dict:
     """Preflight (the dry run), then start a new run in its own process; answers at once."""
-    check_hardware(request.app.state.hardware, req.fake, req.confirm)
+    check_hardware(getattr(request.app.state, "hardware", False), req.fake, req.confirm)
     plan, out = inside(ws, req.plan, "plan"), inside(ws, req.out, "out")
     with _starting:
         return _start(ws, req, plan, out)
@@ -244,7 +244,7 @@ def _start(ws: Path, req: StartRequest, plan: Path, out: Path) -> dict:
 @router.post("/resume")
 def resume(req: ResumeRequest, request: Request, ws: Path = Depends(workspace)) -> dict:
     """Continue a partial run from its first unfinished test, in its own process."""
-    check_hardware(request.app.state.hardware, req.fake, req.confirm)
+    check_hardware(getattr(request.app.state, "hardware", False), req.fake, req.confirm)
     run_dir = inside(ws, req.run, "run")
     with _starting:
         return _resume(ws, req, run_dir)

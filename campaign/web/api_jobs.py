@@ -322,16 +322,14 @@ def acquire(options: AcquireJobOptions, request: Request,
     one acquisition per robot at a time (409). ``events_file`` must be a new file (the
     server writes there). A long campaign is better started from the Acquire view (its
     own process, which a closed page or a restarted server does not stop)."""
-    from campaign.acquire.session import check_time_scale
-    from campaign.jobs.acquire import default_run_dir
+    from campaign.jobs.acquire import check, default_run_dir
     from campaign.web.acquire_rule import check_free, check_hardware
 
-    check_hardware(request.app.state.hardware, options.fake, options.assume_yes,
-                   options.dry_run)
-    refused = answer(ws, lambda: check_time_scale(options.time_scale, options.fake),
-                     options, present=lambda _: None)
-    if refused is not None:
+    refused = answer(ws, lambda: check(options), options, present=lambda _: None)
+    if refused is not None:  # the command line's own line for the options themselves
         return refused
+    check_hardware(getattr(request.app.state, "hardware", False), options.fake,
+                   options.assume_yes, options.dry_run)
 
     def opt(value, name):
         return None if value is None else inside(ws, value, name)

@@ -157,12 +157,12 @@ def _robot_outside(ws: Path, values: dict[str, str]) -> JSONResponse | None:
     parts = list(PurePosixPath(split_urdf_spec(text)[0].replace("\\", "/")).parts)
     up = 0 if not parts or parts[0] != ".." else 1  # protocols/../ is the workspace
     rel = "/".join(parts[up:] if up else ["protocols", *parts])
+    checked = rel if parts and not PurePosixPath(parts[0]).is_absolute() else text
     try:
-        inside_workspace(ws, rel if parts and not PurePosixPath(parts[0]).is_absolute()
-                         else text, "campaign.robot")
-    except InputError as err:
-        return _error(f"{err} (a robot file is read relative to protocols/ of the "
-                      "workspace)", "campaign.robot")
+        inside_workspace(ws, checked, "campaign.robot")
+    except InputError as err:  # the path as typed, not as seen from the workspace
+        return _error(f"{str(err).replace(repr(checked), repr(text))} (a robot file is "
+                      "read relative to protocols/ of the workspace)", "campaign.robot")
     return None
 
 
