@@ -163,7 +163,25 @@ def _state(client, run: str, until, timeout: float = 120.0) -> dict:
     raise AssertionError(f"{run}: {s}")
 
 
+def _stop_detached(workspace: Path) -> None:
+    """SIGINT every acquisition the Acquire view started in ``workspace`` still running."""
+    import json
+
+    for record in (workspace / ".gui" / "acquire").glob("*.json"):
+        pid = json.loads(record.read_text()).get("pid")
+        with contextlib.suppress(OSError):
+            if b"campaign.jobs.acquire" in Path(f"/proc/{pid}/cmdline").read_bytes():
+                os.kill(pid, signal.SIGINT)
+
+
 def test_one_acquisition_per_robot_through_every_route(client, workspace):
+    try:
+        _one_per_robot(client, workspace)
+    finally:
+        _stop_detached(workspace)
+
+
+def _one_per_robot(client, workspace):
     from tests.jobs.conftest import wait_job
 
     r = client.post("/api/acquire/start", json={"plan": "plan", "out": "r1",
