@@ -164,8 +164,10 @@ def _read_tests_text(path: Path, partial: bool, notes: list[str]) -> pd.DataFram
     lines = text.splitlines()
     if text and not text.endswith("\n") and len(lines) > 1:
         if not partial:
-            raise InputError(f"line {len(lines)}: last line is incomplete (no end of line)",
-                             where=str(path))
+            raise InputError(f"line {len(lines)}: last line is incomplete (no end of line: "
+                             "cut by a crash while it was written); `campaign acquire "
+                             f"--resume {path.parent}` cuts it off and measures that test "
+                             "again", where=str(path))
         notes.append(f"{path.name} line {len(lines)} was being written when the run stopped: "
                      "dropped")
         lines = lines[:-1]
