@@ -81,7 +81,7 @@ def inside_workspace(workspace: Path, relative: str | Path, where: str = "path")
     if not text or "\x00" in text:
         raise InputError("empty or invalid path (a NUL character)", where=where)
     pure = PurePosixPath(text)
-    if pure.is_absolute() or text.startswith("~") or ":" in pure.parts[0]:
+    if pure.is_absolute() or text.startswith("~") or ":" in (pure.parts or ("",))[0]:
         raise InputError(f"{text!r} is an absolute path, refused: give a path inside the "
                          "workspace", where=where)
     if ".." in pure.parts:

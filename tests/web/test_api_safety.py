@@ -335,7 +335,7 @@ def test_one_path_rule_for_every_route(client, workspace):
 
     (workspace / "link.toml").symlink_to(workspace / "robot.toml")  # leads inside
     (workspace / "linkdir").symlink_to(workspace / "plan")
-    for text in ("link.toml", "linkdir/plan.csv", "../x", "/etc", "plan/../../x", "~root",
+    for text in ("link.toml", "linkdir/plan.csv", "../x", "/etc", "plan/../../x", "~root", ".",
                  "C:/x", "a\x00b", "", "x" * 300, "plan/plan.csv", "new/dir", "robot.toml"):
         try:
             inside_workspace(workspace, text, "f")
