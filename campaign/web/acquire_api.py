@@ -33,9 +33,11 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Request
 from fastapi.responses import Response, StreamingResponse
 from pydantic import BaseModel, Field
 
+from analysis.errors import InputError
 from campaign.protocol import MAX_TIME_SCALE
 from campaign.web.acquire_rule import check_hardware, claim_file, claim_now, robot_of
 from campaign.web.api_jobs import call, inside, workspace
+from campaign.web.security import inside_workspace
 
 router = APIRouter(prefix="/api/acquire", tags=["acquire"])
 #: where the job records live, inside the workspace
@@ -271,7 +273,14 @@ def _read(ws: Path, run_dir: Path) -> dict:
     except (OSError, ValueError):
         return {}
     rel = run_dir.relative_to(ws).as_posix()
-    return record if isinstance(record, dict) and record.get("run_dir") == rel else {}
+    if not isinstance(record, dict) or record.get("run_dir") != rel:
+        return {}
+    try:  # the files it names pass the web's one path rule, as a request's paths do
+        for key in ("events_file", "log"):
+            inside_workspace(ws, str(record.get(key, ".")), key)
+    except InputError:
+        return {}
+    return record
 
 
 def _run_of(ws: Path, run: str | None) -> Path:
