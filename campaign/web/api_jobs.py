@@ -328,8 +328,6 @@ def acquire(options: AcquireJobOptions, request: Request,
     refused = answer(ws, lambda: check(options), options, present=lambda _: None)
     if refused is not None:  # the command line's own line for the options themselves
         return refused
-    check_hardware(getattr(request.app.state, "hardware", False), options.fake,
-                   options.assume_yes, options.dry_run)
 
     def opt(value, name):
         return None if value is None else inside(ws, value, name)
@@ -342,6 +340,8 @@ def acquire(options: AcquireJobOptions, request: Request,
         options, plan=opt(options.plan, "plan"), out=opt(out, "out"),
         resume=opt(options.resume, "resume"), events_file=opt(options.events_file,
                                                               "events_file"))
+    check_hardware(getattr(request.app.state, "hardware", False), options.fake,
+                   options.assume_yes, options.dry_run)
     if options.events_file is not None and os.path.lexists(options.events_file):
         return bound_error("events_file", "an existing file, refused: the server writes "
                            "the progress there, so give the name of a new file")
