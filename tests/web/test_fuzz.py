@@ -270,6 +270,99 @@ def _named_outputs(bodies: list, workspace) -> list[str]:
     return named
 
 
+#: a value per field name that the jobs accept (small: each job of the walk runs briefly)
+KNOWN = {"robot": "kr240-2", "path": "part.csv", "x_mm": "1400..1800", "y_mm": "-200..200",
+         "z_mm": "200", "x_step_mm": 200, "y_step_mm": 200, "tool_angle_step_deg": 90,
+         "config": "-1,-1,-1", "workers": 0, "plan": "plan", "protocol": "plan/protocol.toml",
+         "fake": True, "assume_yes": True, "confirm": True, "time_scale": 1000.0,
+         "trials": 5, "tests": [3], "n_tests": 3, "q_rad": [0.1, 0.5, -1.0, 0.2, 0.6, 0.3],
+         "candidates": 200, "pool_size": 50, "step_rad": 0.5, "source": "plan/protocol.toml",
+         "name": "walk", "run_dir": "runA", "run": "runA", "a": "runA", "b": "runB",
+         "text": "<robot name='r'/>"}
+
+
+def _string_field(schema: dict) -> bool:
+    kinds = [schema] + schema.get("anyOf", [])
+    return any(k.get("type") == "string" for k in kinds)
+
+
+def _walk_bodies(props: dict, dangerous: list[str]):
+    """A body of known values, then that body with each string field (and each text map,
+    the plan form's ``values``) set to each dangerous value in turn, and with ``fake``
+    false (a real robot)."""
+    base = {k: v for k, v in KNOWN.items() if k in props}
+    for k in props:
+        if k in OUTPUTS and k != "name":
+            base[k] = "walk-out"
+    yield base
+    if "fake" in props:
+        yield {**base, "fake": False}
+    for key, schema in props.items():
+        for value in dangerous:
+            if _string_field(schema):
+                yield {**base, key: value}
+            elif isinstance(schema.get("additionalProperties"), dict):
+                yield {**base, key: {"campaign.robot": value}}
+
+
+def _walk(client, path: str, props: dict, dangerous: list[str], sent: list,
+          hung: list) -> None:
+    """Post each body of :func:`_walk_bodies`; a queued job is followed to its end before
+    the next (so that each is run, not refused by a full queue); one still running after
+    120 s is cancelled and its body appended to ``hung``."""
+    import time
+
+    for n, body in enumerate(_walk_bodies(props, dangerous)):
+        body = {k: (f"walk-out-{n}" if v == "walk-out" else v) for k, v in body.items()}
+        sent.append(body)
+        r = client.post(path, json=body)
+        assert r.status_code < 500, (path, body, r.text)
+        if r.status_code == 202 and path.startswith("/api/jobs/"):
+            job_id, end = r.json()["id"], time.monotonic() + 120
+            while client.get(f"/api/jobs/{job_id}").json()["state"] in ("queued", "running"):
+                if time.monotonic() > end:
+                    hung.append((path, body))
+                    client.delete(f"/api/jobs/{job_id}")
+                    break
+                time.sleep(0.02)
+        elif r.status_code == 200 and path in ("/api/acquire/start", "/api/acquire/resume"):
+            _wait_detached(r.json().get("pid"))
+
+
+def _wait_detached(pid) -> None:
+    """Wait for a detached acquisition (its own session) to end; SIGINT it after 60 s."""
+    import signal
+    import time
+
+    end = time.monotonic() + 60
+    while pid and os.path.exists(f"/proc/{pid}"):
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                if f.read().rsplit(")", 1)[-1].split()[0] == "Z":
+                    return
+        except OSError:
+            return
+        if time.monotonic() > end:
+            os.kill(pid, signal.SIGINT)
+            end = time.monotonic() + 60
+        time.sleep(0.05)
+
+
+def _acquirable_plan(plan) -> None:
+    """``plan`` replaced by a KR240-2 plan of 2 tests of 1 repeat (the simulated lab
+    acquires it in a second or two at the walk's time scale)."""
+    import pandas as pd
+
+    from campaign.planning.planner import make_plan, write_plan
+    from campaign.protocol import load_protocol
+
+    shutil.rmtree(plan)
+    write_plan(make_plan(load_protocol(Path(__file__).parents[2] / "protocols" /
+                                       "kr240-2.toml"), candidates=200), plan, figure=False)
+    df = pd.read_csv(plan / "plan.csv", dtype={"zone": str, "load_case": str, "method": str})
+    df.iloc[:2].assign(repeats=1).to_csv(plan / "plan.csv", index=False)
+
+
 def test_fuzz_safety_rules_for_every_operation(client, app, workspace, tmp_path):
     """Every operation, with bodies that name a listener's address, files outside the
     workspace and existing files inside it: no connection to an address of the request
@@ -296,6 +389,7 @@ def test_fuzz_safety_rules_for_every_operation(client, app, workspace, tmp_path)
     sock.listen(16)
     sock.setblocking(False)
     port = sock.getsockname()[1]
+    _acquirable_plan(workspace / "plan")
     proto = workspace / "plan" / "protocol.toml"
     proto.write_text(proto.read_text().replace("socket://192.168.1.20:7000",
                                                f"socket://127.0.0.1:{port}"))
@@ -309,6 +403,7 @@ def test_fuzz_safety_rules_for_every_operation(client, app, workspace, tmp_path)
     segment = st.text(max_size=30) | st.sampled_from(strings)
     before = _digest(workspace)
     sent: list = []
+    hung: list = []
     acquired: list = []
     import campaign.jobs.acquire as acquire_job
 
@@ -326,6 +421,9 @@ def test_fuzz_safety_rules_for_every_operation(client, app, workspace, tmp_path)
                 body = None if schema is None else JSON if path in SLOW else \
                     st.one_of(from_schema(schema, strings), JSON)
                 _fuzz(client, path, method, body, query, 20, segment, sent)
+                if method == "post" and schema is not None and path not in SLOW:
+                    _walk(client, path, schema.get("properties", {}),
+                          addresses[:2] + files[:3] + files[4:6], sent, hung)
             jobs = getattr(app.state, "jobs", None)
             for job in [] if jobs is None else jobs.jobs():
                 jobs.cancel(job.id)
@@ -344,6 +442,7 @@ def test_fuzz_safety_rules_for_every_operation(client, app, workspace, tmp_path)
         reached = False
     sock.close()
     assert not reached, "something connected to an address a request named"
+    assert not hung, hung
     assert not [a for a in watch.connects
                 if isinstance(a, tuple) and len(a) >= 2 and a[1] == port]
     assert not [o for o in acquired if not (o.fake or o.dry_run)]
