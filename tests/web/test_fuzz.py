@@ -363,6 +363,7 @@ def _acquirable_plan(plan) -> None:
     df.iloc[:2].assign(repeats=1).to_csv(plan / "plan.csv", index=False)
 
 
+@pytest.mark.timeout(900)
 def test_fuzz_safety_rules_for_every_operation(client, app, workspace, tmp_path):
     """Every operation, with bodies that name a listener's address, files outside the
     workspace and existing files inside it: no connection to an address of the request
