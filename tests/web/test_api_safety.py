@@ -141,6 +141,21 @@ def test_no_route_drives_a_real_robot_without_hardware(client, workspace):
         assert sorted(p.name for p in workspace.iterdir()) == before
 
 
+def test_with_hardware_every_route_still_needs_the_confirmation(workspace):
+    from campaign.web.app import create_app
+
+    hw = _client(create_app(workspace, TOKEN, hardware=True))
+    routes = _acquisition_routes(hw)
+    values = {"plan": "plan", "out": "r", "run": "plan", "fake": False}
+    with listener() as (port, connected):
+        _robot_at(workspace / "plan", port)
+        for path, props in routes.items():
+            r = hw.post(path, json={k: v for k, v in values.items() if k in props})
+            assert r.status_code == 400, (path, r.text)
+            assert r.json()["detail"].startswith("confirmation"), r.text
+        assert not connected()
+
+
 def test_a_dry_run_on_hardware_connects_nothing(client, workspace):
     with listener() as (port, connected):
         _robot_at(workspace / "plan", port)
