@@ -262,13 +262,18 @@ class ReportSpec(_Strict):
     wrench: tuple[ForceN, ForceN, ForceN, MomentNm, MomentNm, MomentNm] | None = None
 
 
+#: the simulated lab's fastest clock (times the wall clock): the protocol's
+#: ``[fake_lab] time_scale``, ``--time-scale`` and the GUI's field share it
+MAX_TIME_SCALE = 1e4
+
+
 class FakeLabSpec(_Strict):
     """``[fake_lab]``: the simulated lab (truth and noise it simulates)."""
 
     true_joint_stiffness: Stiffness6
     noise: NoiseSpec = NoiseSpec()
     seed: int = Field(default=0, ge=0)
-    time_scale: float = Field(default=1.0, gt=0, le=1e4)
+    time_scale: float = Field(default=1.0, gt=0, le=MAX_TIME_SCALE)
 
     @field_validator("true_joint_stiffness")
     @classmethod

@@ -167,6 +167,28 @@ def covariance_psd_problem(cov: np.ndarray) -> str | None:
     return None
 
 
+def compliance_interval_problem(stiffness: np.ndarray, cov: np.ndarray, ident) -> str | None:
+    """Why an identified model's covariance gives no stiffness interval, or None.
+
+    For each identified joint the compliance x = 1/k (rad/(N m)) and its standard
+    deviation sqrt(cov_jj) give the interval x +- z sd at the file's confidence (z: the
+    normal's critical value, the smallest the analysis uses: a model written by
+    ``campaign analyze`` passed this check with its own, larger or equal, critical
+    value). An interval that reaches zero holds every stiffness up to infinity: the
+    intervals derived from it (deflection, K_X) would be numbers without meaning."""
+    from scipy.special import ndtri
+
+    z = float(ndtri(0.5 + ident.confidence / 2))
+    for j in ident.joints_identified:
+        x, sd = 1.0 / stiffness[j - 1], float(np.sqrt(cov[j - 1, j - 1]))
+        if not x - z * sd > 0:
+            return (f"joint {j}: the compliance's {ident.confidence:.0%} interval reaches "
+                    f"zero (its standard deviation is {sd / x:.3g} times the compliance "
+                    f"1/k = {x:.4g} rad/(N m)): the covariance gives no stiffness interval; "
+                    "campaign analyze writes none like it (an edited file?)")
+    return None
+
+
 class IdentificationSpec(_Strict):
     """``[identification]``: where an identified stiffness comes from and its covariance."""
 
@@ -309,6 +331,9 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         if nominal is None:
             raise InputError("[identification] needs the stiffness of every joint "
                              "(identified or nominal)", where=source_file)
+        problem = compliance_interval_problem(nominal, cov, spec.identification)
+        if problem:
+            raise InputError(f"[identification] {problem}", where=source_file)
     return RobotModel(
         name=spec.name,
         model=model,

@@ -88,6 +88,23 @@ def _sha(text: str) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
+def check_time_scale(time_scale: float | None, fake: bool) -> None:
+    """Refuse a ``--time-scale`` that is not in (0, MAX_TIME_SCALE] or given without
+    ``--fake`` (InputError naming the option)."""
+    from campaign.protocol import MAX_TIME_SCALE
+
+    if time_scale is None:
+        return
+    if not fake:
+        raise InputError("--time-scale only applies to the simulated lab (--fake)",
+                         where="--time-scale")
+    if not time_scale > 0:
+        raise InputError("time scale must be positive", where="--time-scale")
+    if not time_scale <= MAX_TIME_SCALE:
+        raise InputError(f"expected at most {MAX_TIME_SCALE:g}, got {time_scale:g}",
+                         where="--time-scale")
+
+
 def _protocol_copy_name(protocol: Protocol) -> str:
     suffix = Path(protocol.path).suffix.lower() or ".toml"
     return f"protocol{suffix}"
@@ -168,11 +185,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
     if (plan_dir is None) == (resume is None):
         raise InputError("give either --plan PLAN_DIR (a new run) or --resume RUN_DIR",
                          where="campaign acquire")
-    if opts.time_scale is not None and not opts.fake:
-        raise InputError("--time-scale only applies to the simulated lab (--fake)",
-                         where="--time-scale")
-    if opts.time_scale is not None and not opts.time_scale > 0:
-        raise InputError("time scale must be positive", where="--time-scale")
+    check_time_scale(opts.time_scale, opts.fake)
     run: RunDir | None = None
     if out is not None and resume is None:
         require_new_run_dir(out)  # before anything is connected

@@ -142,6 +142,21 @@ class _Events:
             self.stream = None
 
 
+def check(o: AcquireJobOptions) -> None:
+    """The options' own checks, before any file is read (InputError naming the option):
+    --out with --resume, neither --plan nor --resume, --time-scale; the command line and
+    the GUI refuse with these same lines."""
+    from campaign.acquire.session import check_time_scale
+
+    if o.out is not None and o.resume is not None:
+        raise InputError("--out and --resume exclude each other: a resumed run stays in its "
+                         "directory", where="campaign acquire")
+    if (o.plan is None) == (o.resume is None):
+        raise InputError("give either --plan PLAN_DIR (a new run) or --resume RUN_DIR",
+                         where="campaign acquire")
+    check_time_scale(o.time_scale, o.fake)
+
+
 def run(o: AcquireJobOptions, reporter=None, say: Callable[[str], None] = print,
         ask: Callable[[str], str] = lambda prompt: "",
         should_abort: Callable[[], bool] | None = None,
@@ -158,14 +173,12 @@ def run(o: AcquireJobOptions, reporter=None, say: Callable[[str], None] = print,
     from campaign.acquire.session import acquire as run_session
     from drivers.loopback_guard import loopback_only_mode
 
+    check(o)
     out = None if o.out is None else Path(o.out)
     resume = None if o.resume is None else Path(o.resume)
     plan = None if o.plan is None else Path(o.plan)
     if resume is None and out is None and plan is not None and not o.dry_run:
         out = default_run_dir()
-    if out is not None and resume is not None:
-        raise InputError("--out and --resume exclude each other: a resumed run stays in its "
-                         "directory", where="campaign acquire")
     if out is not None:
         require_new_run_dir(out)
     events = _Events(reporter or Reporter(), None if o.events_file is None

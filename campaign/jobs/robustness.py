@@ -56,6 +56,28 @@ class RobustnessOptions:
     out: Path | None = None
 
 
+#: the most poses drawn and simulated by one study (a pool holds about 100 bytes per pose
+#: per number of tests: 1e6 poses stay within a few hundred MB)
+MAX_POOL_SIZE = 1_000_000
+
+
+def check(o: RobustnessOptions) -> list[int]:
+    """The study's numbers of tests; InputError (naming the option) for trials, method or
+    pool size out of their bounds (the command line's and the GUI's one check)."""
+    counts = check_tests(o.tests)
+    if o.trials < 2:
+        raise InputError("need at least 2 trials", where="--trials")
+    if str(o.method) not in ("ols", "wls", "exact"):
+        raise InputError(f"expected ols, wls or exact, got {str(o.method)!r}",
+                         where="--method")
+    if o.pool_size < 10:
+        raise InputError("need at least 10 poses", where="--pool-size")
+    if o.pool_size > MAX_POOL_SIZE:
+        raise InputError(f"expected at most {MAX_POOL_SIZE} poses, got {o.pool_size}",
+                         where="--pool-size")
+    return counts
+
+
 @dataclass
 class RobustnessResult:
     """settings: robustness.json's document (SI units, noise in report units as labelled);
@@ -179,13 +201,7 @@ def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None
     r, _ = robot_and_tool(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
     k = joint_stiffness(r, o.joint_stiffness_Nm_per_rad)
     w = wrench(o.wrench_N_Nm, W_EFF)
-    counts = check_tests(o.tests)
-    if o.trials < 2:
-        raise InputError("need at least 2 trials", where="--trials")
-    if method not in ("ols", "wls", "exact"):
-        raise InputError(f"expected ols, wls or exact, got {method!r}", where="--method")
-    if o.pool_size < 10:
-        raise InputError("need at least 10 poses", where="--pool-size")
+    counts = check(o)
     noise = noise_model(o)
     from analysis.report.formatting import k_kNm
     from campaign.numbers_text import vector_text

@@ -164,8 +164,10 @@ def _read_tests_text(path: Path, partial: bool, notes: list[str]) -> pd.DataFram
     lines = text.splitlines()
     if text and not text.endswith("\n") and len(lines) > 1:
         if not partial:
-            raise InputError(f"line {len(lines)}: last line is incomplete (no end of line)",
-                             where=str(path))
+            raise InputError(f"line {len(lines)}: last line is incomplete (no end of line: "
+                             "cut by a crash while it was written); `campaign acquire "
+                             f"--resume {path.parent}` cuts it off and measures that test "
+                             "again", where=str(path))
         notes.append(f"{path.name} line {len(lines)} was being written when the run stopped: "
                      "dropped")
         lines = lines[:-1]
@@ -262,11 +264,17 @@ def _to_si(frame: pd.DataFrame, where: str) -> pd.DataFrame:
 LINES_LISTED = 5
 
 
-def _damaged_samples(path: Path) -> tuple[list[int], bool]:
+#: the keys every reading of samples.jsonl has (docs/run_format.md); a JSON object without
+#: them is not a reading (another program's records appended to the file)
+READING_KEYS = frozenset({"instrument", "quantity", "value"})
+
+
+def _damaged_samples(path: Path) -> tuple[list[int], bool, list[int]]:
     """(line numbers (1-based) of ``samples.jsonl`` that are not a JSON object (a line cut
     short by a crash, a disk error, an edit; blank lines are not counted), True when the
-    last of them is the file's unfinished last line (no end of line))."""
-    bad, line = [], b"\n"
+    last of them is the file's unfinished last line (no end of line), line numbers of
+    JSON objects that are not readings (without :data:`READING_KEYS`))."""
+    bad, foreign, line = [], [], b"\n"
     with open(path, "rb") as fh:
         for i, line in enumerate(fh, start=1):
             if not line.strip():
@@ -277,17 +285,25 @@ def _damaged_samples(path: Path) -> tuple[list[int], bool]:
                 record = None
             if not isinstance(record, dict):
                 bad.append(i)
-    return bad, bool(bad) and bad[-1] == i and not line.endswith(b"\n")
+            elif not READING_KEYS <= record.keys():
+                foreign.append(i)
+    return bad, bool(bad) and bad[-1] == i and not line.endswith(b"\n"), foreign
+
+
+def _listed(lines: list[int]) -> str:
+    return ", ".join(str(i) for i in lines[:LINES_LISTED]) + (
+        f" and {len(lines) - LINES_LISTED} more" if len(lines) > LINES_LISTED else "")
 
 
 def _check_samples(run: Path, partial: bool, notes: list[str]) -> list[int]:
-    """Damaged lines of the run's ``samples.jsonl``: a WARNING note when any, but a plain
-    note for the unfinished last line of a run that stopped (as for tests.csv)."""
+    """Lines of the run's ``samples.jsonl`` to skip: damaged ones and JSON objects that
+    are not readings, with a WARNING note for each kind, but a plain note for the
+    unfinished last line of a run that stopped (as for tests.csv)."""
     path = run / "samples.jsonl"
     if not path.is_file():
         return []
     try:
-        bad, cut_last = _damaged_samples(path)
+        bad, cut_last, foreign = _damaged_samples(path)
     except OSError as err:
         notes.append(f"WARNING: {path.name}: cannot read ({err.strerror or err}): the raw "
                      "readings were not checked")
@@ -298,12 +314,15 @@ def _check_samples(run: Path, partial: bool, notes: list[str]) -> list[int]:
                      "dropped")
         loud = bad[:-1]
     if loud:
-        listed = ", ".join(str(i) for i in loud[:LINES_LISTED]) + (
-            f" and {len(loud) - LINES_LISTED} more" if len(loud) > LINES_LISTED else "")
         notes.append(f"WARNING: {path.name}: {len(loud)} damaged line(s) (not a JSON object: "
-                     f"line {listed}), skipped; the raw readings on them are lost (the "
+                     f"line {_listed(loud)}), skipped; the raw readings on them are lost (the "
                      "analysis uses tests.csv, which is not affected)")
-    return bad
+    if foreign:
+        notes.append(f"WARNING: {path.name}: {len(foreign)} line(s) that are not readings "
+                     f"(JSON objects without {', '.join(sorted(READING_KEYS))}: line "
+                     f"{_listed(foreign)}), skipped: something else wrote into the run's "
+                     "raw readings (the analysis uses tests.csv, which is not affected)")
+    return sorted(bad + foreign)
 
 
 def _export_parquet(run: Path, tests: pd.DataFrame, notes: list[str],

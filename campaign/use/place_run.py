@@ -12,6 +12,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -353,8 +354,16 @@ def _run(problem, G, o: PlaceOptions, console: Console, progress=None):
         cluster = None
     else:
         n = o.workers or os.cpu_count() or 1
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=None)
+        # the workers' scratch space (Dask's dask-scratch-space) in a directory of this
+        # search's own, removed with it: nothing left in the system's temporary directory
+        import dask
+
+        scratch = tempfile.TemporaryDirectory(prefix="campaign-place-",
+                                              ignore_cleanup_errors=True)
+        with dask.config.set({"temporary-directory": scratch.name}):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=None,
+                                   local_directory=scratch.name)
         client = Client(cluster)
         how = f"local Dask cluster, {n} worker processes"
     try:
@@ -366,6 +375,7 @@ def _run(problem, G, o: PlaceOptions, console: Console, progress=None):
         client.close()
         if cluster is not None:
             cluster.close()
+            scratch.cleanup()
 
 
 #: the search box's dimensions as (grid key, option, unit, full turn)

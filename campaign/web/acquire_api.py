@@ -33,7 +33,11 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Request
 from fastapi.responses import Response, StreamingResponse
 from pydantic import BaseModel, Field
 
+from analysis.errors import InputError
+from campaign.protocol import MAX_TIME_SCALE
+from campaign.web.acquire_rule import check_hardware, claim_file, claim_now, robot_of
 from campaign.web.api_jobs import call, inside, workspace
+from campaign.web.security import inside_workspace
 
 router = APIRouter(prefix="/api/acquire", tags=["acquire"])
 #: where the job records live, inside the workspace
@@ -68,7 +72,7 @@ class StartRequest(BaseModel):
     plan: str = Field(..., max_length=1000)
     out: str = Field(..., max_length=1000)
     fake: bool = True
-    time_scale: float | None = Field(None, gt=0, le=10000)
+    time_scale: float | None = Field(None, gt=0, le=MAX_TIME_SCALE)
     confirm: bool = False
     operator: str | None = Field(None, max_length=200)
 
@@ -77,7 +81,7 @@ class ResumeRequest(BaseModel):
     """run: a partial run directory (relative to the workspace)."""
     run: str = Field(..., max_length=1000)
     fake: bool = True
-    time_scale: float | None = Field(None, gt=0, le=10000)
+    time_scale: float | None = Field(None, gt=0, le=MAX_TIME_SCALE)
     confirm: bool = False
 
 
@@ -86,7 +90,15 @@ class RunRequest(BaseModel):
 
 
 def _key(ws: Path, run_dir: Path) -> str:
-    return str(run_dir.relative_to(ws)).replace("/", "__")
+    """The file name stem of a run's job record: the run's workspace path percent-encoded
+    (``runs/a`` -> ``runs%2Fa``), one-to-one (``kx__ky`` and ``kx/ky`` differ); a long path
+    as ``%%`` and its SHA-256 (``%%`` is no percent-encoding's)."""
+    import hashlib
+    from urllib.parse import quote
+
+    rel = run_dir.relative_to(ws).as_posix()
+    key = quote(rel, safe="")
+    return key if len(key) <= 120 else "%%" + hashlib.sha256(rel.encode()).hexdigest()
 
 
 def _record_path(ws: Path, run_dir: Path) -> Path:
@@ -161,11 +173,21 @@ def dry_run(req: DryRunRequest, ws: Path = Depends(workspace)) -> dict:
     return {"motions": _dry_run(ws, plan, resume)}
 
 
-def _spawn(ws: Path, run_dir: Path, options) -> dict:
-    """Start the job detached; its record into the workspace."""
+def _spawn(ws: Path, run_dir: Path, options, robot_claim: int | None) -> dict:
+    """Start the job detached; its record into the workspace. ``robot_claim`` (an open
+    descriptor holding the robot's claim, closed here) passes to the job's process, which
+    holds it until it ends."""
+    try:
+        return _detach(ws, run_dir, options, () if robot_claim is None else (robot_claim,))
+    finally:
+        if robot_claim is not None:
+            os.close(robot_claim)
+
+
+def _detach(ws: Path, run_dir: Path, options, keep: tuple[int, ...]) -> dict:
     import dataclasses
 
-    jobs = ws / JOBS
+    jobs = inside(ws, str(JOBS), "run")
     jobs.mkdir(parents=True, exist_ok=True)
     key = _key(ws, run_dir)
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
@@ -178,10 +200,10 @@ def _spawn(ws: Path, run_dir: Path, options) -> dict:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen([sys.executable, "-m", "campaign.jobs.acquire", str(opt_file)],
                             cwd=ws, stdin=subprocess.DEVNULL, stdout=log, stderr=log,
-                            start_new_session=True, close_fds=True, env=env)
+                            start_new_session=True, close_fds=True, pass_fds=keep, env=env)
     log.close()
     _children[proc.pid] = proc
-    record = {"run_dir": str(run_dir.relative_to(ws)), "pid": proc.pid,
+    record = {"run_dir": run_dir.relative_to(ws).as_posix(), "pid": proc.pid,
               "events_file": str(events.relative_to(ws)), "log": str(
                   Path(log.name).relative_to(ws)), "started_utc": stamp,
               "fake": options.fake}
@@ -192,20 +214,17 @@ def _spawn(ws: Path, run_dir: Path, options) -> dict:
     return record
 
 
-def _check_safety(fake: bool, confirm: bool, hardware: bool) -> None:
-    if not fake and not hardware:
-        raise HTTPException(403, "hardware: this GUI server was started without --hardware, "
-                                 "so it runs acquisitions on the simulated lab only (restart "
-                                 "it with `campaign gui --hardware` to drive a real robot)")
-    if not fake and not confirm:
-        raise HTTPException(400, "confirmation: the robot WILL move; a run on hardware needs "
-                                 "confirm: true (the CLI's --yes)")
+def _claimed(ws: Path, directory: Path) -> int | None:
+    """The claim on ``directory``'s robot (an open descriptor; 409 when another acquisition
+    holds it: :mod:`campaign.web.acquire_rule`), None when no robot can be read."""
+    robot = robot_of(directory)
+    return None if robot is None else claim_now(claim_file(ws, robot), robot)
 
 
 @router.post("/start")
 def start(req: StartRequest, request: Request, ws: Path = Depends(workspace)) -> dict:
     """Preflight (the dry run), then start a new run in its own process; answers at once."""
-    _check_safety(req.fake, req.confirm, request.app.state.hardware)
+    check_hardware(getattr(request.app.state, "hardware", False), req.fake, req.confirm)
     plan, out = inside(ws, req.plan, "plan"), inside(ws, req.out, "out")
     with _starting:
         return _start(ws, req, plan, out)
@@ -221,13 +240,13 @@ def _start(ws: Path, req: StartRequest, plan: Path, out: Path) -> dict:
     _dry_run(ws, plan, None, req.fake)
     options = AcquireJobOptions(plan=plan, out=out, fake=req.fake, assume_yes=True,
                                 time_scale=req.time_scale, operator=req.operator)
-    return _spawn(ws, out, options)
+    return _spawn(ws, out, options, _claimed(ws, plan))
 
 
 @router.post("/resume")
 def resume(req: ResumeRequest, request: Request, ws: Path = Depends(workspace)) -> dict:
     """Continue a partial run from its first unfinished test, in its own process."""
-    _check_safety(req.fake, req.confirm, request.app.state.hardware)
+    check_hardware(getattr(request.app.state, "hardware", False), req.fake, req.confirm)
     run_dir = inside(ws, req.run, "run")
     with _starting:
         return _resume(ws, req, run_dir)
@@ -244,14 +263,24 @@ def _resume(ws: Path, req: ResumeRequest, run_dir: Path) -> dict:
     _dry_run(ws, None, run_dir, req.fake)
     options = AcquireJobOptions(resume=run_dir, fake=req.fake, assume_yes=True,
                                 time_scale=req.time_scale)
-    return _spawn(ws, run_dir, options)
+    return _spawn(ws, run_dir, options, _claimed(ws, run_dir))
 
 
 def _read(ws: Path, run_dir: Path) -> dict:
+    """The job record of ``run_dir`` ({} when none is of this run)."""
     try:
-        return json.loads(_record_path(ws, run_dir).read_text())
+        record = json.loads(_record_path(ws, run_dir).read_text())
     except (OSError, ValueError):
         return {}
+    rel = run_dir.relative_to(ws).as_posix()
+    if not isinstance(record, dict) or record.get("run_dir") != rel:
+        return {}
+    try:  # the files it names pass the web's one path rule, as a request's paths do
+        for key in ("events_file", "log"):
+            inside_workspace(ws, str(record.get(key, ".")), key)
+    except InputError:
+        return {}
+    return record
 
 
 def _run_of(ws: Path, run: str | None) -> Path:
@@ -362,7 +391,10 @@ def abort_run(req: RunRequest, ws: Path = Depends(workspace)) -> dict:
     from campaign.jobs.acquire import abort
 
     run_dir = inside(ws, req.run, "run")
-    pid = _read(ws, run_dir).get("pid")
+    record = _read(ws, run_dir)
+    if not record:
+        raise HTTPException(404, f"{req.run}: no acquisition was started here for this run")
+    pid = record.get("pid")
     if not _alive(pid):
         raise HTTPException(409, f"{req.run}: no acquisition is running")
     abort(pid)

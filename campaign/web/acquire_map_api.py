@@ -66,7 +66,9 @@ def _run_dir(ws: Path, run: str | None) -> Path:
 
 def _summary_of(ws: Path, run_dir: Path | None, plan_dir: Path) -> tuple[dict, str]:
     """(summary.json of the plan the run was made from, why not) -- {} when unknown."""
+    from analysis.errors import InputError
     from campaign.acquire.rundir import sha256_file
+    from campaign.web.security import inside_workspace
 
     source = plan_dir
     if run_dir is not None:
@@ -76,9 +78,12 @@ def _summary_of(ws: Path, run_dir: Path | None, plan_dir: Path) -> tuple[dict, s
             source = source if source.is_absolute() else ws / source
         except (OSError, ValueError, KeyError, TypeError):
             return {}, "the run's metadata.json names no plan_source"
+        try:  # the web's one path rule, for a path read from a file as from a request
+            source = inside_workspace(ws, source.relative_to(ws) if source.is_absolute()
+                                      else source, "plan_source")
+        except (ValueError, InputError):
+            return {}, "the run's plan directory is outside the workspace"
         try:
-            if not source.resolve().is_relative_to(ws.resolve()):
-                return {}, "the run's plan directory is outside the workspace"
             if sha256_file(source / "plan.csv") != meta.get("plan_sha256"):
                 return {}, "the run's plan directory was planned again since"
         except OSError:

@@ -17,11 +17,11 @@ field names say so. Responses are the result records as JSON, the same
 documents the command's ``--json`` prints (NaN and infinities as null).
 
 Every path in a body is relative to the workspace (``request.app.state.workspace``):
-an absolute path, a ``..`` part, or a symbolic link that leads out of it is
-refused with 400 and one line. The jobs get absolute paths, so the files they
-write name workspace files by absolute path where the command line would write
-the path as typed; the JSON answers give them relative to the workspace.
-Bad input gets 400 (or 422 from the body's
+an absolute path, a ``..`` part, or a symbolic link is refused with 400 and one
+line (the web's one path rule, :func:`campaign.web.security.inside_workspace`).
+The jobs get absolute paths, so the files they write name workspace files by
+absolute path where the command line would write the path as typed; the JSON
+answers give them relative to the workspace. Bad input gets 400 (or 422 from the body's
 schema) with the same one-line message as the command line, with the request
 field at fault and the command-line options the line names
 (:mod:`campaign.web.job_errors`); a refused write (disk full, permissions) is
@@ -33,8 +33,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from collections.abc import Callable
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 from typing import Any
 
 from fastapi import APIRouter, Depends, HTTPException, Request
@@ -55,7 +56,7 @@ from campaign.jobs.stiffness import StiffnessOptions
 from campaign.use.place_run import DEFAULT_MAX_EVALUATIONS
 from campaign.web import job_tasks
 from campaign.web.job_errors import describe, relative_to_workspace
-from campaign.web.job_submit import QUEUED, submit
+from campaign.web.job_submit import QUEUED, Refusal, submit
 from campaign.web.job_submit import router as queue_router
 
 #: per request: robustness' simulated campaigns (trials x numbers of tests; the default
@@ -77,32 +78,16 @@ def workspace(request: Request) -> Path:
 
 
 def inside(ws: Path, rel: str | Path, field: str) -> Path:
-    """``rel`` (relative to the workspace) as an absolute path inside it; refuse the rest.
+    """``rel`` (relative to the workspace) as an absolute path inside it, by the web's one
+    path rule (:func:`campaign.web.security.inside_workspace`: no absolute path, no
+    ``..``, no symbolic link); its refusal as 400 naming ``field``."""
+    from analysis.errors import InputError
+    from campaign.web.security import inside_workspace
 
-    Refused with 400: an absolute path, a ``..`` part, and a path whose existing
-    part resolves (through symbolic links) outside the workspace.
-    """
-    text = str(rel)
-    if "\x00" in text:
-        raise HTTPException(400, f"{field}: a path cannot hold a NUL character")
-    parts = PurePosixPath(text.replace("\\", "/")).parts
-    if not text or text.startswith(("/", "\\")) or (parts and ":" in parts[0]):
-        raise HTTPException(400, f"{field}: {text!r} is not a path relative to the workspace")
-    if ".." in parts:
-        raise HTTPException(400, f"{field}: {text!r} has a '..' part; paths stay inside "
-                                 "the workspace")
-    if any(len(part.encode()) > 255 for part in parts):
-        raise HTTPException(400, f"{field}: a name in the path is longer than 255 bytes")
-    path = ws.joinpath(*parts)
     try:
-        resolved = path.resolve()
-    except (OSError, RuntimeError) as err:  # a name too long, a symbolic link loop
-        raise HTTPException(400, f"{field}: {text!r}: {getattr(err, 'strerror', None) or err}"
-                            ) from None
-    if not resolved.is_relative_to(ws):
-        raise HTTPException(400, f"{field}: {text!r} leads out of the workspace "
-                                 "(symbolic link)")
-    return path
+        return inside_workspace(ws, rel, field)
+    except InputError as err:
+        raise HTTPException(400, str(err)) from None  # "field: the one line"
 
 
 def call(ws: Path | None, job: Callable[[], Any]) -> JSONResponse:
@@ -250,16 +235,39 @@ def compensate(options: CompensateOptions, request: Request,
     return submit(request, ws, "compensate", options, job_tasks.compensate)
 
 
+def _without(record: type, *names: str) -> type:
+    """A dataclass of ``record``'s fields but ``names`` (same types and defaults): a request
+    body that cannot carry what the server's operator chooses."""
+    import typing
+
+    hints = typing.get_type_hints(record)
+    kept = [(f.name, hints[f.name], dataclasses.field(default=f.default)
+             if f.default is not dataclasses.MISSING else dataclasses.field())
+            for f in dataclasses.fields(record) if f.name not in names]
+    made = dataclasses.make_dataclass(f"{record.__name__}Request", kept)
+    made.__doc__ = f"{record.__doc__}\n\nWithout {', '.join(names)}: the server's choice."
+    return made
+
+
+#: the place job's options but the Dask scheduler: the server connects to the scheduler
+#: its operator gave (``campaign gui --scheduler``), never to one a request names
+PlaceRequest = _without(PlaceOptions, "scheduler")
+
+
 @router.post("/place", status_code=202, responses=QUEUED)
-def place(options: PlaceOptions, request: Request,
+def place(body: PlaceRequest, request: Request,
           ws: Path = Depends(workspace)) -> JSONResponse:
     """The placement search (options in the command line's units: mm, deg, ``A..B`` ranges);
     the options and the search's size are checked at once (400; at most
     :data:`MAX_EVALUATIONS` evaluations), then the search is queued (202 with the job,
     whose result is placement.json). ``workers`` 0 runs it in the server's process, else
-    on a local Dask cluster as the command line."""
+    on a local Dask cluster as the command line, or on the operator's scheduler
+    (``campaign gui --scheduler``)."""
     from campaign.use.place_run import check_search
 
+    options = PlaceOptions(**{f.name: getattr(body, f.name)
+                              for f in dataclasses.fields(body)},
+                           scheduler=getattr(request.app.state, "scheduler", None))
     options = dataclasses.replace(options, robot=robot_path(ws, options.robot),
                                   path=inside(ws, options.path, "path"),
                                   out=inside(ws, options.out, "out"))
@@ -274,8 +282,14 @@ def place(options: PlaceOptions, request: Request,
 def robustness(options: RobustnessOptions, request: Request,
                ws: Path = Depends(workspace)) -> JSONResponse:
     """The Monte-Carlo spread of k against the number of tests (noise overrides in SI);
-    queued (202 with the job; at most :data:`MAX_CAMPAIGNS` simulated campaigns,
-    trials x numbers of tests)."""
+    the options are checked at once as the command line checks them (400), then queued
+    (202 with the job; at most :data:`MAX_CAMPAIGNS` simulated campaigns, trials x numbers
+    of tests)."""
+    from campaign.jobs.robustness import check
+
+    refused = answer(ws, lambda: check(options), options, present=lambda counts: None)
+    if refused is not None:
+        return refused
     campaigns = options.trials * len(set(options.tests))
     if campaigns > MAX_CAMPAIGNS:
         return bound_error("trials", f"{options.trials} trials x {len(set(options.tests))} "
@@ -304,18 +318,28 @@ def analyze(options: AnalyzeOptions, request: Request,
     return submit(request, ws, "analyze", options, job_tasks.analyze)
 
 
-@router.post("/acquire", status_code=202, responses=QUEUED)
+@router.post("/acquire", status_code=202, responses={**QUEUED, 403: {
+    "model": Refusal, "description": "a real robot from a server started without "
+    "--hardware"}, 409: {"model": Refusal, "description": "an acquisition is running on "
+                         "this robot"}})
 def acquire(options: AcquireJobOptions, request: Request,
             ws: Path = Depends(workspace)) -> JSONResponse:
     """Run, resume or dry-run a campaign; queued (202 with the job, whose result is the
     status and counts). Cancelling it takes the Ctrl-C path (motion stopped, load
     removed, ``aborted`` recorded: the run stays, resumable, as the command line's).
 
-    Without ``out`` a new run goes to ``runs/run-<UTC time>`` in the workspace. A real
-    robot moves only with ``assume_yes`` (nobody can be asked here); a long campaign is
-    better started from the Acquire view (its own process, which a closed page or a
-    restarted server does not stop)."""
-    from campaign.jobs.acquire import default_run_dir
+    Without ``out`` a new run goes to ``runs/run-<UTC time>`` in the workspace. The
+    rule of every acquisition route (:mod:`campaign.web.acquire_rule`): a real robot
+    only from a server started with ``--hardware`` (403) and with ``assume_yes`` (400),
+    one acquisition per robot at a time (409). ``events_file`` must be a new file (the
+    server writes there). A long campaign is better started from the Acquire view (its
+    own process, which a closed page or a restarted server does not stop)."""
+    from campaign.jobs.acquire import check, default_run_dir
+    from campaign.web.acquire_rule import check_free, check_hardware
+
+    refused = answer(ws, lambda: check(options), options, present=lambda _: None)
+    if refused is not None:  # the command line's own line for the options themselves
+        return refused
 
     def opt(value, name):
         return None if value is None else inside(ws, value, name)
@@ -328,8 +352,17 @@ def acquire(options: AcquireJobOptions, request: Request,
         options, plan=opt(options.plan, "plan"), out=opt(out, "out"),
         resume=opt(options.resume, "resume"), events_file=opt(options.events_file,
                                                               "events_file"))
-
-    return submit(request, ws, "acquire", options, job_tasks.acquire, cleanup=False)
+    check_hardware(getattr(request.app.state, "hardware", False), options.fake,
+                   options.assume_yes, options.dry_run)
+    if options.events_file is not None and os.path.lexists(options.events_file):
+        return bound_error("events_file", "an existing file, refused: the server writes "
+                           "the progress there, so give the name of a new file")
+    claim = None
+    source = options.resume or options.plan
+    if not options.dry_run and source is not None:
+        claim = check_free(ws, source)  # 409 now; the job's process holds it while it runs
+    return submit(request, ws, "acquire", options, job_tasks.acquire,
+                  () if claim is None else claim, cleanup=False)
 
 
 # the queue's own routes: a job's state, its events, its cancellation

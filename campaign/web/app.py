@@ -6,7 +6,8 @@ server reads or writes must be inside) and one access token (see
 :data:`ROUTERS`, imported when the app is built; a module that cannot be
 imported is skipped with a warning, so that one face missing does not take the
 others down. The OpenAPI document is at ``/openapi.json`` (the page reads its
-routes from it); the interactive docs are off, since they load from a CDN.
+routes from it); the interactive docs are off, since they load from a CDN. A request
+body over :data:`MAX_BODY_BYTES` is answered 413 unread.
 """
 
 
@@ -35,6 +36,11 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.analyze_plots_api",
 )
 
+#: bytes of a request body at most (16 MiB; the largest legitimate body is a URDF
+#: upload, 1 MB of text, or a path upload, 2 MB, JSON-escaped): FastAPI's own limit
+#: answers 413 when the announced length is over it, before the body is read, and stops
+#: reading a body sent without its length as soon as it passes it
+MAX_BODY_BYTES = 16 * 1024 * 1024
 STATIC = Path(__file__).parent / "static"
 #: uPlot and htmx set inline styles; scripts only from the server's own files
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
@@ -51,12 +57,14 @@ def _routers():
 
 
 def create_app(workspace: str | Path, token: str, password: str | None = None,
-               hardware: bool = False):
+               hardware: bool = False, scheduler: str | None = None):
     """The FastAPI app serving ``workspace`` to clients holding ``token`` (or ``password``).
 
     ``hardware``: the Acquire view may run on a real robot (the operator's ``--hardware``
     at start; each run still needs its confirmation, limits and dry run); without it the
-    server runs acquisitions on the simulated lab only.
+    server runs acquisitions on the simulated lab only. ``scheduler``: the Dask scheduler
+    of the placement search (the operator's ``--scheduler``; None: a local cluster); no
+    request can name another.
 
     Raises InputError when the workspace is not an existing directory.
     """
@@ -75,14 +83,17 @@ def create_app(workspace: str | Path, token: str, password: str | None = None,
         raise InputError("the workspace is a symbolic link: give the directory itself",
                          where=str(ws))
     app = FastAPI(title="campaign gui", version="1", docs_url=None, redoc_url=None,
+                  max_body_size=MAX_BODY_BYTES,
                   description="The JSON API of the stiffness-campaign GUI. Every request "
                   "needs the access token (cookie or `Authorization: token ...`); "
-                  f"POST requests also the `{security.CSRF_HEADER}` header.")
+                  f"POST requests also the `{security.CSRF_HEADER}` header. A request body "
+                  f"over {MAX_BODY_BYTES} bytes is refused (413).")
     app.state.workspace = ws.resolve()
     app.state.token = token
     app.state.csrf = security.csrf_value(token)
     app.state.password = password
     app.state.hardware = bool(hardware)
+    app.state.scheduler = scheduler
     # Monte-Carlo requests of every tab and client share the CPUs: one per core at a time
     app.state.compute_slots = threading.BoundedSemaphore(os.cpu_count() or 1)
 
@@ -118,6 +129,8 @@ def create_app(workspace: str | Path, token: str, password: str | None = None,
         response.headers.setdefault("X-Frame-Options", "DENY")
         response.headers.setdefault("X-Content-Type-Options", "nosniff")
         return response
+
+    # outermost: a body over the limit is refused before it is read (413)
 
     @app.exception_handler(InputError)
     async def input_error(request: Request, err: InputError):

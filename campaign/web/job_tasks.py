@@ -61,8 +61,23 @@ def analyze(progress, options):
                warn=progress_hooks.say(progress))
 
 
-def acquire(progress, options):
-    """The acquire job: its phases as progress; a cancellation takes its Ctrl-C path."""
+def acquire(progress, options, lock=None, robot: str | None = None):
+    """The acquire job: its phases as progress; a cancellation takes its Ctrl-C path.
+    ``lock``: the robot's claim file (:mod:`campaign.web.acquire_rule`), held by this
+    process while the acquisition runs (refused when another acquisition holds it)."""
+    import os
+
+    from campaign.web.acquire_rule import claim
+
+    held = None if lock is None else claim(lock, robot)
+    try:
+        return _acquire(progress, options)
+    finally:
+        if held is not None:
+            os.close(held)
+
+
+def _acquire(progress, options):
     from campaign.jobs.acquire import run
 
     result = run(options, reporter=progress_hooks.AcquireProgress(progress),

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import re
 import tomllib
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Request
@@ -140,6 +140,32 @@ def _suggest(field: dict, request: Request) -> dict:
     return field
 
 
+def _robot_outside(ws: Path, values: dict[str, str]) -> JSONResponse | None:
+    """The refusal of a ``campaign.robot`` file that is not a workspace file, or None.
+
+    The saved protocol is ``protocols/NAME.toml`` and names its robot file relative to
+    ``protocols/``: that path, seen from the workspace, must pass the web's path rule
+    (:func:`campaign.web.security.inside_workspace`) before the protocol reader opens it,
+    so that neither its keys nor its existence leak from outside the workspace."""
+    from analysis.errors import InputError
+    from analysis.model.robot_spec import is_robot_file, split_urdf_spec
+    from campaign.web.security import inside_workspace
+
+    text = values.get("campaign.robot", "").strip().strip("\"'")
+    if not is_robot_file(text):
+        return None  # a built-in name
+    parts = list(PurePosixPath(split_urdf_spec(text)[0].replace("\\", "/")).parts)
+    up = 0 if not parts or parts[0] != ".." else 1  # protocols/../ is the workspace
+    rel = "/".join(parts[up:] if up else ["protocols", *parts])
+    checked = rel if parts and not PurePosixPath(parts[0]).is_absolute() else text
+    try:
+        inside_workspace(ws, checked, "campaign.robot")
+    except InputError as err:  # the path as typed, not as seen from the workspace
+        return _error(f"{str(err).replace(repr(checked), repr(text))} (a robot file is "
+                      "read relative to protocols/ of the workspace)", "campaign.robot")
+    return None
+
+
 def _problems(text: str, keys: list[str]) -> list[dict]:
     """One entry per line of a protocol or job message, with the form key it names."""
     from campaign.web.protocol_form import field_of
@@ -171,6 +197,9 @@ def _save(ws: Path, body: PlanRequest) -> tuple[Path, list[str], bytes | None] |
         doc = build_document(values)
     except FormError as err:
         return _error(str(err), err.key if err.key in keys else None)
+    outside = _robot_outside(ws, values)
+    if outside is not None:
+        return outside
     for sub in ("protocols", "plans"):
         if (ws / sub).is_symlink():
             return _error(f"{sub}: a symbolic link; refused", "name")

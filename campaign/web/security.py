@@ -11,7 +11,8 @@
   password (then ``/login`` takes the password instead of the token), over HTTPS
   only (:mod:`campaign.web.tls`: the operator's certificate or a self-signed one).
 * Files: :func:`inside_workspace` resolves a path given by a client and refuses
-  absolute paths, ``..``, and symbolic links anywhere under the workspace.
+  absolute paths, ``..``, and symbolic links anywhere under the workspace: the one
+  path rule of every route (:func:`campaign.web.api_jobs.inside` answers its refusal as 400).
 """
 
 from __future__ import annotations
@@ -67,19 +68,28 @@ def check_bind(host: str, allow_remote: bool, password: str | None) -> None:
         raise InputError("use a password of at least 8 characters", where="--password")
 
 
-def inside_workspace(workspace: Path, relative: str, where: str = "path") -> Path:
-    """``relative`` resolved under ``workspace``; InputError for ``..``, absolute paths,
-    symbolic links on the way, or a path that leaves the workspace."""
+def inside_workspace(workspace: Path, relative: str | Path, where: str = "path") -> Path:
+    """``relative`` (a path relative to ``workspace``) as an absolute path inside it: the one
+    path rule of the web face, for every path field of every form and route.
+
+    InputError (one line) for an empty path, a NUL character, an absolute path (``/x``,
+    ``~x``, ``C:x``), a ``..`` part, a name longer than 255 bytes, a symbolic link
+    anywhere on the way (one leading inside is refused as well: what it points to can
+    change between the check and the use), and a path that otherwise resolves out of the
+    workspace. The path itself need not exist (an output to create)."""
     text = str(relative).replace("\\", "/")
     if not text or "\x00" in text:
-        raise InputError("empty or invalid path", where=where)
+        raise InputError("empty or invalid path (a NUL character)", where=where)
     pure = PurePosixPath(text)
-    if pure.is_absolute() or text.startswith("~") or (len(text) > 1 and text[1] == ":"):
-        raise InputError("an absolute path is refused: give a path inside the workspace",
-                         where=where)
+    if pure.is_absolute() or text.startswith("~") or ":" in (pure.parts or ("",))[0]:
+        raise InputError(f"{text!r} is an absolute path, refused: give a path inside the "
+                         "workspace", where=where)
     if ".." in pure.parts:
-        raise InputError("'..' is refused: give a path inside the workspace", where=where)
-    root = workspace.resolve()
+        raise InputError(f"{text!r} has a '..' part, refused: give a path inside the "
+                         "workspace", where=where)
+    if any(len(part.encode()) > 255 for part in pure.parts):
+        raise InputError("a name in the path is longer than 255 bytes", where=where)
+    root = Path(workspace).resolve()
     path = root
     try:
         for part in pure.parts:
@@ -87,10 +97,13 @@ def inside_workspace(workspace: Path, relative: str, where: str = "path") -> Pat
                 continue
             path = path / part
             if path.is_symlink():
-                raise InputError("a symbolic link is refused", where=where)
+                raise InputError(f"{path.relative_to(root)} is a symbolic link, refused (a "
+                                 "link leads out of the workspace as easily as within it)",
+                                 where=where)
         inside = path.resolve().is_relative_to(root)
-    except OSError as err:  # a name too long, a loop: not a path of the workspace
-        raise InputError(f"not a usable path ({err.strerror})", where=where) from err
+    except (OSError, RuntimeError) as err:  # a name too long, a loop: not a workspace path
+        why = getattr(err, "strerror", None) or str(err)
+        raise InputError(f"not a usable path ({why})", where=where) from err
     if not inside:
         raise InputError("the path leaves the workspace", where=where)
     return path

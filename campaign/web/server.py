@@ -21,7 +21,9 @@ DEFAULT_PORT = 8765
 @dataclass(frozen=True)
 class GuiOptions:
     """How to serve: workspace directory, address, remote access (password) and HTTPS
-    (certfile/keyfile, PEM; remote access without them: a self-signed certificate)."""
+    (certfile/keyfile, PEM; remote access without them: a self-signed certificate);
+    hardware: acquisitions may drive a real robot; scheduler: the placement search's Dask
+    scheduler (None: a local cluster)."""
 
     workspace: Path
     host: str = DEFAULT_HOST
@@ -32,6 +34,7 @@ class GuiOptions:
     certfile: Path | None = None
     keyfile: Path | None = None
     hardware: bool = False
+    scheduler: str | None = None
 
 
 def bind(host: str, port: int) -> socket.socket:
@@ -92,7 +95,8 @@ def prepare(options: GuiOptions, token: str) -> Prepared:
     sock = bind(options.host, options.port)
     try:
         app = create_app(options.workspace, token, options.password if options.allow_remote
-                         else None, hardware=options.hardware)
+                         else None, hardware=options.hardware,
+                         scheduler=options.scheduler)
     except BaseException:
         sock.close()
         raise

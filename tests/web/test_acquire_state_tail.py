@@ -16,7 +16,7 @@ import random
 import pytest
 
 from campaign.acquire.progress import JsonReporter
-from campaign.web.acquire_api import LIVE
+from campaign.web.acquire_api import LIVE, _record_path
 from campaign.web.events_tail import EventsTail, summarize
 
 pytest.importorskip("fastapi", reason="fastapi is not installed (pip install fastapi)")
@@ -99,11 +99,11 @@ def test_state_answers_as_a_fresh_server_reading_everything(tmp_path):
     (ws / "runs" / "r" / "metadata.json").write_text(json.dumps({"status": "running"}))
     jobs = ws / ".gui" / "acquire"
     jobs.mkdir(parents=True)
-    events = jobs / "runs__r.1.events.jsonl"
+    events = jobs / "runs%2Fr.1.events.jsonl"
     events.write_text("")
-    (jobs / "runs__r.json").write_text(json.dumps({
+    _record_path(ws, ws / "runs" / "r").write_text(json.dumps({
         "run_dir": "runs/r", "pid": None, "events_file": str(events.relative_to(ws)),
-        "log": ".gui/acquire/runs__r.1.log"}))
+        "log": ".gui/acquire/runs%2Fr.1.log"}))
     (jobs / "latest").write_text("runs/r")
     text = events_text(N_EVENTS).encode()
     polling = _app(ws)
