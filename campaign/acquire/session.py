@@ -26,6 +26,7 @@ from campaign.acquire.ending import ending
 from campaign.acquire.instruments import open_instruments
 from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
 from campaign.acquire.progress import Reporter
+from campaign.acquire.robot_claim import hold as hold_robot
 from campaign.acquire.rundir import (
     PLAN,
     TESTS,
@@ -232,7 +233,18 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         if run is not None:
             run.close()
         raise
-    inst = open_instruments(protocol, opts.fake, lab_scale)
+    # one robot, one acquisition: a hardware run claims its robot machine-wide before
+    # anything is connected (the claim ends with this function, or with the process)
+    claim = None
+    try:
+        claim = None if opts.fake else hold_robot(_robot_name(protocol))
+        inst = open_instruments(protocol, opts.fake, lab_scale)
+    except BaseException:
+        if claim is not None:
+            claim.release()
+        if run is not None:
+            run.close()
+        raise
     counts = {"ok": 0, "failed": 0}
     try:
         inst.connect()  # an unreachable instrument leaves no run directory behind
@@ -272,6 +284,8 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         status, reason = "aborted", "interrupted by the operator (Ctrl-C)"
     finally:
         inst.close()
+        if claim is not None:
+            claim.release()
         if run is not None:
             run.close()
     outcome = Outcome(status, reason, run.path, counts["ok"], counts["failed"],
@@ -281,6 +295,12 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
                                      "ok_this_session": outcome.ok,
                                      "failed_this_session": outcome.failed})
     return outcome
+
+
+def _robot_name(protocol: Protocol) -> str:
+    """The robot an acquisition drives, as its claim names it: "driver address"."""
+    spec = protocol.instruments["robot"]
+    return f"{spec.driver} {spec.address}"
 
 
 def _settle_rule(protocol: Protocol, time_scale: float, settle_scale: float) -> SettleRule:
