@@ -108,10 +108,14 @@ def _separation_dict(plan: Plan) -> dict:
 
 def _flanks_dict(plan: Plan) -> dict:
     """Gear flank changes of each test (reference under the load case's preload, or none,
-    then loaded), from the robot file's gravity model; {} for a robot without masses."""
+    then loaded), from the robot file's gravity model; {} for a robot without masses, and
+    for a protocol that neither preloads its load cases nor simulates lost motion (its
+    summary stays as it was before lost motion was modelled)."""
     from campaign.planning.flanks import flank_changes, keeping_preload
 
-    if plan.robot.inertials is None:
+    protocol = plan.protocol
+    lost = protocol.fake_lab is not None and protocol.fake_lab.lost_motion_rad is not None
+    if plan.robot.inertials is None or not (protocol.preloaded or lost):
         return {}
     q = plan.candidates.q[plan.chosen.pose]
     w = plan.protocol.wrenches()[plan.chosen.case]
