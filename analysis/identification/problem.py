@@ -104,6 +104,9 @@ class IdentificationProblem:
     noise: NoiseModel
     joints: tuple[int, ...]
     options: IdentifyOptions
+    #: the tests' reference readings were under a preload: ``tests.w`` is the wrench
+    #: difference w - w_ref (:func:`referenced`)
+    preloaded: bool = False
 
     @classmethod
     def make(cls, robot: RobotModel, tests: TestArrays, joints=None,
@@ -120,7 +123,8 @@ class IdentificationProblem:
         if not joints or joints[0] < 0 or joints[-1] > 5:
             raise InputError(f"expected 0-based joint indices 0..5, got {joints}",
                              where="joints")
-        return cls(robot, referenced(tests, options.method), noise, joints, options)
+        return cls(robot, referenced(tests, options.method), noise, joints, options,
+                   tests.w_ref is not None)
 
     @property
     def p(self) -> int:
