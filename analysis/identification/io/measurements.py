@@ -11,7 +11,8 @@ Public CSV format (one row per test, extra columns ignored, header required)::
     fx_ref_N .. mz_ref_Nm (optional)       wrench of the reference reading (a preload in
                                            the load's direction), base frame at the tool
                                            point (N, N m); the displacement is then loaded
-                                           minus reference. Absent or all empty: unloaded
+                                           minus reference and TestArrays.w = w - w_ref.
+                                           Absent or all empty: unloaded
 
 Inside the program the same tests are a tidy table in SI units with the columns of
 :data:`~analysis.identification.io.columns.SI_COLUMNS` (rad, N, N m, m, rad). Reading a
