@@ -52,9 +52,16 @@ def test_world_reading_is_the_realistic_displacement_plus_drift():
     world.move(Q_CTRL, speed=1e6)
     world._t_change -= 1e6
     p0 = world.tracker_point("P")
+    f0 = world.sensor_wrench()
     T0 = world.true_tool_pose()
     _loaded(world)
     p1 = world.tracker_point("P")
+    world.remove_load()
+    world._t_change -= 1e6
+    # two load changes later the unloaded F/T reading has drifted by 2 x 3 s of its rate
+    f2 = world.sensor_wrench()
+    assert np.allclose(f2 - f0, np.asarray(settings.ft_drift) * 2 * SETTLED_AFTER
+                       * settings.settle_time, rtol=0, atol=1e-9)
     drift = np.asarray(settings.tracker_drift) * SETTLED_AFTER * settings.settle_time
     q = world.robot.from_controller(Q_CTRL)
     d = R.displacement(world.robot, world.lab, world.k, q[None], np.zeros(6), W)[0]
