@@ -217,6 +217,15 @@ def _checked(problem: IdentificationProblem) -> tuple[float, list[str]]:
     if not tests.has_rotations and any(j >= 3 for j in joints):
         warnings.append("no rotation measured: wrist joints are identified from translations "
                         "only, expect wide intervals")
+    if problem.preloaded:
+        if problem.options.method == "exact":
+            warnings.append("reference readings under a preload: the displacement is fitted "
+                            "between the equilibria under the reference wrench and under "
+                            "the loaded one (the wrench in the tables is their difference)")
+        else:
+            warnings.append("reference readings under a preload: the linear model in the "
+                            "wrench difference w - w_ref, first order in the deflection; "
+                            "the exact model (--method exact) solves both equilibria")
     if not tests.has_rotations and joints == (0, 1, 2):
         warnings.append("translational-only variant: wrist joints 4-6 taken as rigid; their "
                         "compliance, if any, is absorbed by k1..k3")

@@ -30,6 +30,21 @@ COVARIANCES = ("model", "residual")
 OUTLIER_FAMILY_LEVEL = 0.01
 
 
+def referenced(tests: TestArrays, method: str) -> TestArrays:
+    """Tests whose reference readings were taken under a preload (``tests.w_ref``; their
+    ``w`` is the wrench difference): the linear model is ``J K^-1 J^T w``, the exact one
+    the displacement between the equilibria under w_ref and w + w_ref. A campaign too
+    large to hold its systems (streamed fits) is refused with a preload: its per-block
+    model does not take the reference equilibria."""
+    from analysis.identification.streaming.per_test import streamed
+
+    if tests.w_ref is not None and method == "exact" and streamed(tests.m, ()):
+        raise InputError(f"{tests.m} tests with reference readings under a preload: the "
+                         "exact model of the two equilibria is not streamed; use --method "
+                         "wls or fewer tests", where="--method")
+    return tests
+
+
 @dataclass(frozen=True)
 class IdentifyOptions:
     """How to identify (see :func:`analysis.identification.estimate.identify`).
@@ -87,6 +102,9 @@ class IdentificationProblem:
     noise: NoiseModel
     joints: tuple[int, ...]
     options: IdentifyOptions
+    #: the tests' reference readings were under a preload: ``tests.w`` is the wrench
+    #: difference w - w_ref (:func:`referenced`)
+    preloaded: bool = False
 
     @classmethod
     def make(cls, robot: RobotModel, tests: TestArrays, joints=None,
@@ -103,7 +121,8 @@ class IdentificationProblem:
         if not joints or joints[0] < 0 or joints[-1] > 5:
             raise InputError(f"expected 0-based joint indices 0..5, got {joints}",
                              where="joints")
-        return cls(robot, tests, noise, joints, options)
+        return cls(robot, referenced(tests, options.method), noise, joints, options,
+                   tests.w_ref is not None)
 
     @property
     def p(self) -> int:
