@@ -20,10 +20,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from campaign.web.job_process import CANCEL_GRACE
 from tests.web.conftest import browser_page, gui_server
 
 ROOT = Path(__file__).parents[2]
 TOKEN = "use-jobs-token-0123456789"
+#: how long a cancelled job may take to end (ms): the server gives its process CANCEL_GRACE
+#: s to reach its next progress report before terminating it, then waits for it to end;
+#: a bound on the job's state, never a wait in its own right (a loaded machine takes long)
+CANCEL_BOUND_MS = int((CANCEL_GRACE + 90) * 1000)
 WRENCH = [500.0, 0.0, -1000.0, 0.0, 20.0, 0.0]  # the page's default along a path
 #: the search of the tests (441 placements, about 2 s in the server's process)
 BOX = {"x_mm": "1400..1800", "y_mm": "-200..200", "z_mm": "200", "x_step_mm": "20",
@@ -197,9 +202,11 @@ def test_cancel_leaves_no_files(page, ws):
     _fill_place(page, {**BOX, "x_step_mm": "5", "y_step_mm": "5", "out": "cancelled/run"})
     page.click("#pl-run")
     page.wait_for_function("() => Number(document.getElementById('view-use').dataset"
-                           ".placeFraction) > 0", timeout=60_000)
+                           ".placeFraction) > 0", timeout=120_000)
     page.click("#pl-cancel")
-    page.wait_for_selector("#view-use[data-place='cancelled']", timeout=30_000)
+    # the page shows 'cancelled' once the job's state is; it was awaited for 30 s, the
+    # server's own grace (CANCEL_GRACE) before it terminates a job slow to report
+    page.wait_for_selector("#view-use[data-place='cancelled']", timeout=CANCEL_BOUND_MS)
     assert "cancelled" in page.inner_text("#pl-text")
     assert not (ws / "cancelled").exists()
     assert page.is_enabled("#pl-run")
@@ -232,7 +239,7 @@ def test_a_full_queue_and_a_bound_show_their_messages(page, ws):
           for (const id of ids) await fetch('/api/jobs/' + id, { method: 'DELETE',
             headers: { [s.csrf_header]: s.csrf_token } }); }""", [i for _, i in ids])
     for _, job_id in ids:
-        end = time.monotonic() + 30
+        end = time.monotonic() + CANCEL_BOUND_MS / 1000
         while time.monotonic() < end:
             state = page.evaluate("async (id) => (await (await fetch('/api/jobs/' + id))"
                                   ".json()).state", job_id)
