@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+from pathlib import Path
 
 import pytest
 
@@ -69,3 +70,17 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def analyses(tmp_path_factory) -> tuple[Path, Path]:
+    """Two analysis directories (results.json, model.toml) of simulated KR240-2 campaigns,
+    B measured with its joint 2 10 % stiffer (written by ``campaign analyze`` from CSVs),
+    made once per session for the job, Use-view and API tests: read only (copy them)."""
+    from tests.use._campaigns import TRUE_K
+    from tests.use.conftest import analyze
+
+    tmp = tmp_path_factory.mktemp("analyses")
+    k_b = TRUE_K.copy()
+    k_b[1] *= 1.10
+    return analyze(tmp, "A", seed=3), analyze(tmp, "B", seed=4, k=k_b)
