@@ -48,6 +48,7 @@ E2E = (
     "tests/jobs/test_demo.py", "tests/web/test_fuzz.py",
     "tests/report/test_signed_report.py::test_html_in_chromium_first_screen_and_width",
     "tests/report/test_analyze_imports.py",
+    "tests/identification/test_golden.py::test_other_processors_kernels_pass",
 )
 
 
