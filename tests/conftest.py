@@ -49,6 +49,11 @@ E2E = (
     "tests/report/test_signed_report.py::test_html_in_chromium_first_screen_and_width",
     "tests/report/test_analyze_imports.py",
     "tests/identification/test_golden.py::test_other_processors_kernels_pass",
+    "tests/web/test_acquire_view.py::test_start_state_stream_abort_resume",
+    "tests/web/test_jobs_queue.py", "tests/web/test_plan_workspace_robot.py",
+    "tests/acquire/test_resume.py::test_kill9_at_seeded_moments_then_resume",
+    "tests/use/test_brand_programs.py::test_place_programs_round_trip",
+    "tests/report/test_signed_report.py",
 )
 
 
