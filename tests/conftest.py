@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import signal
+from pathlib import Path
 
 import pytest
 
@@ -10,6 +12,13 @@ from drivers.loopback_guard import ENV as LOOPBACK_ONLY
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    # Ctrl-C is Python's KeyboardInterrupt here and in every process the tests start,
+    # however the run was launched: a shell's background job (`pytest &`, nohup, some CI
+    # runners) inherits SIGINT ignored, Python then leaves it ignored, and so do the
+    # processes it starts, so the tests that press Ctrl-C (the acquisition's abort,
+    # the live panel, the GUI's abort) saw their run complete instead.
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     # Nothing leaves loopback: every driver this run (and every process it starts) builds
     # refuses a device off this machine, unless a real device's address was given.
     if not any(config.getoption(o) for o in ("--ft-url", "--tracker-url", "--robot-url")):
@@ -25,10 +34,59 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="Run long soak and fuzzing tests (marker 'slow').")
 
 
+#: the heavy end-to-end tests besides every browser test (marker ``e2e``; the fast lane
+#: ``pytest -m "not e2e"`` leaves them out, the README's test command runs them): whole
+#: campaigns in processes of their own, seeded Monte-Carlo studies of whole campaigns,
+#: the API fuzzer, chromium renderings. Each took >= 8 s on 2 cores (docs/testing.md).
+E2E = (
+    "tests/quality/test_robust_coverage.py", "tests/quality/test_linear_bias.py",
+    "tests/quality/test_holdout_check.py", "tests/quality/test_worst_joint.py",
+    "tests/quality/test_zscore_study.py", "tests/quality/test_z1_coverage.py",
+    "tests/use/test_compensation.py::test_fake_lab_verification_on_the_demo",
+    "tests/acquire/test_reproducible_fake.py", "tests/acquire/test_full_campaign.py",
+    "tests/acquire/test_abb_fanuc_campaigns.py", "tests/acquire/test_ur10e_campaign.py",
+    "tests/jobs/test_demo.py", "tests/web/test_fuzz.py",
+    "tests/report/test_signed_report.py::test_html_in_chromium_first_screen_and_width",
+    "tests/report/test_analyze_imports.py",
+    "tests/identification/test_golden.py::test_other_processors_kernels_pass",
+    "tests/web/test_acquire_view.py::test_start_state_stream_abort_resume",
+    "tests/web/test_jobs_queue.py", "tests/web/test_plan_workspace_robot.py",
+    "tests/acquire/test_resume.py::test_kill9_at_seeded_moments_then_resume",
+    "tests/use/test_brand_programs.py::test_place_programs_round_trip",
+    "tests/report/test_signed_report.py",
+)
+
+
+def _e2e(item: pytest.Item) -> bool:
+    """Whether ``item`` is an end-to-end test: it opens a browser (the ``browser``
+    fixture, directly or through a page), or :data:`E2E` names its file or function."""
+    if "browser" in getattr(item, "fixturenames", ()):
+        return True
+    node = item.nodeid.split("[")[0]
+    return any(node == e or node.startswith(e + "::") for e in E2E)
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        if _e2e(item):
+            item.add_marker(pytest.mark.e2e)
     if config.getoption("--run-slow"):
         return
     skip = pytest.mark.skip(reason="slow: opt in with --run-slow")
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def analyses(tmp_path_factory) -> tuple[Path, Path]:
+    """Two analysis directories (results.json, model.toml) of simulated KR240-2 campaigns,
+    B measured with its joint 2 10 % stiffer (written by ``campaign analyze`` from CSVs),
+    made once per session for the job, Use-view and API tests: read only (copy them)."""
+    from tests.use._campaigns import TRUE_K
+    from tests.use.conftest import analyze
+
+    tmp = tmp_path_factory.mktemp("analyses")
+    k_b = TRUE_K.copy()
+    k_b[1] *= 1.10
+    return analyze(tmp, "A", seed=3), analyze(tmp, "B", seed=4, k=k_b)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from analysis.identification.io.results_json import residual_summary
 
@@ -63,16 +64,39 @@ def test_report_table_lists_the_worst_tests(monkeypatch):
     assert len(build.residual_table(result).rows) == 50
 
 
+def _lowest_index_first(values, n):
+    """The n largest by a stable sort on (-value, index): ties, lowest index first."""
+    return np.sort(np.lexsort((np.arange(values.size), -values))[:n])
+
+
 def test_largest_by_blocks_equals_a_full_sort():
     from analysis.identification.io.residual_rows import _largest
 
     rng = np.random.default_rng(3)
     values = rng.normal(size=10_007)
     values[[5, 900, 7000]] = np.inf  # outliers rank first
-    for n in (0, 1, 3, 50, 10_007, 20_000):
-        got = np.sort(_largest(values, n, block=997))
-        want = np.sort(np.argsort(values)[::-1][:n])
-        np.testing.assert_array_equal(got, want)
+    values[[11, 3000, 9999]] = -np.inf  # not measured: last
+    values[[20, 2000, 5000, 8000]] = values[40]  # a finite tie
+    for n in (0, 1, 2, 3, 50, 10_004, 10_005, 10_007, 20_000):
+        for block in (997, 10, 1 << 18):
+            got = _largest(values, n, block=block)
+            np.testing.assert_array_equal(got, _lowest_index_first(values, n))
+
+
+def test_largest_breaks_ties_by_the_lowest_index():
+    from analysis.identification.io.residual_rows import _largest
+
+    values = np.zeros(10_007)
+    values[[5, 900, 7000]] = np.inf
+    np.testing.assert_array_equal(_largest(values, 2, block=997), [5, 900])
+    np.testing.assert_array_equal(_largest(values, 3, block=997), [5, 900, 7000])
+    np.testing.assert_array_equal(_largest(values, 5, block=997), [0, 1, 5, 900, 7000])
+    values[[2, 9000]] = -np.inf
+    np.testing.assert_array_equal(_largest(values, 10_006, block=997),
+                                  np.setdiff1d(np.arange(10_007), [9000]))
+    values[3] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        _largest(values, 4, block=997)
 
 
 def test_worst_tests_by_blocks_equal_one_block():

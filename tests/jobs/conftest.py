@@ -128,19 +128,6 @@ def cli_error(ws: Path, *args: str) -> str:
     return lines[0].removeprefix("error: ")
 
 
-@pytest.fixture(scope="session")
-def analyses(tmp_path_factory) -> tuple[Path, Path]:
-    """Two analysis directories (results.json, model.toml) of simulated KR240-2 campaigns,
-    B measured with its joint 2 10 % stiffer (written by ``campaign analyze`` from CSVs)."""
-    from tests.use._campaigns import TRUE_K
-    from tests.use.conftest import analyze
-
-    tmp = tmp_path_factory.mktemp("jobs-analyses")
-    k_b = TRUE_K.copy()
-    k_b[1] *= 1.10
-    return analyze(tmp, "A", seed=3), analyze(tmp, "B", seed=4, k=k_b)
-
-
 @pytest.fixture
 def campaigns(ws, analyses) -> tuple[str, str]:
     """The two analyses copied into the workspace: their relative paths."""

@@ -27,9 +27,8 @@ def _flat(text: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def run_report(complete_run, tmp_path_factory):
-    out = tmp_path_factory.mktemp("quality") / "analysis"
-    assert main(["analyze", str(complete_run), "--trials", "10", "--out", str(out)]) == 0
+def run_report(complete_report):
+    out = complete_report
     page = ReportPage()
     page.feed((out / "report.html").read_text(encoding="utf-8"))
     pages = [p.extract_text() for p in PdfReader(out / "report.pdf").pages]

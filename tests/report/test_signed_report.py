@@ -566,9 +566,8 @@ def test_compare_writes_a_report_naming_both_runs(sim, real, tmp_path, capsys):
     assert "(simulated)" not in drawn.split("B: ")[1]
 
 
-def test_a_failed_row_makes_the_verdict_a_warning(complete_run, tmp_path):
-    out = tmp_path / "out"
-    assert main(["analyze", str(complete_run), "--trials", "10", "--out", str(out)]) == 0
+def test_a_failed_row_makes_the_verdict_a_warning(complete_report):
+    out = complete_report
     first = re.sub(r"\s+", " ", PdfReader(out / "report.pdf").pages[0].extract_text())
     assert "Warnings: 1 failed test row(s): see Data quality" in first
     assert "Consistent with the noise model" not in first

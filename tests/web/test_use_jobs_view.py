@@ -20,10 +20,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from campaign.web.job_process import CANCEL_GRACE
 from tests.web.conftest import browser_page, gui_server
 
 ROOT = Path(__file__).parents[2]
 TOKEN = "use-jobs-token-0123456789"
+#: how long a cancelled job may take to end (ms): the server gives its process CANCEL_GRACE
+#: s to reach its next progress report before terminating it, then waits for it to end;
+#: a bound on the job's state, never a wait in its own right (a loaded machine takes long)
+CANCEL_BOUND_MS = int((CANCEL_GRACE + 90) * 1000)
 WRENCH = [500.0, 0.0, -1000.0, 0.0, 20.0, 0.0]  # the page's default along a path
 #: the search of the tests (441 placements, about 2 s in the server's process)
 BOX = {"x_mm": "1400..1800", "y_mm": "-200..200", "z_mm": "200", "x_step_mm": "20",
@@ -31,13 +36,11 @@ BOX = {"x_mm": "1400..1800", "y_mm": "-200..200", "z_mm": "200", "x_step_mm": "2
 
 
 @pytest.fixture(scope="module")
-def ws(tmp_path_factory) -> Path:
-    """A workspace with the example path, the example workpiece and an analysis A."""
-    from tests.use.conftest import analyze
-
-    tmp = tmp_path_factory.mktemp("use-jobs")
-    a = analyze(tmp, "A", seed=3)
-    ws = tmp / "ws"
+def ws(tmp_path_factory, analyses) -> Path:
+    """A workspace with the example path, the example workpiece and an analysis A (the
+    session's :func:`~tests.conftest.analyses`)."""
+    a = analyses[0]
+    ws = tmp_path_factory.mktemp("use-jobs") / "ws"
     ws.mkdir()
     shutil.copy(ROOT / "examples" / "kr240-2_path.csv", ws / "path.csv")
     shutil.copy(ROOT / "examples" / "part_circle.csv", ws / "part.csv")
@@ -193,13 +196,41 @@ def test_placement_search_with_progress_equals_the_place_job(page, ws):
     assert "placed/placement.json" in hrefs
 
 
-def test_cancel_leaves_no_files(page, ws):
+def test_cancel_leaves_no_files(page, ws, monkeypatch):
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    from campaign.web.job_queue import Progress
+
+    # Under load this test saw 'done', never 'cancelled': the page kept the previous
+    # search's data-place-fraction (1) and id, so the wait below ended at once and Cancel
+    # deleted the previous, finished job (use.js now clears both when a search starts,
+    # and sends a Cancel clicked before the job's id once the id comes). And the job (in
+    # the server's threads here) holds at its first report of a fraction in (0, 1) until
+    # the cancellation is recorded, so the search cannot end before the cancel is served.
+    reported = Progress.report
+
+    def report_then_hold(self, fraction, text):
+        reported(self, fraction, text)
+        if fraction is not None and 0 < fraction < 1:
+            end = time.monotonic() + CANCEL_BOUND_MS / 1000  # a bound, not a wait
+            while not self.cancelled() and time.monotonic() < end:
+                time.sleep(0.01)
+
+    monkeypatch.setattr(Progress, "report", report_then_hold)
     _fill_place(page, {**BOX, "x_step_mm": "5", "y_step_mm": "5", "out": "cancelled/run"})
     page.click("#pl-run")
     page.wait_for_function("() => Number(document.getElementById('view-use').dataset"
-                           ".placeFraction) > 0", timeout=60_000)
+                           ".placeFraction) > 0", timeout=120_000)
     page.click("#pl-cancel")
-    page.wait_for_selector("#view-use[data-place='cancelled']", timeout=30_000)
+    # the page shows 'cancelled' once the job's state is (a bound beyond the server's own)
+    try:
+        page.wait_for_selector("#view-use[data-place='cancelled']", state="attached",
+                               timeout=CANCEL_BOUND_MS)
+    except PlaywrightTimeout:
+        shown = page.evaluate("() => [document.getElementById('view-use').dataset.place, "
+                              "document.getElementById('pl-text').textContent, "
+                              "document.getElementById('pl-error').textContent]")
+        raise AssertionError(f"not cancelled: data-place, text, error = {shown}") from None
     assert "cancelled" in page.inner_text("#pl-text")
     assert not (ws / "cancelled").exists()
     assert page.is_enabled("#pl-run")
@@ -232,7 +263,7 @@ def test_a_full_queue_and_a_bound_show_their_messages(page, ws):
           for (const id of ids) await fetch('/api/jobs/' + id, { method: 'DELETE',
             headers: { [s.csrf_header]: s.csrf_token } }); }""", [i for _, i in ids])
     for _, job_id in ids:
-        end = time.monotonic() + 30
+        end = time.monotonic() + CANCEL_BOUND_MS / 1000
         while time.monotonic() < end:
             state = page.evaluate("async (id) => (await (await fetch('/api/jobs/' + id))"
                                   ".json()).state", job_id)

@@ -25,18 +25,6 @@ WRENCH = [0.0, 0.0, -2000.0, 0.0, 200.0, 0.0]  # the page's default at a pose
 
 
 @pytest.fixture(scope="module")
-def analyses(tmp_path_factory) -> tuple[Path, Path]:
-    """Two analyses of simulated KR240-2 campaigns, B with its joint 2 10 % stiffer."""
-    from tests.use._campaigns import TRUE_K
-    from tests.use.conftest import analyze
-
-    tmp = tmp_path_factory.mktemp("use-view")
-    k_b = TRUE_K.copy()
-    k_b[1] *= 1.10
-    return analyze(tmp, "A", seed=3), analyze(tmp, "B", seed=4, k=k_b)
-
-
-@pytest.fixture(scope="module")
 def ws(tmp_path_factory, analyses) -> Path:
     """A workspace with the example path, the two analyses and a robot file."""
     from analysis.model.robots import builtin_files

@@ -189,8 +189,10 @@ class ResidualRows:
 
 
 def _largest(values: np.ndarray, n: int, block: int = 1 << 18) -> np.ndarray:
-    """Indices of the ``n`` largest of ``values`` (1-D), in no particular order, found
-    block by block (an index array of every value would be 8 bytes per value)."""
+    """Indices of the ``n`` largest of ``values`` (1-D), ascending, found block by block (an
+    index array of every value would be 8 bytes per value). Ties: the lowest indices
+    first (of three values +inf at 5, 900 and 7000, n = 2 takes 5 and 900), so the rows
+    kept do not depend on the sort's algorithm. NaN is refused where a rank is needed."""
     n = min(n, values.size)
     if n <= 0:
         return np.zeros(0, dtype=np.int64)
@@ -198,6 +200,13 @@ def _largest(values: np.ndarray, n: int, block: int = 1 << 18) -> np.ndarray:
     for s in range(0, values.size, block):
         idx = np.concatenate([keep, np.arange(s, min(s + block, values.size))])
         if idx.size > n:
-            idx = idx[np.argpartition(values[idx], idx.size - n)[idx.size - n:]]
+            v = values[idx]
+            if np.isnan(v).any():
+                raise ValueError("_largest: a value is NaN (it has no rank)")
+            kth = np.partition(v, idx.size - n)[idx.size - n]  # the n-th largest
+            above = v > kth
+            tied = np.flatnonzero(v == kth)[: n - int(above.sum())]  # idx ascending
+            sel = np.flatnonzero(above)
+            idx = idx[np.sort(np.concatenate([sel, tied]))]
         keep = idx
     return keep

@@ -539,10 +539,19 @@ async function runPlace() {
   u$("pl-result").hidden = true;
   const bar = u$("pl-progress");
   bar.value = 0;
+  // the job and fraction shown are this search's: a previous search's id would take a
+  // Cancel clicked before this one's answer arrives (and cancel nothing)
+  delete view.dataset.placeJob;
+  delete view.dataset.placeFraction;
+  delete view.dataset.placeCancel;
   view.dataset.place = "running";
   try {
     const res = await runJob("/api/jobs/place", placeBody(), (j) => {
+      const first = !view.dataset.placeJob;
       view.dataset.placeJob = j.id;
+      if (first && view.dataset.placeCancel) {  // Cancel was clicked before the job's id came
+        cancelPlace().catch((e) => { u$("pl-error").textContent = String(e.message || e); });
+      }
       if (j.fraction === null) bar.removeAttribute("value"); else bar.value = j.fraction;
       u$("pl-text").textContent = j.text === j.state ? j.text : `${j.state}: ${j.text}`;
       view.dataset.placeFraction = String(j.fraction);
@@ -566,8 +575,10 @@ async function runPlace() {
 }
 
 async function cancelPlace() {
-  const id = u$("view-use").dataset.placeJob;
-  if (!id) return;
+  const view = u$("view-use");
+  const id = view.dataset.placeJob;
+  if (!id) { if (view.dataset.place === "running") view.dataset.placeCancel = "1"; return; }
+  delete view.dataset.placeCancel;
   const r = await fetch(`/api/jobs/${encodeURIComponent(id)}`, { method: "DELETE", credentials: "same-origin",
                                                                headers: { [use.header]: use.csrf } });
   if (!r.ok) u$("pl-error").textContent = (await r.json().catch(() => ({}))).detail || String(r.status);
