@@ -1,0 +1,103 @@
+"""The cause tests (:mod:`analysis.identification.checks.causes`) of a result that misfits.
+
+Runs the tests only when the joint-spring fit misfits (the chi-square test, or a robust
+fit that down-weighted too much), records them in the result's
+``assumptions["misfit_causes"]`` (results.json, the report) and, when no factor on the
+F/T noise up to :data:`~analysis.identification.checks.causes.FT_FACTORS`' largest would
+make the fit pass, replaces the noise check's advice to raise it.
+
+The gear torques that decide each joint's flank come from the robot's mass model
+(:mod:`analysis.model.gravity`) at the reference wrench (``w_ref`` of the tests when
+the import gave one, else zero) and at the loaded one (reference plus the test's
+wrench); without a mass model the lost-motion alternative is reported as not tested.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from analysis.identification.checks.causes import FT_FACTORS, CauseRanking, rank_causes
+from analysis.identification.checks.plausibility import MAX_DOWN_WEIGHTED, MISFIT_P
+
+#: the noise check's advice to raise the F/T noise (:mod:`.noise_check`) starts a note so
+FT_ADVICE = "the F/T noise (it dominates the declared sigma"
+
+
+def gear_torque_pair(robot, tests) -> tuple[np.ndarray, np.ndarray] | None:
+    """(tau_ref, tau_load) (m, 6) (N m) each joint's transmitted torque at the reference
+    and the loaded reading, or None when the robot has no mass model."""
+    if getattr(robot, "inertials", None) is None:
+        return None
+    from analysis.model.gravity import gear_torques
+
+    w_ref = getattr(tests, "w_ref", None)
+    w_ref = np.zeros_like(tests.w) if w_ref is None else np.nan_to_num(np.asarray(w_ref))
+    return gear_torques(robot, tests.q, w_ref), gear_torques(robot, tests.q, w_ref + tests.w)
+
+
+def misfits(result) -> bool:
+    """Does the result fail the misfit test (or hide a misfit by a robust fit)?"""
+    if result.dof > 0 and np.isfinite(result.p_value) and result.p_value < MISFIT_P:
+        return True
+    rob = result.robust
+    return rob is not None and len(rob["down_weighted"]) > MAX_DOWN_WEIGHTED * result.n_equations
+
+
+def causes_of_misfit(result, robot, tests, noise, method: str):
+    """(ranking or None, result): the cause tests of a misfitting ``result`` recorded in it
+    (``method``: the model whose residuals are the chi-square's, "exact" for a linear fit
+    whose bias was corrected). None, and the result unchanged, when it fits; when joints
+    were left out (their own misfit would be read as any alternative) the skip is recorded."""
+    if not misfits(result):
+        return None, result
+    if len(result.joints) < 6:
+        return None, replace(result, assumptions={
+            **result.assumptions, "misfit_causes": {
+                "skipped": "not all six joints identified: the rigid joints' own misfit would "
+                           "show in every alternative"}})
+    why = "no mass model in the robot file (link masses and centres of mass): the gear " \
+          "torques, and so each joint's flank, are unknown"
+    ranking = rank_causes(robot, tests, result.joints, result.x, noise, method,
+                          gear_torques=gear_torque_pair(robot, tests), no_torques_reason=why)
+    warnings = result.warnings
+    if ranking.ft_factor is None:
+        warnings = tuple(
+            w.split(": " + FT_ADVICE)[0] + f": a larger F/T noise (up to {FT_FACTORS[-1]:g} x) "
+            "would not make the fit pass, so it is not the cause; see the misfit's causes"
+            if FT_ADVICE in w else w for w in warnings)
+    return ranking, replace(result, warnings=warnings, assumptions={
+        **result.assumptions, "misfit_causes": ranking.describe()})
+
+
+def ranked_causes_text(ranking: CauseRanking) -> tuple[list[str], str]:
+    """(causes, tail): the significant tested causes, best first, each with its statistic,
+    then the untestable ones; and a sentence on the tests that found nothing and the
+    alternatives not tested."""
+    named = [t.text() for t in ranking.named]
+    fits = ranking.ft_factor
+    noise = ("the noise figures (--translation-sigma-um, --rotation-sigma-urad, "
+             "--force-sigma-N, --moment-sigma-Nm)"
+             + (f": {fits:g} x the F/T noise would make the fit pass" if fits is not None
+                else f": no F/T noise up to {FT_FACTORS[-1]:g} x the declared would make the "
+                     "fit pass"))
+    rest = ["a common units error of the wrench or the displacements, or the pose sign "
+            "convention (model vs controller joint angles, base-frame components): not "
+            "tested on the residuals"]
+    causes = [*named, noise, *rest] if named else [noise, *rest]
+    quiet = [f"{t.cause.replace('_', ' ')} p = {t.p_value:.2g}" for t in ranking.tests
+             if not t.significant]
+    tail = ""
+    if quiet:
+        tail += f"; tested and not significant at {ranking_level()}: {', '.join(quiet)}"
+    if ranking.not_tested:
+        tail += "; not tested: " + "; ".join(f"{c.replace('_', ' ')} ({why})"
+                                             for c, why in ranking.not_tested)
+    return causes, tail
+
+
+def ranking_level() -> str:
+    from analysis.identification.checks.causes import LEVEL
+
+    return f"the {LEVEL:g} level"
