@@ -22,10 +22,16 @@ File format (every number in the units the file declares)::
     controller_sign = 1               # q_ctrl = sign * q_model + offset
     controller_offset = 0             # angle_unit
     controller_coupling = { q2 = 1 }  # optional: q_ctrl += 1 * q2_model (coupled axes)
+    mass = 250                        # optional: mass (kg) of link i, the body joint i moves
+    com = [410, 0, 0]                 # its centre of mass in joint i's body frame, length_unit
+                                      # (modified_dh: DH frame i; standard_dh: frame i-1
+                                      # turned by q_i); all six links or none
 
     [tool]                            # tool point P in the flange frame
     xyz = [0, 0, 100]                 # length_unit
     rpy = [0, 0, 0]                   # angle_unit, fixed-axis roll-pitch-yaw
+    mass = 60                         # optional tool mass (kg), with the link masses only
+    com = [0, 0, 150]                 # its centre of mass in the flange frame, length_unit
 
     [[zones]]                         # optional joint-space boxes, model convention
     name = "zone 1"
@@ -67,7 +73,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from analysis.errors import InputError
 from analysis.file_errors import input_error_from_validation, read_mapping_file
 from analysis.model.dh import DHRow, build_dh_model
-from analysis.model.robot_model import RobotModel, Zone, chain_from_pinocchio
+from analysis.model.robot_model import Inertials, RobotModel, Zone, chain_from_pinocchio
 
 _LENGTH = {"m": 1.0, "mm": 1e-3}
 _ANGLE = {"rad": 1.0, "deg": np.pi / 180.0}
@@ -90,6 +96,8 @@ class JointSpec(_Strict):
     controller_sign: Literal[1, -1] = 1
     controller_offset: float = 0.0
     controller_coupling: dict[str, float] = {}
+    mass: float | None = Field(default=None, ge=0)
+    com: tuple[float, float, float] | None = None
 
     @field_validator("controller_coupling")
     @classmethod
@@ -109,6 +117,8 @@ class JointSpec(_Strict):
 class ToolSpec(_Strict):
     xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mass: float = Field(default=0.0, ge=0)
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 class ZoneSpec(_Strict):
@@ -245,6 +255,14 @@ class RobotFile(_Strict):
                     f"joints[{i}].{unused} is not a {self.convention} parameter "
                     f"(expected {used})"
                 )
+        given = [j.mass is not None for j in self.joints]
+        if any(given) and not all(given):
+            raise ValueError("give the mass of every link (joints[i].mass) or of none: "
+                             "a partial mass model would put the missing links' weight at 0")
+        if any(j.mass is not None and j.com is None for j in self.joints):
+            raise ValueError("a link with a mass needs its centre of mass (joints[i].com)")
+        if (self.tool.mass or any(self.tool.com)) and not all(given):
+            raise ValueError("[tool] mass needs the link masses (joints[i].mass and com)")
         return self
 
 
@@ -309,6 +327,15 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         if nominal is None:
             raise InputError("[identification] needs the stiffness of every joint "
                              "(identified or nominal)", where=source_file)
+    inertials = None
+    if spec.joints[0].mass is not None:
+        flange = model.frames[model.getFrameId("flange")].placement.homogeneous
+        inertials = Inertials(
+            masses=np.array([j.mass for j in spec.joints], dtype=float),
+            coms=np.array([j.com for j in spec.joints], dtype=float) * ls,
+            tool_mass=float(spec.tool.mass),
+            tool_com=flange[:3, :3] @ (np.array(spec.tool.com) * ls) + flange[:3, 3],
+            source=spec.sources.get("masses", ""))
     return RobotModel(
         name=spec.name,
         model=model,
@@ -333,6 +360,7 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         compliance_covariance=cov,
         identification=(None if spec.identification is None
                         else spec.identification.model_dump()),
+        inertials=inertials,
     )
 
 

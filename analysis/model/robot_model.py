@@ -57,6 +57,23 @@ class Chain:
 
 
 @dataclass(frozen=True)
+class Inertials:
+    """Mass model of the arm (SI), for the gravity torques (:mod:`analysis.model.gravity`).
+
+    masses (n,) kg of link i, the body joint i moves; coms (n, 3) m, each link's centre of
+    mass in joint i's body frame (the frame Pinocchio's joint i moves: modified DH frame i);
+    tool_mass kg and tool_com (3,) m, the tool's centre of mass in the last joint's body
+    frame; source: where the numbers come from (the robot file's ``[sources] masses``).
+    """
+
+    masses: np.ndarray
+    coms: np.ndarray
+    tool_mass: float
+    tool_com: np.ndarray
+    source: str = ""
+
+
+@dataclass(frozen=True)
 class Zone:
     """A box in joint space (model convention, rad): ``ranges[j] = (lo, hi)`` for joint index j."""
 
@@ -93,6 +110,9 @@ class RobotModel:
     #: the ``[identification]`` table of an identified model (method, n_tests, source run,
     #: protocol hash, date...), as read from the file; None for a nominal model.
     identification: dict | None = None
+    #: link masses and centres of mass and the tool mass (robot file ``mass``/``com``);
+    #: None: no mass model (the gravity torques are refused)
+    inertials: Inertials | None = None
 
     def __post_init__(self) -> None:
         n = self.n
