@@ -156,3 +156,22 @@ def test_a_fitting_result_runs_no_cause_tests(kr240):
     res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
     rk, same = causes_of_misfit(res, kr240, tests, NOISE, "exact")
     assert rk is None and same is res
+
+
+def test_a_glitch_is_set_aside_not_read_as_a_cause(kr240):
+    """One 1 mm glitch: the outlier test flags it, the cause tests run without it, find
+    nothing, and the refusal names the flagged outlier first."""
+    tests = _campaign(kr240, 4)
+    d = tests.d.copy()
+    d[7, 2] += 1e-3
+    from dataclasses import replace
+
+    tests = replace(tests, d=d)
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
+    assert res.p_value < 1e-6
+    rk, res = causes_of_misfit(res, kr240, tests, NOISE, "exact")
+    assert rk.set_aside >= 1 and not rk.named
+    (misfit,) = [p for p in problems(res, kr240.nominal_stiffness, causes=rk)
+                 if p.startswith("misfit")]
+    causes = misfit.split("likely causes, most likely first: ")[1]
+    assert causes.startswith(f"(1) the {rk.set_aside} outlier component(s) the outlier test")

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import pytest
 
-from analysis.identification.noise import NoiseModel
 from analysis.model.robots import load_robot
 from tests.quality import cause_study as cs
 
@@ -23,23 +22,28 @@ def robot():
     return load_robot("kr240-2")
 
 
+@pytest.fixture(scope="module")
+def shop():
+    return cs.shop()
+
+
 @pytest.mark.parametrize("effect", ["links", "lost motion", "compensator"])
-def test_each_effect_is_named_first(robot, effect):
-    cause, settings = cs.EFFECTS[effect]
-    r = cs.run_effect(robot, settings, N, 5, NoiseModel())
+def test_each_effect_is_named_first(robot, shop, effect):
+    cause = cs.EFFECTS[effect][0]
+    r = cs.run_effect(robot, effect, N, 5, *shop)
     assert r["refused"] == N
     assert r["first"].get(cause, 0) >= N - 1, r["first"]  # target 90 %
     assert r["first"].get("tool_point", 0) == 0
     assert cs.misses({effect: r}) == [] or r["first"].get(cause, 0) == N - 1
 
 
-def test_a_100_mm_tool_error_is_named_first(robot):
-    r = cs.run_effect(robot, cs.EFFECTS["tool 100 mm"][1], 5, 5, NoiseModel())
+def test_a_100_mm_tool_error_is_named_first(robot, shop):
+    r = cs.run_effect(robot, "tool 100 mm", 5, 5, *shop)
     assert r["refused"] == 5 and r["first"] == {"tool_point": 5}
 
 
-def test_clean_campaigns_are_not_refused_and_the_tests_stay_quiet(robot):
-    r = cs.run_effect(robot, {}, 20, 5, NoiseModel())
+def test_clean_campaigns_are_not_refused_and_the_tests_stay_quiet(robot, shop):
+    r = cs.run_effect(robot, "clean", 20, 5, *shop)
     assert r["refused"] == 0
     # at the 1 % level 0.2 firings are expected of 20 per test; 2 or more has probability 1.7 %
     assert all(v <= 1 for v in r["fired"].values()), r["fired"]

@@ -119,13 +119,16 @@ class CauseTest:
 @dataclass(frozen=True)
 class CauseRanking:
     """The alternatives tested, ranked (significant first, by information criterion), the
-    ones not tested with why, and the F/T noise factor that would make the fit pass
-    (None: none of :data:`FT_FACTORS` would)."""
+    ones not tested with why, the F/T noise factor that would make the fit pass (None:
+    none of :data:`FT_FACTORS` would), the tests used, and the flagged components set
+    aside."""
 
     tests: tuple[CauseTest, ...]
     not_tested: tuple[tuple[str, str], ...]
     ft_factor: float | None
     n_tests: int
+    #: components the outlier test flagged, set aside before the tests (a few glitches)
+    set_aside: int = 0
 
     @property
     def named(self) -> tuple[CauseTest, ...]:
@@ -140,6 +143,7 @@ class CauseRanking:
         return {"level": LEVEL, "n_tests": self.n_tests,
                 "ranked": [t.describe() for t in self.tests],
                 "not_tested": [{"cause": c, "why": why} for c, why in self.not_tested],
+                "outlier_components_set_aside": self.set_aside,
                 "ft_noise_factor_that_passes": self.ft_factor}
 
 
