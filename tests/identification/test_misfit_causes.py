@@ -175,3 +175,27 @@ def test_a_glitch_is_set_aside_not_read_as_a_cause(kr240):
                  if p.startswith("misfit")]
     causes = misfit.split("likely causes, most likely first: ")[1]
     assert causes.startswith(f"(1) the {rk.set_aside} outlier component(s) the outlier test")
+
+
+def test_no_ft_advice_that_would_not_help_and_the_report_row(kr240):
+    """The noise check's advice to raise the F/T noise is replaced when no factor up to 5
+    passes; the report's assumptions row lists every test with its F and p."""
+    from dataclasses import replace
+
+    from analysis.identification.checks.misfit_causes import FT_ADVICE
+    from analysis.report.build import misfit_causes_text
+
+    tests = _campaign(kr240, 5, band=BAND)
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
+    advice = ("translation residuals are 3.1 times the declared noise: " + FT_ADVICE
+              + " through the compliance) looks too small by about that factor (check ...)")
+    res = replace(res, warnings=(*res.warnings, advice))
+    rk, res = causes_of_misfit(res, kr240, tests, NOISE, "exact")
+    assert rk.ft_factor is None
+    assert advice not in res.warnings
+    assert ("translation residuals are 3.1 times the declared noise: a larger F/T noise (up "
+            "to 5 x) would not make the fit pass, so it is not the cause; see the misfit's "
+            "causes") in res.warnings
+    row = misfit_causes_text(res.assumptions["misfit_causes"])
+    assert row.startswith("lost motion F = ") and " *" in row.split(";")[0]
+    assert row.count("F = ") == len(rk.tests)

@@ -97,7 +97,7 @@ def causes_of_misfit(result, robot, tests, noise, method: str):
         warnings = tuple(
             w.split(": " + FT_ADVICE)[0] + f": a larger F/T noise (up to {FT_FACTORS[-1]:g} x) "
             "would not make the fit pass, so it is not the cause; see the misfit's causes"
-            if FT_ADVICE in w else w for w in warnings)
+            if FT_ADVICE in w and "looks too small" in w else w for w in warnings)
     return ranking, replace(result, warnings=warnings, assumptions={
         **result.assumptions, "misfit_causes": ranking.describe()})
 
