@@ -118,3 +118,43 @@ def test_shop_protocol_through_the_fakes(tmp_path):
     assert meta["fake_lab"]["lost_motion"] == [2e-4, 2e-4, 2e-4, 4e-4, 4e-4, 4e-4]
     rows = (run / "tests.csv").read_text().splitlines()
     assert len(rows) == 1 + 5
+
+
+@pytest.mark.timeout(300)
+def test_preloaded_shop_run_records_the_reference_wrench(tmp_path):
+    """acquire --fake with preload_fraction 0.2: the reference readings are taken under
+    the preload, tests.csv gives its measured wrench (base frame) beside the loaded one,
+    and the analysis fits the wrench difference (wls) or refuses exact with the way out."""
+    import subprocess
+    import sys
+
+    import pandas as pd
+
+    from tests.acquire.conftest import plan_and_acquire
+
+    text = SHOP.read_text().replace('method = "cable-pulley"\n',
+                                    'method = "cable-pulley"\npreload_fraction = 0.2\n')
+    path = tmp_path / "shop-preload.toml"
+    path.write_text(text)
+    run = plan_and_acquire(load_protocol(path), tmp_path, time_scale=200.0, candidates=500)
+    tests = pd.read_csv(run / "tests.csv")
+    ref = tests[["fx_ref_N", "fy_ref_N", "fz_ref_N", "mx_ref_Nm", "my_ref_Nm", "mz_ref_Nm"]]
+    loaded = tests[["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]]
+    # 0.2 x the loaded wrench, to the F/T noise and the sag's rotation of the sensor frame
+    err = np.abs(ref.to_numpy() - 0.2 * loaded.to_numpy())
+    assert np.all(err[:, :3] < 0.01 * 2200 + 3.0) and np.all(err[:, 3:] < 3.0)
+    phases = (run / "samples.jsonl").read_text()
+    assert '"reference_before"' in phases and '"reference_after"' in phases
+    meta = json.loads((run / "metadata.json").read_text())
+    assert meta["reference_wrench"]["preload_fraction"]["eq22"] == 0.2
+
+    def analyze(*extra):
+        return subprocess.run([sys.executable, "-m", "campaign", "analyze", str(run),
+                               "--accept-misfit", "--json", "--force", *extra],
+                              capture_output=True, text=True, cwd=ROOT, timeout=240)
+
+    exact = analyze("--out", str(tmp_path / "a1"))
+    assert exact.returncode != 0 and "use --method wls" in exact.stderr
+    wls = analyze("--method", "wls", "--out", str(tmp_path / "a2"))
+    assert wls.returncode == 0, wls.stderr
+    assert any("preload" in t for t in json.loads(wls.stdout)["warnings"])
