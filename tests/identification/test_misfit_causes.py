@@ -199,3 +199,31 @@ def test_no_ft_advice_that_would_not_help_and_the_report_row(kr240):
     row = misfit_causes_text(res.assumptions["misfit_causes"])
     assert row.startswith("lost motion F = ") and " *" in row.split(";")[0]
     assert row.count("F = ") == len(rk.tests)
+
+
+def test_flips_follow_the_reference_wrench_as_the_lab_s(kr240):
+    """The gear torques' sign changes between the reference (w_ref) and the loaded reading
+    (w) are the realistic lab's lost-motion steps (an independent flank model); a reference
+    under a reversed preload flips joints the unloaded one does not, and the refusal of the
+    wls fit (the model in w - w_ref) names lost motion first."""
+    from dataclasses import replace
+
+    from analysis.identification.checks.misfit_causes import gear_torque_pair
+    from analysis.kinetostatics import realistic as rl
+
+    lab = rl.RealisticLab(lost_motion=BAND, gravity="flanks")
+    poses = sample_poses(kr240, 5, np.random.default_rng(11), min_inverse_condition=0.3)
+    q, w = fx.campaign(poses)
+    w_ref = -0.5 * w
+    d = rl.displacement(kr240, lab, kr240.nominal_stiffness, q, w_ref, w)
+    tests = replace(fx.measured(q, w, d, NOISE, 11), w_ref=w_ref)
+    tests = replace(tests, q=q, w=w)  # exact readings: flanks compared without noise
+    tau_ref, tau_load = gear_torque_pair(kr240, tests)
+    lab_flips = rl.flanks(kr240, lab, q, w_ref) != rl.flanks(kr240, lab, q, w)
+    assert np.array_equal(np.sign(tau_ref) != np.sign(tau_load), lab_flips)
+    unloaded = rl.flanks(kr240, lab, q, np.zeros(6)) != rl.flanks(kr240, lab, q, w)
+    assert lab_flips.sum() > unloaded.sum()
+    res = identify(kr240, tests, "wls", noise=NOISE, validate=False)
+    rk, res = causes_of_misfit(res, kr240, tests, NOISE, "wls")
+    assert rk is not None and rk.first() == "lost_motion"
+    assert f"({int(lab_flips[:, 0].sum())} flips)" in rk.named[0].estimate.split(",")[0]
