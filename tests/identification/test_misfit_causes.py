@@ -227,3 +227,23 @@ def test_flips_follow_the_reference_wrench_as_the_lab_s(kr240):
     rk, res = causes_of_misfit(res, kr240, tests, NOISE, "wls")
     assert rk is not None and rk.first() == "lost_motion"
     assert f"({int(lab_flips[:, 0].sum())} flips)" in rk.named[0].estimate.split(",")[0]
+
+
+def test_the_tool_check_takes_the_wrench_difference(kr240):
+    """With preloaded references the tool-point check (reused as a cause test) sees the
+    tests of the wrench difference w - w_ref, as the fit does."""
+    from dataclasses import replace
+
+    from analysis.identification.checks.tool_check import tool_point_check
+    from analysis.kinetostatics import realistic as rl
+
+    poses = sample_poses(kr240, 5, np.random.default_rng(3), min_inverse_condition=0.3)
+    q, w = fx.campaign(poses)
+    d = rl.displacement(kr240, rl.RealisticLab(), kr240.nominal_stiffness, q, 0.3 * w, w)
+    pre = replace(fx.measured(q, w, d, NOISE, 3), w_ref=0.3 * w)
+    diff = replace(pre, w=pre.w - pre.w_ref, w_ref=None)
+    res = identify(kr240, pre, "wls", noise=NOISE, validate=False)
+    a = tool_point_check(kr240, pre, res.joints, res.x, NOISE, "wls")
+    b = tool_point_check(kr240, diff, res.joints, res.x, NOISE, "wls")
+    assert a.f_value == b.f_value and np.array_equal(a.k_moved, b.k_moved)
+    assert np.allclose(a.k_moved, res.k, rtol=0.05)  # P right: k stays (within 5 %)
