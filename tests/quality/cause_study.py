@@ -15,12 +15,13 @@ level. A 100 mm tool-point error (P measured 100 mm along the flange x axis, ana
 the flange) checks that the tool point is still named.
 
     PYTHONPATH=. python -m tests.quality.cause_study --campaigns 100 [--clean-campaigns 400]
-        [--tool-campaigns 20] [--poses 5] [--effects clean,links,...] [--write]
+        [--tool-campaigns 20] [--poses 5 12] [--effects clean,links,...] [--write]
 
-prints the Markdown table; ``--write`` puts it into docs/identification.md between the
-markers. Exit 1 when a target of issue 31 is missed: the true cause first in >= 90 % of
-refusals and the tool point in <= 5 % (each effect), every test firing in <= 1.5 % of clean
-campaigns, the tool error named first in every campaign.
+prints a Markdown table per design (5 and 12 poses by default); ``--write`` puts them
+into docs/identification.md between the markers. Exit 1 when a target of issue 31 is
+missed: the true cause first in >= 90 % of refusals and the tool point in <= 5 % (each
+effect), every test firing in <= 1.5 % of clean campaigns, the tool error named first in
+every campaign.
 """
 
 from __future__ import annotations
@@ -170,23 +171,28 @@ def main(argv=None) -> int:
     ap.add_argument("--tool-campaigns", type=int, default=20)
     ap.add_argument("--clean-campaigns", type=int, default=400,
                     help="clean campaigns (the null distribution of each test)")
-    ap.add_argument("--poses", type=int, default=5)
+    ap.add_argument("--poses", type=int, nargs="+", default=[5, 12],
+                    help="poses per campaign, one table per design")
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--write", action="store_true")
     a = ap.parse_args(argv)
     robot = load_robot("kr240-2")
     effects, noise = shop()
-    rows, t0 = {}, time.process_time()
-    for name in a.effects.split(","):
-        n = (a.tool_campaigns if name.startswith("tool") else
-             a.clean_campaigns if name == "clean" else a.campaigns)
-        rows[name] = run_effect(robot, name, n, a.poses, effects, noise)
-        print(name, rows[name], file=sys.stderr)
-    text = table(rows, a.poses) + f" CPU {time.process_time() - t0:.0f} s; level {LEVEL:g}."
+    texts, bad = [], []
+    for poses in a.poses:
+        rows, t0 = {}, time.process_time()
+        for name in a.effects.split(","):
+            n = (a.tool_campaigns if name.startswith("tool") else
+                 a.clean_campaigns if name == "clean" else a.campaigns)
+            rows[name] = run_effect(robot, name, n, poses, effects, noise)
+            print(poses, name, rows[name], file=sys.stderr)
+        texts.append(table(rows, poses)
+                     + f" CPU {time.process_time() - t0:.0f} s; level {LEVEL:g}.")
+        bad += [f"{poses} poses: {b}" for b in misses(rows)]
+    text = "\n\n".join(texts)
     print(text)
     if a.write:
         write_docs(text)
-    bad = misses(rows)
     for b in bad:
         print("MISSED:", b, file=sys.stderr)
     return 1 if bad else 0
