@@ -247,3 +247,29 @@ def test_the_tool_check_takes_the_wrench_difference(kr240):
     b = tool_point_check(kr240, diff, res.joints, res.x, NOISE, "wls")
     assert a.f_value == b.f_value and np.array_equal(a.k_moved, b.k_moved)
     assert np.allclose(a.k_moved, res.k, rtol=0.05)  # P right: k stays (within 5 %)
+
+
+@pytest.mark.parametrize("joint", [1, 4])
+def test_a_pose_convention_that_makes_the_fit_pass_is_named_first(kr240, joint):
+    """The tests measured at q but given with one joint's direction reversed (within the
+    limits: the data check refuses angles beyond them, naming a controller-angle mix-up):
+    the refit in that convention passes and is named first."""
+    from dataclasses import replace
+
+    tests = _campaign(kr240, 6)
+    given = tests.q.copy()
+    given[:, joint - 1] = -given[:, joint - 1]
+    want = f"joint {joint}'s angle reversed"
+    wrong = replace(tests, q=given)
+    res = identify(kr240, wrong, "exact", noise=NOISE, validate=False)
+    assert res.p_value < 1e-6
+    rk, res = causes_of_misfit(res, kr240, wrong, NOISE, "exact")
+    assert rk.first() == "sign_convention" and rk.convention.variant.startswith(want)
+    (misfit,) = [p for p in problems(res, kr240.nominal_stiffness, causes=rk)
+                 if p.startswith("misfit")]
+    assert misfit.split("most likely first: ")[1].startswith(
+        f"(1) the pose sign convention: with {want}")
+    # the right poses: no convention explains anything (the fit passes, no misfit to explain)
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
+    assert all(not c.explains for c in cz.rank_causes(
+        kr240, tests, res.joints, res.x, NOISE, "exact").conventions)

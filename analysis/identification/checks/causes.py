@@ -129,6 +129,13 @@ class CauseRanking:
     n_tests: int
     #: components the outlier test flagged, set aside before the tests (a few glitches)
     set_aside: int = 0
+    #: refits in other pose conventions (:mod:`.conventions`), best first
+    conventions: tuple = ()
+
+    @property
+    def convention(self):
+        """The convention that explains the misfit (its refit passes), or None."""
+        return next((c for c in self.conventions if c.explains), None)
 
     @property
     def named(self) -> tuple[CauseTest, ...]:
@@ -136,6 +143,8 @@ class CauseRanking:
         return tuple(t for t in self.tests if t.significant)
 
     def first(self) -> str | None:
+        if self.convention is not None:
+            return "sign_convention"
         named = self.named
         return named[0].cause if named else None
 
@@ -144,6 +153,7 @@ class CauseRanking:
                 "ranked": [t.describe() for t in self.tests],
                 "not_tested": [{"cause": c, "why": why} for c, why in self.not_tested],
                 "outlier_components_set_aside": self.set_aside,
+                "conventions": [c.describe() for c in self.conventions],
                 "ft_noise_factor_that_passes": self.ft_factor}
 
 
@@ -362,4 +372,7 @@ def rank_causes(robot, tests: TestArrays, joints, x: np.ndarray, noise: NoiseMod
     ranked = sorted(out, key=lambda c: (not c.significant, c.bic if c.significant
                                         else np.log(max(c.p_value, 1e-300))))
     ft = ft_noise_factor(robot, sub, cols, x, noise, method, wh.predicted)
-    return CauseRanking(tuple(ranked), tuple(skipped), ft, sub.m)
+    from analysis.identification.checks.conventions import convention_checks
+
+    return CauseRanking(tuple(ranked), tuple(skipped), ft, sub.m,
+                        conventions=convention_checks(robot, sub, cols, x, noise))

@@ -116,9 +116,15 @@ def ranked_causes_text(ranking: CauseRanking) -> tuple[list[str], str]:
              + (f": {fits:g} x the F/T noise would make the fit pass" if fits is not None
                 else f": no F/T noise up to {FT_FACTORS[-1]:g} x the declared would make the "
                      "fit pass"))
-    rest = ["a common units error of the wrench or the displacements, or the pose sign "
-            "convention (model vs controller joint angles, base-frame components): not "
-            "tested on the residuals"]
+    rest = ["a common units error of the wrench or the displacements, or the base-frame "
+            "components' convention: not tested on the residuals"]
+    conv = ranking.convention
+    if conv is not None:
+        named = [conv.text(), *named]
+    else:
+        rest.append("the pose sign convention (model vs controller joint angles): no "
+                    "variant tried (the controller's angles, each joint reversed) makes "
+                    "the fit pass")
     glitches = ([f"the {ranking.set_aside} outlier component(s) the outlier test flagged "
                  "(glitches: see its warning; the causes were tested without them)"]
                 if ranking.set_aside else [])
