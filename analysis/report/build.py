@@ -591,6 +591,19 @@ def pose_table(labels: list[str], q: np.ndarray) -> Table:
                  "at its first test.", widths=[1, 1, 1, 1, 1, 1, 1])
 
 
+def misfit_causes_text(record: dict) -> str:
+    """The cause tests of a misfit (results.json ``assumptions.misfit_causes``) in one line:
+    each alternative's F, dof and p-value, ranked; the ones not tested and why."""
+    if "skipped" in record:
+        return f"none: {record['skipped']}"
+    parts = [f"{c['cause'].replace('_', ' ')} F = {sig(c['F'], 3)} ({c['dof'][0]}, "
+             f"{c['dof'][1]}), p = {c['p_value']:.2g}" + (" *" if c["significant"] else "")
+             for c in record["ranked"]]
+    parts += [f"{c['cause'].replace('_', ' ')} not tested ({c['why']})"
+              for c in record["not_tested"]]
+    return "; ".join(parts) + f" (ranked by evidence; * significant at {record['level']:g})"
+
+
 def assumption_blocks(result: IdentificationResult) -> list:
     """The table of what the result rests on (empty when the caller recorded nothing)."""
     a = result.assumptions
@@ -610,6 +623,8 @@ def assumption_blocks(result: IdentificationResult) -> list:
                      f"{sig(n['rotation_sigma_urad'], 3)} \u00b5rad, force "
                      f"{sig(n['force_sigma_N'], 3)} N, moment {sig(n['moment_sigma_Nm'], 3)} N m "
                      f"({n['source']})"])
+    if "misfit_causes" in a:
+        rows.append(["causes of the misfit tested", misfit_causes_text(a["misfit_causes"])])
     for key in ("method", "robust", "covariance", "joints", "poses"):
         # the default Gaussian fit needs no row of its own: the method row says it
         if key == "joints":  # what was done, not the rule that chose it

@@ -540,6 +540,7 @@ def run(o: AnalyzeOptions, stage: Stage = no_stage,
 
 
 def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult:
+    from analysis.identification.checks.misfit_causes import causes_of_misfit
     from analysis.identification.checks.plausibility import problems
     from analysis.identification.estimate import identify, parse_joints
     from analysis.identification.io.data_fingerprint import fingerprint
@@ -598,11 +599,13 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
             "(a tool error need not show in the chi-square, it shows in k)"]
     result = replace(result, assumptions=assumptions, tests_data=fingerprint(tests),
                      warnings=(*no_tool, *early, *result.warnings))
-    refused = problems(result, model.nominal_stiffness)
-    _release_freed_heap()  # the identification's freed pages, before the checks
     # a linear fit whose bias was corrected is a compliance of the exact model: its
     # residuals are the exact model's (as in the chi-square)
     corrected = (result.linear_bias or {}).get("reliable", False)
+    causes, result = causes_of_misfit(result, model, tests, noise,
+                                      "exact" if corrected else method)
+    refused = problems(result, model.nominal_stiffness, causes=causes)
+    _release_freed_heap()  # the identification's freed pages, before the checks
     tool_refusals, result = _tool_problem(result, model, tests, noise,
                                           "exact" if corrected else method, extras["tool"])
     refused += tool_refusals

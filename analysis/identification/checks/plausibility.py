@@ -98,10 +98,13 @@ def _linear_bias_unreliable(result: IdentificationResult) -> bool:
     return result.linear_bias is not None and not result.linear_bias["reliable"]
 
 
-def _misfit_causes(result: IdentificationResult) -> tuple[str, ...]:
+def _misfit_causes(result: IdentificationResult, ranking=None) -> tuple[str, ...]:
     """CAUSES_MISFIT, led by the linear model when its bias correction was unreliable (the
     residuals are then the raw linear fit's) and by the rigid wrist when the fit is the
-    translational-only variant, or by the joints taken as rigid when --joints left some out."""
+    translational-only variant, or by the joints taken as rigid when --joints left some out.
+    With a :class:`~analysis.identification.checks.causes.CauseRanking` the tested causes
+    replace CAUSES_MISFIT: the significant ones ranked by evidence, with their statistics
+    (the tool point only when its own test is significant), then the untested ones."""
     first = []
     if _linear_bias_unreliable(result):
         first.append(f"the linear model of {result.method} at these loads (its residuals "
@@ -115,7 +118,20 @@ def _misfit_causes(result: IdentificationResult) -> tuple[str, ...]:
             f"joint(s) {rigid} taken as rigid (--joints): a compliant joint fitted as rigid "
             "moves P under load without the model seeing it; identify all of them (--joints "
             f"{','.join(str(j + 1) for j in range(len(result.k)))}) or the ones the data can")
+    if ranking is not None:
+        from analysis.identification.checks.misfit_causes import ranked_causes_text
+
+        return (*first, *ranked_causes_text(ranking)[0])
     return (*first, *CAUSES_MISFIT)
+
+
+def _untested_tail(ranking) -> str:
+    """The cause tests that found nothing and those not run ('' without a ranking)."""
+    if ranking is None:
+        return ""
+    from analysis.identification.checks.misfit_causes import ranked_causes_text
+
+    return ranked_causes_text(ranking)[1]
 
 
 def _causes(causes: tuple[str, ...]) -> str:
@@ -152,23 +168,30 @@ def _negative_joints(result: IdentificationResult) -> list[str]:
 
 
 def problems(result: IdentificationResult, nominal: np.ndarray | None,
-             nominal_label: str = "nominal stiffness of the robot model") -> list[str]:
-    """Messages of every failed check (empty when the result is believable)."""
+             nominal_label: str = "nominal stiffness of the robot model",
+             causes=None) -> list[str]:
+    """Messages of every failed check (empty when the result is believable).
+
+    ``causes``: the cause tests of a misfit
+    (:func:`analysis.identification.checks.misfit_causes.causes_of_misfit`), which then
+    rank the misfit's likely causes by their evidence; None: the fixed list."""
     out = []
     chi2 = f"reduced chi-square {result.chi2_reduced:.3g} with {result.dof} degrees of freedom"
     if result.dof > 0 and np.isfinite(result.p_value) and result.p_value < MISFIT_P:
         out.append(
             f"misfit: the model does not explain the data ({chi2}, P(chi2 >= observed) = "
             f"{result.p_value:.2g} < {MISFIT_P:g}); likely causes, most likely first: "
-            f"{_causes(_misfit_causes(result))}; worst rows: {worst_rows(result)}")
+            f"{_causes(_misfit_causes(result, causes))}{_untested_tail(causes)}; worst rows: "
+            f"{worst_rows(result)}")
     rob = result.robust
     if rob is not None and len(rob["down_weighted"]) > MAX_DOWN_WEIGHTED * result.n_equations:
         out.append(
             f"misfit hidden by the robust fit: {rob['method']} down-weighted "
             f"{len(rob['down_weighted'])} of {result.n_equations} components below weight "
             f"{rob['reported_below_weight']:g} (more than {level(MAX_DOWN_WEIGHTED)}; glitches are "
-            f"a few rows); likely causes, most likely first: {_causes(CAUSES_MISFIT)}; worst "
-            f"rows: {worst_rows(result)}")
+            f"a few rows); likely causes, most likely first: "
+            f"{_causes(CAUSES_MISFIT if causes is None else _misfit_causes(result, causes))}"
+            f"{_untested_tail(causes)}; worst rows: {worst_rows(result)}")
     clusters = ((rob or {}).get("covariance") or {}).get("clusters")
     if clusters is not None:
         g, p = int(clusters), len(result.joints)
