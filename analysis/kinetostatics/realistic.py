@@ -68,6 +68,7 @@ from analysis.kinetostatics.stiffness import complementary_stiffness_from_jacobi
 from analysis.model.gravity import (
     STANDARD_GRAVITY,
     body_frames,
+    gear_flanks,
     gravity_stiffness,
     gravity_torques,
 )
@@ -77,9 +78,6 @@ from analysis.model.robot_model import RobotModel
 #: values of :attr:`RealisticLab.gravity`
 GRAVITY_MODES = ("off", "flanks", "on")
 
-#: gear torques of magnitude up to this (N m) leave the output mid-band: the gravity torque
-#: of a vertical axis is 0 to rounding (about 1e-12 of the arm's weight times its reach)
-FLANK_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -216,7 +214,7 @@ def flanks(robot: RobotModel, lab: RealisticLab, q: np.ndarray, w: np.ndarray) -
     """Flank (N, n) each gear rests on at q under w: +1, -1, or 0 (mid-band, a torque of
     at most :data:`FLANK_TOLERANCE`)."""
     tau = load_torques(robot, lab, q, w)
-    return np.where(np.abs(tau) <= FLANK_TOLERANCE, 0.0, np.sign(tau))
+    return gear_flanks(tau)
 
 
 def lost_motion_offset(robot: RobotModel, lab: RealisticLab, q: np.ndarray,

@@ -123,6 +123,20 @@ def gravity_stiffness(robot: RobotModel, q: np.ndarray,
     return H.reshape(*np.shape(q)[:-1], n, n)
 
 
+#: gear torques of magnitude up to this (N m) leave the output mid-band: the gravity torque
+#: of a vertical axis is 0 to rounding (about 1e-12 of the arm's weight times its reach),
+#: and its sign must not decide a flank
+FLANK_TOLERANCE = 1e-6
+
+
+def gear_flanks(tau: np.ndarray) -> np.ndarray:
+    """The flank each gear rests on under the torques ``tau`` (N m, any shape): +1, -1,
+    or 0 (mid-band, ``|tau| <=`` :data:`FLANK_TOLERANCE`). The one flank rule of the
+    simulated lab, the planner and the analysis's lost-motion test."""
+    tau = np.asarray(tau, dtype=float)
+    return np.where(np.abs(tau) <= FLANK_TOLERANCE, 0.0, np.sign(tau))
+
+
 def gear_torques(robot: RobotModel, q: np.ndarray, wrench: np.ndarray,
                  gravity: np.ndarray | None = None) -> np.ndarray:
     """J(q)^T w - g(q) (N, n) (N m): the torque the external wrench w ((N, 6) or (6,),

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.kinetostatics.realistic import FLANK_TOLERANCE, RealisticLab, flanks
-from analysis.model.gravity import gravity_torques
+from analysis.kinetostatics.realistic import RealisticLab, flanks
+from analysis.model.gravity import FLANK_TOLERANCE, gear_flanks, gravity_torques
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
@@ -46,11 +46,8 @@ def keeping_preload(robot: RobotModel, q: np.ndarray, w: np.ndarray) -> np.ndarr
                   np.broadcast_to(np.asarray(w, dtype=float), (q.shape[0], 6)))
     g = gravity_torques(robot, q)
 
-    def side(t):
-        return np.where(np.abs(t) <= FLANK_TOLERANCE, 0.0, np.sign(t))
-
-    s_load = side(a - g)
-    change = side(-g) != s_load
+    s_load = gear_flanks(a - g)
+    change = gear_flanks(-g) != s_load
     with np.errstate(divide="ignore", invalid="ignore"):
         need = np.where(change & (s_load != 0),
                         (g + s_load * FLANK_TOLERANCE) / np.where(a == 0, 1.0, a), 0.0)

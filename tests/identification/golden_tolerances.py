@@ -51,8 +51,13 @@ EXACT = (
     r"residuals\[\]\.(line|test|outlier|set_aside)",
     r"robust\.down_weighted\[\]\.(line|test)",
     r"cartesian_stiffness\.poses\[\]\.line",
+    r"assumptions\.misfit_causes\.(level|n_tests|outlier_components_set_aside"
+    r"|ranked\[\]\.(dof\[\]|evidence_lines\[\]|significant)"
+    r"|conventions\[\]\.(dof|explains))",
 )
 RELATIVE = (
+    # the F/T noise factor that would make the fit pass (a root of chi2 in the factor)
+    r"assumptions\.misfit_causes\.ft_noise_factor_that_passes",
     r"joint_stiffness_Nm_per_rad\[\]", r"standard_error_Nm_per_rad\[\]",
     r"ci95_Nm_per_rad\[\]\[\]", r"joint_compliance_rad_per_Nm\[\]",
     r"cartesian_stiffness\.joint_stiffness_Nm_per_rad\[\]",
@@ -83,10 +88,16 @@ OWN_UNITS = (
     r"relative_change_vs_linear\.(ols|wls)\[\]",
 )
 PROBABILITY = (r"chi2_p_value", r"validation\[\]\.p_value_total",
-               r"assumptions\.tool_point\.check\.p_value")
+               r"assumptions\.tool_point\.check\.p_value",
+               r"assumptions\.misfit_causes\.ranked\[\]\.p_value",
+               r"assumptions\.misfit_causes\.conventions\[\]\.p_value_(alt|given)")
 #: statistics of residuals in units of sigma: absolute TOL * D / (smallest sigma)
 SIGMA_UNITS = (
     r"chi2_reduced", r"assumptions\.tool_point\.check\.F",
+    # the cause tests' statistics: sums of squared whitened residuals and their
+    # differences (F, the information criterion's change), in units of sigma
+    r"assumptions\.misfit_causes\.ranked\[\]\.(F|bic_change|chi2|chi2_left)",
+    r"assumptions\.misfit_causes\.conventions\[\]\.(chi2|chi2_alt)",
     r"validation\[\]\.(rms_normalized|rms_normalized_total)",
     r"validation_summary\.rms_normalized(_total)?_(max|median)",
     r"robust\.down_weighted\[\]\.(whitened_residual|weight)", r"residuals\[\]\.weight",

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from analysis.model.gravity import gear_flanks
 from analysis.model.kinematics import chain_state, cross
 
 #: compliant links tested, 0-based: link l is the body between joint l and joint l + 1
@@ -90,10 +91,10 @@ def link_compliance_columns(robot, q: np.ndarray, w: np.ndarray,
 def lost_motion_columns(J: np.ndarray, tau_ref: np.ndarray,
                         tau_load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(B (m, 6, 6), flips (m, 6) bool): per joint j the column ``J[:, j] (s_load - s_ref)/2``
-    (zero where joint j's gear torque keeps its sign), s the sign of the gear torque at the
+    (zero where joint j's gear keeps its flank), s the flank (:func:`gear_flanks`) at the
     reference and at the loaded reading (N m, (m, 6) each); the parameter is the dead band
     2 b_j (rad), positive when the joint moves towards its new torque."""
-    s_ref, s_load = np.sign(tau_ref), np.sign(tau_load)
+    s_ref, s_load = gear_flanks(tau_ref), gear_flanks(tau_load)
     step = (s_load - s_ref) / 2.0
     return J * step[:, None, :], step != 0
 
