@@ -100,7 +100,7 @@ def open_ledger(db: str | None, *, create: bool):
     from sqlalchemy import create_engine
 
     url = _parse(ledger_url(db))
-    where = shown(url)
+    where = shown(ledger_url(db))
     if url.get_backend_name() == "sqlite":
         path = _sqlite_file(url)
         if path is not None:
@@ -137,7 +137,7 @@ def database_error(err: Exception, where: str) -> InputError:
 
     orig = err.orig if isinstance(err, DBAPIError) and err.orig is not None else err
     lines = [s.strip() for s in str(orig).splitlines() if s.strip()]
-    text = lines[-1] if lines else type(orig).__name__
+    text = " ".join(lines) if lines else type(orig).__name__
     if "readonly" in text or "read-only" in text:
         text = "the ledger is read-only: " + text
     if "not a database" in text:
