@@ -93,16 +93,61 @@ def add(o: AddOptions, before_commit=None) -> AddResult:
     return _use(o.db, work, create=True)
 
 
-def record_analysis(run_or_analysis: Path, db: str | None) -> dict | None:
-    """``campaign analyze`` and the GUI: record the analysis in the configured ledger (None
-    when no ledger is configured: ``db`` None and the environment variable unset)."""
+def configured_ledger(db: str | None) -> str | None:
+    """The ledger ``campaign analyze`` and the GUI record into: ``db``, else the environment
+    variable, else None (no ledger: nothing recorded)."""
     import os
 
     from campaign.ledger.database import ENV
 
-    if db is None and not os.environ.get(ENV, "").strip():
-        return None
-    return add(AddOptions((Path(run_or_analysis),), db)).rows[0]
+    if db is not None and db.strip():
+        return db
+    return os.environ.get(ENV, "").strip() or None
+
+
+def record_analysis(analysis_dir: Path, db: str, robot_id: str | None = None,
+                    warn=None) -> dict:
+    """Record a just-written analysis in the ledger ``db``: the ``history add`` row, or
+    ``{"added": False, "reason": ...}`` (and a ``warn`` line) when the run names no robot."""
+    from campaign.ledger.entry import NoRobotIdentity
+
+    try:
+        return add(AddOptions((Path(analysis_dir),), db, robot_id)).rows[0]
+    except NoRobotIdentity as err:
+        reason = f"not recorded in the ledger: {err}"
+        if warn is not None:
+            warn(f"warning: {reason}")
+        return {"added": False, "reason": reason}
+
+
+def report_history(analysis_dir: Path, run_dir: Path | None, db: str,
+                   robot_id: str | None = None):
+    """The report's history section (:class:`analysis.report.model.Section`): this
+    campaign against the robot's earlier campaigns in the ledger ``db`` (read only)."""
+    from analysis.report.model import Paragraph, Section
+    from campaign.ledger import store
+    from campaign.ledger.entry import NoRobotIdentity, read_entry
+    from campaign.ledger.report_history import history_blocks
+
+    title = "History of this robot (fleet ledger)"
+    try:
+        entry = read_entry(Path(analysis_dir), robot_id, run_dir=run_dir)
+    except NoRobotIdentity:
+        return Section(title, [Paragraph("The run names no robot serial and no robot id "
+                                         "was given: this campaign cannot be placed in the "
+                                         "ledger's history.", "note")])
+
+    def earlier(engine):
+        return [r for r in store.campaigns(engine, entry.robot_id)
+                if r.entry.report_id != entry.report_id]
+
+    try:
+        records = _use(db, earlier)
+    except InputError as err:
+        if "no ledger file here" not in str(err):
+            raise
+        records = []
+    return Section(title, history_blocks(entry, records, DEFAULT_MIN_CHANGE, DEFAULT_ALPHA))
 
 
 # ---------------------------------------------------------------- list

@@ -23,6 +23,10 @@ from analysis.errors import InputError
 INSTRUMENT_KEYS = ("model", "serial", "calibration_date", "calibration_due", "certificate")
 
 
+class NoRobotIdentity(InputError):
+    """The campaign names no robot serial and no ``--robot-id`` was given."""
+
+
 @dataclass(frozen=True)
 class LedgerEntry:
     """One campaign record before it is stored (SI units; JSON-ready tuples).
@@ -177,12 +181,15 @@ def _optional(doc: dict, key: str, kind):
 
 
 def read_entry(path: Path, robot_id: str | None = None, date: str | None = None,
-               supersedes: str | None = None) -> LedgerEntry:
+               supersedes: str | None = None, run_dir: Path | None = None) -> LedgerEntry:
     """The ledger entry of one campaign; refuses damaged files and a campaign without a
-    robot identity (no serial in the protocol or from the controller, no ``robot_id``)."""
+    robot identity (no serial in the protocol or from the controller, no ``robot_id``).
+    ``run_dir``: the run directory when it is not the analysis directory's parent."""
     from analysis.identification.compare.load import load_campaign
 
     results, run = locate(Path(path))
+    if run_dir is not None and (Path(run_dir) / "metadata.json").is_file():
+        run = Path(run_dir)
     campaign = load_campaign(results)  # every stored number checked here
     doc = _json_file(results)
     report_id = doc.get("report_id")
@@ -192,7 +199,7 @@ def read_entry(path: Path, robot_id: str | None = None, date: str | None = None,
     instruments = instrument_records(meta, _protocol_instruments(run))
     rid = robot_id.strip() if robot_id is not None else robot_serial(instruments)
     if not rid:
-        raise InputError("no robot identity: the protocol's [instruments.robot] has no "
+        raise NoRobotIdentity("no robot identity: the protocol's [instruments.robot] has no "
                          "serial and the controller reported none; give --robot-id ID",
                          where=str(path))
     joints = tuple(j + 1 for j in campaign.joints)
