@@ -457,3 +457,56 @@ def verify(db: str | None, robot: str | None = None) -> VerifyResult:
             if now != digest:
                 bad.append({**where, "recorded_sha256": digest, "sha256": now})
     return VerifyResult(checked, tuple(bad), tuple(missing))
+
+
+# ---------------------------------------------------------------- the GUI's Fleet view
+
+@dataclass(frozen=True)
+class FleetResult:
+    """Per robot: its campaigns, the last one and the drift test's status (Fleet view)."""
+
+    robots: tuple[dict, ...]
+    min_change: float
+    alpha: float
+
+    def to_json(self) -> dict:
+        return {"robots": list(self.robots), "min_change_percent": _percent(self.min_change),
+                "alpha": self.alpha}
+
+
+def fleet(db: str | None, min_change: float = DEFAULT_MIN_CHANGE,
+          alpha: float = DEFAULT_ALPHA) -> FleetResult:
+    """Every robot with its last campaign and status (ok, alarm with its joints, or
+    reference only)."""
+    from campaign.ledger import store
+
+    _check_numbers(min_change, alpha)
+    records = _use(db, store.campaigns)
+    by_robot: dict[str, list] = {}
+    for r in records:
+        by_robot.setdefault(r.entry.robot_id, []).append(r)
+    rows = []
+    for rid in sorted(by_robot):
+        recs = by_robot[rid]
+        alarms, summary = check_robot(recs, min_change, alpha)
+        last = recs[-1].entry
+        rows.append({"robot": rid, "robot_model": last.robot_model, "campaigns": len(recs),
+                     "last_date": last.campaign_date, "last_report_id": last.report_id,
+                     "status": summary["status"],
+                     "alarm_joints": sorted({a["joint"] for a in alarms})})
+    return FleetResult(tuple(rows), min_change, alpha)
+
+
+def robot_view(db: str | None, robot: str, min_change: float = DEFAULT_MIN_CHANGE,
+               alpha: float = DEFAULT_ALPHA) -> dict:
+    """One robot for the Fleet view: its trend (:func:`trend`), the drift test's summary
+    and alarms (:func:`check_robot`)."""
+    _check_numbers(min_change, alpha)
+    records = _use(db, lambda engine: _records(engine, robot))
+    hist = robot_history(records)
+    ref_rec = next((r for r in records if r.entry.report_id == hist.reference), None)
+    alarms, summary = check_robot(records, min_change, alpha)
+    return {"robot": robot, "reference": hist.reference,
+            "campaigns": [_trend_row(r, hist, ref_rec) for r in records],
+            "alarms": alarms, "check": summary,
+            "min_change_percent": _percent(min_change), "alpha": alpha}

@@ -33,6 +33,7 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.analyze_api",
     "campaign.web.robots_api",
     "campaign.web.analyze_plots_api",
+    "campaign.web.fleet_api",
 )
 
 STATIC = Path(__file__).parent / "static"
@@ -51,12 +52,14 @@ def _routers():
 
 
 def create_app(workspace: str | Path, token: str, password: str | None = None,
-               hardware: bool = False):
+               hardware: bool = False, ledger: str | None = None):
     """The FastAPI app serving ``workspace`` to clients holding ``token`` (or ``password``).
 
     ``hardware``: the Acquire view may run on a real robot (the operator's ``--hardware``
     at start; each run still needs its confirmation, limits and dry run); without it the
-    server runs acquisitions on the simulated lab only.
+    server runs acquisitions on the simulated lab only. ``ledger``: the fleet ledger's URL
+    (None: the STIFFNESS_CAMPAIGN_DB environment variable; neither: no Fleet view, and
+    analyses are recorded nowhere).
 
     Raises InputError when the workspace is not an existing directory.
     """
@@ -83,6 +86,9 @@ def create_app(workspace: str | Path, token: str, password: str | None = None,
     app.state.csrf = security.csrf_value(token)
     app.state.password = password
     app.state.hardware = bool(hardware)
+    from campaign.jobs.history import configured_ledger
+
+    app.state.ledger = configured_ledger(ledger)
     # Monte-Carlo requests of every tab and client share the CPUs: one per core at a time
     app.state.compute_slots = threading.BoundedSemaphore(os.cpu_count() or 1)
 

@@ -21,7 +21,8 @@ DEFAULT_PORT = 8765
 @dataclass(frozen=True)
 class GuiOptions:
     """How to serve: workspace directory, address, remote access (password) and HTTPS
-    (certfile/keyfile, PEM; remote access without them: a self-signed certificate)."""
+    (certfile/keyfile, PEM; remote access without them: a self-signed certificate);
+    ledger: the fleet ledger's URL (None: STIFFNESS_CAMPAIGN_DB, else none)."""
 
     workspace: Path
     host: str = DEFAULT_HOST
@@ -32,6 +33,7 @@ class GuiOptions:
     certfile: Path | None = None
     keyfile: Path | None = None
     hardware: bool = False
+    ledger: str | None = None
 
 
 def bind(host: str, port: int) -> socket.socket:
@@ -92,7 +94,7 @@ def prepare(options: GuiOptions, token: str) -> Prepared:
     sock = bind(options.host, options.port)
     try:
         app = create_app(options.workspace, token, options.password if options.allow_remote
-                         else None, hardware=options.hardware)
+                         else None, hardware=options.hardware, ledger=options.ledger)
     except BaseException:
         sock.close()
         raise

@@ -43,6 +43,9 @@ def register(app: typer.Typer) -> None:
                                       "on a real robot (each run still after its "
                                       "confirmation, limits and dry run); without it, the "
                                       "simulated lab only."),
+        db: str = typer.Option(None, "--db", help="Fleet ledger of the Fleet view, where "
+                               "the GUI's analyses are recorded (default: the "
+                               "STIFFNESS_CAMPAIGN_DB environment variable)."),
     ) -> None:
         """Start the GUI on a local web server and print its URL with the access token.
 
@@ -58,5 +61,5 @@ def register(app: typer.Typer) -> None:
         options = GuiOptions(workspace=workspace, host=host, port=port,
                              open_browser=not no_browser, allow_remote=allow_remote,
                              password=password, certfile=certfile, keyfile=keyfile,
-                             hardware=hardware)
+                             hardware=hardware, ledger=db)
         serve(options, new_token(), lambda url, cert: _announce(workspace, url, cert, hardware))
