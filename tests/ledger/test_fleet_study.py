@@ -1,0 +1,31 @@
+"""The fleet study at the precision of a demo campaign on the simulated lab: the false-alarm
+rate of the one-sided bounds with Holm is the stated level's, and a 10 % drop of k2 is
+flagged at the first campaign after it."""
+
+from __future__ import annotations
+
+import math
+
+from campaign.ledger.fleet_study import study
+
+
+def test_false_alarms_at_the_level_and_power_at_the_demo_precision(demo_runs):
+    out = study(demo_runs[0] / "analysis" / "results.json", fleets=400, campaigns=4,
+                drop_at=4, joint=2, drop=0.10, seed=11)
+    fa = out["false_alarm"]
+    assert fa["checks"] == 1200
+    # six joints each tested at alpha/6 .. alpha (Holm): the per-campaign rate is about
+    # 1 - (1 - alpha/6)^6 = 4.9 %; within 4.4 binomial standard errors (a 1e-5 chance)
+    expected = fa["expected_per_campaign_holm_independent"]
+    assert math.isclose(expected, 1 - (1 - 0.05 / 6) ** 6)
+    se = math.sqrt(expected * (1 - expected) / fa["checks"])
+    assert abs(fa["per_campaign_bound_holm"] - expected) < 4.4 * se
+    assert abs(sum(fa["per_joint_bound_holm"]) - fa["per_campaign_bound_holm"]) < 0.01
+    # at the default 5 % minimum change, unchanged robots (the demo's 0.1-1 % precision)
+    # raise no alarm
+    assert out["false_alarm_at_min_change"]["per_campaign_check"] == 0.0
+    pw = out["power"]
+    assert pw["flagged_at_first_campaign_after"] >= 0.95
+    assert pw["other_alarm_at_that_campaign"] == 0.0
+    # the precision is the demo's: k2's relative standard error about 0.09 %
+    assert 0.0005 < out["relative_se_of_k"][1] < 0.0015
