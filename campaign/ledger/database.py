@@ -24,6 +24,9 @@ ENV = "STIFFNESS_CAMPAIGN_DB"
 #: key of PostgreSQL's advisory lock around migrations (any fixed 64-bit number)
 MIGRATION_LOCK = 7_301_033
 
+#: execution option of a transaction that writes (SQLite: BEGIN IMMEDIATE)
+WRITE = "ledger_write"
+
 #: seconds an SQLite writer waits for another writer's lock before giving up
 SQLITE_BUSY_S = 60.0
 
@@ -50,7 +53,11 @@ def shown(url) -> str:
 
 
 def _sqlite_file(url) -> Path | None:
+    """The SQLite file of ``url`` (``sqlite:///PATH`` or the URI form
+    ``sqlite:///file:PATH?mode=ro&uri=true``), None for an in-memory database."""
     db = url.database
+    if db and db.startswith("file:"):
+        db = db.removeprefix("file:").split("?", 1)[0]
     return None if not db or db == ":memory:" else Path(db)
 
 
@@ -83,9 +90,11 @@ def _sqlite_engine(url):
         dbapi_connection.isolation_level = None
 
     @event.listens_for(engine, "begin")
-    def _begin_immediate(conn):
-        # every transaction takes the write lock first: writers queue instead of failing
-        conn.exec_driver_sql("BEGIN IMMEDIATE")
+    def _begin(conn):
+        # a writing transaction takes the write lock first: writers queue (busy timeout)
+        # instead of failing half-way; a reading one takes none (a read-only file reads)
+        write = conn.get_execution_options().get(WRITE, False)
+        conn.exec_driver_sql("BEGIN IMMEDIATE" if write else "BEGIN")
 
     return engine
 
@@ -145,14 +154,33 @@ def database_error(err: Exception, where: str) -> InputError:
     return InputError(f"cannot use the ledger: {text}"[:300], where=where)
 
 
+def writer(engine):
+    """``engine`` for a transaction that writes (on SQLite it takes the write lock first)."""
+    return engine.execution_options(**{WRITE: True})
+
+
+def _revisions(conn, config) -> tuple[str | None, str]:
+    """(the ledger's revision, the head revision of the shipped migrations)."""
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
+
+    return (MigrationContext.configure(conn).get_current_revision(),
+            ScriptDirectory.from_config(config).get_current_head())
+
+
 def migrate(engine, revision: str = "head") -> None:
-    """Bring the ledger's schema to ``revision`` (the head; Alembic, in one transaction)."""
+    """Bring the ledger's schema to ``revision`` (the head; Alembic, in one transaction
+    under the write lock, after a look without one: a current ledger is not written)."""
     from alembic import command
     from alembic.config import Config
 
     config = Config()
     config.set_main_option("script_location", str(Path(__file__).parent / "migrations"))
-    with engine.begin() as conn:
+    with engine.connect() as conn:
+        current, head = _revisions(conn, config)
+    if revision == "head" and current == head:
+        return
+    with writer(engine).begin() as conn:
         if conn.dialect.name == "postgresql":
             conn.exec_driver_sql(f"SELECT pg_advisory_xact_lock({MIGRATION_LOCK})")
         config.attributes["connection"] = conn

@@ -119,8 +119,10 @@ def add(engine, entry: LedgerEntry,
     from sqlalchemy.exc import IntegrityError
     from sqlalchemy.orm import Session
 
+    from campaign.ledger.database import writer
+
     try:
-        with Session(engine) as session, session.begin():
+        with Session(writer(engine)) as session, session.begin():
             existing = _by_report(session, entry.report_id)
             if existing is None:
                 _check_robot(session, entry)

@@ -156,6 +156,15 @@ def test_a_read_only_ledger_file_is_refused(demo_runs, capsys, tmp_path):
         assert run(capsys, "list", "--db", db)[0] == 0  # reading still works
     finally:
         db.chmod(0o644)
+    # opened read-only (what a file without write permission is for a user who is not
+    # root): reading works, adding is one line, nothing changes
+    ro = f"sqlite:///file:{db}?mode=ro&uri=true"
+    status, out, err = run(capsys, "trend", "--robot", SERIAL, "--db", ro, "--json")
+    assert status == 0, err
+    assert len(json.loads(out)["campaigns"]) == 1
+    err = one_line_error(*run(capsys, "add", demo_runs[1], "--db", ro))
+    assert "read-only" in err
+    assert db.read_bytes() == before
 
 
 def test_no_ledger_configured_is_one_line(capsys, monkeypatch):
