@@ -19,6 +19,10 @@ from campaign.cli.app import main
 from tests.ledger.conftest import SERIAL
 from tests.web.conftest import CHROMIUM, browser_page, gui_server
 
+#: the session's four demo campaigns are made in the first test's setup (minutes on a
+#: loaded machine): beyond the suite's 300 s default
+pytestmark = pytest.mark.timeout(1200)
+
 TOKEN = "fleet-token-0123456789"
 
 

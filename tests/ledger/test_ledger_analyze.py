@@ -8,8 +8,14 @@ import json
 import re
 import shutil
 
+import pytest
+
 from campaign.cli.app import main
 from tests.ledger.conftest import SERIAL
+
+#: the session's four demo campaigns are made in the first test's setup (minutes on a
+#: loaded machine): beyond the suite's 300 s default
+pytestmark = pytest.mark.timeout(1200)
 
 
 def test_analyze_records_and_reports_the_history(demo_runs, capsys, tmp_path, monkeypatch):
