@@ -17,9 +17,15 @@ them) then test each campaign against the first.
   fleets whose check at that campaign (the first after the drop) raises the alarm on
   that joint, at the default min change (5 %), and the share raising any other alarm.
 
+The premise, that a campaign's reported covariance is its spread from one campaign to
+the next, is checked on the simulated lab itself with ``--lab RUN...``: campaigns of
+the same lab (same true stiffness, other seeds); the ratio of the sample variance of
+ln k across them to the mean reported variance, per joint and pooled, with the 95 %
+range of that ratio under the premise (chi-square).
+
 Run: ``python -m campaign.ledger.fleet_study RUN_OR_RESULTS [--fleets 2000]
-[--campaigns 4] [--drop-at 4] [--joint 2] [--drop 0.10] [--seed 1]``; the last line is
-one JSON object.
+[--campaigns 4] [--drop-at 4] [--joint 2] [--drop 0.10] [--seed 1] [--lab RUN...]``; the
+last line is one JSON object.
 """
 
 from __future__ import annotations
@@ -121,6 +127,27 @@ def study(results: Path, fleets: int = 2000, campaigns: int = 4, drop_at: int = 
     }
 
 
+def lab_calibration(results: list[Path]) -> dict:
+    """Sample variance of ln k over campaigns of one lab / mean reported variance, per joint
+    and pooled, with the 95 % range of the ratio when the reported variances are right."""
+    from scipy.stats import chi2
+
+    logs, reported = [], []
+    for path in results:
+        k, cov_log = precision(path)
+        logs.append(np.log(k))
+        reported.append(np.diag(cov_log))
+    n = len(results) - 1
+    if n < 2:
+        raise SystemExit("--lab needs at least three campaigns of the same lab")
+    ratio = np.var(np.array(logs), axis=0, ddof=1) / np.mean(np.array(reported), axis=0)
+    return {"campaigns": len(results), "variance_ratio_per_joint": ratio.tolist(),
+            "ratio_range_95_per_joint": [chi2.ppf(0.025, n) / n, chi2.ppf(0.975, n) / n],
+            "variance_ratio_pooled": float(ratio.mean()),
+            "ratio_range_95_pooled": [chi2.ppf(0.025, 6 * n) / (6 * n),
+                                      chi2.ppf(0.975, 6 * n) / (6 * n)]}
+
+
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("results", type=Path, help="a demo's run directory, analysis directory "
@@ -131,11 +158,20 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--joint", type=int, default=2)
     p.add_argument("--drop", type=float, default=0.10)
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--lab", type=Path, nargs="*", default=[], help="campaigns of the same "
+                   "simulated lab (other seeds): check the reported variances")
     a = p.parse_args(argv)
     from campaign.ledger.entry import locate
 
     results, _ = locate(a.results)
     out = study(results, a.fleets, a.campaigns, a.drop_at, a.joint, a.drop, seed=a.seed)
+    if a.lab:
+        cal = lab_calibration([locate(r)[0] for r in a.lab])
+        out["lab_calibration"] = cal
+        lo, hi = cal["ratio_range_95_pooled"]
+        print(f"lab: {cal['campaigns']} campaigns, variance of ln k across them / reported: "
+              + ", ".join(f"{v:.2f}" for v in cal["variance_ratio_per_joint"])
+              + f" (pooled {cal['variance_ratio_pooled']:.2f}, 95 % range {lo:.2f}-{hi:.2f})")
     fa, pw = out["false_alarm"], out["power"]
     print(f"false alarms at min change 0: {100 * fa['per_campaign_bound_holm']:.2f} % of "
           f"campaigns (one-sided bounds, Holm; alpha {100 * out['alpha']:g} %, "
