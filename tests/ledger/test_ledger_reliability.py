@@ -18,6 +18,10 @@ from campaign.cli.app import main
 from tests.ledger.conftest import SERIAL
 from tests.ledger.postgres_cluster import PASSWORD
 
+#: the session's four demo campaigns are made in the first test's setup (minutes on a
+#: loaded machine): beyond the suite's 300 s default
+pytestmark = pytest.mark.timeout(1200)
+
 OLD_LEDGER = Path(__file__).parent / "data" / "ledger_rev0001.sqlite"
 ROOT = Path(__file__).parents[2]
 
@@ -62,9 +66,6 @@ import sys, time
 from pathlib import Path
 from campaign.jobs.history import AddOptions, add
 
-#: the session's four demo campaigns are made in the first test's setup (minutes on a
-#: loaded machine): beyond the suite's 300 s default
-pytestmark = pytest.mark.timeout(1200)
 def hold():
     print("FLUSHED", flush=True)
     time.sleep(600)
