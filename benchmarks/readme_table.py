@@ -316,11 +316,20 @@ def _acquire_state(f: Fig) -> tuple[str, str, str, str]:
             f"{f['ratio_wall']}x wall")
 
 
+def _ledger(f: Fig) -> tuple[str, str, str, str]:
+    return (f"`campaign history list` and `trend` of one robot in an SQLite ledger of "
+            f"{num(f['robots'])} robots x {f['campaigns_per_robot']} campaigns "
+            f"({f['file_MB']} MB)",
+            f"list {f['list_s_max']} s, trend {f['trend_s_max']} s wall (worst of "
+            f"{f['repeat']} robots; answers checked {f['answers_checked']})",
+            f"none (absolute target). Timed: {f['timing']}", "-")
+
+
 ROWS: dict[str, Callable[[Fig], tuple[str, str, str, str]]] = {
     "maps": _maps, "identification": _identification, "large_import": _large_import,
     "planner": _planner, "compensate": _compensate, "place": _place,
     "fake_campaign": _fake_campaign, "startup": _startup, "csv_io": _csv_io,
-    "gui_sensitivity": _gui_sensitivity, "acquire_state": _acquire_state,
+    "gui_sensitivity": _gui_sensitivity, "acquire_state": _acquire_state, "ledger": _ledger,
 }
 
 

@@ -61,6 +61,7 @@ QUICK: dict[str, list[str]] = {
     "csv_io": ["--sizes", "2000", "--write-tests", "2000", "--repeat", "1"],
     "gui_sensitivity": ["--repeat", "1"],
     "acquire_state": ["--repeat", "1", "--polls", "5"],
+    "ledger": ["--robots", "200", "--repeat", "2"],
 }
 
 

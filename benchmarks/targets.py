@@ -18,6 +18,7 @@ from dataclasses import dataclass
 ISSUE_13 = "issue 13"
 ISSUE_22 = "issue 22"
 ISSUE_23 = "issue 23"
+ISSUE_33 = "issue 33"
 MET, MISSED, NOT_MEASURED = "met", "NOT MET", "not measured"
 
 _OPS: dict[str, Callable[[float, float], bool]] = {
@@ -143,6 +144,14 @@ TARGETS: tuple[Target, ...] = (
     Target("startup", "`campaign stiffness` / `import numpy, typer, rich, pinocchio`, CPU",
            lambda f: f["stiffness_ratio"], "<=", 2.5,
            "bench_startup.py's start-up limit", "any run"),
+    Target("ledger", "history list of one robot, 10,000 robots x 20 campaigns, SQLite, s wall",
+           _when(lambda f: f["records"] >= 200_000 and f["answers_checked"],
+                 lambda f: f["list_s_max"]), "<", 0.5, ISSUE_33,
+           "--robots 10000 --campaigns 20 (the defaults)"),
+    Target("ledger", "history trend of one robot, 10,000 robots x 20 campaigns, SQLite, s wall",
+           _when(lambda f: f["records"] >= 200_000 and f["answers_checked"],
+                 lambda f: f["trend_s_max"]), "<", 0.5, ISSUE_33,
+           "--robots 10000 --campaigns 20 (the defaults)"),
 )
 
 

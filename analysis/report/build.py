@@ -97,6 +97,7 @@ class ReportInputs:
     map_fixed: MapFixed | np.ndarray | None = None
     trials: int = 300
     load_cases: list[LoadCase] = field(default_factory=list)
+    history: Section | None = None
 
 
 def wrench_text(w: np.ndarray) -> str:
@@ -563,6 +564,8 @@ def build_report(result: IdentificationResult, inp: ReportInputs) -> Report:
                         else f"Appendix: {SECTION_TITLES[3].lower()}",
                         [pose_table(labels, q_poses), test_rows])
     sections = [summary, ident_sec, resid_sec]
+    if inp.history is not None:
+        sections.insert(2, inp.history)
     if inp.tests.m <= TESTS_INLINE:
         sections.append(tests_sec)
     sections += [defl_sec, kx_sec, rob_sec]

@@ -42,6 +42,8 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
                "springs."),
     "gui": ("gui", "Start the GUI on a local web server and print its URL with the access "
             "token."),
+    "history": ("history", "The fleet ledger: every campaign of every robot, trends with "
+                "intervals, and an alarm when a joint loses stiffness."),
     "lab": ("lab", "Start fake instruments on loopback that speak the real protocols."),
     "maps": ("maps", "Maps like the paper's Figs. 3 and 5: data table and PNG plots."),
     "place": ("place", "Search the workpiece placement and tool angles that minimise P's "

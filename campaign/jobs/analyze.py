@@ -61,7 +61,11 @@ class AnalyzeOptions:
     fractions of |f| and |m|; None: the protocol's, the sidecar's or the defaults);
     tool_xyz_mm / tool_rpy_deg: the tool point as the protocol's [tool] gives it (mm,
     deg), overriding the protocol's or sidecar's; accept_misfit: write a refused result
-    (it says so); force: replace a non-empty output directory as a whole."""
+    (it says so); force: replace a non-empty output directory as a whole; ledger: the
+    fleet ledger's URL (None: the STIFFNESS_CAMPAIGN_DB environment variable; neither:
+    nothing recorded), where the analysis is recorded and whose earlier campaigns of the
+    robot make the report's history section; robot_id: the robot's identity in the
+    ledger when the run names no serial."""
 
     run_dir: Path | None = None
     measurements: Path | None = None
@@ -87,6 +91,8 @@ class AnalyzeOptions:
     tool_rpy_deg: Sequence[float] | None = None
     accept_misfit: bool = False
     force: bool = False
+    ledger: str | None = None
+    robot_id: str | None = None
 
 
 @dataclass
@@ -102,11 +108,15 @@ class AnalyzeResult:
     identification: Any = None
     early_warnings: int = 0
     assumptions: dict = field(default_factory=dict)
+    ledger: dict | None = None
 
     def to_json(self) -> dict:
         """The document ``campaign analyze --json`` prints."""
-        return {**self.results, "files": {k: str(v) for k, v in self.files.items()},
-                **self.summary}
+        out = {**self.results, "files": {k: str(v) for k, v in self.files.items()},
+               **self.summary}
+        if self.ledger is not None:
+            out["ledger"] = self.ledger
+        return out
 
 
 # kept importable from here (tests and older scripts import it from this module)
@@ -476,7 +486,7 @@ def _frozen_heap():
 
 def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: int,
                    protocol, wrench, noise, pose, extras, run_dir,
-                   stage: Stage = no_stage) -> dict[str, Path]:
+                   stage: Stage = no_stage, history=None) -> dict[str, Path]:
     """Write results.json, residuals.csv, model.toml, the report and analysis.json into
     ``out`` (a new directory); returns the paths of the main files by name."""
     from analysis.identification.io.results_json import write_results
@@ -516,7 +526,8 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
             nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
             map_fixed=_map_fixed(protocol, model.n, tests.q[
                 [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
-            trials=trials, load_cases=_load_cases(protocol, tests.w, noise))
+            trials=trials, load_cases=_load_cases(protocol, tests.w, noise),
+            history=None if history is None else history(out))
         with stage("report: maps, K_X, Monte-Carlo robustness, figures"):
             built = build_report(result, inputs)
         with stage("report: HTML and PDF"):
@@ -618,13 +629,24 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     _release_freed_heap()  # the identification's freed pages, before the writer's
     # everything is written into a new directory that replaces ``out`` as a whole at
     # the end: a refused or failed analysis leaves the earlier one untouched
+    from campaign.jobs.history import configured_ledger, report_history
+
+    db = configured_ledger(o.ledger)
+    history = None if db is None else (
+        lambda folder: report_history(folder, run_dir, db, o.robot_id))
     with replaced_dir(out, o.force, "--out") as new:
         paths = _write_outputs(result, model, new, tests, info, o.report, o.trials, protocol,
-                               o.wrench_N_Nm, noise, o.poses_rad, extras, run_dir, stage)
+                               o.wrench_N_Nm, noise, o.poses_rad, extras, run_dir, stage,
+                               history)
     paths = {k: out / Path(p).relative_to(new) for k, p in paths.items()}
+    recorded = None
+    if db is not None:
+        from campaign.jobs.history import record_analysis
+
+        recorded = record_analysis(out, db, o.robot_id, warn)
     return AnalyzeResult(json.loads((out / "results.json").read_text()),
                          json.loads((out / "analysis.json").read_text()), paths, result,
-                         len(early), result.assumptions)
+                         len(early), result.assumptions, recorded)
 
 
 def _operator_text(meta: dict) -> str:

@@ -55,7 +55,8 @@ def analyze_run(request: Request, body: AnalyzeRequest):
             raise InputError("no such run directory in the workspace", where="run_dir")
         options = AnalyzeOptions(run_dir=run_dir, method=Method(body.method),
                                  robust=Robust(body.robust), force=body.force,
-                                 accept_misfit=body.accept_misfit, report=body.report)
+                                 accept_misfit=body.accept_misfit, report=body.report,
+                                 ledger=getattr(request.app.state, "ledger", None))
         result = run(options)
     except InputError as err:
         text = str(err).replace(f"{ws}/", "")

@@ -34,6 +34,7 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.analyze_api",
     "campaign.web.robots_api",
     "campaign.web.analyze_plots_api",
+    "campaign.web.fleet_api",
 )
 
 #: bytes of a request body at most (16 MiB; the largest legitimate body is a URDF
@@ -57,14 +58,17 @@ def _routers():
 
 
 def create_app(workspace: str | Path, token: str, password: str | None = None,
-               hardware: bool = False, scheduler: str | None = None):
+               hardware: bool = False, scheduler: str | None = None,
+               ledger: str | None = None):
     """The FastAPI app serving ``workspace`` to clients holding ``token`` (or ``password``).
 
     ``hardware``: the Acquire view may run on a real robot (the operator's ``--hardware``
     at start; each run still needs its confirmation, limits and dry run); without it the
     server runs acquisitions on the simulated lab only. ``scheduler``: the Dask scheduler
     of the placement search (the operator's ``--scheduler``; None: a local cluster); no
-    request can name another.
+    request can name another. ``ledger``: the fleet ledger's URL
+    (None: the STIFFNESS_CAMPAIGN_DB environment variable; neither: no Fleet view, and
+    analyses are recorded nowhere).
 
     Raises InputError when the workspace is not an existing directory.
     """
@@ -94,6 +98,9 @@ def create_app(workspace: str | Path, token: str, password: str | None = None,
     app.state.password = password
     app.state.hardware = bool(hardware)
     app.state.scheduler = scheduler
+    from campaign.jobs.history import configured_ledger
+
+    app.state.ledger = configured_ledger(ledger)
     # Monte-Carlo requests of every tab and client share the CPUs: one per core at a time
     app.state.compute_slots = threading.BoundedSemaphore(os.cpu_count() or 1)
 

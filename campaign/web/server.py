@@ -23,7 +23,8 @@ class GuiOptions:
     """How to serve: workspace directory, address, remote access (password) and HTTPS
     (certfile/keyfile, PEM; remote access without them: a self-signed certificate);
     hardware: acquisitions may drive a real robot; scheduler: the placement search's Dask
-    scheduler (None: a local cluster)."""
+    scheduler (None: a local cluster);
+    ledger: the fleet ledger's URL (None: STIFFNESS_CAMPAIGN_DB, else none)."""
 
     workspace: Path
     host: str = DEFAULT_HOST
@@ -35,6 +36,7 @@ class GuiOptions:
     keyfile: Path | None = None
     hardware: bool = False
     scheduler: str | None = None
+    ledger: str | None = None
 
 
 def bind(host: str, port: int) -> socket.socket:
@@ -96,7 +98,7 @@ def prepare(options: GuiOptions, token: str) -> Prepared:
     try:
         app = create_app(options.workspace, token, options.password if options.allow_remote
                          else None, hardware=options.hardware,
-                         scheduler=options.scheduler)
+                         scheduler=options.scheduler, ledger=options.ledger)
     except BaseException:
         sock.close()
         raise

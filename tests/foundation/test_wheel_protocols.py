@@ -68,6 +68,11 @@ def test_wheel_ships_the_protocols_and_the_installed_reader_finds_them(tmp_path)
     assert {f"campaign/protocols/{n}" for n in shipped} <= set(names)
     assert "campaign/protocols/README.md" in names
     assert not [n for n in names if n.startswith("campaign/protocols/examples/")]
+    # the fleet ledger's Alembic scripts are package data (opening a ledger runs them)
+    migrations = sorted(str(p.relative_to(ROOT)) for p in
+                        (ROOT / "campaign" / "ledger" / "migrations").rglob("*.py"))
+    assert "campaign/ledger/migrations/versions/0001_initial.py" in migrations
+    assert set(migrations) <= set(names)
 
     target = tmp_path / "installed"
     install = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps",

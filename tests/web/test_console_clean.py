@@ -13,7 +13,7 @@ STATIC = Path(__file__).parents[2] / "campaign" / "web" / "static"
 #: an inline event handler attribute (onsubmit="...", onclick='...'), which script-src 'self'
 #: blocks
 INLINE = re.compile(r"""<[^>]*\son[a-z]+\s*=\s*["']""", re.IGNORECASE)
-VIEWS = ("sensitivity", "runs", "use", "acquire", "plan")
+VIEWS = ("sensitivity", "runs", "use", "acquire", "plan", "fleet")
 
 
 def test_no_inline_handlers_in_static_files():

@@ -188,6 +188,13 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Replace a non-empty output "
                                    "directory: its contents as a whole, nothing of the "
                                    "earlier analysis is kept.", rich_help_panel=PANEL_OUTPUT),
+        db: str = typer.Option(None, "--db", help="Fleet ledger to record the analysis in, "
+                               "with a history section in the report (default: the "
+                               "STIFFNESS_CAMPAIGN_DB environment variable; neither: none).",
+                               rich_help_panel=PANEL_OUTPUT),
+        robot_id: str = typer.Option(None, "--robot-id", help="The robot's identity in the "
+                                     "ledger when the run names no serial.",
+                                     rich_help_panel=PANEL_OUTPUT),
     ) -> None:
         """Identify joint stiffness from a run or a CSV file; write results.json and the report.
 
@@ -219,7 +226,7 @@ def register(app: typer.Typer) -> None:
             poses_rad=poses, wrench_N_Nm=numbers_option(wrench, "--wrench"), trials=trials,
             report=report, **noise, tool_xyz_mm=numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
             tool_rpy_deg=numbers_option(tool_rpy_deg, "--tool-rpy-deg"),
-            accept_misfit=accept_misfit, force=force)
+            accept_misfit=accept_misfit, force=force, ledger=db, robot_id=robot_id)
         # with --json, stdout carries the JSON document only
         console = Console(stderr=as_json)
         done = run(options, stage=stage, on_assumptions=lambda a: _print_assumptions(console, a),
@@ -231,3 +238,6 @@ def register(app: typer.Typer) -> None:
             print_json(done.to_json())
             return
         _print(console, result, done.files, printed=done.early_warnings)
+        if done.ledger is not None and done.ledger.get("report_id"):
+            verb = "recorded in" if done.ledger["added"] else "already in"
+            echo(f"ledger: {verb} the fleet ledger as robot {done.ledger['robot']}")

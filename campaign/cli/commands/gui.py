@@ -46,6 +46,9 @@ def register(app: typer.Typer) -> None:
         scheduler: str = typer.Option(None, "--scheduler", help="Dask scheduler of the "
                                       "Placement view's search, tcp://HOST:PORT (default: a "
                                       "local cluster); a request cannot name another."),
+        db: str = typer.Option(None, "--db", help="Fleet ledger of the Fleet view, where "
+                               "the GUI's analyses are recorded (default: the "
+                               "STIFFNESS_CAMPAIGN_DB environment variable)."),
     ) -> None:
         """Start the GUI on a local web server and print its URL with the access token.
 
@@ -61,5 +64,5 @@ def register(app: typer.Typer) -> None:
         options = GuiOptions(workspace=workspace, host=host, port=port,
                              open_browser=not no_browser, allow_remote=allow_remote,
                              password=password, certfile=certfile, keyfile=keyfile,
-                             hardware=hardware, scheduler=scheduler)
+                             hardware=hardware, scheduler=scheduler, ledger=db)
         serve(options, new_token(), lambda url, cert: _announce(workspace, url, cert, hardware))
