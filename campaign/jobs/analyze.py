@@ -22,16 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from analysis.errors import InputError
+from analysis.errors import InputError, Refusal, Refused
 from analysis.identification.noise import NoiseModel
 from campaign.jobs.choices import DEFAULT_METHOD, DEFAULT_TRIALS, Covariance, Method, Robust
 from campaign.jobs.common import Stage, floats, no_stage, six_joints, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
-
-# Kept in step with analysis.identification.estimate (not imported here: every CLI command
-# module is imported at start-up, and the identification pulls in scipy).
-METHODS = ("ols", "wls", "exact")
 
 #: the noise overrides: options record field -> (NoiseModel field, option named in messages,
 #: factor from the command line's unit to SI)
@@ -607,10 +603,8 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
                                           "exact" if corrected else method, extras["tool"])
     refused += tool_refusals
     if refused and not o.accept_misfit:
-        raise InputError(
-            "refused, the data do not support this stiffness: " + " | ".join(refused)
-            + "; to keep the result anyway rerun with --accept-misfit (results.json and "
-            "the report then say so)", where=str(run_dir or measurements))
+        raise Refused(tuple(Refusal(text) for text in refused),
+                      where=str(run_dir or measurements))
     result = replace(result, misfit_accepted=tuple(refused))
     _release_freed_heap()  # the identification's freed pages, before the writer's
     # everything is written into a new directory that replaces ``out`` as a whole at

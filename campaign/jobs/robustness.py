@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.choices import LINEARISED_METHODS, METHODS
 from analysis.errors import InputError
 from campaign.jobs.analyze import DEFAULT_METHOD
 from campaign.jobs.choices import Method, RotationSource
@@ -119,7 +120,7 @@ def bias_notes(summary, method: str) -> list[str]:
         jensen = float(np.median(good["relative_std"] ** 2))
         lo, hi = 100 * float(rel.min()), 100 * float(rel.max())
         cause = ("the linear model (eqs. 16-21) fitted to displacements from the nonlinear "
-                 "equilibrium; --method exact removes it" if method in ("ols", "wls")
+                 "equilibrium; --method exact removes it" if method in LINEARISED_METHODS
                  else "the nonlinear estimator at this noise (finite-sample bias)")
         span = f"{lo:+.2f} %" if f"{lo:+.2f}" == f"{hi:+.2f}" else f"{lo:+.2f} to {hi:+.2f} %"
         notes.append(
@@ -146,7 +147,7 @@ def linear_bias_note(summary, method: str) -> str | None:
 
     The size is the mean over noise-free campaigns of the study's designs
     (``linearisation_bias_relative``), the median over the numbers of tests."""
-    if method not in ("ols", "wls"):
+    if method not in LINEARISED_METHODS:
         return None
     parts = []
     for j, s in summary.groupby("joint"):
@@ -182,8 +183,9 @@ def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None
     counts = check_tests(o.tests)
     if o.trials < 2:
         raise InputError("need at least 2 trials", where="--trials")
-    if method not in ("ols", "wls", "exact"):
-        raise InputError(f"expected ols, wls or exact, got {method!r}", where="--method")
+    if method not in METHODS:
+        raise InputError(f"expected {', '.join(METHODS[:-1])} or {METHODS[-1]}, got {method!r}",
+                         where="--method")
     if o.pool_size < 10:
         raise InputError("need at least 10 poses", where="--pool-size")
     noise = noise_model(o)

@@ -30,7 +30,6 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.acquire_api",
     "campaign.web.acquire_map_api",
     "campaign.web.plan_api",
-    "campaign.web.analyze_api",
     "campaign.web.robots_api",
     "campaign.web.analyze_plots_api",
 )

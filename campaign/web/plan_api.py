@@ -21,6 +21,8 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
+from campaign.jobs.plan import PlanOptions
+
 router = APIRouter(prefix="/api/plan", tags=["plan"])
 
 SHIPPED = Path(__file__).resolve().parents[1] / "protocols"  # package data
@@ -40,7 +42,7 @@ class PlanRequest(BaseModel):
     name: str = Field("plan-gui", max_length=64)
     strategy: str = Field("worst-joint", max_length=40)
     seed: int = Field(0, ge=0, le=2**31)
-    candidates: int = Field(2000, ge=10, le=100_000)
+    candidates: int = Field(PlanOptions.candidates, ge=10, le=100_000)  # the CLI's default
 
 
 def _error(text: str, field: str | None = None, status: int = 400,

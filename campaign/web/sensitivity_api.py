@@ -13,6 +13,7 @@ import numpy as np
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, ConfigDict, Field
 
+from analysis.choices import DEFAULT_METHOD, METHODS
 from analysis.errors import InputError
 
 router = APIRouter(prefix="/api/sensitivity", tags=["sensitivity"])
@@ -55,7 +56,7 @@ class SensitivityRequest(BaseModel):
         None, ge=10, le=2000, description="Reflector triangle circumradius (mm): the rotation "
         "sigma from the reflector fit, when rotation_sigma_urad is not given.")
     n_tests: int = Field(10, ge=1, le=200)
-    method: Literal["ols", "wls", "exact"] = "ols"
+    method: Literal[METHODS] = DEFAULT_METHOD  # robustness's and analyze's default
     trials: int = Field(1000, ge=2, le=API_MAX_TRIALS)
     seed: int = Field(0, ge=0, le=2**32 - 1)
 

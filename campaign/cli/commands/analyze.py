@@ -33,7 +33,7 @@ from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
 #: the job's names that tests and scripts import from here; looked up when asked for, so
 #: that importing this module (every ``campaign analyze --help``) does not import numpy
-_FROM_THE_JOB = ("METHODS", "NOISE_OVERRIDES", "_noise_from_protocol", "_override_noise")
+_FROM_THE_JOB = ("NOISE_OVERRIDES", "_noise_from_protocol", "_override_noise")
 
 
 def __getattr__(name: str):

@@ -55,6 +55,79 @@ function route(openapi, tag, method) {
   throw new Error(`the server has no ${method} route tagged ${tag}`);
 }
 
+// The choices of a request field (estimators, robust modes) as the API's OpenAPI document
+// lists them (analysis/choices.py on the server; nothing typed here): {values, default}.
+function apiChoices(openapi, schemaName, prop) {
+  const schemas = openapi.components.schemas;
+  const field = schemas[schemaName].properties[prop];
+  const ref = (s) => (s && s.$ref ? schemas[s.$ref.split("/").pop()] : s);
+  const own = ref(field) || {};
+  const inner = own.enum ? own : ref((field.allOf || field.anyOf || []).find((s) => ref(s).enum)) || {};
+  return { values: inner.enum || [], default: field.default ?? own.default };
+}
+
+// Fill <select> with the choices (labels: an optional note per value), the default selected.
+function fillChoices(select, choices, notes = {}) {
+  select.innerHTML = "";
+  for (const v of choices.values) {
+    const o = document.createElement("option");
+    o.value = v; o.textContent = notes[v] ? `${v} (${notes[v]})` : v;
+    select.appendChild(o);
+  }
+  if (choices.default !== undefined) select.value = choices.default;
+}
+
+// A job's refusal record ({detail, field, options, refused}) as an Error carrying them.
+function jobError(err, status) {
+  const detail = err && typeof err.detail === "string" ? err.detail : JSON.stringify(err && err.detail);
+  const e = new Error(detail || String(status));
+  e.detail = detail; e.field = (err && err.field) || null; e.options = (err && err.options) || {};
+  e.refused = (err && err.refused) || [];
+  e.status = status;
+  return e;
+}
+
+// A queued job of /api/jobs (202), shared by the views: post(url, body) -> [status, doc] is
+// the view's own POST (its CSRF header); followed by the job's server-sent events to its end,
+// onProgress(job) at each change, started(id) once queued. Resolves with its result;
+// rejects with its error (an Error from jobError, or .cancelled).
+async function followJob(post, url, body, onProgress, started) {
+  const [status, doc] = await post(url, body);
+  if (status >= 400) throw jobError(doc, status);
+  if (status !== 202) return doc;
+  if (started) started(doc.id);
+  if (onProgress) onProgress(doc);
+  const ended = (j) => {
+    if (j.state === "done") return { ok: j.result };
+    if (j.state === "failed") return { err: jobError(j.error, j.error.status) };
+    if (j.state === "cancelled") {
+      const e = new Error(j.text); e.cancelled = true; return { err: e };
+    }
+    return null;
+  };
+  const end = await new Promise((resolve) => {
+    const es = new EventSource(`/api/jobs/${encodeURIComponent(doc.id)}/events`);
+    es.onmessage = (ev) => {
+      const j = JSON.parse(ev.data);
+      if (onProgress) onProgress(j);
+      const e = ended(j);
+      if (e) { es.close(); resolve(e); }
+    };
+    es.onerror = async () => {  // the stream broke: ask for the state until it ends
+      es.close();
+      for (;;) {
+        const j = await getJSON(`/api/jobs/${encodeURIComponent(doc.id)}`).catch(() => null);
+        if (j) { if (onProgress) onProgress(j); const e = ended(j); if (e) { resolve(e); return; } }
+        await new Promise((t) => setTimeout(t, 300));
+      }
+    };
+  });
+  if (end.err) throw end.err;
+  return end.ok;
+}
+
+const METHOD_NOTES = { ols: "the paper's", exact: "nonlinear" };
+
 function buildSliders(schema, defaults) {
   const box = $("sliders");
   for (const [key, label, unit, max, step] of SLIDERS) {
@@ -274,6 +347,7 @@ async function start() {
       schedule();
     }).catch((err) => { $("urdf-msg").textContent = String(err); }));
   buildSliders(openapi.components.schemas.SensitivityRequest, defaults);
+  fillChoices($("method"), apiChoices(openapi, "SensitivityRequest", "method"), METHOD_NOTES);
   for (const b of document.querySelectorAll(".tab")) b.addEventListener("click", () => showView(b.dataset.view));
   for (const id of ["robot", "joint_k", "poses", "plan", "q_deg", "wrench", "method", "trials"]) {
     $(id).addEventListener("change", schedule);
