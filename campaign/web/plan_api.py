@@ -12,6 +12,7 @@ which the answer names the field of. The protocol is saved as
 
 from __future__ import annotations
 
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -33,7 +34,9 @@ class PlanRequest(BaseModel):
     """source: a shipped protocol's file name or a workspace .toml path; values: key ->
     the text typed (an empty text leaves the key out); complete: ``values`` is the whole
     form (else they change the source's values); name: of the saved protocol and plan
-    directory; strategy, seed, candidates: the planner's (``campaign plan`` options)."""
+    directory; strategy, seed, candidates: the planner's (``campaign plan`` options);
+    force: replace ``protocols/NAME.toml`` and ``plans/NAME`` when they exist (as the
+    command line's ``--force``; without it an existing name is refused and nothing changes)."""
 
     source: str = Field("kr240-2.toml", max_length=300)
     values: dict[str, Annotated[str, Field(max_length=20_000)]] = Field(
@@ -43,6 +46,7 @@ class PlanRequest(BaseModel):
     strategy: str = Field("worst-joint", max_length=40)
     seed: int = Field(0, ge=0, le=2**31)
     candidates: int = Field(PlanOptions.candidates, ge=10, le=100_000)  # the CLI's default
+    force: bool = False
 
 
 def _error(text: str, field: str | None = None, status: int = 400,
@@ -146,7 +150,7 @@ def _problems(text: str, keys: list[str]) -> list[dict]:
     """One entry per line of a protocol or job message, with the form key it names."""
     from campaign.web.protocol_form import field_of
 
-    known = keys + ["strategy", "seed", "candidates", "name"]
+    known = keys + ["strategy", "seed", "candidates", "name", "force"]
     return [{"field": field_of(line, known), "detail": line}
             for line in text.splitlines() if line.strip()]
 
@@ -227,9 +231,12 @@ def _copy_warnings(proto: Path, out: Path) -> list[str]:
             "give its absolute path, or copy the robot file there"]
 
 
-def _save_checked(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONResponse:
+def _save_checked(ws: Path, body: PlanRequest,
+                  plan: bool = False) -> tuple[Path, list[str]] | JSONResponse:
     """Write the form as its protocol file and read it back with the protocol reader: the
-    (path, field keys), or the reader's refusal with the former file put back."""
+    (path, field keys), or the reader's refusal with the former file put back. A protocol
+    (and with ``plan``, a plan directory) of that name already there is refused unless
+    ``body.force``, once the form is known to be good, the former file put back."""
     from analysis.errors import InputError
     from campaign.protocol import load_protocol
 
@@ -243,6 +250,15 @@ def _save_checked(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONR
         refusal = _refusal(ws, err, keys)
         _restore(proto, previous)
         return refusal
+    taken = [p for p in (proto if previous is not None else None,
+                         ws / "plans" / body.name if plan else None)
+             if p is not None and os.path.lexists(p)]
+    if taken and not body.force:
+        _restore(proto, previous)
+        names = " and ".join(str(p.relative_to(ws)) for p in taken)
+        return _error(f"name: {names} already exist{'s' if len(taken) == 1 else ''}: add "
+                      "--force to replace, or choose another name", "name",
+                      options={"--force": "force"})
     return proto, keys
 
 
@@ -262,7 +278,7 @@ def save_protocol(request: Request, body: PlanRequest):
 @router.post("/run")
 def run_plan(request: Request, body: PlanRequest):
     """Save the form as ``protocols/NAME.toml`` and plan it into ``plans/NAME`` (replacing
-    a plan of that name); the answer: summary.json, the plan's rows, the zone map's data."""
+    them only with ``force``); the answer: summary.json, the plan's rows, the zone map's data."""
     from analysis.errors import InputError
     from campaign.jobs.choices import Strategy
     from campaign.jobs.plan import PlanOptions, run
@@ -273,7 +289,7 @@ def run_plan(request: Request, body: PlanRequest):
     except ValueError:
         return _error(f"strategy: {body.strategy!r} is not one of {', '.join(_strategies())}",
                       "strategy")
-    saved = _save_checked(ws, body)
+    saved = _save_checked(ws, body, plan=True)
     if isinstance(saved, JSONResponse):
         return saved
     proto, keys = saved

@@ -362,5 +362,18 @@ async function start() {
 // Forms are driven by script: Enter in a field never submits (reloads) the page. Attached
 // here, not inline: the page's Content Security Policy (script-src 'self') blocks inline handlers.
 for (const f of document.querySelectorAll("form")) f.addEventListener("submit", (e) => e.preventDefault());
+// Enter in a text or number field of a form runs the form's action (its data-enter button),
+// as a submit button would (the forms have none: their buttons run scripts).
+for (const f of document.querySelectorAll("form[data-enter]")) {
+  f.addEventListener("keydown", (e) => {
+    const t = e.target;
+    if (e.key !== "Enter" || e.isComposing || t.tagName !== "INPUT" ||
+        ["checkbox", "radio", "button", "file", "range"].includes(t.type)) return;
+    const button = document.getElementById(f.dataset.enter);
+    if (!button || button.disabled) return;
+    e.preventDefault();
+    button.click();
+  });
+}
 
 start().catch((err) => { $("sens-error").textContent = String(err); });

@@ -234,7 +234,8 @@ function planBody() {
   for (const [k, v] of Object.entries(pvCollect())) if (v.trim() !== "") values[k] = v;
   return { source: pvEl("plan-source").value, values, complete: true,
            name: pvEl("plan-name").value.trim(), strategy: pvEl("plan-strategy").value,
-           seed: Number(pvEl("plan-seed").value), candidates: Number(pvEl("plan-candidates").value) };
+           seed: Number(pvEl("plan-seed").value), candidates: Number(pvEl("plan-candidates").value),
+           force: pvEl("plan-force").checked };
 }
 
 function planClearMessages() {
@@ -243,8 +244,18 @@ function planClearMessages() {
   for (const m of document.querySelectorAll("#view-plan .pv-bad")) m.classList.remove("pv-bad");
 }
 
+// the previous plan's results emptied: a new "Save and plan" shows its own, or its refusal
+function planClearResults() {
+  pv.last = null;
+  for (const id of Object.keys(pv.plots)) { pv.plots[id].destroy(); delete pv.plots[id]; }
+  for (const sel of ["#plan-se tbody", "#plan-rows tbody"]) document.querySelector(sel).innerHTML = "";
+  for (const id of ["plan-map-hover", "plan-map-caption"]) pvEl(id).textContent = "";
+  pvEl("plan-map-png").hidden = true;
+}
+
 async function planRun(saveOnly) {
   planClearMessages();
+  if (!saveOnly) planClearResults();
   pvEl("plan-status").textContent = saveOnly ? "saving\u2026" : "planning\u2026";
   document.body.dataset.plan = "running";
   const [ok, d] = await pvPost(saveOnly ? "/api/plan/save" : "/api/plan/run", planBody());

@@ -1,0 +1,83 @@
+"""The page in Chromium: it starts from the command line's defaults, Enter runs a form's
+action, and a request that fails leaves none of the previous request's results shown."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.web.pages import wait_job
+from tests.web.test_plan_view import demo_ws, open_page  # noqa: F401  (fixtures)
+
+pytestmark = pytest.mark.timeout(300)
+
+
+def test_the_page_starts_from_the_command_lines_defaults(open_page, workspace):  # noqa: F811
+    page = open_page(workspace)
+    page.wait_for_function("() => document.getElementById('an-method').options.length > 0"
+                           " && document.getElementById('method').options.length > 0"
+                           " && document.getElementById('plan-candidates').value !== ''")
+    assert page.input_value("#an-method") == "exact"  # campaign analyze --method
+    assert page.input_value("#an-robust") == "none"
+    assert page.input_value("#method") == "exact"  # campaign robustness --method
+    assert page.input_value("#plan-candidates") == "10000"  # campaign plan --candidates
+    assert [o for o in page.locator("#an-method option").all_inner_texts()] == \
+        ["ols (the paper's)", "wls", "exact (nonlinear)"]
+
+
+def test_enter_in_a_field_runs_the_forms_action(open_page, workspace):  # noqa: F811
+    page = open_page(workspace)
+    page.fill("#pf-campaign-tests", "4")
+    page.fill("#plan-candidates", "300")
+    page.press("#plan-seed", "Enter")
+    assert wait_job(page, "plan", "done", "error") == "done"
+    assert (workspace / "plans" / "plan-gui" / "plan.csv").is_file()
+
+
+def test_a_refused_plan_leaves_no_previous_results(open_page, workspace):  # noqa: F811
+    page = open_page(workspace)
+    page.fill("#pf-campaign-tests", "4")
+    page.fill("#plan-candidates", "300")
+    page.click("#plan-run")
+    wait_job(page, "plan", "done")
+    assert page.locator("#plan-rows tbody tr").count() == 4
+    page.fill("#pf-campaign-tests", "0")
+    page.check("#plan-force")
+    page.click("#plan-run")
+    wait_job(page, "plan", "error")
+    assert page.locator("[data-key='campaign.tests'] .pv-msg").inner_text() != ""
+    assert page.locator("#plan-rows tbody tr").count() == 0
+    assert page.locator("#plan-se tbody tr").count() == 0
+    assert page.evaluate("() => Object.keys(pv.plots).length") == 0
+
+
+def test_a_refused_save_and_plan_names_the_replace_box(open_page, workspace):  # noqa: F811
+    page = open_page(workspace)
+    page.fill("#pf-campaign-tests", "4")
+    page.fill("#plan-candidates", "300")
+    page.click("#plan-run")
+    wait_job(page, "plan", "done")
+    page.click("#plan-run")
+    wait_job(page, "plan", "error")
+    shown = page.locator("[data-key='name'] .pv-msg").inner_text()
+    assert "\u201cReplace a protocol and plan of this name\u201d" in shown, shown
+    assert "--force" not in shown
+
+
+def test_a_failed_analysis_leaves_no_previous_verdict(open_page, demo_ws):  # noqa: F811
+    page = open_page(demo_ws)
+    page.select_option("#an-run", "run")
+    page.select_option("#an-method", "wls")
+    page.check("#an-force")
+    page.check("#an-accept")
+    page.click("#an-run-btn")
+    assert wait_job(page, "analyze", "done", "error", timeout=120_000) == "done"
+    assert page.locator("#an-verdict").inner_text() != ""
+    assert page.locator("#an-k tbody tr").count() >= 1
+    page.uncheck("#an-force")  # the run has an analysis: refused without "Re-analyse"
+    page.click("#an-run-btn")
+    assert wait_job(page, "analyze", "error", "done", timeout=120_000) == "error"
+    assert "Re-analyse" in page.locator("#an-error").inner_text()
+    assert page.locator("#an-verdict").inner_text() == ""
+    assert page.locator("#an-k tbody tr").count() == 0
+    assert page.locator("#an-links a").count() == 0
+    assert page.locator("#an-plots").is_hidden()
