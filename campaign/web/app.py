@@ -132,9 +132,9 @@ def create_app(workspace: str | Path, token: str, password: str | None = None,
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, err: RequestValidationError):
-        lines = [f"{'.'.join(str(p) for p in e.get('loc', ()))}: {e.get('msg', '')}"
-                 for e in err.errors()]
-        return JSONResponse({"detail": "; ".join(lines)}, status_code=422)
+        from campaign.web.validation_text import refusal
+
+        return JSONResponse(refusal(list(err.errors())), status_code=422)
 
     @app.get("/", include_in_schema=False)
     def index():

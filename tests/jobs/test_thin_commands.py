@@ -86,8 +86,9 @@ QUEUED_TASKS = {("job_tasks.py", job) for job in LONG_JOBS} | {
 #: handlers that still run a long job in the request (moving them to the queue is pending)
 LEFT_IN_REQUEST = {("plan_api.py", "plan")}
 #: what a web handler may import from analysis/: errors, the named choices, the names of
-#: robots, the verdict's wording
+#: robots, the verdict's wording and the report's number formats
 WEB_PRESENTATION = {"analysis.errors", "analysis.choices", "analysis.file_errors",
+                    "analysis.report.formatting",
                     "analysis.model.robot_spec", "analysis.model.robots",
                     "analysis.report.verdict", "analysis.kinetostatics.equilibrium"}
 #: imports of analysis/ left in a handler (to move into its job)

@@ -81,3 +81,10 @@ def test_a_failed_analysis_leaves_no_previous_verdict(open_page, demo_ws):  # no
     assert page.locator("#an-k tbody tr").count() == 0
     assert page.locator("#an-links a").count() == 0
     assert page.locator("#an-plots").is_hidden()
+
+
+def test_numbers_that_round_to_zero_have_no_sign(open_page, workspace):  # noqa: F811
+    page = open_page(workspace)
+    assert page.evaluate("() => [pvText(-0.04, 1), pvText(-0.06, 1), pvText(-0.0, 2),"
+                         " pvText(0.04, 1), pvText(-12.345, 1)]") == \
+        ["0.0", "-0.1", "0.00", "0.0", "-12.3"]

@@ -21,7 +21,12 @@ async function pvPostStatus(url, body) {
   return [r.status, await r.json().catch(() => ({ detail: `${r.status}` }))];
 }
 
-function pvText(v, digits) { return v === null || v === undefined ? "\u2013" : v.toFixed(digits); }
+// a number with `digits` decimals; a value that rounds to zero is "0.0", never "-0.0"
+function pvText(v, digits) {
+  if (v === null || v === undefined) return "\u2013";
+  const t = v.toFixed(digits);
+  return /^-0\.?0*$/.test(t) ? t.slice(1) : t;
+}
 
 // ---- Plan ----
 // The form is generated from /api/plan/form: every key of the protocol schema, keyed by
