@@ -29,17 +29,42 @@ from campaign.jobs.common import Stage, floats, no_stage, six_joints, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
 
-#: the noise overrides: options record field -> (NoiseModel field, option named in messages,
-#: factor from the command line's unit to SI)
-NOISE_OVERRIDES = {
-    "translation_sigma_m": ("translation_sigma_override", "--translation-sigma-um", 1e-6),
-    "rotation_sigma_rad": ("rotation_sigma_override", "--rotation-sigma-urad", 1e-6),
-    "force_sigma_N": ("force_sigma", "--force-sigma-N", 1.0),
-    "moment_sigma_Nm": ("moment_sigma", "--moment-sigma-Nm", 1.0),
-    "joint_sigma_rad": ("joint_sigma_override", "--joint-sigma-urad", 1e-6),
-    "force_relative": ("force_relative", "--force-pct", 0.01),
-    "moment_relative": ("moment_relative", "--moment-pct", 0.01),
-}
+
+@dataclass(frozen=True)
+class NoiseOverride:
+    """One noise figure an analysis may override: ``field`` of :class:`AnalyzeOptions` (SI),
+    the :class:`NoiseModel` field it sets, the command-line ``option`` that gives it (named
+    in messages), and ``to_si``: that option's unit in SI (um -> m: 1e-6; % -> 0.01)."""
+
+    field: str
+    noise_field: str
+    option: str
+    to_si: float
+
+
+#: the noise overrides, each a record (the command line and the web name them, never
+#: count them)
+NOISE_OVERRIDES: tuple[NoiseOverride, ...] = (
+    NoiseOverride("translation_sigma_m", "translation_sigma_override",
+                  "--translation-sigma-um", 1e-6),
+    NoiseOverride("rotation_sigma_rad", "rotation_sigma_override", "--rotation-sigma-urad",
+                  1e-6),
+    NoiseOverride("force_sigma_N", "force_sigma", "--force-sigma-N", 1.0),
+    NoiseOverride("moment_sigma_Nm", "moment_sigma", "--moment-sigma-Nm", 1.0),
+    NoiseOverride("joint_sigma_rad", "joint_sigma_override", "--joint-sigma-urad", 1e-6),
+    NoiseOverride("force_relative", "force_relative", "--force-pct", 0.01),
+    NoiseOverride("moment_relative", "moment_relative", "--moment-pct", 0.01),
+)
+
+
+def noise_fields(typed: dict[str, float | None]) -> dict[str, float | None]:
+    """The options record's noise fields (SI; None: not given) from the values typed in the
+    command line's units, by option (``{"--force-sigma-N": 2.0, "--force-pct": 0.5}``)."""
+    unknown = set(typed) - {n.option for n in NOISE_OVERRIDES}
+    if unknown:
+        raise ValueError(f"not noise options: {', '.join(sorted(unknown))}")
+    return {n.field: None if typed.get(n.option) is None else typed[n.option] * n.to_si
+            for n in NOISE_OVERRIDES}
 
 
 @dataclass(frozen=True)
@@ -114,24 +139,15 @@ def override_noise(noise: NoiseModel, values: dict[str, float | None]) -> tuple[
     given) to ``noise``; returns the noise model and the options (as the command line
     names them) that changed it."""
     changed, used = {}, []
-    for name, (key, option, _) in NOISE_OVERRIDES.items():
-        value = values.get(name)
+    for n in NOISE_OVERRIDES:
+        value = values.get(n.field)
         if value is None:
             continue
-        if not (np.isfinite(value) and (value > 0 or (value == 0 and option.endswith("pct")))):
-            raise InputError("expected a positive number", where=option)
-        changed[key] = value
-        used.append(option)
+        if not (np.isfinite(value) and (value > 0 or (value == 0 and n.option.endswith("pct")))):
+            raise InputError("expected a positive number", where=n.option)
+        changed[n.noise_field] = value
+        used.append(n.option)
     return (noise.with_overrides(**changed) if changed else noise), used
-
-
-def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm, q_urad=None, f_pct=None,
-                    m_pct=None) -> tuple[NoiseModel, list]:
-    """:func:`override_noise` with the command line's units (um, urad, N, N m, urad, %)."""
-    typed = dict(zip(NOISE_OVERRIDES, (t_um, r_urad, f_n, m_nm, q_urad, f_pct, m_pct),
-                     strict=True))
-    return override_noise(noise, {k: None if v is None else v * NOISE_OVERRIDES[k][2]
-                                  for k, v in typed.items()})
 
 
 def _instrument_text(spec) -> str:
@@ -566,7 +582,8 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         table, model, noise, info, extras = _from_csv(measurements, o.robot, o.tip,
                                                       tool_xyz_mm, tool_rpy_deg)
     protocol = extras["protocol"]
-    noise, overridden = override_noise(noise, {k: getattr(o, k) for k in NOISE_OVERRIDES})
+    noise, overridden = override_noise(noise, {n.field: getattr(o, n.field)
+                                               for n in NOISE_OVERRIDES})
     noise_source = extras["noise_source"] + (
         f"; overridden by {', '.join(overridden)}" if overridden else "")
     joint_list = parse_joints(o.joints)

@@ -106,6 +106,10 @@ def describe(err: BaseException, ws: Path | None, options=None) -> dict | None:
     record = {"status": status, "detail": text, "field": fault, "options": named}
     if isinstance(err, Refused):  # the reasons as the job gave them, one record each
         record["refused"] = [{"text": _relative(r.text, ws)} for r in err.reasons]
+    problems = getattr(err, "problems", None)  # a form's refusal: each line with its field
+    if isinstance(problems, list):
+        record["problems"] = [{"field": p.get("field"), "detail": _relative(p["detail"], ws)}
+                              for p in problems]
     return record
 
 

@@ -46,13 +46,15 @@ class Reason(BaseModel):
 
 class JobError(BaseModel):
     """A queued job's refusal (see :func:`campaign.web.job_errors.describe`); ``refused``:
-    the reasons of a result the data do not support (the analyze job), one each."""
+    the reasons of a result the data do not support (the analyze job), one each;
+    ``problems``: a form's refusal, each line with the form field it names (the Plan view)."""
 
     status: int
     detail: str
     field: str | None = None
     options: dict[str, str] = {}
     refused: list[Reason] | None = None
+    problems: list[dict] | None = None
 
 
 class JobState(BaseModel):

@@ -22,6 +22,20 @@ def plan(progress, options):
     return run(options, stage=progress_hooks.stage(progress))
 
 
+def plan_for_the_form(progress, options, keys: tuple[str, ...]):
+    """The plan job of the Plan view's form: its stages as progress; its result as the view
+    shows it (rows, zone map); a refusal with each line mapped to the form's ``keys``."""
+    from analysis.errors import InputError
+    from campaign.jobs.plan import run
+    from campaign.web.plan_api import form_refusal, planned
+
+    try:
+        result = run(options, stage=progress_hooks.stage(progress))
+    except InputError as err:
+        raise form_refusal(err, list(keys)) from None
+    return planned(result, options.protocol)
+
+
 def maps(progress, options):
     """The maps job; its stages and notes as progress."""
     from campaign.jobs.maps import run

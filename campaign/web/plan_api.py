@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 import re
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -22,7 +23,9 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
+from analysis.errors import InputError
 from campaign.jobs.plan import PlanOptions
+from campaign.web.job_submit import QUEUED, submit
 
 router = APIRouter(prefix="/api/plan", tags=["plan"])
 
@@ -275,13 +278,15 @@ def save_protocol(request: Request, body: PlanRequest):
     return {"protocol": str(proto.relative_to(ws))}
 
 
-@router.post("/run")
+@router.post("/run", status_code=202, responses=QUEUED)
 def run_plan(request: Request, body: PlanRequest):
-    """Save the form as ``protocols/NAME.toml`` and plan it into ``plans/NAME`` (replacing
-    them only with ``force``); the answer: summary.json, the plan's rows, the zone map's data."""
-    from analysis.errors import InputError
+    """Save the form as ``protocols/NAME.toml`` (read back at once: a refusal is 400 with
+    its message per field) and plan it into ``plans/NAME`` (replacing them only with
+    ``force``) as a queued job: 202 with the job, whose result is summary.json, the plan's
+    rows and the zone map's data, and whose refusal carries ``problems``, one per line
+    with the form key it names."""
     from campaign.jobs.choices import Strategy
-    from campaign.jobs.plan import PlanOptions, run
+    from campaign.web import job_tasks
 
     ws = Path(request.app.state.workspace)
     try:
@@ -293,23 +298,61 @@ def run_plan(request: Request, body: PlanRequest):
     if isinstance(saved, JSONResponse):
         return saved
     proto, keys = saved
-    out = ws / "plans" / body.name
-    try:
-        result = run(PlanOptions(protocol=proto, out=out, strategy=strategy, seed=body.seed,
-                                 candidates=body.candidates, force=True, map_points=True))
-    except InputError as err:
-        return _refusal(ws, err, keys)
-    except Exception as err:
-        if type(err).__name__ == "EquilibriumError":
-            return _error(f"nonlinear equilibrium: {err}; reduce the wrench", None)
-        raise
+    options = PlanOptions(protocol=proto, out=ws / "plans" / body.name, strategy=strategy,
+                          seed=body.seed, candidates=body.candidates, force=True,
+                          map_points=True)
+    return submit(request, ws, "plan", options, job_tasks.plan_for_the_form,
+                  extra=(tuple(keys),))
+
+
+@dataclass(frozen=True)
+class PlanShown:
+    """What the Plan view shows of a plan: summary.json's document, plan.csv's rows, the
+    zone map's data, the protocol copy's warnings, and the paths (absolute: the queue
+    writes them relative to the workspace)."""
+
+    summary: dict
+    rows: list
+    map: dict | None
+    warnings: list
+    protocol: Path
+    out: Path
+    files: list
+
+    def to_json(self) -> dict:
+        return {"summary": self.summary, "rows": self.rows, "map": self.map,
+                "warnings": self.warnings, "protocol": str(self.protocol),
+                "out": str(self.out), "files": [str(f) for f in self.files]}
+
+
+def planned(result, protocol: Path) -> PlanShown:
+    """The plan job's ``result`` (planned from ``protocol``) as the Plan view shows it."""
     import pandas as pd
 
-    from campaign.jobs.choices import json_ready
-
+    out = Path(result.plan_file).parent
     rows = pd.read_csv(out / "plan.csv").to_dict(orient="records")
-    return JSONResponse(json_ready({
-        "summary": result.summary, "rows": rows, "map": result.map,
-        "warnings": _copy_warnings(proto, out),
-        "protocol": str(proto.relative_to(ws)), "out": str(out.relative_to(ws)),
-        "files": sorted(str(p.relative_to(ws)) for p in out.iterdir() if p.is_file())}))
+    return PlanShown(result.summary, rows, result.map, _copy_warnings(protocol, out),
+                     protocol, out, sorted(p for p in out.iterdir() if p.is_file()))
+
+
+class FormRefusal(InputError):
+    """A refusal of the plan job with ``problems``: each line of its message with the form
+    key it names (``[{"field", "detail"}]``), for the page to show beside the field."""
+
+    def __init__(self, message: str, problems: list[dict], where: str | None = None):
+        self.problems = problems
+        self.message = message
+        super().__init__(message)
+        self.where = where
+
+    def __reduce__(self):
+        return (_form_refusal, (self.message, self.problems, self.where))
+
+
+def _form_refusal(message: str, problems: list[dict], where: str | None) -> FormRefusal:
+    return FormRefusal(message, problems, where)
+
+
+def form_refusal(err: InputError, keys: list[str]) -> FormRefusal:
+    """The plan job's refusal ``err`` with its lines mapped to the form's ``keys``."""
+    return FormRefusal(str(err), _problems(str(err), list(keys)), err.where)

@@ -84,7 +84,7 @@ LONG_JOBS = {"plan", "acquire", "analyze", "maps", "robustness", "compensate", "
 QUEUED_TASKS = {("job_tasks.py", job) for job in LONG_JOBS} | {
     ("demo_api.py", "demo"), ("acquire_api.py", "acquire")}
 #: handlers that still run a long job in the request (moving them to the queue is pending)
-LEFT_IN_REQUEST = {("plan_api.py", "plan")}
+LEFT_IN_REQUEST: set[tuple[str, str]] = set()
 #: what a web handler may import from analysis/: errors, the named choices, the names of
 #: robots, the verdict's wording and the report's number formats
 WEB_PRESENTATION = {"analysis.errors", "analysis.choices", "analysis.file_errors",

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.web.conftest import post_followed
 from tests.web.pages import wait_job
 from tests.web.test_plan_view import _followed, demo_ws, open_page  # noqa: F401
 
@@ -32,7 +33,7 @@ def test_analyze_refusal_names_its_options(demo_ws):  # noqa: F811
 
 def test_plan_refusal_names_its_options(client):
     # the form sends no weights: the planner's refusal names --weights, the field weights
-    r = client.post("/api/plan/run", json={"strategy": "weighted", "candidates": 100,
+    r = post_followed(client, "/api/plan/run", json={"strategy": "weighted", "candidates": 100,
                                            "name": "pw"})
     assert r.status_code == 400, r.text
     d = r.json()

@@ -19,6 +19,7 @@ from tests.web.conftest import (
     browser_page,
     copy_acquired,
     gui_server,
+    post_followed,
 )
 from tests.web.pages import wait_job
 
@@ -39,7 +40,7 @@ def _cli_message(tmp_path: Path, key_line: str, bad_line: str) -> str:
 
 
 def test_plan_endpoint_writes_the_plan_and_protocol(client, workspace):
-    r = client.post("/api/plan/run", json={"values": {"campaign.tests": "4",
+    r = post_followed(client, "/api/plan/run", json={"values": {"campaign.tests": "4",
                     "instruments.pose.noise.translation_um": "40",
                     "tool.xyz_mm": "0, 0, 120", "sampling.use_robot_zones": "true",
                     "safety.max_joint_speed_deg_s": "12"}, "candidates": 300,
@@ -71,7 +72,7 @@ def test_plan_endpoint_writes_the_plan_and_protocol(client, workspace):
     ("thresholds.max_v_p", "max_v_p = 0.02 ", 'max_v_p = "x" ')])
 def test_plan_endpoint_names_the_field_with_the_cli_message(client, tmp_path, key, line, bad):
     value = bad.split("=", 1)[1].strip().strip('"')
-    r = client.post("/api/plan/run", json={"values": {key: value}, "candidates": 100})
+    r = post_followed(client, "/api/plan/run", json={"values": {key: value}, "candidates": 100})
     assert r.status_code == 400
     d = r.json()
     assert d["field"] == key
@@ -79,10 +80,11 @@ def test_plan_endpoint_names_the_field_with_the_cli_message(client, tmp_path, ke
 
 
 def test_plan_endpoint_refuses_bad_requests(client):
-    assert client.post("/api/plan/run", json={"name": "../x"}).json()["field"] == "name"
-    assert client.post("/api/plan/run", json={"values": {"nope.key": "1"}}).status_code == 400
-    assert client.post("/api/plan/run", json={"source": "/etc/passwd"}).status_code in (400, 422)
-    r = client.post("/api/plan/run", json={"strategy": "best", "candidates": 100})
+    assert post_followed(client, "/api/plan/run", json={"name": "../x"}).json()["field"] == "name"
+    run = "/api/plan/run"
+    assert post_followed(client, run, json={"values": {"nope.key": "1"}}).status_code == 400
+    assert post_followed(client, run, json={"source": "/etc/passwd"}).status_code in (400, 422)
+    r = post_followed(client, "/api/plan/run", json={"strategy": "best", "candidates": 100})
     assert r.status_code == 400 and r.json()["field"] == "strategy"
 
 

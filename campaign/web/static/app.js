@@ -83,6 +83,7 @@ function jobError(err, status) {
   const e = new Error(detail || String(status));
   e.detail = detail; e.field = (err && err.field) || null; e.options = (err && err.options) || {};
   e.refused = (err && err.refused) || [];
+  e.problems = (err && err.problems) || undefined;
   e.status = status;
   return e;
 }

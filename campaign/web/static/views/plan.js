@@ -263,7 +263,19 @@ async function planRun(saveOnly) {
   if (!saveOnly) planClearResults();
   pvEl("plan-status").textContent = saveOnly ? "saving\u2026" : "planning\u2026";
   document.body.dataset.plan = "running";
-  const [ok, d] = await pvPost(saveOnly ? "/api/plan/save" : "/api/plan/run", planBody());
+  // "Save and plan" is a queued job (/api/plan/run answers 202): followed to its end
+  let ok = true, d;
+  if (saveOnly) [ok, d] = await pvPost("/api/plan/save", planBody());
+  else {
+    try {
+      d = await followJob(pvPostStatus, "/api/plan/run", planBody(),
+        (j) => { if (j.text) pvEl("plan-status").textContent = j.text; });
+    } catch (err) {
+      ok = false;
+      d = { detail: err.detail || String(err), field: err.field, options: err.options,
+            problems: err.problems };
+    }
+  }
   if (!ok) {
     const rest = [];
     for (const p of d.problems || [{ field: d.field, detail: d.detail }]) {
