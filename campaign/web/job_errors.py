@@ -110,6 +110,9 @@ def describe(err: BaseException, ws: Path | None, options=None) -> dict | None:
     if isinstance(problems, list):
         record["problems"] = [{"field": p.get("field"), "detail": _relative(p["detail"], ws)}
                               for p in problems]
+        # the form's key its first line names is the field at fault
+        if problems and problems[0].get("field"):
+            record["field"] = problems[0]["field"]
     return record
 
 
