@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,6 +28,9 @@ from campaign.jobs.choices import DEFAULT_METHOD, DEFAULT_TRIALS, Covariance, Me
 from campaign.jobs.common import Stage, floats, no_stage, six_joints, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
+
+if TYPE_CHECKING:  # the identification imports scipy: not at start-up
+    from analysis.identification.result import IdentificationResult
 
 
 @dataclass(frozen=True)
@@ -120,7 +123,7 @@ class AnalyzeResult:
     results: dict
     summary: dict
     files: dict[str, Path]
-    identification: Any = None
+    identification: IdentificationResult | None = None
     early_warnings: int = 0
     assumptions: dict = field(default_factory=dict)
 
@@ -234,12 +237,30 @@ def _tool_problem(result, model, tests, noise, method: str, tool):
     return [], result
 
 
-def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
-              warn: Callable[[str], None]):
-    """(table, robot, noise, info, extras) of a run directory.
+@dataclass(frozen=True)
+class AnalysisInput:
+    """What an analysis rests on besides its tests, read from a run directory or a tests
+    CSV file: the robot model, the noise model of one test row and where its figures come
+    from, the campaign's facts (:class:`analysis.report.summary.CampaignInfo`), the
+    protocol (None for a CSV file), the simulated lab's true joint stiffness (N m/rad;
+    None unless simulated), the tool point and where the robot comes from.
 
-    extras: protocol, true_k, tool (:class:`ToolPoint`), noise_source, robot_source.
-    """
+    The tests travel beside it (``(tests, input)``), so that a run's table can be let go
+    once it is turned into arrays."""
+
+    robot: Any
+    noise: NoiseModel
+    noise_source: str
+    info: Any
+    protocol: Any
+    true_k: np.ndarray | None
+    tool: ToolPoint
+    robot_source: str
+
+
+def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
+              warn: Callable[[str], None]) -> tuple[Any, AnalysisInput]:
+    """(the run's table of good rows, :class:`AnalysisInput`) of a run directory."""
     from campaign.protocol import load_protocol
     from campaign.protocol_robot import protocol_robot
     from campaign.run_format.reader import read_run
@@ -280,10 +301,9 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
             warn(note)
     info = _run_info(run, robot.name, protocol, tool)
     true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
-    extras = {"protocol": protocol, "true_k": None if true_k is None else np.asarray(true_k,
-                                                                                      float),
-              "tool": tool, "noise_source": noise_source, "robot_source": robot_source}
-    return run.ok, robot, noise, info, extras
+    return run.ok, AnalysisInput(robot, noise, noise_source, info, protocol,
+                                 None if true_k is None else np.asarray(true_k, float),
+                                 tool, robot_source)
 
 
 def _sha256(path: Path) -> str:
@@ -298,10 +318,10 @@ def _sha256(path: Path) -> str:
 
 
 def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str | None,
-              tool_rpy: str | None):
-    """(tests, robot, noise, info, extras) of a tests CSV file and its sidecar, if any;
-    tests as :class:`TestArrays` (read straight into arrays: a 1e6-row file never
-    becomes a table)."""
+              tool_rpy: str | None) -> tuple[Any, AnalysisInput]:
+    """(tests, :class:`AnalysisInput`) of a tests CSV file and its sidecar, if any; tests
+    as :class:`TestArrays` (read straight into arrays: a 1e6-row file never becomes a
+    table)."""
     from analysis.identification.io.csv_reader import read_test_arrays
     from analysis.report.summary import CampaignInfo
     from campaign.run_format.tests_meta import read_sidecar
@@ -333,9 +353,8 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
                         protocol_file="-", protocol_sha256="-",
                         measurements_sha256=_sha256(path),
                         n_rows=tests.m, n_ok=tests.m, notes=notes)
-    return tests, robot, noise, info, {"protocol": None, "true_k": None, "tool": tool,
-                                       "noise_source": noise_source,
-                                       "robot_source": robot_source}
+    return tests, AnalysisInput(robot, noise, noise_source, info, None, None, tool,
+                                robot_source)
 
 
 METHOD_TEXT = {
@@ -345,15 +364,16 @@ METHOD_TEXT = {
 }
 
 
-def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, method: str,
+def _assumptions(inp: AnalysisInput, noise: NoiseModel, noise_source: str, method: str,
                  covariance: str, joints, robust: str = "none") -> dict:
-    """What the analysis rests on (results.json ``assumptions``, the terminal, the report)."""
+    """What the analysis rests on (results.json ``assumptions``, the terminal, the report);
+    ``noise``, ``noise_source``: ``inp``'s with the options' overrides."""
     from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, pose_tolerance
     from campaign.run_format.tests_meta import CONVENTIONS
 
-    tool: ToolPoint = extras["tool"]
+    tool = inp.tool
     return {
-        "robot": f"{model.name} ({extras['robot_source']})",
+        "robot": f"{inp.robot.name} ({inp.robot_source})",
         "tool_point": tool.describe(),
         "noise": {**noise.describe(), "source": noise_source},
         "method": METHOD_TEXT.get(method, method),
@@ -369,7 +389,7 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
         "poses": (f"tests whose joint angles agree to within "
                   f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
                   "encoder sigmas) are at one pose"),
-        "validation_folds": _folds_text(extras.get("protocol")),
+        "validation_folds": _folds_text(inp.protocol),
         "conventions": CONVENTIONS,
     }
 
@@ -487,7 +507,7 @@ def _frozen_heap():
 
 
 def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: int,
-                   protocol, wrench, noise, pose, extras, run_dir,
+                   protocol, wrench, noise, pose, true_k, run_dir,
                    stage: Stage = no_stage) -> dict[str, Path]:
     """Write results.json, residuals.csv, model.toml, the report and analysis.json into
     ``out`` (a new directory); returns the paths of the main files by name."""
@@ -525,7 +545,7 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
             robot=model, tests=tests, info=info, noise=noise, wrench=w,
             wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
             nominal=None if nominal is None else np.asarray(nominal, float),
-            nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
+            nominal_label=label, nominal_source=nominal_source, true_k=true_k,
             map_fixed=_map_fixed(protocol, model.n, tests.q[
                 [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
             trials=trials, load_cases=_load_cases(protocol, tests.w, noise))
@@ -573,24 +593,23 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
                              where="--robot")
         check_output_dir(out or run_dir / "analysis", o.force, "--out",
                          replaces="replace its contents")
-        table, model, noise, info, extras = _from_run(run_dir, tool_xyz_mm, tool_rpy_deg, warn)
+        table, inp = _from_run(run_dir, tool_xyz_mm, tool_rpy_deg, warn)
         out = out or run_dir / "analysis"
     else:
         if out is None:
             raise InputError("--measurements needs --out DIR", where="--out")
         check_output_dir(out, o.force, "--out", replaces="replace its contents")
-        table, model, noise, info, extras = _from_csv(measurements, o.robot, o.tip,
-                                                      tool_xyz_mm, tool_rpy_deg)
-    protocol = extras["protocol"]
-    noise, overridden = override_noise(noise, {n.field: getattr(o, n.field)
-                                               for n in NOISE_OVERRIDES})
-    noise_source = extras["noise_source"] + (
+        table, inp = _from_csv(measurements, o.robot, o.tip, tool_xyz_mm, tool_rpy_deg)
+    model, info, protocol = inp.robot, inp.info, inp.protocol
+    noise, overridden = override_noise(inp.noise, {n.field: getattr(o, n.field)
+                                                   for n in NOISE_OVERRIDES})
+    noise_source = inp.noise_source + (
         f"; overridden by {', '.join(overridden)}" if overridden else "")
     joint_list = parse_joints(o.joints)
     if o.report and o.trials < 10:
         raise InputError("need at least 10 trials", where="--trials")
-    assumptions = _assumptions(model, extras, noise, noise_source, method, covariance,
-                               joint_list, robust)
+    assumptions = _assumptions(inp, noise, noise_source, method, covariance, joint_list,
+                               robust)
     on_assumptions(assumptions)
     with stage(f"identification ({method}) and validation"):
         # the arrays once (a CSV file is read into them directly); the table of a run
@@ -604,7 +623,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     # what the run's reader warned about (a damaged run) stays with the result
     early = [n.removeprefix("WARNING: ") for n in info.notes if n.startswith("WARNING")]
     no_tool = []
-    if measurements is not None and extras["tool"].source.startswith("none given"):
+    if measurements is not None and inp.tool.source.startswith("none given"):
         no_tool = [
             "no tool point given: P assumed at the flange centre; if the displacements "
             "and wrench were measured at a tool point, give --tool-xyz-mm/--tool-rpy-deg "
@@ -617,7 +636,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     # residuals are the exact model's (as in the chi-square)
     corrected = (result.linear_bias or {}).get("reliable", False)
     tool_refusals, result = _tool_problem(result, model, tests, noise,
-                                          "exact" if corrected else method, extras["tool"])
+                                          "exact" if corrected else method, inp.tool)
     refused += tool_refusals
     if refused and not o.accept_misfit:
         raise Refused(tuple(Refusal(text) for text in refused),
@@ -628,7 +647,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     # the end: a refused or failed analysis leaves the earlier one untouched
     with replaced_dir(out, o.force, "--out") as new:
         paths = _write_outputs(result, model, new, tests, info, o.report, o.trials, protocol,
-                               o.wrench_N_Nm, noise, o.poses_rad, extras, run_dir, stage)
+                               o.wrench_N_Nm, noise, o.poses_rad, inp.true_k, run_dir, stage)
     paths = {k: out / Path(p).relative_to(new) for k, p in paths.items()}
     return AnalyzeResult(json.loads((out / "results.json").read_text()),
                          json.loads((out / "analysis.json").read_text()), paths, result,
