@@ -88,3 +88,24 @@ def test_numbers_that_round_to_zero_have_no_sign(open_page, workspace):  # noqa:
     assert page.evaluate("() => [pvText(-0.04, 1), pvText(-0.06, 1), pvText(-0.0, 2),"
                          " pvText(0.04, 1), pvText(-12.345, 1)]") == \
         ["0.0", "-0.1", "0.00", "0.0", "-12.3"]
+
+
+def test_a_refused_sensitivity_request_hides_the_previous_figures(server, open_url):
+    """An unknown robot: the figures, the table and the timing line were the previous
+    settings'; they are hidden until a request succeeds again."""
+    page = open_url(server)
+    page.wait_for_selector("#row-k6", timeout=60_000)
+    shown = "() => document.body.dataset.shown === JSON.stringify(body())"
+    page.wait_for_function(shown, timeout=60_000)
+    assert "trials" in page.locator("#sens-status").inner_text()
+    page.fill("#robot", "kr999")
+    page.dispatch_event("#robot", "change")
+    page.wait_for_function("() => document.body.dataset.shown === 'error:' + "
+                           "JSON.stringify(body())", timeout=60_000)
+    assert "robot" in page.locator("#sens-error").inner_text()
+    assert page.locator("#sens-status").inner_text() == ""
+    assert page.locator("#sens-figures").is_hidden() and page.locator("#sens-table").is_hidden()
+    page.fill("#robot", "kr240-2")
+    page.dispatch_event("#robot", "change")
+    page.wait_for_function(shown, timeout=60_000)
+    assert page.locator("#sens-figures").is_visible() and page.locator("#row-k6").is_visible()

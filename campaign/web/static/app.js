@@ -197,9 +197,15 @@ async function update() {
     const data = await r.json();
     if (!r.ok) {
       $("sens-error").textContent = data.detail || r.statusText;
+      // the figures, the table and the timing were the previous settings': not shown
+      $("sens-status").textContent = "";
+      $("sens-figures").hidden = true;
+      $("sens-table").hidden = true;
       document.body.dataset.shown = "error:" + JSON.stringify(payload);
     } else {
       $("sens-error").textContent = "";
+      $("sens-figures").hidden = false;
+      $("sens-table").hidden = false;
       render(data);
       state.updates += 1;
       document.body.dataset.updates = String(state.updates);
