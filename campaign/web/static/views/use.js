@@ -352,6 +352,7 @@ function fileLink(path) {
 
 async function runCompensation() {
   u$("comp-error").textContent = "";
+  u$("comp-result").hidden = true;  // the previous compensation's: shown again only by this one
   u$("comp-run").disabled = true;
   const view = u$("view-use");
   view.dataset.comp = "running";
