@@ -133,8 +133,6 @@ class AnalyzeResult:
                 **self.summary}
 
 
-# kept importable from here (tests and older scripts import it from this module)
-_noise_from_protocol = noise_from_protocol
 
 
 def override_noise(noise: NoiseModel, values: dict[str, float | None]) -> tuple[NoiseModel, list]:

@@ -31,19 +31,6 @@ from campaign.cli.common import (
 )
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
-#: the job's names that tests and scripts import from here; looked up when asked for, so
-#: that importing this module (every ``campaign analyze --help``) does not import numpy
-_FROM_THE_JOB = ("NOISE_OVERRIDES", "_noise_from_protocol")
-
-
-def __getattr__(name: str):
-    if name in _FROM_THE_JOB:
-        from campaign.jobs import analyze as job
-
-        return getattr(job, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 #: panels of --help (campaign.cli.common)
 _INPUT = "Input and tool point"
 _FIT = "Estimation and checks"
