@@ -11,11 +11,8 @@ web API answers with the same lines.
 
 from __future__ import annotations
 
-import atexit
-import gc
 import json
 from collections.abc import Callable, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -24,6 +21,7 @@ import numpy as np
 
 from analysis.errors import InputError, Refusal, Refused
 from analysis.identification.noise import NoiseModel
+from campaign.jobs import heap
 from campaign.jobs.choices import DEFAULT_METHOD, DEFAULT_TRIALS, Covariance, Method, Robust
 from campaign.jobs.common import Stage, floats, no_stage, six_joints, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
@@ -412,15 +410,6 @@ def _folds_text(protocol) -> str:
             f"held out together ({source})")
 
 
-def _release_freed_heap() -> None:
-    """:func:`analysis.identification.streaming.per_test.release_freed_heap` (the text table's cells
-    are many small allocations: freed, they stay in the process, ~0.15 GB after a
-    1e6-row import, under the arrays the fits then allocate)."""
-    from analysis.identification.streaming.per_test import release_freed_heap
-
-    release_freed_heap()
-
-
 def _poses(robot, protocol, pose_args: Sequence[Sequence[float]], q_tests: np.ndarray,
            labels) -> list:
     poses = []
@@ -485,25 +474,6 @@ def _map_fixed(protocol, n: int, q_poses: np.ndarray):
                             q_poses)
 
 
-@contextmanager
-def _frozen_heap():
-    """Leave the objects alive now (mostly those of the imported modules: numpy, pandas,
-    matplotlib, fpdf, about a million) out of the cyclic garbage collector's passes until
-    the block ends; objects made inside are collected as usual. Each full collection
-    would otherwise walk all of them again, about 0.1 s each and several per report."""
-    gc.freeze()
-    try:
-        yield
-        # Every output is written and closed: at interpreter exit, the objects alive then
-        # are left to the operating system instead of being walked by the final collection
-        # and torn down one by one (about 0.4 s for this process). The other exit handlers
-        # still run and stdout/stderr are still flushed; __del__ is never promised at exit.
-        atexit.unregister(gc.freeze)
-        atexit.register(gc.freeze)
-    finally:
-        gc.unfreeze()
-
-
 def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: int,
                    protocol, wrench, noise, pose, true_k, run_dir,
                    stage: Stage = no_stage) -> dict[str, Path]:
@@ -523,7 +493,7 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
         from analysis.report.build import ReportInputs, build_report
         from analysis.report.write import write_report
 
-        gc.freeze()
+        heap.freeze_imported()
         labels = list(dict.fromkeys(tests.pose.tolist()))
         w, w_source = _wrench(protocol, wrench, tests.w, noise)
         if protocol is None:
@@ -565,7 +535,7 @@ def run(o: AnalyzeOptions, stage: Stage = no_stage,
     ``on_assumptions(a)`` gets what the analysis rests on before the identification
     starts, ``warn(line)`` the loud warnings of a damaged run as it is read.
     """
-    with _frozen_heap():
+    with heap.frozen_heap():
         return _run(o, stage, on_assumptions or (lambda a: None), warn or (lambda s: None))
 
 
@@ -576,7 +546,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     from analysis.identification.io.measurements import TestArrays, to_arrays
     from analysis.output_files import check_output_dir, replaced_dir
 
-    gc.freeze()  # what was just imported joins the frozen objects (see _frozen_heap)
+    heap.freeze_imported()  # what was just imported (see heap.frozen_heap)
     method, covariance, robust = str(o.method), str(o.covariance), str(o.robust)
     run_dir = None if o.run_dir is None else Path(o.run_dir)
     measurements = None if o.measurements is None else Path(o.measurements)
@@ -614,7 +584,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         # is let go
         tests = table if isinstance(table, TestArrays) else to_arrays(table)
         del table
-        _release_freed_heap()
+        heap.release_freed_heap()
         result = identify(model, tests, method=method, joints=joint_list,
                           noise=noise, covariance=covariance, robust=robust,
                           holdout_radius=np.radians(_holdout_deg(protocol)[0]))
@@ -629,7 +599,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     result = replace(result, assumptions=assumptions, tests_data=fingerprint(tests),
                      warnings=(*no_tool, *early, *result.warnings))
     refused = problems(result, model.nominal_stiffness)
-    _release_freed_heap()  # the identification's freed pages, before the checks
+    heap.release_freed_heap()  # the identification's freed pages, before the checks
     # a linear fit whose bias was corrected is a compliance of the exact model: its
     # residuals are the exact model's (as in the chi-square)
     corrected = (result.linear_bias or {}).get("reliable", False)
@@ -640,7 +610,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         raise Refused(tuple(Refusal(text) for text in refused),
                       where=str(run_dir or measurements))
     result = replace(result, misfit_accepted=tuple(refused))
-    _release_freed_heap()  # the identification's freed pages, before the writer's
+    heap.release_freed_heap()  # the identification's freed pages, before the writer's
     # everything is written into a new directory that replaces ``out`` as a whole at
     # the end: a refused or failed analysis leaves the earlier one untouched
     with replaced_dir(out, o.force, "--out") as new:
