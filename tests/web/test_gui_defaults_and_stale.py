@@ -109,3 +109,19 @@ def test_a_refused_sensitivity_request_hides_the_previous_figures(server, open_u
     page.dispatch_event("#robot", "change")
     page.wait_for_function(shown, timeout=60_000)
     assert page.locator("#sens-figures").is_visible() and page.locator("#row-k6").is_visible()
+
+
+def test_the_sensitivity_view_fits_a_phone(browser, server):
+    """At 390 px the view is no wider than the window: the fields stack, the figures are
+    drawn at the window's width, the table scrolls in its own box."""
+    context = browser.new_context(viewport={"width": 390, "height": 800})
+    try:
+        page = context.new_page()
+        page.goto(server)
+        page.wait_for_selector("#row-k6", timeout=60_000)
+        assert page.evaluate("() => document.documentElement.scrollWidth") <= 390
+        for fig in ("fig-sets", "fig-spread", "fig-curve"):
+            box = page.locator(f"#{fig} canvas").bounding_box()
+            assert box is not None and box["x"] + box["width"] <= 390, (fig, box)
+    finally:
+        context.close()

@@ -249,7 +249,13 @@ function render(d) {
 
 function rel(v, k) { return v === null ? null : 100 * (v / k - 1); }
 
+// a figure no wider than the window (a phone: 390 px) less the page's margins
+function fitted(width) {
+  return Math.max(240, Math.min(width, document.documentElement.clientWidth - 60));
+}
+
 function plot(id, opts, data) {
+  opts = { ...opts, width: fitted(opts.width) };
   const old = state.plots[id];
   if (old && old.series.length === opts.series.length) { old.setData(data); return; }
   if (old) old.destroy();
