@@ -26,11 +26,15 @@ def test_the_page_starts_from_the_command_lines_defaults(open_page, workspace): 
 
 def test_enter_in_a_field_runs_the_forms_action(open_page, workspace):  # noqa: F811
     page = open_page(workspace)
+    # a fresh workspace: Acquire offers the directory Plan writes, not a "plan" that is not there
+    assert page.input_value("#acq-plan") == "plans/plan-gui"
+    page.fill("#plan-name", "mine")
     page.fill("#pf-campaign-tests", "4")
     page.fill("#plan-candidates", "300")
     page.press("#plan-seed", "Enter")
     assert wait_job(page, "plan", "done", "error") == "done"
-    assert (workspace / "plans" / "plan-gui" / "plan.csv").is_file()
+    assert (workspace / "plans" / "mine" / "plan.csv").is_file()
+    assert page.input_value("#acq-plan") == "plans/mine"  # the plan just written
 
 
 def test_a_refused_plan_leaves_no_previous_results(open_page, workspace):  # noqa: F811

@@ -308,6 +308,7 @@ async function planRun(saveOnly) {
 function planShow(d) {
   const s = d.summary;
   pv.last = d;
+  pvEl("acq-plan").value = d.out;  // the plan just written is the one to acquire next
   pvEl("plan-status").textContent = `${s.tests} tests at ${s.poses} poses of ${s.robot} ` +
     `(${s.strategy}, ${s.candidates.poses_passing} of ${s.candidates.drawn} candidates pass); ` +
     `saved ${d.protocol} and ${d.out}/`;
