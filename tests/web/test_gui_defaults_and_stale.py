@@ -137,3 +137,22 @@ def test_every_view_fits_a_phone(browser, server):
             assert page.evaluate("() => document.documentElement.scrollWidth") <= 390, view
     finally:
         context.close()
+
+
+def test_a_tab_click_right_after_load_is_not_lost(browser, server):
+    """The page's first requests held back (/openapi.json): a tab clicked meanwhile opens
+    its view (its listener does not wait for them)."""
+    context = browser.new_context()
+    held = []
+    try:
+        page = context.new_page()
+        page.route("**/openapi.json", lambda route: held.append(route))
+        page.goto(server)
+        page.click("#tab-runs")
+        assert page.locator("#view-runs").is_visible()
+        assert page.locator("#view-sensitivity").is_hidden()
+        assert held  # the test ran while the page still waited for its routes
+        for route in held:
+            route.continue_()
+    finally:
+        context.close()

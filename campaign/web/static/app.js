@@ -361,7 +361,6 @@ async function start() {
     }).catch((err) => { $("urdf-msg").textContent = String(err); }));
   buildSliders(openapi.components.schemas.SensitivityRequest, defaults);
   fillChoices($("method"), apiChoices(openapi, "SensitivityRequest", "method"), METHOD_NOTES);
-  for (const b of document.querySelectorAll(".tab")) b.addEventListener("click", () => showView(b.dataset.view));
   for (const id of ["robot", "joint_k", "poses", "plan", "q_deg", "wrench", "method", "trials"]) {
     $(id).addEventListener("change", schedule);
   }
@@ -371,6 +370,10 @@ async function start() {
   rotationChanged();
   update();
 }
+
+// The tabs work as soon as the page is there, not once the server has answered start()'s
+// requests (a click made meanwhile was lost).
+for (const b of document.querySelectorAll(".tab")) b.addEventListener("click", () => showView(b.dataset.view));
 
 // Forms are driven by script: Enter in a field never submits (reloads) the page. Attached
 // here, not inline: the page's Content Security Policy (script-src 'self') blocks inline handlers.
