@@ -1,4 +1,6 @@
-"""The README's benchmark table, generated from benchmarks/results/results.jsonl.
+"""The benchmark table of docs/benchmarks.md, generated from benchmarks/results/results.jsonl.
+
+(The file keeps its name from when the table lived in the README.)
 
 For each benchmark the row shows its latest *full* run (the benchmark's own
 default sizes); a benchmark with no full run shows its latest quick or custom
@@ -6,10 +8,10 @@ run, marked as such. Every number in the table comes from the recorded JSON
 (the benchmark's figures, the machine's load average, the date and commit);
 only the prose of the "what" column is static, here.
 
-The table sits in README.md between :data:`START` and :data:`END`.
+The table sits in docs/benchmarks.md (:data:`PAGE`) between :data:`START` and :data:`END`.
 
 Run: ``python benchmarks/readme_table.py`` rewrites the table;
-``--check`` exits 1 if README.md differs from what the results give.
+``--check`` exits 1 if docs/benchmarks.md differs from what the results give.
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ sys.path.insert(0, str(HERE))
 from targets import MET, MISSED, NOT_MEASURED, check_all  # noqa: E402
 
 RESULTS = HERE / "results" / "results.jsonl"
-README = HERE.parent / "README.md"
+#: the page that holds the table
+PAGE = HERE.parent / "docs" / "benchmarks.md"
 START = "<!-- bench-table:start -->"
 END = "<!-- bench-table:end -->"
 
@@ -387,7 +390,7 @@ def render(records: list[dict], source: str = "benchmarks/results/results.jsonl"
     return "\n".join(lines)
 
 
-def replace_block(text: str, block: str, path: Path = README) -> str:
+def replace_block(text: str, block: str, path: Path = PAGE) -> str:
     """``text`` with the part between START and END replaced by ``block``."""
     i, j = text.find(START), text.find(END)
     if i < 0 or j < i:
@@ -395,32 +398,33 @@ def replace_block(text: str, block: str, path: Path = README) -> str:
     return text[:i + len(START)] + "\n" + block + "\n" + text[j:]
 
 
-def update_readme(readme: Path = README, results: Path = RESULTS) -> bool:
-    """Rewrite the README's table from ``results``; True if the file changed."""
-    text = readme.read_text()
-    new = replace_block(text, render(read_records(results)), readme)
+def update_page(page: Path = PAGE, results: Path = RESULTS) -> bool:
+    """Rewrite the table of ``page`` (docs/benchmarks.md) from ``results``; True if the
+    file changed."""
+    text = page.read_text()
+    new = replace_block(text, render(read_records(results)), page)
     if new != text:
-        readme.write_text(new)
+        page.write_text(new)
     return new != text
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--results", type=Path, default=RESULTS)
-    parser.add_argument("--readme", type=Path, default=README)
+    parser.add_argument("--page", type=Path, default=PAGE)
     parser.add_argument("--check", action="store_true",
-                        help="exit 1 if the README's table differs from the results")
+                        help="exit 1 if the page's table differs from the results")
     args = parser.parse_args()
     if args.check:
-        text = args.readme.read_text()
-        if replace_block(text, render(read_records(args.results)), args.readme) != text:
-            print(f"{args.readme}: the benchmark table differs from {args.results}; run "
+        text = args.page.read_text()
+        if replace_block(text, render(read_records(args.results)), args.page) != text:
+            print(f"{args.page}: the benchmark table differs from {args.results}; run "
                   "python benchmarks/readme_table.py")
             return 1
-        print(f"{args.readme}: the benchmark table matches {args.results}")
+        print(f"{args.page}: the benchmark table matches {args.results}")
         return 0
-    changed = update_readme(args.readme, args.results)
-    print(f"{args.readme}: table {'regenerated' if changed else 'unchanged'}")
+    changed = update_page(args.page, args.results)
+    print(f"{args.page}: table {'regenerated' if changed else 'unchanged'}")
     return 0
 
 

@@ -16,13 +16,14 @@ target was missed (the record is kept); 2 when a benchmark failed or its last
 line was not one JSON object (no record for it). A target a run did not measure
 (e.g. the 1e6-test import in a quick run) is reported, not failed.
 
-Run everything and regenerate the README table::
+Run everything and regenerate the table of docs/benchmarks.md::
 
-    python benchmarks/run_all.py --readme
+    python benchmarks/run_all.py --table
 
 Options: names to select benchmarks (``maps planner``), ``--quick`` for small
 sizes, ``--args NAME="--sizes 1000"`` to pass options to one benchmark,
-``--results FILE``, ``--readme`` to rewrite the README's table afterwards.
+``--results FILE``, ``--table`` (or its old name ``--readme``) to rewrite the table of
+docs/benchmarks.md afterwards.
 """
 
 from __future__ import annotations
@@ -71,13 +72,13 @@ def discover(bench_dir: Path) -> dict[str, Path]:
 
 
 def git_commit(cwd: Path) -> tuple[str | None, bool | None]:
-    """(HEAD commit, whether tracked files other than the results and README.md differ
+    """(HEAD commit, whether tracked files other than the results and the table's page differ
     from it); (None, None) outside git."""
     try:
         head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True,
                               text=True, check=True).stdout.strip()
         status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
-                                 ".", ":!benchmarks/results", ":!README.md"],
+                                 ".", ":!benchmarks/results", ":!docs/benchmarks.md"],
                                 cwd=cwd, capture_output=True, text=True, check=True).stdout
     except (OSError, subprocess.CalledProcessError):
         return None, None
@@ -150,8 +151,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--results", type=Path, default=RESULTS, help="results.jsonl to append to")
     parser.add_argument("--bench-dir", type=Path, default=HERE, help=argparse.SUPPRESS)
     parser.add_argument("--timeout", type=float, default=None, help="s per benchmark")
-    parser.add_argument("--readme", action="store_true",
-                        help="regenerate the README's benchmark table from the results")
+    parser.add_argument("--table", "--readme", action="store_true", dest="table",
+                        help="regenerate the benchmark table of docs/benchmarks.md from the "
+                             "results")
     args = parser.parse_args(argv)
 
     scripts = discover(args.bench_dir)
@@ -202,11 +204,12 @@ def main(argv: list[str] | None = None) -> int:
             missed.append(name)
         print(f"== {name}: recorded in {args.results} ({wall:.0f} s wall; load average "
               f"{load_before[0]:.1f} -> {load_after[0]:.1f})", flush=True)
-    if args.readme:
-        from readme_table import update_readme
+    if args.table:
+        from readme_table import PAGE, update_page
 
-        changed = update_readme(ROOT / "README.md", args.results)
-        print(f"README.md table {'regenerated' if changed else 'unchanged'} from {args.results}")
+        changed = update_page(PAGE, args.results)
+        print(f"{PAGE.relative_to(ROOT)} table {'regenerated' if changed else 'unchanged'} "
+              f"from {args.results}")
     if failed:
         print(f"FAILED: {', '.join(failed)}")
     if missed:

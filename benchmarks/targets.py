@@ -6,7 +6,7 @@ from. A figure the run did not measure (a quick run's smaller sizes, a key
 missing from the JSON) is "not measured", never "met": the entry's
 ``requires`` says what run measures it.
 
-Used by ``run_all.py`` (exit status) and ``readme_table.py`` (the README table).
+Used by ``run_all.py`` (exit status) and ``readme_table.py`` (the table of docs/benchmarks.md).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Take the README's screenshots of ``campaign gui`` (system Chromium via Playwright).
+"""Take the screenshots of docs/gui.md of ``campaign gui`` (system Chromium via Playwright).
 
 Usage: ``python docs/gui_screenshots.py WORKSPACE`` with a workspace holding a plan,
 a run and an analysis (``campaign demo --out WORKSPACE``); writes

@@ -68,7 +68,7 @@ from analysis.identification.result import IdentificationResult
 from analysis.identification.streaming import per_test
 from analysis.identification.streaming.covariances import component_sigmas
 from analysis.model.robot_model import RobotModel
-from analysis.report.formatting import level
+from analysis.text_format import level
 
 
 def parse_joints(text: str | Sequence[int] | None, n: int = 6) -> tuple[int, ...] | None:

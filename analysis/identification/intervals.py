@@ -13,7 +13,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.uncertainty import interval_critical_value, stiffness_interval
-from analysis.report.formatting import level
+from analysis.text_format import level
 
 #: the errors-in-variables corrections are a warning when they move some k by this many se
 EIV_WARN_SE = 0.1

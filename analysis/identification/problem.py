@@ -15,15 +15,15 @@ from functools import cached_property
 
 import numpy as np
 
+from analysis.choices import DEFAULT_METHOD, METHODS
+from analysis.choices import ROBUST_MODES as ROBUST_METHODS
 from analysis.errors import InputError
 from analysis.identification.checks.data import COND_LIMIT
-from analysis.identification.estimators.irls import ROBUST_METHODS
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.model.robot_model import RobotModel
 
-METHODS = ("ols", "wls", "exact")
-DEFAULT_METHOD = "exact"
+#: METHODS, ROBUST_METHODS and DEFAULT_METHOD are :mod:`analysis.choices`'s
 COVARIANCES = ("model", "residual")
 #: family-wise level of the outlier test: the chance that any residual of a fit to data
 #: that follow the noise model is flagged

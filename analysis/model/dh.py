@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from analysis.choices import MODEL_CLASSES
+
 
 @dataclass(frozen=True)
 class DHRow:
@@ -89,7 +91,7 @@ def build_dh_model(
     (model, tip_frame_id) : the tip frame is P, named ``"tool"``; a frame
     ``"flange"`` is added too.
     """
-    if convention not in ("standard_dh", "modified_dh"):
+    if convention not in MODEL_CLASSES:
         raise ValueError(f"unknown DH convention {convention!r}")
     model = pin.Model()
     model.name = name

@@ -70,6 +70,7 @@ import numpy as np
 import pinocchio as pin
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from analysis.choices import MODEL_CLASSES
 from analysis.errors import InputError
 from analysis.file_errors import input_error_from_validation, read_mapping_file
 from analysis.model.dh import DHRow, build_dh_model
@@ -253,7 +254,7 @@ class IdentificationSpec(_Strict):
 class RobotFile(_Strict):
     name: str
     aliases: list[str] = []
-    convention: Literal["standard_dh", "modified_dh"]
+    convention: Literal[MODEL_CLASSES]
     length_unit: Literal["m", "mm"]
     angle_unit: Literal["deg", "rad"]
     stiffness_unit: Literal["N m/rad", "kN m/rad"] = "N m/rad"

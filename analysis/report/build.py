@@ -13,6 +13,7 @@ import numpy as np
 from analysis.identification.io.columns import COMPONENTS
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
+from analysis.identification.prediction_stiffness import stiffness_for_prediction
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
 from analysis.identification.result import IdentificationResult
 from analysis.kinetostatics.map_fixed import MapFixed, map_fixed_joints
@@ -36,7 +37,6 @@ from analysis.report.quantities import (
     deflection_map,
     map_length,
     pose_stiffness,
-    stiffness_for_prediction,
 )
 from analysis.report.summary import (
     CampaignInfo,

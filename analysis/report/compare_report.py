@@ -9,45 +9,11 @@ differences naming A and B.
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
-from pathlib import Path
-
 import numpy as np
 
-from analysis.report.formatting import fixed, k_kNm, percent, utc_text
+from analysis.identification.compare.run_facts import RunFacts
+from analysis.report.formatting import fixed, k_kNm, percent
 from analysis.report.model import Figure, Paragraph, Report, Section, Table, Trace
-
-
-@dataclass
-class RunFacts:
-    """What identifies one side of the comparison."""
-
-    label: str
-    results: str
-    robot: str
-    campaign: str
-    started: str
-    report_id: str
-    simulated: bool
-
-
-def run_facts(label: str, results_path: str | Path) -> RunFacts:
-    """Facts of a results.json and of the run's metadata.json beside it (when there)."""
-    rp = Path(results_path)
-    doc = json.loads(rp.read_text(encoding="utf-8"))
-    meta = {}
-    for cand in (rp.parent.parent / "metadata.json", rp.parent / "metadata.json"):
-        if cand.is_file():
-            try:
-                meta = json.loads(cand.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
-                meta = {}
-            break
-    return RunFacts(label, str(rp), str(doc.get("robot", "-")),
-                    str(meta.get("campaign") or ""), utc_text(meta.get("started_utc")),
-                    str(doc.get("report_id") or ""),
-                    bool(meta.get("fake")) or bool(meta.get("fake_lab")))
 
 
 def level_intervals(result: dict) -> list[tuple[float, float]]:

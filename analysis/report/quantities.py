@@ -1,8 +1,8 @@
 """What the identified stiffness means at the tool: K_X at named poses, deflection maps.
 
 Joints that were not identified are given the model's nominal stiffness
-when known, else taken as rigid (:data:`RIGID`); :func:`stiffness_for_prediction`
-says which.
+when known, else taken as rigid (:data:`~analysis.identification.prediction_stiffness.RIGID`);
+:func:`~analysis.identification.prediction_stiffness.stiffness_for_prediction` says which.
 """
 
 from __future__ import annotations
@@ -22,24 +22,7 @@ from analysis.kinetostatics.stiffness import (
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
 
-RIGID = 1e12  # N m/rad: a joint taken as rigid
 MAP_POINTS = 61  # grid points along the longer of the theta_2, theta_3 ranges
-
-
-def stiffness_for_prediction(
-    k: np.ndarray, nominal: np.ndarray | None
-) -> tuple[np.ndarray, list[str]]:
-    """Identified k (6,) (N m/rad) completed for prediction, and a note per completed joint."""
-    out = np.asarray(k, dtype=float).copy()
-    notes = []
-    for j in np.flatnonzero(~np.isfinite(out)):
-        if nominal is not None and np.isfinite(nominal[j]):
-            out[j] = nominal[j]
-            notes.append(f"k{j + 1} not identified: the model's nominal value is used")
-        else:
-            out[j] = RIGID
-            notes.append(f"k{j + 1} not identified: joint {j + 1} taken as rigid")
-    return out, notes
 
 
 @dataclass

@@ -11,39 +11,61 @@ web API answers with the same lines.
 
 from __future__ import annotations
 
-import atexit
-import gc
 import json
 from collections.abc import Callable, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from analysis.errors import InputError
+from analysis.errors import InputError, Refusal, Refused
 from analysis.identification.noise import NoiseModel
+from campaign.jobs import heap
 from campaign.jobs.choices import DEFAULT_METHOD, DEFAULT_TRIALS, Covariance, Method, Robust
 from campaign.jobs.common import Stage, floats, no_stage, six_joints, tool_texts
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
 
-# Kept in step with analysis.identification.estimate (not imported here: every CLI command
-# module is imported at start-up, and the identification pulls in scipy).
-METHODS = ("ols", "wls", "exact")
+if TYPE_CHECKING:  # the identification imports scipy: not at start-up
+    from analysis.identification.result import IdentificationResult
 
-#: the noise overrides: options record field -> (NoiseModel field, option named in messages,
-#: factor from the command line's unit to SI)
-NOISE_OVERRIDES = {
-    "translation_sigma_m": ("translation_sigma_override", "--translation-sigma-um", 1e-6),
-    "rotation_sigma_rad": ("rotation_sigma_override", "--rotation-sigma-urad", 1e-6),
-    "force_sigma_N": ("force_sigma", "--force-sigma-N", 1.0),
-    "moment_sigma_Nm": ("moment_sigma", "--moment-sigma-Nm", 1.0),
-    "joint_sigma_rad": ("joint_sigma_override", "--joint-sigma-urad", 1e-6),
-    "force_relative": ("force_relative", "--force-pct", 0.01),
-    "moment_relative": ("moment_relative", "--moment-pct", 0.01),
-}
+
+@dataclass(frozen=True)
+class NoiseOverride:
+    """One noise figure an analysis may override: ``field`` of :class:`AnalyzeOptions` (SI),
+    the :class:`NoiseModel` field it sets, the command-line ``option`` that gives it (named
+    in messages), and ``to_si``: that option's unit in SI (um -> m: 1e-6; % -> 0.01)."""
+
+    field: str
+    noise_field: str
+    option: str
+    to_si: float
+
+
+#: the noise overrides, each a record (the command line and the web name them, never
+#: count them)
+NOISE_OVERRIDES: tuple[NoiseOverride, ...] = (
+    NoiseOverride("translation_sigma_m", "translation_sigma_override",
+                  "--translation-sigma-um", 1e-6),
+    NoiseOverride("rotation_sigma_rad", "rotation_sigma_override", "--rotation-sigma-urad",
+                  1e-6),
+    NoiseOverride("force_sigma_N", "force_sigma", "--force-sigma-N", 1.0),
+    NoiseOverride("moment_sigma_Nm", "moment_sigma", "--moment-sigma-Nm", 1.0),
+    NoiseOverride("joint_sigma_rad", "joint_sigma_override", "--joint-sigma-urad", 1e-6),
+    NoiseOverride("force_relative", "force_relative", "--force-pct", 0.01),
+    NoiseOverride("moment_relative", "moment_relative", "--moment-pct", 0.01),
+)
+
+
+def noise_fields(typed: dict[str, float | None]) -> dict[str, float | None]:
+    """The options record's noise fields (SI; None: not given) from the values typed in the
+    command line's units, by option (``{"--force-sigma-N": 2.0, "--force-pct": 0.5}``)."""
+    unknown = set(typed) - {n.option for n in NOISE_OVERRIDES}
+    if unknown:
+        raise ValueError(f"not noise options: {', '.join(sorted(unknown))}")
+    return {n.field: None if typed.get(n.option) is None else typed[n.option] * n.to_si
+            for n in NOISE_OVERRIDES}
 
 
 @dataclass(frozen=True)
@@ -105,7 +127,7 @@ class AnalyzeResult:
     results: dict
     summary: dict
     files: dict[str, Path]
-    identification: Any = None
+    identification: IdentificationResult | None = None
     early_warnings: int = 0
     assumptions: dict = field(default_factory=dict)
     ledger: dict | None = None
@@ -119,8 +141,6 @@ class AnalyzeResult:
         return out
 
 
-# kept importable from here (tests and older scripts import it from this module)
-_noise_from_protocol = noise_from_protocol
 
 
 def override_noise(noise: NoiseModel, values: dict[str, float | None]) -> tuple[NoiseModel, list]:
@@ -128,24 +148,15 @@ def override_noise(noise: NoiseModel, values: dict[str, float | None]) -> tuple[
     given) to ``noise``; returns the noise model and the options (as the command line
     names them) that changed it."""
     changed, used = {}, []
-    for name, (key, option, _) in NOISE_OVERRIDES.items():
-        value = values.get(name)
+    for n in NOISE_OVERRIDES:
+        value = values.get(n.field)
         if value is None:
             continue
-        if not (np.isfinite(value) and (value > 0 or (value == 0 and option.endswith("pct")))):
-            raise InputError("expected a positive number", where=option)
-        changed[key] = value
-        used.append(option)
+        if not (np.isfinite(value) and (value > 0 or (value == 0 and n.option.endswith("pct")))):
+            raise InputError("expected a positive number", where=n.option)
+        changed[n.noise_field] = value
+        used.append(n.option)
     return (noise.with_overrides(**changed) if changed else noise), used
-
-
-def _override_noise(noise: NoiseModel, t_um, r_urad, f_n, m_nm, q_urad=None, f_pct=None,
-                    m_pct=None) -> tuple[NoiseModel, list]:
-    """:func:`override_noise` with the command line's units (um, urad, N, N m, urad, %)."""
-    typed = dict(zip(NOISE_OVERRIDES, (t_um, r_urad, f_n, m_nm, q_urad, f_pct, m_pct),
-                     strict=True))
-    return override_noise(noise, {k: None if v is None else v * NOISE_OVERRIDES[k][2]
-                                  for k, v in typed.items()})
 
 
 def _instrument_text(spec) -> str:
@@ -232,12 +243,30 @@ def _tool_problem(result, model, tests, noise, method: str, tool):
     return [], result
 
 
-def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
-              warn: Callable[[str], None]):
-    """(table, robot, noise, info, extras) of a run directory.
+@dataclass(frozen=True)
+class AnalysisInput:
+    """What an analysis rests on besides its tests, read from a run directory or a tests
+    CSV file: the robot model, the noise model of one test row and where its figures come
+    from, the campaign's facts (:class:`analysis.report.summary.CampaignInfo`), the
+    protocol (None for a CSV file), the simulated lab's true joint stiffness (N m/rad;
+    None unless simulated), the tool point and where the robot comes from.
 
-    extras: protocol, true_k, tool (:class:`ToolPoint`), noise_source, robot_source.
-    """
+    The tests travel beside it (``(tests, input)``), so that a run's table can be let go
+    once it is turned into arrays."""
+
+    robot: Any
+    noise: NoiseModel
+    noise_source: str
+    info: Any
+    protocol: Any
+    true_k: np.ndarray | None
+    tool: ToolPoint
+    robot_source: str
+
+
+def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
+              warn: Callable[[str], None]) -> tuple[Any, AnalysisInput]:
+    """(the run's table of good rows, :class:`AnalysisInput`) of a run directory."""
     from campaign.protocol import load_protocol
     from campaign.protocol_robot import protocol_robot
     from campaign.run_format.reader import read_run
@@ -278,10 +307,9 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
             warn(note)
     info = _run_info(run, robot.name, protocol, tool)
     true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
-    extras = {"protocol": protocol, "true_k": None if true_k is None else np.asarray(true_k,
-                                                                                      float),
-              "tool": tool, "noise_source": noise_source, "robot_source": robot_source}
-    return run.ok, robot, noise, info, extras
+    return run.ok, AnalysisInput(robot, noise, noise_source, info, protocol,
+                                 None if true_k is None else np.asarray(true_k, float),
+                                 tool, robot_source)
 
 
 def _sha256(path: Path) -> str:
@@ -296,10 +324,10 @@ def _sha256(path: Path) -> str:
 
 
 def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str | None,
-              tool_rpy: str | None):
-    """(tests, robot, noise, info, extras) of a tests CSV file and its sidecar, if any;
-    tests as :class:`TestArrays` (read straight into arrays: a 1e6-row file never
-    becomes a table)."""
+              tool_rpy: str | None) -> tuple[Any, AnalysisInput]:
+    """(tests, :class:`AnalysisInput`) of a tests CSV file and its sidecar, if any; tests
+    as :class:`TestArrays` (read straight into arrays: a 1e6-row file never becomes a
+    table)."""
     from analysis.identification.io.csv_reader import read_test_arrays
     from analysis.report.summary import CampaignInfo
     from campaign.run_format.tests_meta import read_sidecar
@@ -331,9 +359,8 @@ def _from_csv(path: Path, robot_spec: str | None, tip: str | None, tool_xyz: str
                         protocol_file="-", protocol_sha256="-",
                         measurements_sha256=_sha256(path),
                         n_rows=tests.m, n_ok=tests.m, notes=notes)
-    return tests, robot, noise, info, {"protocol": None, "true_k": None, "tool": tool,
-                                       "noise_source": noise_source,
-                                       "robot_source": robot_source}
+    return tests, AnalysisInput(robot, noise, noise_source, info, None, None, tool,
+                                robot_source)
 
 
 METHOD_TEXT = {
@@ -343,15 +370,16 @@ METHOD_TEXT = {
 }
 
 
-def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, method: str,
+def _assumptions(inp: AnalysisInput, noise: NoiseModel, noise_source: str, method: str,
                  covariance: str, joints, robust: str = "none") -> dict:
-    """What the analysis rests on (results.json ``assumptions``, the terminal, the report)."""
+    """What the analysis rests on (results.json ``assumptions``, the terminal, the report);
+    ``noise``, ``noise_source``: ``inp``'s with the options' overrides."""
     from analysis.identification.poses import POSE_TOLERANCE_SIGMAS, pose_tolerance
     from campaign.run_format.tests_meta import CONVENTIONS
 
-    tool: ToolPoint = extras["tool"]
+    tool = inp.tool
     return {
-        "robot": f"{model.name} ({extras['robot_source']})",
+        "robot": f"{inp.robot.name} ({inp.robot_source})",
         "tool_point": tool.describe(),
         "noise": {**noise.describe(), "source": noise_source},
         "method": METHOD_TEXT.get(method, method),
@@ -367,7 +395,7 @@ def _assumptions(model, extras: dict, noise: NoiseModel, noise_source: str, meth
         "poses": (f"tests whose joint angles agree to within "
                   f"{np.degrees(pose_tolerance(noise)):.2g} deg ({POSE_TOLERANCE_SIGMAS:g} "
                   "encoder sigmas) are at one pose"),
-        "validation_folds": _folds_text(extras.get("protocol")),
+        "validation_folds": _folds_text(inp.protocol),
         "conventions": CONVENTIONS,
     }
 
@@ -390,15 +418,6 @@ def _folds_text(protocol) -> str:
     deg, source = _holdout_deg(protocol)
     return (f"held-out validation: poses within {deg:g} deg of each other (joint space) are "
             f"held out together ({source})")
-
-
-def _release_freed_heap() -> None:
-    """:func:`analysis.identification.streaming.per_test.release_freed_heap` (the text table's cells
-    are many small allocations: freed, they stay in the process, ~0.15 GB after a
-    1e6-row import, under the arrays the fits then allocate)."""
-    from analysis.identification.streaming.per_test import release_freed_heap
-
-    release_freed_heap()
 
 
 def _poses(robot, protocol, pose_args: Sequence[Sequence[float]], q_tests: np.ndarray,
@@ -465,27 +484,8 @@ def _map_fixed(protocol, n: int, q_poses: np.ndarray):
                             q_poses)
 
 
-@contextmanager
-def _frozen_heap():
-    """Leave the objects alive now (mostly those of the imported modules: numpy, pandas,
-    matplotlib, fpdf, about a million) out of the cyclic garbage collector's passes until
-    the block ends; objects made inside are collected as usual. Each full collection
-    would otherwise walk all of them again, about 0.1 s each and several per report."""
-    gc.freeze()
-    try:
-        yield
-        # Every output is written and closed: at interpreter exit, the objects alive then
-        # are left to the operating system instead of being walked by the final collection
-        # and torn down one by one (about 0.4 s for this process). The other exit handlers
-        # still run and stdout/stderr are still flushed; __del__ is never promised at exit.
-        atexit.unregister(gc.freeze)
-        atexit.register(gc.freeze)
-    finally:
-        gc.unfreeze()
-
-
 def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: int,
-                   protocol, wrench, noise, pose, extras, run_dir,
+                   protocol, wrench, noise, pose, true_k, run_dir,
                    stage: Stage = no_stage, history=None) -> dict[str, Path]:
     """Write results.json, residuals.csv, model.toml, the report and analysis.json into
     ``out`` (a new directory); returns the paths of the main files by name."""
@@ -503,7 +503,7 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
         from analysis.report.build import ReportInputs, build_report
         from analysis.report.write import write_report
 
-        gc.freeze()
+        heap.freeze_imported()
         labels = list(dict.fromkeys(tests.pose.tolist()))
         w, w_source = _wrench(protocol, wrench, tests.w, noise)
         if protocol is None:
@@ -523,7 +523,7 @@ def _write_outputs(result, model, out: Path, tests, info, report: bool, trials: 
             robot=model, tests=tests, info=info, noise=noise, wrench=w,
             wrench_source=w_source, poses=_poses(model, protocol, pose, tests.q, labels),
             nominal=None if nominal is None else np.asarray(nominal, float),
-            nominal_label=label, nominal_source=nominal_source, true_k=extras["true_k"],
+            nominal_label=label, nominal_source=nominal_source, true_k=true_k,
             map_fixed=_map_fixed(protocol, model.n, tests.q[
                 [int(np.flatnonzero(tests.pose == lab)[0]) for lab in labels]]),
             trials=trials, load_cases=_load_cases(protocol, tests.w, noise),
@@ -546,7 +546,7 @@ def run(o: AnalyzeOptions, stage: Stage = no_stage,
     ``on_assumptions(a)`` gets what the analysis rests on before the identification
     starts, ``warn(line)`` the loud warnings of a damaged run as it is read.
     """
-    with _frozen_heap():
+    with heap.frozen_heap():
         return _run(o, stage, on_assumptions or (lambda a: None), warn or (lambda s: None))
 
 
@@ -558,7 +558,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     from analysis.identification.io.measurements import TestArrays, to_arrays
     from analysis.output_files import check_output_dir, replaced_dir
 
-    gc.freeze()  # what was just imported joins the frozen objects (see _frozen_heap)
+    heap.freeze_imported()  # what was just imported (see heap.frozen_heap)
     method, covariance, robust = str(o.method), str(o.covariance), str(o.robust)
     run_dir = None if o.run_dir is None else Path(o.run_dir)
     measurements = None if o.measurements is None else Path(o.measurements)
@@ -573,37 +573,37 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
                              where="--robot")
         check_output_dir(out or run_dir / "analysis", o.force, "--out",
                          replaces="replace its contents")
-        table, model, noise, info, extras = _from_run(run_dir, tool_xyz_mm, tool_rpy_deg, warn)
+        table, inp = _from_run(run_dir, tool_xyz_mm, tool_rpy_deg, warn)
         out = out or run_dir / "analysis"
     else:
         if out is None:
             raise InputError("--measurements needs --out DIR", where="--out")
         check_output_dir(out, o.force, "--out", replaces="replace its contents")
-        table, model, noise, info, extras = _from_csv(measurements, o.robot, o.tip,
-                                                      tool_xyz_mm, tool_rpy_deg)
-    protocol = extras["protocol"]
-    noise, overridden = override_noise(noise, {k: getattr(o, k) for k in NOISE_OVERRIDES})
-    noise_source = extras["noise_source"] + (
+        table, inp = _from_csv(measurements, o.robot, o.tip, tool_xyz_mm, tool_rpy_deg)
+    model, info, protocol = inp.robot, inp.info, inp.protocol
+    noise, overridden = override_noise(inp.noise, {n.field: getattr(o, n.field)
+                                                   for n in NOISE_OVERRIDES})
+    noise_source = inp.noise_source + (
         f"; overridden by {', '.join(overridden)}" if overridden else "")
     joint_list = parse_joints(o.joints)
     if o.report and o.trials < 10:
         raise InputError("need at least 10 trials", where="--trials")
-    assumptions = _assumptions(model, extras, noise, noise_source, method, covariance,
-                               joint_list, robust)
+    assumptions = _assumptions(inp, noise, noise_source, method, covariance, joint_list,
+                               robust)
     on_assumptions(assumptions)
     with stage(f"identification ({method}) and validation"):
         # the arrays once (a CSV file is read into them directly); the table of a run
         # is let go
         tests = table if isinstance(table, TestArrays) else to_arrays(table)
         del table
-        _release_freed_heap()
+        heap.release_freed_heap()
         result = identify(model, tests, method=method, joints=joint_list,
                           noise=noise, covariance=covariance, robust=robust,
                           holdout_radius=np.radians(_holdout_deg(protocol)[0]))
     # what the run's reader warned about (a damaged run) stays with the result
     early = [n.removeprefix("WARNING: ") for n in info.notes if n.startswith("WARNING")]
     no_tool = []
-    if measurements is not None and extras["tool"].source.startswith("none given"):
+    if measurements is not None and inp.tool.source.startswith("none given"):
         no_tool = [
             "no tool point given: P assumed at the flange centre; if the displacements "
             "and wrench were measured at a tool point, give --tool-xyz-mm/--tool-rpy-deg "
@@ -616,17 +616,15 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     causes, result = causes_of_misfit(result, model, tests, noise,
                                       "exact" if corrected else method)
     refused = problems(result, model.nominal_stiffness, causes=causes)
-    _release_freed_heap()  # the identification's freed pages, before the checks
+    heap.release_freed_heap()  # the identification's freed pages, before the checks
     tool_refusals, result = _tool_problem(result, model, tests, noise,
-                                          "exact" if corrected else method, extras["tool"])
+                                          "exact" if corrected else method, inp.tool)
     refused += tool_refusals
     if refused and not o.accept_misfit:
-        raise InputError(
-            "refused, the data do not support this stiffness: " + " | ".join(refused)
-            + "; to keep the result anyway rerun with --accept-misfit (results.json and "
-            "the report then say so)", where=str(run_dir or measurements))
+        raise Refused(tuple(Refusal(text) for text in refused),
+                      where=str(run_dir or measurements))
     result = replace(result, misfit_accepted=tuple(refused))
-    _release_freed_heap()  # the identification's freed pages, before the writer's
+    heap.release_freed_heap()  # the identification's freed pages, before the writer's
     # everything is written into a new directory that replaces ``out`` as a whole at
     # the end: a refused or failed analysis leaves the earlier one untouched
     from campaign.jobs.history import configured_ledger, report_history
@@ -636,7 +634,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         lambda folder: report_history(folder, run_dir, db, o.robot_id))
     with replaced_dir(out, o.force, "--out") as new:
         paths = _write_outputs(result, model, new, tests, info, o.report, o.trials, protocol,
-                               o.wrench_N_Nm, noise, o.poses_rad, extras, run_dir, stage,
+                               o.wrench_N_Nm, noise, o.poses_rad, inp.true_k, run_dir, stage,
                                history)
     paths = {k: out / Path(p).relative_to(new) for k, p in paths.items()}
     recorded = None

@@ -11,18 +11,23 @@ import math
 from enum import StrEnum
 from pathlib import Path
 
+from analysis.choices import DEFAULT_METHOD as DEFAULT_METHOD  # the faces read it from here
+from analysis.choices import METHODS, ROBUST_MODES
 
-class Method(StrEnum):
-    """Estimator of the joint compliances (analysis.identification.estimate.METHODS)."""
 
-    ols = "ols"
-    wls = "wls"
-    exact = "exact"
+def _choices(name: str, values: tuple[str, ...], doc: str) -> type[StrEnum]:
+    """A StrEnum whose members are ``values`` (member name = value, ``-`` as ``_``)."""
+    enum = StrEnum(name, [(v.replace("-", "_"), v) for v in values], module=__name__)
+    enum.__doc__ = doc
+    return enum
 
+
+#: Estimator of the joint compliances (the names of :data:`analysis.choices.METHODS`).
+Method = _choices("Method", METHODS, "Estimator of the joint compliances "
+                  "(analysis.choices.METHODS).")
 
 #: the estimator of ``campaign analyze`` and ``robustness`` when none is given, and the
-#: Monte-Carlo trials per point; here (no numpy) so that ``--help`` can show them cheaply
-DEFAULT_METHOD = "exact"
+#: Monte-Carlo trials per point; standard library only, so that ``--help`` shows them cheaply
 DEFAULT_TRIALS = 200
 
 
@@ -33,13 +38,9 @@ class Covariance(StrEnum):
     residual = "residual"
 
 
-class Robust(StrEnum):
-    """Robust fitting of ``campaign analyze``
-    (analysis.identification.estimators.irls.ROBUST_METHODS)."""
-
-    none = "none"
-    huber = "huber"
-    tukey = "tukey"
+#: Robust fitting of ``campaign analyze`` (the names of :data:`analysis.choices.ROBUST_MODES`).
+Robust = _choices("Robust", ROBUST_MODES, "Robust fitting of ``campaign analyze`` "
+                  "(analysis.choices.ROBUST_MODES).")
 
 
 class Strategy(StrEnum):

@@ -47,7 +47,8 @@ def run(o: CompareOptions) -> CompareResult:
         plot_comparison(result, Path(o.plot))
         result["plot"] = str(o.plot)
     if o.report is not None:  # the report: both runs named, verdict first
-        from analysis.report.compare_report import build_compare_report, run_facts
+        from analysis.identification.compare.run_facts import run_facts
+        from analysis.report.compare_report import build_compare_report
         from analysis.report.write import write_report
 
         files = write_report(build_compare_report(

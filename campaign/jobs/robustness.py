@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.choices import LINEARISED_METHODS, METHODS
 from analysis.errors import InputError
 from campaign.jobs.analyze import DEFAULT_METHOD
 from campaign.jobs.choices import Method, RotationSource
@@ -67,9 +68,9 @@ def check(o: RobustnessOptions) -> list[int]:
     counts = check_tests(o.tests)
     if o.trials < 2:
         raise InputError("need at least 2 trials", where="--trials")
-    if str(o.method) not in ("ols", "wls", "exact"):
-        raise InputError(f"expected ols, wls or exact, got {str(o.method)!r}",
-                         where="--method")
+    if str(o.method) not in METHODS:
+        raise InputError(f"expected {', '.join(METHODS[:-1])} or {METHODS[-1]}, got "
+                         f"{str(o.method)!r}", where="--method")
     if o.pool_size < 10:
         raise InputError("need at least 10 poses", where="--pool-size")
     if o.pool_size > MAX_POOL_SIZE:
@@ -141,7 +142,7 @@ def bias_notes(summary, method: str) -> list[str]:
         jensen = float(np.median(good["relative_std"] ** 2))
         lo, hi = 100 * float(rel.min()), 100 * float(rel.max())
         cause = ("the linear model (eqs. 16-21) fitted to displacements from the nonlinear "
-                 "equilibrium; --method exact removes it" if method in ("ols", "wls")
+                 "equilibrium; --method exact removes it" if method in LINEARISED_METHODS
                  else "the nonlinear estimator at this noise (finite-sample bias)")
         span = f"{lo:+.2f} %" if f"{lo:+.2f}" == f"{hi:+.2f}" else f"{lo:+.2f} to {hi:+.2f} %"
         notes.append(
@@ -168,7 +169,7 @@ def linear_bias_note(summary, method: str) -> str | None:
 
     The size is the mean over noise-free campaigns of the study's designs
     (``linearisation_bias_relative``), the median over the numbers of tests."""
-    if method not in ("ols", "wls"):
+    if method not in LINEARISED_METHODS:
         return None
     parts = []
     for j, s in summary.groupby("joint"):

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.choices import DEFAULT_METHOD, METHODS
 from analysis.errors import InputError
 from campaign.jobs.common import six_joints
 
-METHODS = ("ols", "wls", "exact")
 POSE_SOURCES = ("zones", "plan", "typed")
 MAX_TESTS = 200
 MAX_TRIALS = 20_000
@@ -151,7 +151,7 @@ class SensitivityOptions:
     joint_stiffness: np.ndarray | None = None
     errors: ErrorSources = field(default_factory=ErrorSources)
     n_tests: int = 10
-    method: str = "ols"
+    method: str = DEFAULT_METHOD
     trials: int = 1000
     seed: int = 0
     realism: Realism = field(default_factory=Realism)

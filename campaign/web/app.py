@@ -31,7 +31,6 @@ ROUTERS: tuple[str, ...] = (
     "campaign.web.acquire_api",
     "campaign.web.acquire_map_api",
     "campaign.web.plan_api",
-    "campaign.web.analyze_api",
     "campaign.web.robots_api",
     "campaign.web.analyze_plots_api",
     "campaign.web.fleet_api",
@@ -153,9 +152,9 @@ def create_app(workspace: str | Path, token: str, password: str | None = None,
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, err: RequestValidationError):
-        lines = [f"{'.'.join(str(p) for p in e.get('loc', ()))}: {e.get('msg', '')}"
-                 for e in err.errors()]
-        return JSONResponse({"detail": "; ".join(lines)}, status_code=422)
+        from campaign.web.validation_text import refusal
+
+        return JSONResponse(refusal(list(err.errors())), status_code=422)
 
     @app.get("/", include_in_schema=False)
     def index():

@@ -7,7 +7,9 @@ is the request field at fault (from the error's ``where``), ``options`` maps
 each command-line option the line names to the request field it is, so that a
 page can say it in its own terms (the label of its checkbox for ``force``)
 while the API's ``detail`` stays the command line's line, the same for both
-faces. Status: 400 bad input, 409 a refused write (disk full, permissions).
+faces. Status: 400 bad input, 409 a refused write (disk full, permissions). A result the
+data do not support (:class:`~analysis.errors.Refused`) adds ``refused``: its reasons,
+``[{"text": ...}, ...]``, read from the exception, not from its message.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from analysis.errors import InputError
+from analysis.errors import InputError, Refused
 
 OPTION = re.compile(r"--[a-z][a-z0-9]*(?:-[a-zA-Z0-9]+)*")
 #: unit suffixes of command-line options that the SI records drop or rename
@@ -101,7 +103,22 @@ def describe(err: BaseException, ws: Path | None, options=None) -> dict | None:
         fault = field_at_fault(where, rel, names)
     else:
         fault = None
-    return {"status": status, "detail": text, "field": fault, "options": named}
+    record = {"status": status, "detail": text, "field": fault, "options": named}
+    if isinstance(err, Refused):  # the reasons as the job gave them, one record each
+        record["refused"] = [{"text": _relative(r.text, ws)} for r in err.reasons]
+    problems = getattr(err, "problems", None)  # a form's refusal: each line with its field
+    if isinstance(problems, list):
+        record["problems"] = [{"field": p.get("field"), "detail": _relative(p["detail"], ws)}
+                              for p in problems]
+        # the form's key its first line names is the field at fault
+        if problems and problems[0].get("field"):
+            record["field"] = problems[0]["field"]
+    return record
+
+
+def _relative(text: str, ws: Path | None) -> str:
+    """``text`` on one line, the workspace's absolute prefix taken off its paths."""
+    return " ".join((text if ws is None else text.replace(f"{ws}/", "")).split())
 
 
 def relative_to_workspace(ws: Path, doc: Any) -> Any:

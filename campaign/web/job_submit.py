@@ -38,13 +38,23 @@ JOB_WORKERS = 1
 JOB_WAITING = 2
 
 
+class Reason(BaseModel):
+    """One reason the data do not support a result (:class:`analysis.errors.Refusal`)."""
+
+    text: str
+
+
 class JobError(BaseModel):
-    """A queued job's refusal (see :func:`campaign.web.job_errors.describe`)."""
+    """A queued job's refusal (see :func:`campaign.web.job_errors.describe`); ``refused``:
+    the reasons of a result the data do not support (the analyze job), one each;
+    ``problems``: a form's refusal, each line with the form field it names (the Plan view)."""
 
     status: int
     detail: str
     field: str | None = None
     options: dict[str, str] = {}
+    refused: list[Reason] | None = None
+    problems: list[dict] | None = None
 
 
 class JobState(BaseModel):

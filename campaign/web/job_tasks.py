@@ -8,6 +8,9 @@ job's ``run`` with its progress hooks turned into the job's progress
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any
+
 from campaign.web import progress_hooks
 from campaign.web.job_queue import JobCancelled
 
@@ -17,6 +20,20 @@ def plan(progress, options):
     from campaign.jobs.plan import run
 
     return run(options, stage=progress_hooks.stage(progress))
+
+
+def plan_for_the_form(progress, options, keys: tuple[str, ...]):
+    """The plan job of the Plan view's form: its stages as progress; its result as the view
+    shows it (rows, zone map); a refusal with each line mapped to the form's ``keys``."""
+    from analysis.errors import InputError
+    from campaign.jobs.plan import run
+    from campaign.web.plan_api import form_refusal, planned
+
+    try:
+        result = run(options, stage=progress_hooks.stage(progress))
+    except InputError as err:
+        raise form_refusal(err, list(keys)) from None
+    return planned(result, options.protocol)
 
 
 def maps(progress, options):
@@ -53,12 +70,29 @@ def robustness(progress, options):
     return run(options, progress=counted, note=progress_hooks.say(progress))
 
 
+@dataclass(frozen=True)
+class Analyzed:
+    """The analyze job's result and the report's verdict line ({"kind", "text"}), which the
+    Analyze view shows above k."""
+
+    result: Any
+    verdict: dict
+
+    def to_json(self) -> dict:
+        """The job's document (results.json, analysis.json, the files) and ``verdict``."""
+        return {**self.result.to_json(), "verdict": self.verdict}
+
+
 def analyze(progress, options):
-    """The analyze job; its stages and a damaged run's warnings as progress."""
+    """The analyze job; its stages and a damaged run's warnings as progress; its result
+    with the report's verdict line (the run's own notes are in analysis.json)."""
+    from analysis.report.verdict import verdict
     from campaign.jobs.analyze import run
 
-    return run(options, stage=progress_hooks.stage(progress),
-               warn=progress_hooks.say(progress))
+    result = run(options, stage=progress_hooks.stage(progress),
+                 warn=progress_hooks.say(progress))
+    v = verdict(result.identification, [])
+    return Analyzed(result, {"kind": v.kind, "text": v.text})
 
 
 def acquire(progress, options, lock=None, robot: str | None = None):

@@ -12,14 +12,20 @@ which the answer names the field of. The protocol is saved as
 
 from __future__ import annotations
 
+import os
 import re
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
+
+from analysis.errors import InputError
+from campaign.jobs.plan import PlanOptions
+from campaign.web.job_submit import QUEUED, submit
 
 router = APIRouter(prefix="/api/plan", tags=["plan"])
 
@@ -31,7 +37,9 @@ class PlanRequest(BaseModel):
     """source: a shipped protocol's file name or a workspace .toml path; values: key ->
     the text typed (an empty text leaves the key out); complete: ``values`` is the whole
     form (else they change the source's values); name: of the saved protocol and plan
-    directory; strategy, seed, candidates: the planner's (``campaign plan`` options)."""
+    directory; strategy, seed, candidates: the planner's (``campaign plan`` options);
+    force: replace ``protocols/NAME.toml`` and ``plans/NAME`` when they exist (as the
+    command line's ``--force``; without it an existing name is refused and nothing changes)."""
 
     source: str = Field("kr240-2.toml", max_length=300)
     values: dict[str, Annotated[str, Field(max_length=20_000)]] = Field(
@@ -40,7 +48,8 @@ class PlanRequest(BaseModel):
     name: str = Field("plan-gui", max_length=64)
     strategy: str = Field("worst-joint", max_length=40)
     seed: int = Field(0, ge=0, le=2**31)
-    candidates: int = Field(2000, ge=10, le=100_000)
+    candidates: int = Field(PlanOptions.candidates, ge=10, le=100_000)  # the CLI's default
+    force: bool = False
 
 
 def _error(text: str, field: str | None = None, status: int = 400,
@@ -170,7 +179,7 @@ def _problems(text: str, keys: list[str]) -> list[dict]:
     """One entry per line of a protocol or job message, with the form key it names."""
     from campaign.web.protocol_form import field_of
 
-    known = keys + ["strategy", "seed", "candidates", "name"]
+    known = keys + ["strategy", "seed", "candidates", "name", "force"]
     return [{"field": field_of(line, known), "detail": line}
             for line in text.splitlines() if line.strip()]
 
@@ -254,9 +263,12 @@ def _copy_warnings(proto: Path, out: Path) -> list[str]:
             "give its absolute path, or copy the robot file there"]
 
 
-def _save_checked(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONResponse:
+def _save_checked(ws: Path, body: PlanRequest,
+                  plan: bool = False) -> tuple[Path, list[str]] | JSONResponse:
     """Write the form as its protocol file and read it back with the protocol reader: the
-    (path, field keys), or the reader's refusal with the former file put back."""
+    (path, field keys), or the reader's refusal with the former file put back. A protocol
+    (and with ``plan``, a plan directory) of that name already there is refused unless
+    ``body.force``, once the form is known to be good, the former file put back."""
     from analysis.errors import InputError
     from campaign.protocol import load_protocol
 
@@ -270,6 +282,15 @@ def _save_checked(ws: Path, body: PlanRequest) -> tuple[Path, list[str]] | JSONR
         refusal = _refusal(ws, err, keys)
         _restore(proto, previous)
         return refusal
+    taken = [p for p in (proto if previous is not None else None,
+                         ws / "plans" / body.name if plan else None)
+             if p is not None and os.path.lexists(p)]
+    if taken and not body.force:
+        _restore(proto, previous)
+        names = " and ".join(str(p.relative_to(ws)) for p in taken)
+        return _error(f"name: {names} already exist{'s' if len(taken) == 1 else ''}: add "
+                      "--force to replace, or choose another name", "name",
+                      options={"--force": "force"})
     return proto, keys
 
 
@@ -286,13 +307,15 @@ def save_protocol(request: Request, body: PlanRequest):
     return {"protocol": str(proto.relative_to(ws))}
 
 
-@router.post("/run")
+@router.post("/run", status_code=202, responses=QUEUED)
 def run_plan(request: Request, body: PlanRequest):
-    """Save the form as ``protocols/NAME.toml`` and plan it into ``plans/NAME`` (replacing
-    a plan of that name); the answer: summary.json, the plan's rows, the zone map's data."""
-    from analysis.errors import InputError
+    """Save the form as ``protocols/NAME.toml`` (read back at once: a refusal is 400 with
+    its message per field) and plan it into ``plans/NAME`` (replacing them only with
+    ``force``) as a queued job: 202 with the job, whose result is summary.json, the plan's
+    rows and the zone map's data, and whose refusal carries ``problems``, one per line
+    with the form key it names."""
     from campaign.jobs.choices import Strategy
-    from campaign.jobs.plan import PlanOptions, run
+    from campaign.web import job_tasks
 
     ws = Path(request.app.state.workspace)
     try:
@@ -300,27 +323,65 @@ def run_plan(request: Request, body: PlanRequest):
     except ValueError:
         return _error(f"strategy: {body.strategy!r} is not one of {', '.join(_strategies())}",
                       "strategy")
-    saved = _save_checked(ws, body)
+    saved = _save_checked(ws, body, plan=True)
     if isinstance(saved, JSONResponse):
         return saved
     proto, keys = saved
-    out = ws / "plans" / body.name
-    try:
-        result = run(PlanOptions(protocol=proto, out=out, strategy=strategy, seed=body.seed,
-                                 candidates=body.candidates, force=True, map_points=True))
-    except InputError as err:
-        return _refusal(ws, err, keys)
-    except Exception as err:
-        if type(err).__name__ == "EquilibriumError":
-            return _error(f"nonlinear equilibrium: {err}; reduce the wrench", None)
-        raise
+    options = PlanOptions(protocol=proto, out=ws / "plans" / body.name, strategy=strategy,
+                          seed=body.seed, candidates=body.candidates, force=True,
+                          map_points=True)
+    return submit(request, ws, "plan", options, job_tasks.plan_for_the_form,
+                  extra=(tuple(keys),))
+
+
+@dataclass(frozen=True)
+class PlanShown:
+    """What the Plan view shows of a plan: summary.json's document, plan.csv's rows, the
+    zone map's data, the protocol copy's warnings, and the paths (absolute: the queue
+    writes them relative to the workspace)."""
+
+    summary: dict
+    rows: list
+    map: dict | None
+    warnings: list
+    protocol: Path
+    out: Path
+    files: list
+
+    def to_json(self) -> dict:
+        return {"summary": self.summary, "rows": self.rows, "map": self.map,
+                "warnings": self.warnings, "protocol": str(self.protocol),
+                "out": str(self.out), "files": [str(f) for f in self.files]}
+
+
+def planned(result, protocol: Path) -> PlanShown:
+    """The plan job's ``result`` (planned from ``protocol``) as the Plan view shows it."""
     import pandas as pd
 
-    from campaign.jobs.choices import json_ready
-
+    out = Path(result.plan_file).parent
     rows = pd.read_csv(out / "plan.csv").to_dict(orient="records")
-    return JSONResponse(json_ready({
-        "summary": result.summary, "rows": rows, "map": result.map,
-        "warnings": _copy_warnings(proto, out),
-        "protocol": str(proto.relative_to(ws)), "out": str(out.relative_to(ws)),
-        "files": sorted(str(p.relative_to(ws)) for p in out.iterdir() if p.is_file())}))
+    return PlanShown(result.summary, rows, result.map, _copy_warnings(protocol, out),
+                     protocol, out, sorted(p for p in out.iterdir() if p.is_file()))
+
+
+class FormRefusal(InputError):
+    """A refusal of the plan job with ``problems``: each line of its message with the form
+    key it names (``[{"field", "detail"}]``), for the page to show beside the field."""
+
+    def __init__(self, message: str, problems: list[dict], where: str | None = None):
+        self.problems = problems
+        self.message = message
+        super().__init__(message)
+        self.where = where
+
+    def __reduce__(self):
+        return (_form_refusal, (self.message, self.problems, self.where))
+
+
+def _form_refusal(message: str, problems: list[dict], where: str | None) -> FormRefusal:
+    return FormRefusal(message, problems, where)
+
+
+def form_refusal(err: InputError, keys: list[str]) -> FormRefusal:
+    """The plan job's refusal ``err`` with its lines mapped to the form's ``keys``."""
+    return FormRefusal(str(err), _problems(str(err), list(keys)), err.where)

@@ -64,18 +64,24 @@ def runs(request: Request) -> list[dict]:
 
 
 def _k_text(k: list[dict]) -> str:
+    """'k1 = 1409.8 [1396.0, 1423.6]; ...' (kN m/rad): an analysis' k and interval, a
+    plan's prior and predicted se."""
+    from analysis.report.formatting import interval_kNm, k_kNm, sig
+
     parts = []
     for row in k:
         v = row.get("k_Nm_per_rad")
         if not isinstance(v, int | float):
             continue
-        text = f"k{row.get('joint')} = {v / 1e3:,.0f}"
+        # the report's k format (kN m/rad, 5 significant digits; no thousands separator,
+        # which would read as a list separator inside an interval)
+        text = f"k{row.get('joint')} = {k_kNm(v)}"
         se, ci = row.get("se_Nm_per_rad"), row.get("ci95_Nm_per_rad")
         if isinstance(se, int | float):
-            text += f" \u00b1 {se / 1e3:,.1f}"
+            text += f" \u00b1 {sig(se / 1e3, 2, zeros=True)}"
         elif isinstance(ci, list) and len(ci) == 2 and all(isinstance(c, int | float)
                                                            for c in ci):
-            text += f" [{ci[0] / 1e3:,.0f}, {ci[1] / 1e3:,.0f}]"
+            text += f" {interval_kNm(*ci)}"
         parts.append(text)
     return "; ".join(parts)
 

@@ -13,6 +13,7 @@ import numpy as np
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, ConfigDict, Field
 
+from analysis.choices import DEFAULT_METHOD, METHODS
 from analysis.errors import InputError
 
 router = APIRouter(prefix="/api/sensitivity", tags=["sensitivity"])
@@ -64,7 +65,7 @@ class SensitivityRequest(BaseModel):
         0.0, ge=0, le=30, description="Axis-2 gravity compensator whose stiffness reaches "
         "this % of k2 over the q2 range (gravity on); 0: none.")
     n_tests: int = Field(10, ge=1, le=200)
-    method: Literal["ols", "wls", "exact"] = "ols"
+    method: Literal[METHODS] = DEFAULT_METHOD  # robustness's and analyze's default
     trials: int = Field(1000, ge=2, le=API_MAX_TRIALS)
     seed: int = Field(0, ge=0, le=2**32 - 1)
 

@@ -53,7 +53,10 @@ def _header(f: Path) -> list[str]:
 
 
 def _is_path_csv(cols: list[str]) -> bool:
-    return "q1_deg" in cols and not any(c.endswith("_cmd_deg") for c in cols)
+    """Joint angles of a path: not a compensation's output (``q1_cmd_deg``), nor a tests
+    file of a run (its measured displacements, ``dx_mm``: the import format's)."""
+    return "q1_deg" in cols and "dx_mm" not in cols and \
+        not any(c.endswith("_cmd_deg") for c in cols)
 
 
 def _is_part_csv(cols: list[str]) -> bool:

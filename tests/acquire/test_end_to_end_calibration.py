@@ -15,11 +15,11 @@ import pytest
 from analysis.identification.estimate import analyze_table
 from campaign.acquire.progress import QuietReporter
 from campaign.acquire.session import AcquireOptions, acquire
-from campaign.cli.commands.analyze import _noise_from_protocol
 from campaign.planning.planner import make_plan, write_plan
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
 from campaign.run_format.reader import read_run
+from campaign.run_noise import noise_from_protocol
 from tests.acquire.conftest import PROTOCOL
 
 TRUE_K = np.array([1409800, 400760, 935280, 360000, 370000, 380000], dtype=float)
@@ -44,7 +44,7 @@ def test_standardised_errors_of_twelve_campaigns(tmp_path):
         assert outcome.status == "complete", outcome.reason
         run_protocol = load_protocol(out / "protocol.toml")
         result = analyze_table(read_run(out).ok, protocol_robot(run_protocol),
-                               noise=_noise_from_protocol(run_protocol), validate=False)
+                               noise=noise_from_protocol(run_protocol), validate=False)
         zs.append((result.k - TRUE_K) / result.se_k)
     z = np.array(zs)
     # pooled over the 72 values the sample std of z has a spread of about 0.08

@@ -12,10 +12,10 @@ import pytest
 from analysis.errors import InputError
 from analysis.identification.estimate import analyze_table
 from campaign.cli import main
-from campaign.cli.commands.analyze import _noise_from_protocol
 from campaign.protocol import load_protocol
 from campaign.protocol_robot import protocol_robot
 from campaign.run_format.reader import read_run
+from campaign.run_noise import noise_from_protocol
 from tests.acquire.conftest import ROOT, plan_and_acquire
 
 PROTOCOL = ROOT / "protocols" / "ur10e.toml"
@@ -28,7 +28,7 @@ def test_ur10e_fake_campaign(tmp_path, time_scale):
     run_dir = plan_and_acquire(protocol, tmp_path, time_scale)
     run = read_run(run_dir)
     assert len(run.ok) == protocol.campaign.tests
-    result = analyze_table(run.ok, protocol_robot(protocol), noise=_noise_from_protocol(protocol),
+    result = analyze_table(run.ok, protocol_robot(protocol), noise=noise_from_protocol(protocol),
                            validate=False)
     z = (result.k - truth) / result.se_k
     assert np.all(np.abs(z) < 4), (result.k, truth, result.se_k)

@@ -1,5 +1,5 @@
-"""The benchmark records and the README table generated from them (no benchmark is run:
-the runner is exercised on tiny stand-in scripts)."""
+"""The benchmark records and the table of docs/benchmarks.md generated from them (no
+benchmark is run: the runner is exercised on tiny stand-in scripts)."""
 
 from __future__ import annotations
 
@@ -118,11 +118,14 @@ def test_every_benchmark_has_a_row_description_and_every_target_a_benchmark():
     assert {t.benchmark for t in targets.TARGETS} <= scripts
 
 
-def test_readme_table_is_the_one_made_from_the_committed_results():
+def test_the_benchmark_page_table_is_the_one_made_from_the_committed_results():
     results = BENCH / "results" / "results.jsonl"
-    readme = (ROOT / "README.md").read_text()
-    expected = table.replace_block(readme, table.render(table.read_records(results)))
-    assert readme == expected, "README's table is stale: run python benchmarks/readme_table.py"
+    assert table.PAGE == ROOT / "docs" / "benchmarks.md"
+    page = table.PAGE.read_text()
+    expected = table.replace_block(page, table.render(table.read_records(results)))
+    assert page == expected, ("docs/benchmarks.md's table is stale: run "
+                              "python benchmarks/readme_table.py")
+    assert table.START not in (ROOT / "README.md").read_text()
 
 
 def test_a_damaged_results_line_is_named(tmp_path):

@@ -71,3 +71,74 @@ def test_command_holds_no_job_logic(job):
         if isinstance(n, ast.FunctionDef) and n.name != "register":
             assert _body_lines(n) <= MAX_BODY_LINES, \
                 f"{job}: {n.name} has {_body_lines(n)} lines"
+
+
+# ---- the web handlers (campaign/web): the other face over the same jobs ----
+
+WEB = Path(__file__).parents[2] / "campaign" / "web"
+#: the jobs that take seconds to minutes: the web runs them queued, in a process of their
+#: own (campaign/web/job_tasks.py, through job_submit.submit), never in a request
+LONG_JOBS = {"plan", "acquire", "analyze", "maps", "robustness", "compensate", "place", "demo"}
+#: where a long job's ``run`` may be called from the web: the queue's tasks (job_tasks.py,
+#: demo_api.demo_task), and the acquisition's dry run (it lists motions, nothing moves)
+QUEUED_TASKS = {("job_tasks.py", job) for job in LONG_JOBS} | {
+    ("demo_api.py", "demo"), ("acquire_api.py", "acquire")}
+#: handlers that still run a long job in the request (moving them to the queue is pending)
+LEFT_IN_REQUEST: set[tuple[str, str]] = set()
+#: what a web handler may import from analysis/: errors, the named choices, the names of
+#: robots, the verdict's wording and the report's number formats
+WEB_PRESENTATION = {"analysis.errors", "analysis.choices", "analysis.file_errors",
+                    "analysis.report.formatting",
+                    "analysis.model.robot_spec", "analysis.model.robots",
+                    "analysis.report.verdict", "analysis.kinetostatics.equilibrium"}
+#: imports of analysis/ left in a handler (to move into its job)
+LEFT_IMPORTS = {("sensitivity_api.py", "analysis.identification.noise")}
+
+
+def _web_modules() -> list[Path]:
+    return sorted(p for p in WEB.glob("*.py") if p.name != "__init__.py")
+
+
+def _job_runs(tree: ast.Module) -> set[str]:
+    """The jobs of :mod:`campaign.jobs` whose ``run`` (or ``run_*``) a module imports."""
+    out = set()
+    for n in ast.walk(tree):
+        if isinstance(n, ast.ImportFrom) and n.module and n.module.startswith("campaign.jobs."):
+            if any(a.name == "run" or a.name.startswith("run_") for a in n.names):
+                out.add(n.module.split(".")[2])
+    return out
+
+
+def test_the_web_handlers_are_found():
+    names = {p.name for p in _web_modules()}
+    assert {"api_jobs.py", "plan_api.py", "job_tasks.py", "sensitivity_api.py"} <= names
+    assert "analyze_api.py" not in names  # the in-process analyze route is gone
+
+
+@pytest.mark.parametrize("path", _web_modules(), ids=lambda p: p.name)
+def test_a_web_handler_runs_no_long_job_in_the_request(path):
+    tree = ast.parse(path.read_text())
+    for job in _job_runs(tree) & LONG_JOBS:
+        assert (path.name, job) in QUEUED_TASKS | LEFT_IN_REQUEST, \
+            f"campaign/web/{path.name} runs the {job} job in the server: queue it (job_submit)"
+
+
+@pytest.mark.parametrize("path", _web_modules(), ids=lambda p: p.name)
+def test_a_web_handler_holds_no_job_logic(path):
+    tree = ast.parse(path.read_text())
+    for n in ast.walk(tree):
+        if isinstance(n, ast.ImportFrom) and n.module and n.module.startswith("analysis"):
+            assert n.module in WEB_PRESENTATION or (path.name, n.module) in LEFT_IMPORTS, \
+                f"campaign/web/{path.name} imports {n.module}"
+        if isinstance(n, ast.Import):
+            assert all(a.name != "gc" for a in n.names), f"{path.name}: gc belongs to the job"
+
+
+def test_the_lists_of_what_is_left_are_current():
+    """An entry of LEFT_IN_REQUEST / LEFT_IMPORTS that no longer holds is removed."""
+    for name, job in LEFT_IN_REQUEST:
+        assert job in _job_runs(ast.parse((WEB / name).read_text())), (name, job)
+    for name, module in LEFT_IMPORTS:
+        tree = ast.parse((WEB / name).read_text())
+        assert any(isinstance(n, ast.ImportFrom) and n.module == module
+                   for n in ast.walk(tree)), (name, module)

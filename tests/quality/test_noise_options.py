@@ -10,7 +10,7 @@ import pytest
 from analysis.identification.estimate import identify
 from analysis.identification.io.measurements import TestArrays
 from analysis.kinetostatics.equilibrium import displacement_screw
-from campaign.cli.commands.analyze import _override_noise
+from campaign.jobs.analyze import NOISE_OVERRIDES, AnalyzeOptions, noise_fields, override_noise
 from tests.quality._coverage import NOISE, campaign_setup
 
 
@@ -62,7 +62,9 @@ def test_rotation_noise_declared_four_times_too_large_is_named(setup):
 
 
 def test_cli_noise_options_reach_the_model():
-    noise, used = _override_noise(NOISE, None, None, 2.0, None, 7.0, 0.5, 0.25)
+    noise, used = override_noise(NOISE, noise_fields({
+        "--force-sigma-N": 2.0, "--joint-sigma-urad": 7.0, "--force-pct": 0.5,
+        "--moment-pct": 0.25}))
     assert noise.force_sigma == 2.0
     assert noise.joint_sigma == pytest.approx(7e-6)
     assert noise.force_relative == pytest.approx(0.005)
@@ -71,3 +73,20 @@ def test_cli_noise_options_reach_the_model():
     # 0.5 % of a 1000 N reading in quadrature with 2 N
     s = noise.wrench_sigma_at(np.array([600.0, 0, 800.0, 0, 0, 0]))
     assert s[0] == pytest.approx(np.hypot(2.0, 5.0))
+
+
+def test_the_noise_overrides_are_named_records_of_the_options():
+    """Each override names its options field, its NoiseModel field and its option: nothing
+    is paired by position; an unknown option is an error, not a shifted value."""
+    import dataclasses
+
+    fields = {f.name for f in dataclasses.fields(AnalyzeOptions)}
+    assert {n.field for n in NOISE_OVERRIDES} <= fields
+    assert {n.noise_field for n in NOISE_OVERRIDES} <= {f.name for f in dataclasses.fields(NOISE)}
+    si = noise_fields({"--moment-pct": 0.25, "--translation-sigma-um": 30.0})
+    assert si["moment_relative"] == pytest.approx(0.0025)
+    assert si["translation_sigma_m"] == pytest.approx(30e-6)
+    assert [k for k, v in si.items() if v is not None] == ["translation_sigma_m",
+                                                           "moment_relative"]
+    with pytest.raises(ValueError, match="--force-sigma"):
+        noise_fields({"--force-sigma": 1.0})

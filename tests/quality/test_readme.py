@@ -1,5 +1,6 @@
-"""The README's walk-through as a newcomer runs it: its inputs ship, its outputs are
-git-ignored, its lists of choices are the commands' own."""
+"""The README's walk-through and docs/commands.md (every command, step by step) as a
+newcomer runs them: their inputs ship, their outputs are git-ignored, their lists of
+choices are the commands' own."""
 
 from __future__ import annotations
 
@@ -12,11 +13,13 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
+#: the pages whose bash blocks are walk-throughs: each is run top to bottom on its own
+WALKS = (ROOT / "README.md", ROOT / "docs" / "commands.md")
 
 
-def _commands() -> list[list[str]]:
-    """Every ``campaign ...`` command of the README's bash blocks, continuation lines joined."""
-    text = (ROOT / "README.md").read_text()
+def _commands(pages=WALKS) -> list[list[str]]:
+    """Every ``campaign ...`` command of the pages' bash blocks, continuation lines joined."""
+    text = "\n".join(page.read_text() for page in pages)
     out = []
     for block in re.findall(r"```bash\n(.*?)```", text, re.S):
         joined = re.sub(r"\\\n\s*", " ", block)
@@ -56,15 +59,16 @@ def test_the_outputs_the_readme_writes_are_git_ignored():
         assert done.returncode == 0, f"{value} is not git-ignored"
 
 
-def test_no_two_walk_through_commands_write_into_one_directory():
+@pytest.mark.parametrize("page", WALKS, ids=lambda p: p.name)
+def test_no_two_walk_through_commands_write_into_one_directory(page):
     """A command that writes into an earlier command's --out is refused (non-empty output):
-    the walk-through, run top to bottom, must not do that unless it says --force or
+    a walk-through, run top to bottom, must not do that unless it says --force or
     --resume."""
-    text = (ROOT / "README.md").read_text()
+    text = page.read_text()
     alternatives = [shlex.split(line.split("#")[0].strip()) for line in text.splitlines()
                     if re.search(r"#\s*or\b", line)]  # "# or on the simulated lab"
     seen: dict[str, list[str]] = {}
-    for cmd in _commands():
+    for cmd in _commands([page]):
         if "--force" in cmd or "--resume" in cmd or "--dry-run" in cmd or cmd in alternatives:
             continue
         for i, word in enumerate(cmd[:-1]):
@@ -72,7 +76,8 @@ def test_no_two_walk_through_commands_write_into_one_directory():
                 seen.setdefault(cmd[i + 1], []).append(" ".join(cmd[:2]))
     shared = {out: who for out, who in seen.items() if len(who) > 1}
     assert not shared, f"commands writing into the same --out: {shared}"
-    assert "comp-verified" in seen  # the --verify-fake replay has its own directory
+    if page.name == "commands.md":
+        assert "comp-verified" in seen  # the --verify-fake replay has its own directory
 
 
 def test_the_listed_strategies_are_the_planners():

@@ -32,9 +32,10 @@ class _H3(HTMLParser):
 
 
 def test_cli_methods_match_the_identification():
+    from analysis import choices
     from campaign.cli.common import Method
 
-    assert analyze_command.METHODS == identification.METHODS
+    assert identification.METHODS is choices.METHODS
     assert tuple(m.value for m in Method) == identification.METHODS
     assert analyze_command.DEFAULT_METHOD == identification.DEFAULT_METHOD
 

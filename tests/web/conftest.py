@@ -182,3 +182,15 @@ def open_url(browser):
     contexts are closed and no page may have raised an uncaught exception."""
     with contextlib.ExitStack() as stack:
         yield lambda url: stack.enter_context(browser_page(browser, url))
+
+
+def post_followed(client, url: str, **kwargs):
+    """POST ``url``; a queued job's answer (202) followed to its end and answered as
+    :class:`tests.jobs.conftest.Finished` (200 and the result, or the error's status and
+    record), any other answer as it came."""
+    from tests.jobs.conftest import Finished, wait_job
+
+    answer = client.post(url, **kwargs)
+    if answer.status_code != 202:
+        return answer
+    return Finished(wait_job(client, answer.json()["id"]))

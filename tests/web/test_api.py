@@ -149,7 +149,8 @@ def test_runs_lists_plan_run_and_analysis(client, workspace):
     assert "2 test rows measured, 4 tests planned; Ctrl-C" == entries[("run", "runs/r1")]["detail"]
     assert entries[("analysis", "runs/r1/analysis")]["k"][1]["k_Nm_per_rad"] == 2.0e5
     table = client.get("/api/runs/table").text
-    assert "k1 = 1,000 [900, 1,100]" in table and "k1 = 1,400 \u00b1 3.0" in table
+    # the report's k format: no thousands comma inside an interval
+    assert "k1 = 1000.0 [900.00, 1100.0]" in table and "k1 = 1400.0 \u00b1 3.0" in table
 
 
 def test_runs_reports_an_unreadable_file(client, workspace):

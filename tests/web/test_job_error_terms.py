@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from tests.web.conftest import post_followed
 from tests.web.pages import wait_job
-from tests.web.test_plan_view import _client, demo_ws, open_page  # noqa: F401
+from tests.web.test_plan_view import _followed, demo_ws, open_page  # noqa: F401
 
 pytestmark = pytest.mark.timeout(180)
 FORCE_LABEL = "Re-analyse (replace RUN/analysis)"
@@ -17,14 +18,14 @@ FORCE_LABEL = "Re-analyse (replace RUN/analysis)"
 
 def _analyse_once(ws: Path) -> None:
     if not (ws / "run" / "analysis" / "results.json").is_file():
-        r = _client(ws).post("/api/analyze/run", json={"run_dir": "run", "method": "wls",
-                                                       "accept_misfit": True, "report": False})
+        r = _followed(ws).post("/api/jobs/analyze", json={
+            "run_dir": "run", "method": "wls", "accept_misfit": True, "report": False})
         assert r.status_code == 200, r.text
 
 
 def test_analyze_refusal_names_its_options(demo_ws):  # noqa: F811
     _analyse_once(demo_ws)
-    r = _client(demo_ws).post("/api/analyze/run", json={"run_dir": "run", "method": "wls"})
+    r = _followed(demo_ws).post("/api/jobs/analyze", json={"run_dir": "run", "method": "wls"})
     assert r.status_code == 400
     d = r.json()
     assert "--force" in d["detail"] and d["options"]["--force"] == "force"
@@ -32,7 +33,7 @@ def test_analyze_refusal_names_its_options(demo_ws):  # noqa: F811
 
 def test_plan_refusal_names_its_options(client):
     # the form sends no weights: the planner's refusal names --weights, the field weights
-    r = client.post("/api/plan/run", json={"strategy": "weighted", "candidates": 100,
+    r = post_followed(client, "/api/plan/run", json={"strategy": "weighted", "candidates": 100,
                                            "name": "pw"})
     assert r.status_code == 400, r.text
     d = r.json()

@@ -17,7 +17,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from tests.web.conftest import TOKEN  # noqa: F401  (the fixtures' token)
+from tests.web.conftest import (
+    TOKEN,  # noqa: F401  (the fixtures' token)
+    post_followed,
+)
 
 SHIPPED = Path(__file__).parents[2] / "campaign" / "protocols"
 
@@ -135,7 +138,7 @@ def test_a_bad_value_gets_the_cli_message_beside_its_field(client, tmp_path, key
                                                           line, bad):
     # a check of a whole row is named by the row (its block on the page)
     values = {key: typed} if typed else {"load_cases[2].method": "hanging-mass"}
-    r = client.post("/api/plan/run", json={"values": values, "candidates": 100})
+    r = post_followed(client, "/api/plan/run", json={"values": values, "candidates": 100})
     assert r.status_code == 400, r.text
     d = r.json()
     assert d["field"] == key, d

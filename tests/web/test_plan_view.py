@@ -19,6 +19,7 @@ from tests.web.conftest import (
     browser_page,
     copy_acquired,
     gui_server,
+    post_followed,
 )
 from tests.web.pages import wait_job
 
@@ -39,7 +40,7 @@ def _cli_message(tmp_path: Path, key_line: str, bad_line: str) -> str:
 
 
 def test_plan_endpoint_writes_the_plan_and_protocol(client, workspace):
-    r = client.post("/api/plan/run", json={"values": {"campaign.tests": "4",
+    r = post_followed(client, "/api/plan/run", json={"values": {"campaign.tests": "4",
                     "instruments.pose.noise.translation_um": "40",
                     "tool.xyz_mm": "0, 0, 120", "sampling.use_robot_zones": "true",
                     "safety.max_joint_speed_deg_s": "12"}, "candidates": 300,
@@ -71,7 +72,7 @@ def test_plan_endpoint_writes_the_plan_and_protocol(client, workspace):
     ("thresholds.max_v_p", "max_v_p = 0.02 ", 'max_v_p = "x" ')])
 def test_plan_endpoint_names_the_field_with_the_cli_message(client, tmp_path, key, line, bad):
     value = bad.split("=", 1)[1].strip().strip('"')
-    r = client.post("/api/plan/run", json={"values": {key: value}, "candidates": 100})
+    r = post_followed(client, "/api/plan/run", json={"values": {key: value}, "candidates": 100})
     assert r.status_code == 400
     d = r.json()
     assert d["field"] == key
@@ -79,10 +80,11 @@ def test_plan_endpoint_names_the_field_with_the_cli_message(client, tmp_path, ke
 
 
 def test_plan_endpoint_refuses_bad_requests(client):
-    assert client.post("/api/plan/run", json={"name": "../x"}).json()["field"] == "name"
-    assert client.post("/api/plan/run", json={"values": {"nope.key": "1"}}).status_code == 400
-    assert client.post("/api/plan/run", json={"source": "/etc/passwd"}).status_code in (400, 422)
-    r = client.post("/api/plan/run", json={"strategy": "best", "candidates": 100})
+    assert post_followed(client, "/api/plan/run", json={"name": "../x"}).json()["field"] == "name"
+    run = "/api/plan/run"
+    assert post_followed(client, run, json={"values": {"nope.key": "1"}}).status_code == 400
+    assert post_followed(client, run, json={"source": "/etc/passwd"}).status_code in (400, 422)
+    r = post_followed(client, "/api/plan/run", json={"strategy": "best", "candidates": 100})
     assert r.status_code == 400 and r.json()["field"] == "strategy"
 
 
@@ -106,33 +108,40 @@ def _client(ws: Path):
     return c
 
 
-def test_analyze_endpoint_equals_results_json(demo_ws):
-    c = _client(demo_ws)
-    r = c.post("/api/analyze/run", json={"run_dir": "run", "method": "ols", "report": False})
+def _followed(ws: Path):
+    """The app's client whose POST of a queued job answers with the job's end (200 and the
+    result, or the error's status and record); the jobs in the queue's threads."""
+    from tests.jobs.conftest import FollowedClient
+
+    c = _client(ws)
+    c.app.state.jobs_in_threads = True
+    return FollowedClient(c)
+
+
+def test_the_gui_analyzes_through_the_queued_job_only(demo_ws):
+    """The Analyze view's path is the queued analyze job of /api/jobs: the page's fields,
+    and the answer it reads (results.json's keys, analysis.json's, the verdict)."""
+    c = _followed(demo_ws)
+    assert c.post("/api/analyze/run", json={"run_dir": "run"}).status_code == 404
+    r = c.post("/api/jobs/analyze", json={"run_dir": "run", "method": "ols", "report": False})
     assert r.status_code == 200, r.text
-    r = c.post("/api/analyze/run", json={"run_dir": "run", "method": "wls"})
+    r = c.post("/api/jobs/analyze", json={"run_dir": "run", "method": "wls"})
     assert r.status_code == 400 and "--force" in r.json()["detail"]  # analysed already
-    r = c.post("/api/analyze/run", json={"run_dir": "run", "method": "wls", "force": True,
-                                         "report": False})
+    assert r.json()["options"]["--force"] == "force"
+    r = c.post("/api/jobs/analyze", json={"run_dir": "run", "method": "wls", "force": True,
+                                          "report": False})
     assert r.status_code == 200, r.text
     d = r.json()
     res = json.loads((demo_ws / "run" / "analysis" / "results.json").read_text())
-    assert res["method"] == "wls"
-    assert [j["k_Nm_per_rad"] for j in d["joints"]] == res["joint_stiffness_Nm_per_rad"]
-    assert [j["ci95_Nm_per_rad"] for j in d["joints"]] == res["ci95_Nm_per_rad"]
+    assert res["method"] == d["method"] == "wls"
+    for key in ("joints_identified", "joint_stiffness_Nm_per_rad", "ci95_Nm_per_rad",
+                "standard_error_Nm_per_rad"):
+        assert d[key] == res[key], key
     assert d["verdict"]["kind"] in ("verdict", "warning") and "p " in d["verdict"]["text"]
     assert d["files"]["results"] == "run/analysis/results.json"
-    assert d["run"] == {"status": "complete", "partial": False, "failed_rows": 0}
-    assert c.post("/api/analyze/run", json={"run_dir": "../x"}).status_code == 400
-    assert c.post("/api/analyze/run", json={"run_dir": "run", "method": "x"}).status_code == 422
-
-
-def test_refusal_reasons_are_split():
-    from campaign.web.analyze_api import REFUSED, refusal_reasons
-
-    text = ("run: " + REFUSED + "chi2 too high (p 1e-9) | k3 negative; to keep the result "
-            "anyway rerun with --accept-misfit (results.json and the report then say so)")
-    assert refusal_reasons(text) == ["chi2 too high (p 1e-9)", "k3 negative"]
+    assert (d["status"], d["partial"], d["failed_rows"]) == ("complete", False, 0)
+    assert c.post("/api/jobs/analyze", json={"run_dir": "../x"}).status_code == 400
+    assert c.post("/api/jobs/analyze", json={"run_dir": "run", "method": "x"}).status_code == 422
 
 
 # ---- the page ----

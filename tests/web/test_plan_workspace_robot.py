@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.web.conftest import post_followed
 from tests.web.test_robot_pickers import K, arm_urdf
 
 pytestmark = pytest.mark.timeout(180)
@@ -28,7 +29,7 @@ def robot_ws(workspace: Path) -> Path:
 
 
 def _plan(client, robot: str, name: str) -> dict:
-    r = client.post("/api/plan/run", json={"values": {
+    r = post_followed(client, "/api/plan/run", json={"values": {
         "campaign.robot": robot, "campaign.tests": "3", "campaign.repeats": "1"},
         "candidates": 200, "name": name})
     assert r.status_code == 200, r.text
@@ -117,7 +118,8 @@ def test_gui_plan_with_a_workspace_urdf_is_acquired_and_analysed(client, robot_w
               "thresholds.min_inv_kappa_F": "0.05", "thresholds.max_v_p": "0.5",
               "thresholds.max_v_r_deg": "5",
               "fake_lab.true_joint_stiffness": ", ".join(map(str, K))}
-    r = client.post("/api/plan/run", json={"values": values, "candidates": 200, "name": "pa"})
+    r = post_followed(client, "/api/plan/run",
+                      json={"values": values, "candidates": 200, "name": "pa"})
     assert r.status_code == 200, r.text
     assert r.json()["warnings"] == []
     plan_dir = robot_ws / "plans" / "pa"

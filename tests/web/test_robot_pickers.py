@@ -13,7 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.web.conftest import TOKEN  # noqa: F401  (the fixtures' token)
+from tests.web.conftest import (
+    TOKEN,  # noqa: F401  (the fixtures' token)
+    post_followed,
+)
 
 #: joint origins (m) and axes of a 6R arm (anthropomorphic, spherical-ish wrist)
 JOINTS = [((0, 0, 0.4), (0, 0, 1)), ((0.1, 0, 0.3), (0, 1, 0)), ((0, 0, 0.7), (0, 1, 0)),
@@ -169,7 +172,8 @@ def test_plan_form_plans_a_urdf_robot(client, urdf_ws):
               "thresholds.min_inv_kappa_F": "0.05", "thresholds.max_v_p": "0.5",
               "thresholds.max_v_r_deg": "5",
               "fake_lab.true_joint_stiffness": ", ".join(map(str, K))}
-    r = client.post("/api/plan/run", json={"values": values, "candidates": 300, "name": "u"})
+    r = post_followed(client, "/api/plan/run",
+                      json={"values": values, "candidates": 300, "name": "u"})
     assert r.status_code == 200, r.text
     d = r.json()
     assert d["summary"]["robot"] == "arm" and d["summary"]["tests"] == 4

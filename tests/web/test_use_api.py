@@ -14,13 +14,17 @@ def test_files_lists_models_paths_and_analyses(client, workspace, tmp_path):
     (workspace / "an").mkdir()
     (workspace / "an" / "results.json").write_text("{}")
     (workspace / "an" / "compensated.csv").write_text("point,q1_deg,q1_cmd_deg\n1,0,0\n")
+    (workspace / "run").mkdir()  # a run's tests file (the import format) is not a path
+    (workspace / "run" / "tests.csv").write_text(
+        "pose,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,fx_N,fy_N,fz_N,mx_Nm,my_Nm,mz_Nm,"
+        "dx_mm,dy_mm,dz_mm,rx_mrad,ry_mrad,rz_mrad\n")
     outside = tmp_path / "outside.csv"
     outside.write_text("q1_deg\n0\n")
     os.symlink(outside, workspace / "link.csv")
     got = client.get("/api/use/files").json()
     assert "kr240-2" in got["builtin"]
     assert got["models"] == ["robot.toml"]  # the plan's protocol.toml is not a robot
-    assert got["paths"] == ["p.csv"]  # not a compensation's output, not a link out
+    assert got["paths"] == ["p.csv"]  # not a compensation's output, a tests file, a link out
     assert got["analyses"] == ["an"]
 
 

@@ -205,6 +205,8 @@ def test_compensation_shows_the_jobs_numbers(page, ws):
     page.wait_for_selector("#view-use[data-comp='error']", timeout=30_000)
     err = page.inner_text("#comp-error")
     assert "comp-page" in err and "\n" not in err and str(ws) not in err
+    # the previous compensation's numbers are not left beside the refusal
+    assert page.locator("#comp-result").is_hidden()
     with pytest.raises(Exception) as refused:
         run(CompensateOptions(robot=str(ws / "A/model.toml"), path=ws / "path.csv",
                               out=ws / "comp-page", wrench_N_Nm=[500, 0, -1000, 0, 20, 0]))

@@ -37,9 +37,9 @@ def check_plot_path(path: Path, option: str = "--plot") -> Path:
 
 def run_names(result: dict) -> list[str]:
     """'A: campaign, measured DATE, ROBOT (simulated)' for A and B: the facts of each
-    side's results.json and run metadata (``analysis.report.compare_report.run_facts``),
-    else its path."""
-    from analysis.report.compare_report import run_facts
+    side's results.json and run metadata (:func:`~analysis.identification.compare.
+    run_facts.run_facts`), else its path."""
+    from analysis.identification.compare.run_facts import run_facts
 
     out = []
     for label in ("A", "B"):

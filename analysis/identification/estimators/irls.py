@@ -57,6 +57,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from analysis.choices import METHODS, REWEIGHTING_MODES, ROBUST_MODES
 from analysis.errors import InputError
 from analysis.identification.corrections.wrench_eiv import wrench_eiv_matrix
 from analysis.identification.estimators.fit import Fit
@@ -78,7 +79,7 @@ from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg.sandwich import sandwich
 from analysis.identification.streaming.per_test import apply
 
-ROBUST_METHODS = ("none", "huber", "tukey")
+ROBUST_METHODS = ROBUST_MODES
 #: Huber's tuning constant (95 % efficiency under Gaussian noise)
 HUBER_C = 1.345
 #: Tukey's biweight tuning constant (95 % efficiency under Gaussian noise)
@@ -343,10 +344,10 @@ def robust_fit(robot, tests: TestArrays, joints: tuple[int, ...], noise, method:
     tests' Jacobians (:func:`~analysis.identification.estimators.linear_model.jacobian_blocks`) if
     the caller has them.
     """
-    if robust not in ("huber", "tukey"):
+    if robust not in REWEIGHTING_MODES:
         raise InputError(f"unknown robust estimator {robust!r}: expected one of "
                          f"{', '.join(ROBUST_METHODS)}", where="--robust")
-    if method not in ("ols", "wls", "exact"):
+    if method not in METHODS:
         raise InputError(f"unknown method {method!r} for a robust fit", where="--method")
     J, A_lin = tests_design(robot, tests, joints, J)
     ones = np.ones(tests.measured.shape)

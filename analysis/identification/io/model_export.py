@@ -176,6 +176,7 @@ def cartesian_stiffness_at_tests(result: IdentificationResult, robot: RobotModel
     test (K_C depends on the wrench). Joints not identified take the nominal
     stiffness (rigid without one) and contribute no uncertainty.
     """
+    from analysis.identification.prediction_stiffness import stiffness_for_prediction
     from analysis.kinetostatics.stiffness import (
         cartesian_stiffness,
         complementary_stiffness_from_jacobian,
@@ -186,7 +187,6 @@ def cartesian_stiffness_at_tests(result: IdentificationResult, robot: RobotModel
         stiffness_covariance,
     )
     from analysis.model.kinematics import jacobian
-    from analysis.report.quantities import stiffness_for_prediction
 
     k, notes = stiffness_for_prediction(result.k, robot.nominal_stiffness)
     cov_x = np.zeros((robot.n, robot.n))

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from analysis.choices import LINEARISED_METHODS, METHODS
 from analysis.errors import InputError
 from analysis.identification.estimators.gauss_newton import gauss_newton
 from analysis.identification.linalg.batch_lsq import CHUNK, cholesky, forward_substitute, mgs_lstsq
@@ -210,7 +211,7 @@ def identify_batch(
         by the noise model (WLS: (A^T Sigma^-1 A)^-1; OLS: the sandwich
         A^+ Sigma A^+T), or None when ``with_se`` is False.
     """
-    if method not in ("ols", "wls"):
+    if method not in LINEARISED_METHODS:
         raise InputError(f"identify_batch supports ols and wls, not {method!r} (the exact "
                          "fit is identify_exact_batch)", where="--method")
     cols = list(joints)
@@ -415,8 +416,9 @@ def robustness_study(
         raise InputError("expected 6 finite numbers, not all zero (N, N m)", where="--wrench")
     if trials < 2:
         raise InputError("need at least 2 trials", where="--trials")
-    if method not in ("ols", "wls", "exact"):
-        raise InputError(f"expected ols, wls or exact, got {method!r}", where="--method")
+    if method not in METHODS:
+        raise InputError(f"expected {', '.join(METHODS[:-1])} or {METHODS[-1]}, got {method!r}",
+                         where="--method")
     tests = list(tests)
     if not tests or min(tests) < 1:
         raise InputError("numbers of tests must be >= 1", where="--tests")

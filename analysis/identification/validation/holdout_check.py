@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.report.formatting import level
+from analysis.text_format import level
 
 #: family-wise level of the held-out-pose flag (Sidak over the poses validated)
 HOLDOUT_FAMILY_LEVEL = 0.01

@@ -31,19 +31,6 @@ from campaign.cli.common import (
 )
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
-#: the job's names that tests and scripts import from here; looked up when asked for, so
-#: that importing this module (every ``campaign analyze --help``) does not import numpy
-_FROM_THE_JOB = ("METHODS", "NOISE_OVERRIDES", "_noise_from_protocol", "_override_noise")
-
-
-def __getattr__(name: str):
-    if name in _FROM_THE_JOB:
-        from campaign.jobs import analyze as job
-
-        return getattr(job, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 #: panels of --help (campaign.cli.common)
 _INPUT = "Input and tool point"
 _FIT = "Estimation and checks"
@@ -210,14 +197,16 @@ def register(app: typer.Typer) -> None:
         """
         import numpy as np
 
-        from campaign.jobs.analyze import NOISE_OVERRIDES, AnalyzeOptions, run
+        from campaign.jobs.analyze import AnalyzeOptions, noise_fields, run
 
-        typed = (_alias(translation_sigma_um, old_translation, "--translation-sigma-um"),
-                 _alias(rotation_sigma_urad, old_rotation, "--rotation-sigma-urad"),
-                 force_sigma_n, moment_sigma_nm, joint_sigma_urad, force_pct, moment_pct)
-        noise = {name: None if v is None else v * scale
-                 for (name, (_, _, scale)), v in zip(NOISE_OVERRIDES.items(), typed,
-                                                      strict=True)}
+        noise = noise_fields({
+            "--translation-sigma-um": _alias(translation_sigma_um, old_translation,
+                                             "--translation-sigma-um"),
+            "--rotation-sigma-urad": _alias(rotation_sigma_urad, old_rotation,
+                                            "--rotation-sigma-urad"),
+            "--force-sigma-N": force_sigma_n, "--moment-sigma-Nm": moment_sigma_nm,
+            "--joint-sigma-urad": joint_sigma_urad, "--force-pct": force_pct,
+            "--moment-pct": moment_pct})
         poses = [[] if not text.strip() else np.radians(numbers_option(text, f"--pose #{i}"))
                  .tolist() for i, text in enumerate(pose, start=1)]
         options = AnalyzeOptions(

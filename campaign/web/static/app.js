@@ -59,6 +59,80 @@ function route(openapi, tag, method) {
   throw new Error(`the server has no ${method} route tagged ${tag}`);
 }
 
+// The choices of a request field (estimators, robust modes) as the API's OpenAPI document
+// lists them (analysis/choices.py on the server; nothing typed here): {values, default}.
+function apiChoices(openapi, schemaName, prop) {
+  const schemas = openapi.components.schemas;
+  const field = schemas[schemaName].properties[prop];
+  const ref = (s) => (s && s.$ref ? schemas[s.$ref.split("/").pop()] : s);
+  const own = ref(field) || {};
+  const inner = own.enum ? own : ref((field.allOf || field.anyOf || []).find((s) => ref(s).enum)) || {};
+  return { values: inner.enum || [], default: field.default ?? own.default };
+}
+
+// Fill <select> with the choices (labels: an optional note per value), the default selected.
+function fillChoices(select, choices, notes = {}) {
+  select.innerHTML = "";
+  for (const v of choices.values) {
+    const o = document.createElement("option");
+    o.value = v; o.textContent = notes[v] ? `${v} (${notes[v]})` : v;
+    select.appendChild(o);
+  }
+  if (choices.default !== undefined) select.value = choices.default;
+}
+
+// A job's refusal record ({detail, field, options, refused}) as an Error carrying them.
+function jobError(err, status) {
+  const detail = err && typeof err.detail === "string" ? err.detail : JSON.stringify(err && err.detail);
+  const e = new Error(detail || String(status));
+  e.detail = detail; e.field = (err && err.field) || null; e.options = (err && err.options) || {};
+  e.refused = (err && err.refused) || [];
+  e.problems = (err && err.problems) || undefined;
+  e.status = status;
+  return e;
+}
+
+// A queued job of /api/jobs (202), shared by the views: post(url, body) -> [status, doc] is
+// the view's own POST (its CSRF header); followed by the job's server-sent events to its end,
+// onProgress(job) at each change, started(id) once queued. Resolves with its result;
+// rejects with its error (an Error from jobError, or .cancelled).
+async function followJob(post, url, body, onProgress, started) {
+  const [status, doc] = await post(url, body);
+  if (status >= 400) throw jobError(doc, status);
+  if (status !== 202) return doc;
+  if (started) started(doc.id);
+  if (onProgress) onProgress(doc);
+  const ended = (j) => {
+    if (j.state === "done") return { ok: j.result };
+    if (j.state === "failed") return { err: jobError(j.error, j.error.status) };
+    if (j.state === "cancelled") {
+      const e = new Error(j.text); e.cancelled = true; return { err: e };
+    }
+    return null;
+  };
+  const end = await new Promise((resolve) => {
+    const es = new EventSource(`/api/jobs/${encodeURIComponent(doc.id)}/events`);
+    es.onmessage = (ev) => {
+      const j = JSON.parse(ev.data);
+      if (onProgress) onProgress(j);
+      const e = ended(j);
+      if (e) { es.close(); resolve(e); }
+    };
+    es.onerror = async () => {  // the stream broke: ask for the state until it ends
+      es.close();
+      for (;;) {
+        const j = await getJSON(`/api/jobs/${encodeURIComponent(doc.id)}`).catch(() => null);
+        if (j) { if (onProgress) onProgress(j); const e = ended(j); if (e) { resolve(e); return; } }
+        await new Promise((t) => setTimeout(t, 300));
+      }
+    };
+  });
+  if (end.err) throw end.err;
+  return end.ok;
+}
+
+const METHOD_NOTES = { ols: "the paper's", exact: "nonlinear" };
+
 function buildSliders(schema, defaults) {
   const box = $("sliders");
   for (const [key, label, unit, max, step] of SLIDERS) {
@@ -127,9 +201,15 @@ async function update() {
     const data = await r.json();
     if (!r.ok) {
       $("sens-error").textContent = data.detail || r.statusText;
+      // the figures, the table and the timing were the previous settings': not shown
+      $("sens-status").textContent = "";
+      $("sens-figures").hidden = true;
+      $("sens-table").hidden = true;
       document.body.dataset.shown = "error:" + JSON.stringify(payload);
     } else {
       $("sens-error").textContent = "";
+      $("sens-figures").hidden = false;
+      $("sens-table").hidden = false;
       render(data);
       state.updates += 1;
       document.body.dataset.updates = String(state.updates);
@@ -173,7 +253,13 @@ function render(d) {
 
 function rel(v, k) { return v === null ? null : 100 * (v / k - 1); }
 
+// a figure no wider than the window (a phone: 390 px) less the page's margins
+function fitted(width) {
+  return Math.max(240, Math.min(width, document.documentElement.clientWidth - 60));
+}
+
 function plot(id, opts, data) {
+  opts = { ...opts, width: fitted(opts.width) };
   const old = state.plots[id];
   if (old && old.series.length === opts.series.length) { old.setData(data); return; }
   if (old) old.destroy();
@@ -278,7 +364,7 @@ async function start() {
       schedule();
     }).catch((err) => { $("urdf-msg").textContent = String(err); }));
   buildSliders(openapi.components.schemas.SensitivityRequest, defaults);
-  for (const b of document.querySelectorAll(".tab")) b.addEventListener("click", () => showView(b.dataset.view));
+  fillChoices($("method"), apiChoices(openapi, "SensitivityRequest", "method"), METHOD_NOTES);
   for (const id of ["robot", "joint_k", "poses", "plan", "q_deg", "wrench", "method", "trials"]) {
     $(id).addEventListener("change", schedule);
   }
@@ -289,8 +375,25 @@ async function start() {
   update();
 }
 
+// The tabs work as soon as the page is there, not once the server has answered start()'s
+// requests (a click made meanwhile was lost).
+for (const b of document.querySelectorAll(".tab")) b.addEventListener("click", () => showView(b.dataset.view));
+
 // Forms are driven by script: Enter in a field never submits (reloads) the page. Attached
 // here, not inline: the page's Content Security Policy (script-src 'self') blocks inline handlers.
 for (const f of document.querySelectorAll("form")) f.addEventListener("submit", (e) => e.preventDefault());
+// Enter in a text or number field of a form runs the form's action (its data-enter button),
+// as a submit button would (the forms have none: their buttons run scripts).
+for (const f of document.querySelectorAll("form[data-enter]")) {
+  f.addEventListener("keydown", (e) => {
+    const t = e.target;
+    if (e.key !== "Enter" || e.isComposing || t.tagName !== "INPUT" ||
+        ["checkbox", "radio", "button", "file", "range"].includes(t.type)) return;
+    const button = document.getElementById(f.dataset.enter);
+    if (!button || button.disabled) return;
+    e.preventDefault();
+    button.click();
+  });
+}
 
 start().catch((err) => { $("sens-error").textContent = String(err); });

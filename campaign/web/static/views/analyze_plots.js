@@ -1,7 +1,7 @@
 // The Analyze part's residual and validation plots, from what the analyze job wrote
 // (GET /api/analyze/plots: residuals.csv, results.json). Shown for the run selected in
 // #an-run whenever an analysis finishes (body[data-analyze] turns "done") or another run
-// is selected. Hover a point for its values; drag to zoom, double-click to reset.
+// is selected; hidden while an analysis runs and after one fails. Hover a point for its values; drag to zoom, double-click to reset.
 (function () {
   "use strict";
   const el = (id) => document.getElementById(id);
@@ -149,6 +149,8 @@
     new MutationObserver(() => {
       const b = document.body.dataset;
       if (b.analyze === "done") load(sel.value).catch(() => {});
+      // a new analysis: the plots of the previous one are not its (hidden until it is done)
+      if (b.analyze === "running") { ap.seq = (ap.seq || 0) + 1; el("an-plots").hidden = true; }
     }).observe(document.body, { attributes: true, attributeFilter: ["data-analyze"] });
     new MutationObserver(() => {
       if (document.body.dataset.planview === "ready" && ap.asked === null) load(sel.value).catch(() => {});

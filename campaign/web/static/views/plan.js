@@ -13,7 +13,20 @@ async function pvPost(url, body) {
   return [r.ok, await r.json()];
 }
 
-function pvText(v, digits) { return v === null || v === undefined ? "\u2013" : v.toFixed(digits); }
+// a POST as app.js's followJob wants it: [status, document]
+async function pvPostStatus(url, body) {
+  const r = await fetch(url, { method: "POST", credentials: "same-origin",
+    headers: { "Content-Type": "application/json", [pv.header]: pv.csrf },
+    body: JSON.stringify(body) });
+  return [r.status, await r.json().catch(() => ({ detail: `${r.status}` }))];
+}
+
+// a number with `digits` decimals; a value that rounds to zero is "0.0", never "-0.0"
+function pvText(v, digits) {
+  if (v === null || v === undefined) return "\u2013";
+  const t = v.toFixed(digits);
+  return /^-0\.?0*$/.test(t) ? t.slice(1) : t;
+}
 
 // ---- Plan ----
 // The form is generated from /api/plan/form: every key of the protocol schema, keyed by
@@ -226,7 +239,8 @@ function planBody() {
   for (const [k, v] of Object.entries(pvCollect())) if (v.trim() !== "") values[k] = v;
   return { source: pvEl("plan-source").value, values, complete: true,
            name: pvEl("plan-name").value.trim(), strategy: pvEl("plan-strategy").value,
-           seed: Number(pvEl("plan-seed").value), candidates: Number(pvEl("plan-candidates").value) };
+           seed: Number(pvEl("plan-seed").value), candidates: Number(pvEl("plan-candidates").value),
+           force: pvEl("plan-force").checked };
 }
 
 function planClearMessages() {
@@ -235,11 +249,33 @@ function planClearMessages() {
   for (const m of document.querySelectorAll("#view-plan .pv-bad")) m.classList.remove("pv-bad");
 }
 
+// the previous plan's results emptied: a new "Save and plan" shows its own, or its refusal
+function planClearResults() {
+  pv.last = null;
+  for (const id of Object.keys(pv.plots)) { pv.plots[id].destroy(); delete pv.plots[id]; }
+  for (const sel of ["#plan-se tbody", "#plan-rows tbody"]) document.querySelector(sel).innerHTML = "";
+  for (const id of ["plan-map-hover", "plan-map-caption"]) pvEl(id).textContent = "";
+  pvEl("plan-map-png").hidden = true;
+}
+
 async function planRun(saveOnly) {
   planClearMessages();
+  if (!saveOnly) planClearResults();
   pvEl("plan-status").textContent = saveOnly ? "saving\u2026" : "planning\u2026";
   document.body.dataset.plan = "running";
-  const [ok, d] = await pvPost(saveOnly ? "/api/plan/save" : "/api/plan/run", planBody());
+  // "Save and plan" is a queued job (/api/plan/run answers 202): followed to its end
+  let ok = true, d;
+  if (saveOnly) [ok, d] = await pvPost("/api/plan/save", planBody());
+  else {
+    try {
+      d = await followJob(pvPostStatus, "/api/plan/run", planBody(),
+        (j) => { if (j.text) pvEl("plan-status").textContent = j.text; });
+    } catch (err) {
+      ok = false;
+      d = { detail: err.detail || String(err), field: err.field, options: err.options,
+            problems: err.problems };
+    }
+  }
   if (!ok) {
     const rest = [];
     for (const p of d.problems || [{ field: d.field, detail: d.detail }]) {
@@ -272,6 +308,7 @@ async function planRun(saveOnly) {
 function planShow(d) {
   const s = d.summary;
   pv.last = d;
+  pvEl("acq-plan").value = d.out;  // the plan just written is the one to acquire next
   pvEl("plan-status").textContent = `${s.tests} tests at ${s.poses} poses of ${s.robot} ` +
     `(${s.strategy}, ${s.candidates.poses_passing} of ${s.candidates.drawn} candidates pass); ` +
     `saved ${d.protocol} and ${d.out}/`;
@@ -456,30 +493,36 @@ function anLink(files, key, label) {
 }
 
 // acceptOnce: the "accept the refusal" button, for the refusal shown only (the CLI's
-// --accept-misfit is one invocation's): the box stays as the user set it
+// --accept-misfit is one invocation's): the box stays as the user set it. The analysis is
+// the queued analyze job of /api/jobs (the API's one path for it); its refusal's reasons
+// come as records (error.refused), its progress as the job's text.
 async function anRun(acceptOnce = false) {
   pvEl("an-error").textContent = "";
   pvEl("an-refused").hidden = true;
+  anClear();  // the previous run's verdict, k and links are not this request's
   pvEl("an-status").textContent = "analysing\u2026";
   document.body.dataset.analyze = "running";
   const body = { run_dir: pvEl("an-run").value, method: pvEl("an-method").value,
                  robust: pvEl("an-robust").value, force: pvEl("an-force").checked,
                  accept_misfit: acceptOnce === true || pvEl("an-accept").checked };
-  const [ok, d] = await pvPost("/api/analyze/run", body);
-  pvEl("an-status").textContent = "";
-  if (!ok) {
-    if (d.refused && d.refused.length) {
+  let d;
+  try {
+    d = await followJob(pvPostStatus, "/api/jobs/analyze", body,
+      (j) => { if (j.text) pvEl("an-status").textContent = j.text; });
+  } catch (err) {
+    pvEl("an-status").textContent = "";
+    const labels = fieldLabels(pvEl("an-form"));
+    if (err.refused && err.refused.length) {
       const ul = pvEl("an-reasons");
       ul.innerHTML = "";
-      for (const reason of d.refused) {
+      for (const reason of err.refused) {
         const li = document.createElement("li");
-        li.textContent = inFormTerms({ detail: reason, options: d.options }, fieldLabels(pvEl("an-form")));
+        li.textContent = inFormTerms({ detail: reason.text, options: err.options }, labels);
         ul.appendChild(li);
       }
       pvEl("an-refused").hidden = false;
     } else {
-      pvEl("an-error").textContent = d.detail ? inFormTerms(d, fieldLabels(pvEl("an-form")))
-        : "the analysis failed";
+      pvEl("an-error").textContent = err.detail ? inFormTerms(err, labels) : "the analysis failed";
     }
     document.body.dataset.analyze = "error";
     return;
@@ -488,30 +531,38 @@ async function anRun(acceptOnce = false) {
   v.textContent = d.verdict.text;
   v.className = `pv-verdict ${d.verdict.kind}`;
   const tb = document.querySelector("#an-k tbody");
-  tb.innerHTML = "";
-  for (const j of d.joints) {
+  d.joints_identified.forEach((joint, i) => {
+    const k = d.joint_stiffness_Nm_per_rad[i];
+    const ci = d.ci95_Nm_per_rad[i] || [null, null];
+    const se = d.standard_error_Nm_per_rad[i];
     const tr = document.createElement("tr");
-    tr.id = `an-k${j.joint}`;
-    const ci = j.ci95_Nm_per_rad || [null, null];
-    const cells = [["joint", `k${j.joint}`], ["k", pvText(j.k_Nm_per_rad / 1e3, 1)],
+    tr.id = `an-k${joint}`;
+    const cells = [["joint", `k${joint}`], ["k", pvText(k === null ? null : k / 1e3, 1)],
       ["lo", pvText(ci[0] === null ? null : ci[0] / 1e3, 1)],
       ["hi", pvText(ci[1] === null ? null : ci[1] / 1e3, 1)],
-      ["se", pvText(j.se_Nm_per_rad === null ? null : j.se_Nm_per_rad / 1e3, 2)]];
+      ["se", pvText(se === null ? null : se / 1e3, 2)]];
     for (const [c, t] of cells) {
       const td = document.createElement("td"); td.className = c; td.textContent = t; tr.appendChild(td);
     }
     tb.appendChild(tr);
-  }
+  });
   pvEl("an-links").innerHTML = [anLink(d.files, "report.html", "report.html"),
     anLink(d.files, "report.pdf", "report.pdf"), anLink(d.files, "results.json", "results.json")]
     .filter((x) => x).join(" ");
-  const run = d.run || {};
-  pvEl("an-status").textContent = `run ${body.run_dir}: ${run.status}` +
-    (run.partial ? " (PARTIAL RUN: fewer tests than planned)" : "") +
-    (run.failed_rows ? `, ${run.failed_rows} failed test row(s)` : "") +
+  pvEl("an-status").textContent = `run ${body.run_dir}: ${d.status}` +
+    (d.partial ? " (PARTIAL RUN: fewer tests than planned)" : "") +
+    (d.failed_rows ? `, ${d.failed_rows} failed test row(s)` : "") +
     `; ${d.method}, robust ${body.robust}`;
   pvEl("an-force").checked = true;  // the next analysis of this run re-analyses it
   document.body.dataset.analyze = "done";
+}
+
+// the Analyze part's results emptied (a new request, or another run chosen)
+function anClear() {
+  const v = pvEl("an-verdict");
+  v.textContent = ""; v.className = "pv-verdict";
+  document.querySelector("#an-k tbody").innerHTML = "";
+  pvEl("an-links").innerHTML = "";
 }
 
 function pvAddSource(name) {
@@ -524,6 +575,13 @@ function pvAddSource(name) {
 async function pvStart() {
   const s = await (await fetch("/api/session", { credentials: "same-origin" })).json();
   pv.csrf = s.csrf_token; pv.header = s.csrf_header;
+  // the estimator and robust mode menus: the analyze job's choices and defaults, as the API
+  // lists them (the same as the command line's)
+  const openapi = await (await fetch("/openapi.json", { credentials: "same-origin" })).json();
+  fillChoices(pvEl("an-method"), apiChoices(openapi, "AnalyzeOptions", "method"), METHOD_NOTES);
+  fillChoices(pvEl("an-robust"), apiChoices(openapi, "AnalyzeOptions", "robust"));
+  const plan = openapi.components.schemas.PlanRequest.properties;  // the planner's defaults
+  pvEl("plan-candidates").value = String(plan.candidates.default);
   const p = await (await fetch("/api/plan/protocols", { credentials: "same-origin" })).json();
   for (const name of [...p.shipped, ...p.workspace]) pvAddSource(name);
   pvEl("plan-source").value = "kr240-2.toml";

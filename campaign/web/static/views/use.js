@@ -28,14 +28,6 @@ async function useGet(url) {
   return r.json();
 }
 
-function jobError(err, status) {
-  const detail = err && typeof err.detail === "string" ? err.detail : JSON.stringify(err && err.detail);
-  const e = new Error(detail || String(status));
-  e.detail = detail; e.field = (err && err.field) || null; e.options = (err && err.options) || {};
-  e.status = status;
-  return e;
-}
-
 async function post(url, body) {
   const r = await fetch(url, { method: "POST", credentials: "same-origin",
     headers: { "Content-Type": "application/json", [use.header]: use.csrf },
@@ -50,42 +42,14 @@ async function usePost(url, body) {
   return doc;
 }
 
-// A queued job (202): followed by its server-sent events to its end; onProgress(job) at
-// each change. Resolves with its result; rejects with its error (or .cancelled).
+// A queued job (202): app.js's followJob with this view's POST; use.job is its id while
+// it runs (the Cancel button's).
 async function runJob(url, body, onProgress) {
-  const [status, doc] = await post(url, body);
-  if (status >= 400) throw jobError(doc, status);
-  if (status !== 202) return doc;
-  use.job = doc.id;
-  if (onProgress) onProgress(doc);
-  const ended = (j) => {
-    if (j.state === "done") return { ok: j.result };
-    if (j.state === "failed") return { err: jobError(j.error, j.error.status) };
-    if (j.state === "cancelled") {
-      const e = new Error(j.text); e.cancelled = true; return { err: e };
-    }
-    return null;
-  };
-  const end = await new Promise((resolve) => {
-    const es = new EventSource(`/api/jobs/${encodeURIComponent(doc.id)}/events`);
-    es.onmessage = (ev) => {
-      const j = JSON.parse(ev.data);
-      if (onProgress) onProgress(j);
-      const e = ended(j);
-      if (e) { es.close(); resolve(e); }
-    };
-    es.onerror = async () => {  // the stream broke: ask for the state until it ends
-      es.close();
-      for (;;) {
-        const j = await useGet(`/api/jobs/${encodeURIComponent(doc.id)}`).catch(() => null);
-        if (j) { if (onProgress) onProgress(j); const e = ended(j); if (e) { resolve(e); return; } }
-        await new Promise((t) => setTimeout(t, 300));
-      }
-    };
-  });
-  use.job = null;
-  if (end.err) throw end.err;
-  return end.ok;
+  try {
+    return await followJob(post, url, body, onProgress, (id) => { use.job = id; });
+  } finally {
+    use.job = null;
+  }
 }
 
 // a job's refusal in the form's terms: app.js's shared helpers
@@ -388,6 +352,7 @@ function fileLink(path) {
 
 async function runCompensation() {
   u$("comp-error").textContent = "";
+  u$("comp-result").hidden = true;  // the previous compensation's: shown again only by this one
   u$("comp-run").disabled = true;
   const view = u$("view-use");
   view.dataset.comp = "running";
