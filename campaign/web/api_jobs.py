@@ -314,7 +314,10 @@ def analyze(options: AnalyzeOptions, request: Request,
         options, run_dir=opt(options.run_dir, "run_dir"),
         measurements=opt(options.measurements, "measurements"),
         robot=None if options.robot is None else robot_path(ws, options.robot),
-        out=opt(options.out, "out"))
+        out=opt(options.out, "out"),
+        # the ledger is the server operator's (campaign gui --db), never a request's: a
+        # client must not make the server connect to a database of its choosing
+        ledger=getattr(request.app.state, "ledger", None))
     return submit(request, ws, "analyze", options, job_tasks.analyze)
 
 

@@ -413,3 +413,26 @@ def test_a_body_over_the_limit_is_413_unread(client):
                     headers={"Content-Type": "application/json"})
     assert r.status_code == 413, r.text[:200]
     assert str(MAX_BODY_BYTES) in client.get("/openapi.json").json()["info"]["description"]
+
+
+def test_the_ledger_is_not_a_request_choice(client, app, workspace, analyses):
+    """A client naming a ledger URL in /api/jobs/analyze makes the server open nothing:
+    the analysis records into the operator's ledger (here none) or nowhere."""
+    from tests.jobs.conftest import wait_job
+
+    csv = analyses[0].parent / "A.csv"
+    shutil.copy(csv, workspace / "A.csv")
+    app.state.jobs_in_threads = True
+    theirs = workspace / "theirs.db"
+    with listener() as (port, connected):
+        for url in (f"postgresql+psycopg://u:p@127.0.0.1:{port}/x", f"sqlite:///{theirs}"):
+            r = client.post("/api/jobs/analyze", json={
+                "measurements": "A.csv", "robot": "kr240-2", "out": f"a{len(url)}",
+                "report": False, "translation_sigma_um": 20.0, "ledger": url,
+                "accept_misfit": True})
+            assert r.status_code == 202, r.text
+            job = wait_job(client, r.json()["id"])
+            assert job["state"] == "done", job
+            assert "ledger" not in job["result"]
+        assert not connected()
+    assert not theirs.exists()
