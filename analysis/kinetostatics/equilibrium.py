@@ -11,11 +11,15 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.kinetostatics.small_linalg import lu_em, lu_solve_em, solve_dominant
-from analysis.kinetostatics.stiffness import complementary_stiffness_em
+from analysis.kinetostatics.stiffness import (
+    complementary_stiffness_em,
+    complementary_stiffness_from_jacobian,
+)
 from analysis.model.kinematics import (
     ChainStateEM,
     chain_state,
     chain_state_em,
+    jacobian,
     jacobian_em,
     joint_cos_sin,
     pose_difference,
@@ -313,3 +317,41 @@ def displacement_screw(
     t0 = chain_state(robot, q).tip
     t1 = chain_state(robot, q + dq).tip
     return pose_difference(t0, t1)
+
+
+def deflection_with_joint_torques(robot: RobotModel, q: np.ndarray, k: np.ndarray,
+                                  w: np.ndarray, torques, tol: float = 1e-14,
+                                  max_iter: int = 60) -> np.ndarray:
+    """Joint deflection dq (N, n) (rad) solving ``K_theta dq = J(theta)^T w + tau(theta)``
+    at theta = q + dq, for joint torques that depend on the pose (gravity, a gravity
+    compensator's spring): the equilibrium of :func:`newton_deflection` with one more
+    term, solved by Newton's method in the compliance form.
+
+    ``q`` (N, n) rad, ``k`` (n,) N m/rad, ``w`` (N, 6) [f (N); m (N m)] at P, base
+    frame; ``torques(theta)`` returns tau (N, n) (N m) and its derivative
+    d tau / d theta (N, n, n) (N m/rad). Raises :class:`EquilibriumError` when a pose
+    has not converged after ``max_iter`` steps.
+    """
+    N, n = q.shape
+    x = 1.0 / np.asarray(k, dtype=float)
+    dq = np.zeros((N, n))
+    step = np.full(N, np.inf)
+    for _ in range(max_iter):
+        theta = q + dq
+        J = jacobian(robot, theta)
+        extra, dextra = torques(theta)
+        tau = np.einsum("pri,pr->pi", J, w) + extra
+        dtau = complementary_stiffness_from_jacobian(J, w) + dextra  # d(J^T w + tau)/dtheta
+        F = dq - x * tau
+        dF = np.eye(n) - x[:, None] * dtau
+        delta = np.linalg.solve(dF, F[..., None])[..., 0]
+        dq = dq - delta
+        step = np.max(np.abs(delta), axis=-1)
+        if not np.all(np.isfinite(dq)):
+            break
+        if np.all(step <= tol * np.maximum(1.0, np.max(np.abs(dq), axis=-1))):
+            return dq
+    raise EquilibriumError(
+        f"equilibrium with pose-dependent joint torques did not converge in {max_iter} "
+        f"Newton steps (last step {np.nanmax(step):.3g} rad)",
+        unconverged=~(step <= tol))

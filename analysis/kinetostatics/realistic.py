@@ -63,8 +63,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.kinetostatics.equilibrium import EquilibriumError, solve_deflection
-from analysis.kinetostatics.stiffness import complementary_stiffness_from_jacobian
+from analysis.kinetostatics.equilibrium import (
+    deflection_with_joint_torques,
+    solve_deflection,
+)
 from analysis.model.gravity import (
     STANDARD_GRAVITY,
     body_frames,
@@ -244,14 +246,9 @@ def joint_deflection(robot: RobotModel, lab: RealisticLab, k: np.ndarray, q: np.
     base = q + s
     if lab.gravity != "on" and lab.compensator is None:
         return s + solve_deflection(robot, base, k, w)
-    x = 1.0 / k
-    dq = np.zeros((N, n))
-    step = np.full(N, np.inf)
-    for _ in range(max_iter):
-        theta = base + dq
-        J = jacobian(robot, theta)
-        tau = np.einsum("pri,pr->pi", J, w)
-        dtau = complementary_stiffness_from_jacobian(J, w)  # d(J^T w)/dtheta
+    def torques(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        tau = np.zeros((N, n))
+        dtau = np.zeros((N, n, n))
         if lab.gravity == "on":
             tau -= gravity_torques(robot, theta, lab.gravity_vector)
             dtau -= gravity_stiffness(robot, theta, lab.gravity_vector)
@@ -260,19 +257,9 @@ def joint_deflection(robot: RobotModel, lab: RealisticLab, k: np.ndarray, q: np.
             tc, dtc = compensator_torque(lab.compensator, theta[:, j])
             tau[:, j] += tc
             dtau[:, j, j] += dtc
-        F = dq - x * tau
-        dF = np.eye(n) - x[:, None] * dtau
-        delta = np.linalg.solve(dF, F[..., None])[..., 0]
-        dq = dq - delta
-        step = np.max(np.abs(delta), axis=-1)
-        if not np.all(np.isfinite(dq)):
-            break
-        if np.all(step <= tol * np.maximum(1.0, np.max(np.abs(dq), axis=-1))):
-            return s + dq
-    raise EquilibriumError(
-        f"equilibrium with gravity/compensator did not converge in {max_iter} Newton steps "
-        f"(last step {np.nanmax(step):.3g} rad)",
-        unconverged=~(step <= tol))
+        return tau, dtau
+
+    return s + deflection_with_joint_torques(robot, base, k, w, torques, tol, max_iter)
 
 
 def distal_frames(robot: RobotModel, theta: np.ndarray, link: int) -> np.ndarray:

@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import shutil
 import signal
@@ -189,6 +190,19 @@ def _stop_detached(workspace: Path) -> None:
                 os.kill(pid, signal.SIGINT)
 
 
+def _wait_for_the_acquiring_process_to_end(workspace, bound_s: float = 120.0):
+    """The Acquire view's records name their process; its claim on the robot ends with it,
+    which can be a moment after the record says the run finished."""
+    pids = [json.loads(r.read_text()).get("pid")
+            for r in (workspace / ".gui" / "acquire").glob("*.json")]
+    end = time.monotonic() + bound_s
+    for pid in filter(None, pids):
+        while Path(f"/proc/{pid}").exists() and time.monotonic() < end:
+            with contextlib.suppress(ChildProcessError, OSError):
+                os.waitpid(pid, os.WNOHANG)  # reap it, where it is this process's child
+            time.sleep(0.05)
+
+
 def test_one_acquisition_per_robot_through_every_route(client, workspace):
     try:
         _one_per_robot(client, workspace)
@@ -215,6 +229,7 @@ def _one_per_robot(client, workspace):
     assert client.post("/api/acquire/dry-run", json={"plan": "plan"}).status_code == 200
     assert client.post("/api/acquire/abort", json={"run": "r1"}).status_code == 200
     _state(client, "r1", lambda s: not s["running"] and s["finish"] is not None)
+    _wait_for_the_acquiring_process_to_end(workspace)
     # the robot is free again once the first acquisition's process has ended: the queue's
     # job holds it in turn, and the Acquire view's start and resume are refused meanwhile
     queued = client.post("/api/jobs/acquire", json={"plan": "plan", "out": "r3",
