@@ -90,3 +90,23 @@ def analyses(tmp_path_factory) -> tuple[Path, Path]:
     k_b = TRUE_K.copy()
     k_b[1] *= 1.10
     return analyze(tmp, "A", seed=3), analyze(tmp, "B", seed=4, k=k_b)
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """One headless Chromium (Debian's ``chromium``, through Playwright) for the whole
+    session (the web and ledger tests): a launch costs seconds on a loaded machine; the
+    tests' pages each get their own context (no cookie or storage shared)."""
+    from tests.web.conftest import CHROMIUM
+
+    if not CHROMIUM.exists():
+        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
+    sync_api = pytest.importorskip("playwright.sync_api",
+                                   reason="browser tests need pip install playwright")
+    p = sync_api.sync_playwright().start()
+    try:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
+        yield b
+        b.close()
+    finally:
+        p.stop()

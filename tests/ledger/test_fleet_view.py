@@ -17,7 +17,7 @@ import pytest
 
 from campaign.cli.app import main
 from tests.ledger.conftest import SERIAL
-from tests.web.conftest import CHROMIUM, browser_page, gui_server
+from tests.web.conftest import browser_page, gui_server
 
 #: the session's four demo campaigns are made in the first test's setup (minutes on a
 #: loaded machine): beyond the suite's 300 s default
@@ -26,26 +26,11 @@ pytestmark = pytest.mark.timeout(1200)
 TOKEN = "fleet-token-0123456789"
 
 
-@pytest.fixture(scope="module")
-def chromium():
-    if not CHROMIUM.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="browser tests need pip install playwright")
-    p = sync_api.sync_playwright().start()
-    try:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        yield b
-        b.close()
-    finally:
-        p.stop()
-
-
 def k_text(k: float, ci: list[float]) -> str:
     return f"{k / 1e3:.1f} [{ci[0] / 1e3:.1f}, {ci[1] / 1e3:.1f}]"
 
 
-def test_the_fleet_view_shows_the_alarm_and_the_trend(chromium, demo_runs, tmp_path,
+def test_the_fleet_view_shows_the_alarm_and_the_trend(browser, demo_runs, tmp_path,
                                                       monkeypatch):
     monkeypatch.delenv("STIFFNESS_CAMPAIGN_DB", raising=False)
     ws = tmp_path / "ws"
@@ -56,7 +41,7 @@ def test_the_fleet_view_shows_the_alarm_and_the_trend(chromium, demo_runs, tmp_p
     assert main(["history", "add", *map(str, runs), "--db", str(db)]) == 0
     monkeypatch.setenv("STIFFNESS_CAMPAIGN_DB", str(db))  # the GUI's ledger, as configured
     results = [json.loads((r / "analysis" / "results.json").read_text()) for r in runs]
-    with gui_server(ws, TOKEN) as url, browser_page(chromium, url) as page:
+    with gui_server(ws, TOKEN) as url, browser_page(browser, url) as page:
         page.wait_for_selector("#tab-fleet")
         page.click("#tab-fleet")
         row = page.locator(f'#fleet-robots tr[data-robot="{SERIAL}"]')
@@ -94,11 +79,11 @@ def test_the_fleet_view_shows_the_alarm_and_the_trend(chromium, demo_runs, tmp_p
         r["joint_stiffness_Nm_per_rad"] for r in results]
 
 
-def test_without_a_ledger_the_view_says_how_to_configure_one(chromium, tmp_path, monkeypatch):
+def test_without_a_ledger_the_view_says_how_to_configure_one(browser, tmp_path, monkeypatch):
     monkeypatch.delenv("STIFFNESS_CAMPAIGN_DB", raising=False)
     ws = tmp_path / "ws"
     ws.mkdir()
-    with gui_server(ws, TOKEN) as url, browser_page(chromium, url) as page:
+    with gui_server(ws, TOKEN) as url, browser_page(browser, url) as page:
         page.wait_for_selector("#tab-fleet")
         page.click("#tab-fleet")
         page.locator("#fleet-error", has_text="--db").wait_for(timeout=30_000)

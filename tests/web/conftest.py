@@ -142,24 +142,6 @@ def server(workspace):
         yield url
 
 
-@pytest.fixture(scope="session")
-def browser():
-    """One headless Chromium (Debian's ``chromium``, through Playwright) for the whole
-    session: a launch costs seconds on a loaded machine; the tests' pages each get their own
-    context (no cookie or storage shared)."""
-    if not CHROMIUM.exists():
-        pytest.skip("browser tests need the Debian package chromium (/usr/bin/chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="browser tests need pip install playwright")
-    p = sync_api.sync_playwright().start()
-    try:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
-        yield b
-        b.close()
-    finally:
-        p.stop()
-
-
 @contextlib.contextmanager
 def browser_page(browser, url: str, errors: list[str] | None = None):
     """A page of ``url`` in a new context of ``browser``; its uncaught exceptions are
