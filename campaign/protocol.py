@@ -262,13 +262,131 @@ class ReportSpec(_Strict):
     wrench: tuple[ForceN, ForceN, ForceN, MomentNm, MomentNm, MomentNm] | None = None
 
 
+LostMotion = _within(0.1, "rad", "0.1 rad is 6 deg of play: mrad or arcmin typed as rad?")
+LengthM = _within(100.0, "m", "100 m")
+Modulus = _within(1e13, "Pa", "above any engineering material")
+Drift = _within(1.0, "per s", "a metre or a newton per second is no drift")
+
+
+class BeamSpec(_Strict):
+    """``beam`` of a ``[[fake_lab.links]]``: the link as a cantilever of symmetric section,
+    SI: ``E_Pa``, ``G_Pa`` and either ``width_m``/``wall_m`` of a square hollow box or
+    ``I_m4``, ``J_m4``, ``A_m2``; ``length_m`` (default: the distance between the link's
+    joints)."""
+
+    E_Pa: Modulus = Field(gt=0)
+    G_Pa: Modulus = Field(gt=0)
+    width_m: LengthM | None = Field(default=None, gt=0)
+    wall_m: LengthM | None = Field(default=None, gt=0)
+    I_m4: float | None = Field(default=None, gt=0)
+    J_m4: float | None = Field(default=None, gt=0)
+    A_m2: float | None = Field(default=None, gt=0)
+    length_m: LengthM | None = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _one_section(self) -> BeamSpec:
+        box = (self.width_m, self.wall_m)
+        sec = (self.I_m4, self.J_m4, self.A_m2)
+        if all(v is not None for v in box) == all(v is not None for v in sec) or (
+                any(v is not None for v in box) and any(v is not None for v in sec)):
+            raise ValueError("give either width_m and wall_m (square hollow box) or I_m4, "
+                             "J_m4 and A_m2")
+        if self.wall_m is not None and 2 * self.wall_m >= self.width_m:
+            raise ValueError("wall_m must be less than half of width_m")
+        return self
+
+
+class LinkSpec(_Strict):
+    """``[[fake_lab.links]]``: a flexible link of the simulated robot (virtual-joint model):
+    ``link`` 1..6 (the body joint ``link`` moves), and its compliance at its distal frame,
+    either ``compliance`` (6 x 6, SI: [m; rad] per [N; N m], the distal frame's axes) or
+    ``beam`` (:class:`BeamSpec`)."""
+
+    link: int = Field(ge=1, le=6)
+    compliance: list[list[float]] | None = None
+    beam: BeamSpec | None = None
+
+    @model_validator(mode="after")
+    def _one_form(self) -> LinkSpec:
+        if (self.compliance is None) == (self.beam is None):
+            raise ValueError("give either compliance (6 x 6) or beam")
+        if self.compliance is not None:
+            C = np.array(self.compliance, dtype=float)
+            if C.shape != (6, 6) or not np.all(np.isfinite(C)):
+                raise ValueError("compliance: expected 6 rows of 6 numbers (SI)")
+            if not np.allclose(C, C.T, rtol=1e-9, atol=0.0):
+                raise ValueError("compliance must be symmetric")
+            if np.linalg.eigvalsh(C)[0] < -1e-9 * max(np.abs(C).max(), 1e-300):
+                raise ValueError("compliance must be positive semi-definite")
+        return self
+
+
+class CompensatorSpec(_Strict):
+    """``[fake_lab.compensator]``: a compression spring between the link before joint
+    ``joint`` (base_point_m, in that joint's frame at q = 0) and the link it moves
+    (arm_point_m, in that link's frame), rate_N_per_m, preload_N (its force at its longest
+    over the joint's range)."""
+
+    joint: int = Field(default=2, ge=1, le=6)
+    base_point_m: tuple[LengthM, LengthM, LengthM]
+    arm_point_m: tuple[LengthM, LengthM, LengthM]
+    rate_N_per_m: float = Field(ge=0, le=1e9)
+    preload_N: ForceN = Field(ge=0)
+
+
 class FakeLabSpec(_Strict):
-    """``[fake_lab]``: the simulated lab (truth and noise it simulates)."""
+    """``[fake_lab]``: the simulated lab (truth and noise it simulates), and the effects of
+    a real arm it can add (each off unless given; protocols/README.md)."""
 
     true_joint_stiffness: Stiffness6
     noise: NoiseSpec = NoiseSpec()
     seed: int = Field(default=0, ge=0)
     time_scale: float = Field(default=1.0, gt=0, le=1e4)
+    gravity: Literal["off", "flanks", "on"] = "off"
+    lost_motion_rad: tuple[LostMotion, LostMotion, LostMotion, LostMotion, LostMotion,
+                           LostMotion] | None = None
+    links: list[LinkSpec] = []
+    compensator: CompensatorSpec | None = None
+    tracker_drift_m_per_s: tuple[Drift, Drift, Drift] | None = None
+    ft_drift_N_per_s: tuple[Drift, Drift, Drift] | None = None
+    ft_drift_N_m_per_s: tuple[Drift, Drift, Drift] | None = None
+
+    @field_validator("lost_motion_rad")
+    @classmethod
+    def _band(cls, value):
+        if value is not None and min(value) < 0:
+            raise ValueError("lost motion (the full dead band 2b, rad) must be >= 0")
+        return value
+
+    @field_validator("links")
+    @classmethod
+    def _distinct(cls, value):
+        numbers = [link.link for link in value]
+        if len(set(numbers)) != len(numbers):
+            raise ValueError(f"each link at most once, got links {numbers}")
+        return value
+
+    def effects(self) -> dict[str, object]:
+        """The real-arm effects that are on, SI, with the simulated lab's field names
+        (empty for a joint-spring lab)."""
+        out: dict[str, object] = {}
+        if self.gravity != "off":
+            out["gravity"] = self.gravity
+        if self.lost_motion_rad is not None:
+            out["lost_motion"] = tuple(self.lost_motion_rad)
+        if self.links:
+            out["links"] = tuple(link.model_dump(exclude_none=True) for link in self.links)
+        if self.compensator is not None:
+            c = self.compensator
+            out["compensator"] = {"joint": c.joint, "base_point": tuple(c.base_point_m),
+                                  "arm_point": tuple(c.arm_point_m), "rate": c.rate_N_per_m,
+                                  "preload": c.preload_N}
+        if self.tracker_drift_m_per_s is not None:
+            out["tracker_drift"] = tuple(self.tracker_drift_m_per_s)
+        if self.ft_drift_N_per_s is not None or self.ft_drift_N_m_per_s is not None:
+            out["ft_drift"] = (*(self.ft_drift_N_per_s or (0.0,) * 3),
+                               *(self.ft_drift_N_m_per_s or (0.0,) * 3))
+        return out
 
     @field_validator("true_joint_stiffness")
     @classmethod
@@ -427,6 +545,7 @@ class Protocol(_Strict):
         ):
             if value is not None:
                 out[name] = value * scale
+        out.update(lab.effects())
         return out
 
 

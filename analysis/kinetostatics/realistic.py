@@ -333,6 +333,15 @@ def _rotvec_matrix(v: np.ndarray) -> np.ndarray:
     return np.eye(3) + a * k + b * (k @ k)
 
 
+def apply_twist(T: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    """Poses (N, 4, 4) displaced by small twists (N, 6) [dp (m); rotation vector (rad)],
+    base frame: position + dp, orientation exp(rotation) R."""
+    T = np.array(T, dtype=float)
+    T[:, :3, :3] = _rotvec_matrix(twist[:, 3:]) @ T[:, :3, :3]
+    T[:, :3, 3] += twist[:, :3]
+    return T
+
+
 def true_tool_poses(robot: RobotModel, lab: RealisticLab, k: np.ndarray, q: np.ndarray,
                     w: np.ndarray) -> np.ndarray:
     """Pose of P (N, 4, 4), base frame, at commanded q (N, n) under w: the joints'
@@ -341,10 +350,7 @@ def true_tool_poses(robot: RobotModel, lab: RealisticLab, k: np.ndarray, q: np.n
     theta = q + joint_deflection(robot, lab, k, q, w)
     T = chain_state(robot, theta).tip
     if lab.links:
-        tw = link_twist(robot, lab, theta, w)
-        T = T.copy()
-        T[:, :3, :3] = _rotvec_matrix(tw[:, 3:]) @ T[:, :3, :3]
-        T[:, :3, 3] += tw[:, :3]
+        T = apply_twist(T, link_twist(robot, lab, theta, w))
     return T
 
 

@@ -63,6 +63,13 @@ class LabSettings:
         Where the Net CAN fake sits: ``socketcand`` (a socketcand server on
         127.0.0.1, reachable from other processes) or ``virtual`` (python-can's
         in-process bus). Both stay on this host.
+    gravity, lost_motion, links, compensator : the real-arm effects of the protocol's
+        ``[fake_lab]`` (:mod:`analysis.kinetostatics.realistic_lab`: "off"/"flanks"/"on";
+        (n,) rad full dead band; link compliances; axis compensator), each off by default.
+    tracker_drift : tuple of float or None
+        Drift (m/s of the lab's simulated time, tracker frame) added to every tracker reading.
+    ft_drift : tuple of float or None
+        Zero drift of the F/T sensor (N/s, N m/s of the lab's simulated time, sensor frame).
     """
 
     robot: str = "kr240-2"
@@ -90,6 +97,17 @@ class LabSettings:
     tracker_position: tuple[float, float, float] = (-3.0, 1.0, -0.5)
     tracker_yaw: float = 0.5
     can_interface: str = "socketcand"
+    gravity: str = "off"
+    lost_motion: tuple[float, ...] | None = None
+    links: tuple[dict, ...] = ()
+    compensator: dict | None = None
+    tracker_drift: tuple[float, float, float] | None = None
+    ft_drift: tuple[float, ...] | None = None
+
+    def effects(self) -> dict[str, Any]:
+        """The real-arm effects, for :func:`analysis.kinetostatics.realistic_lab.realistic_lab`."""
+        return {"gravity": self.gravity, "lost_motion": self.lost_motion,
+                "links": self.links, "compensator": self.compensator}
 
     def __post_init__(self) -> None:
         if self.time_scale <= 0:
@@ -113,6 +131,13 @@ class LabSettings:
                              where="can_interface")
         if len(self.reflectors) < 3:
             raise InputError("need at least three reflectors", where="reflectors")
+        if self.gravity not in ("off", "flanks", "on"):
+            raise InputError(f"gravity {self.gravity!r}: expected off, flanks or on",
+                             where="gravity")
+        for name, size in (("tracker_drift", 3), ("ft_drift", 6)):
+            value = getattr(self, name)
+            if value is not None and len(value) != size:
+                raise InputError(f"{name}: expected {size} numbers", where=name)
 
 
 def settings_from_protocol(protocol: Mapping[str, Any] | Any, **overrides: Any) -> LabSettings:
@@ -134,7 +159,8 @@ def settings_from_protocol(protocol: Mapping[str, Any] | Any, **overrides: Any) 
     values.update({k: v for k, v in protocol.items() if k in names})
     values.update({k: v for k, v in overrides.items() if v is not None})
     for key in ("true_joint_stiffness", "instruments", "home", "sensor_offset",
-                "sensor_rotation", "tracker_position", "tool_xyz", "tool_rpy"):
+                "sensor_rotation", "tracker_position", "tool_xyz", "tool_rpy", "lost_motion",
+                "links", "tracker_drift", "ft_drift"):
         if values.get(key) is not None:
             values[key] = tuple(values[key])
     try:

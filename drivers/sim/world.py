@@ -12,6 +12,13 @@ e^-6 = 0.25 % of the step, below the tracker noise at the lab's loads): from
 then on the state is exactly the equilibrium, so readings taken after a
 settling detection do not depend on when they were taken.
 
+A protocol's real-arm effects (``[fake_lab]`` gravity, lost motion, link compliance,
+compensator: :mod:`analysis.kinetostatics.realistic`) replace that equilibrium by the
+realistic one (joint angles and the links' bending twist of P), with or without load.
+Instrument drifts follow the lab's own simulated time, which advances only by events:
+a motion by its duration at the commanded speed, a load change by its settling
+(:data:`SETTLED_AFTER` ``settle_time``), so drifted readings stay reproducible.
+
 Noise comes from :class:`drivers.sim.noise.NoiseStreams`: one generator per
 (seed, instrument, context, sample), so a seeded campaign reads the same
 numbers whatever the order in which the fakes' threads run.
@@ -27,6 +34,8 @@ import time
 import numpy as np
 
 from analysis.kinetostatics.equilibrium import solve_deflection
+from analysis.kinetostatics.realistic import apply_twist, joint_deflection, link_twist
+from analysis.kinetostatics.realistic_lab import realistic_lab
 from analysis.model.kinematics import tool_pose
 from analysis.model.robots import load_robot, with_tool
 from drivers.frames import matrix_to_rotvec, rotvec_to_matrix
@@ -63,6 +72,12 @@ class World:
         self.load_name = ""
         self._dq_from = np.zeros(n)
         self._dq_to = np.zeros(n)
+        #: the real-arm effects (inactive: the joint-spring equilibrium above)
+        self.lab = realistic_lab(self.robot, settings.effects())
+        self._tw_from = np.zeros(6)
+        self._tw_to = np.zeros(6)
+        #: the lab's simulated time (s): motions and settlings only
+        self.sim_time = 0.0
         self._t_change = time.monotonic()
         self._motion_end = self._t_change
         self.aimed = next(iter(settings.reflectors))
@@ -73,6 +88,8 @@ class World:
         self.base_in_tracker = np.eye(4)
         self.base_in_tracker[:3, :3] = rotvec_to_matrix([0.0, 0.0, settings.tracker_yaw])
         self.base_in_tracker[:3, 3] = settings.tracker_position
+        if self.lab.active:  # the arm sags under gravity before any command
+            self._retarget()
 
     def _default_home(self) -> np.ndarray:
         """A pose well inside the limits, away from the wrist singularity (model rad)."""
@@ -89,18 +106,27 @@ class World:
         """Settling time constant in wall-clock seconds."""
         return self.settings.settle_time / self.settings.time_scale
 
-    def _deflection(self, now: float) -> np.ndarray:
+    def _blend(self, start: np.ndarray, end: np.ndarray, now: float) -> np.ndarray:
         elapsed = now - self._t_change
         if self.tau <= 0 or elapsed >= SETTLED_AFTER * self.tau:
-            return self._dq_to.copy()
+            return end.copy()
         a = 1.0 - np.exp(-elapsed / self.tau)
-        return self._dq_from + (self._dq_to - self._dq_from) * a
+        return start + (end - start) * a
+
+    def _deflection(self, now: float) -> np.ndarray:
+        return self._blend(self._dq_from, self._dq_to, now)
 
     def _retarget(self) -> None:
         now = time.monotonic()
         self._dq_from = self._deflection(now)
+        self._tw_from = self._blend(self._tw_from, self._tw_to, now)
         q_model = self.robot.from_controller(self._q_cmd)
-        if np.any(self._load):
+        if self.lab.active:
+            self._dq_to = joint_deflection(self.robot, self.lab, self.k, q_model[None],
+                                           self._load)[0]
+            self._tw_to = link_twist(self.robot, self.lab, (q_model + self._dq_to)[None],
+                                     self._load)[0]
+        elif np.any(self._load):
             self._dq_to = solve_deflection(self.robot, q_model, self.k, self._load)
         else:
             self._dq_to = np.zeros(self.robot.n)
@@ -117,6 +143,7 @@ class World:
             raise ValueError("speed must be positive")
         with self._lock:
             duration = float(np.max(np.abs(q - self._q_cmd))) / speed / self.settings.time_scale
+            self.sim_time += float(np.max(np.abs(q - self._q_cmd))) / speed
             self._q_cmd = q.copy()
             self._retarget()
             self._motion_end = time.monotonic() + duration
@@ -130,6 +157,7 @@ class World:
         with self._lock:
             self._load = w.copy()
             self.load_name = name
+            self.sim_time += SETTLED_AFTER * self.settings.settle_time
             self._retarget()
 
     def remove_load(self) -> None:
@@ -172,8 +200,12 @@ class World:
     def true_tool_pose(self) -> np.ndarray:
         """Tool pose including the elastic deflection at this instant, base frame."""
         with self._lock:
-            q = self.robot.from_controller(self._q_cmd) + self._deflection(time.monotonic())
-            return tool_pose(self.robot, q)
+            now = time.monotonic()
+            q = self.robot.from_controller(self._q_cmd) + self._deflection(now)
+            T = tool_pose(self.robot, q)
+            if self.lab.links:
+                T = apply_twist(T[None], self._blend(self._tw_from, self._tw_to, now)[None])[0]
+            return T
 
     def true_deflection(self) -> np.ndarray:
         """Joint deflection dq (rad, model convention) at this instant."""
@@ -198,6 +230,8 @@ class World:
             m_o = m_p + np.cross(p - o, f_b)
             w = np.concatenate([R.T @ f_b, R.T @ m_o])
             s = self.settings
+            if s.ft_drift is not None:
+                w += np.asarray(s.ft_drift, float) * self.sim_time
         rng = self.noise_streams.generator(source)
         w += np.concatenate([rng.normal(0, s.force_noise, 3), rng.normal(0, s.torque_noise, 3)])
         return w
@@ -211,6 +245,8 @@ class World:
             name = target or self.aimed
             r = np.append(self.reflectors[name], 1.0)
             p = (self.base_in_tracker @ self.true_tool_pose() @ r)[:3]
+            if self.settings.tracker_drift is not None:
+                p += np.asarray(self.settings.tracker_drift, float) * self.sim_time
         return p + self.noise_streams.generator(source).normal(0, self.settings.tracker_noise, 3)
 
     def tracker_pose(self, source: str = "tracker") -> np.ndarray:
@@ -220,6 +256,8 @@ class World:
         """
         with self._lock:
             T = self.base_in_tracker @ self.true_tool_pose()
+            if self.settings.tracker_drift is not None:
+                T[:3, 3] += np.asarray(self.settings.tracker_drift, float) * self.sim_time
         s = self.settings
         rng = self.noise_streams.generator(source)
         dR = rotvec_to_matrix(rng.normal(0, s.tracker_angle_noise, 3))
