@@ -87,6 +87,7 @@ class AnalyzeOptions:
     tool_rpy_deg: Sequence[float] | None = None
     accept_misfit: bool = False
     force: bool = False
+    model: str = "joints"
 
 
 @dataclass
@@ -575,6 +576,9 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     noise_source = extras["noise_source"] + (
         f"; overridden by {', '.join(overridden)}" if overridden else "")
     joint_list = parse_joints(o.joints)
+    from analysis.identification.models.names import parse_model
+
+    model_choice = parse_model(o.model)
     if o.report and o.trials < 10:
         raise InputError("need at least 10 trials", where="--trials")
     assumptions = _assumptions(model, extras, noise, noise_source, method, covariance,
@@ -602,6 +606,13 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     # a linear fit whose bias was corrected is a compliance of the exact model: its
     # residuals are the exact model's (as in the chi-square)
     corrected = (result.linear_bias or {}).get("reliable", False)
+    if model_choice.auto or model_choice.extras:
+        from analysis.identification.models.apply import classes_of, with_class
+
+        with stage(f"model classes ({model_choice.name})"):
+            result = with_class(result, classes_of(
+                result, model, tests, noise, "exact" if corrected else method, model_choice,
+                np.radians(_holdout_deg(protocol)[0])))
     causes, result = causes_of_misfit(result, model, tests, noise,
                                       "exact" if corrected else method)
     refused = problems(result, model.nominal_stiffness, causes=causes)

@@ -185,6 +185,11 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
                                      "(the keys of results.json, SI units) instead of "
                                      "the tables.", rich_help_panel=PANEL_OUTPUT),
+        model_class: str = typer.Option(
+            "joints", "--model", help="Model class: joints (the papers', default), extras "
+            "gravity, compensator, lost-motion, links combined with '+', or auto (chosen "
+            "by BIC and held-out prediction; candidates side by side in results.json).",
+            rich_help_panel=_FIT),
         force: bool = typer.Option(False, "--force", help="Replace a non-empty output "
                                    "directory: its contents as a whole, nothing of the "
                                    "earlier analysis is kept.", rich_help_panel=PANEL_OUTPUT),
@@ -219,7 +224,7 @@ def register(app: typer.Typer) -> None:
             poses_rad=poses, wrench_N_Nm=numbers_option(wrench, "--wrench"), trials=trials,
             report=report, **noise, tool_xyz_mm=numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
             tool_rpy_deg=numbers_option(tool_rpy_deg, "--tool-rpy-deg"),
-            accept_misfit=accept_misfit, force=force)
+            accept_misfit=accept_misfit, force=force, model=model_class)
         # with --json, stdout carries the JSON document only
         console = Console(stderr=as_json)
         done = run(options, stage=stage, on_assumptions=lambda a: _print_assumptions(console, a),
