@@ -228,6 +228,37 @@ class IdentificationSpec(_Strict):
         return self
 
 
+class LinkComplianceSpec(_Strict):
+    """``[[model_class.links]]``: link ``link`` (1-based) compliance at its distal frame
+    (joint link+1's frame before its rotation), 6 x 6 SI [m; rad] per [N; N m]."""
+
+    link: int = Field(ge=1)
+    compliance: list[list[float]]
+
+    @field_validator("compliance")
+    @classmethod
+    def _square(cls, value: list[list[float]]) -> list[list[float]]:
+        c = np.array(value, dtype=float)
+        if c.shape != (6, 6):
+            raise ValueError("compliance must be 6 x 6")
+        if not np.allclose(c, c.T, rtol=1e-9, atol=0.0):
+            raise ValueError("compliance must be symmetric")
+        return value
+
+
+class ModelClassSpec(_Strict):
+    """``[model_class]`` (model.toml, format version 2): the model class ``campaign
+    analyze --model`` chose beyond the joint springs. A file without it (version 1, every
+    file written before) is the joint-spring model."""
+
+    version: Literal[2] = 2
+    name: str
+    links: list[LinkComplianceSpec] = []
+    lost_motion_rad: list[float] = []
+    compensator: dict[str, float | str] = {}
+    notes: list[str] = []
+
+
 class RobotFile(_Strict):
     name: str
     aliases: list[str] = []
@@ -244,6 +275,7 @@ class RobotFile(_Strict):
     sources: dict[str, str]
     notes: str = ""
     identification: IdentificationSpec | None = None
+    model_class: ModelClassSpec | None = None
 
     @model_validator(mode="after")
     def _convention_fields(self) -> RobotFile:
@@ -361,6 +393,7 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         identification=(None if spec.identification is None
                         else spec.identification.model_dump()),
         inertials=inertials,
+        model_class=None if spec.model_class is None else spec.model_class.model_dump(),
     )
 
 

@@ -180,7 +180,10 @@ class ClassFit:
                                                  self.units, strict=True)],
             "fixed": [{"parameter": n, "why": why} for n, why in self.fixed],
             **({"compensator_q2ref_rad": self.q2ref} if np.isfinite(self.q2ref) else {}),
-            **({"links": list(self.links)} if self.links else {}),
+            **({"links": list(self.links),
+                "link_compliance": {str(link): m.tolist()
+                                    for link, m in self.link_matrices.items()}}
+               if self.links else {}),
         }
 
 
