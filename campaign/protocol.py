@@ -161,6 +161,10 @@ class LoadCaseSpec(_Strict):
     moment_N_m: Moment3 | None = None
     direction: tuple[Ratio, Ratio, Ratio] | None = None
     magnitude_N: ForceN | None = Field(default=None, gt=0)
+    #: the reference reading is taken under this fraction of the test wrench (same
+    #: direction), so every gear stays on the flank the test load puts it on; the measured
+    #: displacement is then loaded minus preloaded, for the wrench difference
+    preload_fraction: float = Field(default=0.0, ge=0, lt=1)
 
     @model_validator(mode="after")
     def _one_form(self) -> LoadCaseSpec:
@@ -191,6 +195,11 @@ class LoadCaseSpec(_Strict):
         f = np.zeros(3) if self.force_N is None else np.asarray(self.force_N, dtype=float)
         m = np.zeros(3) if self.moment_N_m is None else np.asarray(self.moment_N_m, dtype=float)
         return np.concatenate([f, m])
+
+    def reference_wrench(self) -> np.ndarray:
+        """Wrench (6,) [N; N m] of the reference reading: ``preload_fraction`` x the test
+        wrench (zero without a preload), base frame."""
+        return self.preload_fraction * self.wrench()
 
 
 class LoadsSpec(_Strict):
@@ -447,6 +456,16 @@ class Protocol(_Strict):
     def wrenches(self) -> np.ndarray:
         """(m, 6) wrenches of the load cases, [N, N, N, N m, N m, N m], base frame."""
         return np.array([c.wrench() for c in self.load_cases])
+
+    def reference_wrenches(self) -> np.ndarray:
+        """(m, 6) wrenches of the load cases' reference readings (their preloads; zeros
+        where none), [N; N m], base frame."""
+        return np.array([c.reference_wrench() for c in self.load_cases])
+
+    @property
+    def preloaded(self) -> bool:
+        """Some load case takes its reference reading under a preload."""
+        return any(c.preload_fraction > 0 for c in self.load_cases)
 
     def reflectors(self) -> dict[str, tuple[float, float, float]] | None:
         """Reflector positions (m, tool frame) from the pose instrument's ``reflectors_mm``.

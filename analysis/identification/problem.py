@@ -10,7 +10,7 @@ object, and with it J, goes when the identification returns.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -28,6 +28,23 @@ COVARIANCES = ("model", "residual")
 #: family-wise level of the outlier test: the chance that any residual of a fit to data
 #: that follow the noise model is flagged
 OUTLIER_FAMILY_LEVEL = 0.01
+
+
+def referenced(tests: TestArrays, method: str) -> TestArrays:
+    """Tests whose reference readings were taken under a preload (``tests.w_ref``), for
+    ``method``: the linear model of a displacement loaded minus reference is
+    ``J K^-1 J^T (w - w_ref)``, so the tests become those of the wrench difference (and
+    carry no w_ref any more). The exact model needs the equilibria at w_ref and at w,
+    which it does not compute yet: refused with the way out. Unpreloaded tests unchanged."""
+    if tests.w_ref is None:
+        return tests
+    if method == "exact":
+        raise InputError("these tests have reference readings under a preload (fx_ref_N.."
+                         "mz_ref_Nm): the exact model of a displacement between two loaded "
+                         "equilibria is not implemented; use --method wls (the linear "
+                         "model in w - w_ref, first order in the deflection)",
+                         where="--method")
+    return replace(tests, w=tests.w - tests.w_ref, w_ref=None)
 
 
 @dataclass(frozen=True)
@@ -87,6 +104,9 @@ class IdentificationProblem:
     noise: NoiseModel
     joints: tuple[int, ...]
     options: IdentifyOptions
+    #: the tests' reference readings were under a preload: ``tests.w`` is the wrench
+    #: difference w - w_ref (:func:`referenced`)
+    preloaded: bool = False
 
     @classmethod
     def make(cls, robot: RobotModel, tests: TestArrays, joints=None,
@@ -103,7 +123,8 @@ class IdentificationProblem:
         if not joints or joints[0] < 0 or joints[-1] > 5:
             raise InputError(f"expected 0-based joint indices 0..5, got {joints}",
                              where="joints")
-        return cls(robot, tests, noise, joints, options)
+        return cls(robot, referenced(tests, options.method), noise, joints, options,
+                   tests.w_ref is not None)
 
     @property
     def p(self) -> int:

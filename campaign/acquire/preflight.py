@@ -48,6 +48,9 @@ class PlannedTest:
         Name of the load case.
     repeats : int
         Times the test is measured.
+    preload : float
+        The load case's ``preload_fraction``: the reference readings are taken under
+        ``preload x wrench`` (0: unloaded).
     """
 
     test_id: int
@@ -57,6 +60,7 @@ class PlannedTest:
     wrench: np.ndarray
     load_case: str
     repeats: int
+    preload: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,7 @@ def planned_tests(protocol: Protocol, plan: pd.DataFrame, robot: RobotModel,
                          f"{_row_test(err, ids)})", where=where) from None
     _check_pendant_columns(q, q_ctrl, robot, ids, where)
     tests = []
+    preload = {c.name: c.preload_fraction for c in protocol.load_cases}
     for i, row in enumerate(plan.itertuples(index=False)):
         label = f"test {row.test}"
         if not (1 <= repeats[i] <= MAX_REPEATS and repeats[i] == int(repeats[i])):
@@ -121,7 +126,8 @@ def planned_tests(protocol: Protocol, plan: pd.DataFrame, robot: RobotModel,
         except ValueError as err:
             raise InputError(f"{label}: refused before any motion: {err}", where=where) from None
         tests.append(PlannedTest(int(row.test), str(row.pose), q[i], qa, w[i],
-                                 str(row.load_case), int(repeats[i])))
+                                 str(row.load_case), int(repeats[i]),
+                                 preload.get(str(row.load_case), 0.0)))
     return tests
 
 

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.io.columns import CSV_COLUMNS
+from analysis.identification.io.columns import CSV_COLUMNS, REF_W_COLS
 from analysis.output_files import SymlinkRefused, refuse_link, refuse_links_in, replacing
 
 FORMAT_VERSION = 1
@@ -39,6 +39,13 @@ LOCK = ".lock"
 TEST_COLUMNS = [*CSV_COLUMNS, "test_id", "repeat", "status", "flags", "repeatability_mm",
                 "drift_mm", "wrench_error_N", "tracker_sigma_mm", "t_utc"]
 STATUSES = ("running", "complete", "aborted", "failed")
+
+
+def test_columns(metadata: dict[str, Any]) -> list[str]:
+    """Columns of a run's tests.csv: :data:`TEST_COLUMNS`, then the reference wrench
+    (:data:`~analysis.identification.io.columns.REF_W_COLS`) for a run whose load cases
+    take their reference reading under a preload (metadata ``reference_wrench``)."""
+    return [*TEST_COLUMNS, *REF_W_COLS] if metadata.get("reference_wrench") else TEST_COLUMNS
 
 
 def _jsonable(value: Any) -> Any:
@@ -254,11 +261,11 @@ def verify_copies(path: Path, metadata: dict[str, Any]) -> None:
                          "with --plan", where=str(path))
 
 
-def format_row(row: dict[str, Any]) -> str:
-    """One tests.csv line (columns :data:`TEST_COLUMNS`, full float precision)."""
+def format_row(row: dict[str, Any], columns: list[str] = TEST_COLUMNS) -> str:
+    """One tests.csv line (``columns``, default :data:`TEST_COLUMNS`; full float precision)."""
     buf = io.StringIO()
     values = []
-    for col in TEST_COLUMNS:
+    for col in columns:
         v = row.get(col, "")
         if isinstance(v, (float, np.floating)):
             v = "" if not np.isfinite(v) else repr(float(v))
@@ -402,7 +409,7 @@ class RunDir:
         self._tests = Appender(tests_path)
         self._events = Appender(self.path / EVENTS)
         if fresh:
-            self._tests.write(",".join(TEST_COLUMNS) + "\n")
+            self._tests.write(",".join(test_columns(self.metadata)) + "\n")
 
     def close(self) -> None:
         """Close the files and release the lock; ``.lock`` is removed (while still held,
@@ -440,7 +447,7 @@ class RunDir:
 
     def test_row(self, row: dict[str, Any]) -> None:
         """Append one finished test to tests.csv (fsynced)."""
-        self._tests.write(format_row(row))
+        self._tests.write(format_row(row, test_columns(self.metadata)))
 
     # -- reading back ----------------------------------------------------------------------
     def finished(self) -> set[tuple[int, int]]:

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.identification.io.columns import REF_W_COLS
 from analysis.model.kinematics import rotation_vector, tool_pose
 from analysis.model.robot_model import RobotModel
 from campaign.acquire.checks import Limits, evaluate
@@ -352,7 +353,12 @@ class Runner:
         bias = inst.ft.tare(self.settings.tare_samples)
         self.clock.wait(self.settings.tare_samples / inst.ft.rate_hz)
         self._sample("tare", "force_torque", "bias", "N, N m", "sensor", bias)
-        P0 = self._pose("unloaded_before")
+        w_ref = None
+        if test.preload > 0:  # the reference reading under the preload, on the load's flanks
+            self._preload(test, "before")
+            W0 = self._wrench("reference_before")
+            w_ref = sensor_wrench_to_base(W0.value, T_fk, inst.sensor_mount)
+        P0 = self._pose("reference_before" if w_ref is not None else "unloaded_before")
         R = base_in_tracker_rotation(P0.value, T_fk)
         ref_point = self._reflector_point(P0.value)
 
@@ -373,12 +379,16 @@ class Runner:
         check_force(w_approx, self.max_force, self.max_moment)
         P1 = self._pose("loaded")
 
+        if w_ref is not None:
+            self._preload(test, "after")
+            P2 = self._pose("reference_after")
         self._phase("remove_load")
         inst.load.remove()
         self.load_applied = False
         self._event("load_removed")
         self._settle("settle_unloaded_after")
-        P2 = self._pose("unloaded_after")
+        if w_ref is None:
+            P2 = self._pose("unloaded_after")
 
         ref = mean_pose(P0.value, P2.value)
         screw = displacement(ref, P1.value, R)
@@ -396,6 +406,9 @@ class Runner:
         for name, v in zip(["dx_mm", "dy_mm", "dz_mm", "rx_mrad", "ry_mrad", "rz_mrad"],
                            screw * 1e3, strict=True):
             row[name] = float(v)
+        if w_ref is not None:
+            for name, v in zip(REF_W_COLS, w_ref, strict=True):
+                row[name] = float(v)
         row.update(test_id=test.test_id, repeat=repeat, status="ok", flags="",
                    repeatability_mm=res.repeatability * 1e3, drift_mm=res.drift * 1e3,
                    wrench_error_N=res.wrench_error, tracker_sigma_mm=res.tracker_sigma * 1e3,
@@ -405,6 +418,25 @@ class Runner:
         if res.flags:
             raise CheckFailed(row, res.flags)
         return row
+
+    def _preload(self, test: PlannedTest, when: str) -> None:
+        """Apply the test's preload (``preload`` x its wrench, same direction) and settle."""
+        self._phase(f"apply_preload_{when}", load_case=test.load_case,
+                    wrench_planned=test.preload * test.wrench)
+        self.load_applied = True
+        self.inst.load.apply(LoadCase(f"{test.load_case} preload", test.preload * test.wrench))
+        self._event("preload_applied", load_case=test.load_case, fraction=test.preload)
+        self._settle(f"settle_reference_{when}")
+
+    def _wrench(self, phase: str):
+        """A window of F/T samples (sensor frame), recorded under ``phase``."""
+        self._phase(phase)
+        W = self.inst.ft.read_wrench(self.settings.wrench_samples)
+        self.clock.wait(self.settings.wrench_samples / self.inst.ft.rate_hz)
+        raw = None if W.raw is None else np.asarray(W.raw, float).tolist()
+        self._sample(phase, "force_torque", "wrench", "N, N m", "sensor", W.value,
+                     sigma=W.spread, wall=W.wall_time, samples=W.samples, raw=raw)
+        return W
 
     def _reflector_point(self, T: np.ndarray) -> np.ndarray:
         refl = self.inst.tracker.reflectors

@@ -226,6 +226,14 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         if run is None:
             meta = base_metadata(protocol, plan_text, plan_dir, robot, tests, opts,
                                  lab_scale or 1.0)
+            if protocol.preloaded:
+                meta["reference_wrench"] = {
+                    "text": "load cases with preload_fraction take their reference readings "
+                            "under that fraction of the test wrench; tests.csv gives the "
+                            "measured reference wrench (base frame, at P) in fx_ref_N.."
+                            "mz_ref_Nm and the displacement loaded minus reference",
+                    "preload_fraction": {c.name: c.preload_fraction
+                                         for c in protocol.load_cases}}
             copy_text, beside = portable_copy(protocol)  # the robot file in the run too
             meta["protocol_sha256"] = _sha(copy_text)
             run = RunDir.create(out, meta, _protocol_copy_name(protocol), copy_text,

@@ -106,6 +106,31 @@ def _separation_dict(plan: Plan) -> dict:
         "closest_pair_deg": closest if np.isfinite(closest) else None}}
 
 
+def _flanks_dict(plan: Plan) -> dict:
+    """Gear flank changes of each test (reference under the load case's preload, or none,
+    then loaded), from the robot file's gravity model; {} for a robot without masses, and
+    for a protocol that neither preloads its load cases nor simulates lost motion (its
+    summary stays as it was before lost motion was modelled)."""
+    from campaign.planning.flanks import flank_changes, keeping_preload
+
+    protocol = plan.protocol
+    lost = protocol.fake_lab is not None and protocol.fake_lab.lost_motion_rad is not None
+    if plan.robot.inertials is None or not (protocol.preloaded or lost):
+        return {}
+    q = plan.candidates.q[plan.chosen.pose]
+    w = plan.protocol.wrenches()[plan.chosen.case]
+    w_ref = plan.protocol.reference_wrenches()[plan.chosen.case]
+    change = flank_changes(plan.robot, q, w, w_ref)
+    keep = keeping_preload(plan.robot, q, w)
+    return {"gear_flanks": {
+        "changes": int(change.sum()),
+        "tests_with_changes": int(np.any(change, axis=1).sum()),
+        "joints_per_test": [[int(j) + 1 for j in np.flatnonzero(row)] for row in change],
+        "preload_fraction_keeping_flanks": [None if not np.isfinite(v) else float(v)
+                                            for v in keep],
+        "masses": plan.robot.inertials.source or "robot file"}}
+
+
 def summary_dict(plan: Plan) -> dict:
     """Everything the summary files hold (plain types, no time stamps)."""
     cand = plan.candidates
@@ -132,6 +157,7 @@ def summary_dict(plan: Plan) -> dict:
         "predicted_standard_errors": _se_rows(plan),
         **_noise_dict(plan),
         **_criterion_dict(plan),
+        **_flanks_dict(plan),
     }
 
 
@@ -167,7 +193,27 @@ def summary_text(plan: Plan) -> str:
             f"{r['random_over_design']:>6.2f}"
         )
     lines += _criterion_lines(s)
+    lines += _flank_lines(s)
     return "\n".join(lines) + "\n"
+
+
+def _flank_lines(s: dict) -> list[str]:
+    if "gear_flanks" not in s:
+        return []
+    f = s["gear_flanks"]
+    where = "; ".join(f"test {i + 1}: joint(s) {', '.join(map(str, js))}"
+                      for i, js in enumerate(f["joints_per_test"]) if js)
+    keep = [v for v in f["preload_fraction_keeping_flanks"] if v is not None]
+    lines = ["", f"gear flank changes between the reference and the loaded reading (gravity "
+             f"model of the robot file): {f['changes']} in {f['tests_with_changes']} of "
+             f"{len(f['joints_per_test'])} tests" + (f" ({where})" if where else "")]
+    if f["changes"] and keep:
+        lines.append("a reference reading under a preload in the load's direction keeps every "
+                     "joint on one flank: load cases' preload_fraction above "
+                     f"{max(keep):.3f} (per test: "
+                     + ", ".join("-" if v is None else f"{v:.3f}"
+                                 for v in f["preload_fraction_keeping_flanks"]) + ")")
+    return lines
 
 
 def _separation_line(sep: dict) -> str:

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.io.columns import CSV_COLUMNS, R_COLS
+from analysis.identification.io.columns import CSV_COLUMNS, R_COLS, REF_W_COLS
 from analysis.identification.io.csv_reader import from_csv_frame
 
 FORMAT_VERSION = 1
@@ -247,7 +247,7 @@ def _to_si(frame: pd.DataFrame, where: str) -> pd.DataFrame:
     if ok.empty:
         raise InputError("no test finished with status ok: nothing to identify from",
                          where=where)
-    csv = ok[CSV_COLUMNS].reset_index(drop=True)
+    csv = ok[CSV_COLUMNS + [c for c in REF_W_COLS if c in ok.columns]].reset_index(drop=True)
     try:
         table = from_csv_frame(csv, where=where)
     except InputError as err:

@@ -156,3 +156,120 @@ def test_a_fitting_result_runs_no_cause_tests(kr240):
     res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
     rk, same = causes_of_misfit(res, kr240, tests, NOISE, "exact")
     assert rk is None and same is res
+
+
+def test_a_glitch_is_set_aside_not_read_as_a_cause(kr240):
+    """One 1 mm glitch: the outlier test flags it, the cause tests run without it, find
+    nothing, and the refusal names the flagged outlier first."""
+    tests = _campaign(kr240, 4)
+    d = tests.d.copy()
+    d[7, 2] += 1e-3
+    from dataclasses import replace
+
+    tests = replace(tests, d=d)
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
+    assert res.p_value < 1e-6
+    rk, res = causes_of_misfit(res, kr240, tests, NOISE, "exact")
+    assert rk.set_aside >= 1 and not rk.named
+    (misfit,) = [p for p in problems(res, kr240.nominal_stiffness, causes=rk)
+                 if p.startswith("misfit")]
+    causes = misfit.split("likely causes, most likely first: ")[1]
+    assert causes.startswith(f"(1) the {rk.set_aside} outlier component(s) the outlier test")
+
+
+def test_no_ft_advice_that_would_not_help_and_the_report_row(kr240):
+    """The noise check's advice to raise the F/T noise is replaced when no factor up to 5
+    passes; the report's assumptions row lists every test with its F and p."""
+    from dataclasses import replace
+
+    from analysis.identification.checks.misfit_causes import FT_ADVICE
+    from analysis.report.build import misfit_causes_text
+
+    tests = _campaign(kr240, 5, band=BAND)
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
+    advice = ("translation residuals are 3.1 times the declared noise: " + FT_ADVICE
+              + " through the compliance) looks too small by about that factor (check ...)")
+    res = replace(res, warnings=(*res.warnings, advice))
+    rk, res = causes_of_misfit(res, kr240, tests, NOISE, "exact")
+    assert rk.ft_factor is None
+    assert advice not in res.warnings
+    assert ("translation residuals are 3.1 times the declared noise: a larger F/T noise (up "
+            "to 5 x) would not make the fit pass, so it is not the cause; see the misfit's "
+            "causes") in res.warnings
+    row = misfit_causes_text(res.assumptions["misfit_causes"])
+    assert row.startswith("lost motion F = ") and " *" in row.split(";")[0]
+    assert row.count("F = ") == len(rk.tests)
+
+
+def test_flips_follow_the_reference_wrench_as_the_lab_s(kr240):
+    """The gear torques' sign changes between the reference (w_ref) and the loaded reading
+    (w) are the realistic lab's lost-motion steps (an independent flank model); a reference
+    under a reversed preload flips joints the unloaded one does not, and the refusal of the
+    wls fit (the model in w - w_ref) names lost motion first."""
+    from dataclasses import replace
+
+    from analysis.identification.checks.misfit_causes import gear_torque_pair
+    from analysis.kinetostatics import realistic as rl
+
+    lab = rl.RealisticLab(lost_motion=BAND, gravity="flanks")
+    poses = sample_poses(kr240, 5, np.random.default_rng(11), min_inverse_condition=0.3)
+    q, w = fx.campaign(poses)
+    w_ref = -0.5 * w
+    d = rl.displacement(kr240, lab, kr240.nominal_stiffness, q, w_ref, w)
+    tests = replace(fx.measured(q, w, d, NOISE, 11), w_ref=w_ref)
+    tests = replace(tests, q=q, w=w)  # exact readings: flanks compared without noise
+    tau_ref, tau_load = gear_torque_pair(kr240, tests)
+    lab_flips = rl.flanks(kr240, lab, q, w_ref) != rl.flanks(kr240, lab, q, w)
+    assert np.array_equal(np.sign(tau_ref) != np.sign(tau_load), lab_flips)
+    unloaded = rl.flanks(kr240, lab, q, np.zeros(6)) != rl.flanks(kr240, lab, q, w)
+    assert lab_flips.sum() > unloaded.sum()
+    res = identify(kr240, tests, "wls", noise=NOISE, validate=False)
+    rk, res = causes_of_misfit(res, kr240, tests, NOISE, "wls")
+    assert rk is not None and rk.first() == "lost_motion"
+    assert f"({int(lab_flips[:, 0].sum())} flips)" in rk.named[0].estimate.split(",")[0]
+
+
+def test_the_tool_check_takes_the_wrench_difference(kr240):
+    """With preloaded references the tool-point check (reused as a cause test) sees the
+    tests of the wrench difference w - w_ref, as the fit does."""
+    from dataclasses import replace
+
+    from analysis.identification.checks.tool_check import tool_point_check
+    from analysis.kinetostatics import realistic as rl
+
+    poses = sample_poses(kr240, 5, np.random.default_rng(3), min_inverse_condition=0.3)
+    q, w = fx.campaign(poses)
+    d = rl.displacement(kr240, rl.RealisticLab(), kr240.nominal_stiffness, q, 0.3 * w, w)
+    pre = replace(fx.measured(q, w, d, NOISE, 3), w_ref=0.3 * w)
+    diff = replace(pre, w=pre.w - pre.w_ref, w_ref=None)
+    res = identify(kr240, pre, "wls", noise=NOISE, validate=False)
+    a = tool_point_check(kr240, pre, res.joints, res.x, NOISE, "wls")
+    b = tool_point_check(kr240, diff, res.joints, res.x, NOISE, "wls")
+    assert a.f_value == b.f_value and np.array_equal(a.k_moved, b.k_moved)
+    assert np.allclose(a.k_moved, res.k, rtol=0.05)  # P right: k stays (within 5 %)
+
+
+@pytest.mark.parametrize("joint", [1, 4])
+def test_a_pose_convention_that_makes_the_fit_pass_is_named_first(kr240, joint):
+    """The tests measured at q but given with one joint's direction reversed (within the
+    limits: the data check refuses angles beyond them, naming a controller-angle mix-up):
+    the refit in that convention passes and is named first."""
+    from dataclasses import replace
+
+    tests = _campaign(kr240, 6)
+    given = tests.q.copy()
+    given[:, joint - 1] = -given[:, joint - 1]
+    want = f"joint {joint}'s angle reversed"
+    wrong = replace(tests, q=given)
+    res = identify(kr240, wrong, "exact", noise=NOISE, validate=False)
+    assert res.p_value < 1e-6
+    rk, res = causes_of_misfit(res, kr240, wrong, NOISE, "exact")
+    assert rk.first() == "sign_convention" and rk.convention.variant.startswith(want)
+    (misfit,) = [p for p in problems(res, kr240.nominal_stiffness, causes=rk)
+                 if p.startswith("misfit")]
+    assert misfit.split("most likely first: ")[1].startswith(
+        f"(1) the pose sign convention: with {want}")
+    # the right poses: no convention explains anything (the fit passes, no misfit to explain)
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
+    assert all(not c.explains for c in cz.rank_causes(
+        kr240, tests, res.joints, res.x, NOISE, "exact").conventions)

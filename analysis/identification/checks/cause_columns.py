@@ -15,9 +15,11 @@ them on the residuals of the fit.
   gear transmits changes sign between the reference and the loaded reading; the
   column is ``J[:, j] (s_load - s_ref) / 2`` (s = sign of the gear torque) and
   the parameter the dead band 2 b_j (rad);
-* compensator: a compliance of joint 2 that varies with q2 (a spring between
-  links 1 and 2 whose stiffness depends on q2): columns ``A[:, 2] (q2 - mean)``
-  and ``A[:, 2] (q2 - mean)^2`` (A the model's compliance columns);
+* compensator: a spring between links 1 and 2 whose stiffness and torque depend on
+  q2: a compliance of joint 2 linear and quadratic in q2 (columns ``A[:, 2] t`` and
+  ``A[:, 2] t^2``, t = q2 - mean, A the model's compliance columns) and a static
+  deflection of joint 2 that follows q2 (``G t^k``, k = 0..2, G the derivative of the
+  model displacement with respect to q2);
 * units: a relative scale of the measured rotations to the translations and of
   the moments to the forces (a moment in N mm for N m, a rotation in urad for
   mrad): columns ``[0; pred_rot]`` and ``J X J^T [0; m]``.
@@ -102,12 +104,16 @@ def lost_motion_columns(J: np.ndarray, tau_ref: np.ndarray,
     return J * step[:, None, :], step != 0
 
 
-def compensator_columns(A: np.ndarray, q: np.ndarray, joint: int) -> np.ndarray:
-    """B (m, 6, 2): the model's compliance column of ``joint`` (A (m, 6) of that joint)
-    times (q_j - mean) and its square (rad, rad^2): a compliance linear and quadratic in
-    q_j."""
+def compensator_columns(A: np.ndarray, G: np.ndarray, q: np.ndarray, joint: int) -> np.ndarray:
+    """B (m, 6, 5): a spring on ``joint`` whose stiffness and torque depend on q_j. The model's
+    compliance column of that joint (A (m, 6)) times (q_j - mean) and its square (a
+    compliance linear and quadratic in q_j), and the displacement's derivative with respect
+    to that joint's angle (G (m, 6), per rad) times 1, (q_j - mean) and its square (the
+    spring's torque deflects the gear at both readings: the arm stands at q_j plus a
+    static deflection that follows q_j)."""
     t = q[:, joint] - np.mean(q[:, joint])
-    return np.stack([A * t[:, None], A * (t**2)[:, None]], axis=-1)
+    return np.stack([A * t[:, None], A * (t**2)[:, None], G, G * t[:, None],
+                     G * (t**2)[:, None]], axis=-1)
 
 
 def units_columns(J: np.ndarray, x: np.ndarray, w: np.ndarray,

@@ -4,7 +4,10 @@ Each alternative adds columns B to the fitted model (regressors in
 :mod:`analysis.identification.checks.cause_columns`): compliant links 2 and 3,
 a lost-motion step per joint that follows the sign change of the joint's gear
 torque, a k2 that varies with q2 (a gravity compensator), a relative scale of
-rotations and moments (units). On the whitened residuals e of the fit and the
+rotations and moments (units).
+The compensator's columns also hold a static deflection of joint 2 that follows q2:
+the spring's torque deflects the gear at both readings, so the arm does not stand at
+the encoders' q2. On the whitened residuals e of the fit and the
 whitened compliance columns A, the columns are projected off A, scaled to unit
 norm and reduced to their identifiable combinations by an SVD (singular values
 above :data:`RANK_TOL` times the largest: r combinations). Then, as for the
@@ -63,8 +66,8 @@ NAMES = {
                    "between the reference and the loaded reading travel through their dead "
                    "band; a reference reading under a preload in the load's direction keeps "
                    "each joint on one flank)",
-    "compensator": "a stiffness of joint 2 that varies with q2 (an axis-2 gravity "
-                   "compensator spring)",
+    "compensator": "a spring on joint 2 whose stiffness and torque vary with q2 (an axis-2 "
+                   "gravity compensator: k2 and the static deflection of joint 2 follow q2)",
     "tool_point": "the tool point P (the displacements and wrench must be at the P given to "
                   "the analysis: --tool-xyz-mm/--tool-rpy-deg or the protocol's [tool])",
     "units": "units of rotations or moments relative to translations and forces (rotations "
@@ -116,13 +119,23 @@ class CauseTest:
 @dataclass(frozen=True)
 class CauseRanking:
     """The alternatives tested, ranked (significant first, by information criterion), the
-    ones not tested with why, and the F/T noise factor that would make the fit pass
-    (None: none of :data:`FT_FACTORS` would)."""
+    ones not tested with why, the F/T noise factor that would make the fit pass (None:
+    none of :data:`FT_FACTORS` would), the tests used, and the flagged components set
+    aside."""
 
     tests: tuple[CauseTest, ...]
     not_tested: tuple[tuple[str, str], ...]
     ft_factor: float | None
     n_tests: int
+    #: components the outlier test flagged, set aside before the tests (a few glitches)
+    set_aside: int = 0
+    #: refits in other pose conventions (:mod:`.conventions`), best first
+    conventions: tuple = ()
+
+    @property
+    def convention(self):
+        """The convention that explains the misfit (its refit passes), or None."""
+        return next((c for c in self.conventions if c.explains), None)
 
     @property
     def named(self) -> tuple[CauseTest, ...]:
@@ -130,6 +143,8 @@ class CauseRanking:
         return tuple(t for t in self.tests if t.significant)
 
     def first(self) -> str | None:
+        if self.convention is not None:
+            return "sign_convention"
         named = self.named
         return named[0].cause if named else None
 
@@ -137,6 +152,8 @@ class CauseRanking:
         return {"level": LEVEL, "n_tests": self.n_tests,
                 "ranked": [t.describe() for t in self.tests],
                 "not_tested": [{"cause": c, "why": why} for c, why in self.not_tested],
+                "outlier_components_set_aside": self.set_aside,
+                "conventions": [c.describe() for c in self.conventions],
                 "ft_noise_factor_that_passes": self.ft_factor}
 
 
@@ -240,6 +257,25 @@ def _simple(wh: _Whitened, cause: str, B: np.ndarray, lines):
     return _f_test(wh, cause, red[0], lines)
 
 
+#: step of the finite difference along a joint angle (rad)
+ANGLE_STEP = 1e-5
+
+
+def _angle_derivative(robot, tests: TestArrays, x, method: str, predicted: np.ndarray,
+                      joint: int) -> np.ndarray:
+    """(m, 6) derivative of the fit's model displacement with respect to ``joint``'s angle
+    (m/rad, rad/rad), a forward difference of ANGLE_STEP."""
+    q = tests.q.copy()
+    q[:, joint] += ANGLE_STEP
+    if method == "exact":
+        from analysis.identification.estimators.exact_model import model_displacement
+
+        moved, _ = model_displacement(robot, q, x, tests.w, with_jacobian=False)
+    else:
+        moved = np.einsum("mrj,j->mr", design_block(jacobian(robot, q), tests.w), x)
+    return (moved - predicted) / ANGLE_STEP
+
+
 def _tool(robot, tests, joints, x, noise, method) -> CauseTest | None:
     from analysis.identification.checks.tool_check import tool_point_check
 
@@ -320,7 +356,9 @@ def rank_causes(robot, tests: TestArrays, joints, x: np.ndarray, noise: NoiseMod
         else:
             out.append(t)
     if 1 in cols:
-        t = _simple(wh, "compensator", cc.compensator_columns(wh.A[:, :, 1], sub.q, 1), lines)
+        G = _angle_derivative(robot, sub, x, method, wh.predicted, 1)
+        t = _simple(wh, "compensator", cc.compensator_columns(wh.A[:, :, 1], G, sub.q, 1),
+                    lines)
         if t is not None:
             out.append(t)
     else:
@@ -334,4 +372,7 @@ def rank_causes(robot, tests: TestArrays, joints, x: np.ndarray, noise: NoiseMod
     ranked = sorted(out, key=lambda c: (not c.significant, c.bic if c.significant
                                         else np.log(max(c.p_value, 1e-300))))
     ft = ft_noise_factor(robot, sub, cols, x, noise, method, wh.predicted)
-    return CauseRanking(tuple(ranked), tuple(skipped), ft, sub.m)
+    from analysis.identification.checks.conventions import convention_checks
+
+    return CauseRanking(tuple(ranked), tuple(skipped), ft, sub.m,
+                        conventions=convention_checks(robot, sub, cols, x, noise))

@@ -13,6 +13,10 @@ W_COLS = ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
 D_COLS = ["dx_mm", "dy_mm", "dz_mm"]
 R_COLS = ["rx_mrad", "ry_mrad", "rz_mrad"]
 CSV_COLUMNS = ["pose", *Q_COLS, *W_COLS, *D_COLS, *R_COLS]
+#: optional: the wrench of each test's reference reading (its preload), base frame at the
+#: tool point (N, N m); the displacement is then loaded minus reference, for w - w_ref.
+#: Absent (or empty): an unloaded reference, w_ref = 0. Same names and units in SI.
+REF_W_COLS = ["fx_ref_N", "fy_ref_N", "fz_ref_N", "mx_ref_Nm", "my_ref_Nm", "mz_ref_Nm"]
 
 SI_Q = [f"q{i}_rad" for i in range(1, N_JOINTS + 1)]
 SI_W = W_COLS

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import InputError
-from analysis.identification.io.columns import CSV_COLUMNS, N_JOINTS, TO_SI
+from analysis.identification.io.columns import CSV_COLUMNS, N_JOINTS, REF_W_COLS, TO_SI
 from analysis.identification.io.measurements import TestArrays, to_arrays
 from analysis.identification.io.table_checks import validate_arrays, validate_table
 
@@ -143,7 +143,8 @@ def _read_arrow(path: Path) -> TestArrays | None:
     import pyarrow.csv as pacsv
 
     names = _header(path)
-    if names is None or any(names.count(c) != 1 for c in CSV_COLUMNS):
+    if names is None or any(names.count(c) != 1 for c in CSV_COLUMNS) or any(
+            c in names for c in REF_W_COLS):  # the reference wrench: the table route
         return None  # missing or repeated columns: read_csv says which
     # columns by position: the header's own spelling (spaces, quotes) no longer matters
     keys = [f"c{j}" for j in range(len(names))]
@@ -204,6 +205,34 @@ def _read_arrow(path: Path) -> TestArrays | None:
     return TestArrays(pose=pose[codes], q=q, w=w, d=d, measured=np.isfinite(d), line=line)
 
 
+def _reference_wrench(frame: pd.DataFrame, out: pd.DataFrame, where: str, line0: int) -> None:
+    """The optional reference-wrench columns (N, N m) into ``out``: all six or none; a
+    row with all six empty has an unloaded reference (0), a partly empty one is refused."""
+    present = [c for c in REF_W_COLS if c in frame.columns]
+    if not present:
+        return
+    if len(present) < len(REF_W_COLS):
+        missing = [c for c in REF_W_COLS if c not in frame.columns]
+        raise InputError(f"reference wrench: column(s) {', '.join(missing)} missing; give all "
+                         f"of {', '.join(REF_W_COLS)} or none", where=where)
+    text = frame[REF_W_COLS].astype(str).apply(lambda c: c.str.strip())
+    empty = text.isin(_NA_TEXT).to_numpy()
+    partial = empty.any(axis=1) & ~empty.all(axis=1)
+    if partial.any():
+        i = int(np.flatnonzero(partial)[0])
+        raise InputError(f"line {i + line0}: reference wrench partly empty (give all six "
+                         "components, or leave all six empty for an unloaded reference)",
+                         where=where)
+    for j, col in enumerate(REF_W_COLS):
+        values = np.array(_numeric(frame, col, where, line0), dtype=float)
+        values[empty[:, j]] = 0.0
+        if not np.all(np.isfinite(values)):
+            i = int(np.flatnonzero(~np.isfinite(values))[0])
+            raise InputError(f"line {i + line0}, column {col}: not a finite number",
+                             where=where)
+        out[col] = values
+
+
 def from_csv_frame(frame: pd.DataFrame, where: str = "measurements") -> pd.DataFrame:
     """Convert a frame with the public CSV columns (deg, mm, mrad) to the tidy SI table.
 
@@ -228,6 +257,7 @@ def from_csv_frame(frame: pd.DataFrame, where: str = "measurements") -> pd.DataF
     for col in CSV_COLUMNS[1:]:
         si, factor = TO_SI[col]
         out[si] = _numeric(frame, col, where, line0) * factor
+    _reference_wrench(frame, out, where, line0)
     out["line"] = np.arange(len(frame)) + line0
     validate_table(out, where=where)
     return out

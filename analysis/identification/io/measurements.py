@@ -8,6 +8,10 @@ Public CSV format (one row per test, extra columns ignored, header required)::
     dx_mm, dy_mm, dz_mm                    translation of the tool point, base frame (mm)
     rx_mrad, ry_mrad, rz_mrad              small rotation vector, base frame (mrad);
                                            empty for translational-only measurements
+    fx_ref_N .. mz_ref_Nm (optional)       wrench of the reference reading (a preload in
+                                           the load's direction), base frame at the tool
+                                           point (N, N m); the displacement is then loaded
+                                           minus reference. Absent or all empty: unloaded
 
 Inside the program the same tests are a tidy table in SI units with the columns of
 :data:`~analysis.identification.io.columns.SI_COLUMNS` (rad, N, N m, m, rad). Reading a
@@ -23,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.identification.io.columns import SI_D, SI_Q, SI_W, TO_SI
+from analysis.identification.io.columns import REF_W_COLS, SI_D, SI_Q, SI_W, TO_SI
 from analysis.identification.io.table_checks import validate_table
 
 
@@ -39,6 +43,8 @@ class TestArrays:
     d : (m, 6) measured displacement screw [dp (m); dr (rad)]; NaN where not measured.
     measured : (m, 6) bool, True where ``d`` holds a measurement.
     line : (m,) CSV line numbers (header = 1) or table row numbers, for messages.
+    w_ref : (m, 6) wrench of each test's reference reading [f (N); m (N m)] (a preload),
+        base frame at the tool point, or None: every reference reading unloaded.
     """
 
     __test__ = False  # not a pytest test class
@@ -49,6 +55,7 @@ class TestArrays:
     d: np.ndarray
     measured: np.ndarray
     line: np.ndarray
+    w_ref: np.ndarray | None = None
 
     @property
     def m(self) -> int:
@@ -59,6 +66,7 @@ class TestArrays:
         return TestArrays(
             self.pose[rows], self.q[rows], self.w[rows], self.d[rows],
             self.measured[rows], self.line[rows],
+            None if self.w_ref is None else self.w_ref[rows],
         )
 
     @property
@@ -71,6 +79,11 @@ def to_arrays(table: pd.DataFrame) -> TestArrays:
     validate_table(table)
     d = table[SI_D].to_numpy(dtype=float)
     line = table["line"].to_numpy(dtype=int) if "line" in table.columns else np.arange(len(table))
+    w_ref = None
+    if all(c in table.columns for c in REF_W_COLS):
+        w_ref = table[REF_W_COLS].to_numpy(dtype=float)
+        if not np.any(w_ref):
+            w_ref = None  # every reference unloaded: the tests of the unloaded format
     return TestArrays(
         pose=table["pose"].astype(str).to_numpy(),
         q=table[SI_Q].to_numpy(dtype=float),
@@ -78,6 +91,7 @@ def to_arrays(table: pd.DataFrame) -> TestArrays:
         d=d,
         measured=np.isfinite(d),
         line=line,
+        w_ref=w_ref,
     )
 
 
