@@ -218,11 +218,14 @@ def _checked(problem: IdentificationProblem) -> tuple[float, list[str]]:
         warnings.append("no rotation measured: wrist joints are identified from translations "
                         "only, expect wide intervals")
     if problem.preloaded:
-        warnings.append("reference readings under a preload: the linear model in the wrench "
-                        "difference w - w_ref, first order in the deflection (the exact model "
-                        "of two loaded equilibria is not implemented); k can be off by a few "
-                        "% at large preloads (3 % on k6 at 30 % of the eq. 22 wrench on the "
-                        "KR240-2, noise-free)")
+        if problem.options.method == "exact":
+            warnings.append("reference readings under a preload: the displacement is fitted "
+                            "between the equilibria under the reference wrench and under "
+                            "the loaded one (the wrench in the tables is their difference)")
+        else:
+            warnings.append("reference readings under a preload: the linear model in the "
+                            "wrench difference w - w_ref, first order in the deflection; "
+                            "the exact model (--method exact) solves both equilibria")
     if not tests.has_rotations and joints == (0, 1, 2):
         warnings.append("translational-only variant: wrist joints 4-6 taken as rigid; their "
                         "compliance, if any, is absorbed by k1..k3")

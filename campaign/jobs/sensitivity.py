@@ -67,6 +67,72 @@ class ErrorSources:
             encoder_resolution=self.encoder_resolution, reflector_radius=self.reflector_radius)
 
 
+#: the compensator's attachment points (m) of the explorer's stress test, in joint 2's frame
+#: at q2 = 0 and in link 2's frame: the shop protocol's (protocols/kr240-2-shop.toml)
+COMPENSATOR_POINTS = ((0.24, 0.215, 0.0), (0.27, 0.26, 0.0))
+
+
+@dataclass(frozen=True)
+class Realism:
+    """What the simulated robot has beyond joint springs (each 0: off, today's numbers).
+
+    link_fraction: links 2 and 3 bend (square steel boxes, one common scale) by this
+    fraction of P's deflection, median over the tests (0.1 = 10 %); lost_motion (rad): the
+    full dead band of every gear, flanks decided by gravity (needs the robot's mass model);
+    compensator_fraction: an axis-2 spring (:data:`COMPENSATOR_POINTS`, rate and preload in
+    the shop protocol's ratio) scaled so that its stiffness -dtau_c/dq2 reaches this
+    fraction of k2 over the q2 range, gravity loading the arm (needs the mass model). The
+    campaigns' displacements gain each effect's deterministic part: the realistic
+    displacement minus that of the same arm without the effects."""
+
+    link_fraction: float = 0.0
+    lost_motion: float = 0.0
+    compensator_fraction: float = 0.0
+
+    @property
+    def active(self) -> bool:
+        return bool(self.link_fraction or self.lost_motion or self.compensator_fraction)
+
+
+def realism_bias(robot, q: np.ndarray, w: np.ndarray, k: np.ndarray,
+                 realism: Realism) -> np.ndarray:
+    """(t, 6) what ``realism`` adds to the tests' displacements (m, rad) at q (t, n), w (t, 6)."""
+    from analysis.kinetostatics import realistic as R
+
+    gravity = "on" if realism.compensator_fraction else (
+        "flanks" if realism.lost_motion else "off")
+    if gravity != "off" and robot.inertials is None:
+        raise InputError(f"{robot.name} has no mass model (link masses in its robot file): "
+                         "lost motion and the compensator need gravity's torques",
+                         where="lost_motion_mrad" if realism.lost_motion
+                         else "compensator_percent")
+    base = R.RealisticLab(gravity=gravity)
+    links: tuple = ()
+    if realism.link_fraction:
+        I, J, A = R.box_section(0.22, 0.008)
+        unit = tuple(R.LinkCompliance(link, R.link_beam_compliance(robot, link, 2.1e11,
+                                                                   8.1e10, I, J, A))
+                     for link in (2, 3))
+        tw = R.link_twist(robot, R.RealisticLab(links=unit), q, w)
+        joints = R.displacement(robot, R.RealisticLab(), k, q, np.zeros(6), w)
+        ratio = np.median(np.linalg.norm(tw[:, :3], axis=1)
+                          / np.linalg.norm(joints[:, :3], axis=1))
+        scale = realism.link_fraction / ratio
+        links = tuple(R.LinkCompliance(c.link, c.matrix * scale) for c in unit)
+    comp = None
+    if realism.compensator_fraction:
+        shape = R.compensator_for(robot, 1, *COMPENSATOR_POINTS, 43000.0, 2100.0)
+        q2 = np.linspace(robot.lower[1], robot.upper[1], 721)
+        peak = np.max(np.abs(R.compensator_torque(shape, q2)[1]))
+        s = realism.compensator_fraction * k[1] / peak
+        comp = R.compensator_for(robot, 1, *COMPENSATOR_POINTS, 43000.0 * s, 2100.0 * s)
+    lab = R.RealisticLab(links=links, compensator=comp, gravity=gravity,
+                         lost_motion=np.full(robot.n, realism.lost_motion)
+                         if realism.lost_motion else None)
+    return (R.displacement(robot, lab, k, q, np.zeros(6), w)
+            - R.displacement(robot, base, k, q, np.zeros(6), w))
+
+
 @dataclass(frozen=True)
 class SensitivityOptions:
     """What the explorer simulates.
@@ -88,6 +154,7 @@ class SensitivityOptions:
     method: str = "ols"
     trials: int = 1000
     seed: int = 0
+    realism: Realism = field(default_factory=Realism)
 
 
 @dataclass(frozen=True)
@@ -157,6 +224,12 @@ def _check(o: SensitivityOptions) -> None:
         raise InputError(f"must be 1 to {MAX_TESTS}, got {o.n_tests}", where="n_tests")
     if not 2 <= o.trials <= MAX_TRIALS:
         raise InputError(f"must be 2 to {MAX_TRIALS}, got {o.trials}", where="trials")
+    r = o.realism
+    for name, value, hi in (("link_fraction", r.link_fraction, 1.0),
+                            ("lost_motion", r.lost_motion, 0.01),
+                            ("compensator_fraction", r.compensator_fraction, 1.0)):
+        if not (np.isfinite(value) and 0 <= value <= hi):
+            raise InputError(f"must be 0 to {hi:g}, got {value!r}", where=name)
 
 
 def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.ndarray | None]:
@@ -240,6 +313,8 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
     q, w = q[:o.n_tests], w[:o.n_tests]
     rng = np.random.default_rng(o.seed + 1)
     sim = simulate_campaigns(robot, q, w, k, noise, 1, o.trials, rng)
+    if o.realism.active:  # the robot is not joint springs: every campaign sees it
+        sim.d[...] += realism_bias(robot, q, w, k, o.realism)[None]
     with np.errstate(all="ignore"):
         try:
             x = identify_campaigns(robot, sim, noise, 1.0 / k, o.method)  # (T, n)

@@ -8,6 +8,7 @@ acquisition runner.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -123,6 +124,32 @@ def design_frame(plan: Plan, design: Design) -> pd.DataFrame:
     data["v_p"] = cand.v_p[design.pose, design.case]
     data["v_r_deg"] = cand.v_r[design.pose, design.case] / DEG
     return pd.DataFrame(data, columns=COLUMNS)
+
+
+def _flank_keeping(protocol: Protocol, robot: RobotModel, cand: Candidates) -> Candidates:
+    """The candidates without the tests that move a gear from one flank to the other
+    between their reference reading (under the load case's preload) and their loaded one
+    (:mod:`campaign.planning.flanks`), when enough remain for the protocol's thresholds
+    (else all of them: the summary then counts the flank changes of the plan). Only for a
+    robot with a mass model and a protocol that preloads its load cases or simulates lost
+    motion (other plans are unchanged)."""
+    from campaign.planning.flanks import flank_changes
+
+    lost = protocol.fake_lab is not None and protocol.fake_lab.lost_motion_rad is not None
+    if robot.inertials is None or not (protocol.preloaded or lost):
+        return cand
+    w, w_ref = protocol.wrenches(), protocol.reference_wrenches()
+    change = np.stack([flank_changes(robot, cand.q, np.broadcast_to(w[c], (len(cand.q), 6)),
+                                     np.broadcast_to(w_ref[c], (len(cand.q), 6))).any(axis=1)
+                       for c in range(len(w))], axis=1)
+    keeping = dataclasses.replace(
+        cand, valid=cand.valid & ~change,
+        rejected={**cand.rejected, "gear_flank_change": int(np.sum(cand.valid & change))})
+    try:
+        check_enough(protocol, keeping)
+    except InputError:
+        return cand
+    return keeping
 
 
 def _tests(cand: Candidates, selection: str):
@@ -243,6 +270,7 @@ def make_plan(
     q, zone = sample(boxes, candidates, seed)
     cand = evaluate(protocol, robot, q, zone, k_prior, length)
     check_enough(protocol, cand)
+    cand = _flank_keeping(protocol, robot, cand)
 
     wrenches = protocol.wrenches()
     pose, case, group = _tests(cand, protocol.loads.selection)

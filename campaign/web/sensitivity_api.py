@@ -54,6 +54,15 @@ class SensitivityRequest(BaseModel):
     reflector_radius_mm: float | None = Field(
         None, ge=10, le=2000, description="Reflector triangle circumradius (mm): the rotation "
         "sigma from the reflector fit, when rotation_sigma_urad is not given.")
+    link_compliance_percent: float = Field(
+        0.0, ge=0, le=50, description="Links 2 and 3 bend by this % of the tool point's "
+        "deflection (median over the tests); 0: rigid links.")
+    lost_motion_mrad: float = Field(
+        0.0, ge=0, le=2, description="Full dead band of every gear (mrad), flanks decided "
+        "by gravity (the robot file's masses); 0: none.")
+    compensator_percent: float = Field(
+        0.0, ge=0, le=30, description="Axis-2 gravity compensator whose stiffness reaches "
+        "this % of k2 over the q2 range (gravity on); 0: none.")
     n_tests: int = Field(10, ge=1, le=200)
     method: Literal["ols", "wls", "exact"] = "ols"
     trials: int = Field(1000, ge=2, le=API_MAX_TRIALS)
@@ -98,6 +107,9 @@ class Defaults(BaseModel):
     moment_percent: float
     encoder_resolution_deg: float
     reflector_radius_mm: float
+    link_compliance_percent: float = 0.0
+    lost_motion_mrad: float = 0.0
+    compensator_percent: float = 0.0
     robots: list[str]
 
 
@@ -105,7 +117,7 @@ def options_from_request(body: SensitivityRequest, workspace):
     """The job's options (SI) for ``body``; files resolved inside ``workspace``."""
     from analysis.model.robot_spec import is_robot_file
     from analysis.model.robots import builtin_files
-    from campaign.jobs.sensitivity import ErrorSources, SensitivityOptions
+    from campaign.jobs.sensitivity import ErrorSources, Realism, SensitivityOptions
     from campaign.web.robots_api import resolve_robot
     from campaign.web.security import inside_workspace
 
@@ -143,7 +155,10 @@ def options_from_request(body: SensitivityRequest, workspace):
         joint_stiffness=None if body.joint_stiffness_Nm_per_rad is None
         else np.array(body.joint_stiffness_Nm_per_rad),
         errors=errors, n_tests=body.n_tests, method=body.method, trials=body.trials,
-        seed=body.seed)
+        seed=body.seed,
+        realism=Realism(link_fraction=body.link_compliance_percent / 100,
+                        lost_motion=body.lost_motion_mrad * 1e-3,
+                        compensator_fraction=body.compensator_percent / 100))
 
 
 @router.post("", response_model=SensitivityResponse)

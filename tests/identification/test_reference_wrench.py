@@ -54,31 +54,43 @@ NOISE = NoiseModel().with_overrides(translation_sigma_override=1e-6,
                                     rotation_sigma_override=1e-6)
 
 
-def test_linear_model_fits_the_wrench_difference(campaign, tmp_path):
+def test_preloaded_tests_fit_the_two_equilibria(campaign, tmp_path):
+    """The reader keeps the loaded wrench's difference from the reference one; the exact
+    model solves both equilibria and the linear ones fit the difference (their
+    linearisation-bias correction uses the exact model with the reference): k within
+    0.5 % of the truth (1 um noise), where the loaded wrench alone is 30 % off (1 / 0.7)."""
     robot, q, w, w_ref, d = campaign
-    with_ref = read_test_arrays(_csv(tmp_path / "a.csv", q, w, d, w_ref))
-    assert np.array_equal(with_ref.w_ref, w_ref)
-    diff = read_test_arrays(_csv(tmp_path / "b.csv", q, w - w_ref, d))
-    assert diff.w_ref is None
-    a = identify(robot, with_ref, method="wls", noise=NOISE, validate=False)
-    b = identify(robot, diff, method="wls", noise=NOISE, validate=False)
-    assert np.array_equal(a.k, b.k)
-    # the difference is the right wrench: k within 4 % of the truth (the linear model's
-    # first-order error at this preload: 0.3-3.0 % measured), where the loaded wrench
-    # alone is 30 % off (1 / 0.7); the result says what was assumed
-    assert np.max(np.abs(a.k / K - 1)) < 0.04
-    assert any("preload" in text for text in a.warnings)
+    tests = read_test_arrays(_csv(tmp_path / "a.csv", q, w, d, w_ref))
+    assert np.array_equal(tests.w_ref, w_ref)
+    assert np.allclose(tests.w, w - w_ref, rtol=0, atol=1e-9)
+    for method in ("exact", "wls"):
+        fit = identify(robot, tests, method=method, noise=NOISE, validate=False)
+        assert np.max(np.abs(fit.k / K - 1)) < 0.005, method
+        assert any("preload" in text for text in fit.warnings)
     ignored = identify(robot, read_test_arrays(_csv(tmp_path / "c.csv", q, w, d)),
-                       method="wls", noise=NOISE, validate=False)
+                       method="exact", noise=NOISE, validate=False)
     assert np.min(np.abs(ignored.k / K - 1)) > 0.25
 
 
-def test_exact_model_is_refused_with_a_reference_wrench(campaign, tmp_path):
-    robot, q, w, w_ref, d = campaign
-    tests = read_test_arrays(_csv(tmp_path / "a.csv", q, w, d, w_ref))
-    with pytest.raises(InputError, match="method wls") as err:
-        identify(robot, tests, method="exact", noise=NOISE, validate=False)
-    assert "\n" not in str(err.value)
+def test_exact_model_between_equilibria_against_the_realistic_lab(campaign):
+    """model_displacement_state with w_ref = the displacement between the two equilibria
+    of analysis.kinetostatics.realistic (independent Newton), and its derivative in x =
+    central differences."""
+    from analysis.identification.estimators.exact_model import model_displacement_state
+
+    robot, q, w, w_ref, _ = campaign
+    x = 1.0 / K
+    f, D, ok, _ = model_displacement_state(robot, q, x, w - w_ref, True, w_ref=w_ref)
+    assert ok.all()
+    truth = R.displacement(robot, R.RealisticLab(), K, q, w_ref, w)
+    assert np.max(np.abs(f - truth)) < 1e-12
+    h = 1e-12
+    fd = np.stack([(model_displacement_state(robot, q, x + h * e, w - w_ref, False,
+                                             w_ref=w_ref)[0]
+                    - model_displacement_state(robot, q, x - h * e, w - w_ref, False,
+                                               w_ref=w_ref)[0]) / (2 * h)
+                   for e in np.eye(6)], axis=-1)
+    assert np.max(np.abs(D - fd)) < 1e-5 * np.max(np.abs(D))
 
 
 def test_empty_reference_is_unloaded_and_partial_is_refused(campaign, tmp_path):

@@ -63,3 +63,39 @@ def test_keeping_preload_is_the_threshold(setup):
     some = f > 1e-6
     below = (f * (1 - 1e-6))[:, None] * w
     assert np.all(flank_changes(robot, q[some], w[some], below[some]).any(axis=1))
+
+
+def test_planner_keeps_flanks_with_a_preload_and_counts_the_labs_flips(tmp_path):
+    """Lost-motion lab (KR240-2, gravity flanks): with an unloaded reference every planned
+    test flips joints (joint 1 at least); with preload_fraction 0.3 the planner drops the
+    flipping candidates and its plan flips none. Its count is the simulated lab's: the
+    lost-motion offsets of the lab built from the protocol change on exactly those joints."""
+    from pathlib import Path
+
+    from analysis.kinetostatics.realistic_lab import realistic_lab
+    from campaign.planning.plan_output import summary_dict
+    from campaign.planning.planner import make_plan
+    from campaign.protocol import load_protocol
+
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "protocols" / "kr240-2.toml").read_text().replace(
+        "[fake_lab]\n", '[fake_lab]\ngravity = "flanks"\n'
+        "lost_motion_rad = [2e-4, 2e-4, 2e-4, 4e-4, 4e-4, 4e-4]\n")
+    counts = {}
+    for f in (0.0, 0.3):
+        path = tmp_path / f"lm-{f}.toml"
+        path.write_text(text.replace('method = "cable-pulley"\n',
+                                     f'method = "cable-pulley"\npreload_fraction = {f}\n'))
+        protocol = load_protocol(path)
+        plan = make_plan(protocol, candidates=1000)
+        flanks_summary = summary_dict(plan)["gear_flanks"]
+        q = plan.candidates.q[plan.chosen.pose]
+        w = protocol.wrenches()[plan.chosen.case]
+        w_ref = protocol.reference_wrenches()[plan.chosen.case]
+        lab = realistic_lab(plan.robot, protocol.lab)
+        step = (R.lost_motion_offset(plan.robot, lab, q, w)
+                - R.lost_motion_offset(plan.robot, lab, q, w_ref))
+        assert flanks_summary["changes"] == int(np.sum(step != 0))
+        counts[f] = flanks_summary["changes"]
+    assert counts[0.0] >= len(plan.chosen.pose)  # joint 1 flips in every test unloaded
+    assert counts[0.3] == 0

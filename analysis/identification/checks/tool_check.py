@@ -106,7 +106,7 @@ def _whitened_rows(robot, sub: TestArrays, cols, x, noise, method) -> np.ndarray
     if method == "exact":
         from analysis.identification.estimators.exact_model import model_displacement
 
-        pred, D = model_displacement(robot, q, x, w)
+        pred, D = model_displacement(robot, q, x, w, w_ref=sub.w_ref)
         A = D[..., cols]
     else:
         pred, A = base, A_lin[..., cols]

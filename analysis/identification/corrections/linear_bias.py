@@ -69,7 +69,8 @@ def linearisation_bias(
     for s in range(0, tests.m, EVAL_BLOCK):
         sl = slice(s, s + EVAL_BLOCK)
         f, _, ok = model_displacement_masked(robot, tests.q[sl], x_full, tests.w[sl],
-                                             with_jacobian=False)
+                                             with_jacobian=False,
+                                             w_ref=None if tests.w_ref is None else tests.w_ref[sl])
         if not np.all(ok):
             return np.full(len(joints), np.nan)
         diff[sl] = np.where(tests.measured[sl], f - predicted[sl], 0.0)
@@ -96,7 +97,8 @@ def _bias_and_slope(robot, tests, joints, x, G, A, slope: bool = True, out=None)
     for s in range(0, tests.m, EVAL_BLOCK):
         sl = slice(s, s + EVAL_BLOCK)
         f, D, ok = model_displacement_masked(robot, tests.q[sl], x_full, tests.w[sl],
-                                             with_jacobian=slope)
+                                             with_jacobian=slope,
+                                             w_ref=None if tests.w_ref is None else tests.w_ref[sl])
         if not np.all(ok):
             return np.full(p, np.nan), (np.full((p, p), np.nan) if slope else None)
         if out is not None:

@@ -178,7 +178,8 @@ def _cols(a: np.ndarray, sel) -> np.ndarray:
 
 
 def model_displacement(
-    robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True
+    robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True,
+    w_ref: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Exact displacement screw (..., 6) [m; rad] and its derivative (..., 6, n) w.r.t. x.
 
@@ -186,7 +187,7 @@ def model_displacement(
     (up to the Newton tolerance) at the solved equilibrium. Raises
     :class:`EquilibriumError` where the equilibrium cannot be solved.
     """
-    screw, D, ok = model_displacement_masked(robot, q, x, w, with_jacobian)
+    screw, D, ok = model_displacement_masked(robot, q, x, w, with_jacobian, w_ref)
     if not np.all(ok):
         raise EquilibriumError(
             f"equilibrium did not converge at {int(np.sum(~ok))} pose(s): the wrench is too "
@@ -196,18 +197,27 @@ def model_displacement(
 
 
 def model_displacement_masked(
-    robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True
+    robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True,
+    w_ref: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-    """:func:`model_displacement` plus ``ok`` (...) bool; values are 0 where not ok."""
-    screw, D, ok, _ = model_displacement_state(robot, q, x, w, with_jacobian)
+    """:func:`model_displacement` plus ``ok`` (...) bool; values are 0 where not ok.
+    ``w_ref``: see :func:`model_displacement_state`."""
+    screw, D, ok, _ = model_displacement_state(robot, q, x, w, with_jacobian, w_ref=w_ref)
     return screw, D, ok
 
 
 def model_displacement_state(
     robot: RobotModel, q: np.ndarray, x: np.ndarray, w: np.ndarray, with_jacobian: bool = True,
     dq0: np.ndarray | None = None, unloaded: dict | None = None,
+    w_ref: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
     """:func:`model_displacement_masked` plus the joint deflection dq (..., n) (rad).
+
+    ``w_ref`` (..., 6): the reference readings' wrench (a preload), or None (unloaded
+    references). With it, ``w`` is the wrench difference (loaded minus reference, as in
+    :class:`~analysis.identification.io.measurements.TestArrays`) and the displacement is
+    the screw between the two equilibria, under w_ref and under w + w_ref
+    (:func:`_between_equilibria`); dq is the loaded equilibrium's.
 
     Newton starts from ``dq0`` (e.g. the deflection of the previous Gauss-Newton
     iterate), else from zero, its first step made with the unloaded chain state (needed
@@ -220,6 +230,8 @@ def model_displacement_state(
     Computed entry-major in blocks of :data:`analysis.kinetostatics.equilibrium.CHUNK`
     poses (cache-sized).
     """
+    if w_ref is not None and np.any(w_ref):
+        return _between_equilibria(robot, q, x, w, w_ref, with_jacobian, dq0, unloaded)
     q = np.asarray(q, dtype=float)
     batch, n = q.shape[:-1], q.shape[-1]
     qe = np.ascontiguousarray(q.reshape(-1, n).T)
@@ -255,6 +267,55 @@ def model_displacement_state(
                         tip=tip0.reshape(*batch, 4, 4))
     return (screw.reshape(*batch, 6), None if D is None else D.reshape(*batch, 6, n),
             ok.reshape(batch), dq.reshape(q.shape))
+
+
+def _rotation_matrices(phi: np.ndarray) -> np.ndarray:
+    """exp([phi]x) (N, 3, 3) of rotation vectors phi (N, 3) (rad), Rodrigues."""
+    t = np.sqrt(np.sum(phi * phi, axis=-1))[:, None, None]
+    K = np.zeros((len(phi), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -phi[:, 2], phi[:, 1], -phi[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = phi[:, 2], -phi[:, 1], phi[:, 0]
+    ts = np.where(t > 0, t, 1.0)
+    a = np.where(t > 1e-6, np.sin(ts) / ts, 1.0 - t**2 / 6)
+    b = np.where(t > 1e-6, (1.0 - np.cos(ts)) / ts**2, 0.5 - t**2 / 24)
+    return np.eye(3) + a * K + b * (K @ K)
+
+
+def _between_equilibria(robot, q, x, w, w_ref, with_jacobian, dq0, unloaded):
+    """The displacement of P between the equilibrium under w_ref (the reference reading)
+    and under w + w_ref (the loaded one), ``w`` being the wrench difference, with its
+    derivative w.r.t. x: translations subtract; the rotation is log(R_L R_R^T), whose
+    left-trivialised derivative is omega_L - R_rel omega_R (omega = J_l(phi) times the
+    rotation rows of each equilibrium's derivative), mapped by J_l^-1 of the result."""
+    from analysis.model.kinematics import rotation_vector
+
+    w = np.asarray(w, dtype=float)
+    w_ref = np.broadcast_to(np.asarray(w_ref, dtype=float), w.shape)
+    fL, DL, okL, dqL = model_displacement_state(robot, q, x, w + w_ref, with_jacobian, dq0,
+                                                unloaded)
+    fR, DR, okR, _ = model_displacement_state(robot, q, x, w_ref, with_jacobian)
+    batch = fL.shape[:-1]
+    fL2, fR2 = fL.reshape(-1, 6), fR.reshape(-1, 6)
+    RL, RR = _rotation_matrices(fL2[:, 3:]), _rotation_matrices(fR2[:, 3:])
+    rel = RL @ np.swapaxes(RR, -1, -2)
+    screw = np.empty(fL2.shape)
+    screw[:, :3] = fL2[:, :3] - fR2[:, :3]
+    screw[:, 3:] = rotation_vector(rel)
+    ok = (okL & okR).reshape(-1)
+    D = None
+    if with_jacobian:
+        n = DL.shape[-1]
+        DL2, DR2 = DL.reshape(-1, 6, n), DR.reshape(-1, 6, n)
+        Jl = np.linalg.inv(so3_left_jacobian_inverse(fL2[:, 3:]))
+        Jr = np.linalg.inv(so3_left_jacobian_inverse(fR2[:, 3:]))
+        omega = Jl @ DL2[:, 3:] - rel @ (Jr @ DR2[:, 3:])
+        D = np.empty(DL2.shape)
+        D[:, :3] = DL2[:, :3] - DR2[:, :3]
+        D[:, 3:] = so3_left_jacobian_inverse(screw[:, 3:]) @ omega
+        D[~ok] = 0.0
+        D = D.reshape(*batch, 6, n)
+    screw[~ok] = 0.0
+    return screw.reshape(*batch, 6), D, ok.reshape(batch), dqL
 
 
 def _model_block(robot, q, x, w, with_jacobian, dq0, tip0, base, state0):

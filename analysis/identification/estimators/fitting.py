@@ -168,7 +168,8 @@ def fit_exact(robot, tests, joints, noise, start: np.ndarray, weights=None,
         Linv0 = first_whitening["Linv"]
     J = jacobian_blocks(robot, tests.q) if J is None else J
     gn = gauss_newton(robot, tests.q, tests.w, tests.d, tests.measured, joints, noise, start,
-                      weights=weights, J=J, Linv0=Linv0, rows=sums, values=sums is None)
+                      weights=weights, J=J, Linv0=Linv0, rows=sums, values=sums is None,
+                      w_ref=tests.w_ref)
     if not gn.valid:
         raise InputError(
             "the exact fit cannot start: the equilibrium has no solution at the linear "

@@ -64,6 +64,7 @@ def gauss_newton(
     Linv0: np.ndarray | None = None,
     rows=None,
     values: bool = True,
+    w_ref: np.ndarray | None = None,
 ) -> GaussNewtonFit:
     """Fit compliances of ``joints`` (others rigid) to finite displacements.
 
@@ -87,6 +88,9 @@ def gauss_newton(
         tests only: a callable given (slice, J, whitening, whitened F, whitened residual)
         of each block of tests in the pass that makes the final system (at the solution and
         its weights), for per-test sums a caller would otherwise make in a pass of its own.
+    w_ref : (..., m, 6) the reference readings' wrench (preloads; ``w`` is then the
+        difference, see ``exact_model.model_displacement_state``), or None. Not with a
+        streamed campaign.
     values : one streamed campaign only: False leaves ``f`` None (48 MB at 1e6 tests not
         held; the caller takes the values from the result's ``F``, which makes them with
         each block,
@@ -102,7 +106,7 @@ def gauss_newton(
     dz = np.where(measured, d, 0.0)
     J = jacobian(robot, q) if J is None else J
     batch = q.shape[:-2]
-    ctx = Context(robot, q, w, dz, measured, cols, noise, J, weights, batch, {})
+    ctx = Context(robot, q, w, dz, measured, cols, noise, J, weights, batch, {}, w_ref)
     systems = systems_for(q.shape[-2], batch)(ctx)
 
     x = np.array(x0, dtype=float)

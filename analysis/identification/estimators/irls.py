@@ -249,7 +249,8 @@ def _model(robot, tests, joints, method, x_p, J, A_lin):
     if method == "exact":
         from analysis.identification.estimators.exact_model import model_displacement
 
-        f, F = model_displacement(robot, tests.q, _full(x_p, joints)[None, :], tests.w)
+        f, F = model_displacement(robot, tests.q, _full(x_p, joints)[None, :], tests.w,
+                                  w_ref=tests.w_ref)
         return f, F[..., list(joints)] * tests.measured[..., None]
     return apply(A_lin, x_p), A_lin
 
@@ -266,7 +267,8 @@ def _exact_prediction(robot, tests: TestArrays, joints, x_p) -> np.ndarray | Non
     for s in range(0, tests.m, EVAL_BLOCK):
         sl = slice(s, s + EVAL_BLOCK)
         f, _, ok = model_displacement_masked(robot, tests.q[sl], x_full, tests.w[sl],
-                                             with_jacobian=False)
+                                             with_jacobian=False,
+                                             w_ref=None if tests.w_ref is None else tests.w_ref[sl])
         if not np.all(ok):
             return None
         out[sl] = np.where(tests.measured[sl], f, 0.0)

@@ -11,7 +11,8 @@ Public CSV format (one row per test, extra columns ignored, header required)::
     fx_ref_N .. mz_ref_Nm (optional)       wrench of the reference reading (a preload in
                                            the load's direction), base frame at the tool
                                            point (N, N m); the displacement is then loaded
-                                           minus reference. Absent or all empty: unloaded
+                                           minus reference and TestArrays.w = w - w_ref.
+                                           Absent or all empty: unloaded
 
 Inside the program the same tests are a tidy table in SI units with the columns of
 :data:`~analysis.identification.io.columns.SI_COLUMNS` (rad, N, N m, m, rad). Reading a
@@ -39,12 +40,15 @@ class TestArrays:
     ----------
     pose : (m,) pose labels (str).
     q : (m, 6) joint angles (rad).
-    w : (m, 6) wrench [f (N); m (N m)], base frame, at the tool point.
+    w : (m, 6) wrench [f (N); m (N m)], base frame, at the tool point: the loaded
+        reading's minus the reference reading's (``w_ref``) when the references were
+        preloaded, what the displacement responds to to first order.
     d : (m, 6) measured displacement screw [dp (m); dr (rad)]; NaN where not measured.
     measured : (m, 6) bool, True where ``d`` holds a measurement.
     line : (m,) CSV line numbers (header = 1) or table row numbers, for messages.
     w_ref : (m, 6) wrench of each test's reference reading [f (N); m (N m)] (a preload),
-        base frame at the tool point, or None: every reference reading unloaded.
+        base frame at the tool point, or None: every reference reading unloaded. The exact
+        model solves the equilibria under w_ref and under w + w_ref.
     """
 
     __test__ = False  # not a pytest test class
@@ -79,15 +83,18 @@ def to_arrays(table: pd.DataFrame) -> TestArrays:
     validate_table(table)
     d = table[SI_D].to_numpy(dtype=float)
     line = table["line"].to_numpy(dtype=int) if "line" in table.columns else np.arange(len(table))
+    w = table[SI_W].to_numpy(dtype=float)
     w_ref = None
     if all(c in table.columns for c in REF_W_COLS):
         w_ref = table[REF_W_COLS].to_numpy(dtype=float)
-        if not np.any(w_ref):
+        if np.any(w_ref):
+            w = w - w_ref  # the table's wrench is the loaded reading's
+        else:
             w_ref = None  # every reference unloaded: the tests of the unloaded format
     return TestArrays(
         pose=table["pose"].astype(str).to_numpy(),
         q=table[SI_Q].to_numpy(dtype=float),
-        w=table[SI_W].to_numpy(dtype=float),
+        w=w,
         d=d,
         measured=np.isfinite(d),
         line=line,

@@ -20,7 +20,7 @@ EVAL_BLOCK = 4096
 
 
 def model_in_blocks(robot, q, x, w, with_jacobian, dq0=None, cols=None, measured=None,
-                     out=None, tips=None):
+                     out=None, tips=None, w_ref=None):
     """:func:`model_displacement_state` for one campaign (q (m, 6)) in blocks of tests.
 
     ``dq0`` (..., m, 6): Newton's starting deflections (the previous iterate's), or None.
@@ -35,7 +35,8 @@ def model_in_blocks(robot, q, x, w, with_jacobian, dq0=None, cols=None, measured
         return F if measured is None else F * measured[sl][..., None]
 
     if q.ndim != 2 or q.shape[0] <= EVAL_BLOCK:
-        f, F, ok, dq = model_displacement_state(robot, q, x, w, with_jacobian, dq0)
+        f, F, ok, dq = model_displacement_state(robot, q, x, w, with_jacobian, dq0,
+                                                w_ref=w_ref)
         return f, None if F is None else select(F), ok, dq
     m = q.shape[0]
     f, ok, dq = np.empty((m, 6)), np.empty(m, dtype=bool), np.empty(q.shape)
@@ -53,7 +54,9 @@ def model_in_blocks(robot, q, x, w, with_jacobian, dq0=None, cols=None, measured
             unloaded = {"tip": tips["tip"][sl]} if tips["filled"][s] else {}
         fb, Fb, okb, dqb = model_displacement_state(robot, q[sl], x, w[sl], with_jacobian,
                                                     None if dq0 is None else dq0[sl],
-                                                    unloaded=unloaded)
+                                                    unloaded=unloaded,
+                                                    w_ref=None if w_ref is None
+                                                    else w_ref[..., sl, :])
         if tips is not None and not tips["filled"][s]:
             tips["tip"][sl] = unloaded["tip"]
             tips["filled"][sl] = True

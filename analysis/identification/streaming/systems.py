@@ -105,7 +105,8 @@ class HeldSystems(LinearisedSystems):
         if dq0 is not None and dq_scale is not None:
             dq0 = dq0 * dq_scale[..., None, :]
         f, F, ok, dq = model_in_blocks(c.robot, c.q, c.full(x)[..., None, :], c.w,
-                                        with_jacobian, dq0, c.cols, c.measured, out, c.tips)
+                                        with_jacobian, dq0, c.cols, c.measured, out, c.tips,
+                                        w_ref=c.w_ref)
         value = np.sum(c.whitened(self.Linv, f) ** 2, axis=(-2, -1)) if cost else None
         return State(f=f, F=F, ok=np.all(ok, axis=-1), dq=dq, cost=value)
 
@@ -309,6 +310,8 @@ class Context:
     weights: np.ndarray | None
     batch: tuple
     tips: dict
+    #: the reference readings' wrench (preloads), or None; held systems only
+    w_ref: np.ndarray | None = None
 
     def full(self, xp):
         out = np.zeros((*self.batch, 6))

@@ -268,7 +268,7 @@ def _refit_each(folds: Folds, start, linear_shift) -> pd.DataFrame:
         x[cols] = x_p
         Jt = jacobian(robot, test.q)
         if exact_model:
-            pred, D = model_displacement(robot, test.q, x, test.w)
+            pred, D = model_displacement(robot, test.q, x, test.w, w_ref=test.w_ref)
             F = D[..., cols]
         else:
             F = design_block(Jt, test.w)[..., cols]

@@ -306,7 +306,7 @@ def _prediction_pass(robot, tests, fold, noise, cols, x_p, P, exact_model, dq0, 
             unloaded: dict = {}
             pred, _, good, _ = model_displacement_state(
                 robot, q, xt, w, with_jacobian=False, dq0=None if dq0 is None else dq0[sl],
-                unloaded=unloaded)
+                unloaded=unloaded, w_ref=None if tests.w_ref is None else tests.w_ref[sl])
             J = jacobian_from_state(unloaded["state"])  # J(q), from the model's own state
             failed |= np.bincount(f, ~good, P) > 0
         else:

@@ -12,6 +12,10 @@ const SLIDERS = [
   ["moment_sigma_Nm", "F/T moment", "N m", 20, 0.1],
   ["moment_percent", "F/T moment, of reading", "%", 5, 0.05],
   ["encoder_resolution_deg", "Encoder resolution", "deg", 0.01, 0.0001],
+  // the robot beyond joint springs (0: off)
+  ["link_compliance_percent", "Link compliance, of P's deflection", "%", 50, 0.5],
+  ["lost_motion_mrad", "Lost motion per gear", "mrad", 2, 0.01],
+  ["compensator_percent", "Axis-2 compensator, of k2", "%", 30, 0.5],
   ["n_tests", "Number of tests", "", 60, 1],
 ];
 
