@@ -12,6 +12,7 @@ from analysis.identification.io.columns import CSV_COLUMNS
 from analysis.identification.io.measurements import table_from_arrays, to_csv_frame
 from analysis.identification.noise import NoiseModel
 from analysis.identification.studies import model_classes as mc
+from analysis.report.model_classes import model_class_blocks
 from campaign.cli import main
 
 
@@ -49,6 +50,12 @@ def test_auto_on_compliant_links_chooses_links_and_reports_candidates(tmp_path):
     assert 20 < len(kept) < 42 and len(kept) + len(fixed) == 42
     assert all(f["why"] for f in chosen["fixed"])
     assert all(p["ci95"][0] < p["value"] < p["ci95"][1] for p in chosen["parameters"])
+    # the report's tables: the candidates side by side, the chosen one's parameters
+    cands, params = model_class_blocks(mcs)
+    assert [r[0] for r in cands.rows] == names
+    assert [r[-1] for r in cands.rows].count("chosen") == 1
+    assert cands.rows[names.index("links")][-1] == "chosen"
+    assert len(params.rows) == len(chosen["parameters"]) + len(chosen["fixed"])
     # results.json's k is the chosen class's; k1, k2 within 3 % of the lab's (k3..k6 carry
     # the link bending the tests cannot tell from them: the class's gauge)
     kk = np.array(res["joint_stiffness_Nm_per_rad"])
