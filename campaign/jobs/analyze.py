@@ -626,6 +626,10 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
             + "; to keep the result anyway rerun with --accept-misfit (results.json and "
             "the report then say so)", where=str(run_dir or measurements))
     result = replace(result, misfit_accepted=tuple(refused))
+    if model_choice.auto or model_choice.extras:
+        from analysis.identification.models.apply import widened
+
+        result = widened(result)
     _release_freed_heap()  # the identification's freed pages, before the writer's
     # everything is written into a new directory that replaces ``out`` as a whole at
     # the end: a refused or failed analysis leaves the earlier one untouched

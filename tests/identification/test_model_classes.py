@@ -4,7 +4,7 @@ cover the truth, the selection rule. Campaigns of the shop lab's physics
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -102,3 +102,34 @@ def test_clean_lab_keeps_joints_with_todays_k(shop):
                                                                     sel.candidates}
     # the class "joints" is the joint-spring fit: the same k as today's identification
     assert np.allclose(sel.chosen.k, res.k, rtol=1e-6)
+
+
+@dataclass(frozen=True)
+class _Result:
+    """The fields of an identification result that the widening reads and writes."""
+
+    misfit_accepted: tuple
+    joints: tuple
+    x: np.ndarray
+    cov_x: np.ndarray
+    se_k: np.ndarray
+    ci: np.ndarray
+    warnings: tuple
+    assumptions: dict
+
+
+def test_accepted_misfit_widens_intervals_by_heldout_scale():
+    from analysis.identification.models.apply import widened
+
+    x = np.full(6, 2e-6)
+    cov = np.diag(np.full(6, 1e-16))
+    base = _Result(
+        misfit_accepted=("misfit",), joints=(0, 1, 2, 3, 4, 5), x=x, cov_x=cov,
+        se_k=np.sqrt(np.diag(cov)) / x**2, ci=np.zeros((6, 2)), warnings=(),
+        assumptions={"model_classes": {"prediction_sigma_scale": 2.0, "chosen": "links"}})
+    out = widened(base)
+    assert np.allclose(out.cov_x, 4 * cov) and np.allclose(out.se_k, 2 * base.se_k)
+    half = (1 / (x - F.Z95 * 2e-8) - 1 / (x + F.Z95 * 2e-8)) / 2
+    assert np.allclose((out.ci[:, 1] - out.ci[:, 0]) / 2, half)
+    assert "widened by 2 x" in out.warnings[-1]
+    assert widened(replace(base, misfit_accepted=())).cov_x is cov

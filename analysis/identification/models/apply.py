@@ -39,7 +39,7 @@ def with_class(result, sel: Selection):
     and chi-square in place of the joint fit's."""
     doc = sel.describe()
     c = sel.chosen
-    if c.extras and not c.error:
+    if not c.error:
         ho = c.heldout_chi2_nu
         doc["prediction_sigma_scale"] = float(np.sqrt(max(1.0, ho))) if np.isfinite(ho) \
             else None
@@ -65,3 +65,26 @@ def with_class(result, sel: Selection):
                   f"model class {c.name} chosen ({'--model auto' if sel.auto else '--model'}): "
                   "k, intervals and chi-square are its own; residuals.csv and the report's "
                   "residual figures are the joint-spring fit's"))
+
+
+def widened(result):
+    """A result kept with --accept-misfit: the chosen class's covariance, k intervals and
+    standard errors (hence K_X's and the predictions' intervals) widened by
+    ``prediction_sigma_scale`` = sqrt(max(1, held-out chi2/nu)), and a warning saying so;
+    unchanged when nothing was refused or no class was fitted."""
+    from analysis.identification.models.fit import Z95
+    from analysis.identification.uncertainty import stiffness_interval
+
+    rec = (result.assumptions or {}).get("model_classes") or {}
+    s = rec.get("prediction_sigma_scale")
+    if not result.misfit_accepted or not s or s <= 1.0:
+        return result
+    cols = list(result.joints)
+    cov = result.cov_x * s**2
+    ci = np.full((6, 2), np.nan)
+    ci[cols] = stiffness_interval(result.x[cols], np.sqrt(np.diag(cov)), Z95)
+    return replace(result, cov_x=cov, se_k=result.se_k * s, ci=ci, warnings=(
+        *result.warnings,
+        f"--accept-misfit: the intervals of k, K_X and the predicted deflections are widened "
+        f"by {s:.3g} x, sqrt of the chosen class's held-out chi2/nu "
+        f"({rec.get('chosen')}; assumptions.model_classes.prediction_sigma_scale)"))
