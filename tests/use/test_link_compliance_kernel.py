@@ -1,4 +1,4 @@
-"""A model file with link compliance: ``campaign stiffness`` and the kernel
+"""A model file with link compliance: ``campaign stiffness``, the maps' kernel and the kernel
 (analysis/kinetostatics/link_compliance.py) give the same deflection, and an independent
 computation written here from the equations agrees to 1e-9:
 
@@ -19,6 +19,7 @@ import pinocchio as pin
 import tomli_w
 
 from analysis.kinetostatics.link_compliance import deflection_with_links, links_of
+from analysis.kinetostatics.maps import pose_metrics
 from analysis.model.robot_files import load_robot_file
 from campaign.jobs.stiffness import StiffnessOptions, run
 
@@ -100,9 +101,11 @@ def test_model_file_with_links_same_deflection_everywhere(tmp_path):
     kernel = deflection_with_links(robot, Q, k, W, links)[0]
     job = np.array(run(StiffnessOptions(robot=str(path), q_rad=Q, wrench_N_Nm=W))
                    .deflection_m_rad)
+    maps = pose_metrics(robot, Q[None], k, W, 1.0, threads=1)["deflection"][0]
     ref = _independent(robot, Q, k, W)
     scale = np.abs(ref).max()
     assert np.abs(job - kernel).max() <= 1e-9 * scale
+    assert np.abs(maps - kernel).max() <= 1e-9 * scale
     assert np.abs(kernel - ref).max() <= 1e-9 * scale
     # the links matter here: without them the deflection differs by far more than 1e-9
     joints_only = np.array(run(StiffnessOptions(robot=str(ROBOTS / "kr240-2.toml"), q_rad=Q,
