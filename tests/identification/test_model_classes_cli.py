@@ -28,7 +28,7 @@ def _csv(tmp_path, lab_effects: str, seed: int = 4):
     return csv, k
 
 
-def test_auto_on_compliant_links_chooses_links_and_reports_candidates(tmp_path):
+def test_auto_on_compliant_links_chooses_links_and_reports_candidates(tmp_path, capsys):
     csv, k = _csv(tmp_path, "links")
     out = tmp_path / "out"
     rc = main(["analyze", "--measurements", str(csv), "--robot", "kr240-2", "--out", str(out),
@@ -36,6 +36,8 @@ def test_auto_on_compliant_links_chooses_links_and_reports_candidates(tmp_path):
     assert rc == 0
     res = json.loads((out / "results.json").read_text())
     mcs = res["assumptions"]["model_classes"]
+    printed = capsys.readouterr().out
+    assert "Model classes (auto)" in printed and "chosen" in printed
     assert mcs["chosen"] == "links" and mcs["accepted"]
     assert "BIC" in mcs["rule"]
     names = [c["model"] for c in mcs["candidates"]]

@@ -105,18 +105,4 @@ def select_model(data: ClassData, choice: ModelChoice) -> Selection:
     return Selection((joints, asked), asked, False)
 
 
-def table_lines(sel: Selection) -> list[str]:
-    """The candidates side by side, one line each (for the terminal and the report)."""
-    lines = [f"{'model':34s} {'chi2/nu':>8s} {'held-out chi2/nu':>16s} {'held-out %':>10s} "
-             f"{'BIC':>10s} {'params':>6s}"]
-    for c in sel.candidates:
-        if c.error:
-            lines.append(f"{c.name:34s} not fitted: {c.error}")
-            continue
-        mark = " <- chosen" if c is sel.chosen else ""
-        lines.append(f"{c.name:34s} {c.chi2_nu:8.3f} {c.heldout_chi2_nu:16.3f} "
-                     f"{100 * c.heldout_error:10.2f} {c.bic:10.1f} {c.n_params:6d}{mark}")
-    return lines
-
-
-__all__ = ["JOINTS", "RULE", "Selection", "supported", "select_model", "table_lines"]
+__all__ = ["JOINTS", "RULE", "Selection", "supported", "select_model"]

@@ -102,6 +102,15 @@ def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
             row.append("-" if raw is None else k_kNm(raw))
         table.add_row(*row)
     console.print(table)
+    from analysis.report.model_classes import model_class_blocks
+
+    for block in model_class_blocks((result.assumptions or {}).get("model_classes"))[:1]:
+        classes = RichTable(title=block.title)
+        for col in block.columns:
+            classes.add_column(col, justify="right")
+        for row in block.rows:
+            classes.add_row(*row)
+        console.print(classes)
     for w in result.warnings[printed:]:
         print_wrapped(console, f"warning: {w}", style="yellow")
     for w in result.misfit_accepted:
