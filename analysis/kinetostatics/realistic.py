@@ -20,6 +20,10 @@ CONTRACT (issue 31; the simulated lab and the studies of the refusals call these
   loaded minus reference reading, [dp (m); rotation vector (rad)], base frame (the
   quantity the campaign measures; ``w_ref`` is the reference (preload) wrench, zeros for
   an unloaded reference).
+* also :func:`lost_motion_offset`, :func:`link_twist`, :func:`compensator_for` /
+  :func:`compensator_torque`, :func:`beam_compliance`, :func:`box_section`,
+  :func:`link_beam_compliance`; a lab from a protocol's SI settings:
+  :func:`analysis.kinetostatics.realistic_lab.realistic_lab` (robot, effects).
 
 Shapes: q (N, n) joint angles (rad, model convention: the motor-side angles the encoders
 read), wrenches (N, 6) or (6,) [f (N); m (N m)] at P, base frame, k (n,) joint stiffness

@@ -74,7 +74,6 @@ def _moments(robot: RobotModel, q: np.ndarray, gravity: np.ndarray | None):
     (kg m) and the gravity vector (3,)."""
     inert = inertials_of(robot)
     R, o = body_frames(robot, q)
-    n = robot.n
     z = np.einsum("pijk,ik->pij", R, robot.chain.axes)
     c = o + np.einsum("pijk,ik->pij", R, inert.coms)  # (N, n, 3) centres of mass
     mc = inert.masses[None, :, None] * c
@@ -85,7 +84,6 @@ def _moments(robot: RobotModel, q: np.ndarray, gravity: np.ndarray | None):
     first = np.cumsum(mc[:, ::-1], axis=1)[:, ::-1]
     mass = np.cumsum(m[::-1])[::-1]
     S = first - mass[None, :, None] * o
-    del n
     g = STANDARD_GRAVITY if gravity is None else np.asarray(gravity, dtype=float)
     return z, S, g
 

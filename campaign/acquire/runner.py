@@ -153,13 +153,14 @@ class Runner:
 
     # -- resume state ----------------------------------------------------------------------
     def _recover_first_unloaded(self, done: set[tuple[int, int]]) -> None:
-        """Unloaded tool point of the first finished repeat of each test, from samples."""
+        """Reference tool point (unloaded, or under the test's preload) of the first
+        finished repeat of each test, from samples."""
         samples = read_samples(self.run_dir.path)
         if samples.empty:
             return
         last: dict[tuple[int, int], np.ndarray] = {}
         sel = samples[(samples["quantity"] == "tool_pose")
-                      & (samples["phase"] == "unloaded_before")]
+                      & samples["phase"].isin(["unloaded_before", "reference_before"])]
         for rec in sel.itertuples(index=False):
             last[(int(rec.test_id), int(rec.repeat))] = np.asarray(rec.value[:3], dtype=float)
         for (tid, rep) in sorted(done):

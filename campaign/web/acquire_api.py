@@ -49,7 +49,11 @@ ROW_FIELDS = ("test_id", "repeat", "status", "flags", "fx_N", "fy_N", "fz_N", "m
 STAGES = {"approach": "approach", "move": "approach", "settle_unloaded_before": "tare",
           "tare": "tare", "unloaded_before": "tare", "apply_load": "load",
           "settle_loaded": "settle", "loaded": "measure", "remove_load": "unload",
-          "settle_unloaded_after": "unload", "unloaded_after": "unload"}
+          "settle_unloaded_after": "unload", "unloaded_after": "unload",
+          # a preloaded load case: the reference readings under the preload
+          "apply_preload_before": "tare", "settle_reference_before": "tare",
+          "reference_before": "tare", "apply_preload_after": "unload",
+          "settle_reference_after": "unload", "reference_after": "unload"}
 _children: dict[int, subprocess.Popen] = {}  # reaped here while this server lives
 #: one check-then-spawn at a time (two tabs starting the same run at once)
 _starting = threading.Lock()

@@ -247,7 +247,9 @@ def current_trace(lines: list[dict]) -> dict:
             if r["phase"] == "apply_load":
                 t_load = r.get("elapsed_s")
         d, w = r.get("deflection_mm"), r.get("wrench")
-        if out["phase"] == "unloaded_after" and d is not None:
+        # the test's result: reported after its last reading (unloaded, or after the
+        # load is removed when the reference readings were under a preload)
+        if out["phase"] in ("unloaded_after", "settle_unloaded_after") and d is not None:
             out["result"] = {"d_mm": d, "r_mrad": r.get("rotation_mrad"), "wrench": w}
         elif d is not None and t_load is not None and "elapsed_s" in r:
             out["t_s"].append(round(r["elapsed_s"] - t_load, 4))

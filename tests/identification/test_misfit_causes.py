@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from analysis.identification.checks import causes as cz
-from analysis.identification.checks.misfit_causes import causes_of_misfit
+from analysis.identification.checks.misfit_causes import causes_of_misfit, gear_torque_pair
 from analysis.identification.checks.plausibility import problems
 from analysis.identification.estimate import identify
 from analysis.identification.noise import NoiseModel, residual_covariance
@@ -205,10 +205,9 @@ def test_flips_follow_the_reference_wrench_as_the_lab_s(kr240):
     """The gear torques' sign changes between the reference (w_ref) and the loaded reading
     (w) are the realistic lab's lost-motion steps (an independent flank model); a reference
     under a reversed preload flips joints the unloaded one does not, and the refusal of the
-    wls fit (the model in w - w_ref) names lost motion first."""
+    exact fit (between the two equilibria) names lost motion first."""
     from dataclasses import replace
 
-    from analysis.identification.checks.misfit_causes import gear_torque_pair
     from analysis.kinetostatics import realistic as rl
 
     lab = rl.RealisticLab(lost_motion=BAND, gravity="flanks")
@@ -216,22 +215,24 @@ def test_flips_follow_the_reference_wrench_as_the_lab_s(kr240):
     q, w = fx.campaign(poses)
     w_ref = -0.5 * w
     d = rl.displacement(kr240, lab, kr240.nominal_stiffness, q, w_ref, w)
-    tests = replace(fx.measured(q, w, d, NOISE, 11), w_ref=w_ref)
-    tests = replace(tests, q=q, w=w)  # exact readings: flanks compared without noise
+    # TestArrays.w is the wrench difference (loaded minus reference); exact readings: the
+    # flanks compared without noise
+    tests = replace(fx.measured(q, w - w_ref, d, NOISE, 11), w_ref=w_ref, q=q, w=w - w_ref)
     tau_ref, tau_load = gear_torque_pair(kr240, tests)
     lab_flips = rl.flanks(kr240, lab, q, w_ref) != rl.flanks(kr240, lab, q, w)
     assert np.array_equal(np.sign(tau_ref) != np.sign(tau_load), lab_flips)
     unloaded = rl.flanks(kr240, lab, q, np.zeros(6)) != rl.flanks(kr240, lab, q, w)
     assert lab_flips.sum() > unloaded.sum()
-    res = identify(kr240, tests, "wls", noise=NOISE, validate=False)
-    rk, res = causes_of_misfit(res, kr240, tests, NOISE, "wls")
+    res = identify(kr240, tests, "exact", noise=NOISE, validate=False)
+    rk, res = causes_of_misfit(res, kr240, tests, NOISE, "exact")
     assert rk is not None and rk.first() == "lost_motion"
     assert f"({int(lab_flips[:, 0].sum())} flips)" in rk.named[0].estimate.split(",")[0]
 
 
-def test_the_tool_check_takes_the_wrench_difference(kr240):
-    """With preloaded references the tool-point check (reused as a cause test) sees the
-    tests of the wrench difference w - w_ref, as the fit does."""
+def test_the_cause_tests_of_a_preloaded_campaign_find_nothing(kr240):
+    """Clean data between two loaded equilibria (a 30 % preload; TestArrays.w the wrench
+    difference): the cause tests see the fit's own model and find nothing at 1 %, and the
+    tool check's moved k equals the fit's."""
     from dataclasses import replace
 
     from analysis.identification.checks.tool_check import tool_point_check
@@ -240,13 +241,14 @@ def test_the_tool_check_takes_the_wrench_difference(kr240):
     poses = sample_poses(kr240, 5, np.random.default_rng(3), min_inverse_condition=0.3)
     q, w = fx.campaign(poses)
     d = rl.displacement(kr240, rl.RealisticLab(), kr240.nominal_stiffness, q, 0.3 * w, w)
-    pre = replace(fx.measured(q, w, d, NOISE, 3), w_ref=0.3 * w)
-    diff = replace(pre, w=pre.w - pre.w_ref, w_ref=None)
-    res = identify(kr240, pre, "wls", noise=NOISE, validate=False)
-    a = tool_point_check(kr240, pre, res.joints, res.x, NOISE, "wls")
-    b = tool_point_check(kr240, diff, res.joints, res.x, NOISE, "wls")
-    assert a.f_value == b.f_value and np.array_equal(a.k_moved, b.k_moved)
-    assert np.allclose(a.k_moved, res.k, rtol=0.05)  # P right: k stays (within 5 %)
+    pre = replace(fx.measured(q, 0.7 * w, d, NOISE, 3), w_ref=0.3 * w)
+    res = identify(kr240, pre, "exact", noise=NOISE, validate=False)
+    assert res.p_value > 1e-3
+    rk = cz.rank_causes(kr240, pre, res.joints, res.x, NOISE, "exact",
+                        gear_torques=gear_torque_pair(kr240, pre))
+    assert not rk.named, [t.text() for t in rk.named]
+    chk = tool_point_check(kr240, pre, res.joints, res.x, NOISE, "exact")
+    assert np.allclose(chk.k_moved, res.k, rtol=0.05)
 
 
 @pytest.mark.parametrize("joint", [1, 4])

@@ -185,7 +185,7 @@ def _whitened(robot, tests: TestArrays, cols, x, noise: NoiseModel, method: str)
     if method == "exact":
         from analysis.identification.estimators.exact_model import model_displacement
 
-        pred, A = model_displacement(robot, q, x, w)
+        pred, A = model_displacement(robot, q, x, w, w_ref=tests.w_ref)
     else:
         A = design_block(J, w)
         pred = np.einsum("mrj,j->mr", A, x)
@@ -270,7 +270,8 @@ def _angle_derivative(robot, tests: TestArrays, x, method: str, predicted: np.nd
     if method == "exact":
         from analysis.identification.estimators.exact_model import model_displacement
 
-        moved, _ = model_displacement(robot, q, x, tests.w, with_jacobian=False)
+        moved, _ = model_displacement(robot, q, x, tests.w, with_jacobian=False,
+                                      w_ref=tests.w_ref)
     else:
         moved = np.einsum("mrj,j->mr", design_block(jacobian(robot, q), tests.w), x)
     return (moved - predicted) / ANGLE_STEP
@@ -302,7 +303,8 @@ def ft_noise_factor(robot, tests: TestArrays, joints, x, noise: NoiseModel, meth
         if method == "exact":
             from analysis.identification.estimators.exact_model import model_displacement
 
-            predicted, _ = model_displacement(robot, tests.q, x, tests.w, with_jacobian=False)
+            predicted, _ = model_displacement(robot, tests.q, x, tests.w, with_jacobian=False,
+                                              w_ref=tests.w_ref)
         else:
             predicted = np.einsum("mrj,j->mr", design_block(J, tests.w), x)
     C = np.einsum("mrj,j,msj->mrs", J, x, J)

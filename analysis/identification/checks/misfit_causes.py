@@ -9,9 +9,10 @@ make the fit pass, replaces the noise check's advice to raise it.
 
 The gear torques that decide each joint's flank come from the robot's mass model
 (:mod:`analysis.model.gravity`) at the reference wrench (``w_ref`` of the tests when
-the import gave one, else zero) and at the loaded one (``w``); the alternatives' models,
-as the fit's, take the wrench difference w - w_ref. Without a mass model the lost-motion
-alternative is reported as not tested.
+the import gave one, else zero) and at the loaded one (``w + w_ref``: ``TestArrays.w``
+is the wrench difference); the exact model's residuals and columns are those between the
+two equilibria, as the fit's. Without a mass model the lost-motion alternative is
+reported as not tested.
 """
 
 from __future__ import annotations
@@ -29,15 +30,15 @@ FT_ADVICE = "the F/T noise (it dominates the declared sigma"
 
 def gear_torque_pair(robot, tests) -> tuple[np.ndarray, np.ndarray] | None:
     """(tau_ref, tau_load) (m, 6) (N m) each joint's transmitted torque at the reference
-    reading (wrench ``tests.w_ref``, zero when None) and at the loaded one (``tests.w``),
-    or None when the robot has no mass model."""
+    reading (wrench ``tests.w_ref``, zero when None) and at the loaded one (``tests.w``
+    is the wrench difference: w + w_ref), or None when the robot has no mass model."""
     if getattr(robot, "inertials", None) is None:
         return None
     from analysis.model.gravity import gear_torques
 
     w_ref = tests.w_ref
     w_ref = np.zeros_like(tests.w) if w_ref is None else np.nan_to_num(np.asarray(w_ref))
-    return gear_torques(robot, tests.q, w_ref), gear_torques(robot, tests.q, tests.w)
+    return gear_torques(robot, tests.q, w_ref), gear_torques(robot, tests.q, tests.w + w_ref)
 
 
 #: flagged components set aside only when they are few: at most this many, or this share
@@ -88,8 +89,6 @@ def causes_of_misfit(result, robot, tests, noise, method: str):
     set_aside = int(tests.measured.sum() - kept.measured.sum())
     tests = kept
     torques = gear_torque_pair(robot, tests)
-    if tests.w_ref is not None:  # the model's wrench is the difference (as the fit's)
-        tests = replace(tests, w=tests.w - np.nan_to_num(tests.w_ref), w_ref=None)
     why = "no mass model in the robot file (link masses and centres of mass): the gear " \
           "torques, and so each joint's flank, are unknown"
     ranking = rank_causes(robot, tests, result.joints, result.x, noise, method,

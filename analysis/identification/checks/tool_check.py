@@ -21,7 +21,7 @@ tests must not pay a second pass over them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -136,8 +136,6 @@ def tool_point_check(robot: RobotModel, tests: TestArrays, joints, x: np.ndarray
     augmented system leaves no degrees of freedom or the offset is not
     determined by the poses.
     """
-    if tests.w_ref is not None:  # preloaded references: the model's wrench is w - w_ref
-        tests = replace(tests, w=tests.w - np.nan_to_num(tests.w_ref), w_ref=None)
     sub = tests.subset(_subset(tests.m))
     cols = list(joints)
     p = len(cols)
