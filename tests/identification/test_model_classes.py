@@ -133,3 +133,25 @@ def test_accepted_misfit_widens_intervals_by_heldout_scale():
     assert np.allclose((out.ci[:, 1] - out.ci[:, 0]) / 2, half)
     assert "widened by 2 x" in out.warnings[-1]
     assert widened(replace(base, misfit_accepted=())).cov_x is cov
+
+
+def test_preloaded_tests_joint_class_equals_the_joint_fit(shop):
+    """References under a preload (TestArrays.w_ref, w the difference): the class fit
+    solves both equilibria as the joint fit does, so 'joints' gives its k."""
+    from analysis.kinetostatics.realistic import RealisticLab, displacement
+
+    robot, _, k, loads, noise = shop
+    rng = np.random.default_rng(5)
+    poses = mc.sample_poses(robot, 6, rng, min_inverse_condition=0.3)
+    q = np.repeat(poses, len(loads), axis=0)
+    w = np.tile(loads, (6, 1))
+    w_ref = 0.3 * w
+    d = displacement(robot, RealisticLab(), k, q, w_ref, w_ref + w)
+    d = d + rng.normal(size=d.shape) * noise.displacement_sigma
+    tests = mc.TestArrays(pose=np.array([f"P{i // 3}" for i in range(len(q))]), q=q, w=w,
+                          d=d, measured=np.ones((len(q), 6), bool),
+                          line=np.arange(len(q)) + 2, w_ref=w_ref)
+    res, data = _data(robot, tests, noise)
+    f = F.fit_class(data, ())
+    assert np.allclose(f.k, res.k, rtol=1e-6)
+    assert 0.6 < f.chi2_nu < 1.5

@@ -224,11 +224,18 @@ def _model(data: ClassData, x_full: np.ndarray, spring=None, gravity: bool = Fal
     if data.method == "exact":
         from analysis.identification.estimators.exact_model import model_displacement
 
-        return (*model_displacement(data.robot, t.q, x_full, t.w), None)
+        return (*model_displacement(data.robot, t.q, x_full, t.w, w_ref=_w_ref(data)), None)
     from analysis.identification.estimators.linear_model import design_block
 
     A = design_block(jacobian(data.robot, t.q), t.w)
     return np.einsum("mrj,j->mr", A, x_full), A, None
+
+
+def _w_ref(data: ClassData) -> np.ndarray | None:
+    """The reference (preload) wrenches (m, 6): ``data.w_ref``, else the tests' own
+    (``TestArrays.w_ref``; ``TestArrays.w`` is then loaded minus reference), or None."""
+    w_ref = data.w_ref if data.w_ref is not None else getattr(data.tests, "w_ref", None)
+    return None if w_ref is None else np.nan_to_num(np.asarray(w_ref, dtype=float))
 
 
 def _physics_model(data: ClassData, x_full: np.ndarray, spring, gravity: bool):
@@ -237,7 +244,8 @@ def _physics_model(data: ClassData, x_full: np.ndarray, spring, gravity: bool):
     from analysis.kinetostatics.realistic import RealisticLab, displacement
 
     t = data.tests
-    w_ref = np.zeros(6) if data.w_ref is None else data.w_ref
+    w_ref = _w_ref(data)
+    w_ref = np.zeros(6) if w_ref is None else w_ref
 
     def disp(x, pr):
         comp = None if pr is None else replace(data.compensator, preload=float(pr[0]),
