@@ -102,10 +102,13 @@ def one_campaign(robot, lab: RealisticLab, k, loads, n_poses, noise, seed) -> Ou
         kt = ref.k[cols]
         covered += int(np.sum((kt >= lo) & (kt <= hi)))
         total += len(cols)
-        if ref.names == c.names:
-            inside = np.abs(c.values - ref.values) <= Z95 * c.se
-            covered += int(np.sum(inside))
-            total += len(c.names)
+        # the parameters both fits kept (the lost-motion joints and the link entries kept
+        # can differ when the spring's start moves joint 2's flanks)
+        truth = dict(zip(ref.names, ref.values, strict=True))
+        for n, v, s in zip(c.names, c.values, c.se, strict=True):
+            if n in truth:
+                covered += int(abs(v - truth[n]) <= Z95 * s)
+                total += 1
     return Outcome(c.name, true_class(lab), sel.accepted, covered, total,
                    c.heldout_chi2_nu, c.k / np.asarray(k, float) - 1.0)
 
