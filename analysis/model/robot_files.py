@@ -59,6 +59,17 @@ File format (every number in the units the file declares)::
     source_run = "path/to/run"
     protocol_sha256 = "..."
     date = "2025-01-01T12:00:00Z"     # when the model was written (UTC)
+
+    [model_class]                     # optional, format version 2: written by `campaign
+    version = 2                       # analyze --model` when it chose more than the
+    name = "links+lost-motion"        # joint springs; files without it (version 1) are
+    lost_motion_rad = [...]           # the joint-spring model. Dead bands 2b (rad, 0 =
+    compensator = {c1 = ..., c2 = ..., q2ref_rad = ...}   # not identified); k2(q2) law
+    notes = ["..."]
+    [[model_class.links]]             # link compliance at its distal frame (joint
+    link = 2                          # link+1's frame before its rotation), 6 x 6 SI,
+    compliance = [[...], ...]         # [m; rad] per [N; N m]; used by campaign stiffness
+                                      # and maps (analysis/kinetostatics/link_compliance.py)
 """
 
 from __future__ import annotations
