@@ -58,6 +58,18 @@ def test_auto_on_compliant_links_chooses_links_and_reports_candidates(tmp_path, 
     assert [r[-1] for r in cands.rows].count("chosen") == 1
     assert cands.rows[names.index("links")][-1] == "chosen"
     assert len(params.rows) == len(chosen["parameters"]) + len(chosen["fixed"])
+    # model.toml carries the chosen class; every command reading it gets the links
+    from analysis.kinetostatics.link_compliance import links_of
+    from analysis.model.robot_files import load_robot_file
+
+    robot = load_robot_file(out / "model.toml")
+    assert robot.model_class["version"] == 2 and robot.model_class["name"] == "links"
+    links = links_of(robot)
+    assert [lc.link for lc in links] == [2, 3]
+    c2 = links[0].matrix
+    first = chosen["parameters"][0]
+    a, b = (int(v) - 1 for v in first["name"][3:-1].split(","))
+    assert first["name"].startswith("C2[") and c2[a, b] == c2[b, a] == first["value"]
     # results.json's k is the chosen class's; k1, k2 within 3 % of the lab's (k3..k6 carry
     # the link bending the tests cannot tell from them: the class's gauge)
     kk = np.array(res["joint_stiffness_Nm_per_rad"])
