@@ -1,7 +1,8 @@
 """Cartesian compliance and deflection of P with compliant links (virtual-joint model).
 
-THE kernel every command uses for a model with link compliance (``campaign stiffness``,
-``maps`` and ``compensate`` through :func:`deflection_with_links`):
+THE kernel every command uses for a model with link compliance (``campaign stiffness``
+through :func:`deflection_with_links`, ``maps`` through :func:`link_terms`, the
+predicted deflection and ``compensate`` through :func:`link_screw`):
 
     C_X = J (K_theta - K_C)^-1 J^T + sum_l J_l C_l J_l^T,    dX = C_X w,
     K_X = C_X^-1,
@@ -62,6 +63,19 @@ def deflection_with_links(robot, q: np.ndarray, k: np.ndarray, w: np.ndarray,
 def stiffness_with_links(robot, q, k, w, links, with_kc: bool = True) -> np.ndarray:
     """K_X = C_X^-1 (N, 6, 6)."""
     return np.linalg.inv(compliance_with_links(robot, q, k, w, links, with_kc))
+
+
+def link_screw(robot, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """sum_l J_l C_l J_l^T w (..., 6) [m; rad] of the links a robot's model file carries
+    (:func:`links_of`; zeros without), at q (..., n) under w (..., 6) or (6,)."""
+    q = np.asarray(q, dtype=float)
+    links = links_of(robot)
+    if not links:
+        return np.zeros((*q.shape[:-1], 6))
+    flat = q.reshape(-1, q.shape[-1])
+    wf = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6)).reshape(-1, 6)
+    out = np.einsum("nij,nj->ni", link_terms(robot, flat, links), wf)
+    return out.reshape((*q.shape[:-1], 6))
 
 
 def links_of(robot) -> tuple[LinkCompliance, ...]:

@@ -103,6 +103,8 @@ class AnalyzeResult:
     identification: Any = None
     early_warnings: int = 0
     assumptions: dict = field(default_factory=dict)
+    #: tables for the terminal beside the result's (the model classes side by side)
+    tables: tuple = ()
 
     def to_json(self) -> dict:
         """The document ``campaign analyze --json`` prints."""
@@ -637,9 +639,12 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         paths = _write_outputs(result, model, new, tests, info, o.report, o.trials, protocol,
                                o.wrench_N_Nm, noise, o.poses_rad, extras, run_dir, stage)
     paths = {k: out / Path(p).relative_to(new) for k, p in paths.items()}
+    from analysis.report.model_classes import model_class_blocks
+
     return AnalyzeResult(json.loads((out / "results.json").read_text()),
                          json.loads((out / "analysis.json").read_text()), paths, result,
-                         len(early), result.assumptions)
+                         len(early), result.assumptions,
+                         tuple(model_class_blocks(result.assumptions.get("model_classes"))[:1]))
 
 
 def _operator_text(meta: dict) -> str:

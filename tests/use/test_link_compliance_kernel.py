@@ -76,6 +76,14 @@ def _independent(robot, q, k, w) -> np.ndarray:
         dq[j] = h
         KC[:, j] = (jac(q + dq).T @ w - jac(q - dq).T @ w) / (2 * h)
     C = J @ np.linalg.solve(np.diag(k) - KC, J.T)
+    return C @ w + _independent_links(robot, q, w)
+
+
+def _independent_links(robot, q, w) -> np.ndarray:
+    """sum_l J_l C_l J_l^T w from Pinocchio's frames and the rigid-body velocity of P."""
+    model = robot.model
+    data = model.createData()
+    C = np.zeros((6, 6))
     pin.forwardKinematics(model, data, q)
     pin.updateFramePlacements(model, data)
     p = data.oMf[robot.tip_frame].translation
@@ -116,3 +124,28 @@ def test_model_file_with_links_same_deflection_everywhere(tmp_path):
 def test_files_without_model_class_read_as_joint_springs(tmp_path):
     robot = load_robot_file(ROBOTS / "kr240-2.toml")
     assert robot.model_class is None and links_of(robot) == ()
+
+
+def test_predicted_deflection_and_compensation_use_the_links(tmp_path):
+    from analysis.kinetostatics.compensation import compensate
+    from analysis.kinetostatics.uncertainty import predict_deflection
+    from analysis.model.kinematics import chain_state, pose_difference, tool_pose
+
+    robot = load_robot_file(_model_file(tmp_path))
+    plain = load_robot_file(ROBOTS / "kr240-2.toml")
+    k = robot.nominal_stiffness
+    links = _independent_links(robot, Q, W)
+    scale = np.abs(links).max()
+    # the predicted (nonlinear) deflection gains exactly the links' part
+    extra = predict_deflection(robot, Q, k, W).screw - predict_deflection(plain, Q, k, W).screw
+    assert np.abs(extra - links).max() <= 1e-9 * scale
+    # compensated joints: the joints' loaded pose plus the links' displacement (computed
+    # here independently, at the commanded joints) lands on the target
+    comp = compensate(robot, Q[None], k, W)
+    q_cmd = comp.q_cmd[0]
+    loaded = chain_state(robot, q_cmd + comp.dq[0]).tip
+    miss = pose_difference(tool_pose(robot, Q), loaded) + _independent_links(robot, q_cmd, W)
+    assert np.abs(miss).max() <= 1e-9 * np.abs(links).max()
+    # and it differs from the joint-only compensation by about the links' deflection
+    q_plain = compensate(plain, Q[None], k, W).q_cmd[0]
+    assert np.abs(q_cmd - q_plain).max() > 1e-5

@@ -80,9 +80,10 @@ def _print_assumptions(console: Console, a: dict) -> None:
         print_wrapped(console, line)
 
 
-def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
-    """The result's table, warnings (but the first ``printed``, on the terminal already)
-    and files."""
+def _print(console: Console, result, paths: dict, printed: int = 0,
+           tables: tuple = ()) -> None:
+    """The result's table, the job's extra ``tables``, warnings (but the first
+    ``printed``, on the terminal already) and files."""
     import numpy as np
 
     from analysis.report.formatting import interval_kNm, k_kNm
@@ -102,9 +103,7 @@ def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
             row.append("-" if raw is None else k_kNm(raw))
         table.add_row(*row)
     console.print(table)
-    from analysis.report.model_classes import model_class_blocks
-
-    for block in model_class_blocks((result.assumptions or {}).get("model_classes"))[:1]:
+    for block in tables:  # the job's extra tables (the model classes side by side)
         classes = RichTable(title=block.title)
         for col in block.columns:
             classes.add_column(col, justify="right")
@@ -244,4 +243,4 @@ def register(app: typer.Typer) -> None:
                 echo(f"warning: {w}", err=True)  # (the run's were printed on reading)
             print_json(done.to_json())
             return
-        _print(console, result, done.files, printed=done.early_warnings)
+        _print(console, result, done.files, printed=done.early_warnings, tables=done.tables)
