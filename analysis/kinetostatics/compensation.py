@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.kinetostatics.equilibrium import solve_deflection
+from analysis.kinetostatics.link_compliance import link_screw
 from analysis.kinetostatics.stiffness import complementary_stiffness_from_state
 from analysis.model.kinematics import chain_state, jacobian_from_state, pose_difference, tool_pose
 from analysis.model.robot_model import RobotModel
@@ -78,7 +79,10 @@ def compensate(
     for it in range(max_iter + 1):
         dq = solve_deflection(robot, q_cmd, k, w, dq0=dq)
         loaded = chain_state(robot, q_cmd + dq)
-        resid = pose_difference(target, loaded.tip)
+        # a model file's link compliance moves P further by sum_l J_l C_l J_l^T w (the one
+        # kernel, at the commanded joints; zeros without); the Newton step ignores its
+        # small change with q_cmd (it converges, linearly in that part)
+        resid = pose_difference(target, loaded.tip) + link_screw(robot, q_cmd, w)
         err = np.max(np.abs(resid), axis=-1)
         if np.all(err <= tol):
             return Compensation(q_cmd, dq, resid, it)

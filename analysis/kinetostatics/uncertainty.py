@@ -93,7 +93,9 @@ def predict_deflection(
     """Deflection of P at q (..., n) (rad) under w (..., 6) (N, N m) with its covariance.
 
     k (n,) joint stiffness (N m/rad); cov_x (n, n) covariance of x = 1/k, None
-    for a zero covariance (nominal model).
+    for a zero covariance (nominal model). A model file with link compliance adds the
+    links' sum_l J_l C_l J_l^T w (:func:`~analysis.kinetostatics.link_compliance
+    .link_screw`, taken as exact: its covariance is not propagated).
     """
     q = np.asarray(q, dtype=float)
     k = np.asarray(k, dtype=float)
@@ -101,6 +103,9 @@ def predict_deflection(
     dq = solve_deflection(robot, q, k, w)
     loaded = chain_state(robot, q + dq)
     screw = pose_difference(chain_state(robot, q).tip, loaded.tip)
+    from analysis.kinetostatics.link_compliance import link_screw
+
+    screw = screw + link_screw(robot, q, w)  # a model file's link compliance (else 0)
     n = q.shape[-1]
     M = k[..., :, None] * np.eye(n) - complementary_stiffness_from_state(loaded, w)
     rhs = (k**2 * dq)[..., None, :] * np.eye(n)  # diag(k^2 dq), (..., n, n)

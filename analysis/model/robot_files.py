@@ -59,6 +59,17 @@ File format (every number in the units the file declares)::
     source_run = "path/to/run"
     protocol_sha256 = "..."
     date = "2025-01-01T12:00:00Z"     # when the model was written (UTC)
+
+    [model_class]                     # optional, format version 2: written by `campaign
+    version = 2                       # analyze --model` when it chose more than the
+    name = "links+lost-motion"        # joint springs; files without it (version 1) are
+    lost_motion_rad = [...]           # the joint-spring model. Dead bands 2b (rad, 0 =
+    compensator = {c1 = ..., c2 = ..., q2ref_rad = ...}   # not identified); k2(q2) law
+    notes = ["..."]
+    [[model_class.links]]             # link compliance at its distal frame (joint
+    link = 2                          # link+1's frame before its rotation), 6 x 6 SI,
+    compliance = [[...], ...]         # [m; rad] per [N; N m]; used by campaign stiffness
+                                      # and maps (analysis/kinetostatics/link_compliance.py)
 """
 
 from __future__ import annotations
@@ -251,6 +262,37 @@ class IdentificationSpec(_Strict):
         return self
 
 
+class LinkComplianceSpec(_Strict):
+    """``[[model_class.links]]``: link ``link`` (1-based) compliance at its distal frame
+    (joint link+1's frame before its rotation), 6 x 6 SI [m; rad] per [N; N m]."""
+
+    link: int = Field(ge=1)
+    compliance: list[list[float]]
+
+    @field_validator("compliance")
+    @classmethod
+    def _square(cls, value: list[list[float]]) -> list[list[float]]:
+        c = np.array(value, dtype=float)
+        if c.shape != (6, 6):
+            raise ValueError("compliance must be 6 x 6")
+        if not np.allclose(c, c.T, rtol=1e-9, atol=0.0):
+            raise ValueError("compliance must be symmetric")
+        return value
+
+
+class ModelClassSpec(_Strict):
+    """``[model_class]`` (model.toml, format version 2): the model class ``campaign
+    analyze --model`` chose beyond the joint springs. A file without it (version 1, every
+    file written before) is the joint-spring model."""
+
+    version: Literal[2] = 2
+    name: str
+    links: list[LinkComplianceSpec] = []
+    lost_motion_rad: list[float] = []
+    compensator: dict[str, float | str] = {}
+    notes: list[str] = []
+
+
 class RobotFile(_Strict):
     name: str
     aliases: list[str] = []
@@ -267,6 +309,7 @@ class RobotFile(_Strict):
     sources: dict[str, str]
     notes: str = ""
     identification: IdentificationSpec | None = None
+    model_class: ModelClassSpec | None = None
 
     @model_validator(mode="after")
     def _convention_fields(self) -> RobotFile:
@@ -387,6 +430,7 @@ def robot_from_spec(spec: RobotFile, source_file: str | None = None, key: str = 
         identification=(None if spec.identification is None
                         else spec.identification.model_dump()),
         inertials=inertials,
+        model_class=None if spec.model_class is None else spec.model_class.model_dump(),
     )
 
 

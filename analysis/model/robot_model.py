@@ -113,6 +113,9 @@ class RobotModel:
     #: link masses and centres of mass and the tool mass (robot file ``mass``/``com``);
     #: None: no mass model (the gravity torques are refused)
     inertials: Inertials | None = None
+    #: the ``[model_class]`` table of a model.toml written by ``campaign analyze --model``
+    #: (link compliances, lost motion, compensator), as read; None: joint springs only
+    model_class: dict | None = None
 
     def __post_init__(self) -> None:
         n = self.n

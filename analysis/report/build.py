@@ -636,4 +636,7 @@ def assumption_blocks(result: IdentificationResult) -> list:
                          + (f" (taken as rigid: {', '.join(rigid)})" if rigid else "")])
         elif key in a and not (key == "robust" and str(a[key]).startswith("none")):
             rows.append([key, str(a[key])])
-    return [Table("Assumptions", ["item", "value"], rows, widths=[1, 3.2])]
+    from analysis.report.model_classes import model_class_blocks
+
+    return [Table("Assumptions", ["item", "value"], rows, widths=[1, 3.2]),
+            *model_class_blocks(a.get("model_classes"))]

@@ -115,6 +115,7 @@ class AnalyzeOptions:
     force: bool = False
     ledger: str | None = None
     robot_id: str | None = None
+    model: str = "joints"
 
 
 @dataclass
@@ -131,6 +132,8 @@ class AnalyzeResult:
     early_warnings: int = 0
     assumptions: dict = field(default_factory=dict)
     ledger: dict | None = None
+    #: tables for the terminal beside the result's (the model classes side by side)
+    tables: tuple = ()
 
     def to_json(self) -> dict:
         """The document ``campaign analyze --json`` prints."""
@@ -586,6 +589,9 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     noise_source = inp.noise_source + (
         f"; overridden by {', '.join(overridden)}" if overridden else "")
     joint_list = parse_joints(o.joints)
+    from analysis.identification.models.names import parse_model
+
+    model_choice = parse_model(o.model)
     if o.report and o.trials < 10:
         raise InputError("need at least 10 trials", where="--trials")
     assumptions = _assumptions(inp, noise, noise_source, method, covariance, joint_list,
@@ -613,6 +619,13 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     # a linear fit whose bias was corrected is a compliance of the exact model: its
     # residuals are the exact model's (as in the chi-square)
     corrected = (result.linear_bias or {}).get("reliable", False)
+    if model_choice.auto or model_choice.extras:
+        from analysis.identification.models.apply import classes_of, with_class
+
+        with stage(f"model classes ({model_choice.name})"):
+            result = with_class(result, classes_of(
+                result, model, tests, noise, "exact" if corrected else method, model_choice,
+                np.radians(_holdout_deg(protocol)[0])))
     causes, result = causes_of_misfit(result, model, tests, noise,
                                       "exact" if corrected else method)
     refused = problems(result, model.nominal_stiffness, causes=causes)
@@ -624,6 +637,10 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         raise Refused(tuple(Refusal(text) for text in refused),
                       where=str(run_dir or measurements))
     result = replace(result, misfit_accepted=tuple(refused))
+    if model_choice.auto or model_choice.extras:
+        from analysis.identification.models.apply import widened
+
+        result = widened(result)
     heap.release_freed_heap()  # the identification's freed pages, before the writer's
     # everything is written into a new directory that replaces ``out`` as a whole at
     # the end: a refused or failed analysis leaves the earlier one untouched
@@ -642,9 +659,12 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
         from campaign.jobs.history import record_analysis
 
         recorded = record_analysis(out, db, o.robot_id, warn)
+    from analysis.report.model_classes import model_class_blocks
+
     return AnalyzeResult(json.loads((out / "results.json").read_text()),
                          json.loads((out / "analysis.json").read_text()), paths, result,
-                         len(early), result.assumptions, recorded)
+                         len(early), result.assumptions, recorded,
+                         tuple(model_class_blocks(result.assumptions.get("model_classes"))[:1]))
 
 
 def _operator_text(meta: dict) -> str:

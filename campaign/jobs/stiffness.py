@@ -164,9 +164,25 @@ def run(o: StiffnessOptions) -> StiffnessResult:
                   "the compliance J (K_theta - K_C)^-1 J^T and the deflections are defined")
         undefined = {"K_X": reason, "K_X_without_K_C": reason}
     lin = deflection(J, k, w, K_C)
+    lin0 = deflection(J, k, w)
     dq = solve_deflection(r, qr, k, w)
     exact = pose_difference(state.tip, chain_state(r, qr + dq).tip)
     check_small_displacement(r, dq, exact)
+    from analysis.kinetostatics.link_compliance import (
+        deflection_with_links,
+        link_terms,
+        links_of,
+        stiffness_with_links,
+    )
+
+    links = links_of(r)
+    if links:  # a model.toml with link compliance: the one kernel, C_X = J (K - K_C)^-1 J^T + ...
+        lin = deflection_with_links(r, qr, k, w, links)[0]
+        lin0 = deflection_with_links(r, qr, k, w, links, with_kc=False)[0]
+        exact = exact + link_terms(r, qr, links)[0] @ w
+        K_X = stiffness_with_links(r, qr, k, w, links)[0]
+        K_X0 = stiffness_with_links(r, qr, k, w, links, with_kc=False)[0]
+        undefined = {}
     cov_x = None if o.joint_stiffness_Nm_per_rad is not None else r.compliance_covariance
     return StiffnessResult(
         robot=r.name, tool=tool.describe(), q_rad=qr.tolist(),
@@ -176,7 +192,7 @@ def run(o: StiffnessOptions) -> StiffnessResult:
         K_X=None if K_X is None else K_X.tolist(),
         K_X_without_K_C=None if K_X0 is None else K_X0.tolist(),
         undefined=undefined, deflection_m_rad=lin.tolist(),
-        deflection_without_K_C_m_rad=deflection(J, k, w).tolist(),
+        deflection_without_K_C_m_rad=lin0.tolist(),
         deflection_nonlinear_m_rad=exact.tolist(),
         units={
             "J_m_rad_per_rad": "rows 1-3 m/rad, rows 4-6 rad/rad; base axes at P",

@@ -75,16 +75,22 @@ def link_compliance_columns(robot, q: np.ndarray, w: np.ndarray,
     symmetric compliance C_l (upper triangle, row-major; (m/N, m/(N m), rad/(N m)))."""
     st = chain_state(robot, np.asarray(q, dtype=float))
     w = np.asarray(w, dtype=float)
+    return np.concatenate([symmetric_columns(link_jacobian(st.origins, st.axes, st.tip, link),
+                                             w) for link in links], axis=-1)
+
+
+def symmetric_columns(J: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """B (m, 6, 21): d(J C J^T w)/dc for the 21 entries c of a symmetric 6 x 6 C (upper
+    triangle, row-major), J (m, 6, 6) the Jacobian of P for the six virtual motions of a
+    frame, w (m, 6) the wrench at P: the regressor of one compliant link in that frame."""
+    u = np.einsum("mra,mr->ma", J, w)  # the wrench at the link's end, its frame's axes
     cols = []
-    for link in links:
-        J = link_jacobian(st.origins, st.axes, st.tip, link)
-        u = np.einsum("mra,mr->ma", J, w)  # the wrench at the link's end, its frame's axes
-        for a in range(6):
-            for b in range(a, 6):
-                c = J[:, :, a] * u[:, b, None]
-                if a != b:
-                    c = c + J[:, :, b] * u[:, a, None]
-                cols.append(c)
+    for a in range(6):
+        for b in range(a, 6):
+            c = J[:, :, a] * u[:, b, None]
+            if a != b:
+                c = c + J[:, :, b] * u[:, a, None]
+            cols.append(c)
     return np.stack(cols, axis=-1)
 
 

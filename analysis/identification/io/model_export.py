@@ -96,7 +96,42 @@ def model_file_data(result: IdentificationResult, robot: RobotModel, *, source_r
         "software": software,
         "notes": notes,
     }
+    chosen = model_class_table(result)
+    if chosen is not None:
+        data["model_class"] = chosen
     return data
+
+
+def model_class_table(result: IdentificationResult) -> dict | None:
+    """``[model_class]`` (format version 2) of a result whose ``--model`` chose a class
+    beyond the joint springs (link compliances SI at their distal frames, lost motion
+    per joint (rad; absent: not identified), compensator law), or None."""
+    sel = (result.assumptions or {}).get("model_classes") or {}
+    name = sel.get("chosen")
+    if not name or name == "joints":
+        return None
+    cand = next((c for c in sel.get("candidates", ()) if c.get("model") == name), None)
+    if cand is None or "error" in cand:
+        return None
+    values = {p["name"]: p["value"] for p in cand.get("parameters", ())}
+    table: dict = {"version": 2, "name": name,
+                   "notes": [f"chosen by campaign analyze --model {sel.get('asked')}: "
+                             f"{sel.get('rule')}"]}
+    mats = cand.get("link_compliance") or {}
+    table["links"] = [{"link": int(link), "compliance": m} for link, m in mats.items()]
+    if "lost-motion" in name:
+        # TOML has no null: a joint not identified is left out of notes as such
+        table["lost_motion_rad"] = [float(values.get(f"2b{j}", 0.0)) for j in range(1, 7)]
+        missing = [j for j in range(1, 7) if f"2b{j}" not in values]
+        if missing:
+            table["notes"].append("lost motion not identified (0 written) for joints "
+                                  + ", ".join(str(j) for j in missing))
+    if "compensator" in name:
+        table["compensator"] = {k: float(v) for k, v in values.items()
+                                if k in ("c1", "c2", "preload", "rate")}
+        if "compensator_q2ref_rad" in cand:
+            table["compensator"]["q2ref_rad"] = float(cand["compensator_q2ref_rad"])
+    return table
 
 
 def _identified_covariance(result: IdentificationResult, n: int, ident_idx) -> np.ndarray:

@@ -67,9 +67,10 @@ def _print_assumptions(console: Console, a: dict) -> None:
         print_wrapped(console, line)
 
 
-def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
-    """The result's table, warnings (but the first ``printed``, on the terminal already)
-    and files."""
+def _print(console: Console, result, paths: dict, printed: int = 0,
+           tables: tuple = ()) -> None:
+    """The result's table, the job's extra ``tables``, warnings (but the first
+    ``printed``, on the terminal already) and files."""
     import numpy as np
 
     from analysis.report.formatting import interval_kNm, k_kNm
@@ -89,6 +90,13 @@ def _print(console: Console, result, paths: dict, printed: int = 0) -> None:
             row.append("-" if raw is None else k_kNm(raw))
         table.add_row(*row)
     console.print(table)
+    for block in tables:  # the job's extra tables (the model classes side by side)
+        classes = RichTable(title=block.title)
+        for col in block.columns:
+            classes.add_column(col, justify="right")
+        for row in block.rows:
+            classes.add_row(*row)
+        console.print(classes)
     for w in result.warnings[printed:]:
         print_wrapped(console, f"warning: {w}", style="yellow")
     for w in result.misfit_accepted:
@@ -172,6 +180,11 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON "
                                      "(the keys of results.json, SI units) instead of "
                                      "the tables.", rich_help_panel=PANEL_OUTPUT),
+        model_class: str = typer.Option(
+            "joints", "--model", help="Model class: joints (the papers', default), extras "
+            "gravity, compensator, lost-motion, links combined with '+', or auto (chosen "
+            "by BIC and held-out prediction; candidates side by side in results.json).",
+            rich_help_panel=_FIT),
         force: bool = typer.Option(False, "--force", help="Replace a non-empty output "
                                    "directory: its contents as a whole, nothing of the "
                                    "earlier analysis is kept.", rich_help_panel=PANEL_OUTPUT),
@@ -215,7 +228,8 @@ def register(app: typer.Typer) -> None:
             poses_rad=poses, wrench_N_Nm=numbers_option(wrench, "--wrench"), trials=trials,
             report=report, **noise, tool_xyz_mm=numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
             tool_rpy_deg=numbers_option(tool_rpy_deg, "--tool-rpy-deg"),
-            accept_misfit=accept_misfit, force=force, ledger=db, robot_id=robot_id)
+            accept_misfit=accept_misfit, force=force, ledger=db, robot_id=robot_id,
+            model=model_class)
         # with --json, stdout carries the JSON document only
         console = Console(stderr=as_json)
         done = run(options, stage=stage, on_assumptions=lambda a: _print_assumptions(console, a),
@@ -226,7 +240,7 @@ def register(app: typer.Typer) -> None:
                 echo(f"warning: {w}", err=True)  # (the run's were printed on reading)
             print_json(done.to_json())
             return
-        _print(console, result, done.files, printed=done.early_warnings)
+        _print(console, result, done.files, printed=done.early_warnings, tables=done.tables)
         if done.ledger is not None and done.ledger.get("report_id"):
             verb = "recorded in" if done.ledger["added"] else "already in"
             echo(f"ledger: {verb} the fleet ledger as robot {done.ledger['robot']}")

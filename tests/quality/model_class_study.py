@@ -1,0 +1,85 @@
+"""Study of ``campaign analyze --model auto`` on the shop lab (issue 32); writes its table
+into docs/identification.md ("Model classes").
+
+Rerun: ``python -m tests.quality.model_class_study --campaigns 100 --write-docs``
+(from the repository root; about 40 s per all-effects campaign and 30 s per clean one on
+one core). Each campaign: 12 poses sampled in the KR240-2 zones x the first 3 load cases
+of protocols/kr240-2-shop.toml, the realistic-arm physics of its [fake_lab]
+(:mod:`analysis.identification.studies.model_classes`), noise as declared. Two labs: all
+effects (gravity, links 2-3, lost motion, the axis-2 compensator, its geometry given to
+the analysis), and clean (joint springs only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from analysis.identification.studies import model_classes as mc
+
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "identification.md"
+BEGIN, END = "<!-- model-classes: begin -->", "<!-- model-classes: end -->"
+HEADER = ("| lab | campaigns | accepted | true class chosen | 95 % intervals cover | "
+          "held-out chi2/nu (median; in [0.8, 1.25]) | median k error vs the lab's k, "
+          "k1..k6 |\n| --- | --- | --- | --- | --- | --- | --- |")
+
+
+def run(lab_name: str, campaigns: int, poses: int, seed0: int) -> tuple[str, list]:
+    robot, lab, k, loads, noise = mc.shop_lab()
+    if lab_name == "clean":
+        lab = replace(lab, links=(), lost_motion=None, compensator=None, gravity="off")
+    out = []
+    for seed in range(seed0, seed0 + campaigns):
+        o = mc.one_campaign(robot, lab, k, loads, poses, noise, seed)
+        print(f"# {lab_name} {seed}: {o.chosen} accepted={o.accepted} "
+              f"covered {o.covered}/{o.total} held-out {o.heldout_chi2_nu:.3f}",
+              file=sys.stderr, flush=True)
+        out.append(o)
+    return row(lab_name, out), out
+
+
+def row(lab_name: str, out: list) -> str:
+    n = len(out)
+    acc = np.mean([o.accepted for o in out])
+    true = np.mean([o.chosen == o.true_class for o in out])
+    cov = sum(o.covered for o in out) / max(sum(o.total for o in out), 1)
+    ho = np.array([o.heldout_chi2_nu for o in out])
+    inside = np.mean((ho >= 0.8) & (ho <= 1.25))
+    kerr = np.nanmedian(np.array([o.k_error for o in out]), axis=0)
+    label = "all effects" if lab_name == "all" else "clean (joint springs)"
+    return (f"| {label} | {n} | {100 * acc:.0f} % | {100 * true:.0f} % "
+            f"({out[0].true_class}) | {100 * cov:.1f} % | {np.median(ho):.3f}; "
+            f"{100 * inside:.0f} % | {' '.join(f'{100 * e:+.1f}' for e in kerr)} % |")
+
+
+def write_docs(rows: list[str], path: Path = DOCS) -> None:
+    text = path.read_text()
+    head, rest = text.split(BEGIN + "\n", 1)
+    _, tail = rest.split(END, 1)
+    path.write_text(f"{head}{BEGIN}\n{HEADER}\n" + "\n".join(rows) + f"\n{END}{tail}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--campaigns", type=int, default=100)
+    ap.add_argument("--poses", type=int, default=12)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--labs", nargs="+", choices=("all", "clean"), default=["all", "clean"])
+    ap.add_argument("--write-docs", action="store_true")
+    a = ap.parse_args(argv)
+    rows = []
+    for lab in a.labs:
+        r, _ = run(lab, a.campaigns, a.poses, a.seed)
+        print(r, flush=True)
+        rows.append(r)
+    if a.write_docs:
+        write_docs(rows)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

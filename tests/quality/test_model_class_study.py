@@ -1,0 +1,37 @@
+"""The model-class study's table (tests/quality/model_class_study.py): its numbers from
+known outcomes, and the docs block it replaces."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.identification.studies.model_classes import Outcome
+
+from . import model_class_study as st
+
+
+def _o(chosen, accepted, covered, total, ho, kerr):
+    return Outcome(chosen, "links", accepted, covered, total, ho, np.array(kerr, float))
+
+
+def test_row_counts_what_it_says():
+    out = [_o("links", True, 19, 20, 1.0, [0.01] * 6),
+           _o("joints", False, 10, 20, 2.0, [0.03] * 6),
+           _o("links", True, 20, 20, 0.9, [0.02] * 6),
+           _o("links", True, 20, 20, 0.7, [-0.01] * 6)]
+    row = st.row("all", out)
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[:4] == ["all effects", "4", "75 %", "75 % (links)"]
+    assert cells[4] == "86.2 %"            # 69 of 80 intervals
+    assert cells[5] == "0.950; 50 %"       # median of 0.7, 0.9, 1.0, 2.0; two in range
+    assert cells[6].startswith("+1.5 +1.5")  # median of 1, 3, 2, -1 %
+
+
+def test_write_docs_replaces_only_its_block(tmp_path):
+    doc = tmp_path / "identification.md"
+    doc.write_text(f"before\n{st.BEGIN}\nold table\n{st.END}\nafter\n")
+    st.write_docs(["| a |", "| b |"], doc)
+    text = doc.read_text()
+    assert text.startswith("before\n") and text.endswith("after\n")
+    assert "old table" not in text and "| a |\n| b |\n" + st.END in text
+    assert st.HEADER in text

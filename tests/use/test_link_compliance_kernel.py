@@ -1,0 +1,151 @@
+"""A model file with link compliance: ``campaign stiffness``, the maps' kernel and the kernel
+(analysis/kinetostatics/link_compliance.py) give the same deflection, and an independent
+computation written here from the equations agrees to 1e-9:
+
+    C_X = J (K_theta - K_C)^-1 J^T + sum_l J_l C_l J_l^T,  dX = C_X w,
+
+with J from Pinocchio at P (LOCAL_WORLD_ALIGNED), K_C = d(J^T w)/dq by central
+differences of Pinocchio's Jacobian, the distal frame of link l from Pinocchio's joint
+placements (joint l's frame times joint l+1's placement), and J_l written from the
+rigid-body velocity of P under the frame's six virtual motions."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import tomli_w
+
+from analysis.kinetostatics.link_compliance import deflection_with_links, links_of
+from analysis.kinetostatics.maps import pose_metrics
+from analysis.model.robot_files import load_robot_file
+from campaign.jobs.stiffness import StiffnessOptions, run
+
+ROBOTS = Path(__file__).resolve().parents[2] / "analysis" / "data" / "robots"
+Q = np.radians([10.0, 60.0, -100.0, 30.0, 40.0, 20.0])
+W = np.array([300.0, -2200.0, 1800.0, 150.0, -200.0, 90.0])
+
+
+def _beam(length: float, ei: float, gj: float, ea: float, turn: float) -> np.ndarray:
+    """A cantilever's 6 x 6 tip compliance along x, turned by ``turn`` rad about z."""
+    c = np.zeros((6, 6))
+    c[0, 0] = length / ea
+    c[3, 3] = length / gj
+    for f, mo, s in ((1, 5, 1.0), (2, 4, -1.0)):
+        c[f, f] = length**3 / (3 * ei)
+        c[mo, mo] = length / ei
+        c[f, mo] = c[mo, f] = s * length**2 / (2 * ei)
+    ct, st = np.cos(turn), np.sin(turn)
+    R = np.array([[ct, -st, 0.0], [st, ct, 0.0], [0.0, 0.0, 1.0]])
+    T = np.zeros((6, 6))
+    T[:3, :3] = T[3:, 3:] = R
+    return T @ c @ T.T
+
+
+LINKS = {2: _beam(1.15, 2.1e11 * 2.4e-4, 8e10 * 3e-4, 2.1e11 * 1.2e-2, 0.3),
+         3: _beam(1.2, 2.1e11 * 1.2e-4, 8e10 * 1.5e-4, 2.1e11 * 8e-3, -0.2)}
+
+
+def _model_file(tmp_path) -> Path:
+    data = tomllib.loads((ROBOTS / "kr240-2.toml").read_text())
+    data.pop("aliases", None)
+    data["model_class"] = {"version": 2, "name": "links",
+                           "links": [{"link": k, "compliance": C.tolist()}
+                                     for k, C in LINKS.items()]}
+    path = tmp_path / "model.toml"
+    path.write_text(tomli_w.dumps(data))
+    return path
+
+
+def _independent(robot, q, k, w) -> np.ndarray:
+    model = robot.model
+    data = model.createData()
+
+    def jac(qq):
+        pin.computeJointJacobians(model, data, qq)
+        pin.updateFramePlacements(model, data)
+        return pin.getFrameJacobian(model, data, robot.tip_frame, pin.LOCAL_WORLD_ALIGNED)
+
+    J = jac(q)
+    h = 1e-7
+    KC = np.zeros((6, 6))
+    for j in range(6):
+        dq = np.zeros(6)
+        dq[j] = h
+        KC[:, j] = (jac(q + dq).T @ w - jac(q - dq).T @ w) / (2 * h)
+    C = J @ np.linalg.solve(np.diag(k) - KC, J.T)
+    return C @ w + _independent_links(robot, q, w)
+
+
+def _independent_links(robot, q, w) -> np.ndarray:
+    """sum_l J_l C_l J_l^T w from Pinocchio's frames and the rigid-body velocity of P."""
+    model = robot.model
+    data = model.createData()
+    C = np.zeros((6, 6))
+    pin.forwardKinematics(model, data, q)
+    pin.updateFramePlacements(model, data)
+    p = data.oMf[robot.tip_frame].translation
+    for link, Cl in LINKS.items():
+        D = data.oMi[link] * model.jointPlacements[link + 1]  # joint link+1 before turning
+        R, o = D.rotation, D.translation
+        Jl = np.zeros((6, 6))
+        for a in range(3):
+            u = R[:, a]
+            Jl[:3, a] = u                        # translation along the frame's axis a
+            Jl[:3, 3 + a] = np.cross(u, p - o)   # rotation about it moves P on a circle
+            Jl[3:, 3 + a] = u
+        C = C + Jl @ Cl @ Jl.T
+    return C @ w
+
+
+def test_model_file_with_links_same_deflection_everywhere(tmp_path):
+    path = _model_file(tmp_path)
+    robot = load_robot_file(path)
+    links = links_of(robot)
+    assert [lc.link for lc in links] == [2, 3]
+    k = robot.nominal_stiffness
+    kernel = deflection_with_links(robot, Q, k, W, links)[0]
+    job = np.array(run(StiffnessOptions(robot=str(path), q_rad=Q, wrench_N_Nm=W))
+                   .deflection_m_rad)
+    maps = pose_metrics(robot, Q[None], k, W, 1.0, threads=1)["deflection"][0]
+    ref = _independent(robot, Q, k, W)
+    scale = np.abs(ref).max()
+    assert np.abs(job - kernel).max() <= 1e-9 * scale
+    assert np.abs(maps - kernel).max() <= 1e-9 * scale
+    assert np.abs(kernel - ref).max() <= 1e-9 * scale
+    # the links matter here: without them the deflection differs by far more than 1e-9
+    joints_only = np.array(run(StiffnessOptions(robot=str(ROBOTS / "kr240-2.toml"), q_rad=Q,
+                                                wrench_N_Nm=W)).deflection_m_rad)
+    assert np.abs(joints_only - kernel).max() > 0.01 * scale  # 0.26 mm of 16 mm here
+
+
+def test_files_without_model_class_read_as_joint_springs(tmp_path):
+    robot = load_robot_file(ROBOTS / "kr240-2.toml")
+    assert robot.model_class is None and links_of(robot) == ()
+
+
+def test_predicted_deflection_and_compensation_use_the_links(tmp_path):
+    from analysis.kinetostatics.compensation import compensate
+    from analysis.kinetostatics.uncertainty import predict_deflection
+    from analysis.model.kinematics import chain_state, pose_difference, tool_pose
+
+    robot = load_robot_file(_model_file(tmp_path))
+    plain = load_robot_file(ROBOTS / "kr240-2.toml")
+    k = robot.nominal_stiffness
+    links = _independent_links(robot, Q, W)
+    scale = np.abs(links).max()
+    # the predicted (nonlinear) deflection gains exactly the links' part
+    extra = predict_deflection(robot, Q, k, W).screw - predict_deflection(plain, Q, k, W).screw
+    assert np.abs(extra - links).max() <= 1e-9 * scale
+    # compensated joints: the joints' loaded pose plus the links' displacement (computed
+    # here independently, at the commanded joints) lands on the target
+    comp = compensate(robot, Q[None], k, W)
+    q_cmd = comp.q_cmd[0]
+    loaded = chain_state(robot, q_cmd + comp.dq[0]).tip
+    miss = pose_difference(tool_pose(robot, Q), loaded) + _independent_links(robot, q_cmd, W)
+    assert np.abs(miss).max() <= 1e-9 * np.abs(links).max()
+    # and it differs from the joint-only compensation by about the links' deflection
+    q_plain = compensate(plain, Q[None], k, W).q_cmd[0]
+    assert np.abs(q_cmd - q_plain).max() > 1e-5
