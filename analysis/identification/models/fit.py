@@ -48,7 +48,7 @@ from analysis.identification.models.names import EXTRAS, class_name
 from analysis.identification.noise import NoiseModel, residual_covariance
 from analysis.identification.uncertainty import stiffness_interval
 from analysis.kinetostatics.equilibrium import EquilibriumError
-from analysis.kinetostatics.realistic import FLANK_TOLERANCE, distal_frames, virtual_jacobian
+from analysis.kinetostatics.realistic import distal_frames, virtual_jacobian
 from analysis.model.kinematics import chain_state, jacobian
 
 #: compliant links of the ``links`` class, 1-based (the upper arm and the forearm)
@@ -326,7 +326,7 @@ def _extra_columns(data: ClassData, extras, A: np.ndarray, q2ref: float, Gc=None
                 raise ValueError("lost motion needs the gear torques: the robot file gives no "
                                  "mass model (link masses and centres of mass)")
             J = jacobian(data.robot, t.q)
-            # a torque within FLANK_TOLERANCE leaves the output mid-band (sign 0)
+            # the flanks follow analysis.model.gravity.gear_flanks (mid-band near 0)
             taus = [np.array(tau, dtype=float) for tau in data.gear_torques]
             if spring is not None and "compensator" in extras:
                 from dataclasses import replace
@@ -338,9 +338,7 @@ def _extra_columns(data: ClassData, extras, A: np.ndarray, q2ref: float, Gc=None
                 tc = compensator_torque(comp, t.q[:, comp.joint])[0]
                 for tau in taus:
                     tau[:, comp.joint] += tc
-            tau_ref, tau_load = (np.where(np.abs(tau) <= FLANK_TOLERANCE, 0.0, tau)
-                                 for tau in taus)
-            B, flips = cc.lost_motion_columns(J, tau_ref, tau_load)
+            B, flips = cc.lost_motion_columns(J, *taus)
             n_flip = flips.sum(axis=0)
             fixed = [(f"2b{j + 1}", "not identifiable: no test changes the sign of its gear "
                       "torque") for j in range(B.shape[-1]) if n_flip[j] == 0]

@@ -68,9 +68,10 @@ def _print_assumptions(console: Console, a: dict) -> None:
 
 
 def _print(console: Console, result, paths: dict, printed: int = 0,
-           tables: tuple = ()) -> None:
+           tables: tuple = (), ledger: dict | None = None) -> None:
     """The result's table, the job's extra ``tables``, warnings (but the first
-    ``printed``, on the terminal already) and files."""
+    ``printed``, on the terminal already), files and where the fleet ``ledger`` (the
+    job's record of it, None without one) keeps the analysis."""
     import numpy as np
 
     from analysis.report.formatting import interval_kNm, k_kNm
@@ -103,6 +104,9 @@ def _print(console: Console, result, paths: dict, printed: int = 0,
         print_wrapped(console, f"ACCEPTED WITH --accept-misfit: {w}", style="red")
     for name, p in paths.items():
         print_wrapped(console, f"{name}: {p}")
+    if ledger is not None and ledger.get("report_id"):
+        verb = "recorded in" if ledger["added"] else "already in"
+        echo(f"ledger: {verb} the fleet ledger as robot {ledger['robot']}")
 
 
 def register(app: typer.Typer) -> None:
@@ -240,7 +244,5 @@ def register(app: typer.Typer) -> None:
                 echo(f"warning: {w}", err=True)  # (the run's were printed on reading)
             print_json(done.to_json())
             return
-        _print(console, result, done.files, printed=done.early_warnings, tables=done.tables)
-        if done.ledger is not None and done.ledger.get("report_id"):
-            verb = "recorded in" if done.ledger["added"] else "already in"
-            echo(f"ledger: {verb} the fleet ledger as robot {done.ledger['robot']}")
+        _print(console, result, done.files, printed=done.early_warnings, tables=done.tables,
+               ledger=done.ledger)
