@@ -99,6 +99,11 @@ def _kind(annotation) -> tuple[str, int | None, tuple[str, ...]]:
         return "vector", len(typing.get_args(annotation)), ()
     if origin is dict or annotation is dict:
         return "table", None, ()
+    if origin is list and any(isinstance(a, type) and issubclass(a, BaseModel)
+                              for a in typing.get_args(annotation)):
+        # rows of tables inside a section (``[[fake_lab.links]]``): one field holding an
+        # inline TOML array of tables, which the reader checks with its own messages
+        return "table", None, ()
     if annotation is bool:
         return "bool", None, ("true", "false")
     if annotation is int:
@@ -246,8 +251,8 @@ def parse_value(key: str, kind: str, text: str):
         try:
             return tomllib.loads(f"v = {t}")["v"]
         except (tomllib.TOMLDecodeError, ValueError) as err:  # ValueError: a 4300-digit int
-            raise FormError(key, f"expected an inline table such as {{ q1 = 0, q4 = 45 }}: "
-                                 f"{err}") from None
+            raise FormError(key, f"expected an inline table such as {{ q1 = 0, q4 = 45 }} "
+                                 f"(or an array of them): {err}") from None
     return t
 
 

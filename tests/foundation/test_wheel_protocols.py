@@ -88,6 +88,6 @@ def test_wheel_ships_the_protocols_and_the_installed_reader_finds_them(tmp_path)
     got = json.loads(probe.stdout.strip().splitlines()[-1])
     assert Path(got["package"]).is_relative_to(target)  # not the source tree
     assert Path(got["folder"]) == target / "campaign" / "protocols"
-    assert got["names"] == [n.removesuffix(".toml") for n in shipped]
+    assert got["names"] == sorted(n.removesuffix(".toml") for n in shipped)
     assert Path(got["demo"]) == target / "campaign" / "protocols" / "kr240-2.toml"
     assert got["campaign_name"]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 JOBS = ("plan", "acquire", "analyze", "stiffness", "maps", "robustness", "compensate",
-        "compare", "place", "robots", "demo")
+        "compare", "place", "robots", "demo", "export")
 BAD_BODIES = ([], "x", 3, {"robot": 1}, {"robot": "kr240-2", "out": "a\x00b", "q_rad": [0]},
               {"robot": "kr240-2", "out": "x" * 5000, "path": "p.csv", "q_rad": [0]},
               {"plan": "../p", "measurements": "/etc/passwd", "a": "..", "b": ".."})

@@ -26,7 +26,8 @@ SHIPPED = Path(__file__).parents[2] / "campaign" / "protocols"
 
 
 def _schema_leaves(schema: dict, node: dict, path: str, out: set[str]) -> None:
-    """Dotted leaf keys of a JSON schema (objects with properties are tables)."""
+    """Dotted leaf keys of a JSON schema (objects with properties are tables; the rows of
+    a top-level array are ``[*]``, an array of tables inside a section is one leaf)."""
     if "$ref" in node:
         node = schema["$defs"][node["$ref"].split("/")[-1]]
     options = node.get("anyOf") or [node]
@@ -41,7 +42,9 @@ def _schema_leaves(schema: dict, node: dict, path: str, out: set[str]) -> None:
     arrays = [o for o in options if o.get("type") == "array" and "$ref" in o.get("items", {})]
     maps = [o for o in options if o.get("type") == "object"
             and "$ref" in (o.get("additionalProperties") or {})]
-    if arrays:
+    if arrays and "." in path:  # rows inside a section: one field, an inline TOML array
+        out.add(path)
+    elif arrays:
         _schema_leaves(schema, arrays[0]["items"], f"{path}[*]", out)
     elif maps:
         _schema_leaves(schema, maps[0]["additionalProperties"], f"{path}.*", out)
