@@ -91,10 +91,10 @@ def test_plan_summary_states_the_separation_and_the_closest_pair(kr_protocol):
 def test_analysis_names_where_its_holdout_radius_came_from(kr_protocol):
     """analyze holds out together poses closer than the plan's separation; its assumption
     line says whether the protocol gave the key or the default was used."""
-    from campaign.jobs.analyze import _holdout_deg
+    from campaign.jobs.analyze_assumptions import holdout_deg
 
-    deg, source = _holdout_deg(kr_protocol)
+    deg, source = holdout_deg(kr_protocol)
     assert deg == DEFAULT_MIN_SEPARATION_DEG and source.startswith("default: protocol")
-    deg, source = _holdout_deg(_with_separation(kr_protocol, 7.5))
+    deg, source = holdout_deg(_with_separation(kr_protocol, 7.5))
     assert deg == 7.5 and source.endswith("[thresholds] min_pose_separation_deg")
     assert not source.startswith("default")

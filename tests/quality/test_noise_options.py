@@ -10,7 +10,8 @@ import pytest
 from analysis.identification.estimate import identify
 from analysis.identification.io.measurements import TestArrays
 from analysis.kinetostatics.equilibrium import displacement_screw
-from campaign.jobs.analyze import NOISE_OVERRIDES, AnalyzeOptions, noise_fields, override_noise
+from campaign.jobs.analyze import AnalyzeOptions
+from campaign.jobs.analyze_noise import NoiseOverrides
 from tests.quality._coverage import NOISE, campaign_setup
 
 
@@ -62,9 +63,8 @@ def test_rotation_noise_declared_four_times_too_large_is_named(setup):
 
 
 def test_cli_noise_options_reach_the_model():
-    noise, used = override_noise(NOISE, noise_fields({
-        "--force-sigma-N": 2.0, "--joint-sigma-urad": 7.0, "--force-pct": 0.5,
-        "--moment-pct": 0.25}))
+    noise, used = NoiseOverrides.typed(force_sigma_N=2.0, joint_sigma_urad=7.0, force_pct=0.5,
+                                       moment_pct=0.25).applied(NOISE)
     assert noise.force_sigma == 2.0
     assert noise.joint_sigma == pytest.approx(7e-6)
     assert noise.force_relative == pytest.approx(0.005)
@@ -80,13 +80,28 @@ def test_the_noise_overrides_are_named_records_of_the_options():
     is paired by position; an unknown option is an error, not a shifted value."""
     import dataclasses
 
-    fields = {f.name for f in dataclasses.fields(AnalyzeOptions)}
-    assert {n.field for n in NOISE_OVERRIDES} <= fields
-    assert {n.noise_field for n in NOISE_OVERRIDES} <= {f.name for f in dataclasses.fields(NOISE)}
-    si = noise_fields({"--moment-pct": 0.25, "--translation-sigma-um": 30.0})
-    assert si["moment_relative"] == pytest.approx(0.0025)
-    assert si["translation_sigma_m"] == pytest.approx(30e-6)
-    assert [k for k, v in si.items() if v is not None] == ["translation_sigma_m",
-                                                           "moment_relative"]
+    overrides = dataclasses.fields(NoiseOverrides)
+    assert {f.name for f in overrides} <= {f.name for f in dataclasses.fields(AnalyzeOptions)}
+    assert {f.metadata["noise_field"] for f in overrides} <= {
+        f.name for f in dataclasses.fields(NOISE)}
+    si = NoiseOverrides.typed(moment_pct=0.25, translation_sigma_um=30.0)
+    assert si.moment_relative == pytest.approx(0.0025)
+    assert si.translation_sigma_m == pytest.approx(30e-6)
+    assert [k for k, v in si.fields().items() if v is not None] == ["translation_sigma_m",
+                                                                    "moment_relative"]
+    # the options record carries them back unchanged
+    assert NoiseOverrides.of(AnalyzeOptions(**si.fields())) == si
     with pytest.raises(ValueError, match="--force-sigma"):
-        noise_fields({"--force-sigma": 1.0})
+        NoiseOverrides.typed(force_sigma=1.0)
+
+
+def test_a_negative_override_is_refused_naming_its_option():
+    from analysis.errors import InputError
+
+    with pytest.raises(InputError, match="positive") as caught:
+        NoiseOverrides(force_sigma_N=-1.0).applied(NOISE)
+    assert caught.value.where == "--force-sigma-N"
+    # a zero relative figure is allowed (no proportional part), a zero sigma is not
+    assert NoiseOverrides(force_relative=0.0).applied(NOISE)[0].force_relative == 0.0
+    with pytest.raises(InputError):
+        NoiseOverrides(moment_sigma_Nm=0.0).applied(NOISE)

@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
-from campaign.jobs.analyze import _operator_text
+from campaign.jobs.analyze_input import operator_text
 
 
 def test_a_login_name_is_labelled_as_such():
     meta = {"operator": "root", "operator_source": "OS user (no --operator given)"}
-    assert _operator_text(meta) == "root (OS user (no --operator given))"
+    assert operator_text(meta) == "root (OS user (no --operator given))"
 
 
 def test_a_name_given_with_operator_is_shown_alone():
-    assert _operator_text({"operator": "A. Dumas", "operator_source": "--operator"}) \
+    assert operator_text({"operator": "A. Dumas", "operator_source": "--operator"}) \
         == "A. Dumas"
 
 
 def test_older_runs_without_a_source_and_missing_names():
-    assert _operator_text({"operator": "test bench"}) == "test bench"
-    assert _operator_text({}) == "-"
+    assert operator_text({"operator": "test bench"}) == "test bench"
+    assert operator_text({}) == "-"

@@ -214,23 +214,24 @@ def register(app: typer.Typer) -> None:
         """
         import numpy as np
 
-        from campaign.jobs.analyze import AnalyzeOptions, noise_fields, run
+        from campaign.jobs.analyze import AnalyzeOptions, run
+        from campaign.jobs.analyze_noise import NoiseOverrides
 
-        noise = noise_fields({
-            "--translation-sigma-um": _alias(translation_sigma_um, old_translation,
-                                             "--translation-sigma-um"),
-            "--rotation-sigma-urad": _alias(rotation_sigma_urad, old_rotation,
-                                            "--rotation-sigma-urad"),
-            "--force-sigma-N": force_sigma_n, "--moment-sigma-Nm": moment_sigma_nm,
-            "--joint-sigma-urad": joint_sigma_urad, "--force-pct": force_pct,
-            "--moment-pct": moment_pct})
+        noise = NoiseOverrides.typed(
+            translation_sigma_um=_alias(translation_sigma_um, old_translation,
+                                        "--translation-sigma-um"),
+            rotation_sigma_urad=_alias(rotation_sigma_urad, old_rotation,
+                                       "--rotation-sigma-urad"),
+            force_sigma_N=force_sigma_n, moment_sigma_Nm=moment_sigma_nm,
+            joint_sigma_urad=joint_sigma_urad, force_pct=force_pct, moment_pct=moment_pct)
         poses = [[] if not text.strip() else np.radians(numbers_option(text, f"--pose #{i}"))
                  .tolist() for i, text in enumerate(pose, start=1)]
         options = AnalyzeOptions(
             run_dir=run_dir, measurements=measurements, robot=robot, tip=tip, out=out,
             method=method, joints=joints, robust=robust, covariance=covariance,
             poses_rad=poses, wrench_N_Nm=numbers_option(wrench, "--wrench"), trials=trials,
-            report=report, **noise, tool_xyz_mm=numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
+            report=report, **noise.fields(),
+            tool_xyz_mm=numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
             tool_rpy_deg=numbers_option(tool_rpy_deg, "--tool-rpy-deg"),
             accept_misfit=accept_misfit, force=force, ledger=db, robot_id=robot_id,
             model=model_class)
