@@ -1,5 +1,5 @@
-"""The named choices of the analysis, each listed once: estimators, robust modes, robot
-model classes.
+"""The named choices of the analysis, each listed once: estimators, robust modes, the
+robot files' geometry conventions.
 
 Every other list of these names derives from here: the identification's checks, the
 jobs' option enums (:mod:`campaign.jobs.choices`), the command line's ``--help``, the web
@@ -23,6 +23,6 @@ ROBUST_MODES: tuple[str, ...] = ("none", "huber", "tukey")
 #: the robust modes that re-weight (every mode but "none")
 REWEIGHTING_MODES: tuple[str, ...] = ROBUST_MODES[1:]
 
-#: the robot model classes a robot file may declare (``convention``): the chain's geometry
-#: in standard (Denavit-Hartenberg) or modified (Khalil-Kleinfinger) DH parameters
-MODEL_CLASSES: tuple[str, ...] = ("standard_dh", "modified_dh")
+#: the geometry conventions a robot file may declare (``convention``): the chain in
+#: standard (Denavit-Hartenberg) or modified (Khalil-Kleinfinger) DH parameters
+GEOMETRY_CONVENTIONS: tuple[str, ...] = ("standard_dh", "modified_dh")

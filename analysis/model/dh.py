@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from analysis.choices import MODEL_CLASSES
+from analysis.choices import GEOMETRY_CONVENTIONS
 
 
 @dataclass(frozen=True)
@@ -91,7 +91,7 @@ def build_dh_model(
     (model, tip_frame_id) : the tip frame is P, named ``"tool"``; a frame
     ``"flange"`` is added too.
     """
-    if convention not in MODEL_CLASSES:
+    if convention not in GEOMETRY_CONVENTIONS:
         raise ValueError(f"unknown DH convention {convention!r}")
     model = pin.Model()
     model.name = name

@@ -81,7 +81,7 @@ import numpy as np
 import pinocchio as pin
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from analysis.choices import MODEL_CLASSES
+from analysis.choices import GEOMETRY_CONVENTIONS
 from analysis.errors import InputError
 from analysis.file_errors import input_error_from_validation, read_mapping_file
 from analysis.model.dh import DHRow, build_dh_model
@@ -296,7 +296,7 @@ class ModelClassSpec(_Strict):
 class RobotFile(_Strict):
     name: str
     aliases: list[str] = []
-    convention: Literal[MODEL_CLASSES]
+    convention: Literal[GEOMETRY_CONVENTIONS]
     length_unit: Literal["m", "mm"]
     angle_unit: Literal["deg", "rad"]
     stiffness_unit: Literal["N m/rad", "kN m/rad"] = "N m/rad"

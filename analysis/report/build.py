@@ -1,4 +1,4 @@
-"""Assemble the report (:class:`analysis.report.model.Report`) from an identification.
+"""Assemble the report (:class:`analysis.report.document.Report`) from an identification.
 
 SI inside; the tables show kN m/rad, um, urad, mm and degrees, each header
 naming its unit.
@@ -20,6 +20,7 @@ from analysis.kinetostatics.map_fixed import MapFixed, map_fixed_joints
 from analysis.model.robot_model import RobotModel
 from analysis.report import figures
 from analysis.report.design_robustness import design_robustness, design_tests
+from analysis.report.document import Paragraph, Report, Section, Table, Trace
 from analysis.report.formatting import (
     MICRO,
     PM,
@@ -32,7 +33,6 @@ from analysis.report.formatting import (
     percent,
     sig,
 )
-from analysis.report.model import Paragraph, Report, Section, Table, Trace
 from analysis.report.quantities import (
     deflection_map,
     map_length,

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.identification.compare.run_facts import RunFacts
+from analysis.report.document import Figure, Paragraph, Report, Section, Table, Trace
 from analysis.report.formatting import fixed, k_kNm, percent
-from analysis.report.model import Figure, Paragraph, Report, Section, Table, Trace
 
 
 def level_intervals(result: dict) -> list[tuple[float, float]]:

@@ -19,8 +19,8 @@ import pandas as pd
 # figure list to close; savefig renders with Agg.
 from matplotlib.figure import Figure as MplFigure
 
+from analysis.report.document import Figure
 from analysis.report.formatting import level
-from analysis.report.model import Figure
 
 SIZE_IN = (6.4, 4.0)
 DPI = 300  # px per inch of the PNG: 1920 x 1200 px, 325 px per inch at the PDF's 150 mm

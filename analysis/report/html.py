@@ -5,7 +5,7 @@ from __future__ import annotations
 import base64
 from html import escape
 
-from analysis.report.model import Figure, Paragraph, Report, Section, Table
+from analysis.report.document import Figure, Paragraph, Report, Section, Table
 
 CSS = """
 body { font-family: "DejaVu Sans", Helvetica, Arial, sans-serif; margin: 2em auto;

@@ -3,8 +3,8 @@ the candidates side by side and the chosen class's parameters with 95 % interval
 
 from __future__ import annotations
 
+from analysis.report.document import Table
 from analysis.report.formatting import sig
-from analysis.report.model import Table
 
 
 def model_class_blocks(record: dict | None) -> list:

@@ -14,7 +14,7 @@ from pathlib import Path
 import matplotlib
 from fpdf import FPDF
 
-from analysis.report.model import Figure, Paragraph, Report, Table
+from analysis.report.document import Figure, Paragraph, Report, Table
 
 MARGIN = 15.0  # mm
 FIGURE_WIDTH = 150.0  # mm

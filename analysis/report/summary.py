@@ -9,8 +9,8 @@ from __future__ import annotations
 import importlib.metadata
 from dataclasses import dataclass, field
 
+from analysis.report.document import Paragraph, Table
 from analysis.report.formatting import fixed, utc_text
-from analysis.report.model import Paragraph, Table
 
 VERSIONED = ("robot-stiffness-campaign", "numpy", "scipy", "pandas", "pin", "matplotlib", "fpdf2")
 

@@ -15,8 +15,8 @@ import numpy as np
 
 from analysis.identification.io.columns import COMPONENTS
 from analysis.identification.io.measurements import TestArrays
+from analysis.report.document import Table
 from analysis.report.formatting import MICRO, fixed, level, sig
-from analysis.report.model import Table
 
 #: the table lists at most this many tests (every test is in residuals.csv)
 TESTS_LISTED = 2000

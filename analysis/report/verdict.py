@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.identification.result import IdentificationResult
+from analysis.report.document import Paragraph, Table
 from analysis.report.formatting import fixed, interval_kNm, k_kNm, level, percent, sig
-from analysis.report.model import Paragraph, Table
 
 #: RMS error / sigma of a held-out pose above which the verdict warns, when the
 #: validation table carries no flag of its own (noise-only normalisation)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 from analysis.errors import InputError
 from analysis.output_files import make_dir, write_bytes, write_text
+from analysis.report.document import Report
 from analysis.report.html import render_html
-from analysis.report.model import Report
 from analysis.report.pdf import render_pdf
 
 

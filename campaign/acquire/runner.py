@@ -37,6 +37,7 @@ from campaign.acquire.geometry import (
     sensor_wrench_to_base,
 )
 from campaign.acquire.instruments import Instruments
+from campaign.acquire.interrupts import interrupt_reason
 from campaign.acquire.preflight import Motion, PlannedTest
 from campaign.acquire.progress import Reporter
 from campaign.acquire.rundir import RunDir, WriteFailure, read_samples
@@ -198,8 +199,8 @@ class Runner:
         except WriteFailure as err:
             status, reason = "failed", f"{err}; free space or fix the permissions, then --resume"
             self._record("abort", reason=reason)
-        except KeyboardInterrupt:
-            status, reason = "aborted", "interrupted by the operator (Ctrl-C)"
+        except KeyboardInterrupt as err:
+            status, reason = "aborted", interrupt_reason(err)
             self._record("interrupt", reason=reason)
         finally:
             self._make_safe(status)

@@ -24,6 +24,7 @@ from campaign.acquire.checks import limits_for
 from campaign.acquire.clock import SimulatedClock, WallClock, describe, utc
 from campaign.acquire.ending import ending
 from campaign.acquire.instruments import open_instruments
+from campaign.acquire.interrupts import interrupt_reason
 from campaign.acquire.preflight import dry_run_text, motion_limits, planned_tests
 from campaign.acquire.progress import Reporter
 from campaign.acquire.robot_claim import hold as hold_robot
@@ -279,8 +280,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         if run is not None and run.metadata.get("status") == "running":
             try:
                 if isinstance(err, KeyboardInterrupt):
-                    run.set_status("aborted", "interrupted by the operator (Ctrl-C)",
-                                   ended_utc=utc())
+                    run.set_status("aborted", interrupt_reason(err), ended_utc=utc())
                 else:
                     run.set_status("failed", f"{type(err).__name__}: {err}", ended_utc=utc())
             except WriteFailure:
@@ -289,7 +289,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
             raise
         # Ctrl-C outside the runner (connecting, exporting): the run is recorded as
         # aborted; the operator still gets the closing lines and the resume command
-        status, reason = "aborted", "interrupted by the operator (Ctrl-C)"
+        status, reason = "aborted", interrupt_reason(err)
     finally:
         inst.close()
         if claim is not None:

@@ -178,7 +178,7 @@ def _error(text: str) -> None:
     at word boundaries to its width (the terminal itself would cut words in two)."""
     import shutil
 
-    from campaign.cli.common import wrap_text
+    from campaign.cli.terminal import wrap_text
 
     width = shutil.get_terminal_size().columns if sys.stderr.isatty() else None
     typer.echo(wrap_text(text, width), err=True)

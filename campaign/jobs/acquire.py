@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.errors import InputError
+from campaign.acquire.interrupts import AbortRequested, abort_on_sigint
 
 #: the record's fields that are paths
 PATH_FIELDS = ("plan", "out", "resume", "events_file")
@@ -124,7 +125,7 @@ class _Events:
         self._both("phase", **state)
         if self.should_abort is not None and not self.aborted and self.should_abort():
             self.aborted = True
-            raise KeyboardInterrupt  # the runner's Ctrl-C path: stop, unload, record
+            raise AbortRequested  # the runner's Ctrl-C path: stop, unload, record
 
     def event(self, record: dict[str, Any]) -> None:
         self._both("event", record)
@@ -201,7 +202,8 @@ def run(o: AcquireJobOptions, reporter=None, say: Callable[[str], None] = print,
 
 
 def abort(pid: int) -> None:
-    """Abort the acquisition running in process ``pid`` as Ctrl-C does (SIGINT)."""
+    """Abort the acquisition running in process ``pid`` (SIGINT: the Ctrl-C path, recorded
+    as the Abort button's, :func:`campaign.acquire.interrupts.abort_on_sigint`)."""
     os.kill(pid, signal.SIGINT)
 
 
@@ -213,6 +215,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         options = AcquireJobOptions.from_dict(json.loads(Path(args[0]).read_text()))
+        abort_on_sigint()
         result = run(options, say=lambda s: None)
     except InputError as err:
         print(f"error: {err}", file=sys.stderr)

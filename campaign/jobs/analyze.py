@@ -27,7 +27,7 @@ from campaign.jobs.analyze_assumptions import assumptions, holdout_deg
 from campaign.jobs.analyze_input import AnalysisInput, output_dir, read_input
 from campaign.jobs.analyze_noise import NoiseOverrides
 from campaign.jobs.choices import DEFAULT_METHOD, DEFAULT_TRIALS, Covariance, Method, Robust
-from campaign.jobs.common import Stage, no_stage, tool_texts
+from campaign.jobs.option_checks import Stage, no_stage, tool_texts
 
 if TYPE_CHECKING:  # the identification imports scipy: not at start-up
     from analysis.identification.result import IdentificationResult

@@ -13,7 +13,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.noise import NoiseModel
-from campaign.jobs.common import six_joints
+from campaign.jobs.option_checks import six_joints
 from campaign.options import ToolPoint, file_tool_point, robot_and_tool, tool_option
 from campaign.run_noise import noise_from_protocol, protocol_noise_source
 

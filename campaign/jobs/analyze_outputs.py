@@ -9,7 +9,7 @@ from pathlib import Path
 
 from campaign.jobs import heap
 from campaign.jobs.analyze_input import AnalysisInput
-from campaign.jobs.common import Stage, floats, no_stage
+from campaign.jobs.option_checks import Stage, floats, no_stage
 
 
 def write_outputs(result, inp: AnalysisInput, out: Path, *, report: bool, trials: int,

@@ -1,6 +1,6 @@
 """The choices of the jobs' options (enums) and the JSON form of their results.
 
-Shared by the faces: the command line offers these choices (``campaign.cli.common``
+Shared by the faces: the command line offers these choices (``campaign.cli.terminal``
 re-exports them for the commands), the web API reads them from the options records.
 Only the standard library at import time: every command module imports them at start-up.
 """

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.errors import InputError
-from campaign.jobs.common import Note, Stage, no_note, no_stage
+from campaign.jobs.option_checks import Note, Stage, no_note, no_stage
 
 #: the shipped protocol the demo runs by default (Dumas et al. 2011, KUKA KR240-2)
 DEFAULT_PROTOCOL = "kr240-2"

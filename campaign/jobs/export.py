@@ -13,7 +13,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from campaign.jobs.choices import SimFormat
-from campaign.jobs.common import floats, robot_and_tool
+from campaign.jobs.option_checks import floats, robot_and_tool
 
 #: file suffixes each format is written under; a suffix of another format is refused
 SUFFIXES = {SimFormat.mjcf: (".xml", ".mjcf"), SimFormat.urdf: (".urdf",),

@@ -122,9 +122,9 @@ def record_analysis(analysis_dir: Path, db: str, robot_id: str | None = None,
 
 def report_history(analysis_dir: Path, run_dir: Path | None, db: str,
                    robot_id: str | None = None):
-    """The report's history section (:class:`analysis.report.model.Section`): this
+    """The report's history section (:class:`analysis.report.document.Section`): this
     campaign against the robot's earlier campaigns in the ledger ``db`` (read only)."""
-    from analysis.report.model import Paragraph, Section
+    from analysis.report.document import Paragraph, Section
     from campaign.ledger import store
     from campaign.ledger.entry import NoRobotIdentity, read_entry
     from campaign.ledger.report_history import history_blocks

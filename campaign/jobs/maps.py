@@ -12,7 +12,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from campaign.jobs.choices import TableFormat
-from campaign.jobs.common import (
+from campaign.jobs.option_checks import (
     Note,
     Stage,
     floats,

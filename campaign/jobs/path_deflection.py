@@ -18,7 +18,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from campaign.jobs.choices import WrenchFrame
-from campaign.jobs.common import floats, joint_stiffness, robot_and_tool
+from campaign.jobs.option_checks import floats, joint_stiffness, robot_and_tool
 
 if TYPE_CHECKING:
     from analysis.model.robot_model import RobotModel

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from campaign.jobs.choices import Strategy
-from campaign.jobs.common import Stage, floats, no_stage
+from campaign.jobs.option_checks import Stage, floats, no_stage
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from analysis.choices import LINEARISED_METHODS, METHODS
 from analysis.errors import InputError
 from campaign.jobs.analyze import DEFAULT_METHOD
 from campaign.jobs.choices import Method, RotationSource
-from campaign.jobs.common import joint_stiffness, robot_and_tool, wrench
+from campaign.jobs.option_checks import joint_stiffness, robot_and_tool, wrench
 
 #: a mean further than this many Monte-Carlo standard errors from the truth is a bias
 BIAS_SIGMAS = 4.0

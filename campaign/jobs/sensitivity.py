@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.choices import DEFAULT_METHOD, METHODS
+from analysis.choices import DEFAULT_METHOD, LINEARISED_METHODS, METHODS
 from analysis.errors import InputError
-from campaign.jobs.common import six_joints
+from campaign.jobs.option_checks import six_joints
 
 POSE_SOURCES = ("zones", "plan", "typed")
 MAX_TESTS = 200
@@ -169,6 +169,9 @@ class JointSpread:
     predicted_se: float  # the planner's prediction (inf: not identifiable)
     std: float  # sample std over the accepted trials
     rejected: int  # trials with a compliance <= 0 or not finite; all when not identifiable
+    #: ols/wls: k of the linearised fit of noise-free tests / k_true - 1, the linearisation
+    #: bias corrected in every trial (as ``campaign analyze`` does); 0 for exact
+    linear_bias: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -189,6 +192,8 @@ class SensitivityResult:
     noise: dict
     curve_tests: np.ndarray
     curve_se: np.ndarray
+    #: a sentence on the linearisation-bias correction applied (ols/wls), else ""
+    note: str = ""
 
     def to_dict(self) -> dict:
         """JSON-ready (SI; NaN and inf as None)."""
@@ -202,7 +207,8 @@ class SensitivityResult:
                         "median_Nm_per_rad": num(j.median), "q25_Nm_per_rad": num(j.q25),
                         "q75_Nm_per_rad": num(j.q75),
                         "predicted_se_Nm_per_rad": num(j.predicted_se),
-                        "std_Nm_per_rad": num(j.std), "rejected": j.rejected}
+                        "std_Nm_per_rad": num(j.std), "rejected": j.rejected,
+                        "linear_bias_relative": num(j.linear_bias)}
                        for j in self.joints],
             "sets_Nm_per_rad": [[num(v) for v in s] for s in self.sets],
             "q_deg": np.degrees(self.q).round(6).tolist(),
@@ -210,6 +216,7 @@ class SensitivityResult:
             "noise": self.noise,
             "curve_tests": self.curve_tests.tolist(),
             "curve_relative_se": [[num(v) for v in row] for row in self.curve_se],
+            "note": self.note,
         }
 
 
@@ -278,6 +285,7 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
     """Simulate and identify ``o.trials`` campaigns; ``robot`` (a loaded model) skips loading."""
     from analysis.identification.studies.design_simulation import (
         identify_campaigns,
+        noise_free_campaign,
         simulate_campaigns,
     )
     from analysis.identification.studies.robustness import W_EFF
@@ -323,6 +331,14 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
                              "covariance, which is singular at these settings (zero noise "
                              "on every source of a measured component); give a nonzero "
                              "tracker or F/T noise, or use ols", where="method") from None
+        k_bias = np.zeros(robot.n)  # the uncorrected fit's relative bias of k
+        if o.method in LINEARISED_METHODS:
+            # Analyze's correction, to first order: every trial less the bias of the
+            # linearised fit at the true compliances (the noise-free tests' estimate - 1/k)
+            bias = identify_campaigns(robot, noise_free_campaign(robot, q, w, k), noise,
+                                      1.0 / k, o.method)[0] - 1.0 / k
+            x = x - bias[None, :]
+            k_bias = 1.0 / (1.0 / k + bias) / k - 1.0
         ok = np.isfinite(x) & (x > 0)
     se = curve[o.n_tests - 1] * k
     # a joint these tests do not identify (singular information: equal poses, a singular
@@ -337,8 +353,20 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
             joint=j + 1, k_true=float(k[j]), median=float(q50), q25=float(q25),
             q75=float(q75), predicted_se=float(se[j]),
             std=float(np.std(v, ddof=1)) if len(v) > 1 else float("nan"),
-            rejected=int((~ok[:, j]).sum())))
+            rejected=int((~ok[:, j]).sum()),
+            linear_bias=float(k_bias[j]) if np.isfinite(se[j]) else float("nan")))
     return SensitivityResult(
         robot=robot.name, method=o.method, trials=o.trials, n_tests=o.n_tests, joints=joints,
         sets=kk[:SETS_SHOWN].tolist(), q=q, wrench=w, noise=noise.describe(),
-        curve_tests=np.arange(1, count + 1), curve_se=curve)
+        curve_tests=np.arange(1, count + 1), curve_se=curve,
+        note=_bias_note(o.method, k_bias, np.isfinite(se)))
+
+
+def _bias_note(method: str, k_bias: np.ndarray, identified: np.ndarray) -> str:
+    """The sentence the page shows under the table of a linearised method."""
+    if method not in LINEARISED_METHODS:
+        return ""
+    shown = [f"k{j + 1} {100 * b:+.2f} %" for j, b in enumerate(k_bias) if identified[j]]
+    return (f"{method} fits the linearised model: every trial is corrected for its "
+            "linearisation bias at these tests, as Analyze corrects it; uncorrected, the "
+            f"median would be off by {', '.join(shown) or 'nothing identified'}.")

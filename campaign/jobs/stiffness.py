@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.errors import InputError, SingularPoseError
-from campaign.jobs.common import floats, joint_stiffness, robot_and_tool, wrench
+from campaign.jobs.option_checks import floats, joint_stiffness, robot_and_tool, wrench
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """The report's history section: this campaign against the robot's earlier ones.
 
-Blocks of :mod:`analysis.report.model` (formatted once, shown alike in HTML and
+Blocks of :mod:`analysis.report.document` (formatted once, shown alike in HTML and
 PDF): a table of the robot's campaigns in the ledger with this one (stiffness in
 kN m/rad, whether each is compared and why not), and the drift test of the latest
 comparable campaign against the reference (:func:`campaign.jobs.history.check_robot`).
@@ -8,7 +8,7 @@ comparable campaign against the reference (:func:`campaign.jobs.history.check_ro
 
 from __future__ import annotations
 
-from analysis.report.model import Paragraph, Table
+from analysis.report.document import Paragraph, Table
 from campaign.ledger.entry import LedgerEntry
 from campaign.ledger.store import StoredCampaign
 

@@ -103,7 +103,7 @@ def read_path(path: Path, robot: RobotModel, controller: bool, wrench: np.ndarra
     if controller:
         q = robot.from_controller(q)
     w = values[:, 6:] if has_w else np.broadcast_to(wrench, (len(frame), 6)).copy()
-    source = "path file columns" if has_w else "--wrench (constant)"
+    source = "path file columns" if has_w else "the wrench given (constant)"
     if wrench_frame == "tool":
         R = tool_pose(robot, q)[:, :3, :3]
         w = np.concatenate([np.einsum("nij,nj->ni", R, w[:, :3]),

@@ -139,7 +139,7 @@ def build_problem(o: PlaceOptions, console: Console):
         raise InputError("expected a positive number of evaluations", where="--max-evaluations")
     if not (o.max_memory_gib > 0 and np.isfinite(o.max_memory_gib)):
         raise InputError("expected a positive size in GiB", where="--max-memory-gib")
-    from campaign.jobs.common import six_joints
+    from campaign.jobs.option_checks import six_joints
 
     robot = robot_option(o.robot, o.tip, o.tool_xyz_mm, o.tool_rpy_deg)
     six_joints(robot)

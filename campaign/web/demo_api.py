@@ -34,7 +34,7 @@ def demo_task(progress, options):
                  reporter=progress_hooks.AcquireProgress(progress),
                  warn=progress_hooks.say(progress), should_abort=progress.cancelled)
     if progress.cancelled():
-        raise JobCancelled(f"cancelled: the acquisition took the Ctrl-C path "
+        raise JobCancelled(f"cancelled: the acquisition was stopped (motion stopped, load removed) "
                            f"({result.acquisition.status}: {result.acquisition.reason})")
     return result
 

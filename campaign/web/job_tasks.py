@@ -117,6 +117,6 @@ def _acquire(progress, options):
     result = run(options, reporter=progress_hooks.AcquireProgress(progress),
                  say=lambda s: None, should_abort=progress.cancelled)
     if progress.cancelled():
-        raise JobCancelled(f"cancelled: the acquisition took the Ctrl-C path "
+        raise JobCancelled(f"cancelled: the acquisition was stopped (motion stopped, load removed) "
                            f"({result.status}: {result.reason}); the run stays, resumable")
     return result

@@ -79,6 +79,7 @@ class JointOut(BaseModel):
     predicted_se_Nm_per_rad: float | None
     std_Nm_per_rad: float | None
     rejected: int
+    linear_bias_relative: float | None = None
 
 
 class SensitivityResponse(BaseModel):
@@ -95,6 +96,7 @@ class SensitivityResponse(BaseModel):
     noise: dict
     curve_tests: list[int]
     curve_relative_se: list[list[float | None]]
+    note: str = ""
 
 
 class Defaults(BaseModel):

@@ -151,7 +151,7 @@ def test_stiffness_imports_pinocchio_but_not_scipy_pandas_matplotlib():
 
 
 def test_plan_command_strategies_match_the_planner():
-    from campaign.cli.common import Strategy
+    from campaign.cli.terminal import Strategy
     from campaign.planning.planner import STRATEGIES
 
     # the CLI's enum is kept apart from the planner (which pulls in pandas) and must agree

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from campaign.cli import main
-from campaign.cli.common import text_width, wrap_text
+from campaign.cli.terminal import text_width, wrap_text
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.identification.estimators.fitting import _full, fit
+from analysis.identification.estimators.fit_solvers import _full, fit
 from analysis.identification.linalg import lsq
 from analysis.identification.linalg.lsq import (
     block_diag_apply,

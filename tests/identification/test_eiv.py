@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
-from analysis.identification.estimators.fitting import fit_exact, fit_linear
+from analysis.identification.estimators.fit_solvers import fit_exact, fit_linear
 from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.linalg.lsq import whitening
 from analysis.identification.linalg.sandwich import sandwich

@@ -15,7 +15,7 @@ import pytest
 
 from analysis.errors import InputError
 from analysis.identification.estimators.base import EstimatorFit
-from analysis.identification.estimators.fitting import fit_exact, fit_linear
+from analysis.identification.estimators.fit_solvers import fit_exact, fit_linear
 from analysis.identification.estimators.irls import robust_fit
 from analysis.identification.estimators.registry import GAUSSIAN, ROBUST, estimator
 from analysis.identification.noise import NoiseModel

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from analysis.errors import InputError
-from analysis.identification.estimators.fitting import fit_linear
+from analysis.identification.estimators.fit_solvers import fit_linear
 from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg.batch_lsq import cholesky, forward_substitute, mgs_lstsq

@@ -12,7 +12,7 @@ from analysis.identification.checks.outliers import (
     flag_outliers,
     outlier_threshold,
 )
-from analysis.identification.estimators.fitting import fit
+from analysis.identification.estimators.fit_solvers import fit
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg.sandwich import sandwich
 from analysis.identification.noise import NoiseModel

@@ -242,7 +242,7 @@ def test_streamed_robust_equals_in_memory(kr240, large_campaign, method, mode, m
     (LAZY_TESTS 300, blocks of 97 tests) gives the in-memory estimate and sandwich
     covariance, to 1e-8 relative (backward-stable factorisations of the same systems)."""
     from analysis.identification.estimate import identify
-    from analysis.identification.estimators import fitting
+    from analysis.identification.estimators import fit_solvers
     from analysis.identification.linalg import lsq
     from analysis.identification.streaming import blocks, per_test
     from analysis.identification.streaming.per_test import PerTestJacobian
@@ -254,7 +254,7 @@ def test_streamed_robust_equals_in_memory(kr240, large_campaign, method, mode, m
     monkeypatch.setattr(lsq, "TEST_BLOCK", 97)
     monkeypatch.setattr(blocks, "EVAL_BLOCK", 101)
     monkeypatch.setattr(per_test, "LAZY_TESTS", 300)
-    assert isinstance(fitting.jacobian_blocks(kr240, large_campaign.q), PerTestJacobian)
+    assert isinstance(fit_solvers.jacobian_blocks(kr240, large_campaign.q), PerTestJacobian)
     res = identify(kr240, large_campaign, method, noise=NOISE, validate=False, robust=mode)
     np.testing.assert_allclose(res.x, ref.x, rtol=1e-8)
     np.testing.assert_allclose(res.cov_x, ref.cov_x, rtol=1e-8)

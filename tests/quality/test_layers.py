@@ -83,11 +83,11 @@ def _string_lists(path: Path):
 
 #: the lists of :mod:`analysis.choices`, each recognised by two of its names
 CHOICE_LISTS = {"estimators": {"ols", "wls"}, "robust modes": {"huber", "tukey"},
-                "robot model classes": {"standard_dh", "modified_dh"}}
+                "geometry conventions": {"standard_dh", "modified_dh"}}
 
 
 def test_every_list_of_choices_is_spelled_once():
-    """Estimators, robust modes and robot model classes are listed in analysis/choices.py
+    """Estimators, robust modes and geometry conventions are listed in analysis/choices.py
     only; code elsewhere derives its lists (enums, Literal types, checks, messages) from it."""
     from analysis import choices
 

@@ -12,7 +12,7 @@ import pytest
 
 from analysis.identification.corrections.linear_bias import linearisation_bias
 from analysis.identification.estimate import identify
-from analysis.identification.estimators.fitting import fit_linear
+from analysis.identification.estimators.fit_solvers import fit_linear
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw

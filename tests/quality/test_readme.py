@@ -81,7 +81,7 @@ def test_no_two_walk_through_commands_write_into_one_directory(page):
 
 
 def test_the_listed_strategies_are_the_planners():
-    from campaign.cli.common import Strategy
+    from campaign.cli.terminal import Strategy
     from campaign.planning.planner import STRATEGIES
 
     text = " ".join((ROOT / "README.md").read_text().split())

@@ -33,7 +33,7 @@ class _H3(HTMLParser):
 
 def test_cli_methods_match_the_identification():
     from analysis import choices
-    from campaign.cli.common import Method
+    from campaign.cli.terminal import Method
 
     assert identification.METHODS is choices.METHODS
     assert tuple(m.value for m in Method) == identification.METHODS

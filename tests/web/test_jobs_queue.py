@@ -249,7 +249,8 @@ def test_cancelled_acquisition_takes_the_ctrl_c_path_and_keeps_its_run(client, w
         time.sleep(0.05)
     client.delete(f"/api/jobs/{job_id}")
     job = _wait(client, job_id)
-    assert job["state"] == "cancelled" and "Ctrl-C path" in job["text"], job
+    assert job["state"] == "cancelled" and "acquisition was stopped" in job["text"], job
+    assert "Ctrl-C" not in job["text"] and "(Abort)" in job["text"], job
     meta = json.loads((ws / "runs" / "r1" / "metadata.json").read_text())
     assert meta["status"] == "aborted"  # recorded, resumable, as the command line's Ctrl-C
 

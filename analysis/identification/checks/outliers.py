@@ -13,8 +13,8 @@ from dataclasses import replace
 import numpy as np
 
 from analysis.errors import InputError
-from analysis.identification.estimators.fit import Fit
-from analysis.identification.estimators.fitting import _fit_covariances, _full, fit, fit_exact
+from analysis.identification.estimators.fit_record import Fit
+from analysis.identification.estimators.fit_solvers import _fit_covariances, _full, fit, fit_exact
 from analysis.identification.estimators.linear_model import jacobian_blocks
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.io.residual_rows import ResidualRows

@@ -59,7 +59,7 @@ def linearisation_bias(
     """Bias (p,) of the linear estimate at compliances x (p,) (rad/(N m)): ``G (f(x) - A x)``.
 
     ``G`` (p, 6m): the estimator (x = G d, stacked measured components; an array or
-    a :class:`~analysis.identification.estimators.fit.FactoredEstimator`); ``predicted``
+    a :class:`~analysis.identification.estimators.fit_record.FactoredEstimator`); ``predicted``
     (m, 6): the linear model's A x. NaN where the equilibrium cannot be solved at x.
     """
     x_full = np.zeros(robot.n)

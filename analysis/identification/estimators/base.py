@@ -14,7 +14,7 @@ from typing import Protocol
 
 import numpy as np
 
-from analysis.identification.estimators.fit import Fit
+from analysis.identification.estimators.fit_record import Fit
 
 
 @dataclass(frozen=True)

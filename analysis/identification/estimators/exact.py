@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from analysis.identification.estimators.base import EstimatorFit
-from analysis.identification.estimators.fitting import fit_exact, fit_linear
+from analysis.identification.estimators.fit_solvers import fit_exact, fit_linear
 from analysis.identification.estimators.wls import ols_and_wls
 
 

@@ -11,7 +11,7 @@ sigma_i the noise model's standard deviation of that component (displacement
 noise plus the wrench noise through the Cartesian compliance at x,
 :func:`analysis.identification.noise.residual_covariance`), and the existing
 weighted fit (WLS or the exact Gauss-Newton fit of
-:mod:`analysis.identification.estimators.fitting`) is repeated with component i's
+:mod:`analysis.identification.estimators.fit_solvers`) is repeated with component i's
 variance divided by its weight (correlations within a test kept), until the
 weights stop changing.
 
@@ -60,8 +60,8 @@ import numpy as np
 from analysis.choices import METHODS, REWEIGHTING_MODES, ROBUST_MODES
 from analysis.errors import InputError
 from analysis.identification.corrections.wrench_eiv import wrench_eiv_matrix
-from analysis.identification.estimators.fit import Fit
-from analysis.identification.estimators.fitting import (
+from analysis.identification.estimators.fit_record import Fit
+from analysis.identification.estimators.fit_solvers import (
     _covariances,
     _full,
     _linear_estimator,

@@ -3,7 +3,7 @@
 Unweighted least squares on the stacked A (6m x p), by QR of the column-scaled A (no
 normal equations), corrected for the wrench noise in the regressor; its covariance is
 the sandwich A^+ Sigma A^+T with Sigma from the noise model
-(:func:`analysis.identification.estimators.fitting.fit_linear`).
+(:func:`analysis.identification.estimators.fit_solvers.fit_linear`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from analysis.identification.estimators.base import EstimatorFit
-from analysis.identification.estimators.fitting import fit_linear
+from analysis.identification.estimators.fit_solvers import fit_linear
 
 
 @dataclass(frozen=True)

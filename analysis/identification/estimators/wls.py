@@ -4,7 +4,7 @@ Each test weighted by its inverse measurement covariance
 (:func:`analysis.identification.noise.residual_covariance`: the instrument sigmas plus
 the wrench noise propagated through the Cartesian compliance at the current estimate),
 two reweighting passes from the OLS estimate
-(:func:`analysis.identification.estimators.fitting.fit_linear`).
+(:func:`analysis.identification.estimators.fit_solvers.fit_linear`).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from analysis.identification.estimators.base import EstimatorFit
-from analysis.identification.estimators.fitting import fit_linear
+from analysis.identification.estimators.fit_solvers import fit_linear
 
 
 def ols_and_wls(problem, first_whitening: dict | None = None):

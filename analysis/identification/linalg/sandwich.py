@@ -1,7 +1,7 @@
 """The covariance of a linear(ised) estimate and each residual's variance, block by block.
 
 For x = G d with G = bread A^T W (per-test blocks A (m, 6, p), whitening Linv, W = Linv^T
-Linv; :class:`~analysis.identification.estimators.fit.Fit`): the sandwich G Sigma G^T and
+Linv; :class:`~analysis.identification.estimators.fit_record.Fit`): the sandwich G Sigma G^T and
 the variances of the residuals d - A x, in passes over blocks of tests, never forming G
 or the (6m, 6m) hat matrix.
 """

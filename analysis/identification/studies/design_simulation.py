@@ -69,6 +69,19 @@ def simulate_campaigns(
     return SimulatedCampaigns(q=q + dq, w=wm, d=dm, J=Jm, q_true=q, w_true=w)
 
 
+def noise_free_campaign(robot: RobotModel, q: np.ndarray, w: np.ndarray,
+                        k_true: np.ndarray) -> SimulatedCampaigns:
+    """One campaign (T = 1) of the tests (q (t, n) rad, w (t, 6) N, N m) without noise: the
+    exact joint-spring displacements at k_true (N m/rad). A linear estimator's compliances
+    from it minus 1/k_true are its linearisation bias at these tests
+    (:mod:`analysis.identification.corrections.linear_bias`: ``b(x) = G (f(x) - A x)``)."""
+    q = np.asarray(q, float)
+    w = np.asarray(w, float)
+    d = displacement_screw(robot, q, np.asarray(k_true, float), w)
+    return SimulatedCampaigns(q=q[None], w=w[None], d=d[None], J=jacobian(robot, q)[None],
+                              q_true=q, w_true=w)
+
+
 def identify_campaigns(
     robot: RobotModel,
     sim: SimulatedCampaigns,

@@ -35,7 +35,7 @@ from analysis.identification.checks.data import check_identifiable, check_tests
 from analysis.identification.estimators.exact_model import (
     model_displacement,
 )
-from analysis.identification.estimators.fitting import fit, fit_exact
+from analysis.identification.estimators.fit_solvers import fit, fit_exact
 from analysis.identification.estimators.linear_model import design_block
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.linalg.lsq import whitening
@@ -131,9 +131,9 @@ def _leave_out(folds: Folds, batched, max_exact_refits, full_fit, fold_sums,
     ``batched=False`` refits from scratch for every pose (the reference path).
     ``max_exact_refits`` (default :data:`EXACT_REFITS_MAX`): with more poses than
     this, exact folds take one Gauss-Newton step from the full-data estimate.
-    ``full_fit``: the :class:`analysis.identification.estimators.fit.Fit` of ``method`` on all
-    the tests, if the caller has it (saves refitting the full data). ``fold_sums``: the
-    per-pose sums of a streamed exact ``full_fit``
+    ``full_fit``: the :class:`analysis.identification.estimators.fit_record.Fit` of
+    ``method`` on all the tests, if the caller has it (saves refitting the full data).
+    ``fold_sums``: the per-pose sums of a streamed exact ``full_fit``
     (:class:`~analysis.identification.streaming.fold_sums.FinalPassSums`, made in its
     final pass).
     ``linear_shift``: for ols/wls whose linearisation bias was corrected

@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from analysis.errors import InputError
-from campaign.cli.common import echo
+from campaign.cli.terminal import echo
 
 
 def make_reporter(quiet: bool, json_lines: bool):

@@ -16,7 +16,7 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from analysis.errors import InputError
-from campaign.cli.common import (
+from campaign.cli.terminal import (
     DEFAULT_METHOD,
     DEFAULT_TRIALS,
     PANEL_NOISE,
@@ -31,7 +31,7 @@ from campaign.cli.common import (
 )
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
-#: panels of --help (campaign.cli.common)
+#: panels of --help (campaign.cli.terminal)
 _INPUT = "Input and tool point"
 _FIT = "Estimation and checks"
 _REPORT = "Report"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli.common import echo
+from campaign.cli.terminal import echo
 
 
 def register(app: typer.Typer) -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli.common import PROGRAM_CHOICES, PROGRAM_METAVAR, Program, WrenchFrame, echo
+from campaign.cli.terminal import PROGRAM_CHOICES, PROGRAM_METAVAR, Program, WrenchFrame, echo
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli.common import echo, print_json, stage
+from campaign.cli.terminal import echo, print_json, stage
 
 
 def demo(

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli.common import PANEL_OUTPUT, PANEL_ROBOT, SimFormat, echo, print_json
+from campaign.cli.terminal import PANEL_OUTPUT, PANEL_ROBOT, SimFormat, echo, print_json
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
 

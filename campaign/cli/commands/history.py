@@ -12,7 +12,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli.common import echo
+from campaign.cli.terminal import echo
 
 #: exit status of ``check`` with an alarm and of ``verify`` with a mismatch
 EXIT_ALARM = 3

@@ -58,7 +58,7 @@ def register(app: typer.Typer) -> None:
         if not fake:
             raise InputError("only the simulated lab can be started here: add --fake",
                              where="campaign lab")
-        from campaign.cli.common import echo
+        from campaign.cli.terminal import echo
         from campaign.jobs.lab import LabOptions, run
 
         chosen = None if not instruments else instruments.split(",")

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.console import Console
 
-from campaign.cli.common import (
+from campaign.cli.terminal import (
     PANEL_OUTPUT,
     PANEL_ROBOT,
     TableFormat,
@@ -17,7 +17,7 @@ from campaign.cli.common import (
 )
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 
-#: panel of --help (campaign.cli.common)
+#: panel of --help (campaign.cli.terminal)
 _GRID = "Map grid"
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli.common import (
+from campaign.cli.terminal import (
     PANEL_OUTPUT,
     PANEL_ROBOT,
     PROGRAM_CHOICES,
@@ -23,7 +23,7 @@ from campaign.cli.common import (
 from campaign.jobs.place import DEFAULTS as _D
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP
 
-#: panels of --help (campaign.cli.common)
+#: panels of --help (campaign.cli.terminal)
 _BOX = "Part path and search box"
 _TOOL = "Tool angle"
 _FEASIBLE = "Feasibility"

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import typer
 
-from campaign.cli.common import PANEL_OUTPUT, Strategy, echo, print_json, stage
+from campaign.cli.terminal import PANEL_OUTPUT, Strategy, echo, print_json, stage
 
-#: panels of --help (campaign.cli.common)
+#: panels of --help (campaign.cli.terminal)
 _DESIGN = "Design"
 
 

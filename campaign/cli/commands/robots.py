@@ -8,7 +8,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from analysis.report.formatting import k_kNm
-from campaign.cli.common import print_json, print_wrapped
+from campaign.cli.terminal import print_json, print_wrapped
 
 
 def _listing(console: Console, robots: list[dict]) -> None:

@@ -9,7 +9,7 @@ from rich.console import Console
 from rich.table import Table
 
 from analysis.errors import InputError
-from campaign.cli.common import (
+from campaign.cli.terminal import (
     DEFAULT_METHOD,
     PANEL_NOISE,
     PANEL_OUTPUT,
@@ -40,7 +40,7 @@ def parse_tests(text: str) -> list[int]:
     return sorted(out)  # the job refuses none, < 1 and too many
 
 
-#: panel of --help (campaign.cli.common)
+#: panel of --help (campaign.cli.terminal)
 _STUDY = "Monte-Carlo study"
 _TRACKER = "Rotation measurement"
 

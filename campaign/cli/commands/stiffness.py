@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import typer
 from rich.console import Console
 
-from campaign.cli.common import print_wrapped
+from campaign.cli.terminal import print_wrapped
 from campaign.numbers_text import matrix_lines, vector_text
 from campaign.options import TOOL_RPY_HELP, TOOL_XYZ_HELP, numbers_option
 

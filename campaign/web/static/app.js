@@ -203,6 +203,7 @@ async function update() {
       $("sens-error").textContent = data.detail || r.statusText;
       // the figures, the table and the timing were the previous settings': not shown
       $("sens-status").textContent = "";
+      $("sens-note").textContent = "";
       $("sens-figures").hidden = true;
       $("sens-table").hidden = true;
       document.body.dataset.shown = "error:" + JSON.stringify(payload);
@@ -216,6 +217,8 @@ async function update() {
       document.body.dataset.shown = JSON.stringify(payload);  // the settings on display
       $("sens-status").textContent = `${data.trials} trials of ${data.n_tests} tests ` +
         `(${data.method}) in ${Math.round(performance.now() - t0)} ms`;
+      // ols/wls: the linearisation bias each trial is corrected for, as Analyze does
+      $("sens-note").textContent = data.note || "";
     }
   } catch (err) {
     $("sens-error").textContent = String(err);

@@ -12,7 +12,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.identification.corrections.wrench_eiv import corrected, wrench_eiv_matrix
-from analysis.identification.estimators.fit import Fit
+from analysis.identification.estimators.fit_record import Fit
 from analysis.identification.estimators.gauss_newton import gauss_newton
 from analysis.identification.estimators.linear_model import jacobian_blocks, tests_design
 from analysis.identification.linalg.lsq import solve_blocks, whitening

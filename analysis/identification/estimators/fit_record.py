@@ -54,7 +54,8 @@ class Fit:
     whose A and Linv are made when sliced (:mod:`analysis.identification.streaming.per_test`), the
     triangular factor of its final whitened system [Linv A | Linv r] at x - eiv_shift,
     else None. ``predicted_shifted`` False: ``predicted`` is still at x - eiv_shift (the
-    caller moves it by A eiv_shift, :func:`analysis.identification.estimators.fitting.fit_exact`).
+    caller moves it by A eiv_shift,
+    :func:`analysis.identification.estimators.fit_solvers.fit_exact`).
     """
 
     x: np.ndarray
