@@ -48,7 +48,7 @@ import pandas as pd
 from analysis.errors import InputError
 from analysis.identification.checks.data import check_identifiable, check_tests
 from analysis.identification.checks.outliers import (
-    flag_outliers,
+    flag_problem_outliers,
     outlier_threshold,
     outlier_warning,
     residual_table,
@@ -265,20 +265,17 @@ def _validation(problem: IdentificationProblem, outcome, corr) -> pd.DataFrame |
     """The leave-one-pose-out table, or None (not asked, or fewer than 3 folds)."""
     if not problem.options.validate:
         return None
-    from analysis.identification.validation.crossval import leave_one_pose_out
+    from analysis.identification.validation.crossval import validate_problem
 
     tests, kept, rob = problem.tests, outcome.kept, outcome.robust
     # robust: validated on the components the robust fit kept (weight >= 0.5)
     valid_tests = tests if rob is None else TestArrays(
         tests.pose, tests.q, tests.w, np.where(kept, tests.d, np.nan), kept, tests.line)
-    return leave_one_pose_out(problem.robot, valid_tests, problem.options.method,
-                              problem.joints, problem.noise,
-                              full_fit=outcome.fit if rob is None else None,
-                              group=problem.folds, cluster_rad=problem.options.radius,
-                              poses=problem.pose_group, J=problem.jacobian,
-                              fold_sums=outcome.sums,
-                              linear_shift=None if corr is None or not corr.reliable
-                              else (corr.x - corr.x_raw, corr.propagation))
+    return validate_problem(problem, valid_tests,
+                            full_fit=outcome.fit if rob is None else None,
+                            fold_sums=outcome.sums,
+                            linear_shift=None if corr is None or not corr.reliable
+                            else (corr.x - corr.x_raw, corr.propagation))
 
 
 def _no_validation_note(problem: IdentificationProblem) -> str:
@@ -308,10 +305,9 @@ def _residuals(problem: IdentificationProblem, outcome, stats, iv, sigma):
     t = studentize(tests, chosen.predicted, stats.var_r, iv.scale)  # in var_r's array
     if rob is None:
         bias = iv.linear_bias
-        flags = flag_outliers(problem.robot, tests, problem.joints, problem.noise,
-                              options.method, chosen, iv.scale, threshold, t,
-                              bias_se=iv.se_raw if bias is not None and bias["reliable"]
-                              else None, J=problem.jacobian)
+        flags = flag_problem_outliers(problem, chosen, iv.scale, threshold, t,
+                                      bias_se=iv.se_raw if bias is not None
+                                      and bias["reliable"] else None)
     else:
         flags = tests.measured & ~outcome.kept
     if problem.large:

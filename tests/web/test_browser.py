@@ -112,6 +112,11 @@ def test_method_and_plan_poses(page, workspace):
     assert page.locator("#sens-error").inner_text() == ""
     body = _assert_page_equals_job(page, workspace)
     assert body["method"] == "wls" and body["poses"] == "plan"
+    # wls: the medians are corrected for the linearisation bias, and the page says by how
+    # much, each joint's number as the job computed it
+    note = page.locator("#sens-note").inner_text()
+    assert note == _job(body, workspace)["note"] and note.startswith("wls fits the linearised")
+    assert "k3 " in note and " %" in note
 
 
 def test_bad_wrench_is_shown_beside_the_form(page):

@@ -21,7 +21,7 @@ from analysis.identification.io.residual_rows import ResidualRows
 from analysis.identification.io.results_json import RESIDUALS_LISTED
 from analysis.identification.linalg.lsq import blocks_of_tests
 from analysis.identification.linalg.sandwich import sandwich_and_residual_variance
-from analysis.identification.problem import OUTLIER_FAMILY_LEVEL
+from analysis.identification.problem import OUTLIER_FAMILY_LEVEL, IdentificationProblem
 from analysis.identification.streaming.per_test import apply
 from analysis.report.formatting import level
 
@@ -278,3 +278,13 @@ def outlier_warning(residuals, rows, flags: np.ndarray, tests: TestArrays, thres
                   "to all the data, whose k is reported")
     return (f"{n_flagged} outlier residual(s), |studentized| > {threshold:.2f} (Sidak, "
             f"{level(outlier_level)} family-wise over {n_eq} residuals): {where}{more}{rounds}")
+
+
+def flag_problem_outliers(problem: IdentificationProblem, first: Fit, scale: float,
+                          threshold: float, t_first: np.ndarray | None = None,
+                          bias_se: np.ndarray | None = None) -> np.ndarray:
+    """:func:`flag_outliers` on an identification ``problem``, taken whole (its robot, tests,
+    joints, noise, method and Jacobians)."""
+    return flag_outliers(problem.robot, problem.tests, problem.joints, problem.noise,
+                         problem.options.method, first, scale, threshold, t_first,
+                         bias_se=bias_se, J=problem.jacobian)

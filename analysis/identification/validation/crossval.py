@@ -27,6 +27,8 @@ by bincount).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pandas as pd
 
@@ -51,6 +53,9 @@ from analysis.identification.validation.holdout_check import (
 )
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
+
+if TYPE_CHECKING:
+    from analysis.identification.problem import IdentificationProblem
 
 #: leave-one-pose-out with the exact fit refits every fold (warm-started) up to this
 #: many distinct poses; beyond, each fold takes one Gauss-Newton step from the full-data
@@ -118,6 +123,22 @@ def leave_one_pose_out(
                               "out together") if t) if c > 1 else n
         for n, c in zip(table["note"], count, strict=True)]
     return table
+
+
+def validate_problem(problem: IdentificationProblem, tests: TestArrays | None = None,
+                     full_fit=None, fold_sums=None,
+                     linear_shift: tuple[np.ndarray, np.ndarray] | None = None
+                     ) -> pd.DataFrame | None:
+    """:func:`leave_one_pose_out` of an identification ``problem``, taken whole: its robot,
+    method, joints, noise, held-out folds and radius, pose groups and Jacobians. ``tests``:
+    the tests validated on (default the problem's; a robust fit's kept components);
+    ``full_fit``, ``fold_sums``, ``linear_shift`` as there."""
+    return leave_one_pose_out(problem.robot, problem.tests if tests is None else tests,
+                              problem.options.method, problem.joints, problem.noise,
+                              full_fit=full_fit, group=problem.folds,
+                              cluster_rad=problem.options.radius, poses=problem.pose_group,
+                              J=problem.jacobian, fold_sums=fold_sums,
+                              linear_shift=linear_shift)
 
 
 def _deg(radius: float | None) -> str:
