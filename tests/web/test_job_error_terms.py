@@ -52,3 +52,5 @@ def test_page_says_the_checkbox_label_not_the_cli_option(open_page, demo_ws):  #
     text = page.locator("#an-error").inner_text()
     assert f"\u201c{FORCE_LABEL}\u201d" in text and "--force" not in text, text
     assert "output directory exists" in text
+    # the output folder has no field in the form: named in words, not as --out
+    assert "--out" not in text and "\u201cOutput folder\u201d run" in text, text
