@@ -83,7 +83,7 @@ class AnalyzeOptions:
     model: str = "joints"
 
 
-@dataclass
+@dataclass(frozen=True)
 class AnalyzeResult:
     """results: results.json's document (SI units); summary: analysis.json's; files: the
     main files by name; identification: the identification result (k, ci, warnings, ...);
