@@ -197,7 +197,8 @@ class Runner:
             status, reason = "failed", f"device fault after a retry: {err}"
             self._record("abort", reason=reason)
         except WriteFailure as err:
-            status, reason = "failed", f"{err}; free space or fix the permissions, then --resume"
+            status, reason = "failed", (f"{err}; free space or fix the permissions, then "
+                                        "resume the run")
             self._record("abort", reason=reason)
         except KeyboardInterrupt as err:
             status, reason = "aborted", interrupt_reason(err)
@@ -215,7 +216,7 @@ class Runner:
             self.run_dir.set_status(status, reason, **extra)
         except WriteFailure as err:
             reason = "; ".join(filter(None, [reason, f"metadata.json still says running "
-                                                      f"({err}): --resume records it"]))
+                                                      f"({err}): resuming the run records it"]))
             # the appended files are still open: the status goes into events.jsonl at least
             self._record("status", status=status, reason=reason)
         return status, reason

@@ -270,7 +270,7 @@ def acquire(plan_dir: Path | None, out: Path | None, resume: Path | None,
         except WriteFailure as err:
             # only before the runner started: it handles its own write failures
             status, reason = "failed", f"{err}; nothing moved; free space or fix the " \
-                                       "permissions, then --resume"
+                                       "permissions, then resume the run"
             try:
                 run.set_status(status, reason, ended_utc=utc())
             except WriteFailure:

@@ -141,7 +141,10 @@ def test_disk_full_mid_run_stops_safely_and_the_run_resumes(small_plan, tmp_path
     monkeypatch.setattr(os, "write", real_write)
     assert outcome.status == "failed"
     assert outcome.reason.startswith(f"cannot write samples.jsonl in {out}: No space left on "
-                                     "device; free space or fix the permissions, then --resume")
+                                     "device; free space or fix the permissions, then "
+                                     "resume the run")
+    # the reason is the run's, read by the command line and the page alike: no option in it
+    assert "--" not in outcome.reason
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["status"] == "failed" and meta["reason"] == outcome.reason
     assert not [p.name for p in out.iterdir() if p.name.endswith(".tmp")]

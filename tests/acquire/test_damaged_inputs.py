@@ -485,7 +485,7 @@ def test_a_run_directory_made_unwritable_mid_run_is_one_line_and_exit_1(kr240_pl
     line = captured.err
     assert line.count("\n") == 1 and line.startswith("run complete: metadata.json still says")
     assert f"metadata.json still says running (cannot write metadata.json in {out}: " \
-           "Permission denied): --resume records it" in line
+           "Permission denied): resuming the run records it" in line
     assert "the Parquet exports could not be written" in line
     # what could be recorded is: every row, and the status in events.jsonl
     assert finished_rows(out) == 2
