@@ -127,6 +127,8 @@ def test_path_deflection_is_compensate_before_compensating(ws, app, client, camp
     assert got["joint_stiffness_source"] == "identified (model.toml)"
     assert f"joint stiffness: {got['joint_stiffness_source']}" in summary["assumptions"]
     assert f"wrench: {got['wrench_source']}" in summary["assumptions"]
+    # the page shows this source: in words, not the command line's --wrench
+    assert got["wrench_source"].startswith("the wrench given (constant)"), got["wrench_source"]
     assert 1e3 * got["max_norm_p_m"] == pytest.approx(
         summary["translation_m"]["before"]["max"] * 1e3, rel=1e-10)
     # a tool point on a built-in robot (nominal k: no band): P moved, the same P in both
