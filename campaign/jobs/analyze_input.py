@@ -122,7 +122,9 @@ def _from_run(run_dir: Path, tool_xyz: str | None, tool_rpy: str | None,
             warn(note)
     info = _run_info(run, robot.name, protocol, tool)
     true_k = (run.metadata.get("fake_lab") or {}).get("true_joint_stiffness")
-    return AnalysisInput(to_arrays(run.ok), robot, noise, noise_source, info, protocol,
+    ok = run.ok
+    del run  # the run's whole text table goes before the arrays are made (as before)
+    return AnalysisInput(to_arrays(ok), robot, noise, noise_source, info, protocol,
                          None if true_k is None else np.asarray(true_k, float), tool,
                          robot_source)
 
