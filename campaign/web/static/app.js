@@ -48,6 +48,17 @@ function inFormTerms(err, labels) {
   return text;
 }
 
+// The options a line names, each -> the request field of its name (--out -> out,
+// --time-scale -> time_scale), for the views whose API answers carry no `options` record:
+// with fieldLabels and inFormTerms, the line in the form's words.
+function optionsNamed(text) {
+  const out = {};
+  for (const m of String(text).matchAll(/--[a-z][a-z0-9-]*/g)) {
+    out[m[0]] = m[0].slice(2).replace(/-/g, "_");
+  }
+  return out;
+}
+
 function route(openapi, tag, method) {
   for (const [path, ops] of Object.entries(openapi.paths)) {
     const op = ops[method];

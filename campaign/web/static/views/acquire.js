@@ -83,7 +83,12 @@
     src.onerror = () => { src.close(); acq.source = null; setTimeout(() => refresh().catch(error), 500); };
   }
 
-  function error(err) { el("acq-error").textContent = String(err.message || err); }
+  // a refusal in the view's words: "--out" -> "New run directory", "--resume" -> "Resume"
+  function error(err) {
+    const text = String(err.message || err);
+    el("acq-error").textContent = inFormTerms({ detail: text, options: optionsNamed(text) },
+                                              fieldLabels(el("view-acquire")));
+  }
 
   function options() {
     const scale = el("acq-scale").value.trim();
