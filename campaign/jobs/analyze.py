@@ -163,7 +163,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
                                                    checked, model_choice, radius))
     # ---- end of the model classes ----
     result = _checked(result, inp, checked, o.accept_misfit, run_dir or measurements)
-    if model_choice.auto or model_choice.extras:
+    if model_choice.auto or model_choice.extras:  # ---- model classes, after the checks ----
         from analysis.identification.models.apply import widened
 
         result = widened(result)
