@@ -126,8 +126,8 @@ def design_frame(plan: Plan, design: Design) -> pd.DataFrame:
     return pd.DataFrame(data, columns=COLUMNS)
 
 
-#: a design that flips fewer gears is preferred while its worst relative standard error of
-#: k stays within this factor of the flank-blind design's (the planner's own criterion)
+#: when some flank changes cannot be avoided, a design with fewer is preferred while its
+#: worst relative standard error of k stays within this factor of the flank-blind design's
 FLANK_SE_TOLERANCE = 1.25
 
 
@@ -281,9 +281,11 @@ def _worst(design: Design, k: np.ndarray) -> float:
 def _fewer_flips(protocol: Protocol, robot: RobotModel, cand: Candidates, counts: np.ndarray,
                  blind, strategy: str, seed: int, weights, noise: NoiseModel,
                  k_prior: np.ndarray, rows: int):
-    """The design with the fewest gear-flank changes among those over the candidates limited
-    to at most 0, 1, 2 ... changes per test (:func:`_flank_limited`), whose worst relative
-    standard error of k is within :data:`FLANK_SE_TOLERANCE` of the flank-blind design's
+    """A design that changes no flank when the candidates allow one (its fit has no
+    lost-motion error at all, whatever its se); else the design with the fewest changes among
+    those over the candidates limited to at most 1, 2 ... changes per test
+    (:func:`_flank_limited`), whose worst relative standard error of k is within
+    :data:`FLANK_SE_TOLERANCE` of the flank-blind design's
     (``blind``, a :func:`_choose` tuple); among equal flank changes the one that separates
     link from joint compliance best (the smallest worst k bias its joint-only fit would
     take from the protocol's assumed link compliances, :mod:`.link_alias`; without
@@ -308,6 +310,8 @@ def _fewer_flips(protocol: Protocol, robot: RobotModel, cand: Candidates, counts
         except InputError:
             continue
         ck = key(c)
+        if ck[0] == 0:
+            return c  # no flank changes at all: no lost-motion error, whatever its se
         if _worst(c[2], k_prior) <= bound and ck < best_key:
             best, best_key = c, ck
         if best_key[0] == 0:
