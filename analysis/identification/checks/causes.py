@@ -133,8 +133,9 @@ class CauseTest:
                 "p_value": self.p_value, "chi2": self.chi2, "chi2_left": self.chi2_left,
                 "bic_change": self.bic, "significant": self.significant,
                 "estimate": self.estimate, "evidence_lines": list(self.rows),
-                "given": self.given or None, "p_value_given": self.p_given,
-                "named": self.beyond}
+                # beside a significant first cause: the test given it, and the verdict
+                **({"given": self.given, "p_value_given": self.p_given, "named": self.beyond}
+                   if self.given else {})}
 
 
 @dataclass(frozen=True)
