@@ -103,7 +103,8 @@ def run_seed(plan_dir: Path, out: Path, seed: int) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--seeds", type=int, default=100, help="campaigns: seeds 1..N")
+    ap.add_argument("--seeds", type=int, default=100, help="campaigns: seeds FIRST..FIRST+N-1")
+    ap.add_argument("--first", type=int, default=1, help="first seed")
     ap.add_argument("--out", type=Path, default=Path("/tmp/preload-coverage"))
     a = ap.parse_args(argv)
     from campaign.planning.planner import make_plan, write_plan
@@ -119,7 +120,7 @@ def main(argv=None) -> int:
     print(f"gear flank changes in the plan: planner {planned}, lab {lab}", flush=True)
     t0 = time.process_time()
     rows = []
-    for seed in range(1, a.seeds + 1):
+    for seed in range(a.first, a.first + a.seeds):
         rows.append(run_seed(plan_dir, a.out, seed))
         r = rows[-1]
         print(seed, "refused" if r["refused"] else "ok",
@@ -130,7 +131,8 @@ def main(argv=None) -> int:
     cover = np.sum([r["covers"] for r in rows], axis=0)
     err = np.array([r["k"] / TRUE_K - 1 for r in rows]) * 100
     print(f"| campaigns | refused | 95 % intervals cover, k1..k6 | mean k error +- its se, "
-          f"k1..k6 (%) |\n| --- | --- | --- | --- |\n| {n} (seeds 1-{n}) | {refused} | "
+          f"k1..k6 (%) |\n| --- | --- | --- | --- |\n| {n} (seeds {a.first}-{a.first + n - 1}) | "
+          f"{refused} | "
           + " ".join(f"{c}" for c in cover) + " of " + str(n) + " | "
           + " ".join(f"{m:+.2f}+-{s:.2f}" for m, s in
                      zip(err.mean(0), err.std(0, ddof=1) / np.sqrt(n), strict=True))
