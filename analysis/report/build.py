@@ -600,11 +600,13 @@ def misfit_causes_text(record: dict) -> str:
     if "skipped" in record:
         return f"none: {record['skipped']}"
     parts = [f"{c['cause'].replace('_', ' ')} F = {sig(c['F'], 3)} ({c['dof'][0]}, "
-             f"{c['dof'][1]}), p = {c['p_value']:.2g}" + (" *" if c["significant"] else "")
+             f"{c['dof'][1]}), p = {c['p_value']:.2g}" + (" *" if c.get("named", c["significant"])
+                                                    else "")
              for c in record["ranked"]]
     parts += [f"{c['cause'].replace('_', ' ')} not tested ({c['why']})"
               for c in record["not_tested"]]
-    return "; ".join(parts) + f" (ranked by evidence; * significant at {record['level']:g})"
+    return "; ".join(parts) + (f" (ranked by evidence; * named: significant at "
+                               f"{record['level']:g}, and beyond the first cause)")
 
 
 def assumption_blocks(result: IdentificationResult) -> list:

@@ -357,12 +357,21 @@ class Runner:
         self.clock.wait(self.settings.tare_samples / inst.ft.rate_hz)
         self._sample("tare", "force_torque", "bias", "N, N m", "sensor", bias)
         w_ref = None
+        T_ref = T_fk  # the reference reading's tool pose, base frame
         if test.preload > 0:  # the reference reading under the preload, on the load's flanks
+            # the tracker's axes from the unloaded pose: the preloaded one is already turned
+            # by the preload's deflection (2-5 mrad on a KR240-2 at 30 %), which taken as the
+            # encoders' pose turned the displacement and both wrenches by it (k3 +0.5 %)
+            Pu = self._pose("unloaded_before")
+            R = base_in_tracker_rotation(Pu.value, T_fk)
             self._preload(test, "before")
             W0 = self._wrench("reference_before")
-            w_ref = sensor_wrench_to_base(W0.value, T_fk, inst.sensor_mount)
-        P0 = self._pose("reference_before" if w_ref is not None else "unloaded_before")
-        R = base_in_tracker_rotation(P0.value, T_fk)
+            P0 = self._pose("reference_before")
+            T_ref = loaded_tool_pose(T_fk, displacement(Pu.value, P0.value, R))
+            w_ref = sensor_wrench_to_base(W0.value, T_ref, inst.sensor_mount)
+        else:
+            P0 = self._pose("unloaded_before")
+            R = base_in_tracker_rotation(P0.value, T_fk)
         ref_point = self._reflector_point(P0.value)
 
         self._phase("apply_load", load_case=test.load_case, wrench_planned=test.wrench)
@@ -395,7 +404,7 @@ class Runner:
 
         ref = mean_pose(P0.value, P2.value)
         screw = displacement(ref, P1.value, R)
-        w_base = sensor_wrench_to_base(W.value, loaded_tool_pose(T_fk, screw), inst.sensor_mount)
+        w_base = sensor_wrench_to_base(W.value, loaded_tool_pose(T_ref, screw), inst.sensor_mount)
         p0, p2 = P0.value[:3, 3], P2.value[:3, 3]
         self.ctx["p_before"] = p0
         res = evaluate(self.limits, p0, p2, self.first_unloaded.get(test.test_id), w_base,

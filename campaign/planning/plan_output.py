@@ -128,7 +128,27 @@ def _flanks_dict(plan: Plan) -> dict:
         "joints_per_test": [[int(j) + 1 for j in np.flatnonzero(row)] for row in change],
         "preload_fraction_keeping_flanks": [None if not np.isfinite(v) else float(v)
                                             for v in keep],
-        "masses": plan.robot.inertials.source or "robot file"}}
+        "masses": plan.robot.inertials.source or "robot file"},
+        **_alias_dict(plan)}
+
+
+def _alias_dict(plan: Plan) -> dict:
+    """The k bias (first order, %) the joint-only fit of the design and of the random zone
+    design would take from the protocol's assumed link compliances ({} without)."""
+    from campaign.planning.link_alias import design_alias, protocol_links
+
+    links = protocol_links(plan.protocol, plan.robot)
+    if not links or plan.noise is None:
+        return {}
+    out = {}
+    for name, d in (("design", plan.chosen), ("random_zone_design", plan.random)):
+        a = design_alias(plan.protocol, plan.robot, plan.candidates.q[d.pose], d.case,
+                         plan.k_prior, plan.noise.displacement_sigma, links)
+        out[name] = [None if not np.isfinite(v) else float(v * 100) for v in a]
+    return {"link_compliance_alias_percent": {
+        **out, "links": [lc.link for lc in links],
+        "what": "k error (first order) of the joint-only fit if the links had the "
+                "compliances of the protocol's [fake_lab] links (ASSUMED)"}}
 
 
 def summary_dict(plan: Plan) -> dict:
@@ -207,6 +227,14 @@ def _flank_lines(s: dict) -> list[str]:
     lines = ["", f"gear flank changes between the reference and the loaded reading (gravity "
              f"model of the robot file): {f['changes']} in {f['tests_with_changes']} of "
              f"{len(f['joints_per_test'])} tests" + (f" ({where})" if where else "")]
+    a = s.get("link_compliance_alias_percent")
+    if a:
+        lines.append(f"links {', '.join(map(str, a['links']))} with [fake_lab]'s assumed "
+                     "compliances would move k of the joint-only fit by (%, k1..): design "
+                     + " ".join("-" if v is None else f"{v:+.1f}" for v in a["design"])
+                     + "; random zone design "
+                     + " ".join("-" if v is None else f"{v:+.1f}"
+                                for v in a["random_zone_design"]))
     if f["changes"] and keep:
         lines.append("a reference reading under a preload in the load's direction keeps every "
                      "joint on one flank: load cases' preload_fraction above "

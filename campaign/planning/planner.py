@@ -126,30 +126,55 @@ def design_frame(plan: Plan, design: Design) -> pd.DataFrame:
     return pd.DataFrame(data, columns=COLUMNS)
 
 
-def _flank_keeping(protocol: Protocol, robot: RobotModel, cand: Candidates) -> Candidates:
-    """The candidates without the tests that move a gear from one flank to the other
-    between their reference reading (under the load case's preload) and their loaded one
-    (:mod:`campaign.planning.flanks`), when enough remain for the protocol's thresholds
-    (else all of them: the summary then counts the flank changes of the plan). Only for a
-    robot with a mass model and a protocol that preloads its load cases or simulates lost
-    motion (other plans are unchanged)."""
+#: when some flank changes cannot be avoided, a design with fewer is preferred while its
+#: worst relative standard error of k stays within this factor of the flank-blind design's
+FLANK_SE_TOLERANCE = 1.25
+
+
+def _flank_counts(protocol: Protocol, robot: RobotModel, cand: Candidates) -> np.ndarray | None:
+    """(N, cases) the number of joints each candidate test moves from one flank to the
+    other between its reference reading (under the load case's preload) and its loaded one
+    (:mod:`campaign.planning.flanks`), or None when the plan does not look at flanks: a
+    robot without a mass model, or a protocol that neither preloads its load cases nor
+    simulates lost motion (those plans are unchanged)."""
     from campaign.planning.flanks import flank_changes
 
     lost = protocol.fake_lab is not None and protocol.fake_lab.lost_motion_rad is not None
     if robot.inertials is None or not (protocol.preloaded or lost):
-        return cand
+        return None
     w, w_ref = protocol.wrenches(), protocol.reference_wrenches()
-    change = np.stack([flank_changes(robot, cand.q, np.broadcast_to(w[c], (len(cand.q), 6)),
-                                     np.broadcast_to(w_ref[c], (len(cand.q), 6))).any(axis=1)
-                       for c in range(len(w))], axis=1)
-    keeping = dataclasses.replace(
-        cand, valid=cand.valid & ~change,
-        rejected={**cand.rejected, "gear_flank_change": int(np.sum(cand.valid & change))})
-    try:
-        check_enough(protocol, keeping)
-    except InputError:
-        return cand
-    return keeping
+    return np.stack([flank_changes(robot, cand.q, np.broadcast_to(w[c], (len(cand.q), 6)),
+                                   np.broadcast_to(w_ref[c], (len(cand.q), 6))).sum(axis=1)
+                     for c in range(len(w))], axis=1)
+
+
+def _flank_limited(protocol: Protocol, cand: Candidates, counts: np.ndarray) -> list:
+    """[(limit, candidates)]: for each limit from the fewest flank changes any valid
+    candidate test has up to the most, the candidates whose tests change at most that
+    many flanks, when enough remain for the protocol's thresholds (the tests over the
+    limit counted as rejected ``gear_flank_change``)."""
+    valid = cand.valid
+    if not valid.any():
+        return []
+    out = []
+    for limit in range(int(counts[valid].min()), int(counts[valid].max()) + 1):
+        over = valid & (counts > limit)
+        kept = dataclasses.replace(cand, valid=valid & ~over,
+                                   rejected={**cand.rejected,
+                                             "gear_flank_change": int(np.sum(over))})
+        try:
+            check_enough(protocol, kept)
+        except InputError:
+            continue
+        out.append((limit, kept))
+        if not over.any():
+            break
+    return out
+
+
+def _flips(counts: np.ndarray | None, design: Design) -> int:
+    """Flank changes of a design's tests (0 without counts)."""
+    return 0 if counts is None else int(np.sum(counts[design.pose, design.case]))
 
 
 def _tests(cand: Candidates, selection: str):
@@ -206,6 +231,92 @@ def case_contributions(plan_in: dict, design: Design, names: list[str]) -> list[
         out.append({"load_case": name, "tests": used,
                     "relative_se_without": [float(v) for v in without] if used else None})
     return out
+
+
+def _choose(protocol: Protocol, robot: RobotModel, cand: Candidates, strategy: str, seed: int,
+            weights, noise: NoiseModel, k_prior: np.ndarray, rows: int):
+    """(cand, inputs, chosen, random, reference): the design of ``strategy`` over the
+    candidates, the random zone design, the median random relative se per joint."""
+    wrenches = protocol.wrenches()
+    pose, case, group = _tests(cand, protocol.loads.selection)
+    if case.size and case[0] < 0:
+        C = pose_compliance(cand.J, k_prior)
+        F = tests_information(cand.J, pose, wrenches[0], None, noise, k_prior, rows, C)
+        for c in range(1, len(wrenches)):
+            F += tests_information(cand.J, pose, wrenches[c], None, noise, k_prior, rows, C)
+    else:
+        F = tests_information(cand.J, pose, wrenches, case, noise, k_prior, rows)
+    inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches),
+              "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows}
+    n = protocol.campaign.tests
+    zone = cand.zone[pose]
+    sep_deg = protocol.thresholds.min_pose_separation_deg
+    sep = Separation(cand.q[pose], group, sep_deg * DEG)
+    try:
+        rand = random_design(group, zone, n, seed, sep)
+        if strategy == "zones-random":
+            picks = rand
+        elif strategy in ("worst-joint", "weighted"):
+            picks = choose(F, group, zone, n, seed,
+                           kind="worst" if strategy == "worst-joint" else "weighted",
+                           weights=weights, sep=sep)
+        else:
+            picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e",
+                                    sep=sep)
+        reference = random_reference(F, group, zone, n, seed, sep=sep)[1]
+    except ValueError as err:
+        raise InputError(
+            f"cannot choose {n} poses at least {sep_deg:g} deg apart (joint space) from "
+            f"{len(np.unique(group))} candidate poses ({err}); lower "
+            "min_pose_separation_deg, widen the zones or draw more --candidates",
+            where=protocol.where("thresholds", "min_pose_separation_deg")) from err
+    chosen = _design(inputs, picks)
+    return cand, inputs, chosen, _design(inputs, rand), reference
+
+
+def _worst(design: Design, k: np.ndarray) -> float:
+    return float(np.max(design.se / k))
+
+
+def _fewer_flips(protocol: Protocol, robot: RobotModel, cand: Candidates, counts: np.ndarray,
+                 blind, strategy: str, seed: int, weights, noise: NoiseModel,
+                 k_prior: np.ndarray, rows: int):
+    """A design that changes no flank when the candidates allow one (its fit has no
+    lost-motion error at all, whatever its se); else the design with the fewest changes among
+    those over the candidates limited to at most 1, 2 ... changes per test
+    (:func:`_flank_limited`), whose worst relative standard error of k is within
+    :data:`FLANK_SE_TOLERANCE` of the flank-blind design's
+    (``blind``, a :func:`_choose` tuple); among equal flank changes the one that separates
+    link from joint compliance best (the smallest worst k bias its joint-only fit would
+    take from the protocol's assumed link compliances, :mod:`.link_alias`; without
+    assumed links, the smaller worst se). ``blind`` when none does better."""
+    from campaign.planning.link_alias import design_alias, protocol_links
+
+    links = protocol_links(protocol, robot)
+
+    def key(c) -> tuple[int, float]:
+        design = c[2]
+        alias = design_alias(protocol, robot, c[0].q[design.pose], design.case, k_prior,
+                             noise.displacement_sigma, links)
+        second = (_worst(design, k_prior) if alias is None
+                  else float(np.nanmax(np.abs(alias))))
+        return _flips(counts, design), second
+
+    best, best_key = blind, key(blind)
+    bound = FLANK_SE_TOLERANCE * _worst(blind[2], k_prior)
+    for _, limited in _flank_limited(protocol, cand, counts):
+        try:
+            c = _choose(protocol, robot, limited, strategy, seed, weights, noise, k_prior, rows)
+        except InputError:
+            continue
+        ck = key(c)
+        if ck[0] == 0:
+            return c  # no flank changes at all: no lost-motion error, whatever its se
+        if _worst(c[2], k_prior) <= bound and ck < best_key:
+            best, best_key = c, ck
+        if best_key[0] == 0:
+            break
+    return best
 
 
 def make_plan(
@@ -270,42 +381,12 @@ def make_plan(
     q, zone = sample(boxes, candidates, seed)
     cand = evaluate(protocol, robot, q, zone, k_prior, length)
     check_enough(protocol, cand)
-    cand = _flank_keeping(protocol, robot, cand)
-
-    wrenches = protocol.wrenches()
-    pose, case, group = _tests(cand, protocol.loads.selection)
-    if case.size and case[0] < 0:
-        C = pose_compliance(cand.J, k_prior)
-        F = tests_information(cand.J, pose, wrenches[0], None, noise, k_prior, rows, C)
-        for c in range(1, len(wrenches)):
-            F += tests_information(cand.J, pose, wrenches[c], None, noise, k_prior, rows, C)
-    else:
-        F = tests_information(cand.J, pose, wrenches, case, noise, k_prior, rows)
-    inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches),
-              "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows}
-    n = protocol.campaign.tests
-    zone = cand.zone[pose]
-    sep_deg = protocol.thresholds.min_pose_separation_deg
-    sep = Separation(cand.q[pose], group, sep_deg * DEG)
-    try:
-        rand = random_design(group, zone, n, seed, sep)
-        if strategy == "zones-random":
-            picks = rand
-        elif strategy in ("worst-joint", "weighted"):
-            picks = choose(F, group, zone, n, seed,
-                           kind="worst" if strategy == "worst-joint" else "weighted",
-                           weights=weights, sep=sep)
-        else:
-            picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e",
-                                    sep=sep)
-        reference = random_reference(F, group, zone, n, seed, sep=sep)[1]
-    except ValueError as err:
-        raise InputError(
-            f"cannot choose {n} poses at least {sep_deg:g} deg apart (joint space) from "
-            f"{len(np.unique(group))} candidate poses ({err}); lower "
-            "min_pose_separation_deg, widen the zones or draw more --candidates",
-            where=protocol.where("thresholds", "min_pose_separation_deg")) from err
-    chosen = _design(inputs, picks)
+    counts = _flank_counts(protocol, robot, cand)
+    choice = _choose(protocol, robot, cand, strategy, seed, weights, noise, k_prior, rows)
+    if counts is not None:
+        choice = _fewer_flips(protocol, robot, cand, counts, choice, strategy, seed, weights,
+                              noise, k_prior, rows)
+    cand, inputs, chosen, rand, reference = choice
     return Plan(
         protocol=protocol,
         robot=robot,
@@ -314,7 +395,7 @@ def make_plan(
         candidates=cand,
         boxes=boxes,
         chosen=chosen,
-        random=_design(inputs, rand),
+        random=rand,
         k_prior=k_prior,
         sigma=sigma,
         length=length,

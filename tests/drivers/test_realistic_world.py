@@ -164,3 +164,37 @@ def test_preloaded_shop_run_records_the_reference_wrench(tmp_path):
         done = analyze("--method", method, "--out", str(tmp_path / method))
         assert done.returncode == 0, done.stderr
         assert any("preload" in t for t in json.loads(done.stdout)["warnings"])
+
+
+@pytest.mark.timeout(300)
+def test_preloaded_readings_are_the_applied_wrenches(tmp_path):
+    """acquire --fake with preload_fraction 0.3 on a lost-motion lab (gravity deciding the
+    flanks, no sag): tests.csv's loaded and reference wrenches are the applied ones (the
+    plan's, and 0.3 x it), base frame, to the F/T noise. The sensor frame is turned by the
+    tracker's rotation measured from the UNLOADED pose: taking the preloaded reference as
+    the encoders' pose turned both wrenches (and the displacement) by the preload's
+    deflection, 2-5 mrad here (6-14 N off on a 3111 N load; k3 +0.5 % in the fit)."""
+    import pandas as pd
+
+    from tests.acquire.conftest import plan_and_acquire
+
+    head = SHOP.read_text().split("\n[fake_lab]\n")[0].replace(
+        'method = "cable-pulley"\n', 'method = "cable-pulley"\npreload_fraction = 0.3\n')
+    lab = ("\n[fake_lab]\ntrue_joint_stiffness = [1409800, 400760, 935280, 360000, 370000, "
+           "380000]\nseed = 2\ntime_scale = 50\nnoise = { translation_um = 30, rotation_urad "
+           "= 20, force_N = 0.5, torque_N_m = 0.05 }\ngravity = \"flanks\"\n"
+           "lost_motion_rad = [2e-4, 2e-4, 2e-4, 4e-4, 4e-4, 4e-4]\n")
+    path = tmp_path / "lost-motion-preload.toml"
+    path.write_text(head + lab)
+    run = plan_and_acquire(load_protocol(path), tmp_path, time_scale=200.0, candidates=500)
+    tests = pd.read_csv(run / "tests.csv")
+    plan = pd.read_csv(run / "plan.csv").set_index("test")
+    applied = plan.loc[tests["test_id"], ["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m",
+                                          "mz_N_m"]].to_numpy()
+    loaded = tests[["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]].to_numpy()
+    ref = tests[["fx_ref_N", "fy_ref_N", "fz_ref_N", "mx_ref_Nm", "my_ref_Nm",
+                 "mz_ref_Nm"]].to_numpy()
+    for got, want in ((loaded, applied), (ref, 0.3 * applied)):
+        off = np.abs(got - want)
+        # 0.5 N per reading; the lost-motion offsets (<= 0.2 mrad) turn 3111 N by <= 0.7 N
+        assert np.all(off[:, :3] < 3.0) and np.all(off[:, 3:] < 0.3), off.max(axis=0)

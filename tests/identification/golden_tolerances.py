@@ -52,7 +52,7 @@ EXACT = (
     r"robust\.down_weighted\[\]\.(line|test)",
     r"cartesian_stiffness\.poses\[\]\.line",
     r"assumptions\.misfit_causes\.(level|n_tests|outlier_components_set_aside"
-    r"|ranked\[\]\.(dof\[\]|evidence_lines\[\]|significant)"
+    r"|ranked\[\]\.(dof\[\]|evidence_lines\[\]|significant|named)"
     r"|conventions\[\]\.(dof|explains))",
 )
 RELATIVE = (
@@ -89,7 +89,7 @@ OWN_UNITS = (
 )
 PROBABILITY = (r"chi2_p_value", r"validation\[\]\.p_value_total",
                r"assumptions\.tool_point\.check\.p_value",
-               r"assumptions\.misfit_causes\.ranked\[\]\.p_value",
+               r"assumptions\.misfit_causes\.ranked\[\]\.p_value(_given)?",
                r"assumptions\.misfit_causes\.conventions\[\]\.p_value_(alt|given)")
 #: statistics of residuals in units of sigma: absolute TOL * D / (smallest sigma)
 SIGMA_UNITS = (

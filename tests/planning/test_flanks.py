@@ -99,3 +99,63 @@ def test_planner_keeps_flanks_with_a_preload_and_counts_the_labs_flips(tmp_path)
         counts[f] = flanks_summary["changes"]
     assert counts[0.0] >= len(plan.chosen.pose)  # joint 1 flips in every test unloaded
     assert counts[0.3] == 0
+
+
+def test_the_shop_plan_flips_fewer_gears_than_the_flank_blind_one(monkeypatch):
+    """protocols/kr240-2-shop.toml (lost motion, unloaded references: joints 1 and 6 carry
+    no gravity torque and flip in every test): the planner's design changes fewer flanks
+    than the same planner blind to them, its worst relative se within the tolerance."""
+    from pathlib import Path
+
+    from campaign.planning import planner
+    from campaign.protocol import load_protocol
+
+    shop = load_protocol(Path(__file__).resolve().parents[2] / "protocols" / "kr240-2-shop.toml")
+
+    def flips(plan):
+        q = plan.candidates.q[plan.chosen.pose]
+        return int(flank_changes(plan.robot, q, shop.wrenches()[plan.chosen.case],
+                                 shop.reference_wrenches()[plan.chosen.case]).sum())
+
+    chosen = planner.make_plan(shop, candidates=2000)
+    monkeypatch.setattr(planner, "_flank_counts", lambda *a: None)
+    blind = planner.make_plan(shop, candidates=2000)
+    assert flips(chosen) < flips(blind), (flips(chosen), flips(blind))
+    worst = [float(np.max(p.chosen.se / p.k_prior)) for p in (chosen, blind)]
+    assert worst[0] <= planner.FLANK_SE_TOLERANCE * worst[1]
+
+
+def test_link_alias_is_the_joint_only_fits_error():
+    """The k error the planner predicts from the shop's assumed link compliances equals
+    the error of a weighted joint-only fit of the realistic lab's noiseless displacement
+    (links 2 and 3 alone), to the model's nonlinearity (compliances: dx/x = -dk/k)."""
+    from pathlib import Path
+
+    from analysis.identification.estimate import identify
+    from analysis.identification.io.measurements import TestArrays
+    from analysis.identification.noise import NoiseModel
+    from analysis.identification.studies.robustness import sample_poses
+    from analysis.kinetostatics.realistic_lab import realistic_lab
+    from campaign.planning.link_alias import link_alias, protocol_links
+    from campaign.protocol import load_protocol
+
+    robot = load_robot("kr240-2")
+    shop = load_protocol(Path(__file__).resolve().parents[2] / "protocols" / "kr240-2-shop.toml")
+    links = protocol_links(shop, robot)
+    assert [lc.link for lc in links] == [2, 3]
+    q = np.repeat(sample_poses(robot, 6, np.random.default_rng(5), min_inverse_condition=0.3),
+                  3, axis=0)
+    w = np.tile(shop.wrenches()[:3], (6, 1))
+    k = robot.nominal_stiffness
+    sigma = np.array([30e-6] * 3 + [20e-6] * 3)
+    d = R.displacement(robot, realistic_lab(robot, {"links": shop.fake_lab.effects()["links"]}),
+                       k, q, np.zeros(6), w)
+    m = len(q)
+    tests = TestArrays(pose=np.array([f"P{i // 3}" for i in range(m)]), q=q, w=w, d=d,
+                       measured=np.ones((m, 6), bool), line=np.arange(m) + 2)
+    noise = NoiseModel(translation_sigma_override=30e-6, rotation_sigma_override=20e-6,
+                       force_sigma=0.0, moment_sigma=0.0, joint_sigma_override=0.0)
+    fit = identify(robot, tests, "wls", noise=noise, validate=False)
+    alias = link_alias(robot, q, w, k, sigma, links)
+    assert np.max(np.abs(alias)) > 0.05  # the links matter at these poses
+    assert np.allclose(fit.x * k - 1, -alias, atol=0.01 + 0.05 * np.abs(alias))

@@ -103,10 +103,11 @@ def campaign(robot, lab: rl.RealisticLab, seed: int, poses: int, noise: NoiseMod
 def run_effect(robot, name: str, campaigns: int, poses: int, effects: dict,
                noise: NoiseModel) -> dict:
     """Counts over ``campaigns`` seeded campaigns of effect ``name`` (:data:`EFFECTS`):
-    refused, first cause named in the refusals, and each test's firings (all campaigns)."""
+    refused, first cause named in the refusals, the causes named at all in them (first, or
+    beside the first: significant beyond it), and each test's own firings (all campaigns)."""
     which = EFFECTS[name][1]
     lab = lab_of(robot, effects, which)
-    refused, first, fired = 0, {}, dict.fromkeys(CAUSES, 0)
+    refused, first, fired, named = 0, {}, dict.fromkeys(CAUSES, 0), dict.fromkeys(CAUSES, 0)
     for seed in range(campaigns):
         tests = campaign(robot, lab, seed, poses, noise, tool="tool" in which)
         res = identify(robot, tests, "exact", noise=noise, validate=False)
@@ -121,13 +122,17 @@ def run_effect(robot, name: str, campaigns: int, poses: int, effects: dict,
             refused += 1
             name = rk.first() or "none"
             first[name] = first.get(name, 0) + 1
-    return {"campaigns": campaigns, "refused": refused, "first": first, "fired": fired}
+            for t in rk.named:
+                named[t.cause] += 1
+    return {"campaigns": campaigns, "refused": refused, "first": first, "fired": fired,
+            "named": named}
 
 
 def table(rows: dict, poses: int) -> str:
     head = ("| truth adds | campaigns | refused | first cause named (of the refusals) | tool "
-            "point first | each test fires at 1 %: links, lost motion, compensator, tool, "
-            "units |\n| --- | --- | --- | --- | --- | --- |")
+            "point first | named at all in the refusals: links, lost motion, compensator, "
+            "tool, units | each test alone fires at 1 % (all campaigns) |\n"
+            "| --- | --- | --- | --- | --- | --- | --- |")
     out = [head]
     for name, r in rows.items():
         n, ref = r["campaigns"], r["refused"]
@@ -136,7 +141,8 @@ def table(rows: dict, poses: int) -> str:
         tool = f"{r['first'].get('tool_point', 0)}/{ref}" if ref else "-"
         fires = " / ".join(f"{100 * r['fired'][c] / n:.0f}" if name != "clean" else
                            f"{100 * r['fired'][c] / n:.1f}" for c in CAUSES)
-        out.append(f"| {name} | {n} | {ref} | {first} | {tool} | {fires} % |")
+        named = " / ".join(str(r["named"][c]) for c in CAUSES) if ref else "-"
+        out.append(f"| {name} | {n} | {ref} | {first} | {tool} | {named} | {fires} % |")
     return "\n".join(out) + (f"\n\n{poses} poses x 3 loads per campaign, seeds 0 to "
                              "campaigns - 1 in each row.")
 
@@ -155,6 +161,8 @@ def misses(rows: dict) -> list[str]:
             out.append(f"{name}: {cause} first in {right}/{ref} refusals")
         if cause != "tool_point" and r["first"].get("tool_point", 0) > TARGET_TOOL * ref:
             out.append(f"{name}: tool point first in {r['first']['tool_point']}/{ref}")
+        if cause != "tool_point" and r["named"]["tool_point"] > TARGET_TOOL * ref:
+            out.append(f"{name}: tool point named in {r['named']['tool_point']}/{ref}")
     return out
 
 

@@ -34,6 +34,7 @@ def test_each_effect_is_named_first(robot, shop, effect):
     assert r["refused"] == N
     assert r["first"].get(cause, 0) >= N - 1, r["first"]  # target 90 %
     assert r["first"].get("tool_point", 0) == 0
+    assert r["named"]["tool_point"] == 0  # not beside the true cause either
     assert cs.misses({effect: r}) == [] or r["first"].get(cause, 0) == N - 1
 
 

@@ -86,6 +86,10 @@ class CauseTest:
     bic : change of the information criterion (negative: evidence for the alternative).
     estimate : what the alternative's fit says (text, SI made readable), or "".
     rows : input lines of the tests the alternative explains most of.
+    given, p_given : the best-ranked cause this one was tested beside, and the p-value of
+        this one's columns added to that cause's fit (its F with this one's identified
+        combinations beyond that cause's and the residual dof left by both); "" and None
+        for the best-ranked cause itself.
     """
 
     cause: str
@@ -97,10 +101,25 @@ class CauseTest:
     bic: float
     estimate: str = ""
     rows: tuple[int, ...] = ()
+    given: str = ""
+    p_given: float | None = None
 
     @property
     def significant(self) -> bool:
+        """Its own test is significant at :data:`LEVEL`."""
         return bool(self.p_value < LEVEL)
+
+    @property
+    def beyond(self) -> bool:
+        """It explains significantly more than the best-ranked cause alone (True for that
+        cause itself when significant). The tool point only as the best-ranked cause: its
+        three columns (a move of P) take up part of any smooth misfit of the translations,
+        and of another cause's misfit left by that cause's own approximate columns (a
+        compensator's quadratic in q2 on a k2(q2) that is not quite quadratic): beside a
+        better cause it is no evidence of a wrong P."""
+        if self.p_given is not None and self.cause == "tool_point":
+            return False
+        return self.significant and (self.p_given is None or self.p_given < LEVEL)
 
     def text(self) -> str:
         est = f"; {self.estimate}" if self.estimate else ""
@@ -113,7 +132,10 @@ class CauseTest:
         return {"cause": self.cause, "F": self.f_value, "dof": list(self.dof),
                 "p_value": self.p_value, "chi2": self.chi2, "chi2_left": self.chi2_left,
                 "bic_change": self.bic, "significant": self.significant,
-                "estimate": self.estimate, "evidence_lines": list(self.rows)}
+                "estimate": self.estimate, "evidence_lines": list(self.rows),
+                # beside a significant first cause: the test given it, and the verdict
+                **({"given": self.given, "p_value_given": self.p_given, "named": self.beyond}
+                   if self.given else {})}
 
 
 @dataclass(frozen=True)
@@ -139,8 +161,11 @@ class CauseRanking:
 
     @property
     def named(self) -> tuple[CauseTest, ...]:
-        """The significant causes, best first."""
-        return tuple(t for t in self.tests if t.significant)
+        """The causes named, best first: the best-ranked one when its own test is
+        significant, then each other whose own test is significant AND that adds
+        significantly to the best one's fit (a cause whose columns only mimic the best
+        one's is not named beside it)."""
+        return tuple(t for t in self.tests if t.beyond)
 
     def first(self) -> str | None:
         if self.convention is not None:
@@ -247,14 +272,14 @@ def _lost_motion(wh: _Whitened, taus, lines):
     n_flip = flips.sum(axis=0)
     est = ", ".join(f"joint {j + 1} {band[j] * 1e3:.2g} mrad ({n_flip[j]} flips)"
                     for j in range(6) if n_flip[j])
-    return _f_test(wh, "lost_motion", U, lines, f"dead band 2b: {est}"), None
+    return (_f_test(wh, "lost_motion", U, lines, f"dead band 2b: {est}"), U), None
 
 
 def _simple(wh: _Whitened, cause: str, B: np.ndarray, lines):
     red = _reduced(wh, B)
     if red is None or red[0].shape[1] == 0 or wh.n_eq - wh.p - red[0].shape[1] <= 0:
         return None
-    return _f_test(wh, cause, red[0], lines)
+    return _f_test(wh, cause, red[0], lines), red[0]
 
 
 #: step of the finite difference along a joint angle (rad)
@@ -277,7 +302,7 @@ def _angle_derivative(robot, tests: TestArrays, x, method: str, predicted: np.nd
     return (moved - predicted) / ANGLE_STEP
 
 
-def _tool(robot, tests, joints, x, noise, method) -> CauseTest | None:
+def _tool(robot, tests, joints, x, noise, method):
     from analysis.identification.checks.tool_check import tool_point_check
 
     chk = tool_point_check(robot, tests, joints, x, noise, method)
@@ -289,6 +314,41 @@ def _tool(robot, tests, joints, x, noise, method) -> CauseTest | None:
     mm = np.round(chk.offset_m * 1e3, 1) + 0.0
     return CauseTest("tool_point", chk.f_value, chk.p_value, (3, chk.dof), chi2, chk.chi2, bic,
                      f"P at xyz {mm.tolist()} mm (flange axes) from the one used")
+
+
+def _tool_basis(wh: _Whitened, robot, sub: TestArrays, x) -> np.ndarray | None:
+    """The tool offset's projected whitened columns (n, r) on ``wh`` (the tool check's
+    columns, :func:`~analysis.identification.checks.tool_check.tool_columns`)."""
+    from analysis.identification.checks.tool_check import tool_columns
+
+    base = np.einsum("mrj,j->mr", design_block(wh.J, sub.w), x)
+    red = _reduced(wh, tool_columns(robot, sub.q, wh.J, sub.w, x, base))
+    return None if red is None or red[0].shape[1] == 0 else red[0]
+
+
+def _given(wh: _Whitened, top: np.ndarray, U: np.ndarray) -> float:
+    """p-value of the columns U (n, r) added to the fit that already has ``top`` (n, r0)
+    (both orthonormal, projected off the model): U's part beyond top, reduced by SVD as in
+    :func:`_reduced`, F((r', n - p - r0 - r')); 1.0 when nothing is left beyond top."""
+    from scipy import special
+
+    V = U - top @ (top.T @ U)
+    if not V.size:
+        return 1.0
+    W, s, _ = np.linalg.svd(V, full_matrices=False)
+    r = int(np.sum(s > RANK_TOL))  # U's columns are unit vectors: s <= 1
+    if r == 0:
+        return 1.0
+    W = W[:, :r]
+    e = wh.e - top @ (top.T @ wh.e)
+    proj = W.T @ e
+    delta = float(proj @ proj)
+    left = max(float(e @ e) - delta, 0.0)
+    dof2 = wh.n_eq - wh.p - top.shape[1] - r
+    if dof2 <= 0:
+        return 1.0
+    f = (delta / r) / (left / dof2) if left > 0 else float("inf")
+    return float(special.fdtrc(r, dof2, f))
 
 
 def ft_noise_factor(robot, tests: TestArrays, joints, x, noise: NoiseModel, method: str,
@@ -343,7 +403,7 @@ def rank_causes(robot, tests: TestArrays, joints, x: np.ndarray, noise: NoiseMod
     x = np.asarray(x, dtype=float)
     wh = _whitened(robot, sub, cols, x, noise, method)
     lines = sub.line
-    out: list[CauseTest] = []
+    out: list[tuple[CauseTest, np.ndarray | None]] = []
     skipped: list[tuple[str, str]] = []
     t = _simple(wh, "link_compliance", cc.link_compliance_columns(robot, sub.q, sub.w), lines)
     if t is not None:
@@ -367,12 +427,18 @@ def rank_causes(robot, tests: TestArrays, joints, x: np.ndarray, noise: NoiseMod
         skipped.append(("compensator", "joint 2 not identified"))
     t = _tool(robot, tests, cols, x, noise, method)
     if t is not None:
-        out.append(t)
+        out.append((t, _tool_basis(wh, robot, sub, x)))
     t = _simple(wh, "units", cc.units_columns(wh.J, x, sub.w, wh.predicted), lines)
     if t is not None:
         out.append(t)
-    ranked = sorted(out, key=lambda c: (not c.significant, c.bic if c.significant
-                                        else np.log(max(c.p_value, 1e-300))))
+    out.sort(key=lambda cu: (not cu[0].significant, cu[0].bic if cu[0].significant
+                             else np.log(max(cu[0].p_value, 1e-300))))
+    ranked = [c for c, _ in out]
+    if ranked and ranked[0].significant and out[0][1] is not None:
+        top = out[0][1]
+        ranked = [ranked[0], *(replace(c, given=ranked[0].cause,
+                                       p_given=1.0 if U is None else _given(wh, top, U))
+                               for c, U in out[1:])]
     ft = ft_noise_factor(robot, sub, cols, x, noise, method, wh.predicted)
     from analysis.identification.checks.conventions import convention_checks
 

@@ -21,7 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from analysis.identification.checks.causes import FT_FACTORS, CauseRanking, rank_causes
+from analysis.identification.checks.causes import FT_FACTORS, LEVEL, CauseRanking, rank_causes
 from analysis.identification.checks.plausibility import MAX_DOWN_WEIGHTED, MISFIT_P
 
 #: the noise check's advice to raise the F/T noise (:mod:`.noise_check`) starts a note so
@@ -130,7 +130,15 @@ def ranked_causes_text(ranking: CauseRanking) -> tuple[list[str], str]:
     causes = [*named, *glitches, noise, *rest] if named else [*glitches, noise, *rest]
     quiet = [f"{t.cause.replace('_', ' ')} p = {t.p_value:.2g}" for t in ranking.tests
              if not t.significant]
+    mimic = [f"{t.cause.replace('_', ' ')} p = {t.p_value:.2g} alone, p = {t.p_given:.2g} "
+             f"beside {t.given.replace('_', ' ')}"
+             + (" (the tool point is named only when it explains more than every other "
+                "cause)" if t.cause == "tool_point" and t.p_given < LEVEL else "")
+             for t in ranking.tests if t.significant and not t.beyond]
     tail = ""
+    if mimic:
+        tail += ("; significant alone but not named (no more than the first cause "
+                 f"explains): {', '.join(mimic)}")
     if quiet:
         tail += f"; tested and not significant at {ranking_level()}: {', '.join(quiet)}"
     if ranking.not_tested:

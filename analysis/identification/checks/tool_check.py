@@ -94,6 +94,23 @@ def _subset(m: int) -> np.ndarray:
 BLOCK = 4096
 
 
+def tool_columns(robot, q: np.ndarray, J: np.ndarray, w: np.ndarray, x: np.ndarray,
+                 base: np.ndarray) -> np.ndarray:
+    """B (m, 6, 3): the linear model's displacement [m; rad] per metre of a move of P along
+    each tool (flange) axis, finite differences of :data:`STEP`; J (m, 6, 6) the Jacobian at
+    q, w (m, 6) the wrench at P, x (6,) the compliances, ``base`` (m, 6) the linear model's
+    prediction J X J^T w."""
+    R = tool_pose(robot, q)[:, :3, :3]
+    B = np.empty((q.shape[0], 6, 3))
+    for i in range(3):
+        p = R[:, :, i] * STEP  # P moved by STEP along tool axis i, in the base frame
+        Jr = J.copy()
+        # translation rows of the point moved by p: v - p x omega, column by column
+        Jr[:, :3, :] -= np.cross(p[:, None, :], np.swapaxes(J[:, 3:, :], 1, 2)).swapaxes(1, 2)
+        B[:, :, i] = (np.einsum("mrj,j->mr", design_block(Jr, w), x) - base) / STEP
+    return B
+
+
 def _whitened_rows(robot, sub: TestArrays, cols, x, noise, method) -> np.ndarray:
     """Rows [L^-1 A | L^-1 B | L^-1 e] (6 b, p + 4) of the tests ``sub``: the compliance
     columns A of ``method``'s model, the tool offset's columns B (finite differences of
@@ -110,14 +127,7 @@ def _whitened_rows(robot, sub: TestArrays, cols, x, noise, method) -> np.ndarray
         A = D[..., cols]
     else:
         pred, A = base, A_lin[..., cols]
-    R = tool_pose(robot, q)[:, :3, :3]
-    B = np.empty((sub.m, 6, 3))
-    for i in range(3):
-        p = R[:, :, i] * STEP  # P moved by STEP along tool axis i, in the base frame
-        Jr = J.copy()
-        # translation rows of the point moved by p: v - p x omega, column by column
-        Jr[:, :3, :] -= np.cross(p[:, None, :], np.swapaxes(J[:, 3:, :], 1, 2)).swapaxes(1, 2)
-        B[:, :, i] = (np.einsum("mrj,j->mr", design_block(Jr, w), x) - base) / STEP
+    B = tool_columns(robot, q, J, w, x, base)
     C = np.einsum("mrj,j,msj->mrs", J, x, J)
     Linv = whitening(residual_covariance(noise, C, w), meas)
     e = np.where(meas, d - pred, 0.0)
