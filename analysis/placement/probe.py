@@ -46,7 +46,10 @@ def probe_sample(G, count: int) -> np.ndarray:
 
 def chunk_seconds(problem, placements: np.ndarray) -> float:
     """Wall-clock seconds (``time.perf_counter``) of :func:`evaluate_chunk` on
-    ``placements``, untraced: what one search task of these placements costs."""
+    ``placements``, untraced: what one search task of these placements costs. The
+    first placement is evaluated once before, untimed: a fresh worker's first call
+    pays one-time costs (imports, first use of numpy's kernels) the search does not."""
+    evaluate_chunk(problem, placements[:1])
     t0 = time.perf_counter()
     evaluate_chunk(problem, placements)
     return time.perf_counter() - t0

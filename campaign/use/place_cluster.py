@@ -45,7 +45,9 @@ class SearchRunner:
         if self.client is None:
             return ProbeResult(n, chunk_seconds(problem, sample),
                                chunk_peak_bytes(problem, sample))
-        problem_f = self.client.scatter(problem, broadcast=True)
+        # its own key (hash=False): run_dask scatters the same problem, and releasing one
+        # of two futures of a shared key loses the data under the other
+        problem_f = self.client.scatter(problem, broadcast=True, hash=False)
         timed = self.client.submit(chunk_seconds, problem_f, sample, pure=False)
         peak = self.client.submit(chunk_peak_bytes, problem_f, sample, pure=False)
         return ProbeResult(n, float(timed.result()), int(peak.result()))
