@@ -25,8 +25,8 @@ from analysis.report.model import Figure
 SIZE_IN = (6.4, 4.0)
 #: px per inch of the PNG: 1280 x 800 px, 1.6 px per CSS px in the HTML and 217 px per inch
 #: at the PDF's 150 mm. 300 (1920 x 1200) cost 16 % more to draw a figure of lines and an image
-#: (0.277 against 0.232 s CPU, issue 36) for
-#: detail neither view shows; the rendered-page tests read the PDF at 40 px per inch.
+#: (0.277 against 0.232 s CPU, issue 36) for detail neither view shows; the rendered-page
+#: tests read the PDF at 40 px per inch.
 DPI = 200
 DISPLAY_DPI = 125  # CSS px per inch in the HTML: shown at 800 x 500
 WIDTH, HEIGHT = int(SIZE_IN[0] * DISPLAY_DPI), int(SIZE_IN[1] * DISPLAY_DPI)
