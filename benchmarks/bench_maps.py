@@ -24,6 +24,12 @@ output of the loop (1/kappa_F, v_p, v_r) is compared with the batched result at
 the same poses before any ratio is printed. The threaded figure (default
 thread count, BLAS unpinned) is reported separately, wall time.
 
+The distance from the arithmetic: a pose is about :data:`FLOPS_PER_POSE` floating-point
+operations (issue 36's count: forward kinematics, J, the QR of J_N and ||R^-1||_F, K_C,
+the LU solve and the indices); the benchmark prints the rate that makes (flop/s) and
+how many times the time of a pose at :data:`CORE_GFLOPS` (one core, scalar-ish
+vector code) it takes.
+
 Run: ``python benchmarks/bench_maps.py [--sample 3000] [--repeat 3]``
 The last line printed is one JSON object with the figures.
 """
@@ -45,6 +51,10 @@ from analysis.kinetostatics.maps import WORST_CASE_WRENCH, GridSpec, pose_metric
 from analysis.model.robots import load_robot
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+#: floating-point operations per pose of the map kernel, roughly (issue 36)
+FLOPS_PER_POSE = 2000
+#: a few Gflop/s on one core of the development machine: the ~0.3 us/pose floor of issue 36
+CORE_GFLOPS = 6.7
 
 
 class PinocchioLoop:
@@ -146,6 +156,10 @@ def main() -> None:
           + ", ".join(f"{key} {v:.1e}" for key, v in errors.items()))
     print(f"ratio loop / batched: {l_cpu / b_cpu:.1f}x CPU, {l_wall / b_wall:.1f}x wall")
     print(f"threaded batched ({os.cpu_count()} CPUs, BLAS default): {t_wall:.3f} us wall/pose")
+    gflops = FLOPS_PER_POSE / (b_cpu * 1e3)
+    floor = FLOPS_PER_POSE / (CORE_GFLOPS * 1e3)
+    print(f"arithmetic: ~{FLOPS_PER_POSE} flop/pose -> {gflops:.2f} Gflop/s of CPU; "
+          f"{b_cpu / floor:.1f}x the {floor:.2f} us/pose of {CORE_GFLOPS:g} Gflop/s")
     load.emit({
         "benchmark": "maps", "robot": "KR240-2", "grid_step_deg": step_deg, "threads": 1,
         "poses": n, "loop_sample": args.sample, "repeat": args.repeat,
@@ -153,6 +167,9 @@ def main() -> None:
         "loop_cpu_us_per_pose": round(l_cpu, 3), "loop_wall_us_per_pose": round(l_wall, 3),
         "ratio_cpu": round(l_cpu / b_cpu, 2), "ratio_wall": round(l_wall / b_wall, 2),
         "threaded_wall_us_per_pose": round(t_wall, 3), "cpus": os.cpu_count(),
+        "flops_per_pose_estimate": FLOPS_PER_POSE,
+        "gflops_per_s_cpu": round(FLOPS_PER_POSE / (b_cpu * 1e3), 3),
+        "times_the_flop_floor": round(b_cpu / (FLOPS_PER_POSE / (CORE_GFLOPS * 1e3)), 2),
         "max_rel_diff": errors,
         "baseline": ("per-pose Pinocchio loop, made fast: Data once, frame Jacobian and frame "
                      "kinematic Hessian at P (LOCAL_WORLD_ALIGNED), LAPACK dgesv called "

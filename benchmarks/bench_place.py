@@ -24,15 +24,31 @@ selection, verification). The machine's load average is printed: the
 development machine is shared, wall-clock figures vary with it. Ends with one
 JSON line.
 
+The whole command (issue 36): ``campaign place`` on the README example
+(``--search readme``; 3.8e6 evaluations) and (``--search 1e8``; both by default)
+the same box at 25 mm steps in x and y and 50 mm in z (9.7e7 evaluations), each
+in a subprocess on the local Dask cluster (2 workers on the 2-core machine):
+wall, user and system time of the command and its worker processes
+(``RUSAGE_CHILDREN``), the search's evaluations/s, its estimate against the
+search's time (placement.json's ``run``), and the probe's rate per process.
+
     python benchmarks/bench_place.py [--placements 16] [--sample 300] [--repeat 5]
+        [--search both|readme|1e8|none]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
+import resource
+import subprocess
+import sys
+import tempfile
 import time
 from math import atan2, cos, inf, pi, sin, sqrt
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -265,13 +281,63 @@ def case(robot, args, rng, w_tool, loop):
     return fig
 
 
+ROOT = Path(__file__).resolve().parents[1]
+README_BOX = ["--robot", "kr240-2", "--path", str(ROOT / "examples" / "part_circle.csv"),
+              "--x-mm", "1200..2000", "--y-mm", "-600..600", "--z-mm", "0..600"]
+SEARCHES = {"readme": README_BOX,
+            "1e8": [*README_BOX, "--x-step-mm", "25", "--y-step-mm", "25", "--z-step-mm", "50"]}
+
+
+def command(name: str) -> dict:
+    """``campaign place`` of :data:`SEARCHES` ``name`` in a subprocess: wall, user and
+    system time (the command and its Dask workers), the search's figures."""
+    with tempfile.TemporaryDirectory(prefix="bench-place-") as tmp:
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        done = subprocess.run([sys.executable, "-m", "campaign", "place", *SEARCHES[name],
+                               "--out", str(Path(tmp) / "out"), "--program", "none"],
+                              capture_output=True, text=True, cwd=ROOT)
+        wall = time.perf_counter() - t0
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if done.returncode != 0:
+            raise SystemExit(f"campaign place ({name}) failed: {done.stderr.strip()[-400:]}")
+        doc = json.loads((Path(tmp) / "out" / "placement.json").read_text())
+    run = doc["run"]
+    text = " ".join(done.stdout.split())
+    rate = re.search(r"where the search runs: ([\d.e+]+) evaluations/s per process", text)
+    user, system = r1.ru_utime - r0.ru_utime, r1.ru_stime - r0.ru_stime
+    return {"evaluations": doc["search_space"]["evaluations"], "wall_s": round(wall, 2),
+            "user_s": round(user, 2), "system_s": round(system, 2),
+            "system_over_wall": round(system / wall, 3),
+            "search_s": run["seconds"], "expected_s": run["expected_seconds"],
+            "estimate_ratio": round(max(run["seconds"], run["expected_seconds"])
+                                    / max(min(run["seconds"], run["expected_seconds"]), 1e-9), 3),
+            "startup_s": run["startup_seconds"], "placements_per_task": run["placements_per_task"],
+            "evaluations_per_s": run["evaluations_per_second"],
+            "probe_per_process_per_s": float(rate.group(1)) if rate else None,
+            "where": run["where"]}
+
+
 def main() -> None:
     load_window = LoadWindow()
     ap = argparse.ArgumentParser()
     ap.add_argument("--placements", type=int, default=16)
     ap.add_argument("--sample", type=int, default=300)
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--search", choices=("readme", "1e8", "both", "none"), default="both",
+                    help="whole `campaign place` runs to time (1e8: ~2 min of 2 cores)")
     args = ap.parse_args()
+    names = {"readme": ["readme"], "1e8": ["1e8"], "both": ["readme", "1e8"],
+             "none": []}[args.search]
+    commands = {name: command(name) for name in names}
+    for name, c in commands.items():
+        print(f"campaign place, {name} ({c['evaluations']:,} evaluations, {c['where']}): "
+              f"wall {c['wall_s']} s, user {c['user_s']} s, system {c['system_s']} s "
+              f"({c['system_over_wall']:.0%} of wall); search {c['search_s']} s at "
+              f"{c['evaluations_per_s']:,.0f} evaluations/s (probe "
+              f"{c['probe_per_process_per_s']:.3g}/s per process), estimate "
+              f"{c['expected_s']} s (x{c['estimate_ratio']}), "
+              f"cluster ready in {c['startup_s']} s, tasks of {c['placements_per_task']}")
     w_tool = np.array([400.0, 250.0, -300.0, 0.0, 0.0, 20.0])
     robot = load_robot("kr240-2")
     load0 = os.getloadavg()[0]
@@ -310,6 +376,7 @@ def main() -> None:
                       "offset_tool_batched_evaluations_per_s": offset["batched_per_s"],
                       "offset_tool_batched_cpu_evaluations_per_s": offset["batched_cpu_per_s"],
                       "load_average": load, "outputs_agree": bool(agree),
+                      "commands": commands,
                       "loop_max_rel_diff": f["loop_max_rel_diff"],
                       "sample": args.sample, "placements": args.placements,
                       "baseline": "per-point loop, made fast: the same closed-form IK "

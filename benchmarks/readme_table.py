@@ -218,7 +218,15 @@ def _place(f: Fig) -> tuple[str, str, str, str]:
             "evaluations",
             f"{f['batched_evaluations_per_s']}/s wall, {f['batched_cpu_evaluations_per_s']}/s "
             f"CPU; whole search step {f['search_step_evaluations_per_s']}/s wall; tool offset "
-            f"sideways {f['offset_tool_batched_evaluations_per_s']}/s wall",
+            f"sideways {f['offset_tool_batched_evaluations_per_s']}/s wall"
+            + "".join(f"; `campaign place` {name} ({f[p + 'evaluations']} evaluations, "
+                      f"{f.get(p + 'where')}): wall {f[p + 'wall_s']} s, user "
+                      f"{f[p + 'user_s']} s, system {f[p + 'system_s']} s; search "
+                      f"{f[p + 'search_s']} s at {f[p + 'evaluations_per_s']}/s, estimated "
+                      f"{f[p + 'expected_s']} s; probe {f[p + 'probe_per_process_per_s']}/s "
+                      f"per process; tasks of {f[p + 'placements_per_task']}"
+                      for name in (f.get("commands") or {})
+                      for p in (f"commands.{name}.",)),
             f"{f['baseline']}: {f['loop_evaluations_per_s']}/s wall, "
             f"{f['loop_cpu_evaluations_per_s']}/s CPU on {f['sample']} points; the general "
             f"batched route {f['general_batched_evaluations_per_s']}/s wall; outputs agree: "

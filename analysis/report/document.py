@@ -68,8 +68,9 @@ def _numeric(text: str) -> bool:
 @dataclass
 class Figure:
     """A PNG image (bytes) with its caption; ``width`` x ``height`` is the display size in
-    CSS pixels (the PNG itself holds :data:`analysis.report.figures.DPI` / 100 times
-    more pixels each way, 300 px per inch)."""
+    CSS pixels (the PNG itself holds :data:`analysis.report.figures.DPI` /
+    :data:`analysis.report.figures.DISPLAY_DPI` times more pixels each way, 200 px per
+    inch)."""
 
     name: str
     png: bytes

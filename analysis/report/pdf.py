@@ -7,7 +7,6 @@ Greek letters), embedded in the file.
 
 from __future__ import annotations
 
-import io
 import re
 from pathlib import Path
 
@@ -274,7 +273,10 @@ def _figure(doc: _Doc, f: Figure) -> None:
     if _space_left(doc) < h + 10:
         doc.add_page()
     x = (doc.w - FIGURE_WIDTH) / 2
-    doc.image(io.BytesIO(f.png), x=x, y=doc.get_y(), w=FIGURE_WIDTH, h=h)
+    from analysis.report.pdf_png import place_png
+
+    # the PNG's own compressed data, not decoded and re-encoded by fpdf2
+    doc.image(place_png(doc, f.png), x=x, y=doc.get_y(), w=FIGURE_WIDTH, h=h)
     doc.set_y(doc.get_y() + h + 1)
     doc.set_font("DejaVu", "", 7.5)
     doc.set_text_color(80)

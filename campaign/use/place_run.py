@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -281,48 +279,19 @@ def check_size(size: SearchSize, o: PlaceOptions, server_limit: float | None = N
                          "narrow the box", where=where)
 
 
-def _workers(o: PlaceOptions) -> int | None:
-    """Processes the search runs on: 1 in this process, the local cluster's workers, or
-    None for a --scheduler (its size is not known before connecting)."""
-    if o.scheduler:
-        return None
-    if o.workers == 0:
-        return 1
-    return o.workers or os.cpu_count() or 1
-
-
-def probe(problem, G, size: SearchSize, workers: int | None) -> str:
-    """Time and memory of the search, estimated from a timed probe, as one line.
-
-    The probe evaluates the first batch of placements that
-    :func:`analysis.placement.search.evaluate_chunk` takes at once (its
-    ``max_triples`` // (points x angles), at least one) in this process, timed with
-    ``time.perf_counter`` and with its peak allocation traced (``tracemalloc``; numpy
-    reports its buffers to it). Expected time = probe time per placement x
-    placements / processes; memory = the results plus one probe's peak per process.
-    """
-    import tracemalloc
-
-    from analysis.placement.search import evaluate_chunk
-
-    per = max(1, 20000 // (size.points * size.angles))
-    sample = G[0:min(len(G), per)]
-    tracemalloc.start()
-    t0 = time.perf_counter()
-    evaluate_chunk(problem, sample)
-    seconds = time.perf_counter() - t0
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    n = sample.shape[0]
-    rate = n * size.angles * size.points * size.configurations / max(seconds, 1e-9)
-    total = seconds / n * size.placements
-    procs = workers or 1
-    memory = size.result_bytes + procs * peak
-    where = (f"on {procs} process{'es' if procs > 1 else ''}" if workers else
-             "on one core (divide by the cluster's cores)")
-    return (f"expected {_duration(total / procs)} {where} and {memory / 2**20:.3g} MiB "
-            f"(timed probe of {n} placement{'s' if n > 1 else ''}: {rate:.3g} evaluations/s, "
-            f"peak {peak / 2**20:.3g} MiB; results {size.result_bytes / 2**20:.3g} MiB)")
+def estimate_line(probe, size: SearchSize, workers: int) -> str:
+    """Time and memory of the search from a timed probe (:mod:`analysis.placement.probe`),
+    as one line: expected time = the probe's seconds per placement x placements /
+    workers; memory = the results plus one probe's peak per worker."""
+    n = probe.placements
+    rate = n * size.angles * size.points * size.configurations / max(probe.seconds, 1e-9)
+    total = probe.seconds_per_placement * size.placements
+    memory = size.result_bytes + workers * probe.peak_bytes
+    return (f"expected {_duration(total / workers)} on {workers} "
+            f"process{'es' if workers > 1 else ''} and {memory / 2**20:.3g} MiB "
+            f"(timed probe of {n} placement{'s' if n > 1 else ''} spread over the box, "
+            f"where the search runs: {rate:.3g} evaluations/s per process, peak "
+            f"{probe.peak_bytes / 2**20:.3g} MiB; results {size.result_bytes / 2**20:.3g} MiB)")
 
 
 def _duration(seconds: float) -> str:
@@ -333,49 +302,38 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.3g} h"
 
 
-def _run(problem, G, o: PlaceOptions, console: Console, progress=None):
-    """Search every placement; returns (ChunkResult, how it ran). ``progress(done, total)``
-    after each task (a chunk of placements) of the search."""
-    from analysis.placement.search import run_dask, run_local
+def _search(problem, G, size: SearchSize, o: PlaceOptions, console: Console, progress=None):
+    """Probe, then search every placement; returns (ChunkResult, run facts for
+    placement.json). ``progress(done, total)`` after each task (a chunk of placements)."""
+    from analysis.placement.probe import batch_placements, probe_sample, task_chunk
+    from campaign.text_wrap import print_wrapped
+    from campaign.use.place_cluster import search_runner
 
-    per_task = o.chunk or max(1, min(64, -(-len(G) // (4 * (os.cpu_count() or 1)))))
-    if o.workers == 0 and not o.scheduler:
-        with console.status("searching in this process"):
-            return run_local(problem, G, per_task, progress), "in this process (no Dask)"
-    from distributed import Client, LocalCluster
-
-    if o.scheduler:
-        try:
-            client = Client(o.scheduler, timeout=10)
-        except (OSError, TimeoutError) as err:
-            raise InputError(f"cannot reach the Dask scheduler ({err})",
-                             where="--scheduler") from None
-        how = f"Dask cluster at {o.scheduler}"
-        cluster = None
-    else:
-        n = o.workers or os.cpu_count() or 1
-        # the workers' scratch space (Dask's dask-scratch-space) in a directory of this
-        # search's own, removed with it: nothing left in the system's temporary directory
-        import dask
-
-        scratch = tempfile.TemporaryDirectory(prefix="campaign-place-",
-                                              ignore_cleanup_errors=True)
-        with dask.config.set({"temporary-directory": scratch.name}):
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                   host="127.0.0.1", dashboard_address=None,
-                                   local_directory=scratch.name)
-        client = Client(cluster)
-        how = f"local Dask cluster, {n} worker processes"
-    try:
-        console.print(f"searching on the {how}; {len(G)} placements in tasks of "
-                      f"{per_task}")
-        return run_dask(problem, G, per_task, client, show_progress=progress is None,
-                        progress=progress), how
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-            scratch.cleanup()
+    with search_runner(o.scheduler, o.workers) as runner:
+        if runner.client is not None:
+            print_wrapped(console, f"{runner.how}: ready in {runner.startup_seconds:.2g} s")
+        batch = batch_placements(size.points, size.angles)
+        probed = runner.probe(problem, probe_sample(G, batch))
+        expected = probed.seconds_per_placement * size.placements / runner.workers
+        print_wrapped(console, estimate_line(probed, size, runner.workers))
+        chunk = o.chunk or task_chunk(probed, len(G), runner.workers, batch)
+        console.print(f"searching {runner.how}; {len(G)} placements in tasks of {chunk}"
+                      if runner.client is None else
+                      f"searching on the {runner.how}; {len(G)} placements in tasks of "
+                      f"{chunk}")
+        t0 = time.perf_counter()
+        if runner.client is None:
+            with console.status("searching in this process"):
+                res = runner.run(problem, G, chunk, progress)
+        else:
+            res = runner.run(problem, G, chunk, progress)
+        elapsed = time.perf_counter() - t0
+    facts = {"where": runner.how, "seconds": round(elapsed, 3),
+             "evaluations_per_second": round(size.evaluations / max(elapsed, 1e-9)),
+             "expected_seconds": round(expected, 3),
+             "startup_seconds": round(runner.startup_seconds, 3),
+             "placements_per_task": int(chunk)}
+    return res, facts
 
 
 #: the search box's dimensions as (grid key, option, unit, full turn)
@@ -439,7 +397,6 @@ def run_place(o: PlaceOptions, console: Console | None = None, progress=None,
     check_size(size, o, server_limit)
     N, evaluations = size.points, size.evaluations
     print_wrapped(console, f"search: {size.text()}")
-    print_wrapped(console, probe(problem, G, size, _workers(o)))
     tasks = None
     if progress is not None:
         progress(0.0, f"search: {size.text()}")
@@ -447,11 +404,10 @@ def run_place(o: PlaceOptions, console: Console | None = None, progress=None,
         def tasks(done: int, total: int) -> None:
             progress(done / total, f"searching: {done} of {total} tasks "
                      f"({len(G)} placements)")
-    t0 = time.perf_counter()
-    res, how = _run(problem, G, o, console, tasks)
+    res, run_facts = _search(problem, G, size, o, console, tasks)
+    elapsed, how = run_facts["seconds"], run_facts["where"]
     if progress is not None:
         progress(1.0, "search done; writing placement.json, path_joints.csv, plots")
-    elapsed = time.perf_counter() - t0
     center = np.array([0.5 * (grids[k][0] + grids[k][-1]) for k in ("x_mm", "y_mm", "z_mm")]
                       + [0.5 * (grids["yaw_deg"][0] + grids["yaw_deg"][-1])])
     center = np.concatenate([1e-3 * center[:3], np.radians(center[3:])])
@@ -514,8 +470,7 @@ def run_place(o: PlaceOptions, console: Console | None = None, progress=None,
                             "path_point": int(res.point[i]) + 1}
                            for i in infeasible[:MAX_LISTED]],
         },
-        "run": {"where": how, "seconds": round(elapsed, 3),
-                "evaluations_per_second": round(evaluations / max(elapsed, 1e-9))},
+        "run": run_facts,
         "assumptions": assumptions,
         "warnings": edge_warnings(grids, best),
     }

@@ -80,8 +80,11 @@ def test_table_shows_the_recorded_numbers_and_marks_missed_targets(tmp_path):
     for shown in ("161 443 poses", "2.25 us CPU/pose", "132 us CPU/pose on 3 000", "58.5x CPU",
                   "4.75 us wall/pose", "v_p 4.0e-11", "load 1.5 -> 2.5", "full run"):
         assert shown in maps, shown
-    assert "9.75" not in maps and "NOT MET" not in maps
-    assert maps.count(", met") == 2
+    assert "9.75" not in maps
+    # 2.25 us meets issue 13's 2.5 us, not issue 36's 1 us
+    assert maps.count(", met") == 2 and maps.count("**NOT MET**") == 1
+    assert "us CPU/pose <= 1 (issue 36: single-threaded, 0.5 deg KR240-2 map; then 0.8): " \
+        "2.25, **NOT MET**" in maps
 
     planner = row_of(text, "benchmarks/bench_planner.py")
     # 31.5 us at 1e5 misses the 30 us target; 31.5 / 16.75 ... / 20 at 2000 (smallest): 1.575
@@ -102,7 +105,9 @@ def test_table_shows_the_recorded_numbers_and_marks_missed_targets(tmp_path):
 
 
 def test_target_statuses_from_figures():
-    (kernel, ratio) = targets.targets_of("maps")
+    (kernel, ratio, kernel_36) = targets.targets_of("maps")
+    assert kernel_36.check(MAPS) == (targets.MISSED, 2.25)
+    assert kernel_36.check(dict(MAPS, batched_cpu_us_per_pose=1.0)) == (targets.MET, 1.0)
     assert kernel.check(MAPS) == (targets.MET, 2.25)
     assert kernel.check(dict(MAPS, batched_cpu_us_per_pose=2.5)) == (targets.MET, 2.5)
     assert kernel.check(dict(MAPS, batched_cpu_us_per_pose=2.51))[0] == targets.MISSED
@@ -110,6 +115,12 @@ def test_target_statuses_from_figures():
     assert ratio.check(dict(MAPS, ratio_cpu=7.9))[0] == targets.MISSED
     assert ratio.check(dict(MAPS, ratio_cpu=8.0))[0] == targets.MET
     assert ratio.check({}) == (targets.NOT_MEASURED, None)
+    place = targets.targets_of("place")
+    figures = {"commands": {"readme": {"estimate_ratio": 1.25, "system_over_wall": 0.0625,
+                                       "evaluations_per_s": 7e5, "probe_per_process_per_s": 4e5}}}
+    assert [t.check(figures) for t in place] == [
+        (targets.MET, 1.25), (targets.MET, 0.0625), (targets.MISSED, 0.875),
+        *[(targets.NOT_MEASURED, None)] * 3]
 
 
 def test_every_benchmark_has_a_row_description_and_every_target_a_benchmark():

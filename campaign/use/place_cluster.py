@@ -1,0 +1,108 @@
+"""Where ``campaign place`` runs its search: this process, a local Dask cluster it
+starts, or the Dask scheduler given with ``--scheduler``; the probe runs there too.
+
+The local cluster's worker processes get one BLAS/OpenMP thread each (two workers
+on two cores, no threads beside them) and keep glibc's own ``malloc`` tuning: Dask
+sets ``MALLOC_TRIM_THRESHOLD_=65536`` in its workers by default, which turns off
+glibc's adaptive mmap threshold, so every numpy temporary above 128 KiB is mapped
+and unmapped afresh. On the README example that was 40 % of the workers' CPU in
+system time (1.7-1.9 s of 4.6 s per worker), against 0.24 s without it (issue 36).
+A ``--scheduler``'s workers were started by someone else, with their own settings.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from analysis.errors import InputError
+from analysis.placement.probe import ProbeResult, chunk_peak_bytes, chunk_seconds
+
+#: The environment of the local cluster's worker processes (set before they start).
+WORKER_ENVIRON = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                  "OPENBLAS_NUM_THREADS": "1"}
+
+
+@dataclass(frozen=True)
+class SearchRunner:
+    """The place a search runs: ``how`` (words for the output), ``workers`` (processes
+    evaluating at once), ``startup_seconds`` (starting or reaching the cluster, s; 0 in
+    this process) and ``client`` (the Dask client, None in this process)."""
+
+    how: str
+    workers: int
+    startup_seconds: float
+    client: object | None
+
+    def probe(self, problem, sample) -> ProbeResult:
+        """Time ``sample`` (placements, (n, 4)) untraced and trace its peak memory
+        separately, where the search runs (on two workers at once when there are two)."""
+        n = int(sample.shape[0])
+        if self.client is None:
+            return ProbeResult(n, chunk_seconds(problem, sample),
+                               chunk_peak_bytes(problem, sample))
+        # its own key (hash=False): run_dask scatters the same problem, and releasing one
+        # of two futures of a shared key loses the data under the other
+        problem_f = self.client.scatter(problem, broadcast=True, hash=False)
+        timed = self.client.submit(chunk_seconds, problem_f, sample, pure=False)
+        peak = self.client.submit(chunk_peak_bytes, problem_f, sample, pure=False)
+        return ProbeResult(n, float(timed.result()), int(peak.result()))
+
+    def run(self, problem, G, chunk: int, progress: Callable[[int, int], None] | None):
+        """Every placement of ``G`` in tasks of ``chunk``: the search's ChunkResult."""
+        from analysis.placement.search import run_dask, run_local
+
+        if self.client is None:
+            return run_local(problem, G, chunk, progress)
+        return run_dask(problem, G, chunk, self.client, show_progress=progress is None,
+                        progress=progress)
+
+
+@contextmanager
+def search_runner(scheduler: str | None, workers: int | None) -> Iterator[SearchRunner]:
+    """This process (``workers == 0`` and no scheduler), the Dask cluster at
+    ``scheduler``, or a local cluster of ``workers`` processes (default: the cores),
+    closed on exit with its scratch directory."""
+    if workers == 0 and not scheduler:
+        yield SearchRunner("in this process (no Dask)", 1, 0.0, None)
+        return
+    from distributed import Client, LocalCluster
+
+    t0 = time.perf_counter()
+    cluster = scratch = None
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=10)
+        except (OSError, TimeoutError) as err:
+            raise InputError(f"cannot reach the Dask scheduler ({err})",
+                             where="--scheduler") from None
+        n = max(1, sum(w.get("nthreads", 1) for w in
+                       client.scheduler_info()["workers"].values()))
+        how = f"Dask cluster at {scheduler}"
+    else:
+        import dask
+
+        n = workers or os.cpu_count() or 1
+        # the workers' scratch space (Dask's dask-scratch-space) in a directory of this
+        # search's own, removed with it: nothing left in the system's temporary directory
+        scratch = tempfile.TemporaryDirectory(prefix="campaign-place-",
+                                              ignore_cleanup_errors=True)
+        with dask.config.set({"temporary-directory": scratch.name,
+                              "distributed.nanny.pre-spawn-environ": dict(WORKER_ENVIRON)}):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=None,
+                                   local_directory=scratch.name)
+        client = Client(cluster)
+        how = f"local Dask cluster, {n} worker processes"
+    try:
+        yield SearchRunner(how, n, time.perf_counter() - t0, client)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+        if scratch is not None:
+            scratch.cleanup()
