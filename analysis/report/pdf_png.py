@@ -60,10 +60,13 @@ def place_png(doc, png: bytes):
     as it is (fpdf2 then decodes and re-encodes it)."""
     import io
 
-    from fpdf.image_datastructures import RasterImageInfo
+    try:
+        from fpdf.image_datastructures import RasterImageInfo
+    except ImportError:  # an fpdf2 without this record: the ordinary way
+        return io.BytesIO(png)
 
     stream = png_stream(png)
-    if stream is None:
+    if stream is None or not hasattr(doc, "image_cache"):
         return io.BytesIO(png)
     width, height, space, samples, data = stream
     name = "report-png-" + hashlib.sha256(png).hexdigest()
