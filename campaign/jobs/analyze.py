@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -45,7 +45,9 @@ class AnalyzeOptions:
     wrench_N_Nm: at P, base frame, for the predicted deflection; trials: Monte-Carlo
     trials per point of the report's robustness curve; report: write the report;
     translation_sigma_m .. moment_relative: noise overrides (m, rad, N, N m, rad, and
-    fractions of |f| and |m|; None: the protocol's, the sidecar's or the defaults);
+    fractions of |f| and |m|; None: the protocol's, the sidecar's or the defaults), flat
+    fields (this record is also the web API's request body), read by the job as one
+    record, ``noise_overrides``;
     tool_xyz_mm / tool_rpy_deg: the tool point as the protocol's [tool] gives it (mm,
     deg), overriding the protocol's or sidecar's; accept_misfit: write a refused result
     (it says so); force: replace a non-empty output directory as a whole; ledger: the
@@ -81,6 +83,18 @@ class AnalyzeOptions:
     ledger: str | None = None
     robot_id: str | None = None
     model: str = "joints"
+
+    @classmethod
+    def with_noise(cls, noise: NoiseOverrides, **options) -> AnalyzeOptions:
+        """The options ``options`` (fields by name) with the noise overrides ``noise``."""
+        return cls(**options, **{f.name: getattr(noise, f.name)
+                                 for f in fields(NoiseOverrides)})
+
+    @property
+    def noise_overrides(self) -> NoiseOverrides:
+        """The noise overrides these options carry, as the record the job applies (SI)."""
+        return NoiseOverrides(**{f.name: getattr(self, f.name)
+                                 for f in fields(NoiseOverrides)})
 
 
 @dataclass(frozen=True)
@@ -135,7 +149,7 @@ def _run(o: AnalyzeOptions, stage: Stage, on_assumptions, warn) -> AnalyzeResult
     inp = read_input(run_dir, measurements, o.robot, o.tip,
                      *tool_texts(o.tool_xyz_mm, o.tool_rpy_deg), warn)
     heap.release_freed_heap()  # a run's text table, let go once read into arrays
-    noise, overridden = NoiseOverrides.of(o).applied(inp.noise)
+    noise, overridden = o.noise_overrides.applied(inp.noise)
     inp = replace(inp, noise=noise, noise_source=inp.noise_source + (
         f"; overridden by {', '.join(overridden)}" if overridden else ""))
     joint_list = parse_joints(o.joints)

@@ -51,15 +51,6 @@ class NoiseOverrides:
             given[f.name] = None if value is None else value * f.metadata["to_si"]
         return cls(**given)
 
-    @classmethod
-    def of(cls, options) -> NoiseOverrides:
-        """The overrides carried by an options record with these fields (``AnalyzeOptions``)."""
-        return cls(**{f.name: getattr(options, f.name) for f in dataclasses.fields(cls)})
-
-    def fields(self) -> dict[str, float | None]:
-        """The overrides by field name (SI), as an options record takes them."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-
     def applied(self, noise: NoiseModel) -> tuple[NoiseModel, list[str]]:
         """(``noise`` with the overrides given, the options that changed it as the command
         line names them); a negative or non-finite value is refused naming its option (a

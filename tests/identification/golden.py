@@ -100,8 +100,13 @@ def streamed_sizes():
 
 
 def _clear_caches() -> None:
-    """The module-level caches of the older layout (the present one has none)."""
-    for mod in _where("_J_CACHE", P + "fitting"):
+    """Empty the module-level caches of the layout the golden files were first written
+    with (commit fc8521e: the Jacobian cache ``_J_CACHE`` of
+    ``analysis/identification/fitting.py``, whose fits are now
+    ``estimators/fit_solvers.py``, and ``poses._LAST``), so the script still runs on that
+    tree. The present layout keeps no module-level cache
+    (``tests/identification/test_no_module_caches.py``): nothing is found there."""
+    for mod in _where("_J_CACHE", P + "fitting"):  # the pre-restructure module name
         mod._J_CACHE.clear()
     for mod in _where("_LAST", P + "poses"):
         mod._LAST.clear()

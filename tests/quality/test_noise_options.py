@@ -87,10 +87,13 @@ def test_the_noise_overrides_are_named_records_of_the_options():
     si = NoiseOverrides.typed(moment_pct=0.25, translation_sigma_um=30.0)
     assert si.moment_relative == pytest.approx(0.0025)
     assert si.translation_sigma_m == pytest.approx(30e-6)
-    assert [k for k, v in si.fields().items() if v is not None] == ["translation_sigma_m",
-                                                                    "moment_relative"]
-    # the options record carries them back unchanged
-    assert NoiseOverrides.of(AnalyzeOptions(**si.fields())) == si
+    given = {f.name for f in overrides if getattr(si, f.name) is not None}
+    assert given == {"translation_sigma_m", "moment_relative"}
+    # the options record (flat: the web API's body) carries them back as the same record
+    options = AnalyzeOptions.with_noise(si, trials=7)
+    assert options.noise_overrides == si and options.trials == 7
+    assert options.moment_relative == pytest.approx(0.0025) and options.force_sigma_N is None
+    assert AnalyzeOptions().noise_overrides == NoiseOverrides()
     with pytest.raises(ValueError, match="--force-sigma"):
         NoiseOverrides.typed(force_sigma=1.0)
 
@@ -105,3 +108,39 @@ def test_a_negative_override_is_refused_naming_its_option():
     assert NoiseOverrides(force_relative=0.0).applied(NOISE)[0].force_relative == 0.0
     with pytest.raises(InputError):
         NoiseOverrides(moment_sigma_Nm=0.0).applied(NOISE)
+
+
+def test_the_job_reads_the_noise_overrides_only_as_the_record():
+    """No code of the analyze job, its command or its web handler reads one of the seven
+    flat fields by name: the record (:attr:`AnalyzeOptions.noise_overrides`) carries them,
+    the command builds it (``AnalyzeOptions.with_noise``)."""
+    import ast
+    import dataclasses
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    names = {f.name for f in dataclasses.fields(NoiseOverrides)}
+    paths = [*sorted((root / "campaign" / "jobs").glob("analyze*.py")),
+             root / "campaign" / "cli" / "commands" / "analyze.py",
+             root / "campaign" / "web" / "api_jobs.py"]
+    reads = [f"{p.relative_to(root)}:{node.lineno}: .{node.attr}"
+             for p in paths for node in ast.walk(ast.parse(p.read_text()))
+             if isinstance(node, ast.Attribute) and node.attr in names]
+    assert len(paths) >= 5 and reads == []
+
+
+def test_the_web_body_keeps_the_flat_noise_fields(tmp_path):
+    """The API's request schema is unchanged: the seven overrides are flat fields of
+    ``AnalyzeOptions``, each an optional number or null."""
+    import dataclasses
+
+    pytest.importorskip("fastapi", reason="fastapi is not installed (pip install fastapi)")
+    from campaign.web.app import create_app
+
+    schema = create_app(tmp_path, "tok-0123456789abcdef").openapi()
+    body = schema["components"]["schemas"]["AnalyzeOptions"]
+    props = body["properties"]
+    for f in dataclasses.fields(NoiseOverrides):
+        assert f.name not in body.get("required", []) and "default" not in props[f.name]
+        assert {t.get("type") for t in props[f.name]["anyOf"]} == {"number", "null"}, f.name
+    assert "noise_overrides" not in props

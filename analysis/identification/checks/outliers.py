@@ -23,7 +23,7 @@ from analysis.identification.linalg.lsq import blocks_of_tests
 from analysis.identification.linalg.sandwich import sandwich_and_residual_variance
 from analysis.identification.problem import OUTLIER_FAMILY_LEVEL, IdentificationProblem
 from analysis.identification.streaming.per_test import apply
-from analysis.report.formatting import level
+from analysis.text_format import level
 
 
 def outlier_threshold(n_residuals: int, level: float = OUTLIER_FAMILY_LEVEL) -> float:

@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.identification.result import IdentificationResult
-from analysis.report.formatting import level
+from analysis.text_format import level
 
 #: probability below which the chi-square test refuses (either tail)
 MISFIT_P = 1e-6

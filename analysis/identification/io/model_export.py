@@ -278,9 +278,10 @@ def export_model(result: IdentificationResult, robot: RobotModel, out_dir: str |
                  table, info) -> dict[str, Path]:
     """Write ``model.toml`` and add K_X to ``results.json`` in ``out_dir`` (written before).
 
-    ``table`` is the tests table analysed; ``info`` the campaign summary
-    (:class:`analysis.report.summary.CampaignInfo`: source run, protocol hash,
-    software). When no model file can be written (URDF robot, a joint without
+    ``table`` is the tests table analysed; ``info`` the campaign summary: any
+    record with ``location`` (the source run), ``protocol_sha256`` and ``software``,
+    such as the report's ``CampaignInfo`` (read by attribute, nothing imported).
+    When no model file can be written (URDF robot, a joint without
     any stiffness), results.json says why under ``model_file_note``.
     """
     out = Path(out_dir)

@@ -226,11 +226,11 @@ def register(app: typer.Typer) -> None:
             joint_sigma_urad=joint_sigma_urad, force_pct=force_pct, moment_pct=moment_pct)
         poses = [[] if not text.strip() else np.radians(numbers_option(text, f"--pose #{i}"))
                  .tolist() for i, text in enumerate(pose, start=1)]
-        options = AnalyzeOptions(
-            run_dir=run_dir, measurements=measurements, robot=robot, tip=tip, out=out,
+        options = AnalyzeOptions.with_noise(
+            noise, run_dir=run_dir, measurements=measurements, robot=robot, tip=tip, out=out,
             method=method, joints=joints, robust=robust, covariance=covariance,
             poses_rad=poses, wrench_N_Nm=numbers_option(wrench, "--wrench"), trials=trials,
-            report=report, **noise.fields(),
+            report=report,
             tool_xyz_mm=numbers_option(tool_xyz_mm, "--tool-xyz-mm"),
             tool_rpy_deg=numbers_option(tool_rpy_deg, "--tool-rpy-deg"),
             accept_misfit=accept_misfit, force=force, ledger=db, robot_id=robot_id,
