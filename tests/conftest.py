@@ -10,8 +10,27 @@ import pytest
 
 from drivers.loopback_guard import ENV as LOOPBACK_ONLY
 
+#: environment variables a pytest-xdist worker finds set to its own values (COLUMNS=80,
+#: LINES=24), which the commands under test read as the terminal's width
+WORKER_ENV = ("COLUMNS", "LINES")
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node) -> None:
+    """pytest-xdist, on the controller: hand each worker this process's :data:`WORKER_ENV`."""
+    node.workerinput["stiffness_worker_env"] = {k: os.environ.get(k) for k in WORKER_ENV}
+
 
 def pytest_configure(config: pytest.Config) -> None:
+    # A pytest-xdist worker runs the tests in the environment of the command that started
+    # pytest: without this a worker's COLUMNS=80 made the CLI wrap its messages there
+    # and not in one pytest process (tests that need a width set it themselves).
+    for key, value in getattr(config, "workerinput", {}).get("stiffness_worker_env",
+                                                             {}).items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
     # Ctrl-C is Python's KeyboardInterrupt here and in every process the tests start,
     # however the run was launched: a shell's background job (`pytest &`, nohup, some CI
     # runners) inherits SIGINT ignored, Python then leaves it ignored, and so do the
