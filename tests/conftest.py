@@ -73,18 +73,23 @@ E2E = (
     "tests/acquire/test_resume.py::test_kill9_at_seeded_moments_then_resume",
     "tests/use/test_brand_programs.py::test_place_programs_round_trip",
     "tests/report/test_signed_report.py",
+    "tests/drivers/test_realistic_world.py::test_preloaded_shop_run_records_the_reference_wrench",
 )
+#: session fixtures that run whole campaigns: a test using one is end-to-end
+CAMPAIGN_FIXTURES = ("demo_runs",)
 
 
 def _e2e(item: pytest.Item) -> bool:
     """Whether ``item`` is an end-to-end test: it opens a browser (the ``browser``
-    fixture, directly or through a page), or :data:`E2E` names its file or function."""
-    if "browser" in getattr(item, "fixturenames", ()):
+    fixture, directly or through a page), uses whole campaigns (:data:`CAMPAIGN_FIXTURES`),
+    or :data:`E2E` names its file or function."""
+    if {"browser", *CAMPAIGN_FIXTURES} & set(getattr(item, "fixturenames", ())):
         return True
     node = item.nodeid.split("[")[0]
     return any(node == e or node.startswith(e + "::") for e in E2E)
 
 
+@pytest.hookimpl(tryfirst=True)  # first: the -m selection reads the e2e marks
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         if _e2e(item):
