@@ -77,6 +77,16 @@ E2E = (
 )
 #: session fixtures that run whole campaigns: a test using one is end-to-end
 CAMPAIGN_FIXTURES = ("demo_runs",)
+#: test files that run on one pytest-xdist worker, one after the other (the README's
+#: ``--dist loadfile`` otherwise gives each file to whichever worker is free): the files
+#: sharing a whole-campaign session fixture, which is then made once, not once per worker.
+#: A test that cannot run beside another joins a group here (pytest-xdist's own
+#: ``xdist_group`` mark does not group with pytest 9.2: pytest-xdist issue 1386).
+SAME_WORKER = {
+    "demo_runs": ("tests/ledger/test_fleet_study.py", "tests/ledger/test_fleet_view.py",
+                  "tests/ledger/test_ledger_analyze.py", "tests/ledger/test_ledger_history.py",
+                  "tests/ledger/test_ledger_reliability.py"),
+}
 
 
 def _e2e(item: pytest.Item) -> bool:
@@ -87,6 +97,24 @@ def _e2e(item: pytest.Item) -> bool:
         return True
     node = item.nodeid.split("[")[0]
     return any(node == e or node.startswith(e + "::") for e in E2E)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """pytest-xdist's ``--dist loadfile``, with the files of each :data:`SAME_WORKER` group
+    as one unit of work; None (xdist's own choice) for the other ``--dist`` modes."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    group_of = {path: name for name, paths in SAME_WORKER.items() for path in paths}
+
+    class GroupedFiles(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return "group:" + group_of[path] if path in group_of else path
+
+    return GroupedFiles(config, log)
 
 
 @pytest.hookimpl(tryfirst=True)  # first: the -m selection reads the e2e marks
