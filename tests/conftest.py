@@ -74,6 +74,13 @@ E2E = (
     "tests/use/test_brand_programs.py::test_place_programs_round_trip",
     "tests/report/test_signed_report.py",
     "tests/drivers/test_realistic_world.py::test_preloaded_shop_run_records_the_reference_wrench",
+    # whole acquisitions in processes of their own (each >= 10 s at load 8, -n 2)
+    "tests/drivers/test_realistic_world.py::test_shop_protocol_through_the_fakes",
+    "tests/drivers/test_lab_loopback.py",
+    "tests/acquire/test_resume.py::test_ctrl_c_stops_unloads_records_and_resumes",
+    "tests/acquire/test_resume.py::test_resume_of_a_complete_run_measures_nothing",
+    "tests/jobs/test_acquire.py::test_acquire_same_tests_csv_from_cli_and_api",
+    "tests/jobs/test_acquire.py::test_job_in_its_own_process_aborts_by_signal_like_ctrl_c",
 )
 #: session fixtures that run whole campaigns: a test using one is end-to-end
 CAMPAIGN_FIXTURES = ("demo_runs",)
