@@ -10,8 +10,27 @@ import pytest
 
 from drivers.loopback_guard import ENV as LOOPBACK_ONLY
 
+#: environment variables a pytest-xdist worker finds set to its own values (COLUMNS=80,
+#: LINES=24), which the commands under test read as the terminal's width
+WORKER_ENV = ("COLUMNS", "LINES")
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node) -> None:
+    """pytest-xdist, on the controller: hand each worker this process's :data:`WORKER_ENV`."""
+    node.workerinput["stiffness_worker_env"] = {k: os.environ.get(k) for k in WORKER_ENV}
+
 
 def pytest_configure(config: pytest.Config) -> None:
+    # A pytest-xdist worker runs the tests in the environment of the command that started
+    # pytest: without this a worker's COLUMNS=80 made the CLI wrap its messages there
+    # and not in one pytest process (tests that need a width set it themselves).
+    for key, value in getattr(config, "workerinput", {}).get("stiffness_worker_env",
+                                                             {}).items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
     # Ctrl-C is Python's KeyboardInterrupt here and in every process the tests start,
     # however the run was launched: a shell's background job (`pytest &`, nohup, some CI
     # runners) inherits SIGINT ignored, Python then leaves it ignored, and so do the
@@ -54,18 +73,58 @@ E2E = (
     "tests/acquire/test_resume.py::test_kill9_at_seeded_moments_then_resume",
     "tests/use/test_brand_programs.py::test_place_programs_round_trip",
     "tests/report/test_signed_report.py",
+    "tests/drivers/test_realistic_world.py::test_preloaded_shop_run_records_the_reference_wrench",
+    # whole acquisitions in processes of their own (each >= 10 s at load 8, -n 2)
+    "tests/drivers/test_realistic_world.py::test_shop_protocol_through_the_fakes",
+    "tests/drivers/test_lab_loopback.py",
+    "tests/acquire/test_resume.py::test_ctrl_c_stops_unloads_records_and_resumes",
+    "tests/acquire/test_resume.py::test_resume_of_a_complete_run_measures_nothing",
+    "tests/jobs/test_acquire.py::test_acquire_same_tests_csv_from_cli_and_api",
+    "tests/jobs/test_acquire.py::test_job_in_its_own_process_aborts_by_signal_like_ctrl_c",
 )
+#: session fixtures that run whole campaigns: a test using one is end-to-end
+CAMPAIGN_FIXTURES = ("demo_runs",)
+#: test files that run on one pytest-xdist worker, one after the other (the README's
+#: ``--dist loadfile`` otherwise gives each file to whichever worker is free): the files
+#: sharing a whole-campaign session fixture, which is then made once, not once per worker.
+#: A test that cannot run beside another joins a group here (pytest-xdist's own
+#: ``xdist_group`` mark does not group with pytest 9.2: pytest-xdist issue 1386).
+SAME_WORKER = {
+    "demo_runs": ("tests/ledger/test_fleet_study.py", "tests/ledger/test_fleet_view.py",
+                  "tests/ledger/test_ledger_analyze.py", "tests/ledger/test_ledger_history.py",
+                  "tests/ledger/test_ledger_reliability.py"),
+}
 
 
 def _e2e(item: pytest.Item) -> bool:
     """Whether ``item`` is an end-to-end test: it opens a browser (the ``browser``
-    fixture, directly or through a page), or :data:`E2E` names its file or function."""
-    if "browser" in getattr(item, "fixturenames", ()):
+    fixture, directly or through a page), uses whole campaigns (:data:`CAMPAIGN_FIXTURES`),
+    or :data:`E2E` names its file or function."""
+    if {"browser", *CAMPAIGN_FIXTURES} & set(getattr(item, "fixturenames", ())):
         return True
     node = item.nodeid.split("[")[0]
     return any(node == e or node.startswith(e + "::") for e in E2E)
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """pytest-xdist's ``--dist loadfile``, with the files of each :data:`SAME_WORKER` group
+    as one unit of work; None (xdist's own choice) for the other ``--dist`` modes."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    group_of = {path: name for name, paths in SAME_WORKER.items() for path in paths}
+
+    class GroupedFiles(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return "group:" + group_of[path] if path in group_of else path
+
+    return GroupedFiles(config, log)
+
+
+@pytest.hookimpl(tryfirst=True)  # first: the -m selection reads the e2e marks
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         if _e2e(item):

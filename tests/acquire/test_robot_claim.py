@@ -8,6 +8,7 @@ import socket
 import subprocess
 import sys
 import threading
+import uuid
 
 import pytest
 
@@ -62,7 +63,7 @@ def _release(proc: subprocess.Popen) -> None:
 
 
 def test_a_claim_is_exclusive_across_processes_and_ends_with_its_holder():
-    robot = f"kuka-kvp socket://127.0.0.1:1 test-{id(object())}"
+    robot = f"kuka-kvp socket://127.0.0.1:1 test-{uuid.uuid4().hex}"  # unique per xdist worker
     proc = _holder(robot)
     try:
         with pytest.raises(RobotBusy, match="already running on this robot"):

@@ -172,7 +172,9 @@ def test_robots_prints_the_files_own_text_literally_and_k_in_one_format(tmp_path
     out = capsys.readouterr().out
     flat = " ".join(out.split())
     assert "source stiffness: [bold]see [stiffness] and [tool][/bold] Dumas et al." in flat
-    assert "[lab] kr240.toml" in flat
+    # the file's path (printed literally, markup and all) is folded at 80 columns where
+    # its length (the temporary directory's, e.g. an xdist worker's) makes it fall
+    assert f"{tmp_path}/[lab]kr240.toml".replace(" ", "") in "".join(out.split())
     assert _fits(out)
     rows = [line.split("│") for line in out.splitlines() if line.startswith("│")]
     assert [row[5].strip() for row in rows] == ["1409.8", "400.76", "935.28", "360.00",
