@@ -69,7 +69,7 @@ def _numeric(text: str) -> bool:
 class Figure:
     """A PNG image (bytes) with its caption; ``width`` x ``height`` is the display size in
     CSS pixels (the PNG itself holds :data:`analysis.report.figures.DPI` /
-    :data:`analysis.report.figures.DISPLAY_DPI` times more pixels each way, 200 px per
+    :data:`analysis.report.figures.DISPLAY_DPI` times more pixels each way, 300 px per
     inch)."""
 
     name: str

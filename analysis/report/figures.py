@@ -1,5 +1,5 @@
-"""The report's plots, as PNG bytes drawn at 200 px per inch (:data:`DPI`), shown at
-:data:`WIDTH` x :data:`HEIGHT` CSS px (6.4 x 4 in; 217 px per inch at the PDF's 150 mm).
+"""The report's plots, as PNG bytes drawn at 300 px per inch (:data:`DPI`), shown at
+:data:`WIDTH` x :data:`HEIGHT` CSS px (6.4 x 4 in; 325 px per inch at the PDF's 150 mm, print quality).
 
 Texts inside the figures use mathtext for symbols (θ₂, κ_F as $\\kappa_F$): no
 literal underscore is drawn.
@@ -27,7 +27,7 @@ SIZE_IN = (6.4, 4.0)
 #: at the PDF's 150 mm. 300 (1920 x 1200) cost 16 % more to draw a figure of lines and an image
 #: (0.277 against 0.232 s CPU, issue 36) for detail neither view shows; the rendered-page
 #: tests read the PDF at 40 px per inch.
-DPI = 200
+DPI = 300
 DISPLAY_DPI = 125  # CSS px per inch in the HTML: shown at 800 x 500
 WIDTH, HEIGHT = int(SIZE_IN[0] * DISPLAY_DPI), int(SIZE_IN[1] * DISPLAY_DPI)
 PIXELS = (int(SIZE_IN[0] * DPI), int(SIZE_IN[1] * DPI))
