@@ -1,5 +1,5 @@
 """The report's plots, as PNG bytes drawn at 300 px per inch (:data:`DPI`), shown at
-:data:`WIDTH` x :data:`HEIGHT` CSS px (6.4 x 4 in; 325 px per inch at the PDF's 150 mm, print quality).
+:data:`WIDTH` x :data:`HEIGHT` CSS px (6.4 x 4 in; 325 px per inch at the PDF's 150 mm).
 
 Texts inside the figures use mathtext for symbols (θ₂, κ_F as $\\kappa_F$): no
 literal underscore is drawn.
@@ -23,10 +23,10 @@ from analysis.report.document import Figure
 from analysis.report.formatting import level
 
 SIZE_IN = (6.4, 4.0)
-#: px per inch of the PNG: 1280 x 800 px, 1.6 px per CSS px in the HTML and 217 px per inch
-#: at the PDF's 150 mm. 300 (1920 x 1200) cost 16 % more to draw a figure of lines and an image
-#: (0.277 against 0.232 s CPU, issue 36) for detail neither view shows; the rendered-page
-#: tests read the PDF at 40 px per inch.
+#: px per inch of the PNG: 1920 x 1200 px, 2.4 px per CSS px in the HTML and 325 px per inch
+#: at the PDF's 150 mm, the print resolution of a report that is signed and filed; 200 would
+#: save 16 % of a figure's drawing (0.232 against 0.277 s CPU). The rendered-page tests read
+#: the PDF at 40 px per inch.
 DPI = 300
 DISPLAY_DPI = 125  # CSS px per inch in the HTML: shown at 800 x 500
 WIDTH, HEIGHT = int(SIZE_IN[0] * DISPLAY_DPI), int(SIZE_IN[1] * DISPLAY_DPI)
