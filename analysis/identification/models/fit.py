@@ -37,7 +37,7 @@ left-out equations (1 when the class is right). All SI.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -68,6 +68,11 @@ FD_PRELOAD = 1.0
 FD_RATE = 10.0
 #: joint of the compensator (0-based: axis 2)
 COMP_JOINT = 1
+#: joint 2's flank search: the half-width of the spring's range (standard errors), the
+#: grid points per axis over it, and the number of distinct patterns fitted at most
+FLANK_SEARCH_SE = 10.0
+FLANK_GRID = 61
+MAX_FLANK_PATTERNS = 2
 
 
 @dataclass(frozen=True)
@@ -308,7 +313,7 @@ def _solve(WM: np.ndarray, Wr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _extra_columns(data: ClassData, extras, A: np.ndarray, q2ref: float, Gc=None,
-                   spring=None):
+                   spring=None, flank_spring=None):
     """[(class, B (m, 6, r), names [(name, unit)], fixed [(name, why)])] per extra, in
     :data:`EXTRAS` order; ``Gc`` the physics model's derivative in the spring's (preload,
     rate) when the compensator's geometry is known, ``spring`` their current values (the
@@ -328,6 +333,7 @@ def _extra_columns(data: ClassData, extras, A: np.ndarray, q2ref: float, Gc=None
             J = jacobian(data.robot, t.q)
             # the flanks follow analysis.model.gravity.gear_flanks (mid-band near 0)
             taus = [np.array(tau, dtype=float) for tau in data.gear_torques]
+            spring = spring if flank_spring is None else flank_spring
             if spring is not None and "compensator" in extras:
                 from dataclasses import replace
 
@@ -373,22 +379,75 @@ def fit_class(data: ClassData, extras: tuple[str, ...]) -> ClassFit:
                         np.nan, np.nan, error=str(err).split("\n")[0])
 
 
+def _flank_pattern(data: ClassData, spring) -> tuple:
+    """Joint 2's flanks (reference, loaded) at every test with the compensator spring
+    ``spring`` = (preload (N), rate (N/m)): the discrete part of the model."""
+    from dataclasses import replace
+
+    from analysis.kinetostatics.realistic import compensator_torque
+    from analysis.model.gravity import gear_flanks
+
+    comp = replace(data.compensator, preload=float(spring[0]), rate=float(spring[1]))
+    tc = compensator_torque(comp, data.tests.q[:, comp.joint])[0]
+    return tuple(tuple(gear_flanks(tau[:, comp.joint] + tc).tolist())
+                 for tau in data.gear_torques)
+
+
+def _flank_candidates(data: ClassData, first: ClassFit, WM: np.ndarray,
+                      Wr: np.ndarray) -> list[np.ndarray]:
+    """Springs (preload, rate) representing the distinct joint-2 flank patterns within
+    :data:`FLANK_SEARCH_SE` standard errors (scaled by sqrt(max(1, chi2/nu))) of the
+    first-stage spring, ranked by the chi-square of one linear step from the first stage
+    (whitened system ``WM``, ``Wr``) with joint 2's dead-band column of that pattern
+    added; the :data:`MAX_FLANK_PATTERNS` best."""
+    got = dict(zip(first.names, zip(first.values, first.se, strict=True), strict=True))
+    (p0, sp), (r0, sr) = got["preload"], got["rate"]
+    scale = np.sqrt(max(1.0, first.chi2_nu)) if np.isfinite(first.chi2_nu) else 1.0
+    sp, sr = max(sp * scale, FD_PRELOAD), max(sr * scale, FD_RATE)
+    u = np.linspace(-FLANK_SEARCH_SE, FLANK_SEARCH_SE, FLANK_GRID)
+    best: dict[tuple, tuple[float, float, float]] = {}
+    for a in u:
+        for b in u:
+            key = _flank_pattern(data, (p0 + a * sp, r0 + b * sr))
+            d2 = a * a + b * b
+            if key not in best or d2 < best[key][0]:
+                best[key] = (d2, p0 + a * sp, r0 + b * sr)
+    J2 = jacobian(data.robot, data.tests.q)[:, :, COMP_JOINT]
+    ranked = []
+    for (s_ref, s_load), (_, p, r) in best.items():
+        step = (np.asarray(s_load) - np.asarray(s_ref)) / 2.0
+        col = _whiten(data.Linv, (J2 * step[:, None])[..., None])
+        S = np.concatenate([WM, col], axis=1) if np.any(col) else WM
+        sol = _solve(S, Wr)[0]
+        e = Wr - S @ sol
+        ranked.append((float(e @ e), p, r))
+    ranked.sort()
+    return [np.array([p, r]) for _, p, r in ranked[:MAX_FLANK_PATTERNS]]
+
+
 def _multistart(data: ClassData, extras: tuple[str, ...], name: str) -> ClassFit:
     """The spring's torque decides joint 2's flank, a discontinuous function of its
-    preload: from a poor start the fit can settle with wrong flanks (on the shop lab,
-    noise-free chi2 280 instead of 4 over 216 equations). Starts: no spring, the spring
-    fitted without lost motion, and its rate with no preload; the lowest chi-square
-    wins."""
-    first = _fit(data, tuple(e for e in extras if e != "lost-motion"), name)
-    got = dict(zip(first.names, first.values, strict=True))
-    p0, r0 = got.get("preload", 0.0), got.get("rate", 0.0)
-    fits = [_fit(data, extras, name, np.array(s0))
-            for s0 in ((0.0, 0.0), (p0, r0), (0.0, r0))]
-    return min(fits, key=lambda f: f.chi2)
+    preload and rate: a Gauss-Newton fit that lets the flanks follow the spring settles
+    on wrong ones (shop lab seed 101, noise-free: chi2 150 instead of 2.5 over 216
+    equations, 2b2 half its value). So the flank pattern is searched as the discrete
+    parameter it is: a first fit with joint 2's dead band left out (the other joints'
+    flanks come from the mass model) gives the spring; the distinct joint-2 flank
+    patterns its plausible range produces, ranked by one linear step
+    (:func:`_flank_candidates`), are each fitted with the pattern held; the lowest
+    chi-square wins (named in ``fixed``)."""
+    first, WM, Wr = _fit(data, extras, name, drop_flank_joint=True, with_system=True)
+    fits = [_fit(data, extras, name, s0, flank_spring=s0)
+            for s0 in _flank_candidates(data, first, WM, Wr)]
+    best = min(fits, key=lambda f: f.chi2)
+    return replace(best, fixed=best.fixed + (
+        ("joint 2 flanks", f"the pattern of lowest chi-square among {len(fits)} of those the "
+         f"spring's plausible range produces (within {FLANK_SEARCH_SE:g} standard errors of "
+         f"a fit without joint 2's dead band)"),))
 
 
 def _fit(data: ClassData, extras: tuple[str, ...], name: str,
-         spring0: np.ndarray | None = None) -> ClassFit:
+         spring0: np.ndarray | None = None, flank_spring=None,
+         drop_flank_joint: bool = False, with_system: bool = False):
     t = data.tests
     cols = list(data.joints)
     p = len(cols)
@@ -403,7 +462,10 @@ def _fit(data: ClassData, extras: tuple[str, ...], name: str,
     # which extra parameters are identified: decided once, at the joint-only fit
     base = _whiten(data.Linv, A[..., cols])
     kept, fixed, names, classes = [], [], [], []
-    for cls, B, nm, fx in _extra_columns(data, extras, A, q2ref, Gc, spring0):
+    for cls, B, nm, fx in _extra_columns(data, extras, A, q2ref, Gc, spring0, flank_spring):
+        if cls == "lost-motion" and drop_flank_joint and f"2b{COMP_JOINT + 1}" not in dict(fx):
+            fx = [*fx, (f"2b{COMP_JOINT + 1}", "left out of the first stage (its flanks "
+                        "follow the spring)")]
         fixed += fx
         # the columns named fixed above (a joint no test flips) are not candidates
         cand = np.array([i for i in range(B.shape[-1]) if nm[i][0] not in dict(fx)], int)
@@ -443,8 +505,8 @@ def _fit(data: ClassData, extras: tuple[str, ...], name: str,
         m = pred.shape[0]
         g, G = np.zeros((m, 6)), []
         at = 0
-        for (cls, B, _, _), keep in zip(_extra_columns(data, extras, A_, q2ref, Gc_, spring),
-                                        kept, strict=True):
+        for (cls, B, _, _), keep in zip(_extra_columns(data, extras, A_, q2ref, Gc_, spring,
+                                                       flank_spring), kept, strict=True):
             B = B[..., keep]
             if not (cls == "compensator" and spring_law):  # the spring is in pred
                 g += np.einsum("mrk,k->mr", B, beta[at:at + B.shape[-1]])
@@ -471,11 +533,12 @@ def _fit(data: ClassData, extras: tuple[str, ...], name: str,
     k_ci[cols] = stiffness_interval(x[cols], se[:p], Z95)
     ho_chi2, ho_err = _heldout(data, WM, Wr, M, r)
     links = data.links if "links" in extras else ()
-    return ClassFit(
+    fit = ClassFit(
         name, extras, x.copy(), k_ci, tuple(n for n, _ in names), beta, se[p:],
         tuple(u for _, u in names), tuple(fixed), cov, chi2, n_eq, n_par,
         chi2 + n_par * float(np.log(n_eq)), chi2 + 2.0 * n_par, ho_chi2, ho_err, q2ref, links,
         link_matrices=_link_matrices(names, beta, links))
+    return (fit, WM, Wr) if with_system else fit
 
 
 def _link_matrices(names, beta, links) -> dict[int, np.ndarray]:
