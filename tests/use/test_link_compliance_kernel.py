@@ -182,3 +182,18 @@ def test_place_recheck_uses_the_links(tmp_path):
     assert np.abs(got.dp_nonlinear - (joints + links)).max() <= 1e-9 * scale
     assert np.abs(ref.dp_nonlinear - joints).max() <= 1e-9 * scale
     assert np.abs(links).max() > 1e-3 * scale  # the links matter here
+
+
+def test_robustness_says_it_simulates_the_joint_springs_only(tmp_path):
+    from campaign.jobs.robustness import RobustnessOptions
+    from campaign.jobs.robustness import run as robustness
+
+    notes: list[str] = []
+    robustness(RobustnessOptions(robot=str(_model_file(tmp_path)), tests=(6,), trials=2,
+                                 pool_size=20, method="ols"), note=notes.append)
+    said = [n for n in notes if n.startswith("model class")]
+    assert len(said) == 1 and "links 2, 3" in said[0] and "joint springs only" in said[0]
+    notes.clear()
+    robustness(RobustnessOptions(robot=str(ROBOTS / "kr240-2.toml"), tests=(6,), trials=2,
+                                 pool_size=20, method="ols"), note=notes.append)
+    assert not [n for n in notes if n.startswith("model class")]
