@@ -84,3 +84,102 @@ def links_of(robot) -> tuple[LinkCompliance, ...]:
     mc = getattr(robot, "model_class", None) or {}
     return tuple(LinkCompliance(int(e["link"]), np.asarray(e["compliance"], dtype=float))
                  for e in mc.get("links", ()))
+
+
+def link_covariance_of(robot) -> tuple[tuple[str, ...], np.ndarray, np.ndarray] | None:
+    """(names ``C2[1,1]``... of the identified link entries, their covariance (L, L), their
+    cross-covariance with the joint compliances x = 1/k (n, L)) from a model file's
+    ``[model_class.link_covariance]`` (SI), or None (no link compliance, or a file written
+    before the links' covariance was kept)."""
+    mc = getattr(robot, "model_class", None) or {}
+    lc = mc.get("link_covariance")
+    if not lc or not lc.get("parameters"):
+        return None
+    return (tuple(lc["parameters"]), np.asarray(lc["matrix"], dtype=float),
+            np.asarray(lc["joint_cross"], dtype=float))
+
+
+def _entry(name: str) -> tuple[int, int, int]:
+    """(link, a, b) (0-based a, b) of an entry name ``C<link>[a,b]`` (1-based a, b)."""
+    link = int(name[1:name.index("[")])
+    a, b = (int(s) - 1 for s in name[name.index("[") + 1:-1].split(","))
+    return link, a, b
+
+
+def entry_columns(robot, q: np.ndarray, w: np.ndarray, names) -> np.ndarray:
+    """G (N, 6, L): the derivative of sum_l J_l C_l J_l^T w [m; rad] with respect to each
+    named entry C_l[a, b] (= C_l[b, a], symmetric), at q (N, n) (rad) under w (N, 6) or
+    (6,): ``J_l[:, a] (J_l^T w)[b] + J_l[:, b] (J_l^T w)[a]`` (once when a = b)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    w = np.broadcast_to(np.asarray(w, dtype=float), (q.shape[0], 6))
+    p = chain_state(robot, q).tip[:, :3, 3]
+    G = np.zeros((q.shape[0], 6, len(names)))
+    frames: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for i, name in enumerate(names):
+        link, a, b = _entry(name)
+        if link not in frames:
+            Jl = virtual_jacobian(distal_frames(robot, q, link), p)
+            frames[link] = (Jl, np.einsum("nri,nr->ni", Jl, w))
+        Jl, u = frames[link]
+        G[:, :, i] = Jl[:, :, a] * u[:, b, None]
+        if a != b:
+            G[:, :, i] += Jl[:, :, b] * u[:, a, None]
+    return G
+
+
+def link_covariance_terms(robot, q: np.ndarray, w: np.ndarray,
+                          S: np.ndarray | None = None) -> np.ndarray:
+    """The links' part (..., r, r) of a deflection's covariance, r = 6 or the rows of S:
+    ``G Sigma_ll G^T + S Sigma_xl G^T + G Sigma_lx S^T``, G = :func:`entry_columns` at q
+    (..., n) under w, S (..., r, n) the deflection's sensitivity to the joint compliances
+    (None: no cross term); zeros without a link covariance in the model file."""
+    q = np.asarray(q, dtype=float)
+    rows = 6 if S is None else S.shape[-2]
+    cov = link_covariance_of(robot)
+    if cov is None:
+        return np.zeros((*q.shape[:-1], rows, rows))
+    names, C_ll, C_xl = cov
+    flat = q.reshape(-1, q.shape[-1])
+    wf = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6)).reshape(-1, 6)
+    G = entry_columns(robot, flat, wf, names)[:, :rows, :].reshape(
+        (*q.shape[:-1], rows, len(names)))
+    out = G @ C_ll @ np.swapaxes(G, -1, -2)
+    if S is not None:
+        cross = S @ C_xl @ np.swapaxes(G, -1, -2)
+        out = out + cross + np.swapaxes(cross, -1, -2)
+    return out
+
+
+def stiffness_diag_se_with_links(robot, q: np.ndarray, k: np.ndarray, w: np.ndarray,
+                                 links: tuple[LinkCompliance, ...],
+                                 cov_x: np.ndarray) -> np.ndarray:
+    """Standard error (N, 6) of diag(K_X), K_X = C_X^-1 with the links (K_C under w), from
+    the covariance of the joint compliances x = 1/k (n, n) and the model file's link
+    covariance (delta method): dK_X = -K_X dC_X K_X with dC_X/dx_j = k_j^2 (J M^-1 e_j)
+    (J M^-1 e_j)^T, M = K_theta - K_C, and dC_X/dC_l[a,b] = J_l (E_ab + E_ba) J_l^T."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    k = np.asarray(k, dtype=float)
+    n = q.shape[-1]
+    w = np.broadcast_to(np.asarray(w, dtype=float), (q.shape[0], 6))
+    state = chain_state(robot, q)
+    J = jacobian_from_state(state)
+    M = k[:, None] * np.eye(n) - complementary_stiffness_from_state(state, w)
+    V = J @ np.linalg.inv(M)  # (N, 6, n): J M^-1 e_j in column j
+    K_X = np.linalg.inv(cartesian_compliance(J, k, complementary_stiffness_from_state(
+        state, w)) + link_terms(robot, q, links))
+    dC = [k[j] ** 2 * V[:, :, j, None] * V[:, None, :, j] for j in range(n)]
+    cov = np.asarray(cov_x, dtype=float)
+    lc = link_covariance_of(robot)
+    if lc is not None:
+        names, C_ll, C_xl = lc
+        p = chain_state(robot, q).tip[:, :3, 3]
+        for name in names:
+            link, a, b = _entry(name)
+            Jl = virtual_jacobian(distal_frames(robot, q, link), p)
+            E = np.zeros((6, 6))
+            E[a, b] = E[b, a] = 1.0
+            dC.append(Jl @ E @ np.swapaxes(Jl, -1, -2))
+        cov = np.block([[cov, C_xl], [C_xl.T, C_ll]])
+    g = np.stack([np.diagonal(-K_X @ d @ K_X, axis1=-2, axis2=-1) for d in dC], axis=-1)
+    var = np.einsum("nap,pr,nar->na", g, cov, g)
+    return np.sqrt(np.maximum(var, 0.0))

@@ -147,6 +147,11 @@ class ClassFit:
     links: tuple[int, ...] = ()
     error: str = ""
     link_matrices: dict = field(default_factory=dict)
+    #: (preload (N), rate (N/m)) whose spring torque decided joint 2's flanks (the flank
+    #: pattern held), () when the flanks followed the fitted spring or no spring
+    flank_spring: tuple[float, ...] = ()
+    #: the fitted joints (0-based): the first rows of ``cov`` are their compliances
+    joints: tuple[int, ...] = ()
 
     @property
     def dof(self) -> int:
@@ -184,6 +189,9 @@ class ClassFit:
                            for n, v, s, u in zip(self.names, self.values, self.se,
                                                  self.units, strict=True)],
             "fixed": [{"parameter": n, "why": why} for n, why in self.fixed],
+            "covariance": {"parameters": [f"x{j + 1}" for j in self.joints] + list(self.names),
+                           "unit": "products of the parameters' SI units (x = 1/k rad/(N m))",
+                           "matrix": self.cov.tolist()},
             **({"compensator_q2ref_rad": self.q2ref} if np.isfinite(self.q2ref) else {}),
             **({"links": list(self.links),
                 "link_compliance": {str(link): m.tolist()
@@ -363,12 +371,18 @@ def _extra_columns(data: ClassData, extras, A: np.ndarray, q2ref: float, Gc=None
     return out
 
 
-def fit_class(data: ClassData, extras: tuple[str, ...]) -> ClassFit:
+def fit_class(data: ClassData, extras: tuple[str, ...], like: ClassFit | None = None) -> ClassFit:
     """Fit the class joint springs + ``extras`` (module docstring); a class that cannot be
-    fitted (no mass model, no convergence) comes back with ``error`` saying why."""
+    fitted (no mass model, no convergence) comes back with ``error`` saying why. ``like``:
+    a fit of the same class whose parameterisation (the parameters kept, joint 2's flank
+    pattern) is used instead of choosing one from these data (the studies' projection of
+    the truth on the estimator's parameters)."""
     name = class_name(extras)
     try:
         ordered = tuple(e for e in EXTRAS if e in extras)
+        if like is not None:
+            fs = np.array(like.flank_spring) if like.flank_spring else None
+            return _fit(data, ordered, name, fs, flank_spring=fs, keep_names=like.names)
         if data.compensator is not None and {"compensator", "lost-motion"} <= set(ordered):
             return _multistart(data, ordered, name)
         return _fit(data, ordered, name)
@@ -447,7 +461,8 @@ def _multistart(data: ClassData, extras: tuple[str, ...], name: str) -> ClassFit
 
 def _fit(data: ClassData, extras: tuple[str, ...], name: str,
          spring0: np.ndarray | None = None, flank_spring=None,
-         drop_flank_joint: bool = False, with_system: bool = False):
+         drop_flank_joint: bool = False, with_system: bool = False,
+         keep_names: tuple[str, ...] | None = None):
     t = data.tests
     cols = list(data.joints)
     p = len(cols)
@@ -470,7 +485,9 @@ def _fit(data: ClassData, extras: tuple[str, ...], name: str,
         # the columns named fixed above (a joint no test flips) are not candidates
         cand = np.array([i for i in range(B.shape[-1]) if nm[i][0] not in dict(fx)], int)
         keep, tiny = np.zeros(0, dtype=int), np.zeros(B.shape[-1], bool)
-        if cand.size:
+        if keep_names is not None:  # the parameterisation of another fit
+            keep = np.array([i for i in cand.tolist() if nm[i][0] in keep_names], int)
+        elif cand.size:
             k_c, t_c = _reduce(base, _whiten(data.Linv, B[..., cand]))
             keep, tiny[cand] = cand[k_c], t_c
         kept.append(keep)
@@ -537,7 +554,9 @@ def _fit(data: ClassData, extras: tuple[str, ...], name: str,
         name, extras, x.copy(), k_ci, tuple(n for n, _ in names), beta, se[p:],
         tuple(u for _, u in names), tuple(fixed), cov, chi2, n_eq, n_par,
         chi2 + n_par * float(np.log(n_eq)), chi2 + 2.0 * n_par, ho_chi2, ho_err, q2ref, links,
-        link_matrices=_link_matrices(names, beta, links))
+        link_matrices=_link_matrices(names, beta, links),
+        flank_spring=() if flank_spring is None else tuple(float(v) for v in flank_spring),
+        joints=tuple(cols))
     return (fit, WM, Wr) if with_system else fit
 
 
