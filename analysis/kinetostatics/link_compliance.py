@@ -156,7 +156,8 @@ def stiffness_diag_se_with_links(robot, q: np.ndarray, k: np.ndarray, w: np.ndar
     """Standard error (N, 6) of diag(K_X), K_X = C_X^-1 with the links (K_C under w), from
     the covariance of the joint compliances x = 1/k (n, n) and the model file's link
     covariance (delta method): dK_X = -K_X dC_X K_X with dC_X/dx_j = k_j^2 (J M^-1 e_j)
-    (J M^-1 e_j)^T, M = K_theta - K_C, and dC_X/dC_l[a,b] = J_l (E_ab + E_ba) J_l^T."""
+    (J M^-T e_j)^T, M = K_theta - K_C (not symmetric in general), and dC_X/dC_l[a,b] =
+    J_l (E_ab + E_ba) J_l^T."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     k = np.asarray(k, dtype=float)
     n = q.shape[-1]
@@ -164,10 +165,12 @@ def stiffness_diag_se_with_links(robot, q: np.ndarray, k: np.ndarray, w: np.ndar
     state = chain_state(robot, q)
     J = jacobian_from_state(state)
     M = k[:, None] * np.eye(n) - complementary_stiffness_from_state(state, w)
-    V = J @ np.linalg.inv(M)  # (N, 6, n): J M^-1 e_j in column j
+    Minv = np.linalg.inv(M)
+    V = J @ Minv  # (N, 6, n): J M^-1 e_j in column j
+    U = J @ np.swapaxes(Minv, -1, -2)  # J M^-T e_j: K_C is not symmetric in general
     K_X = np.linalg.inv(cartesian_compliance(J, k, complementary_stiffness_from_state(
         state, w)) + link_terms(robot, q, links))
-    dC = [k[j] ** 2 * V[:, :, j, None] * V[:, None, :, j] for j in range(n)]
+    dC = [k[j] ** 2 * V[:, :, j, None] * U[:, None, :, j] for j in range(n)]
     cov = np.asarray(cov_x, dtype=float)
     lc = link_covariance_of(robot)
     if lc is not None:
