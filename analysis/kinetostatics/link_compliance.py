@@ -23,7 +23,7 @@ from analysis.kinetostatics.stiffness import (
     cartesian_compliance,
     complementary_stiffness_from_state,
 )
-from analysis.model.kinematics import chain_state, jacobian_from_state
+from analysis.model.kinematics import chain_state, chain_state_em, jacobian_from_state
 
 
 def link_terms(robot, q: np.ndarray, links: tuple[LinkCompliance, ...]) -> np.ndarray:
@@ -65,6 +65,36 @@ def stiffness_with_links(robot, q, k, w, links, with_kc: bool = True) -> np.ndar
     return np.linalg.inv(compliance_with_links(robot, q, k, w, links, with_kc))
 
 
+def link_displacement_em(robot, q: np.ndarray, links: tuple[LinkCompliance, ...],
+                         w: np.ndarray, cos_sin=None) -> np.ndarray:
+    """sum_l J_l C_l J_l^T w (6, N) [m; rad], entry-major: q (n, N) (rad), w (6,) or (6, N)
+    [N; N m] at P, base axes; ``cos_sin`` as :func:`~analysis.model.kinematics
+    .chain_state_em`'s. The same quantity as :func:`link_terms` times w, without 6 x 6
+    matrices per pose: with R, o the distal frame and r = p - o, J_l^T w = [R^T f;
+    R^T (m + r x f)], y = C_l J_l^T w, J_l y = [R y_t + (R y_r) x r; R y_r]."""
+    q = np.asarray(q, dtype=float)
+    n = q.shape[0] if cos_sin is None else cos_sin[0].shape[0]
+    st = chain_state_em(robot, q, cos_sin, keep=tuple(lc.link for lc in links if lc.link < n))
+    p = st.pos
+    w = np.asarray(w, dtype=float)
+    w = w[:, None] if w.ndim == 1 else w
+    f, m = w[:3], w[3:]
+    out = np.zeros((6, p.shape[-1]))
+    for lc in links:
+        R, o = (st.rot, st.pos) if lc.link == n else (st.frames[lc.link],
+                                                        st.origins[:, lc.link])
+        r = p - o
+        mo = m + np.cross(r, f, axis=0)
+        v = np.concatenate([np.einsum("ajN,aN->jN", R, np.broadcast_to(f, r.shape)),
+                            np.einsum("ajN,aN->jN", R, mo)])
+        y = np.asarray(lc.matrix, dtype=float) @ v
+        yt = np.einsum("ajN,jN->aN", R, y[:3])
+        yr = np.einsum("ajN,jN->aN", R, y[3:])
+        out[:3] += yt + np.cross(yr, r, axis=0)
+        out[3:] += yr
+    return out
+
+
 def link_screw(robot, q: np.ndarray, w: np.ndarray) -> np.ndarray:
     """sum_l J_l C_l J_l^T w (..., 6) [m; rad] of the links a robot's model file carries
     (:func:`links_of`; zeros without), at q (..., n) under w (..., 6) or (6,)."""
@@ -74,7 +104,7 @@ def link_screw(robot, q: np.ndarray, w: np.ndarray) -> np.ndarray:
         return np.zeros((*q.shape[:-1], 6))
     flat = q.reshape(-1, q.shape[-1])
     wf = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6)).reshape(-1, 6)
-    out = np.einsum("nij,nj->ni", link_terms(robot, flat, links), wf)
+    out = link_displacement_em(robot, flat.T, links, wf.T).T
     return out.reshape((*q.shape[:-1], 6))
 
 
@@ -109,22 +139,31 @@ def _entry(name: str) -> tuple[int, int, int]:
 def entry_columns(robot, q: np.ndarray, w: np.ndarray, names) -> np.ndarray:
     """G (N, 6, L): the derivative of sum_l J_l C_l J_l^T w [m; rad] with respect to each
     named entry C_l[a, b] (= C_l[b, a], symmetric), at q (N, n) (rad) under w (N, 6) or
-    (6,): ``J_l[:, a] (J_l^T w)[b] + J_l[:, b] (J_l^T w)[a]`` (once when a = b)."""
+    (6,): ``J_l[:, a] (J_l^T w)[b] + J_l[:, b] (J_l^T w)[a]`` (once when a = b); column a
+    of J_l is [R e_a; 0] for a translation, [(R e_a) x r; R e_a] for a rotation (R, o
+    the distal frame, r = p - o), entry-major inside."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    w = np.broadcast_to(np.asarray(w, dtype=float), (q.shape[0], 6))
-    p = chain_state(robot, q).tip[:, :3, 3]
-    G = np.zeros((q.shape[0], 6, len(names)))
-    frames: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    for i, name in enumerate(names):
-        link, a, b = _entry(name)
-        if link not in frames:
-            Jl = virtual_jacobian(distal_frames(robot, q, link), p)
-            frames[link] = (Jl, np.einsum("nri,nr->ni", Jl, w))
-        Jl, u = frames[link]
-        G[:, :, i] = Jl[:, :, a] * u[:, b, None]
+    n = q.shape[-1]
+    w = np.broadcast_to(np.asarray(w, dtype=float), (q.shape[0], 6)).T
+    entries = [_entry(name) for name in names]
+    st = chain_state_em(robot, q.T, keep=tuple({e[0] for e in entries if e[0] < n}))
+    G = np.zeros((6, len(names), q.shape[0]))
+    cols: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for i, (link, a, b) in enumerate(entries):
+        if link not in cols:
+            R, o = (st.rot, st.pos) if link == n else (st.frames[link], st.origins[:, link])
+            r = st.pos - o
+            Jl = np.zeros((6, 6, r.shape[-1]))
+            Jl[:3, :3] = R
+            Jl[3:, 3:] = R
+            for c in range(3):
+                Jl[:3, 3 + c] = np.cross(R[:, c], r, axis=0)
+            cols[link] = (Jl, np.einsum("rcN,rN->cN", Jl, w))
+        Jl, u = cols[link]
+        G[:, i] = Jl[:, a] * u[b]
         if a != b:
-            G[:, :, i] += Jl[:, :, b] * u[:, a, None]
-    return G
+            G[:, i] += Jl[:, b] * u[a]
+    return np.moveaxis(G, -1, 0)
 
 
 def link_covariance_terms(robot, q: np.ndarray, w: np.ndarray,

@@ -103,11 +103,11 @@ def _pose_metrics(robot, q, k, w, length):
     scale = np.array([1.0 / length] * 3 + [1.0] * 3)[:, None, None]
     inv_k = inverse_condition_em(E * scale)
     d_kc, d_no = deflections_em(E, k, w, complementary_stiffness_em(E, w))
-    from analysis.kinetostatics.link_compliance import link_terms, links_of
+    from analysis.kinetostatics.link_compliance import link_displacement_em, links_of
 
     links = links_of(robot)
     if links:  # a model.toml with link compliance: + sum_l J_l C_l J_l^T w (the one kernel)
-        extra = (link_terms(robot, q, links) @ np.asarray(w, dtype=float)).T
+        extra = link_displacement_em(robot, q.T, links, w)
         d_kc, d_no = d_kc + extra, d_no + extra
     v_p, v_r = influence_indices(d_kc.T, d_no.T)
     return {
