@@ -352,3 +352,42 @@ def test_maps_upper_bound_has_the_links_and_their_covariance(tmp_path):
     plain = linear_deflection_upper_bound(load_robot_file(ROBOTS / "kr240-2.toml"), Q,
                                           robot.nominal_stiffness, W, cov_x)
     assert abs(got - plain) > 1e-3 * expect  # the links and their covariance count
+
+
+def test_compensation_applies_the_lost_motion_flank_offsets_and_names_unknown_ones(tmp_path):
+    """A model file with lost motion: the compensated command is shifted by the flank
+    offset so that the output (motor side plus the simulated lab's offset, its own flank
+    rule with gravity deciding the flanks) lands on the joint-only compensation; joint 1
+    (vertical axis) under a vertical force at P carries no torque: its offset is unknown,
+    not applied, and named with the CSV line."""
+    from analysis.kinetostatics.path_compensation import compensate_path
+    from analysis.kinetostatics.realistic import RealisticLab, lost_motion_offset
+    from campaign.use.compensate_output import lost_motion_text
+
+    band = np.array([2e-4, 2e-4, 2e-4, 4e-4, 4e-4, 4e-4])
+    data = tomllib.loads((ROBOTS / "kr240-2.toml").read_text())
+    data.pop("aliases", None)
+    data["model_class"] = {"version": 2, "name": "lost-motion",
+                           "lost_motion_rad": band.tolist()}
+    path = tmp_path / "model.toml"
+    path.write_text(tomli_w.dumps(data))
+    robot = load_robot_file(path)
+    plain = load_robot_file(ROBOTS / "kr240-2.toml")
+    k = robot.nominal_stiffness
+    q = np.stack([Q, Q + np.radians([5.0, -3.0, 4.0, 10.0, -8.0, 6.0]), Q])
+    w = np.stack([W, -W, [0.0, 0.0, -1500.0, 0.0, 0.0, 0.0]])
+    lines = np.array([2, 3, 4])
+    got = compensate_path(robot, q, k, w, None, lines, "path.csv")
+    ref = compensate_path(plain, q, k, w, None, lines, "path.csv")
+    lab = RealisticLab(lost_motion=band, gravity="flanks")
+    out = got.comp.q_cmd + lost_motion_offset(robot, lab, got.comp.q_cmd, w)
+    known = ~got.flanks.unknown
+    assert np.abs((out - ref.comp.q_cmd)[known]).max() <= 1e-12
+    assert np.all(np.abs(got.comp.q_cmd - ref.comp.q_cmd)[known] >= 0.5 * np.broadcast_to(
+        band, q.shape)[known] * (1 - 1e-9))
+    # joint 6 too here: no moment and its axis meets the force's line through P
+    assert got.flanks.unknown[2, 0] and not got.flanks.unknown[:2].any()
+    assert got.comp.q_cmd[2, 0] == ref.comp.q_cmd[2, 0]
+    text = lost_motion_text(got.flanks, lines)
+    assert "NOT applied" in text and "line 4 (joint 1" in text
+    assert not np.any(compensate_path(plain, q, k, w, None, lines, "p").flanks.offset)
