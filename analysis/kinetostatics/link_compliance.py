@@ -66,33 +66,41 @@ def stiffness_with_links(robot, q, k, w, links, with_kc: bool = True) -> np.ndar
 
 
 def link_displacement_em(robot, q: np.ndarray, links: tuple[LinkCompliance, ...],
-                         w: np.ndarray, cos_sin=None) -> np.ndarray:
+                         w: np.ndarray, cos_sin=None, state=None) -> np.ndarray:
     """sum_l J_l C_l J_l^T w (6, N) [m; rad], entry-major: q (n, N) (rad), w (6,) or (6, N)
     [N; N m] at P, base axes; ``cos_sin`` as :func:`~analysis.model.kinematics
-    .chain_state_em`'s. The same quantity as :func:`link_terms` times w, without 6 x 6
-    matrices per pose: with R, o the distal frame and r = p - o, J_l^T w = [R^T f;
-    R^T (m + r x f)], y = C_l J_l^T w, J_l y = [R y_t + (R y_r) x r; R y_r]."""
-    q = np.asarray(q, dtype=float)
-    n = q.shape[0] if cos_sin is None else cos_sin[0].shape[0]
-    st = chain_state_em(robot, q, cos_sin, keep=tuple(lc.link for lc in links if lc.link < n))
-    p = st.pos
+    .chain_state_em`'s, or ``state`` a :class:`~analysis.model.kinematics.ChainStateEM`
+    made with ``keep`` = :func:`distal_joints` (q then not read). The same quantity as
+    :func:`link_terms` times w, without 6 x 6 matrices per pose: with R, o the distal
+    frame and r = p - o, J_l^T w = [R^T f; R^T (m + r x f)], y = C_l J_l^T w,
+    J_l y = [R y_t + (R y_r) x r; R y_r]."""
+    if state is None:
+        q = np.asarray(q, dtype=float)
+        n = q.shape[0] if cos_sin is None else cos_sin[0].shape[0]
+        state = chain_state_em(robot, q, cos_sin, keep=distal_joints(links, n))
+    n = state.origins.shape[1]
+    p = state.pos
     w = np.asarray(w, dtype=float)
     w = w[:, None] if w.ndim == 1 else w
     f, m = w[:3], w[3:]
     out = np.zeros((6, p.shape[-1]))
     for lc in links:
-        R, o = (st.rot, st.pos) if lc.link == n else (st.frames[lc.link],
-                                                        st.origins[:, lc.link])
+        R, o = (state.rot, state.pos) if lc.link == n else (state.frames[lc.link],
+                                                              state.origins[:, lc.link])
         r = p - o
         mo = m + np.cross(r, f, axis=0)
-        v = np.concatenate([np.einsum("ajN,aN->jN", R, np.broadcast_to(f, r.shape)),
-                            np.einsum("ajN,aN->jN", R, mo)])
+        v = np.concatenate([(R * f[:, None]).sum(axis=0), (R * mo[:, None]).sum(axis=0)])
         y = np.asarray(lc.matrix, dtype=float) @ v
-        yt = np.einsum("ajN,jN->aN", R, y[:3])
-        yr = np.einsum("ajN,jN->aN", R, y[3:])
-        out[:3] += yt + np.cross(yr, r, axis=0)
+        yr = (R * y[None, 3:]).sum(axis=1)
+        out[:3] += (R * y[None, :3]).sum(axis=1) + np.cross(yr, r, axis=0)
         out[3:] += yr
     return out
+
+
+def distal_joints(links: tuple[LinkCompliance, ...], n: int) -> tuple[int, ...]:
+    """The joints (0-based) whose frames are the links' distal frames (``keep`` of
+    :func:`~analysis.model.kinematics.chain_state_em`); the last link's is P's."""
+    return tuple(lc.link for lc in links if lc.link < n)
 
 
 def link_screw(robot, q: np.ndarray, w: np.ndarray) -> np.ndarray:
