@@ -336,11 +336,23 @@ def _ledger(f: Fig) -> tuple[str, str, str, str]:
             f"none (absolute target). Timed: {f['timing']}", "-")
 
 
+def _links(f: Fig) -> tuple[str, str, str, str]:
+    return ("`maps` (1 deg KR240-2 map) and `compensate` (a "
+            f"{f['path_points']}-point path) with a model file's link compliance",
+            f"maps {f['maps_links_cpu_us_per_pose']} us CPU/pose, compensate "
+            f"{f['compensate_links_cpu_us_per_pose']} us CPU/point",
+            f"{f['baseline']}: maps {f['maps_joints_cpu_us_per_pose']} us CPU/pose, compensate "
+            f"{f['compensate_joints_cpu_us_per_pose']} us CPU/point. Timed: {f['timing']}",
+            f"links / joints: maps {f['maps_ratio_cpu']}x CPU, compensate "
+            f"{f['compensate_ratio_cpu']}x CPU")
+
+
 ROWS: dict[str, Callable[[Fig], tuple[str, str, str, str]]] = {
     "maps": _maps, "identification": _identification, "large_import": _large_import,
     "planner": _planner, "compensate": _compensate, "place": _place,
     "fake_campaign": _fake_campaign, "startup": _startup, "csv_io": _csv_io,
     "gui_sensitivity": _gui_sensitivity, "acquire_state": _acquire_state, "ledger": _ledger,
+    "links": _links,
 }
 
 

@@ -19,6 +19,7 @@ ISSUE_13 = "issue 13"
 ISSUE_22 = "issue 22"
 ISSUE_23 = "issue 23"
 ISSUE_33 = "issue 33"
+ISSUE_32 = "issue 32"
 ISSUE_36 = "issue 36"
 MET, MISSED, NOT_MEASURED = "met", "NOT MET", "not measured"
 
@@ -105,6 +106,13 @@ def _map_05(f: dict) -> bool:
     return f.get("grid_step_deg") == 0.5 and f.get("threads") == 1
 
 TARGETS: tuple[Target, ...] = (
+    Target("links", "maps with link compliance / joints only, CPU per pose",
+           lambda f: f["maps_ratio_cpu"], "<=", 1.5,
+           f"{ISSUE_32} ('maps and compensate with link compliance cost <= 1.5x the "
+           "joint-only model per pose')", "any run"),
+    Target("links", "compensate with link compliance / joints only, CPU per point",
+           lambda f: f["compensate_ratio_cpu"], "<=", 1.5,
+           f"{ISSUE_32} (as above)", "any run"),
     Target("gui_sensitivity", "slider move: API round trip at 1,000 trials, ms p90", _when(
         lambda f: f["trials"] == 1000, lambda f: f["round_trip_ms_p90"]), "<=", 300,
         f"{ISSUE_23} ('a slider move updates the figures within 300 ms at 1,000 trials'; "

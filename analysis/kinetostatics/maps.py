@@ -98,16 +98,18 @@ def pose_metrics(
 
 def _pose_metrics(robot, q, k, w, length):
     """The kernel of :func:`pose_metrics` on one block of poses (N, n), entry-major inside."""
-    state = chain_state_em(robot, q.T)
+    from analysis.kinetostatics.link_compliance import distal_joints, links_of
+
+    links = links_of(robot)  # a model file's link compliance: its distal frames kept
+    state = chain_state_em(robot, q.T, keep=distal_joints(links, q.shape[-1]))
     E = jacobian_em(state)  # J as (6, n, N)
     scale = np.array([1.0 / length] * 3 + [1.0] * 3)[:, None, None]
     inv_k = inverse_condition_em(E * scale)
     d_kc, d_no = deflections_em(E, k, w, complementary_stiffness_em(E, w))
-    from analysis.kinetostatics.link_compliance import link_terms, links_of
-
-    links = links_of(robot)
     if links:  # a model.toml with link compliance: + sum_l J_l C_l J_l^T w (the one kernel)
-        extra = (link_terms(robot, q, links) @ np.asarray(w, dtype=float)).T
+        from analysis.kinetostatics.link_compliance import link_displacement_em
+
+        extra = link_displacement_em(robot, None, links, w, state=state)
         d_kc, d_no = d_kc + extra, d_no + extra
     v_p, v_r = influence_indices(d_kc.T, d_no.T)
     return {

@@ -10,7 +10,7 @@ joint limits (before or after compensation) are refused with their CSV line.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -18,6 +18,7 @@ from analysis.errors import InputError
 from analysis.kinetostatics.compensation import Compensation, CompensationError, compensate
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.equilibrium import EquilibriumError
+from analysis.kinetostatics.lost_motion import FlankOffsets, flank_offsets
 from analysis.kinetostatics.uncertainty import DeflectionPrediction, predict_deflection
 from analysis.model.kinematics import jacobian
 from analysis.model.robot_model import RobotModel
@@ -38,7 +39,10 @@ class PathCompensation:
         when the true compliances differ from the identified ones (propagated
         at the compensated joints);
     inv_kappa (N,) : 1/kappa_F of the normalized Jacobian at each point;
-    length : the characteristic length used (m) and where it comes from.
+    length : the characteristic length used (m) and where it comes from;
+    flanks : the lost-motion flank offsets subtracted from the compensated joints
+        (:mod:`analysis.kinetostatics.lost_motion`; zeros without lost motion) and
+        where they are unknown.
     """
 
     before: DeflectionPrediction
@@ -46,6 +50,7 @@ class PathCompensation:
     after_cov: np.ndarray
     inv_kappa: np.ndarray
     length: tuple[float, str]
+    flanks: FlankOffsets | None = None
 
 
 def _first(mask: np.ndarray, lines: np.ndarray, where: str) -> str:
@@ -120,11 +125,16 @@ def compensate_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarr
                          where=_first(bad, lines, where)) from None
     except CompensationError as err:
         raise InputError(str(err), where=_first(err.failed, lines, where)) from None
+    # lost motion (a model file's [model_class]): the output sits at the motor side plus
+    # its flank offset, so the command is shifted back where the torque side is known
+    flanks = flank_offsets(robot, comp.q_cmd, w)
+    if np.any(flanks.offset):
+        comp = replace(comp, q_cmd=comp.q_cmd - flanks.offset)
     _limits(robot, comp.q_cmd, lines, where, "compensated")
     res = np.maximum(np.linalg.norm(comp.residual[:, :3], axis=1),
                      np.linalg.norm(comp.residual[:, 3:], axis=1))
     if np.any(res > MAX_RESIDUAL):
         raise InputError("compensation residual above 1 um / 1 urad",
                          where=_first(res > MAX_RESIDUAL, lines, where))
-    after = predict_deflection(robot, comp.q_cmd, k, w, cov_x)
-    return PathCompensation(before, comp, after.cov, inv_k, length)
+    after = predict_deflection(robot, comp.q_cmd + flanks.offset, k, w, cov_x)
+    return PathCompensation(before, comp, after.cov, inv_k, length, flanks)

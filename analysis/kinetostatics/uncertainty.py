@@ -95,7 +95,9 @@ def predict_deflection(
     k (n,) joint stiffness (N m/rad); cov_x (n, n) covariance of x = 1/k, None
     for a zero covariance (nominal model). A model file with link compliance adds the
     links' sum_l J_l C_l J_l^T w (:func:`~analysis.kinetostatics.link_compliance
-    .link_screw`, taken as exact: its covariance is not propagated).
+    .link_screw`) and, with cov_x, the covariance of its identified entries (and their
+    cross-covariance with x) when the file keeps it
+    (:func:`~analysis.kinetostatics.link_compliance.link_covariance_terms`).
     """
     q = np.asarray(q, dtype=float)
     k = np.asarray(k, dtype=float)
@@ -113,7 +115,12 @@ def predict_deflection(
     if cov_x is None:
         cov = np.zeros((*q.shape[:-1], 6, 6))
     else:
-        cov = S @ np.asarray(cov_x, dtype=float) @ np.swapaxes(S, -1, -2)
+        from analysis.kinetostatics.link_compliance import link_covariance_terms
+
+        # + the link entries' covariance and their cross-covariance with x (model file's
+        # [model_class.link_covariance]; zeros without)
+        cov = (S @ np.asarray(cov_x, dtype=float) @ np.swapaxes(S, -1, -2)
+               + link_covariance_terms(robot, q, w, S))
     return DeflectionPrediction(dq, screw, S, cov)
 
 
@@ -155,6 +162,8 @@ def linear_deflection_upper_bound(
     dX = J M^-1 J^T w with M = K_theta - K_C, so d(dX)/dx_j = J M^-1 e_j k_j^2 dq_j
     with dq = M^-1 J^T w: the same sensitivity as the equilibrium's, at the
     unloaded pose. Delta method along the direction of dp (:func:`norm_upper_bound`).
+    A model file with link compliance adds the links' displacement and its entries'
+    covariance (:mod:`analysis.kinetostatics.link_compliance`).
     """
     q = np.asarray(q, dtype=float)
     k = np.asarray(k, dtype=float)
@@ -165,5 +174,10 @@ def linear_deflection_upper_bound(
     M = k[..., :, None] * np.eye(n) - complementary_stiffness_from_state(state, w)
     dq = np.linalg.solve(M, np.einsum("...ji,...j->...i", J, w)[..., None])[..., 0]
     S = J[..., :3, :] @ np.linalg.solve(M, (k**2 * dq)[..., None, :] * np.eye(n))
-    cov = S @ np.asarray(cov_x, dtype=float) @ np.swapaxes(S, -1, -2)
-    return norm_upper_bound(np.einsum("...ij,...j->...i", J[..., :3, :], dq), cov, z)
+    from analysis.kinetostatics.link_compliance import link_covariance_terms, link_screw
+
+    # a model file's link compliance: its displacement and its entries' covariance
+    cov = (S @ np.asarray(cov_x, dtype=float) @ np.swapaxes(S, -1, -2)
+           + link_covariance_terms(robot, q, w, S))
+    dp = np.einsum("...ij,...j->...i", J[..., :3, :], dq) + link_screw(robot, q, w)[..., :3]
+    return norm_upper_bound(dp, cov, z)

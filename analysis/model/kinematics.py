@@ -14,7 +14,7 @@ to the twist ``[dp/dt (m/s); omega (rad/s)]`` of P, base-frame axes
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
@@ -110,13 +110,17 @@ class ChainStateEM:
     """:class:`ChainState` of N poses, entry-major (the pose index last and contiguous).
 
     ``origins`` (3, n, N) joint origins (m); ``axes`` (3, n, N) joint axes;
-    ``rot`` (3, 3, N) orientation and ``pos`` (3, N) position (m) of P.
+    ``rot`` (3, 3, N) orientation and ``pos`` (3, N) position (m) of P; ``frames``
+    {i: (3, 3, N)} the orientation of joint i's frame (0-based) before its rotation, for
+    the joints asked for (``keep`` of :func:`chain_state_em`; the distal frames of the
+    compliant links).
     """
 
     origins: np.ndarray
     axes: np.ndarray
     rot: np.ndarray
     pos: np.ndarray
+    frames: dict = field(default_factory=dict)
 
     def tip(self) -> np.ndarray:
         """Pose of P (N, 4, 4)."""
@@ -166,11 +170,14 @@ def joint_cos_sin(q: np.ndarray, dq: np.ndarray | None = None,
 
 
 def chain_state_em(robot: RobotModel, q: np.ndarray,
-                   cos_sin: tuple[np.ndarray, np.ndarray] | None = None) -> ChainStateEM:
+                   cos_sin: tuple[np.ndarray, np.ndarray] | None = None,
+                   keep: tuple[int, ...] = ()) -> ChainStateEM:
     """Forward kinematics of N poses, entry-major: q (n, N) joint angles (rad).
 
     ``cos_sin``: (cos q, sin q) (n, N) when the caller has them (:func:`joint_cos_sin`);
-    then q is not read. The one forward-kinematics kernel: frames are kept as three
+    then q is not read; ``keep``: joints (0-based) whose full frame orientation before
+    their rotation is kept (:attr:`ChainStateEM.frames`). The one forward-kinematics
+    kernel: frames are kept as three
     column vectors (3, N) and each joint turns two of them (planar rotation), so a
     pose costs a few dozen vectorised operations over the whole batch and no
     (N, 3, 3) matrix products.
@@ -180,6 +187,7 @@ def chain_state_em(robot: RobotModel, q: np.ndarray,
     n, N = cos.shape
     origins = np.empty((3, n, N))
     axes = np.empty((3, n, N))
+    frames: dict[int, np.ndarray] = {}
     # columns of the base frame G_0 = I, broadcast against the (3, N) columns that follow
     G = list(np.eye(3)[:, :, None])
     pos = np.zeros((3, 1))
@@ -188,6 +196,8 @@ def chain_state_em(robot: RobotModel, q: np.ndarray,
         A = [_combine(G, nc.rot[i][:, j]) for j in range(3)]  # G_(i-1) L_i
         origins[:, i] = pos
         axes[:, i] = A[2]
+        if i in keep:
+            frames[i] = np.stack(np.broadcast_arrays(*A), axis=1)
         c, s = cos[i], sin[i]
         G = [c * A[0] + s * A[1], c * A[1] - s * A[0], A[2]]
     rot = np.empty((3, 3, N))
@@ -195,7 +205,7 @@ def chain_state_em(robot: RobotModel, q: np.ndarray,
         rot[:, j] = _combine(G, nc.tip_rot[:, j])
     tip_pos = np.empty((3, N))
     tip_pos[...] = pos + _combine(G, nc.tip_pos)  # (3, 1) only for a chain of no joint
-    return ChainStateEM(origins, axes, rot, tip_pos)
+    return ChainStateEM(origins, axes, rot, tip_pos, frames)
 
 
 def jacobian_em(state: ChainStateEM) -> np.ndarray:

@@ -70,10 +70,16 @@ File format (every number in the units the file declares)::
     link = 2                          # link+1's frame before its rotation), 6 x 6 SI,
     compliance = [[...], ...]         # [m; rad] per [N; N m]; used by campaign stiffness
                                       # and maps (analysis/kinetostatics/link_compliance.py)
+    [model_class.link_covariance]     # optional: the identified link entries' names
+    parameters = ["C2[1,1]", ...]     # (C<link>[a,b], 1-based), their covariance (SI)
+    matrix = [[...], ...]             # and their cross-covariance with x1..x6 = 1/k
+    joint_cross = [[...], ...]        # (6 rows): propagated into the K_X and deflection
+                                      # intervals; without it the links count as exact
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Literal
 
@@ -280,6 +286,28 @@ class LinkComplianceSpec(_Strict):
         return value
 
 
+class LinkCovarianceSpec(_Strict):
+    """``[model_class.link_covariance]``: the identified link entries ``C<link>[a,b]``
+    (1-based), their covariance (L x L, SI) and their cross-covariance with the joint
+    compliances x1..x6 = 1/k (6 x L, SI)."""
+
+    parameters: list[str]
+    matrix: list[list[float]]
+    joint_cross: list[list[float]]
+
+    @model_validator(mode="after")
+    def _shapes(self) -> LinkCovarianceSpec:
+        n = len(self.parameters)
+        m = np.array(self.matrix, dtype=float).reshape(-1)
+        if m.size != n * n or np.array(self.joint_cross, dtype=float).shape != (6, n):
+            raise ValueError(f"link_covariance: matrix must be {n} x {n} and joint_cross "
+                             f"6 x {n} ({n} parameters)")
+        bad = [p for p in self.parameters if not re.fullmatch(r"C\d\[[1-6],[1-6]\]", p)]
+        if bad:
+            raise ValueError(f"link_covariance: parameter {bad[0]!r} is not C<link>[a,b]")
+        return self
+
+
 class ModelClassSpec(_Strict):
     """``[model_class]`` (model.toml, format version 2): the model class ``campaign
     analyze --model`` chose beyond the joint springs. A file without it (version 1, every
@@ -290,6 +318,7 @@ class ModelClassSpec(_Strict):
     links: list[LinkComplianceSpec] = []
     lost_motion_rad: list[float] = []
     compensator: dict[str, float | str] = {}
+    link_covariance: LinkCovarianceSpec | None = None
     notes: list[str] = []
 
 

@@ -4,7 +4,9 @@ Recomputes, for one placement, configuration and angle sequence: the joint
 path (unwound so that joints turning more than a full turn move the short
 way), the deflection of P under the wrench by the search model (linear, without
 K_C) and by the nonlinear equilibrium with K_C
-(:func:`analysis.kinetostatics.equilibrium.displacement_screw`), 1/kappa_F.
+(:func:`analysis.kinetostatics.equilibrium.displacement_screw`) plus, for a model file
+with link compliance, the links' sum_l J_l C_l J_l^T w
+(:func:`analysis.kinetostatics.link_compliance.link_screw`, zeros without), 1/kappa_F.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import numpy as np
 from analysis.errors import InputError
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.equilibrium import displacement_screw
+from analysis.kinetostatics.link_compliance import link_screw
 from analysis.model.ik import IKSolver, fit_limits
 from analysis.model.kinematics import chain_state, jacobian_from_state
 from analysis.placement.evaluate import Problem, costs
@@ -89,7 +92,7 @@ def path_details(problem: Problem, placement: np.ndarray, flags: tuple[int, int,
     dp, cost = costs(problem, J, w)
     dp_nl, value_nl = None, None
     if w is not None:
-        dp_nl = displacement_screw(robot, q, problem.k, w)[:, :3]
+        dp_nl = (displacement_screw(robot, q, problem.k, w) + link_screw(robot, q, w))[:, :3]
         if problem.objective != "compliance":
             value_nl = objective_value(np.linalg.norm(dp_nl, axis=1), problem.objective)
     return PathDetails(q, problem.angles[angle_index], T, state.tip[:, :3, 3], dp, dp_nl,

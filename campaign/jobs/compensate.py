@@ -89,6 +89,8 @@ def run(o: CompensateOptions) -> CompensateResult:
         "deflection: nonlinear equilibrium K dq = J(q + dq)^T w, base frame at P",
         f"joints: {convention} convention in and out; programs in the pendant convention",
     ]
+    if pc.flanks is not None and (np.any(pc.flanks.offset) or np.any(pc.flanks.unknown)):
+        assumptions.append(co.lost_motion_text(pc.flanks, pin.line))
     summ = co.summary(pc, pin.line)
     summ["assumptions"] = assumptions
     files = [out / "compensated.csv"]

@@ -214,6 +214,13 @@ def run(o: RobustnessOptions, progress: Callable[[int, int], None] | None = None
     note(f"true joint stiffness [{', '.join(k_kNm(v) for v in k)}] kN "
          "m/rad (" + ("--joint-stiffness" if o.joint_stiffness_Nm_per_rad is not None else
                       "the robot model's") + ")")
+    from analysis.kinetostatics.link_compliance import links_of
+
+    if links_of(r):
+        note("model class: the robot file carries link compliance (links "
+             + ", ".join(str(lc.link) for lc in links_of(r)) + "); this study simulates "
+             "and identifies the joint springs only (its spread is the joint fit's, not the "
+             "class's)")
     total = o.trials * len(counts)
     done = [0]
 

@@ -69,6 +69,12 @@ class StiffnessResult:
 
 def _intervals(r, q, k, w, J, cov_x) -> dict:
     """95 % intervals of the nonlinear deflection and of diag(K_X) from the model's covariance."""
+    from analysis.kinetostatics.link_compliance import (
+        link_covariance_of,
+        links_of,
+        stiffness_diag_se_with_links,
+        stiffness_with_links,
+    )
     from analysis.kinetostatics.stiffness import (
         cartesian_stiffness,
         complementary_stiffness_from_state,
@@ -83,9 +89,14 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
 
     pred = predict_deflection(r, q, k, w, cov_x)
     lo, hi = pred.bounds(Z95)
-    se = np.diagonal(cartesian_stiffness_se(J, stiffness_covariance(k, cov_x)))
-    K_X = np.diagonal(cartesian_stiffness(J, k, complementary_stiffness_from_state(
-        chain_state(r, q), w)))
+    links = links_of(r)
+    if links:  # K_X = C_X^-1 with the links; their entries' covariance when the file has it
+        se = stiffness_diag_se_with_links(r, q, k, w, links, cov_x)[0]
+        K_X = np.diagonal(stiffness_with_links(r, q, k, w, links)[0])
+    else:
+        se = np.diagonal(cartesian_stiffness_se(J, stiffness_covariance(k, cov_x)))
+        K_X = np.diagonal(cartesian_stiffness(J, k, complementary_stiffness_from_state(
+            chain_state(r, q), w)))
     return {
         "confidence": 0.95,
         "deflection_nonlinear_sd_m_rad": pred.sd.tolist(),
@@ -97,7 +108,13 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
         "method": "covariance of the identified compliances (model file [identification]) "
                   "propagated by the delta method: d(dq)/dx_j = (K_theta - K_C)^-1 e_j "
                   "k_j^2 dq_j at the loaded pose (exact for the linear model without K_C); "
-                  "K_X is linear in k, cov(k) from cov(x) by the delta method",
+                  "K_X is linear in k, cov(k) from cov(x) by the delta method"
+                  + ("; with the model file's link compliance: C_X = J (K_theta - K_C)^-1 "
+                     "J^T + sum_l J_l C_l J_l^T, K_X = C_X^-1, the link entries' covariance "
+                     + ("and cross-covariance with x propagated (delta method)"
+                        if link_covariance_of(r) is not None else
+                        "not in the file: the links taken as exact")
+                     if links else ""),
     }
 
 

@@ -136,3 +136,22 @@ def robot_program(robot: RobotModel, q_cmd: np.ndarray, out: Path, comments: lis
     if kind == "none":
         return []
     return write_program(kind, out, "comp_path", robot.to_controller(q_cmd), comments)
+
+
+def lost_motion_text(flanks, lines: np.ndarray) -> str:
+    """The summary's line on the lost-motion flank offsets (rad in, deg out): how many
+    points got them, and the CSV lines and joints where the torque side is unknown."""
+    applied = int(np.sum(np.any(flanks.offset != 0, axis=1)))
+    text = (f"lost motion (model file's [model_class]): the flank offset b_j sign(tau_j) "
+            f"subtracted from the compensated joints at {applied} of {len(lines)} points "
+            f"(up to {np.degrees(np.abs(flanks.offset).max()):.4g} deg)")
+    bad = np.flatnonzero(np.any(flanks.unknown, axis=1))
+    if bad.size:
+        shown = ", ".join(f"line {int(lines[i])} (joint "
+                          + ", ".join(str(j + 1) for j in np.flatnonzero(flanks.unknown[i]))
+                          + ")" for i in bad[:5])
+        more = f" and {bad.size - 5} more points" if bad.size > 5 else ""
+        text += (f"; NOT applied where the torque side is unknown, {bad.size} points: "
+                 f"{shown}{more} ({flanks.why}): the output there can sit anywhere in the "
+                 "band")
+    return text

@@ -20,6 +20,7 @@ import numpy as np
 from rich.console import Console
 
 from analysis.errors import InputError
+from analysis.kinetostatics.link_compliance import links_of
 from analysis.model.ik import ALL_FLAGS
 from analysis.output_files import make_dir, replacing, write_text
 
@@ -210,6 +211,12 @@ def build_problem(o: PlaceOptions, console: Console):
     ]
     if problem.keep_out is not None:
         assumptions.append("keep-out box: checked on the joint origins, not the link volumes")
+    if links_of(robot):
+        assumptions.append(
+            "model class with link compliance (links " + ", ".join(
+                str(lc.link) for lc in links_of(robot)) + " of the model file): the search "
+            "model is the joint springs only; the re-check of the best placement adds the "
+            "links' sum_l J_l C_l J_l^T w")
     if cov is not None and not o.upper_bound:
         assumptions.append("the model has a stiffness covariance: --upper-bound would "
                            "minimise the 95 % upper bound instead of the mean")

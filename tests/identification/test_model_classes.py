@@ -155,3 +155,18 @@ def test_preloaded_tests_joint_class_equals_the_joint_fit(shop):
     f = F.fit_class(data, ())
     assert np.allclose(f.k, res.k, rtol=1e-6)
     assert 0.6 < f.chi2_nu < 1.5
+
+
+def test_compensator_with_lost_motion_finds_joint_2s_flanks(shop):
+    """Shop lab, every effect, seed 101, noise-free: letting joint 2's flanks follow the
+    fitted spring settled on wrong ones (chi2 150.6 over 216 equations, 2b2 = 1.14e-4 rad
+    for the lab's 2e-4); the flank-pattern search fits the true displacements to chi2
+    2.5 with 2b2 = 2.14e-4 (its gauge: the link bending absorbed)."""
+    robot, lab, k, loads, noise = shop
+    tests, d_true = mc.simulate(robot, lab, k, loads, 12, noise, 101)
+    _, data = _data(robot, replace(tests, d=d_true), noise, lab)
+    f = F.fit_class(data, ("gravity", "compensator", "lost-motion", "links"))
+    assert f.chi2 < 10.0, f.chi2
+    got = dict(zip(f.names, f.values, strict=True))
+    assert abs(got["2b2"] / lab.lost_motion[1] - 1.0) < 0.1, got["2b2"]
+    assert any(n == "joint 2 flanks" for n, _ in f.fixed)

@@ -70,6 +70,16 @@ def test_auto_on_compliant_links_chooses_links_and_reports_candidates(tmp_path, 
     first = chosen["parameters"][0]
     a, b = (int(v) - 1 for v in first["name"][3:-1].split(","))
     assert first["name"].startswith("C2[") and c2[a, b] == c2[b, a] == first["value"]
+    # and the kept entries' covariance (their se squared on the diagonal), with the
+    # joints' cross-covariance: what the K_X and deflection intervals propagate
+    from analysis.kinetostatics.link_compliance import link_covariance_of
+
+    lnames, C_ll, C_xl = link_covariance_of(robot)
+    assert list(lnames) == kept and C_ll.shape == (len(kept), len(kept)) and C_xl.shape == (
+        6, len(kept))
+    se = np.array([p["se"] for p in chosen["parameters"]])
+    assert np.allclose(np.sqrt(np.diag(C_ll)), se, rtol=1e-12)
+    assert np.allclose(C_ll, C_ll.T) and np.any(C_xl != 0)
     # results.json's k is the chosen class's; k1, k2 within 3 % of the lab's (k3..k6 carry
     # the link bending the tests cannot tell from them: the class's gauge)
     kk = np.array(res["joint_stiffness_Nm_per_rad"])

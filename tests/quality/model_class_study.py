@@ -1,7 +1,9 @@
 """Study of ``campaign analyze --model auto`` on the shop lab (issue 32); writes its table
 into docs/identification.md ("Model classes").
 
-Rerun: ``python -m tests.quality.model_class_study --campaigns 100 --write-docs``
+Rerun: ``python -m tests.quality.model_class_study --campaigns 100 --write-docs``, or in
+shards (``--seed S --campaigns N --labs all --jsonl FILE`` each, then ``--table FILE...
+--write-docs``)
 (from the repository root; about 40 s per all-effects campaign and 30 s per clean one on
 one core). Each campaign: 12 poses sampled in the KR240-2 zones x the first 3 load cases
 of protocols/kr240-2-shop.toml, the realistic-arm physics of its [fake_lab]
@@ -13,8 +15,9 @@ the analysis), and clean (joint springs only).
 from __future__ import annotations
 
 import argparse
+import json
 import sys
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +31,8 @@ HEADER = ("| lab | campaigns | accepted | true class chosen | 95 % intervals cov
           "k1..k6 |\n| --- | --- | --- | --- | --- | --- | --- |")
 
 
-def run(lab_name: str, campaigns: int, poses: int, seed0: int) -> tuple[str, list]:
+def run(lab_name: str, campaigns: int, poses: int, seed0: int,
+        jsonl: Path | None = None) -> tuple[str, list]:
     robot, lab, k, loads, noise = mc.shop_lab()
     if lab_name == "clean":
         lab = replace(lab, links=(), lost_motion=None, compensator=None, gravity="off")
@@ -38,8 +42,26 @@ def run(lab_name: str, campaigns: int, poses: int, seed0: int) -> tuple[str, lis
         print(f"# {lab_name} {seed}: {o.chosen} accepted={o.accepted} "
               f"covered {o.covered}/{o.total} held-out {o.heldout_chi2_nu:.3f}",
               file=sys.stderr, flush=True)
+        if jsonl is not None:  # one line per campaign: shards run apart, joined by --table
+            with jsonl.open("a") as fh:
+                fh.write(json.dumps({"lab": lab_name, "seed": seed, **asdict(o),
+                                     "k_error": o.k_error.tolist()}) + "\n")
         out.append(o)
     return row(lab_name, out), out
+
+
+def rows_from(paths: list[Path]) -> list[str]:
+    """The table's rows from the campaigns' JSON lines (``--jsonl``) of one or more
+    shards, by lab (all effects first)."""
+    by_lab: dict[str, list] = {}
+    for path in paths:
+        for line in path.read_text().splitlines():
+            d = json.loads(line)
+            lab = d.pop("lab")
+            d.pop("seed")
+            d["k_error"] = np.array(d["k_error"], float)
+            by_lab.setdefault(lab, []).append(mc.Outcome(**d))
+    return [row(lab, by_lab[lab]) for lab in ("all", "clean") if lab in by_lab]
 
 
 def row(lab_name: str, out: list) -> str:
@@ -70,10 +92,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--labs", nargs="+", choices=("all", "clean"), default=["all", "clean"])
     ap.add_argument("--write-docs", action="store_true")
+    ap.add_argument("--jsonl", type=Path, help="append each campaign's outcome here")
+    ap.add_argument("--table", type=Path, nargs="+",
+                    help="no campaign: the table from these --jsonl files (shards)")
     a = ap.parse_args(argv)
     rows = []
-    for lab in a.labs:
-        r, _ = run(lab, a.campaigns, a.poses, a.seed)
+    if a.table:
+        rows = rows_from(a.table)
+        print("\n".join(rows), flush=True)
+    for lab in a.labs if not a.table else ():
+        r, _ = run(lab, a.campaigns, a.poses, a.seed, a.jsonl)
         print(r, flush=True)
         rows.append(r)
     if a.write_docs:

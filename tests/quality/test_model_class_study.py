@@ -35,3 +35,20 @@ def test_write_docs_replaces_only_its_block(tmp_path):
     assert text.startswith("before\n") and text.endswith("after\n")
     assert "old table" not in text and "| a |\n| b |\n" + st.END in text
     assert st.HEADER in text
+
+
+def test_shards_joined_give_the_row_of_all_their_campaigns(tmp_path):
+    import json
+    from dataclasses import asdict
+
+    out = [_o("links", True, 19, 20, 1.0, [0.01] * 6),
+           _o("joints", False, 10, 20, 2.0, [0.03] * 6),
+           _o("links", True, 20, 20, 0.9, [0.02] * 6),
+           _o("links", True, 20, 20, 0.7, [-0.01] * 6)]
+    paths = [tmp_path / "a.jsonl", tmp_path / "b.jsonl"]
+    for i, o in enumerate(out):  # as run(..., jsonl) writes them, two shards
+        with paths[i % 2].open("a") as fh:
+            fh.write(json.dumps({"lab": "all", "seed": i, **asdict(o),
+                                 "k_error": o.k_error.tolist()}) + "\n")
+    assert st.rows_from(paths) == [st.row("all", out[0::2] + out[1::2])]
+    assert st.rows_from(paths)[0] == st.row("all", out)  # order does not matter

@@ -119,6 +119,9 @@ def model_class_table(result: IdentificationResult) -> dict | None:
                              f"{sel.get('rule')}"]}
     mats = cand.get("link_compliance") or {}
     table["links"] = [{"link": int(link), "compliance": m} for link, m in mats.items()]
+    lcov = _link_covariance(cand, sel, bool(getattr(result, "misfit_accepted", False)))
+    if mats and lcov is not None:
+        table["link_covariance"] = lcov
     if "lost-motion" in name:
         # TOML has no null: a joint not identified is left out of notes as such
         table["lost_motion_rad"] = [float(values.get(f"2b{j}", 0.0)) for j in range(1, 7)]
@@ -132,6 +135,27 @@ def model_class_table(result: IdentificationResult) -> dict | None:
         if "compensator_q2ref_rad" in cand:
             table["compensator"]["q2ref_rad"] = float(cand["compensator_q2ref_rad"])
     return table
+
+
+def _link_covariance(cand: dict, sel: dict, widened: bool) -> dict | None:
+    """``[model_class.link_covariance]``: the kept link entries' names, their covariance
+    (SI) and their cross-covariance with the joint compliances x1..x6 (6 rows, 0 for a
+    joint not fitted), from the candidate's covariance; times prediction_sigma_scale^2
+    for a result kept with --accept-misfit (as the joints' covariance)."""
+    cov = cand.get("covariance") or {}
+    names = list(cov.get("parameters") or ())
+    links = [i for i, n in enumerate(names) if n.startswith("C")]
+    if not links:
+        return None
+    M = np.asarray(cov["matrix"], dtype=float)
+    s = float(sel.get("prediction_sigma_scale") or 1.0) if widened else 1.0
+    cross = np.zeros((6, len(links)))
+    for i, n in enumerate(names):
+        if n.startswith("x"):
+            cross[int(n[1:]) - 1] = M[i, links]
+    return {"parameters": [names[i] for i in links],
+            "matrix": (s**2 * M[np.ix_(links, links)]).tolist(),
+            "joint_cross": (s**2 * cross).tolist()}
 
 
 def _identified_covariance(result: IdentificationResult, n: int, ident_idx) -> np.ndarray:

@@ -6,9 +6,10 @@ with every load case of a protocol; the true displacement from the realistic-arm
 pure physics the fakes speak for), instrument noise as declared; the joint-only exact
 fit, then ``--model auto`` (:func:`~analysis.identification.models.select.select_model`).
 
-The truth of a class's parameters is its projection of the true arm: the same class
-fitted to the noise-free true displacements of the same tests (the joint compliances
-then include the link bending the tests cannot tell from them, see
+The truth of a class's parameters is its projection of the true arm: the same class,
+with the parameterisation of the noisy fit (the same parameters kept, the same joint-2
+flank pattern), fitted to the noise-free true displacements of the same tests (the
+joint compliances then include the link bending the tests cannot tell from them, see
 :mod:`analysis.identification.models.fit`). Coverage counts the 95 % intervals of the
 chosen class's joint stiffness and extra parameters that contain that projection.
 """
@@ -94,7 +95,7 @@ def one_campaign(robot, lab: RealisticLab, k, loads, n_poses, noise, seed) -> Ou
     c = sel.chosen
     # the truth projected on the chosen class: the class fitted to the true displacements
     clean = replace(data, tests=replace(tests, d=d_true))
-    ref = fit_class(clean, c.extras)
+    ref = fit_class(clean, c.extras, like=c)
     covered = total = 0
     if not c.error and not ref.error:
         cols = list(res.joints)
