@@ -4,7 +4,7 @@ robot files' geometry conventions.
 Every other list of these names derives from here: the identification's checks, the
 jobs' option enums (:mod:`campaign.jobs.choices`), the command line's ``--help``, the web
 API's request models and the page's menus (read from the API's OpenAPI document).
-``tests/quality/test_layers.py`` checks that no other module spells a list again.
+``tests/project/test_layers.py`` checks that no other module spells a list again.
 Only the standard library: the command line imports it at start-up.
 """
 

@@ -58,9 +58,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 #: campaigns in processes of their own, seeded Monte-Carlo studies of whole campaigns,
 #: the API fuzzer, chromium renderings. Each took >= 8 s on 2 cores (docs/testing.md).
 E2E = (
-    "tests/quality/test_robust_coverage.py", "tests/quality/test_linear_bias.py",
-    "tests/quality/test_holdout_check.py", "tests/quality/test_worst_joint.py",
-    "tests/quality/test_zscore_study.py", "tests/quality/test_z1_coverage.py",
+    "tests/studies/test_robust_coverage.py", "tests/studies/test_linear_bias.py",
+    "tests/studies/test_holdout_check.py", "tests/studies/test_worst_joint.py",
+    "tests/studies/test_zscore_study.py", "tests/studies/test_z1_coverage.py",
     "tests/use/test_compensation.py::test_fake_lab_verification_on_the_demo",
     "tests/acquire/test_reproducible_fake.py", "tests/acquire/test_full_campaign.py",
     "tests/acquire/test_abb_fanuc_campaigns.py", "tests/acquire/test_ur10e_campaign.py",

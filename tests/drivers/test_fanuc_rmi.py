@@ -20,7 +20,7 @@ from drivers.fanuc_rmi import FanucRMIRobot
 from drivers.sim.fake_rmi import FakeRMI
 from drivers.sim.settings import LabSettings
 from drivers.sim.world import World
-from tests.foundation.test_abb_fanuc_models import R2000IC_URDF, fanuc_urdf_angles, urdf_tool0
+from tests.model.test_abb_fanuc_models import R2000IC_URDF, fanuc_urdf_angles, urdf_tool0
 
 
 @pytest.fixture

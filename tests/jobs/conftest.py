@@ -110,7 +110,7 @@ def cli_error(ws: Path, *args: str) -> str:
     Run in this process (``campaign.cli.main`` in ``ws``, stderr captured): a refusal is
     decided before any work, so a process of its own (~2 s of start-up each, a dozen of
     them) would add nothing the line or the status shows; ``cli`` keeps the subprocess
-    for the commands that do the work, and tests/foundation the CLI's own exit paths."""
+    for the commands that do the work, and tests/cli the CLI's own exit paths."""
     import contextlib
     import io
 

@@ -25,7 +25,7 @@ from analysis.model.robots import builtin_names, load_robot
 from campaign.jobs.choices import SimFormat
 from campaign.jobs.export import ExportOptions, run
 from tests.jobs.conftest import cli_error
-from tests.quality._z1 import URDF as Z1_URDF
+from tests.studies._z1 import URDF as Z1_URDF
 
 FORMATS = {"mjcf": "xml", "urdf": "urdf", "sdf": "sdf"}
 

@@ -31,7 +31,7 @@ from campaign.jobs.export import ExportOptions
 from campaign.jobs.export import run as export
 from campaign.jobs.stiffness import StiffnessOptions
 from campaign.jobs.stiffness import run as stiffness
-from tests.quality._z1 import URDF as Z1_URDF
+from tests.studies._z1 import URDF as Z1_URDF
 
 mujoco = pytest.importorskip("mujoco")
 

@@ -6,5 +6,5 @@ new file and works as such. Listing it in :data:`campaign.cli.app.LAZY_COMMANDS`
 way a command module imports only light modules at its top (typer, rich,
 numpy, analysis.errors, campaign.options); pandas, scipy, matplotlib,
 pinocchio and the analysis code that pulls them in are imported inside the
-command function, so that start-up stays fast (tests/foundation/test_startup_imports.py).
+command function, so that start-up stays fast (tests/project/test_startup_imports.py).
 """

@@ -14,7 +14,7 @@ the refusals, how often the tool point is, and how often each cause test fires a
 level. A 100 mm tool-point error (P measured 100 mm along the flange x axis, analysed at
 the flange) checks that the tool point is still named.
 
-    PYTHONPATH=. python -m tests.quality.cause_study --campaigns 100 [--clean-campaigns 400]
+    PYTHONPATH=. python -m tests.studies.cause_study --campaigns 100 [--clean-campaigns 400]
         [--tool-campaigns 20] [--poses 5 12] [--effects clean,links,...] [--write]
 
 prints a Markdown table per design (5 and 12 poses by default); ``--write`` puts them

@@ -7,7 +7,7 @@ simulation, ``benchmarks/_large_csv.py``), identified in memory with ``exact`` (
 validation). Target (issue 22): over >= 20 seeds at each N, the mean z of every joint
 within +-0.5 and its standard deviation within 0.8-1.25.
 
-    PYTHONPATH=. python -m tests.quality.zscore_study --tests 1e4 1e5 --seeds 20
+    PYTHONPATH=. python -m tests.studies.zscore_study --tests 1e4 1e5 --seeds 20
         [--out FILE.jsonl] [--sources tracker,ft,encoders] [--first-seed 1000]
 
 prints a Markdown table (mean and standard deviation of z per joint per N, the seeds,

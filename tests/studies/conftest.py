@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from campaign.protocol import load_protocol
-from tests.quality._own_robot import write_protocol
+from tests.studies._own_robot import write_protocol
 
 
 @pytest.fixture(scope="session")

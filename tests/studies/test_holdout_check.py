@@ -19,7 +19,7 @@ from analysis.identification.estimate import identify
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.validation.holdout_check import flag_columns
 from analysis.kinetostatics.equilibrium import displacement_screw
-from tests.quality._coverage import NOISE, campaign_setup
+from tests.studies._coverage import NOISE, campaign_setup
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from analysis.identification.io.measurements import TestArrays
 from analysis.kinetostatics.equilibrium import displacement_screw
 from campaign.jobs.analyze import AnalyzeOptions
 from campaign.jobs.analyze_noise import NoiseOverrides
-from tests.quality._coverage import NOISE, campaign_setup
+from tests.studies._coverage import NOISE, campaign_setup
 
 
 @pytest.fixture(scope="module")

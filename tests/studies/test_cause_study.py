@@ -1,4 +1,4 @@
-"""The cause study's key claims on a few seeded campaigns (tests/quality/cause_study.py).
+"""The cause study's key claims on a few seeded campaigns (tests/studies/cause_study.py).
 
 On the realistic arm (:mod:`analysis.kinetostatics.realistic`) with each effect alone,
 5 poses x 3 loads: every campaign is refused, the true mechanism is named first and the
@@ -12,7 +12,7 @@ from __future__ import annotations
 import pytest
 
 from analysis.model.robots import load_robot
-from tests.quality import cause_study as cs
+from tests.studies import cause_study as cs
 
 N = 8
 

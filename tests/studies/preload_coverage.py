@@ -10,7 +10,7 @@ the lab's noise streams from ``[fake_lab] seed``) and ``campaign analyze --accep
 each joint's 95 % interval holds the lab's true k. Also prints the planner's gear-flank
 changes and the lab's (its lost-motion offsets at the reference and the loaded wrench).
 
-    PYTHONPATH=. python -m tests.quality.preload_coverage --seeds 100 --out /tmp/preload-cov
+    PYTHONPATH=. python -m tests.studies.preload_coverage --seeds 100 --out /tmp/preload-cov
 
 Exit 1 when a target of issue 31 is missed: refusals <= 5 %, every joint's intervals
 covering 93-97 % (at 100 seeds the binomial sd of a 95 % coverage is 2.2 points).

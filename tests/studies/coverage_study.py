@@ -5,9 +5,9 @@ project ships no model of), 5 poses x 3 load cases, tracker 30 um / 40 urad per
 component, F/T 0.5 N + 0.5 % of reading (``_coverage.NOISE``). With 1000 campaigns the
 binomial standard error of a 95 % coverage is 0.69 %, so 95 +- 3 % is resolved.
 
-    PYTHONPATH=. python -m tests.quality.coverage_study [--trials 1000] [--seed 3]
+    PYTHONPATH=. python -m tests.studies.coverage_study [--trials 1000] [--seed 3]
         [--robot arm|z1] [--setup-seed 0]
-    PYTHONPATH=. python -m tests.quality.coverage_study --robust [--methods ols wls exact]
+    PYTHONPATH=. python -m tests.studies.coverage_study --robust [--methods ols wls exact]
         [--modes huber tukey] [--exact-trials 1000] [--write-docs] [--resume DIR]
         [--robot arm|z1] [--scales 1 2] [--data clean glitches]
 
@@ -33,8 +33,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from tests.quality._coverage import Glitches, campaign_setup, coverage
-from tests.quality._own_robot import write_protocol
+from tests.studies._coverage import Glitches, campaign_setup, coverage
+from tests.studies._own_robot import write_protocol
 
 METHODS = ("ols", "wls", "exact")
 ROBUST = ("huber", "tukey")
@@ -62,9 +62,9 @@ def study(trials: int, seed: int, robot_name: str = "arm", setup_seed: int = 0,
           resume: Path | None = None) -> dict:
     """{method: {scale: (coverage (6,), campaigns given)}} of the Gaussian fits, on the
     test-written 6R arm (``robot_name`` "arm") or the Unitree Z1 URDF ("z1",
-    :mod:`tests.quality._z1`); ``setup_seed``: the draw of the poses and the truth;
+    :mod:`tests.studies._z1`); ``setup_seed``: the draw of the poses and the truth;
     ``resume``: the directory of the cells' checkpoints."""
-    from tests.quality import _z1
+    from tests.studies import _z1
 
     write = {"arm": write_protocol, "z1": _z1.write_protocol}[robot_name]
     with tempfile.TemporaryDirectory() as tmp:
@@ -84,7 +84,7 @@ def robust_study(trials: int, seed: int, methods=ROBUST_METHODS,
     ``exact_trials`` campaigns per cell for exact (``trials`` if None); ``robot_name``
     "arm" (the table's) or "z1" (the Unitree Z1 URDF, its poses and truth of setup seed
     0); ``scales``, ``data``: the loads and data ("clean", "glitches") of the cells run."""
-    from tests.quality import _z1
+    from tests.studies import _z1
 
     write = {"arm": write_protocol, "z1": _z1.write_protocol}[robot_name]
     prefix = "" if robot_name == "arm" else f"{robot_name}-"

@@ -1,7 +1,7 @@
 """z-scores of the exact fit's k over seeded campaigns (issue 22's large-N target).
 
 The target: over >= 20 seeds, the mean z of every joint within +-0.5 and its standard
-deviation within 0.8-1.25 (:mod:`tests.quality.zscore_study`; 1e4, 1e5 and 1e6 tests in
+deviation within 0.8-1.25 (:mod:`tests.studies.zscore_study`; 1e4, 1e5 and 1e6 tests in
 docs/identification.md). Here: 1e4 tests against the target over 80 seeds (slow), 1e3 tests with
 tolerances from the sampling spread of 60 seeds, and the bias alone at 1e4 tests from
 antithetic pairs, which bounds it at 1e6 tests.
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from analysis.identification.noise import NoiseModel
-from tests.quality import linear_response, zscore_study
+from tests.studies import linear_response, zscore_study
 
 
 def test_small_campaigns_z_centred_and_unit_spread():
@@ -62,7 +62,7 @@ def test_noise_free_campaign_gives_the_true_k():
 
 def test_fit_error_is_the_noise_response_with_the_interval_variance():
     """The exact fit's z of one campaign equals the first-order response of its estimate
-    to that campaign's own noise draws (:mod:`tests.quality.linear_response`, no fit), and
+    to that campaign's own noise draws (:mod:`tests.studies.linear_response`, no fit), and
     that response's variance given the poses and loads, with the true per-test noise
     covariance, is the interval's to 0.3 % (measured 1.000-1.003 at 2000, 1e4, 1e5 and 1e6
     tests): nothing outside the interval at any N. Measured at 2000 tests, seed 1000:

@@ -16,7 +16,7 @@ from analysis.identification.estimators.fit_solvers import fit_linear
 from analysis.identification.io.measurements import TestArrays
 from analysis.identification.noise import NoiseModel
 from analysis.kinetostatics.equilibrium import displacement_screw
-from tests.quality._coverage import NOISE, campaign_setup, coverage
+from tests.studies._coverage import NOISE, campaign_setup, coverage
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ Same seeded Monte-Carlo as the Gaussian fits' (``_coverage.py``: the test-writte
 5 poses x 3 load cases, tracker 30 um / 40 urad, F/T 0.5 N + 0.5 % of reading); glitches
 (``_coverage.Glitches``): each test with probability 0.1 has one gross error of 20 sigma,
 on a tracker component or on an F/T component. The table is in docs/identification.md
-(``python -m tests.quality.coverage_study --robust --write-docs``).
+(``python -m tests.studies.coverage_study --robust --write-docs``).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import json
 import numpy as np
 import pytest
 
-from tests.quality._coverage import NOISE, Glitches, campaign_setup, coverage
+from tests.studies._coverage import NOISE, Glitches, campaign_setup, coverage
 
 #: quick version: 150 campaigns per cell, binomial sd of a 95 % coverage 1.8 %; the
 #: tolerance 5 % is 2.8 sd (24 seeded checks: a true 95 % passes, a true 89 % fails)
@@ -115,7 +115,7 @@ def test_slow_reweighting_settles(setup):
     from analysis.identification.estimate import identify
     from analysis.identification.io.measurements import TestArrays
     from analysis.kinetostatics.equilibrium import displacement_screw
-    from tests.quality._coverage import NOISE
+    from tests.studies._coverage import NOISE
 
     robot, q, W, k = setup
     qq = np.repeat(q, len(W), axis=0)

@@ -1,6 +1,6 @@
 """The exact fit's error at one seeded campaign, predicted from the noise draws alone.
 
-For the campaign of :func:`tests.quality.zscore_study.campaign` (same seed, same draws),
+For the campaign of :func:`tests.studies.zscore_study.campaign` (same seed, same draws),
 without fitting: the first-order response of the weighted least-squares estimate to the
 noise, ``x_hat - x = B sum_tests F^T W e`` with ``B = (sum F^T W F)^-1``, F the exact
 model's Jacobian in x, W the fit's weights (the inverse of
@@ -22,7 +22,7 @@ Returns, per joint of k,
   as simulated), over the fit's ``B``: 1 when the interval is the right size for this
   campaign, whatever its number of tests.
 
-    PYTHONPATH=. python -m tests.quality.linear_response --tests 1e6 --seed 1034
+    PYTHONPATH=. python -m tests.studies.linear_response --tests 1e6 --seed 1034
 
 prints one JSON line (``fit_z`` too with ``--fit``: the fit's z for comparison).
 Memory: blocks of 20 000 tests; CPU ~55 s at 1e6 tests (13 model evaluations a test).
@@ -31,7 +31,7 @@ Memory: blocks of 20 000 tests; CPU ~55 s at 1e6 tests (13 model evaluations a t
 wrench noise through J C J^T, no equilibrium solved; the tracker and F/T parts, the
 encoders' left out), ~5 s at 1e6 tests, for many seeds:
 
-    PYTHONPATH=. python -m tests.quality.linear_response --linear --tests 1e6 \
+    PYTHONPATH=. python -m tests.studies.linear_response --linear --tests 1e6 \
         --seed 1100 --seeds 200
 
 prints a JSON line per seed and a last one with the mean and sd of z_lin per joint. Given
@@ -54,7 +54,7 @@ from analysis.identification.noise import NoiseModel
 from analysis.identification.streaming.covariances import covariances_per_test
 from analysis.model.kinematics import jacobian
 from analysis.model.robots import load_robot
-from tests.quality.zscore_study import _draws, _simulation
+from tests.studies.zscore_study import _draws, _simulation
 
 BLOCK = 20_000
 #: central-difference steps: N, N m, rad (the model is smooth; errors ~h^2, far below 1e-6)
@@ -155,7 +155,7 @@ def linear_model_response(n: int, seed: int, noise: NoiseModel | None = None) ->
 
 
 def main(argv: list[str] | None = None) -> int:
-    from tests.quality.zscore_study import _size, campaign
+    from tests.studies.zscore_study import _size, campaign
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tests", type=_size, default=10_000)

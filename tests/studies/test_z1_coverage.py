@@ -1,9 +1,9 @@
 """Coverage on a second robot the project ships no model of: the Unitree Z1 URDF.
 
 The study's own arm (``_own_robot.py``) is a DH industrial arm; the Z1
-(:mod:`tests.quality._z1`, from example-robot-data) has other axes, a URDF tool frame
+(:mod:`tests.studies._z1`, from example-robot-data) has other axes, a URDF tool frame
 and a hundred times smaller stiffness and loads. Measured (2000 campaigns per cell,
-binomial sd 0.49 %, ``python -m tests.quality.coverage_study --robot z1 --trials 2000
+binomial sd 0.49 %, ``python -m tests.studies.coverage_study --robot z1 --trials 2000
 --seed 7``): 93.6-96.3 % for ols, wls and exact at the nominal loads and twice them.
 """
 
@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.quality import _z1
-from tests.quality._coverage import campaign_setup, coverage
+from tests.studies import _z1
+from tests.studies._coverage import campaign_setup, coverage
 
 
 @pytest.fixture(scope="module")

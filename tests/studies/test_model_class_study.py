@@ -1,4 +1,4 @@
-"""The model-class study's table (tests/quality/model_class_study.py): its numbers from
+"""The model-class study's table (tests/studies/model_class_study.py): its numbers from
 known outcomes, and the docs block it replaces."""
 
 from __future__ import annotations

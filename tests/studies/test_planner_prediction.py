@@ -11,7 +11,7 @@ from analysis.identification.studies.design_simulation import identify_campaigns
 from campaign.planning.criteria import candidate_information, relative_se
 from campaign.planning.planner import make_plan
 from campaign.protocol import load_protocol
-from tests.quality._own_robot import write_protocol
+from tests.studies._own_robot import write_protocol
 
 TRIALS = 2000  # sampling error of a std: 1 / sqrt(2 * 2000) = 1.6 %
 

@@ -1,7 +1,7 @@
 """Study of ``campaign analyze --model auto`` on the shop lab (issue 32); writes its table
 into docs/identification.md ("Model classes").
 
-Rerun: ``python -m tests.quality.model_class_study --campaigns 100 --write-docs``, or in
+Rerun: ``python -m tests.studies.model_class_study --campaigns 100 --write-docs``, or in
 shards (``--seed S --campaigns N --labs all --jsonl FILE`` each, then ``--table FILE...
 --write-docs``)
 (from the repository root; about 40 s per all-effects campaign and 30 s per clean one on
