@@ -128,7 +128,7 @@ class ResidualRows:
         """:meth:`columns` as a DataFrame."""
         return pd.DataFrame(self.columns(which))
 
-    def blocks(self, block: int = 5_000):
+    def blocks(self, block: int = 1_000):
         """The whole table as :meth:`columns` of ``block`` tests each, in order (blocks of
         ~30000 rows keep the writer's memory to ~25-50 MB)."""
         for s in range(0, self.tests.m, block):
