@@ -234,7 +234,9 @@ def _first_of_groups(group: np.ndarray) -> np.ndarray:
             or group.max() >= 4 * group.size:
         return np.unique(group, return_index=True)[1]
     first = np.full(int(group.max()) + 1, group.size, dtype=np.int64)
-    np.minimum.at(first, group, np.arange(group.size, dtype=np.int64))
+    for s in range(0, group.size, 1 << 16):  # indices a block at a time
+        part = group[s:s + (1 << 16)]
+        np.minimum.at(first, part, np.arange(s, s + part.size, dtype=np.int64))
     return first[first < group.size]
 
 

@@ -148,7 +148,7 @@ class ResidualRows:
         key[~self.tests.measured[rows]] = -np.inf
         return key
 
-    def worst_tests(self, rows: int, block: int = 1 << 16) -> np.ndarray:
+    def worst_tests(self, rows: int, block: int = 1 << 14) -> np.ndarray:
         """Sorted indices of the tests holding the ``rows`` highest-ranked rows (outliers
         first, then largest |studentized|), and of those holding the ``rows`` largest
         |studentized| outliers. The ranking is made a block of tests at a time."""
