@@ -314,6 +314,8 @@ def _residuals(problem: IdentificationProblem, outcome, stats, iv, sigma):
         per_test.release_freed_heap()  # the passes' freed pages, before the residual table
     residuals, rows = residual_table(tests, chosen, sigma, t, flags, threshold,
                                      None if rob is None else rob.weights)
+    if problem.large:
+        per_test.release_freed_heap()  # the ranking's freed blocks, before the checks
     notes = []
     if rob is not None:
         notes.append(rob.summary())

@@ -131,7 +131,7 @@ def run(o: AnalyzeOptions, stage: Stage = no_stage,
     ``on_assumptions(a)`` gets what the analysis rests on before the identification
     starts, ``warn(line)`` the loud warnings of a damaged run as it is read.
     """
-    with heap.frozen_heap():
+    with heap.frozen_heap(), heap.arrow_on_c_heap():
         return _run(o, stage, on_assumptions or (lambda a: None), warn or (lambda s: None))
 
 

@@ -128,7 +128,7 @@ class ResidualRows:
         """:meth:`columns` as a DataFrame."""
         return pd.DataFrame(self.columns(which))
 
-    def blocks(self, block: int = 5_000):
+    def blocks(self, block: int = 1_000):
         """The whole table as :meth:`columns` of ``block`` tests each, in order (blocks of
         ~30000 rows keep the writer's memory to ~25-50 MB)."""
         for s in range(0, self.tests.m, block):
@@ -148,7 +148,7 @@ class ResidualRows:
         key[~self.tests.measured[rows]] = -np.inf
         return key
 
-    def worst_tests(self, rows: int, block: int = 1 << 16) -> np.ndarray:
+    def worst_tests(self, rows: int, block: int = 1 << 14) -> np.ndarray:
         """Sorted indices of the tests holding the ``rows`` highest-ranked rows (outliers
         first, then largest |studentized|), and of those holding the ``rows`` largest
         |studentized| outliers. The ranking is made a block of tests at a time."""

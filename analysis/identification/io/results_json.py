@@ -137,11 +137,13 @@ def write_table(table, path: Path) -> None:
     :mod:`analysis.identification.io.table_csv` (a 1e6-test residual table, 6e6 rows,
     never exists as one DataFrame)."""
     from analysis.identification.io.table_csv import write_blocks, write_frame
+    from analysis.identification.streaming.per_test import release_freed_heap
 
     if isinstance(table, ResidualRows):
         write_blocks(path, table.names, table.blocks())
     else:
         write_frame(table, path)
+    release_freed_heap()  # the blocks' freed text (~20 MB at 1e6 tests), before what follows
 
 
 def write_results(result, out_dir: str | Path) -> dict[str, Path]:

@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 #: rows per block of :func:`write_frame` (a block's text is ~0.15 kB a row)
-BLOCK_ROWS = 60_000
+BLOCK_ROWS = 10_000
 
 
 def _csv_line(cells: list[str]) -> str:
