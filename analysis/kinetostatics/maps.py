@@ -14,13 +14,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from analysis.kinetostatics.dexterity import inverse_condition_em
-from analysis.kinetostatics.stiffness import (
-    complementary_stiffness_em,
-    deflections_em,
-    influence_indices,
+from analysis.kinetostatics.map_kernel import (
+    block_metrics,
+    dominance_proved,
+    grid_cos_sin,
+    influence,
 )
-from analysis.model.kinematics import chain_state_em, jacobian_em
 from analysis.model.robot_model import RobotModel
 
 if TYPE_CHECKING:  # pandas is imported where a table is built (CLI start-up time)
@@ -63,7 +62,8 @@ class GridSpec:
         return q
 
 
-#: Poses per block when a large batch is split across threads.
+#: Poses per block: the kernel's passes over a block stay in the core's L2 cache while the
+#: Python cost of its ~500 numpy calls is spread over enough poses (benchmarks/bench_maps.py)
 BLOCK = 4096
 
 
@@ -78,40 +78,47 @@ def pose_metrics(
     Large batches are cut into blocks computed on ``threads`` threads (default:
     the CPU count); NumPy releases the GIL inside its kernels.
     """
+    from analysis.kinetostatics.link_compliance import distal_joints, links_of
+
     q = np.asarray(q, dtype=float)
+    k = np.asarray(k, dtype=float)
+    w = np.asarray(w, dtype=float)
     shape = q.shape[:-1]
     flat = q.reshape(-1, q.shape[-1])
-    blocks = [flat[i:i + BLOCK] for i in range(0, max(flat.shape[0], 1), BLOCK)]
+    trig = grid_cos_sin(q)  # a map's fixed joints and grid axes: fewer cos and sin
+    links = links_of(robot)  # a model file's link compliance: its distal frames kept
+    setup = (trig, dominance_proved(robot, k, w), links, distal_joints(links, flat.shape[-1]))
+    starts = range(0, max(flat.shape[0], 1), BLOCK)
+    blocks = [(i, flat[i:i + BLOCK]) for i in starts]
     workers = min(len(blocks), threads or os.cpu_count() or 1)
     if workers <= 1:
-        parts = [_pose_metrics(robot, b, k, w, length) for b in blocks]
+        parts = [_pose_metrics(robot, b, i, k, w, length, setup) for i, b in blocks]
     else:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            parts = list(pool.map(lambda b: _pose_metrics(robot, b, k, w, length), blocks))
+            parts = list(pool.map(
+                lambda ib: _pose_metrics(robot, ib[1], ib[0], k, w, length, setup), blocks))
     return {
         key: np.concatenate([p[key] for p in parts]).reshape((*shape, *parts[0][key].shape[1:]))
         for key in parts[0]
     }
 
 
-def _pose_metrics(robot, q, k, w, length):
-    """The kernel of :func:`pose_metrics` on one block of poses (N, n), entry-major inside."""
-    from analysis.kinetostatics.link_compliance import distal_joints, links_of
-
-    links = links_of(robot)  # a model file's link compliance: its distal frames kept
-    state = chain_state_em(robot, q.T, keep=distal_joints(links, q.shape[-1]))
-    E = jacobian_em(state)  # J as (6, n, N)
-    scale = np.array([1.0 / length] * 3 + [1.0] * 3)[:, None, None]
-    inv_k = inverse_condition_em(E * scale)
-    d_kc, d_no = deflections_em(E, k, w, complementary_stiffness_em(E, w))
+def _pose_metrics(robot, q, start, k, w, length, setup):
+    """The kernel of :func:`pose_metrics` on one block of poses q (N, n) starting at flat
+    pose ``start`` (:func:`~analysis.kinetostatics.map_kernel.block_metrics`)."""
+    trig, dominant, links, keep = setup
+    cos, sin = trig.block(q, start)
+    state, m = block_metrics(robot, q, cos, sin, k, w, length, dominant, keep)
+    d_kc, d_no = m["d_kc"], m["d_no"]
     if links:  # a model.toml with link compliance: + sum_l J_l C_l J_l^T w (the one kernel)
         from analysis.kinetostatics.link_compliance import link_displacement_em
 
         extra = link_displacement_em(robot, None, links, w, state=state)
         d_kc, d_no = d_kc + extra, d_no + extra
-    v_p, v_r = influence_indices(d_kc.T, d_no.T)
+    v_p, v_r = influence(d_kc, d_no)
+    inv_k = m["inv_kappa_F"]
     return {
         "inv_kappa_F": inv_k,
         "v_p": v_p,

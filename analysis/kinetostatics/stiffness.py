@@ -43,13 +43,16 @@ def complementary_stiffness_from_jacobian(J: np.ndarray, w: np.ndarray) -> np.nd
     return np.moveaxis(K, -1, 0).reshape(*batch, n, n)
 
 
-def complementary_stiffness_em(E: np.ndarray, w: np.ndarray) -> np.ndarray:
+def complementary_stiffness_em(E: np.ndarray, w: np.ndarray,
+                               out: np.ndarray | None = None) -> np.ndarray:
     """K_C entry-major (n, n, N) from J entry-major (6, n, N) and w (6,) or (6, N).
 
     The kernel of :func:`complementary_stiffness_from_jacobian`. Triple products
     rewritten as dot products:
     (omega_k x v_i) . f + (omega_k x omega_i) . m = omega_k . (v_i x f + omega_i x m),
     (omega_i x v_k) . f = omega_i . (v_k x f).
+    ``out``: an (n, n + k, N) array whose first n columns receive K_C (the others are
+    left alone: room for right-hand sides); returned.
     """
     v, om = E[:3], E[3:]  # (3, n, N): components, joint, pose
     w = np.asarray(w, dtype=float)
@@ -69,12 +72,12 @@ def complementary_stiffness_em(E: np.ndarray, w: np.ndarray) -> np.ndarray:
         a[c] += vf[c]
     # K[i, k] = a_i . omega_k for k <= i and omega_i . vf_k for k > i: row by row, each
     # entry computed once, written in place (contiguous rows, no (n, n, N) temporaries)
-    K = np.empty((n, n) + E.shape[2:])
+    K = np.empty((n, n) + E.shape[2:]) if out is None else out
     tmp = np.empty((n,) + E.shape[2:])
     for i in range(n):
         _dot_into(K[i, :i + 1], tmp[:i + 1], om[:, :i + 1], a[:, i])
         if i < n - 1:
-            _dot_into(K[i, i + 1:], tmp[i + 1:], vf[:, i + 1:], om[:, i])
+            _dot_into(K[i, i + 1:n], tmp[i + 1:], vf[:, i + 1:], om[:, i])
     return K
 
 

@@ -175,16 +175,24 @@ def chain_state_em(robot: RobotModel, q: np.ndarray,
     """Forward kinematics of N poses, entry-major: q (n, N) joint angles (rad).
 
     ``cos_sin``: (cos q, sin q) (n, N) when the caller has them (:func:`joint_cos_sin`);
-    then q is not read; ``keep``: joints (0-based) whose full frame orientation before
-    their rotation is kept (:attr:`ChainStateEM.frames`). The one forward-kinematics
-    kernel: frames are kept as three
+    then q is not read, and cos q and sin q may also be two sequences of n entries, each
+    a float (a joint at the same angle in every pose) or an (N,) array, with q any
+    (n, N) array (only its shape is read). ``keep``: joints (0-based) whose full frame
+    orientation before their rotation is kept (:attr:`ChainStateEM.frames`). The one
+    forward-kinematics kernel: frames are kept as three
     column vectors (3, N) and each joint turns two of them (planar rotation), so a
     pose costs a few dozen vectorised operations over the whole batch and no
-    (N, 3, 3) matrix products.
+    (N, 3, 3) matrix products; frames stay (3, 1) columns up to the first joint whose
+    angle varies (then constant joints cost no operation over the batch).
     """
     nc = robot.chain.normal
-    cos, sin = joint_cos_sin(np.asarray(q, dtype=float)) if cos_sin is None else cos_sin
-    n, N = cos.shape
+    if cos_sin is None:
+        cos, sin = joint_cos_sin(np.asarray(q, dtype=float))
+        n, N = cos.shape
+    else:
+        cos, sin = cos_sin
+        n = len(cos)
+        N = cos.shape[1] if isinstance(cos, np.ndarray) else np.shape(q)[-1]
     origins = np.empty((3, n, N))
     axes = np.empty((3, n, N))
     frames: dict[int, np.ndarray] = {}
@@ -197,7 +205,7 @@ def chain_state_em(robot: RobotModel, q: np.ndarray,
         origins[:, i] = pos
         axes[:, i] = A[2]
         if i in keep:
-            frames[i] = np.stack(np.broadcast_arrays(*A), axis=1)
+            frames[i] = np.stack([np.broadcast_to(a, (3, N)) for a in A], axis=1)
         c, s = cos[i], sin[i]
         G = [c * A[0] + s * A[1], c * A[1] - s * A[0], A[2]]
     rot = np.empty((3, 3, N))
