@@ -62,9 +62,11 @@ class GridSpec:
         return q
 
 
-#: Poses per block: the kernel's passes over a block stay in the core's L2 cache while the
-#: Python cost of its ~500 numpy calls is spread over enough poses (benchmarks/bench_maps.py)
-BLOCK = 4096
+#: Poses per block. Measured on the 0.5 deg KR240-2 map, one thread (us CPU/pose, best of
+#: 6 interleaved runs, load 5.6-6.6 on 2 cores): 1024: 1.17, 2048: 0.87, 4096: 0.86-0.99,
+#: 8192: 0.74-0.86, 16384: 0.77-0.89, 32768: 1.12. Below 4096 the ~500 numpy calls of a
+#: block cost more per pose; above 16384 a block's arrays no longer stay in the caches.
+BLOCK = 8192
 
 
 def pose_metrics(
