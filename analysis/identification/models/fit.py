@@ -258,36 +258,45 @@ def _w_ref(data: ClassData) -> np.ndarray | None:
 
 
 def _physics_model(data: ClassData, x_full: np.ndarray, spring, gravity: bool):
-    from dataclasses import replace
-
-    from analysis.kinetostatics.realistic import RealisticLab, displacement
+    from analysis.kinetostatics.realistic import RealisticLab, displacement_cases
 
     t = data.tests
     w_ref = _w_ref(data)
     w_ref = np.zeros(6) if w_ref is None else w_ref
-
-    def disp(x, pr):
-        comp = None if pr is None else replace(data.compensator, preload=float(pr[0]),
-                                               rate=float(pr[1]))
-        lab = RealisticLab(gravity="on" if gravity else "off", compensator=comp)
-        with np.errstate(divide="ignore"):
-            k = np.where(x > 0, 1.0 / np.where(x > 0, x, 1.0), np.inf)
-        return displacement(data.robot, lab, k, t.q, w_ref, w_ref + t.w)
-
-    pred = disp(x_full, spring)
-    A = np.zeros((*pred.shape, x_full.size))
+    # the point and its forward-difference neighbours, one Newton loop for all (cases:
+    # x_full, then x_full + h_j e_j per fitted joint, then the spring's two steps)
+    xs, springs, steps = [x_full], [spring], []
     for j in data.joints:
         h = FD_STEP * abs(x_full[j]) if x_full[j] != 0 else FD_STEP * 1e-6
         xh = x_full.copy()
         xh[j] += h
-        A[..., j] = (disp(xh, spring) - pred) / h
+        xs.append(xh)
+        springs.append(spring)
+        steps.append(h)
+    if spring is not None:
+        for i, h in enumerate((FD_PRELOAD, FD_RATE)):
+            sh = np.array(spring, dtype=float)
+            sh[i] += h
+            xs.append(x_full)
+            springs.append(sh)
+            steps.append(h)
+    xs = np.array(xs)
+    with np.errstate(divide="ignore"):
+        k = np.where(xs > 0, 1.0 / np.where(xs > 0, xs, 1.0), np.inf)
+    lab = RealisticLab(gravity="on" if gravity else "off",
+                       compensator=None if spring is None else data.compensator)
+    disp = displacement_cases(data.robot, lab, k, t.q, w_ref, w_ref + t.w,
+                              None if spring is None else np.array(springs, dtype=float))
+    pred = disp[0]
+    A = np.zeros((*pred.shape, x_full.size))
+    for c, j in enumerate(data.joints, start=1):
+        A[..., j] = (disp[c] - pred) / steps[c - 1]
     if spring is None:
         return pred, A, None
     G = np.zeros((*pred.shape, 2))
-    for i, h in enumerate((FD_PRELOAD, FD_RATE)):
-        sh = np.array(spring, dtype=float)
-        sh[i] += h
-        G[..., i] = (disp(x_full, sh) - pred) / h
+    for i in range(2):
+        c = len(data.joints) + 1 + i
+        G[..., i] = (disp[c] - pred) / steps[c - 1]
     return pred, A, G
 
 
