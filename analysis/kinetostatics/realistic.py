@@ -182,8 +182,9 @@ def compensator_torque(comp: Compensator, qj: np.ndarray, preload=None,
 
     tau_c = F axis.(a x b)/L with b = b(q) the arm point turned by q, L = |b - a|,
     F = preload + rate (extended_length - L) (compression: pushes b away from a).
-    ``preload`` (N) and ``rate`` (N/m), scalars or (N,) (one spring per angle), replace
-    the compensator's own when given.
+    ``preload`` (N) and ``rate`` (N/m), scalars or arrays that broadcast against (N,)
+    (one spring per angle, or (G, 1): G springs, results (G, N)), replace the
+    compensator's own when given.
     """
     qj = np.atleast_1d(np.asarray(qj, dtype=float))
     preload = comp.preload if preload is None else preload
