@@ -347,12 +347,25 @@ def _links(f: Fig) -> tuple[str, str, str, str]:
             f"{f['compensate_ratio_cpu']}x CPU")
 
 
+def _model_classes(f: Fig) -> tuple[str, str, str, str]:
+    return (f"`--model auto` on the shop lab: one all-effects campaign of the model-class "
+            f"study (seed {f['seed']}), and its two batched stages: the realistic-arm physics "
+            "model with its 8 forward differences, joint 2's flank patterns on the 61 x 61 "
+            "spring grid (outputs checked identical to the loops)",
+            f"campaign {f['campaign_cpu_s']} s CPU; physics model "
+            f"{f['physics_batched_cpu_ms']} ms, flank grid {f['flank_batched_cpu_ms']} ms CPU",
+            f"{f['baseline']}: physics model {f['physics_loop_cpu_ms']} ms, flank grid "
+            f"{f['flank_loop_cpu_ms']} ms CPU. Timed: {f['timing']}",
+            f"loop / batched: physics model {f['physics_speedup_cpu']}x, flank grid "
+            f"{f['flank_speedup_cpu']}x CPU")
+
+
 ROWS: dict[str, Callable[[Fig], tuple[str, str, str, str]]] = {
     "maps": _maps, "identification": _identification, "large_import": _large_import,
     "planner": _planner, "compensate": _compensate, "place": _place,
     "fake_campaign": _fake_campaign, "startup": _startup, "csv_io": _csv_io,
     "gui_sensitivity": _gui_sensitivity, "acquire_state": _acquire_state, "ledger": _ledger,
-    "links": _links,
+    "links": _links, "model_classes": _model_classes,
 }
 
 

@@ -330,28 +330,62 @@ def deflection_with_joint_torques(robot: RobotModel, q: np.ndarray, k: np.ndarra
     ``q`` (N, n) rad, ``k`` (n,) N m/rad, ``w`` (N, 6) [f (N); m (N m)] at P, base
     frame; ``torques(theta)`` returns tau (N, n) (N m) and its derivative
     d tau / d theta (N, n, n) (N m/rad). Raises :class:`EquilibriumError` when a pose
-    has not converged after ``max_iter`` steps.
+    has not converged after ``max_iter`` steps. One case of
+    :func:`deflection_with_joint_torques_cases`.
     """
-    N, n = q.shape
-    x = 1.0 / np.asarray(k, dtype=float)
-    dq = np.zeros((N, n))
-    step = np.full(N, np.inf)
+    return deflection_with_joint_torques_cases(
+        robot, q[None], np.asarray(k, dtype=float)[None], np.asarray(w, dtype=float)[None],
+        lambda theta, live: torques(theta), tol, max_iter)[0]
+
+
+def deflection_with_joint_torques_cases(robot: RobotModel, q: np.ndarray, k: np.ndarray,
+                                        w: np.ndarray, torques, tol: float = 1e-14,
+                                        max_iter: int = 60) -> np.ndarray:
+    """:func:`deflection_with_joint_torques` of C independent cases at once: dq (C, N, n)
+    (rad) for q (C, N, n) (rad), k (C, n) (N m/rad), w (C, N, 6) [N; N m];
+    ``torques(theta, live)`` returns tau (c N, n) (N m) and d tau / d theta (c N, n, n)
+    (N m/rad) at theta (c N, n), the poses of the cases ``live`` (c,) (indices, ascending)
+    stacked case after case.
+
+    Each case iterates until its own poses have converged and is then left alone, so a
+    case's numbers are those of its own call of :func:`deflection_with_joint_torques`
+    (one Python loop for many cases: the finite differences of a fit). Raises
+    :class:`EquilibriumError` for the first case (lowest index) that did not converge.
+    """
+    C, N, n = q.shape
+    x = 1.0 / np.asarray(k, dtype=float)  # (C, n)
+    dq = np.zeros((C, N, n))
+    step = np.full((C, N), np.inf)
+    live = np.arange(C)
+    failed = np.zeros(C, dtype=bool)
     for _ in range(max_iter):
-        theta = q + dq
+        c = live.size
+        theta = (q[live] + dq[live]).reshape(c * N, n)
         J = jacobian(robot, theta)
-        extra, dextra = torques(theta)
-        tau = np.einsum("pri,pr->pi", J, w) + extra
-        dtau = complementary_stiffness_from_jacobian(J, w) + dextra  # d(J^T w + tau)/dtheta
-        F = dq - x * tau
-        dF = np.eye(n) - x[:, None] * dtau
+        extra, dextra = torques(theta, live)
+        wl = w[live].reshape(c * N, 6)
+        xl = np.repeat(x[live], N, axis=0)  # (c N, n)
+        tau = np.einsum("pri,pr->pi", J, wl) + extra
+        dtau = complementary_stiffness_from_jacobian(J, wl) + dextra
+        dql = dq[live].reshape(c * N, n)
+        F = dql - xl * tau
+        dF = np.eye(n) - xl[:, :, None] * dtau
         delta = np.linalg.solve(dF, F[..., None])[..., 0]
-        dq = dq - delta
-        step = np.max(np.abs(delta), axis=-1)
-        if not np.all(np.isfinite(dq)):
+        dql = (dql - delta).reshape(c, N, n)
+        dq[live] = dql
+        st = np.max(np.abs(delta), axis=-1).reshape(c, N)
+        step[live] = st
+        bad = ~np.all(np.isfinite(dql), axis=(1, 2))
+        done = np.all(st <= tol * np.maximum(1.0, np.max(np.abs(dql), axis=-1)), axis=1)
+        failed[live[bad]] = True
+        live = live[~bad & ~done]
+        if live.size == 0:
             break
-        if np.all(step <= tol * np.maximum(1.0, np.max(np.abs(dq), axis=-1))):
-            return dq
-    raise EquilibriumError(
-        f"equilibrium with pose-dependent joint torques did not converge in {max_iter} "
-        f"Newton steps (last step {np.nanmax(step):.3g} rad)",
-        unconverged=~(step <= tol))
+    failed[live] = True
+    if np.any(failed):
+        first = int(np.flatnonzero(failed)[0])
+        raise EquilibriumError(
+            f"equilibrium with pose-dependent joint torques did not converge in {max_iter} "
+            f"Newton steps (last step {np.nanmax(step[first]):.3g} rad)",
+            unconverged=~(step[first] <= tol))
+    return dq

@@ -65,6 +65,7 @@ import numpy as np
 
 from analysis.kinetostatics.equilibrium import (
     deflection_with_joint_torques,
+    deflection_with_joint_torques_cases,
     solve_deflection,
 )
 from analysis.model.gravity import (
@@ -174,25 +175,31 @@ def compensator_for(robot: RobotModel, joint: int, base_point, arm_point, rate: 
     return Compensator(joint, a, b, float(rate), float(preload), length, axis)
 
 
-def compensator_torque(comp: Compensator, qj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def compensator_torque(comp: Compensator, qj: np.ndarray, preload=None,
+                       rate=None) -> tuple[np.ndarray, np.ndarray]:
     """Torque tau_c (N,) (N m) the spring puts on the link its joint moves, about +axis,
     and its derivative dtau_c/dq (N,) (N m/rad), at joint angles qj (N,) (rad).
 
     tau_c = F axis.(a x b)/L with b = b(q) the arm point turned by q, L = |b - a|,
     F = preload + rate (extended_length - L) (compression: pushes b away from a).
+    ``preload`` (N) and ``rate`` (N/m), scalars or arrays that broadcast against (N,)
+    (one spring per angle, or (G, 1): G springs, results (G, N)), replace the
+    compensator's own when given.
     """
     qj = np.atleast_1d(np.asarray(qj, dtype=float))
+    preload = comp.preload if preload is None else preload
+    rate = comp.rate if rate is None else rate
     a, e = comp.base_point, comp.axis
     b = _rotate(e, qj, comp.arm_point)
     db = np.cross(e, b)  # db/dq
     d = b - a
     L = np.sqrt(np.sum(d * d, axis=-1))
-    F = comp.preload + comp.rate * (comp.extended_length - L)
+    F = preload + rate * (comp.extended_length - L)
     h = np.cross(a, b) @ e
     dh = np.cross(a, db) @ e
     dL = np.sum(d * db, axis=-1) / L
     tau = F * h / L
-    dtau = (-comp.rate * dL * h + F * dh) / L - F * h * dL / L**2
+    dtau = (-rate * dL * h + F * dh) / L - F * h * dL / L**2
     return tau, dtau
 
 
@@ -350,6 +357,58 @@ def displacement(robot: RobotModel, lab: RealisticLab, k: np.ndarray, q: np.ndar
     q = np.atleast_2d(np.asarray(q, dtype=float))
     return pose_difference(true_tool_poses(robot, lab, k, q, w_ref),
                            true_tool_poses(robot, lab, k, q, w))
+
+
+def displacement_cases(robot: RobotModel, lab: RealisticLab, k: np.ndarray, q: np.ndarray,
+                       w_ref: np.ndarray, w: np.ndarray,
+                       springs: np.ndarray | None = None) -> np.ndarray:
+    """:func:`displacement` (C, N, 6) [m; rad] of C cases at once, case c with joint
+    stiffness k[c] (k (C, n), N m/rad) and, when ``springs`` (C, 2) is given, the
+    compensator's (preload (N), rate (N/m)) replaced by springs[c]; the same commanded q
+    (N, n) (rad) and wrenches w_ref, w ((N, 6) or (6,), [N; N m]) for all. For a lab with
+    gravity and a compensator only (no links, no lost motion): the finite differences of
+    a fit in one Newton loop (:func:`~analysis.kinetostatics.equilibrium.
+    deflection_with_joint_torques_cases`), each case's numbers those of its own
+    :func:`displacement` call."""
+    if lab.links or lab.lost_motion is not None:
+        raise ValueError("displacement_cases: links and lost motion are not supported")
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    N, n = q.shape
+    k = np.atleast_2d(np.asarray(k, dtype=float))
+    C = k.shape[0]
+    if springs is not None and lab.compensator is None:
+        raise ValueError("displacement_cases: springs given without a compensator")
+    readings = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (N, 6)))
+                for v in (w_ref, w)]
+    s = lost_motion_offset(robot, lab, q, readings[0])  # zeros (no lost motion)
+    base = q + s
+    if lab.gravity != "on" and lab.compensator is None:
+        raise ValueError("displacement_cases: needs gravity on or a compensator")
+    # cases 2c and 2c + 1: case c's reference and loaded readings
+    qc = np.broadcast_to(base, (2 * C, N, n))
+    wc = np.tile(np.stack(readings), (C, 1, 1))
+    kc = np.repeat(k, 2, axis=0)
+    sp = None if springs is None else np.repeat(np.asarray(springs, dtype=float), 2, axis=0)
+
+    def torques(theta: np.ndarray, live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        tau = np.zeros((theta.shape[0], n))
+        dtau = np.zeros((theta.shape[0], n, n))
+        if lab.gravity == "on":
+            tau -= gravity_torques(robot, theta, lab.gravity_vector)
+            dtau -= gravity_stiffness(robot, theta, lab.gravity_vector)
+        if lab.compensator is not None:
+            j = lab.compensator.joint
+            pr = (None, None) if sp is None else (np.repeat(sp[live, 0], N),
+                                                  np.repeat(sp[live, 1], N))
+            tc, dtc = compensator_torque(lab.compensator, theta[:, j], *pr)
+            tau[:, j] += tc
+            dtau[:, j, j] += dtc
+        return tau, dtau
+
+    dq = deflection_with_joint_torques_cases(robot, qc, kc, wc, torques)
+    theta = q + (s + dq)  # as true_tool_poses: q + joint_deflection
+    tips = chain_state(robot, theta.reshape(-1, n)).tip.reshape(C, 2, N, 4, 4)
+    return pose_difference(tips[:, 0], tips[:, 1])
 
 
 def beam_compliance(length: float, E: float, G: float, I: float, J: float,

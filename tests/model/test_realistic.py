@@ -4,6 +4,8 @@ joint-spring numbers bit for bit."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -175,3 +177,39 @@ def test_equilibrium_with_gravity_and_compensator(kr240):
         rhs = pin_jacobian(kr240, th).T @ W - gravity_torques(kr240, th[None])[0]
         rhs[1] += R.compensator_torque(comp, th[1:2])[0][0]
         assert np.max(np.abs(k * dq[p] - rhs)) < 1e-7 * np.max(np.abs(rhs))
+
+
+def test_displacement_cases_are_each_cases_own_call_bit_for_bit(kr240):
+    """The batched finite-difference evaluation (one Newton loop for C cases, each frozen
+    when its own poses converge) gives each case exactly its own displacement() call,
+    with gravity, with the compensator's spring per case, and with both."""
+    q = _poses(kr240)
+    k0 = kr240.nominal_stiffness
+    comp = R.compensator_for(kr240, 1, [-0.3, 0.0, 0.05], [0.2, 0.1, 0.0], 2e5, 5e3)
+    rng = np.random.default_rng(7)
+    ks = k0 * (1.0 + 0.2 * rng.random((4, 6)))  # different Newton iteration counts
+    springs = np.array([[5e3, 2e5], [8e3, 1e5], [2e3, 3e5], [5e3, 2e5 + 10.0]])
+    w_ref = np.array([100.0, 0.0, -300.0, 0.0, 20.0, 0.0])
+    for gravity, spr in (("on", None), ("off", springs), ("on", springs)):
+        lab = R.RealisticLab(gravity=gravity, compensator=None if spr is None else comp)
+        got = R.displacement_cases(kr240, lab, ks, q, w_ref, W, spr)
+        assert got.shape == (4, len(q), 6)
+        for c in range(4):
+            one = lab if spr is None else R.RealisticLab(
+                gravity=gravity, compensator=replace(comp, preload=float(spr[c, 0]),
+                                                       rate=float(spr[c, 1])))
+            assert np.array_equal(got[c], R.displacement(kr240, one, ks[c], q, w_ref, W))
+    with pytest.raises(ValueError):
+        R.displacement_cases(kr240, R.RealisticLab(), ks, q, w_ref, W)
+
+
+def test_compensator_torque_of_a_grid_of_springs_is_each_springs_own():
+    """preload and rate as (G, 1) arrays: row g is compensator_torque of spring g."""
+    robot = load_robot("kr240-2")
+    comp = R.compensator_for(robot, 1, [-0.3, 0.0, 0.0], [0.2, 0.0, 0.0], 2e5, 5e3)
+    q = np.linspace(robot.lower[1], robot.upper[1], 7)
+    pre, rate = np.array([5e3, 1e3, 9e3]), np.array([2e5, 4e5, 1e4])
+    tau, dtau = R.compensator_torque(comp, q, pre[:, None], rate[:, None])
+    for g in range(3):
+        one = R.compensator_torque(replace(comp, preload=pre[g], rate=rate[g]), q)
+        assert np.array_equal(tau[g], one[0]) and np.array_equal(dtau[g], one[1])

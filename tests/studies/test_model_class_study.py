@@ -52,3 +52,18 @@ def test_shards_joined_give_the_row_of_all_their_campaigns(tmp_path):
                                  "k_error": o.k_error.tolist()}) + "\n")
     assert st.rows_from(paths) == [st.row("all", out[0::2] + out[1::2])]
     assert st.rows_from(paths)[0] == st.row("all", out)  # order does not matter
+
+
+def test_the_docs_table_is_the_committed_campaigns():
+    """docs/identification.md's rows are those of the campaigns' JSON lines kept in
+    tests/studies/results (100 all-effects seeds 100-199, 100 clean seeds 0-99)."""
+    import json
+
+    res = st.Path(__file__).parent / "results"
+    files = [res / "model_class_all_100-199.jsonl", res / "model_class_clean_0-99.jsonl"]
+    seeds = [[json.loads(line)["seed"] for line in f.read_text().splitlines()] for f in files]
+    assert seeds == [list(range(100, 200)), list(range(100))]
+    docs = st.DOCS.read_text()
+    block = docs.split(st.BEGIN)[1].split(st.END)[0]
+    for row in st.rows_from(files):
+        assert row in block

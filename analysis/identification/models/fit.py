@@ -258,36 +258,45 @@ def _w_ref(data: ClassData) -> np.ndarray | None:
 
 
 def _physics_model(data: ClassData, x_full: np.ndarray, spring, gravity: bool):
-    from dataclasses import replace
-
-    from analysis.kinetostatics.realistic import RealisticLab, displacement
+    from analysis.kinetostatics.realistic import RealisticLab, displacement_cases
 
     t = data.tests
     w_ref = _w_ref(data)
     w_ref = np.zeros(6) if w_ref is None else w_ref
-
-    def disp(x, pr):
-        comp = None if pr is None else replace(data.compensator, preload=float(pr[0]),
-                                               rate=float(pr[1]))
-        lab = RealisticLab(gravity="on" if gravity else "off", compensator=comp)
-        with np.errstate(divide="ignore"):
-            k = np.where(x > 0, 1.0 / np.where(x > 0, x, 1.0), np.inf)
-        return displacement(data.robot, lab, k, t.q, w_ref, w_ref + t.w)
-
-    pred = disp(x_full, spring)
-    A = np.zeros((*pred.shape, x_full.size))
+    # the point and its forward-difference neighbours, one Newton loop for all (cases:
+    # x_full, then x_full + h_j e_j per fitted joint, then the spring's two steps)
+    xs, springs, steps = [x_full], [spring], []
     for j in data.joints:
         h = FD_STEP * abs(x_full[j]) if x_full[j] != 0 else FD_STEP * 1e-6
         xh = x_full.copy()
         xh[j] += h
-        A[..., j] = (disp(xh, spring) - pred) / h
+        xs.append(xh)
+        springs.append(spring)
+        steps.append(h)
+    if spring is not None:
+        for i, h in enumerate((FD_PRELOAD, FD_RATE)):
+            sh = np.array(spring, dtype=float)
+            sh[i] += h
+            xs.append(x_full)
+            springs.append(sh)
+            steps.append(h)
+    xs = np.array(xs)
+    with np.errstate(divide="ignore"):
+        k = np.where(xs > 0, 1.0 / np.where(xs > 0, xs, 1.0), np.inf)
+    lab = RealisticLab(gravity="on" if gravity else "off",
+                       compensator=None if spring is None else data.compensator)
+    disp = displacement_cases(data.robot, lab, k, t.q, w_ref, w_ref + t.w,
+                              None if spring is None else np.array(springs, dtype=float))
+    pred = disp[0]
+    A = np.zeros((*pred.shape, x_full.size))
+    for c, j in enumerate(data.joints, start=1):
+        A[..., j] = (disp[c] - pred) / steps[c - 1]
     if spring is None:
         return pred, A, None
     G = np.zeros((*pred.shape, 2))
-    for i, h in enumerate((FD_PRELOAD, FD_RATE)):
-        sh = np.array(spring, dtype=float)
-        sh[i] += h
-        G[..., i] = (disp(x_full, sh) - pred) / h
+    for i in range(2):
+        c = len(data.joints) + 1 + i
+        G[..., i] = (disp[c] - pred) / steps[c - 1]
     return pred, A, G
 
 
@@ -402,15 +411,23 @@ def fit_class(data: ClassData, extras: tuple[str, ...], like: ClassFit | None = 
 def _flank_pattern(data: ClassData, spring) -> tuple:
     """Joint 2's flanks (reference, loaded) at every test with the compensator spring
     ``spring`` = (preload (N), rate (N/m)): the discrete part of the model."""
-    from dataclasses import replace
+    ref, load = _flank_patterns(data, np.array([spring[0]], dtype=float),
+                                np.array([spring[1]], dtype=float))
+    return tuple(ref[0].tolist()), tuple(load[0].tolist())
 
+
+def _flank_patterns(data: ClassData, preload: np.ndarray,
+                    rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joint 2's flanks (reference, loaded) (G, m) each at every test for G springs
+    (preload (G,) N, rate (G,) N/m): :func:`_flank_pattern` of a grid at once (the spring
+    enters the torque linearly; the geometry's terms are computed once)."""
     from analysis.kinetostatics.realistic import compensator_torque
     from analysis.model.gravity import gear_flanks
 
-    comp = replace(data.compensator, preload=float(spring[0]), rate=float(spring[1]))
-    tc = compensator_torque(comp, data.tests.q[:, comp.joint])[0]
-    return tuple(tuple(gear_flanks(tau[:, comp.joint] + tc).tolist())
-                 for tau in data.gear_torques)
+    comp = data.compensator
+    tc = compensator_torque(comp, data.tests.q[:, comp.joint], preload[:, None],
+                            rate[:, None])[0]
+    return tuple(gear_flanks(tau[:, comp.joint] + tc) for tau in data.gear_torques)
 
 
 def _flank_candidates(data: ClassData, first: ClassFit, WM: np.ndarray,
@@ -425,17 +442,23 @@ def _flank_candidates(data: ClassData, first: ClassFit, WM: np.ndarray,
     scale = np.sqrt(max(1.0, first.chi2_nu)) if np.isfinite(first.chi2_nu) else 1.0
     sp, sr = max(sp * scale, FD_PRELOAD), max(sr * scale, FD_RATE)
     u = np.linspace(-FLANK_SEARCH_SE, FLANK_SEARCH_SE, FLANK_GRID)
-    best: dict[tuple, tuple[float, float, float]] = {}
-    for a in u:
-        for b in u:
-            key = _flank_pattern(data, (p0 + a * sp, r0 + b * sr))
-            d2 = a * a + b * b
-            if key not in best or d2 < best[key][0]:
-                best[key] = (d2, p0 + a * sp, r0 + b * sr)
+    a, b = (g.ravel() for g in np.meshgrid(u, u, indexing="ij"))  # a-major, as a loop
+    pp, rr = p0 + a * sp, r0 + b * sr
+    ref, load = _flank_patterns(data, pp, rr)
+    d2 = a * a + b * b
+    # each distinct pattern (first seen in grid order) with its grid point nearest the
+    # first-stage spring (the first of equals)
+    best: dict[bytes, tuple[float, int]] = {}
+    keys = np.concatenate([ref, load], axis=1)
+    for i in range(keys.shape[0]):
+        key = keys[i].tobytes()
+        if key not in best or d2[i] < best[key][0]:
+            best[key] = (d2[i], i)
     J2 = jacobian(data.robot, data.tests.q)[:, :, COMP_JOINT]
     ranked = []
-    for (s_ref, s_load), (_, p, r) in best.items():
-        step = (np.asarray(s_load) - np.asarray(s_ref)) / 2.0
+    for _, i in best.values():
+        p, r = pp[i], rr[i]
+        step = (load[i] - ref[i]) / 2.0
         col = _whiten(data.Linv, (J2 * step[:, None])[..., None])
         S = np.concatenate([WM, col], axis=1) if np.any(col) else WM
         sol = _solve(S, Wr)[0]
@@ -495,8 +518,9 @@ def _consistent(data: ClassData, f: ClassFit) -> bool:
     got = dict(zip(f.names, zip(f.values, f.se, strict=True), strict=True))
     (p, sp), (r, sr) = got["preload"], got["rate"]
     u = np.linspace(-FLANK_CONSISTENT_SE, FLANK_CONSISTENT_SE, FLANK_CONSISTENT_GRID)
-    return any(np.array_equal(want, np.subtract(*_flank_pattern(
-        data, (p + a * sp, r + b * sr))[::-1])) for a in u for b in u)
+    a, b = (g.ravel() for g in np.meshgrid(u, u, indexing="ij"))
+    ref, load = _flank_patterns(data, p + a * sp, r + b * sr)
+    return bool(np.any(np.all(load - ref == want, axis=1)))
 
 
 def _fit(data: ClassData, extras: tuple[str, ...], name: str,
