@@ -81,6 +81,19 @@ E2E = (
     "tests/acquire/test_resume.py::test_resume_of_a_complete_run_measures_nothing",
     "tests/jobs/test_acquire.py::test_acquire_same_tests_csv_from_cli_and_api",
     "tests/jobs/test_acquire.py::test_job_in_its_own_process_aborts_by_signal_like_ctrl_c",
+    # the fast lane's slowest tests (each 11-22 s at load 5, -n 2): model-class fits of
+    # whole simulated campaigns, maps and placement in processes of their own, a wheel
+    # built and installed, an acquisition through every web route
+    "tests/identification/test_model_classes_cli.py::test_auto_on_compliant_links_chooses_links_and_reports_candidates",
+    "tests/identification/test_model_classes.py::test_compensator_with_lost_motion_finds_joint_2s_flanks",
+    "tests/identification/test_model_classes.py::test_clean_lab_keeps_joints_with_todays_k",
+    "tests/web/test_plan_save.py::test_an_existing_name_is_refused_unless_replacing_is_asked",
+    "tests/web/test_api_safety.py::test_one_acquisition_per_robot_through_every_route",
+    "tests/project/test_wheel_protocols.py",
+    "tests/cli/test_cli.py::test_maps_on_robot_without_length_computes_it",
+    "tests/cli/test_cli_conventions.py::test_maps_json_and_no_silent_overwrite",
+    "tests/jobs/test_maps.py::test_maps_same_files_from_cli_and_api",
+    "tests/placement/test_place_scratch.py::test_local_cluster_leaves_no_scratch_space",
 )
 #: session fixtures that run whole campaigns: a test using one is end-to-end
 CAMPAIGN_FIXTURES = ("demo_runs",)

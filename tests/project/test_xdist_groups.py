@@ -39,3 +39,13 @@ def test_the_scheduler_puts_a_group_in_one_unit_and_other_files_alone(pytestconf
     a, b = SAME_WORKER["demo_runs"][:2]
     assert sched._split_scope(f"{a}::test_x[sqlite]") == sched._split_scope(f"{b}::test_y")
     assert sched._split_scope("tests/web/test_api.py::test_z") == "tests/web/test_api.py"
+
+
+def test_every_e2e_entry_names_a_test_that_exists():
+    """A renamed file or test would silently fall back into the fast lane."""
+    from tests.conftest import E2E
+
+    for entry in E2E:
+        path, _, func = entry.partition("::")
+        source = (ROOT / path).read_text(encoding="utf-8")
+        assert not func or re.search(rf"^def {re.escape(func)}\(", source, re.M), entry
