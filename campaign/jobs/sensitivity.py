@@ -174,6 +174,10 @@ class JointSpread:
     #: ols/wls: k of the linearised fit of noise-free tests / k_true - 1, the linearisation
     #: bias corrected in every trial (as ``campaign analyze`` does); 0 for exact
     linear_bias: float = 0.0
+    #: with realism: k of the noise-free realistic tests identified as the trials are (the
+    #: model class, the linearisation correction) / k_true - 1: what the model leaves in k
+    #: of the simulated effects (NaN without realism)
+    model_bias: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -212,7 +216,8 @@ class SensitivityResult:
                         "q75_Nm_per_rad": num(j.q75),
                         "predicted_se_Nm_per_rad": num(j.predicted_se),
                         "std_Nm_per_rad": num(j.std), "rejected": j.rejected,
-                        "linear_bias_relative": num(j.linear_bias)}
+                        "linear_bias_relative": num(j.linear_bias),
+                        "model_bias_relative": num(j.model_bias)}
                        for j in self.joints],
             "sets_Nm_per_rad": [[num(v) for v in s] for s in self.sets],
             "q_deg": np.degrees(self.q).round(6).tolist(),
@@ -260,11 +265,28 @@ def _class_spec(model: str):
     return ClassSpec(choice.extras) if choice.extras else None
 
 
-def class_trials(robot, sim, noise, k: np.ndarray, spec, method: str) -> np.ndarray:
+def class_kept(robot, q: np.ndarray, w: np.ndarray, noise, k: np.ndarray, spec) -> tuple:
+    """Names of the class's parameters the fit's rule keeps at the tests (q (t, n) rad,
+    w (t, 6)), whitened at the true k without the encoder term: decided once, for the
+    trials and the prediction alike (near-dependent link entries are kept or fixed by
+    rounding-level differences, which move k's gauge)."""
+    from analysis.model.kinematics import jacobian
+    from campaign.planning import model_class as mc
+
+    n = len(k)
+    q2ref = float(np.mean(q[:, mc.COMP_JOINT]))
+    W, names = mc.whitened(robot, jacobian(robot, q), q, w, noise, k, spec, q2ref)
+    kept, _ = mc.reduce_by_class(W[..., :n].reshape(-1, n), W[..., n:].reshape(
+        -1, W.shape[-1] - n), names)
+    return tuple(names[i][0] for i in kept)
+
+
+def class_trials(robot, sim, noise, k: np.ndarray, spec, method: str,
+                 keep: tuple) -> np.ndarray:
     """Compliances (T, n) (rad/(N m)) of the simulated campaigns ``sim`` identified with the
     class ``spec``: the linear model plus the class's columns
     (:func:`campaign.planning.model_class.extra_columns`, at the true angles and the
-    measured wrenches), the extras kept by the fit's rule at the true tests; rows whitened
+    measured wrenches), the extras ``keep`` (:func:`class_kept`); rows whitened
     by their residual covariance at 1/k (``ols``: unweighted); one least-squares solve
     per trial, columns scaled to unit norm (their units span 1e12)."""
     from analysis.identification.estimators.linear_model import design_block
@@ -274,9 +296,8 @@ def class_trials(robot, sim, noise, k: np.ndarray, spec, method: str) -> np.ndar
     T, m, n = sim.q.shape
     q2ref = float(np.mean(sim.q_true[:, mc.COMP_JOINT]))
     J0 = jacobian(robot, sim.q_true)
-    W0, names = mc.whitened(robot, J0, sim.q_true, sim.w_true, noise, k, spec, q2ref)
-    kept, _ = mc.reduce_by_class(W0[..., :n].reshape(-1, n), W0[..., n:].reshape(
-        -1, W0.shape[-1] - n), names)
+    names = mc.extra_columns(robot, J0[:1], sim.q_true[:1], sim.w_true[:1], spec, q2ref)[1]
+    kept = [i for i, nm in enumerate(names) if nm[0] in set(keep)]
     Linv = (np.linalg.inv(mc.noise_factor(J0, sim.w_true, noise, k)) if method != "ols"
             else np.broadcast_to(np.eye(6), (m, 6, 6)))
     x = np.empty((T, n))
@@ -292,9 +313,10 @@ def class_trials(robot, sim, noise, k: np.ndarray, spec, method: str) -> np.ndar
 
 
 def class_predicted_se(robot, q: np.ndarray, w: np.ndarray, k: np.ndarray, noise,
-                       spec) -> np.ndarray:
+                       spec, keep: tuple) -> np.ndarray:
     """(n,) the planner's standard error of k (N m/rad) of the class fit of the tests (q
-    (t, n) rad, w (t, 6)): marginal over the class's kept parameters, encoders included."""
+    (t, n) rad, w (t, 6)): marginal over the class's parameters ``keep``, encoders
+    included."""
     from types import SimpleNamespace
 
     from analysis.model.kinematics import jacobian
@@ -302,7 +324,7 @@ def class_predicted_se(robot, q: np.ndarray, w: np.ndarray, k: np.ndarray, noise
 
     tests = SimpleNamespace(q=q, J=jacobian(robot, q))
     idx = np.arange(len(q))
-    return predict(robot, tests, idx, idx, w, noise, k, 1, spec).k_se
+    return predict(robot, tests, idx, idx, w, noise, k, 1, spec, keep=keep).k_se
 
 
 def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.ndarray | None]:
@@ -387,18 +409,25 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
     q, w = q[:o.n_tests], w[:o.n_tests]
     rng = np.random.default_rng(o.seed + 1)
     sim = simulate_campaigns(robot, q, w, k, noise, 1, o.trials, rng)
-    if o.realism.active:  # the robot is not joint springs: every campaign sees it
-        sim.d[...] += realism_bias(robot, q, w, k, o.realism)[None]
+    real = noise_free_campaign(robot, q, w, k) if o.realism.active else None
+    if real is not None:  # the robot is not joint springs: every campaign sees it
+        bias_d = realism_bias(robot, q, w, k, o.realism)
+        sim.d[...] += bias_d[None]
+        real.d[...] += bias_d[None]
     spec = _class_spec(o.model)
     if spec is not None:  # the class: its linear fit, the linearisation bias corrected
+        keep = class_kept(robot, q, w, noise, k, spec)
         with np.errstate(all="ignore"):
-            x = class_trials(robot, sim, noise, k, spec, o.method)
+            x = class_trials(robot, sim, noise, k, spec, o.method, keep)
             bias = class_trials(robot, noise_free_campaign(robot, q, w, k), noise, k, spec,
-                                o.method)[0] - 1.0 / k
+                                o.method, keep)[0] - 1.0 / k
             x = x - bias[None, :]
             k_bias = 1.0 / (1.0 / k + bias) / k - 1.0
+            model_bias = (None if real is None else 1.0 / (
+                class_trials(robot, real, noise, k, spec, o.method, keep)[0] - bias) / k - 1.0)
         return _result(o, robot, k, q, w, noise, count, curve, x, k_bias,
-                       class_predicted_se(robot, q, w, k, noise, spec), spec.name)
+                       class_predicted_se(robot, q, w, k, noise, spec, keep), spec.name,
+                       model_bias)
     with np.errstate(all="ignore"):
         try:
             x = identify_campaigns(robot, sim, noise, 1.0 / k, o.method)  # (T, n)
@@ -415,13 +444,18 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
                                       1.0 / k, o.method)[0] - 1.0 / k
             x = x - bias[None, :]
             k_bias = 1.0 / (1.0 / k + bias) / k - 1.0
+        else:
+            bias = np.zeros(robot.n)
+        model_bias = None if real is None else 1.0 / (identify_campaigns(
+            robot, real, noise, 1.0 / k, o.method)[0] - bias) / k - 1.0
     return _result(o, robot, k, q, w, noise, count, curve, x, k_bias,
-                   curve[o.n_tests - 1] * k, "joints")
+                   curve[o.n_tests - 1] * k, "joints", model_bias)
 
 
 def _result(o: SensitivityOptions, robot, k, q, w, noise, count, curve, x, k_bias, se,
-            model: str) -> SensitivityResult:
-    """The spreads of the trials' compliances x (T, n), the predicted se (n,) N m/rad."""
+            model: str, model_bias: np.ndarray | None = None) -> SensitivityResult:
+    """The spreads of the trials' compliances x (T, n), the predicted se (n,) N m/rad;
+    ``model_bias`` (n,) relative, with realism (:attr:`JointSpread.model_bias`)."""
     with np.errstate(all="ignore"):
         ok = np.isfinite(x) & (x > 0)
     # a joint these tests do not identify (singular information: equal poses, a singular
@@ -437,7 +471,9 @@ def _result(o: SensitivityOptions, robot, k, q, w, noise, count, curve, x, k_bia
             q75=float(q75), predicted_se=float(se[j]),
             std=float(np.std(v, ddof=1)) if len(v) > 1 else float("nan"),
             rejected=int((~ok[:, j]).sum()),
-            linear_bias=float(k_bias[j]) if np.isfinite(se[j]) else float("nan")))
+            linear_bias=float(k_bias[j]) if np.isfinite(se[j]) else float("nan"),
+            model_bias=float("nan") if model_bias is None or not np.isfinite(se[j])
+            else float(model_bias[j])))
     return SensitivityResult(
         robot=robot.name, method=o.method, trials=o.trials, n_tests=o.n_tests, joints=joints,
         sets=kk[:SETS_SHOWN].tolist(), q=q, wrench=w, noise=noise.describe(),

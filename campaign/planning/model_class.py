@@ -355,21 +355,34 @@ def choose_for_class(inp: ClassInputs, group, zone, n: int, seed: int, joint_pic
 
 
 def predict(robot, cand, pose, case, wrenches, noise: NoiseModel, k_prior: np.ndarray,
-            rows: int, spec: ClassSpec, encoders: bool = True) -> ClassPrediction:
+            rows: int, spec: ClassSpec, encoders: bool = True,
+            keep: tuple[str, ...] | None = None) -> ClassPrediction:
     """The fit's standard errors under the class of a design's tests (rows of the design:
-    pose (m,), case (m,) indices), by the fit's reduction rule (module docstring); the
-    encoder term included unless ``encoders`` is False."""
+    pose (m,), case (m,) indices), by the fit's reduction rule (module docstring), or with
+    the parameters ``keep`` (names) when given; the encoder term included unless
+    ``encoders`` is False."""
     from analysis.identification.studies.robustness import jacobian_derivative
 
     pose, case = np.asarray(pose, dtype=int), np.asarray(case, dtype=int)
     q = cand.q[pose]
     q2ref = float(np.mean(q[:, COMP_JOINT])) if "compensator" in spec.extras else float("nan")
     dJ = jacobian_derivative(robot, q) if encoders else None
-    W, names = whitened(robot, cand.J[pose], q, wrenches[case], noise, k_prior, spec,
-                        0.0 if np.isnan(q2ref) else q2ref, rows, dJ)
+    ref = 0.0 if np.isnan(q2ref) else q2ref
+    W, names = whitened(robot, cand.J[pose], q, wrenches[case], noise, k_prior, spec, ref,
+                        rows, dJ)
     n = len(k_prior)
     WA, WB = W[..., :n].reshape(-1, n), W[..., n:].reshape(-1, W.shape[-1] - n)
-    kept, fixed = reduce_by_class(WA, WB, names)
+    if keep is None:
+        # chosen as the fit chooses: whitened without the encoder term (near-dependent
+        # link entries are kept or fixed by rounding-level differences)
+        W0 = W if dJ is None else whitened(robot, cand.J[pose], q, wrenches[case], noise,
+                                           k_prior, spec, ref, rows)[0]
+        kept, fixed = reduce_by_class(W0[..., :n].reshape(-1, n),
+                                      W0[..., n:].reshape(-1, W.shape[-1] - n), names)
+    else:
+        kept = [i for i, nm in enumerate(names) if nm[0] in set(keep)]
+        out = [nm[0] for i, nm in enumerate(names) if i not in set(kept)]
+        fixed = [(", ".join(out), "fixed at 0 (not kept by the fit)")] if out else []
     cov = class_fit.parameter_covariance(np.concatenate([WA, WB[:, kept]], axis=1))
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     q2 = q[:, COMP_JOINT]

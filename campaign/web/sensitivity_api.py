@@ -83,6 +83,7 @@ class JointOut(BaseModel):
     std_Nm_per_rad: float | None
     rejected: int
     linear_bias_relative: float | None = None
+    model_bias_relative: float | None = None
 
 
 class SensitivityResponse(BaseModel):
