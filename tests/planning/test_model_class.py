@@ -154,3 +154,26 @@ def test_protocol_key_default_and_override(kr_protocol):
     assert mc.planner_class(kr_protocol) is None
     spec = mc.planner_class(kr_protocol, "links+compensator")
     assert spec.extras == ("compensator", "links") and spec.links == (2, 3)
+
+
+def test_protocol_model_key_designs_for_the_compensator(tmp_path):
+    """``[campaign] model = "compensator"`` in a protocol file: the plan is made for it (its
+    c1, c2 predicted with their units, the q2 spread printed); an unknown class is refused
+    at the key's line."""
+    from pathlib import Path
+
+    from campaign.protocol import load_protocol
+
+    kr = Path(__file__).resolve().parents[2] / "protocols" / "kr240-2.toml"
+    text = kr.read_text().replace('tests = 5 ', 'model = "compensator"\ntests = 8 ', 1)
+    path = tmp_path / "p.toml"
+    path.write_text(text)
+    plan = make_plan(load_protocol(path), "worst-joint", seed=1, candidates=300)
+    m = summary_dict(plan)["model_class"]
+    assert plan.model == "compensator" and m["model"] == "compensator"
+    assert [(p["name"], p["unit"]) for p in m["parameters"]] == [
+        ("c1", "rad/(N m) per rad"), ("c2", "rad/(N m) per rad^2")]
+    assert m["q2_range_rad"] > 0 and "q2 over the tests" in summary_text(plan)
+    path.write_text(text.replace('"compensator"', '"springs"'))
+    with pytest.raises(InputError, match="campaign.model"):
+        load_protocol(path)
