@@ -273,7 +273,7 @@ def _screen(inp: ClassInputs, base: np.ndarray, allowed: np.ndarray,
     idx = np.flatnonzero(allowed)
     if idx.size <= SCREEN:
         return idx
-    Minv = np.linalg.inv(base + inp.prior())
+    Minv = np.linalg.pinv(base + inp.prior())
     r = np.sqrt(np.abs(np.diag(Minv)))[inp.crit]
     c = (r / r.max()) ** 8 + (r > guard)
     W = (Minv[:, inp.crit] * c) @ Minv[inp.crit, :]
