@@ -99,6 +99,20 @@ class CampaignSpec(_Strict):
     repeats: int = Field(default=1, ge=1, le=100)
     prior_stiffness: Stiffness6 | None = None
     characteristic_length_mm: LengthMm | None = Field(default=None, gt=0)
+    #: the model class the planner designs for (campaign.planning.model_class)
+    model: str = "joints"
+
+    @field_validator("model")
+    @classmethod
+    def _model_class(cls, value):
+        from analysis.identification.models.names import parse_model
+
+        try:
+            parse_model(value)
+        except InputError as err:
+            raise ValueError(str(err).split(":", 1)[-1].strip() if ":" in str(err)
+                             else str(err)) from None
+        return value
 
     @field_validator("prior_stiffness")
     @classmethod

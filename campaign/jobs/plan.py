@@ -20,7 +20,8 @@ class PlanOptions:
     seed: seed of the candidate draw and random design; candidates: candidate poses drawn;
     tests: test poses (None: the protocol's); figure: draw plan_map.png;
     force: write into a non-empty ``out`` (its plan files are replaced);
-    map_points: also return the zone map's data (:func:`campaign.planning.map_data.map_points`)."""
+    map_points: also return the zone map's data (:func:`campaign.planning.map_data.map_points`);
+    model: the model class to design for (None: the protocol's ``[campaign] model``)."""
 
     protocol: Path
     out: Path
@@ -32,6 +33,7 @@ class PlanOptions:
     figure: bool = True
     force: bool = False
     map_points: bool = False
+    model: str | None = None
 
 
 @dataclass
@@ -62,7 +64,7 @@ def run(o: PlanOptions, stage: Stage = no_stage) -> PlanResult:
     strategy = Strategy(o.strategy)
     with stage(f"candidate evaluation and {strategy} design ({o.candidates} candidates)"):
         plan = make_plan(proto, strategy=str(strategy), seed=o.seed, candidates=o.candidates,
-                         tests=o.tests, weights=wts)
+                         tests=o.tests, weights=wts, model=o.model)
     with stage("writing the plan" + (" and plan_map.png" if o.figure else "")), \
             created_dir(out):
         path = write_plan(plan, out, figure=o.figure)

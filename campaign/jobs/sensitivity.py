@@ -155,6 +155,8 @@ class SensitivityOptions:
     trials: int = 1000
     seed: int = 0
     realism: Realism = field(default_factory=Realism)
+    #: the model class each trial is identified with (``joints``: the joint springs, today's)
+    model: str = "joints"
 
 
 @dataclass(frozen=True)
@@ -172,6 +174,10 @@ class JointSpread:
     #: ols/wls: k of the linearised fit of noise-free tests / k_true - 1, the linearisation
     #: bias corrected in every trial (as ``campaign analyze`` does); 0 for exact
     linear_bias: float = 0.0
+    #: with realism: k of the noise-free realistic tests identified as the trials are (the
+    #: model class, the linearisation correction) / k_true - 1: what the model leaves in k
+    #: of the simulated effects (NaN without realism)
+    model_bias: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -194,6 +200,8 @@ class SensitivityResult:
     curve_se: np.ndarray
     #: a sentence on the linearisation-bias correction applied (ols/wls), else ""
     note: str = ""
+    #: the model class the trials were identified with
+    model: str = "joints"
 
     def to_dict(self) -> dict:
         """JSON-ready (SI; NaN and inf as None)."""
@@ -208,7 +216,8 @@ class SensitivityResult:
                         "q75_Nm_per_rad": num(j.q75),
                         "predicted_se_Nm_per_rad": num(j.predicted_se),
                         "std_Nm_per_rad": num(j.std), "rejected": j.rejected,
-                        "linear_bias_relative": num(j.linear_bias)}
+                        "linear_bias_relative": num(j.linear_bias),
+                        "model_bias_relative": num(j.model_bias)}
                        for j in self.joints],
             "sets_Nm_per_rad": [[num(v) for v in s] for s in self.sets],
             "q_deg": np.degrees(self.q).round(6).tolist(),
@@ -217,6 +226,7 @@ class SensitivityResult:
             "curve_tests": self.curve_tests.tolist(),
             "curve_relative_se": [[num(v) for v in row] for row in self.curve_se],
             "note": self.note,
+            "model": self.model,
         }
 
 
@@ -237,6 +247,84 @@ def _check(o: SensitivityOptions) -> None:
                             ("compensator_fraction", r.compensator_fraction, 1.0)):
         if not (np.isfinite(value) and 0 <= value <= hi):
             raise InputError(f"must be 0 to {hi:g}, got {value!r}", where=name)
+    _class_spec(o.model)
+
+
+def _class_spec(model: str):
+    """The :class:`~campaign.planning.model_class.ClassSpec` of ``model`` (None: joints);
+    the explorer identifies the classes whose parameters are linear columns."""
+    from analysis.identification.models.names import parse_model
+    from campaign.planning.model_class import PLANNED, ClassSpec
+
+    choice = parse_model(model)
+    bad = [e for e in choice.extras if e not in PLANNED]
+    if choice.auto or bad:
+        raise InputError(f"the explorer identifies with joints, {', '.join(PLANNED)} "
+                         f"(combined with '+'), not {'auto' if choice.auto else bad[0]}",
+                         where="model")
+    return ClassSpec(choice.extras) if choice.extras else None
+
+
+def class_kept(robot, q: np.ndarray, w: np.ndarray, noise, k: np.ndarray, spec) -> tuple:
+    """Names of the class's parameters the fit's rule keeps at the tests (q (t, n) rad,
+    w (t, 6)), whitened at the true k without the encoder term: decided once, for the
+    trials and the prediction alike (near-dependent link entries are kept or fixed by
+    rounding-level differences, which move k's gauge)."""
+    from analysis.model.kinematics import jacobian
+    from campaign.planning import model_class as mc
+
+    n = len(k)
+    q2ref = float(np.mean(q[:, mc.COMP_JOINT]))
+    W, names = mc.whitened(robot, jacobian(robot, q), q, w, noise, k, spec, q2ref)
+    kept, _ = mc.reduce_by_class(W[..., :n].reshape(-1, n), W[..., n:].reshape(
+        -1, W.shape[-1] - n), names)
+    return tuple(names[i][0] for i in kept)
+
+
+def class_trials(robot, sim, noise, k: np.ndarray, spec, method: str,
+                 keep: tuple) -> np.ndarray:
+    """Compliances (T, n) (rad/(N m)) of the simulated campaigns ``sim`` identified with the
+    class ``spec``: the linear model plus the class's columns
+    (:func:`campaign.planning.model_class.extra_columns`, at the true angles and the
+    measured wrenches), the extras ``keep`` (:func:`class_kept`); rows whitened
+    by their residual covariance at 1/k (``ols``: unweighted); one least-squares solve
+    per trial, columns scaled to unit norm (their units span 1e12)."""
+    from analysis.identification.estimators.linear_model import design_block
+    from analysis.model.kinematics import jacobian
+    from campaign.planning import model_class as mc
+
+    T, m, n = sim.q.shape
+    q2ref = float(np.mean(sim.q_true[:, mc.COMP_JOINT]))
+    J0 = jacobian(robot, sim.q_true)
+    names = mc.extra_columns(robot, J0[:1], sim.q_true[:1], sim.w_true[:1], spec, q2ref)[1]
+    kept = [i for i, nm in enumerate(names) if nm[0] in set(keep)]
+    Linv = (np.linalg.inv(mc.noise_factor(J0, sim.w_true, noise, k)) if method != "ols"
+            else np.broadcast_to(np.eye(6), (m, 6, 6)))
+    x = np.empty((T, n))
+    for t in range(T):
+        E = mc.extra_columns(robot, sim.J[t], sim.q_true, sim.w[t], spec, q2ref)[0]
+        M = np.concatenate([design_block(sim.J[t], sim.w[t]), E[..., kept]], axis=-1)
+        WM = (Linv @ M).reshape(6 * m, -1)
+        Wd = np.einsum("mij,mj->mi", Linv, sim.d[t]).reshape(-1)
+        norm = np.linalg.norm(WM, axis=0)
+        norm = np.where(norm > 0, norm, 1.0)
+        x[t] = (np.linalg.lstsq(WM / norm, Wd, rcond=None)[0] / norm)[:n]
+    return x
+
+
+def class_predicted_se(robot, q: np.ndarray, w: np.ndarray, k: np.ndarray, noise,
+                       spec, keep: tuple) -> np.ndarray:
+    """(n,) the planner's standard error of k (N m/rad) of the class fit of the tests (q
+    (t, n) rad, w (t, 6)): marginal over the class's parameters ``keep``, encoders
+    included."""
+    from types import SimpleNamespace
+
+    from analysis.model.kinematics import jacobian
+    from campaign.planning.model_class import predict
+
+    tests = SimpleNamespace(q=q, J=jacobian(robot, q))
+    idx = np.arange(len(q))
+    return predict(robot, tests, idx, idx, w, noise, k, 1, spec, keep=keep).k_se
 
 
 def _poses(o: SensitivityOptions, robot, count: int) -> tuple[np.ndarray, np.ndarray | None]:
@@ -321,8 +409,25 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
     q, w = q[:o.n_tests], w[:o.n_tests]
     rng = np.random.default_rng(o.seed + 1)
     sim = simulate_campaigns(robot, q, w, k, noise, 1, o.trials, rng)
-    if o.realism.active:  # the robot is not joint springs: every campaign sees it
-        sim.d[...] += realism_bias(robot, q, w, k, o.realism)[None]
+    real = noise_free_campaign(robot, q, w, k) if o.realism.active else None
+    if real is not None:  # the robot is not joint springs: every campaign sees it
+        bias_d = realism_bias(robot, q, w, k, o.realism)
+        sim.d[...] += bias_d[None]
+        real.d[...] += bias_d[None]
+    spec = _class_spec(o.model)
+    if spec is not None:  # the class: its linear fit, the linearisation bias corrected
+        keep = class_kept(robot, q, w, noise, k, spec)
+        with np.errstate(all="ignore"):
+            x = class_trials(robot, sim, noise, k, spec, o.method, keep)
+            bias = class_trials(robot, noise_free_campaign(robot, q, w, k), noise, k, spec,
+                                o.method, keep)[0] - 1.0 / k
+            x = x - bias[None, :]
+            k_bias = 1.0 / (1.0 / k + bias) / k - 1.0
+            model_bias = (None if real is None else 1.0 / (
+                class_trials(robot, real, noise, k, spec, o.method, keep)[0] - bias) / k - 1.0)
+        return _result(o, robot, k, q, w, noise, count, curve, x, k_bias,
+                       class_predicted_se(robot, q, w, k, noise, spec, keep), spec.name,
+                       model_bias)
     with np.errstate(all="ignore"):
         try:
             x = identify_campaigns(robot, sim, noise, 1.0 / k, o.method)  # (T, n)
@@ -339,8 +444,20 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
                                       1.0 / k, o.method)[0] - 1.0 / k
             x = x - bias[None, :]
             k_bias = 1.0 / (1.0 / k + bias) / k - 1.0
+        else:
+            bias = np.zeros(robot.n)
+        model_bias = None if real is None else 1.0 / (identify_campaigns(
+            robot, real, noise, 1.0 / k, o.method)[0] - bias) / k - 1.0
+    return _result(o, robot, k, q, w, noise, count, curve, x, k_bias,
+                   curve[o.n_tests - 1] * k, "joints", model_bias)
+
+
+def _result(o: SensitivityOptions, robot, k, q, w, noise, count, curve, x, k_bias, se,
+            model: str, model_bias: np.ndarray | None = None) -> SensitivityResult:
+    """The spreads of the trials' compliances x (T, n), the predicted se (n,) N m/rad;
+    ``model_bias`` (n,) relative, with realism (:attr:`JointSpread.model_bias`)."""
+    with np.errstate(all="ignore"):
         ok = np.isfinite(x) & (x > 0)
-    se = curve[o.n_tests - 1] * k
     # a joint these tests do not identify (singular information: equal poses, a singular
     # pose): the least-squares k of each trial is an arbitrary number, never shown as one
     ok &= np.isfinite(se)[None, :]
@@ -354,12 +471,24 @@ def run_sensitivity(o: SensitivityOptions, robot=None) -> SensitivityResult:
             q75=float(q75), predicted_se=float(se[j]),
             std=float(np.std(v, ddof=1)) if len(v) > 1 else float("nan"),
             rejected=int((~ok[:, j]).sum()),
-            linear_bias=float(k_bias[j]) if np.isfinite(se[j]) else float("nan")))
+            linear_bias=float(k_bias[j]) if np.isfinite(se[j]) else float("nan"),
+            model_bias=float("nan") if model_bias is None or not np.isfinite(se[j])
+            else float(model_bias[j])))
     return SensitivityResult(
         robot=robot.name, method=o.method, trials=o.trials, n_tests=o.n_tests, joints=joints,
         sets=kk[:SETS_SHOWN].tolist(), q=q, wrench=w, noise=noise.describe(),
         curve_tests=np.arange(1, count + 1), curve_se=curve,
-        note=_bias_note(o.method, k_bias, np.isfinite(se)))
+        note=_bias_note(o.method, k_bias, np.isfinite(se)) if model == "joints" else
+        _class_note(model, k_bias, np.isfinite(se)), model=model)
+
+
+def _class_note(model: str, k_bias: np.ndarray, identified: np.ndarray) -> str:
+    """The sentence the page shows under the table of a model class."""
+    shown = [f"k{j + 1} {100 * b:+.2f} %" for j, b in enumerate(k_bias) if identified[j]]
+    return (f"identified with the model class {model}: the linear model plus its parameters "
+            "(the identifiable ones at these tests), every trial corrected for its "
+            f"linearisation bias ({', '.join(shown) or 'nothing identified'}); the predicted "
+            "se is marginal over the class's parameters (the curve stays the joint springs').")
 
 
 def _bias_note(method: str, k_bias: np.ndarray, identified: np.ndarray) -> str:

@@ -80,13 +80,7 @@ def candidate_information(
     x0 = 1.0 / np.asarray(k_prior, dtype=float)
     A = design_block(J, w)
     C = cartesian_compliance(J, k_prior) if compliance is None else compliance
-    G = None
-    if dJ is not None:
-        # d(J X J^T w)/dq_k = dJ_k X J^T w + J X dJ_k^T w
-        tau = np.einsum("...ji,...j->...i", J, w)
-        dtau = np.einsum("...jik,...j->...ik", dJ, w)
-        G = np.einsum("...rik,...i->...rk", dJ, x0 * tau) + np.einsum(
-            "...ri,...ik->...rk", J * x0, dtau)
+    G = None if dJ is None else encoder_gradient(J, dJ, w, x0)
     S = residual_covariance(noise, C, w, G)
     if S.ndim == 3:
         # whitening L^-1 A by an entry-major Cholesky and forward substitution over the
@@ -98,6 +92,17 @@ def candidate_information(
     else:
         B = np.linalg.solve(np.linalg.cholesky(S), A) * x0
     return rows * information(B)
+
+
+def encoder_gradient(J: np.ndarray, dJ: np.ndarray, w: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    """G (..., 6, n): derivative of the model displacement J X J^T w with respect to the
+    joint angles (m/rad, rad/rad) at compliances x0 (n,) (rad/(N m)); J (..., 6, n),
+    dJ (..., 6, n, n) (last axis the joint differentiated), w (..., 6) (N, N m)."""
+    # d(J X J^T w)/dq_k = dJ_k X J^T w + J X dJ_k^T w
+    tau = np.einsum("...ji,...j->...i", J, w)
+    dtau = np.einsum("...jik,...j->...ik", dJ, w)
+    return np.einsum("...rik,...i->...rk", dJ, x0 * tau) + np.einsum(
+        "...ri,...ik->...rk", J * x0, dtau)
 
 
 def cartesian_compliance(J: np.ndarray, k_prior: np.ndarray) -> np.ndarray:
@@ -181,7 +186,17 @@ def objective(
     ``worst``: max_j rel_se_j, times ``1 + GUARD_PENALTY * sum_j max(0, rel_se_j / g_j - 1)``
     with guards ``guard`` (n,) when given. ``weighted``: sum_j weights_j rel_se_j.
     """
-    r = relative_se(M)
+    return objective_of_se(relative_se(M), kind, weights, guard)
+
+
+def objective_of_se(
+    r: np.ndarray,
+    kind: str = "worst",
+    weights: np.ndarray | None = None,
+    guard: np.ndarray | None = None,
+) -> np.ndarray:
+    """:func:`objective` of relative standard errors r (..., n) (dimensionless) already
+    computed (the model-class planner's marginal ones, :mod:`campaign.planning.model_class`)."""
     if kind == "weighted":
         wts = np.ones(r.shape[-1]) if weights is None else np.asarray(weights, float)
         return np.sum(r * wts, axis=-1)

@@ -178,7 +178,18 @@ def summary_dict(plan: Plan) -> dict:
         **_noise_dict(plan),
         **_criterion_dict(plan),
         **_flanks_dict(plan),
+        **_model_dict(plan),
     }
+
+
+def _model_dict(plan: Plan) -> dict:
+    """The model class's predictions ({} for the joint springs: the summary as before)."""
+    if plan.chosen.model is None:
+        return {}
+    from campaign.planning.model_class import describe
+
+    return {"model_class": describe(plan.chosen.model, plan.random.model,
+                                    plan.chosen.joint_se, plan.k_prior)}
 
 
 def summary_text(plan: Plan) -> str:
@@ -214,6 +225,7 @@ def summary_text(plan: Plan) -> str:
         )
     lines += _criterion_lines(s)
     lines += _flank_lines(s)
+    lines += _model_lines(s)
     return "\n".join(lines) + "\n"
 
 
@@ -241,6 +253,28 @@ def _flank_lines(s: dict) -> list[str]:
                      f"{max(keep):.3f} (per test: "
                      + ", ".join("-" if v is None else f"{v:.3f}"
                                  for v in f["preload_fraction_keeping_flanks"]) + ")")
+    return lines
+
+
+def _model_lines(s: dict) -> list[str]:
+    """The model class's parameters' predicted se (SI, with units) and the fixed ones."""
+    if "model_class" not in s:
+        return []
+    from analysis.report.formatting import sig
+
+    m = s["model_class"]
+    lines = ["", f"model class {m['model']}: the se of k above are marginal over its "
+             "parameters (its fit's); joint springs only, %: "
+             + " ".join(f"{v:.3f}" for v in m["k_se_joints_only_percent"]),
+             f"predicted standard error of its {len(m['parameters'])} kept parameter(s) "
+             "(SI): design, random zone design"]
+    for p in m["parameters"]:
+        rnd = "-" if p["se_random"] is None else sig(p["se_random"], 3)
+        lines.append(f"  {p['name']:<10} {sig(p['se_design'], 3):>10} {rnd:>10}  {p['unit']}")
+    for f in m["fixed"]:
+        lines.append(f"  fixed at 0: {f['parameters']} ({f['why']})")
+    lines.append(f"q2 over the tests: std {np.degrees(m['q2_std_rad']):.2f} deg, range "
+                 f"{np.degrees(m['q2_range_rad']):.2f} deg")
     return lines
 
 

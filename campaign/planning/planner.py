@@ -55,6 +55,10 @@ class Design:
     log_det: float  # log det of the information matrix of relative compliances
     min_eig: float  # its smallest eigenvalue
     picks: np.ndarray | None = None  # (p,) indices of the chosen candidate tests
+    #: the prediction under the plan's model class (se above: its marginal se of k), None
+    #: for the joint springs (campaign.planning.model_class)
+    model: object = None
+    joint_se: np.ndarray | None = None  # (n,) se of k of the joint springs only (N m/rad)
 
 
 @dataclass
@@ -93,6 +97,8 @@ class Plan:
     random_median_se: np.ndarray | None = None
     case_contributions: list[dict] | None = None
     weights: np.ndarray | None = None
+    #: the model class the plan designs for (``joints``: today's planner)
+    model: str = "joints"
 
     def to_frame(self) -> pd.DataFrame:
         """One row per test, columns :data:`COLUMNS` (degrees, N, N m; v_r in deg)."""
@@ -199,14 +205,18 @@ def _expand(pose: np.ndarray, case: np.ndarray, m: int) -> tuple[np.ndarray, np.
 def _design(plan_in: dict, picks: np.ndarray) -> Design:
     pose, case = _expand(plan_in["pose"][picks], plan_in["case"][picks], plan_in["m"])
     M = plan_in["F"][picks].sum(axis=0)
-    return Design(
-        pose=pose,
-        case=case,
-        se=plan_in["k"] * relative_se(_full_information(plan_in, pose, case)),
-        log_det=float(criterion(M, "d")),
-        min_eig=float(criterion(M, "e")),
-        picks=np.asarray(picks, dtype=int),
-    )
+    se = plan_in["k"] * relative_se(_full_information(plan_in, pose, case))
+    spec = plan_in.get("spec")
+    if spec is None:
+        return Design(pose=pose, case=case, se=se, log_det=float(criterion(M, "d")),
+                      min_eig=float(criterion(M, "e")), picks=np.asarray(picks, dtype=int))
+    from campaign.planning.model_class import predict
+
+    pred = predict(plan_in["robot"], plan_in["cand"], pose, case, plan_in["wrenches"],
+                   plan_in["noise"], plan_in["k"], plan_in["rows"], spec)
+    return Design(pose=pose, case=case, se=pred.k_se, log_det=float(criterion(M, "d")),
+                  min_eig=float(criterion(M, "e")), picks=np.asarray(picks, dtype=int),
+                  model=pred, joint_se=se)
 
 
 def _full_information(plan_in: dict, pose: np.ndarray, case: np.ndarray) -> np.ndarray:
@@ -234,9 +244,12 @@ def case_contributions(plan_in: dict, design: Design, names: list[str]) -> list[
 
 
 def _choose(protocol: Protocol, robot: RobotModel, cand: Candidates, strategy: str, seed: int,
-            weights, noise: NoiseModel, k_prior: np.ndarray, rows: int):
+            weights, noise: NoiseModel, k_prior: np.ndarray, rows: int, spec=None):
     """(cand, inputs, chosen, random, reference): the design of ``strategy`` over the
-    candidates, the random zone design, the median random relative se per joint."""
+    candidates, the random zone design, the median random relative se per joint.
+    ``spec``: the model class designed for (:mod:`campaign.planning.model_class`; None:
+    the joint springs): ``worst-joint`` then minimises its criterion, the other strategies
+    keep theirs; the predictions and the reference are the class's."""
     wrenches = protocol.wrenches()
     pose, case, group = _tests(cand, protocol.loads.selection)
     if case.size and case[0] < 0:
@@ -247,7 +260,8 @@ def _choose(protocol: Protocol, robot: RobotModel, cand: Candidates, strategy: s
     else:
         F = tests_information(cand.J, pose, wrenches, case, noise, k_prior, rows)
     inputs = {"pose": pose, "case": case, "F": F, "k": k_prior, "m": len(wrenches),
-              "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows}
+              "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows,
+              "spec": spec}
     n = protocol.campaign.tests
     zone = cand.zone[pose]
     sep_deg = protocol.thresholds.min_pose_separation_deg
@@ -264,6 +278,13 @@ def _choose(protocol: Protocol, robot: RobotModel, cand: Candidates, strategy: s
             picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e",
                                     sep=sep)
         reference = random_reference(F, group, zone, n, seed, sep=sep)[1]
+        if spec is not None:
+            from campaign.planning import model_class as mc
+
+            inp = mc.pool_inputs(robot, cand, pose, case, wrenches, noise, k_prior, rows, spec)
+            crit_median, reference = mc.random_reference(inp, group, zone, n, seed, sep)
+            if strategy == "worst-joint":
+                picks = mc.choose_for_class(inp, group, zone, n, seed, picks, crit_median, sep)
     except ValueError as err:
         raise InputError(
             f"cannot choose {n} poses at least {sep_deg:g} deg apart (joint space) from "
@@ -280,7 +301,7 @@ def _worst(design: Design, k: np.ndarray) -> float:
 
 def _fewer_flips(protocol: Protocol, robot: RobotModel, cand: Candidates, counts: np.ndarray,
                  blind, strategy: str, seed: int, weights, noise: NoiseModel,
-                 k_prior: np.ndarray, rows: int):
+                 k_prior: np.ndarray, rows: int, spec=None):
     """A design that changes no flank when the candidates allow one (its fit has no
     lost-motion error at all, whatever its se); else the design with the fewest changes among
     those over the candidates limited to at most 1, 2 ... changes per test
@@ -306,7 +327,8 @@ def _fewer_flips(protocol: Protocol, robot: RobotModel, cand: Candidates, counts
     bound = FLANK_SE_TOLERANCE * _worst(blind[2], k_prior)
     for _, limited in _flank_limited(protocol, cand, counts):
         try:
-            c = _choose(protocol, robot, limited, strategy, seed, weights, noise, k_prior, rows)
+            c = _choose(protocol, robot, limited, strategy, seed, weights, noise, k_prior, rows,
+                        spec)
         except InputError:
             continue
         ck = key(c)
@@ -326,6 +348,7 @@ def make_plan(
     candidates: int = 10000,
     tests: int | None = None,
     weights: Sequence[float] | None = None,
+    model: str | None = None,
 ) -> Plan:
     """Plan the campaign of ``protocol``.
 
@@ -344,6 +367,9 @@ def make_plan(
     tests : number of test poses; default the protocol's ``campaign.tests`` (an
         override is recorded in the summary, not in the protocol copy).
     weights : (n,) weights of the joints' relative standard errors (``weighted``).
+    model : the model class to design for (``campaign plan --model``), overriding the
+        protocol's ``[campaign] model`` (default ``joints``: today's plans);
+        :mod:`campaign.planning.model_class`.
 
     Raises
     ------
@@ -371,6 +397,9 @@ def make_plan(
             raise InputError(f"the weighted criterion needs {robot.n} weights >= 0, not all 0",
                              where="--weights")
         weights = np.asarray(weights, dtype=float)
+    from campaign.planning.model_class import planner_class
+
+    spec = planner_class(protocol, model)
     k_prior = prior_stiffness(protocol, robot)
     protocol.measurement_sigma()  # refuses a pose instrument without noise figures
     noise = noise_from_protocol(protocol)
@@ -382,10 +411,10 @@ def make_plan(
     cand = evaluate(protocol, robot, q, zone, k_prior, length)
     check_enough(protocol, cand)
     counts = _flank_counts(protocol, robot, cand)
-    choice = _choose(protocol, robot, cand, strategy, seed, weights, noise, k_prior, rows)
+    choice = _choose(protocol, robot, cand, strategy, seed, weights, noise, k_prior, rows, spec)
     if counts is not None:
         choice = _fewer_flips(protocol, robot, cand, counts, choice, strategy, seed, weights,
-                              noise, k_prior, rows)
+                              noise, k_prior, rows, spec)
     cand, inputs, chosen, rand, reference = choice
     return Plan(
         protocol=protocol,
@@ -404,4 +433,5 @@ def make_plan(
         case_contributions=case_contributions(
             inputs, chosen, [c.name for c in protocol.load_cases]),
         weights=weights,
+        model="joints" if spec is None else spec.name,
     )

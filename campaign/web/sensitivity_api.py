@@ -64,6 +64,9 @@ class SensitivityRequest(BaseModel):
     compensator_percent: float = Field(
         0.0, ge=0, le=30, description="Axis-2 gravity compensator whose stiffness reaches "
         "this % of k2 over the q2 range (gravity on); 0: none.")
+    model: Literal["joints", "links", "compensator", "compensator+links"] = Field(
+        "joints", description="Model class each trial is identified with (joints: the joint "
+        "springs; links, compensator: the class's identifiable parameters as well).")
     n_tests: int = Field(10, ge=1, le=200)
     method: Literal[METHODS] = DEFAULT_METHOD  # robustness's and analyze's default
     trials: int = Field(1000, ge=2, le=API_MAX_TRIALS)
@@ -80,6 +83,7 @@ class JointOut(BaseModel):
     std_Nm_per_rad: float | None
     rejected: int
     linear_bias_relative: float | None = None
+    model_bias_relative: float | None = None
 
 
 class SensitivityResponse(BaseModel):
@@ -97,6 +101,7 @@ class SensitivityResponse(BaseModel):
     curve_tests: list[int]
     curve_relative_se: list[list[float | None]]
     note: str = ""
+    model: str = "joints"
 
 
 class Defaults(BaseModel):
@@ -158,7 +163,7 @@ def options_from_request(body: SensitivityRequest, workspace):
         joint_stiffness=None if body.joint_stiffness_Nm_per_rad is None
         else np.array(body.joint_stiffness_Nm_per_rad),
         errors=errors, n_tests=body.n_tests, method=body.method, trials=body.trials,
-        seed=body.seed,
+        seed=body.seed, model=body.model,
         realism=Realism(link_fraction=body.link_compliance_percent / 100,
                         lost_motion=body.lost_motion_mrad * 1e-3,
                         compensator_fraction=body.compensator_percent / 100))

@@ -119,6 +119,23 @@ def test_method_and_plan_poses(page, workspace):
     assert "k3 " in note and " %" in note
 
 
+def test_model_class_select(page, workspace):
+    """The model class select lists the API's classes (joints first, the default); picking
+    links identifies with it: the page shows the job's numbers and its note."""
+    options = page.evaluate("() => [...document.getElementById('sens-model').options]"
+                            ".map((o) => o.value)")
+    assert options[0] == "joints" and "links" in options
+    assert _settings(page)["model"] == "joints"
+    before = int(page.evaluate("() => document.body.dataset.updates"))
+    page.select_option("#sens-model", "links")
+    page.wait_for_function(f"() => Number(document.body.dataset.updates) > {before}")
+    _wait_shown(page)
+    body = _assert_page_equals_job(page, workspace)
+    assert body["model"] == "links"
+    assert page.locator("#sens-note").inner_text().startswith("identified with the model "
+                                                               "class links")
+
+
 def test_bad_wrench_is_shown_beside_the_form(page):
     page.fill("#wrench", "0,0,0,0,0,0")
     page.locator("#wrench").dispatch_event("change")

@@ -319,6 +319,20 @@ def _reduce(WA: np.ndarray, WB: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.sort(live[piv[:r]]), tiny
 
 
+def identifiable_columns(WA: np.ndarray, WB: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, tiny) of the fits' rule (module docstring): the columns of the whitened extra
+    regressor WB (rows, r) kept beside the whitened joint columns WA (rows, n), and those
+    with no part independent of WA (the planner predicts with the same rule,
+    :mod:`campaign.planning.model_class`)."""
+    return _reduce(WA, WB)
+
+
+def parameter_covariance(WM: np.ndarray) -> np.ndarray:
+    """``(M^T W M)^-1`` (p, p) of the whitened system WM (rows, p), the fits' covariance
+    (columns scaled to unit norm first), products of the parameters' SI units."""
+    return _solve(WM, np.zeros(WM.shape[0]))[1]
+
+
 def _whiten(Linv: np.ndarray, M: np.ndarray) -> np.ndarray:
     return (Linv @ M).reshape(-1, M.shape[-1])
 

@@ -34,6 +34,12 @@ def plan(
         rich_help_panel=_DESIGN),
     tests: int = typer.Option(None, "--tests", help="Test poses (default: the protocol's).",
         rich_help_panel=_DESIGN),
+    model: str = typer.Option(None, "--model", metavar="<class>",
+                              help="Model class to design for (default: the protocol's "
+                                   "[campaign] model, else joints): joints, links, compensator "
+                                   "or compensator+links; the summary then predicts the se of "
+                                   "its parameters too.",
+        rich_help_panel=_DESIGN),
     no_figure: bool = typer.Option(False, "--no-figure", help="Skip plan_map.png.",
         rich_help_panel=PANEL_OUTPUT),
     force: bool = typer.Option(False, "--force", help="Write into a non-empty --out "
@@ -52,7 +58,7 @@ def plan(
 
     wts = numbers_option(weights, "--weights")
     result = run(PlanOptions(protocol, out, strategy, wts, seed, candidates, tests,
-                             not no_figure, force), stage=stage)
+                             not no_figure, force, model=model), stage=stage)
     if as_json:
         print_json(result.to_json())
         return

@@ -175,7 +175,8 @@ function numbers(text, where) {
 
 function body() {
   const b = { robot: $("robot").value.trim(), poses: $("poses").value,
-              method: $("method").value, trials: Number($("trials").value) };
+              method: $("method").value, model: $("sens-model").value,
+              trials: Number($("trials").value) };
   for (const [key] of SLIDERS) b[key] = Number($(`s-${key}`).value);
   // rotation: its own sigma, or the fit of the reflector triangle (one of the two sliders)
   if ($("rotation-from").value === "reflectors") delete b.rotation_sigma_urad;
@@ -379,7 +380,9 @@ async function start() {
     }).catch((err) => { $("urdf-msg").textContent = String(err); }));
   buildSliders(openapi.components.schemas.SensitivityRequest, defaults);
   fillChoices($("method"), apiChoices(openapi, "SensitivityRequest", "method"), METHOD_NOTES);
-  for (const id of ["robot", "joint_k", "poses", "plan", "q_deg", "wrench", "method", "trials"]) {
+  fillChoices($("sens-model"), apiChoices(openapi, "SensitivityRequest", "model"));
+  for (const id of ["robot", "joint_k", "poses", "plan", "q_deg", "wrench", "method",
+                    "sens-model", "trials"]) {
     $(id).addEventListener("change", schedule);
   }
   $("poses").addEventListener("change", posesChanged);
