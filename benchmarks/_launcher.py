@@ -35,9 +35,11 @@ for line in sys.stdin:
 class Launcher:
     """Runs commands from a small process; returns the rusage of each (os.wait4)."""
 
-    def __init__(self) -> None:
+    def __init__(self, env: dict[str, str] | None = None) -> None:
+        """``env``: the environment of the launcher and so of its commands (None: this
+        process's)."""
         self.proc = subprocess.Popen([sys.executable, "-c", LAUNCHER], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, text=True)
+                                     stdout=subprocess.PIPE, text=True, env=env)
 
     def run(self, args: list[str]) -> dict:
         """code, CPU (user + sys, s), peak RSS (MB), wall time (s) and the last 2000

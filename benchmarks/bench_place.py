@@ -30,7 +30,10 @@ the same box at 25 mm steps in x and y and 50 mm in z (9.7e7 evaluations), each
 in a subprocess on the local Dask cluster (2 workers on the 2-core machine):
 wall, user and system time of the command and its worker processes
 (``RUSAGE_CHILDREN``), the search's evaluations/s, its estimate against the
-search's time (placement.json's ``run``), and the probe's rate per process.
+search's time (placement.json's ``run``; also what the probe's wall time alone would
+have said), the probe's rate per process, and the search's evaluations per CPU second
+of its workers against the probe's per CPU second (the search's own overheads, which
+the machine's load does not change); then issue 36's targets, met or not.
 
     python benchmarks/bench_place.py [--placements 16] [--sample 300] [--repeat 5]
         [--search both|readme|1e8|none]
@@ -306,15 +309,38 @@ def command(name: str) -> dict:
     text = " ".join(done.stdout.split())
     rate = re.search(r"where the search runs: ([\d.e+]+) evaluations/s per process", text)
     user, system = r1.ru_utime - r0.ru_utime, r1.ru_stime - r0.ru_stime
+    per_placement = doc["search_space"]["evaluations"] / doc["search_space"]["placements"]
+    probe_cpu_rate = (run["probe_placements"] * per_placement / run["probe_cpu_seconds"]
+                      if run.get("probe_cpu_seconds") else None)
+
+    def ratio(a: float, b: float) -> float:
+        """The larger over the smaller."""
+        return round(max(a, b) / max(min(a, b), 1e-9), 3)
+
     return {"evaluations": doc["search_space"]["evaluations"], "wall_s": round(wall, 2),
             "user_s": round(user, 2), "system_s": round(system, 2),
             "system_over_wall": round(system / wall, 3),
             "search_s": run["seconds"], "expected_s": run["expected_seconds"],
-            "estimate_ratio": round(max(run["seconds"], run["expected_seconds"])
-                                    / max(min(run["seconds"], run["expected_seconds"]), 1e-9), 3),
+            "estimate_ratio": ratio(run["seconds"], run["expected_seconds"]),
+            "estimate_over_search": round(run["expected_seconds"] / run["seconds"], 3),
+            # the estimate before the core share (the probe's wall time scaled up)
+            "expected_probe_wall_s": run.get("expected_seconds_probe_wall"),
+            "estimate_ratio_probe_wall": (ratio(run["seconds"],
+                                                run["expected_seconds_probe_wall"])
+                                          if run.get("expected_seconds_probe_wall") else None),
+            "load_average_at_start": run.get("load_average"),
+            "core_share": run.get("core_share"),
             "startup_s": run["startup_seconds"], "placements_per_task": run["placements_per_task"],
             "evaluations_per_s": run["evaluations_per_second"],
             "probe_per_process_per_s": float(rate.group(1)) if rate else None,
+            "search_cpu_s": run.get("cpu_seconds"),
+            "evaluations_per_cpu_s": run.get("evaluations_per_cpu_second"),
+            "probe_per_cpu_s": round(probe_cpu_rate) if probe_cpu_rate else None,
+            # the search's evaluations per CPU second of its workers (every thread) over the
+            # probe's per CPU second of its thread: the search's own overheads, load apart
+            "cpu_rate_over_probe": (round(run["evaluations_per_cpu_second"] / probe_cpu_rate, 3)
+                                    if probe_cpu_rate and run.get("evaluations_per_cpu_second")
+                                    else None),
             "where": run["where"]}
 
 
@@ -338,6 +364,18 @@ def main() -> None:
               f"{c['probe_per_process_per_s']:.3g}/s per process), estimate "
               f"{c['expected_s']} s (x{c['estimate_ratio']}), "
               f"cluster ready in {c['startup_s']} s, tasks of {c['placements_per_task']}")
+        print(f"  load average {c['load_average_at_start']} at the start, {c['core_share']:.0%} "
+              f"of a core assumed per process; the probe's wall time alone would have said "
+              f"{c['expected_probe_wall_s']} s (x{c['estimate_ratio_probe_wall']}); workers' "
+              f"CPU {c['search_cpu_s']} s: {c['evaluations_per_cpu_s']:,} evaluations per CPU "
+              f"second, {c['cpu_rate_over_probe']} of the probe's {c['probe_per_cpu_s']:,}")
+    if commands:
+        from targets import check_all
+
+        for target, status, value in check_all("place", {"commands": commands}):
+            if value is not None:
+                print(f"  target {target.name} {target.op} {target.limit:g}: {value:.3g} -> "
+                      f"{status}")
     w_tool = np.array([400.0, 250.0, -300.0, 0.0, 0.0, 20.0])
     robot = load_robot("kr240-2")
     load0 = os.getloadavg()[0]

@@ -223,8 +223,16 @@ def _place(f: Fig) -> tuple[str, str, str, str]:
                       f"{f.get(p + 'where')}): wall {f[p + 'wall_s']} s, user "
                       f"{f[p + 'user_s']} s, system {f[p + 'system_s']} s; search "
                       f"{f[p + 'search_s']} s at {f[p + 'evaluations_per_s']}/s, estimated "
-                      f"{f[p + 'expected_s']} s; probe {f[p + 'probe_per_process_per_s']}/s "
-                      f"per process; tasks of {f[p + 'placements_per_task']}"
+                      f"{f[p + 'expected_s']} s"
+                      + (f" (x{f[p + 'estimate_ratio']}; {f[p + 'core_share']} of a core per "
+                         f"process at load {f[p + 'load_average_at_start']}; the probe's wall "
+                         f"time alone: {f[p + 'expected_probe_wall_s']} s, "
+                         f"x{f[p + 'estimate_ratio_probe_wall']})"
+                         if f.get(p + "core_share") is not None else "")
+                      + f"; probe {f[p + 'probe_per_process_per_s']}/s per process"
+                      + (f"; workers' evaluations per CPU s {f[p + 'cpu_rate_over_probe']} of "
+                         "the probe's" if f.get(p + "cpu_rate_over_probe") is not None else "")
+                      + f"; tasks of {f[p + 'placements_per_task']}"
                       for name in (f.get("commands") or {})
                       for p in (f"commands.{name}.",)),
             f"{f['baseline']}: {f['loop_evaluations_per_s']}/s wall, "

@@ -8,6 +8,19 @@ measured on the KR240-2 README example), and it ran in the command's process whi
 the search ran in Dask worker processes. Here the sample is spread over the whole
 grid, the time is measured untraced, the peak memory traced in a separate call, and
 both are functions a Dask worker can run (the search's own conditions).
+
+A fourth, on a shared machine (issue 36, measured on the README example at load
+averages of 5-6 on 2 cores): the probe's wall time is a fraction of a second, and a
+short burst from a sleeping process gets more than its fair share of a busy core,
+so the probe ran at 40-60 % of a core's speed while the search's workers got 25-35 %
+each: estimates 1.0-3.8x off the search, either way, from one run to the next. The
+search's own costs besides the evaluations were small beside that: the workers were
+busy 94 % of the search's wall time (the rest: the last task's tail, task hand-over),
+and the command's process (scheduler and client) used 0.3 s of CPU in 5-8 s.
+So the estimate (:func:`expected_seconds`) takes the probe's CPU time per placement
+(steadier: 3.9-4.9 ms per placement on the README example at those loads) and
+divides it by the share of a core each worker can expect from the machine's load
+average before the search started (:func:`core_share`), and adds the tail.
 """
 
 from __future__ import annotations
@@ -44,15 +57,22 @@ def probe_sample(G, count: int) -> np.ndarray:
     return np.stack([np.asarray(G[int(i)], dtype=float) for i in index])
 
 
-def chunk_seconds(problem, placements: np.ndarray) -> float:
-    """Wall-clock seconds (``time.perf_counter``) of :func:`evaluate_chunk` on
-    ``placements``, untraced: what one search task of these placements costs. The
-    first placement is evaluated once before, untimed: a fresh worker's first call
-    pays one-time costs (imports, first use of numpy's kernels) the search does not."""
+def chunk_seconds(problem, placements: np.ndarray) -> tuple[float, float]:
+    """(wall-clock seconds (``time.perf_counter``), CPU seconds of the calling thread
+    (``time.thread_time``)) of :func:`evaluate_chunk` on ``placements``, untraced: what
+    one search task of these placements costs. The first placement is evaluated once
+    before, untimed: a fresh worker's first call pays one-time costs (imports, first use
+    of numpy's kernels) the search does not.
+
+    The thread's time, not the process's: a freshly started Dask worker's own threads
+    (registration, memory monitor) added 10-40 % of CPU time to the process in the
+    probe's fraction of a second (README example, load average 7), against 5-8 % over
+    the search's tasks; the thread's time per placement matched the search's within
+    10 %."""
     evaluate_chunk(problem, placements[:1])
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     evaluate_chunk(problem, placements)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.thread_time() - c0
 
 
 def chunk_peak_bytes(problem, placements: np.ndarray) -> int:
@@ -74,16 +94,43 @@ def chunk_peak_bytes(problem, placements: np.ndarray) -> int:
 
 @dataclass(frozen=True)
 class ProbeResult:
-    """A timed probe: ``placements`` evaluated in ``seconds`` (wall clock, untraced),
-    with a peak allocation of ``peak_bytes`` (bytes)."""
+    """A timed probe: ``placements`` evaluated in ``seconds`` (wall clock, untraced) and
+    ``cpu_seconds`` (CPU time of the evaluating thread; None where not measured), with
+    a peak allocation of ``peak_bytes`` (bytes)."""
 
     placements: int
     seconds: float
     peak_bytes: int
+    cpu_seconds: float | None = None
 
     @property
     def seconds_per_placement(self) -> float:
+        """Wall seconds per placement."""
         return self.seconds / self.placements
+
+    @property
+    def cpu_seconds_per_placement(self) -> float:
+        """CPU seconds per placement (the wall seconds where the CPU time is unknown)."""
+        return (self.seconds if self.cpu_seconds is None else self.cpu_seconds) / self.placements
+
+
+def core_share(load: float, workers: int, cores: int) -> float:
+    """Fraction of one core (0-1] each of ``workers`` busy processes can expect when
+    ``load`` other processes (the 1-minute load average before the search) are runnable
+    on ``cores`` cores, the kernel sharing the cores evenly among all of them."""
+    return min(1.0, cores / max(float(load) + workers, 1e-9))
+
+
+def expected_seconds(probe: ProbeResult, placements: int, workers: int, chunk: int,
+                     share: float) -> float:
+    """Wall seconds a search of ``placements`` in tasks of ``chunk`` is expected to take
+    on ``workers`` processes that each get ``share`` of a core: the probe's CPU seconds
+    per placement x placements / workers / share, plus the last wave's tail: on average
+    half a task, on all but one worker, (workers - 1) / (2 workers) of a task."""
+    per = probe.cpu_seconds_per_placement / max(share, 1e-9)
+    work = per * placements / max(1, workers)
+    task = per * min(chunk, placements)
+    return work + 0.5 * min(task, work) * (workers - 1) / max(1, workers)
 
 
 def task_chunk(probe: ProbeResult, placements: int, workers: int, batch: int) -> int:

@@ -7,6 +7,11 @@ sets ``MALLOC_TRIM_THRESHOLD_=65536`` in its workers by default, which turns off
 glibc's adaptive mmap threshold, so every numpy temporary above 128 KiB is mapped
 and unmapped afresh. On the README example that was 40 % of the workers' CPU in
 system time (1.7-1.9 s of 4.6 s per worker), against 0.24 s without it (issue 36).
+Dask's statistical profiler is off in these workers: its thread samples every
+thread's stack each 10 ms, which cost 13-17 % of a worker's CPU on top of the task's
+own (process against thread CPU time of a 204-placement task of the README example,
+8 tasks; 5-8 % with it off: the heartbeats, memory monitor and communication); the
+search never reads the profile.
 A ``--scheduler``'s workers were started by someone else, with their own settings.
 """
 
@@ -43,14 +48,22 @@ class SearchRunner:
         separately, where the search runs (on two workers at once when there are two)."""
         n = int(sample.shape[0])
         if self.client is None:
-            return ProbeResult(n, chunk_seconds(problem, sample),
-                               chunk_peak_bytes(problem, sample))
+            wall, cpu = chunk_seconds(problem, sample)
+            return ProbeResult(n, wall, chunk_peak_bytes(problem, sample), cpu)
         # its own key (hash=False): run_dask scatters the same problem, and releasing one
         # of two futures of a shared key loses the data under the other
         problem_f = self.client.scatter(problem, broadcast=True, hash=False)
         timed = self.client.submit(chunk_seconds, problem_f, sample, pure=False)
         peak = self.client.submit(chunk_peak_bytes, problem_f, sample, pure=False)
-        return ProbeResult(n, float(timed.result()), int(peak.result()))
+        wall, cpu = timed.result()
+        return ProbeResult(n, float(wall), int(peak.result()), float(cpu))
+
+    def cpu_seconds(self) -> float:
+        """CPU seconds (user + system, every thread) used so far by the processes that
+        evaluate: the workers' sum on Dask, this process's own without."""
+        if self.client is None:
+            return time.process_time()
+        return float(sum(self.client.run(time.process_time).values()))
 
     def run(self, problem, G, chunk: int, progress: Callable[[int, int], None] | None):
         """Every placement of ``G`` in tasks of ``chunk``: the search's ChunkResult."""
@@ -92,7 +105,8 @@ def search_runner(scheduler: str | None, workers: int | None) -> Iterator[Search
         scratch = tempfile.TemporaryDirectory(prefix="campaign-place-",
                                               ignore_cleanup_errors=True)
         with dask.config.set({"temporary-directory": scratch.name,
-                              "distributed.nanny.pre-spawn-environ": dict(WORKER_ENVIRON)}):
+                              "distributed.nanny.pre-spawn-environ": dict(WORKER_ENVIRON),
+                              "distributed.worker.profile.enabled": False}):
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                    host="127.0.0.1", dashboard_address=None,
                                    local_directory=scratch.name)

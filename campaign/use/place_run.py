@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -286,19 +287,24 @@ def check_size(size: SearchSize, o: PlaceOptions, server_limit: float | None = N
                          "narrow the box", where=where)
 
 
-def estimate_line(probe, size: SearchSize, workers: int) -> str:
+def estimate_line(probe, size: SearchSize, workers: int, expected: float,
+                  share: float, how_share: str) -> str:
     """Time and memory of the search from a timed probe (:mod:`analysis.placement.probe`),
-    as one line: expected time = the probe's seconds per placement x placements /
-    workers; memory = the results plus one probe's peak per worker."""
+    as one line: ``expected`` (s, :func:`analysis.placement.probe.expected_seconds`)
+    with the core ``share`` it assumed and whence (``how_share``); memory = the
+    results plus one probe's peak per worker."""
     n = probe.placements
-    rate = n * size.angles * size.points * size.configurations / max(probe.seconds, 1e-9)
-    total = probe.seconds_per_placement * size.placements
+    evaluations = n * size.angles * size.points * size.configurations
+    rate = evaluations / max(probe.seconds, 1e-9)
+    cpu_rate = evaluations / max(probe.cpu_seconds or probe.seconds, 1e-9)
     memory = size.result_bytes + workers * probe.peak_bytes
-    return (f"expected {_duration(total / workers)} on {workers} "
+    return (f"expected {_duration(expected)} on {workers} "
             f"process{'es' if workers > 1 else ''} and {memory / 2**20:.3g} MiB "
             f"(timed probe of {n} placement{'s' if n > 1 else ''} spread over the box, "
-            f"where the search runs: {rate:.3g} evaluations/s per process, peak "
-            f"{probe.peak_bytes / 2**20:.3g} MiB; results {size.result_bytes / 2**20:.3g} MiB)")
+            f"where the search runs: {rate:.3g} evaluations/s per process, "
+            f"{cpu_rate:.3g} per CPU second; {share:.0%} of a core per process "
+            f"{how_share}; peak {probe.peak_bytes / 2**20:.3g} MiB; results "
+            f"{size.result_bytes / 2**20:.3g} MiB)")
 
 
 def _duration(seconds: float) -> str:
@@ -312,22 +318,41 @@ def _duration(seconds: float) -> str:
 def _search(problem, G, size: SearchSize, o: PlaceOptions, console: Console, progress=None):
     """Probe, then search every placement; returns (ChunkResult, run facts for
     placement.json). ``progress(done, total)`` after each task (a chunk of placements)."""
-    from analysis.placement.probe import batch_placements, probe_sample, task_chunk
+    from analysis.placement.probe import (
+        batch_placements,
+        core_share,
+        expected_seconds,
+        probe_sample,
+        task_chunk,
+    )
     from campaign.text_wrap import print_wrapped
     from campaign.use.place_cluster import search_runner
 
+    # the machine's load before this command's workers exist: the other processes the
+    # local workers will share the cores with
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
     with search_runner(o.scheduler, o.workers) as runner:
         if runner.client is not None:
             print_wrapped(console, f"{runner.how}: ready in {runner.startup_seconds:.2g} s")
         batch = batch_placements(size.points, size.angles)
         probed = runner.probe(problem, probe_sample(G, batch))
-        expected = probed.seconds_per_placement * size.placements / runner.workers
-        print_wrapped(console, estimate_line(probed, size, runner.workers))
         chunk = o.chunk or task_chunk(probed, len(G), runner.workers, batch)
+        if o.scheduler:
+            # another machine's load is not known here: the share the probe itself got
+            share = min(1.0, (probed.cpu_seconds or probed.seconds) / max(probed.seconds,
+                                                                           1e-9))
+            how_share = "as the probe had it"
+        else:
+            share = core_share(load, runner.workers, os.cpu_count() or 1)
+            how_share = f"at a load average of {load:.2g} on {os.cpu_count() or 1} cores"
+        expected = expected_seconds(probed, size.placements, runner.workers, chunk, share)
+        print_wrapped(console, estimate_line(probed, size, runner.workers, expected, share,
+                                             how_share))
         console.print(f"searching {runner.how}; {len(G)} placements in tasks of {chunk}"
                       if runner.client is None else
                       f"searching on the {runner.how}; {len(G)} placements in tasks of "
                       f"{chunk}")
+        cpu0 = runner.cpu_seconds()
         t0 = time.perf_counter()
         if runner.client is None:
             with console.status("searching in this process"):
@@ -335,9 +360,23 @@ def _search(problem, G, size: SearchSize, o: PlaceOptions, console: Console, pro
         else:
             res = runner.run(problem, G, chunk, progress)
         elapsed = time.perf_counter() - t0
+        cpu = runner.cpu_seconds() - cpu0
     facts = {"where": runner.how, "seconds": round(elapsed, 3),
              "evaluations_per_second": round(size.evaluations / max(elapsed, 1e-9)),
+             # the evaluating processes' CPU over the search (all their threads): beside
+             # the probe's per CPU second, the search's own cost whatever the machine's load
+             "cpu_seconds": round(cpu, 3),
+             "evaluations_per_cpu_second": round(size.evaluations / max(cpu, 1e-9)),
              "expected_seconds": round(expected, 3),
+             # the probe's own wall time scaled to the search (the estimate before issue 36's
+             # core share), for the benchmark's comparison
+             "expected_seconds_probe_wall": round(
+                 probed.seconds_per_placement * size.placements / runner.workers, 3),
+             "probe_seconds": round(probed.seconds, 4),
+             "probe_cpu_seconds": (None if probed.cpu_seconds is None
+                                   else round(probed.cpu_seconds, 4)),
+             "probe_placements": probed.placements,
+             "load_average": round(load, 2), "core_share": round(share, 3),
              "startup_seconds": round(runner.startup_seconds, 3),
              "placements_per_task": int(chunk)}
     return res, facts

@@ -14,6 +14,8 @@ from analysis.placement.probe import (
     ProbeResult,
     batch_placements,
     chunk_peak_bytes,
+    core_share,
+    expected_seconds,
     probe_sample,
     task_chunk,
 )
@@ -49,6 +51,32 @@ def test_task_chunk(seconds, placements, workers, want):
         assert chunk % 34 == 0
 
 
+@pytest.mark.parametrize(("load", "workers", "cores", "share"), [
+    (0.0, 2, 2, 1.0),  # a quiet machine: a core each
+    (0.0, 1, 2, 1.0),
+    (2.0, 2, 2, 0.5),  # two others always runnable: four processes on two cores
+    (6.0, 2, 2, 0.25),  # the shared development machine at load 6
+    (1.0, 4, 8, 1.0),
+])
+def test_core_share(load, workers, cores, share):
+    assert core_share(load, workers, cores) == pytest.approx(share, rel=1e-12)
+
+
+def test_expected_seconds_from_cpu_time_share_and_tail():
+    # 34 placements in 0.17 s of CPU (0.9 s of wall: not used), 819 placements, tasks
+    # of 102, 2 workers at a quarter of a core: 0.005 s / 0.25 = 0.02 s per placement;
+    # work 819 x 0.02 / 2 = 8.19 s; tail: half a task (102 x 0.02 = 2.04 s) on one of
+    # two workers, 2.04 / 4 = 0.51 s
+    probe = ProbeResult(34, 0.9, 1, 0.17)
+    assert expected_seconds(probe, 819, 2, 102, 0.25) == pytest.approx(8.19 + 0.51, rel=1e-12)
+    # one worker: no tail; no CPU time: the wall time stands in
+    assert expected_seconds(probe, 819, 1, 102, 1.0) == pytest.approx(819 * 0.005, rel=1e-12)
+    assert expected_seconds(ProbeResult(34, 0.17, 1), 819, 1, 102, 1.0) == pytest.approx(
+        819 * 0.005, rel=1e-12)
+    # a task larger than a worker's share: the tail is bounded by the share
+    assert expected_seconds(probe, 10, 2, 10, 1.0) == pytest.approx(0.025 + 0.025 / 4)
+
+
 def test_batch_placements_matches_evaluate_chunk_default():
     assert batch_placements(16, 36) == 20000 // (16 * 36) == 34
     assert batch_placements(1000, 360) == 1
@@ -82,10 +110,19 @@ def test_local_workers_environment_and_same_results(tmp_path, monkeypatch):
             return {k: os.environ.get(k) for k in (*WORKER_ENVIRON, "MALLOC_TRIM_THRESHOLD_")}
 
         seen = next(iter(runner.client.run(env).values()))
+
+        def profiling():
+            import dask
+
+            return dask.config.get("distributed.worker.profile.enabled")
+
+        profiled = next(iter(runner.client.run(profiling).values()))
         probed = runner.probe(problem, G[:3])
         res = runner.run(problem, G, 2, lambda done, total: None)  # no text bar
     assert seen == {**WORKER_ENVIRON, "MALLOC_TRIM_THRESHOLD_": None}
+    assert profiled is False  # Dask's 10 ms stack sampler is off in the search's workers
     assert probed.placements == 3 and probed.seconds > 0 and probed.peak_bytes > 0
+    assert probed.cpu_seconds is not None and probed.cpu_seconds > 0
     ref = run_local(problem, G, 6)
     for f in ("value", "config", "angle", "reason", "point"):
         np.testing.assert_array_equal(getattr(res, f), getattr(ref, f))
