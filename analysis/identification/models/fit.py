@@ -9,7 +9,23 @@ joint compliances (rad/(N m)), B the class's extra columns (the regressors of
   :data:`LINKS` at its distal frame (:func:`analysis.kinetostatics.realistic.distal_frames`,
   the simulated lab's frame): ``J_l C_l J_l^T w``;
 * ``lost-motion``: the dead band 2b_j (rad) of each joint whose gear torque changes sign
-  between the reference and the loaded reading (from the robot's mass model);
+  between the reference and the loaded reading (from the robot's mass model and the
+  measured wrench). The torque is known to the wrench noise only (sigma_tau, the noise
+  model's wrench sigma through J^T at the reading, :func:`torque_sigmas`; the mass model
+  taken as exact): where it is within :data:`~analysis.model.gravity.FLANK_DECIDED_SIGMAS`
+  sigma_tau of zero the flank is a coin with p = Phi(tau / sigma_tau), so the column is
+  the expected step ``J_j E[(s_load - s_ref)/2]`` and the test's residual covariance
+  gains ``(2b_j)^2 Var[(s_load - s_ref)/2] J_j J_j^T`` at the fitted 2b_j (refitted, at
+  most :data:`FLANK_REWEIGHT` times, until the bands settle: the weights depend on
+  them). Chosen over a hard rule with a wider mid-band (which would throw away a band
+  the data do show) and over a mixture likelihood (exact but not Gaussian: the fit's
+  covariance and chi-square would no longer be (M^T W M)^-1 and a chi-square): the first
+  two moments keep the Gaussian machinery, and the row's chi-square stays about 1-2
+  where the wrong hard flank gave hundreds (study seed 178). Beyond 8.5 sigma_tau the
+  flank is the hard rule's bit for bit (probability 1 in double precision), so a campaign
+  without near-zero torques keeps its numbers. Which bands are candidates (identifiable)
+  is still decided by the hard rule; joint 2's flank pattern search under a compensator
+  too (its spring's torque is searched, not noisy);
 * ``compensator``: with the spring's geometry known (attachment points), its preload
   (N) and rate (N/m) inside the realistic-arm equilibrium
   (:func:`analysis.kinetostatics.realistic.displacement`: the effective k2 is
