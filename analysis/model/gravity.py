@@ -14,7 +14,10 @@ CONTRACT (issue 31; other modules and studies build on these names):
   the torque the load puts on each gear under an external wrench w (the project's wrench
   convention: [f (N); m (N m)] at the tool point P, base-frame components) and gravity.
   Positive: it turns the joint's output in +q; the elastic deflection is K^-1 times it,
-  and its sign decides the gear flank the output rests on.
+  and its sign decides the gear flank the output rests on;
+* :func:`gear_torque_sigmas` (robot, q, wrench sigma) -> the standard deviation of J^T w
+  from the wrench noise, and :func:`flank_moments` (tau, sigma) -> the mean and variance
+  of the flank when the torque is known to that noise only.
 
 Gravity acts along -z of the base frame (:data:`STANDARD_GRAVITY`, 9.80665 m/s^2) unless a
 ``gravity`` vector (m/s^2, base frame) is given. Batched numpy; no Pinocchio call (the
@@ -135,6 +138,46 @@ def gear_flanks(tau: np.ndarray) -> np.ndarray:
     simulated lab, the planner and the analysis's lost-motion test."""
     tau = np.asarray(tau, dtype=float)
     return np.where(np.abs(tau) <= FLANK_TOLERANCE, 0.0, np.sign(tau))
+
+
+#: a flank is decided (probability 1 to double precision) where the torque is at least this
+#: many of its standard deviations from zero: beyond 8.4 sigma erf(z / sqrt 2) rounds to
+#: exactly +-1 and the flank variance 4 Phi(z) Phi(-z) is below 4e-17 (at 5 sigma the
+#: other flank still has a probability of 2.9e-7)
+FLANK_DECIDED_SIGMAS = 8.5
+
+
+def flank_moments(tau: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, variance) of the flank s (+1 or -1) a gear rests on when its torque is known
+    as ``tau`` (N m) with a Gaussian standard deviation ``sigma`` (N m, same shape or
+    broadcastable): with p = Phi(tau / sigma) the probability of the + flank, mean
+    2p - 1 = erf(tau / (sigma sqrt 2)) and variance 4 p (1 - p).
+
+    Where the flank is decided (``sigma`` 0, or ``|tau| >=`` :data:`FLANK_DECIDED_SIGMAS`
+    sigma) the mean is :func:`gear_flanks` (mid-band 0 included) and the variance 0, bit for
+    bit: a torque far from zero keeps the hard flank rule's numbers."""
+    from scipy import special
+
+    tau = np.asarray(tau, dtype=float)
+    sigma = np.broadcast_to(np.asarray(sigma, dtype=float), tau.shape)
+    hard = gear_flanks(tau)
+    open_ = (sigma > 0) & (np.abs(tau) < FLANK_DECIDED_SIGMAS * sigma)
+    z = np.where(open_, tau / np.where(open_, sigma, 1.0), 0.0)
+    mean = np.where(open_, special.erf(z / np.sqrt(2.0)), hard)
+    var = np.where(open_, 4.0 * special.ndtr(z) * special.ndtr(-z), 0.0)
+    return mean, var
+
+
+def gear_torque_sigmas(robot: RobotModel, q: np.ndarray,
+                       wrench_sigma: np.ndarray) -> np.ndarray:
+    """Standard deviation (N, n) (N m) of J(q)^T w at q (N, n) (rad) when the wrench's six
+    components carry independent noise of standard deviations ``wrench_sigma`` ((N, 6) or
+    (6,), N and N m, base frame at P): sqrt(sum_r J_rj^2 sigma_r^2). The mass model is
+    taken as exact (its torque adds no variance)."""
+    q = np.asarray(q, dtype=float)
+    J = jacobian(robot, q)
+    s = np.broadcast_to(np.asarray(wrench_sigma, dtype=float), (*q.shape[:-1], 6))
+    return np.sqrt(np.einsum("...rj,...r->...j", J**2, s**2))
 
 
 def gear_torques(robot: RobotModel, q: np.ndarray, wrench: np.ndarray,

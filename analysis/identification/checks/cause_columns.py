@@ -14,7 +14,8 @@ them on the residuals of the fit.
 * lost motion: joint j travels through its dead band 2 b_j when the torque its
   gear transmits changes sign between the reference and the loaded reading; the
   column is ``J[:, j] (s_load - s_ref) / 2`` (s = sign of the gear torque) and
-  the parameter the dead band 2 b_j (rad);
+  the parameter the dead band 2 b_j (rad); with the torques known to the wrench noise
+  only, the expected step and its variance (:func:`lost_motion_moments`);
 * compensator: a spring between links 1 and 2 whose stiffness and torque depend on
   q2: a compliance of joint 2 linear and quadratic in q2 (columns ``A[:, 2] t`` and
   ``A[:, 2] t^2``, t = q2 - mean, A the model's compliance columns) and a static
@@ -103,6 +104,23 @@ def lost_motion_columns(J: np.ndarray, tau_ref: np.ndarray,
     s_ref, s_load = gear_flanks(tau_ref), gear_flanks(tau_load)
     step = (s_load - s_ref) / 2.0
     return J * step[:, None, :], step != 0
+
+
+def lost_motion_moments(J: np.ndarray, tau_ref: np.ndarray, tau_load: np.ndarray,
+                        sigma_ref: np.ndarray, sigma_load: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """(B (m, 6, 6), var (m, 6)): :func:`lost_motion_columns` when each torque (N m,
+    (m, 6)) is known to a Gaussian standard deviation (``sigma_ref``, ``sigma_load``, N m,
+    (m, 6)): B per joint j ``J[:, j] E[(s_load - s_ref)/2]`` and var the variance of that
+    step, ``(Var s_ref + Var s_load) / 4`` (the readings' noises independent), s's moments
+    from :func:`analysis.model.gravity.flank_moments`. The displacement of a band 2b_j is
+    then 2b_j B[..., j] on average with covariance (2b_j)^2 var J_j J_j^T; where both
+    flanks are decided B is :func:`lost_motion_columns`' and var 0, bit for bit."""
+    from analysis.model.gravity import flank_moments
+
+    m_ref, v_ref = flank_moments(tau_ref, sigma_ref)
+    m_load, v_load = flank_moments(tau_load, sigma_load)
+    return J * ((m_load - m_ref) / 2.0)[:, None, :], (v_ref + v_load) / 4.0
 
 
 def compensator_columns(A: np.ndarray, G: np.ndarray, q: np.ndarray, joint: int) -> np.ndarray:

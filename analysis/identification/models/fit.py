@@ -9,7 +9,23 @@ joint compliances (rad/(N m)), B the class's extra columns (the regressors of
   :data:`LINKS` at its distal frame (:func:`analysis.kinetostatics.realistic.distal_frames`,
   the simulated lab's frame): ``J_l C_l J_l^T w``;
 * ``lost-motion``: the dead band 2b_j (rad) of each joint whose gear torque changes sign
-  between the reference and the loaded reading (from the robot's mass model);
+  between the reference and the loaded reading (from the robot's mass model and the
+  measured wrench). The torque is known to the wrench noise only (sigma_tau, the noise
+  model's wrench sigma through J^T at the reading, :func:`torque_sigmas`; the mass model
+  taken as exact): where it is within :data:`~analysis.model.gravity.FLANK_DECIDED_SIGMAS`
+  sigma_tau of zero the flank is a coin with p = Phi(tau / sigma_tau), so the column is
+  the expected step ``J_j E[(s_load - s_ref)/2]`` and the test's residual covariance
+  gains ``(2b_j)^2 Var[(s_load - s_ref)/2] J_j J_j^T`` at the fitted 2b_j (refitted, at
+  most :data:`FLANK_REWEIGHT` times, until the bands settle: the weights depend on
+  them). Chosen over a hard rule with a wider mid-band (which would throw away a band
+  the data do show) and over a mixture likelihood (exact but not Gaussian: the fit's
+  covariance and chi-square would no longer be (M^T W M)^-1 and a chi-square): the first
+  two moments keep the Gaussian machinery, and the row's chi-square stays about 1-2
+  where the wrong hard flank gave hundreds (study seed 178). Beyond 8.5 sigma_tau the
+  flank is the hard rule's bit for bit (probability 1 in double precision), so a campaign
+  without near-zero torques keeps its numbers. Which bands are candidates (identifiable)
+  is still decided by the hard rule; joint 2's flank pattern search under a compensator
+  too (its spring's torque is searched, not noisy);
 * ``compensator``: with the spring's geometry known (attachment points), its preload
   (N) and rate (N/m) inside the realistic-arm equilibrium
   (:func:`analysis.kinetostatics.realistic.displacement`: the effective k2 is
@@ -79,6 +95,10 @@ FLANK_FIXED_POINT = 2
 #: one (box, grid points per axis) produces it
 FLANK_CONSISTENT_SE = 3.0
 FLANK_CONSISTENT_GRID = 13
+#: refits at most with the residual covariance widened by the fitted dead bands where a
+#: flank is undecided, and the change of every band (relative) that ends them
+FLANK_REWEIGHT = 5
+FLANK_REWEIGHT_TOL = 1e-4
 
 
 @dataclass(frozen=True)
@@ -101,6 +121,9 @@ class ClassData:
     links: tuple[int, ...] = LINKS
     w_ref: np.ndarray | None = None
     compensator: object = None
+    #: the residual covariance (m, 6, 6) whose whitening is ``Linv`` (None: recomputed
+    #: from x0 as :func:`prepare` does), widened where a gear's flank is undecided
+    cov: np.ndarray | None = None
 
 
 def prepare(robot, tests: TestArrays, joints, x0, noise: NoiseModel, method: str,
@@ -116,9 +139,10 @@ def prepare(robot, tests: TestArrays, joints, x0, noise: NoiseModel, method: str
     x0 = np.asarray(x0, dtype=float)
     J = jacobian(robot, tests.q)
     C = np.einsum("mrj,j,msj->mrs", J, x0, J)
-    Linv = whitening(residual_covariance(noise, C, tests.w), tests.measured)
+    cov = residual_covariance(noise, C, tests.w)
+    Linv = whitening(cov, tests.measured)
     return ClassData(robot, tests, tuple(joints), noise, method, x0, gear_torques, Linv,
-                     np.asarray(group), tuple(links), w_ref, compensator)
+                     np.asarray(group), tuple(links), w_ref, compensator, cov)
 
 
 @dataclass(frozen=True)
@@ -368,20 +392,12 @@ def _extra_columns(data: ClassData, extras, A: np.ndarray, q2ref: float, Gc=None
                 raise ValueError("lost motion needs the gear torques: the robot file gives no "
                                  "mass model (link masses and centres of mass)")
             J = jacobian(data.robot, t.q)
-            # the flanks follow analysis.model.gravity.gear_flanks (mid-band near 0)
-            taus = [np.array(tau, dtype=float) for tau in data.gear_torques]
-            spring = spring if flank_spring is None else flank_spring
-            if spring is not None and "compensator" in extras:
-                from dataclasses import replace
-
-                from analysis.kinetostatics.realistic import compensator_torque
-
-                comp = replace(data.compensator, preload=float(spring[0]),
-                               rate=float(spring[1]))
-                tc = compensator_torque(comp, t.q[:, comp.joint])[0]
-                for tau in taus:
-                    tau[:, comp.joint] += tc
-            B, flips = cc.lost_motion_columns(J, *taus)
+            taus = _lost_motion_torques(data, extras, spring, flank_spring)
+            # which bands are candidates: the hard flank rule (a joint some test flips by
+            # the sign of its torque, analysis.model.gravity.gear_flanks); the column: the
+            # expected step, the torques known to the wrench noise (torque_sigmas)
+            _, flips = cc.lost_motion_columns(J, *taus)
+            B, _ = cc.lost_motion_moments(J, *taus, *torque_sigmas(data))
             n_flip = flips.sum(axis=0)
             fixed = [(f"2b{j + 1}", "not identifiable: no test changes the sign of its gear "
                       "torque") for j in range(B.shape[-1]) if n_flip[j] == 0]
@@ -398,6 +414,72 @@ def _extra_columns(data: ClassData, extras, A: np.ndarray, q2ref: float, Gc=None
             out.append((e, B, [("c1", "rad/(N m) per rad"), ("c2", "rad/(N m) per rad^2")],
                         []))
     return out
+
+
+def _lost_motion_torques(data: ClassData, extras, spring=None,
+                         flank_spring=None) -> list[np.ndarray]:
+    """[tau_ref, tau_load] (m, 6) each (N m): the gear torques that decide the flanks,
+    joint 2's with the compensator spring's torque at ``flank_spring`` (else ``spring``) =
+    (preload (N), rate (N/m)) when the class has the compensator."""
+    taus = [np.array(tau, dtype=float) for tau in data.gear_torques]
+    spring = spring if flank_spring is None else flank_spring
+    if spring is not None and "compensator" in extras:
+        from analysis.kinetostatics.realistic import compensator_torque
+
+        comp = replace(data.compensator, preload=float(spring[0]), rate=float(spring[1]))
+        tc = compensator_torque(comp, data.tests.q[:, comp.joint])[0]
+        for tau in taus:
+            tau[:, comp.joint] += tc
+    return taus
+
+
+def torque_sigmas(data: ClassData) -> tuple[np.ndarray, np.ndarray]:
+    """(sigma_ref, sigma_load) (m, 6) each (N m): the standard deviation of each gear
+    torque from the noise model's wrench noise (the fit's :meth:`NoiseModel.wrench_sigma_at`)
+    through J^T at the reading. The loaded reading: the wrench noise at ``tests.w`` (plus
+    the reference wrench, when the tests carry one); the reference: zero when it is
+    unloaded (the weight's torque alone, the mass model taken as exact), else the noise at
+    the reference wrench. The spring's torque adds none (its flank pattern is searched)."""
+    from analysis.model.gravity import gear_torque_sigmas
+
+    t = data.tests
+    w_ref = _w_ref(data)
+    load = t.w if w_ref is None else t.w + w_ref
+    sig_load = gear_torque_sigmas(data.robot, t.q, data.noise.wrench_sigma_at(load))
+    if w_ref is None:
+        return np.zeros_like(sig_load), sig_load
+    return gear_torque_sigmas(data.robot, t.q, data.noise.wrench_sigma_at(w_ref)), sig_load
+
+
+def _flank_whitening(data: ClassData, extras, bands: dict[int, float], spring=None,
+                     flank_spring=None) -> np.ndarray | None:
+    """``data.Linv`` with the tests where a band of ``bands`` ({joint 0-based: 2b_j (rad)})
+    has an undecided flank re-whitened by the residual covariance plus
+    ``sum_j (2b_j)^2 var_j J_j J_j^T`` (var the step's variance,
+    :func:`cause_columns.lost_motion_moments`); None when no test has one (the whitening
+    is then the joint fit's, unchanged)."""
+    t = data.tests
+    taus = _lost_motion_torques(data, extras, spring, flank_spring)
+    _, var = cc.lost_motion_moments(np.zeros((t.q.shape[0], 6, 6)), *taus,
+                                    *torque_sigmas(data))
+    band = np.zeros(6)
+    for j, b in bands.items():
+        band[j] = b
+    v = var * band**2  # (m, 6) rad^2 per joint
+    amb = np.flatnonzero(np.any(v > 0, axis=1))
+    if amb.size == 0:
+        return None
+    J = jacobian(data.robot, t.q[amb])
+    extra = np.einsum("mrj,mj,msj->mrs", J, v[amb], J)
+    cov = data.cov
+    if cov is None:
+        C = np.einsum("mrj,j,msj->mrs", J, data.x0, J)
+        cov0 = residual_covariance(data.noise, C, t.w[amb])
+    else:
+        cov0 = cov[amb]
+    Linv = data.Linv.copy()
+    Linv[amb] = whitening(cov0 + extra, t.measured[amb])
+    return Linv
 
 
 def fit_class(data: ClassData, extras: tuple[str, ...], like: ClassFit | None = None) -> ClassFit:
@@ -590,12 +672,17 @@ def _fit(data: ClassData, extras: tuple[str, ...], name: str,
         beta[in_spring] = np.asarray(spring0, dtype=float)[spring_idx]
     meas = t.measured
     nonlinear = data.method == "exact" or spring_law or gravity
+    Linv = data.Linv  # the joint fit's whitening, widened below where a flank is undecided
+
+    def current_spring():
+        if not spring_law:
+            return None
+        spring = np.zeros(2)
+        spring[spring_idx] = beta[in_spring]
+        return spring
 
     def system():
-        spring = None
-        if spring_law:
-            spring = np.zeros(2)
-            spring[spring_idx] = beta[in_spring]
+        spring = current_spring()
         pred, A_, Gc_ = _model(data, x, spring, gravity)
         m = pred.shape[0]
         g, G = np.zeros((m, 6)), []
@@ -609,14 +696,37 @@ def _fit(data: ClassData, extras: tuple[str, ...], name: str,
             G.append(B)
         M = np.concatenate([A_[..., cols], *G], axis=-1)
         r = np.where(meas, t.d - pred, 0.0) - g
-        return M, r, _whiten(data.Linv, M), np.einsum("mij,mj->mi", data.Linv, r).reshape(-1)
+        return M, r, _whiten(Linv, M), np.einsum("mij,mj->mi", Linv, r).reshape(-1)
 
-    for _ in range(MAX_ITER):
-        M, r, WM, Wr = system()
-        delta = _solve(WM, Wr)[0]
-        x[cols] += delta[:p]
-        beta = beta + delta[p:]
-        if not nonlinear or np.all(np.abs(delta[:p]) <= STEP_TOL * np.abs(x[cols])):
+    def gauss_newton():
+        nonlocal beta
+        for _ in range(MAX_ITER):
+            M, r, WM, Wr = system()
+            delta = _solve(WM, Wr)[0]
+            x[cols] += delta[:p]
+            beta = beta + delta[p:]
+            if not nonlinear or np.all(np.abs(delta[:p]) <= STEP_TOL * np.abs(x[cols])):
+                break
+
+    def fitted_bands() -> dict[int, float]:
+        return {int(n[2:]) - 1: float(v) for (n, _), v in zip(names, beta, strict=True)
+                if n.startswith("2b")}
+
+    gauss_newton()
+    # a test whose gear torque is within a few sigma of zero has a flank the data cannot
+    # decide: its column is the expected step, and its covariance gains the step's
+    # variance times the fitted band squared; refitted until the bands settle (the
+    # whitening depends on them)
+    for _ in range(FLANK_REWEIGHT if "lost-motion" in extras else 0):
+        before = fitted_bands()
+        wider = _flank_whitening(data, extras, before, current_spring(), flank_spring)
+        if wider is None:
+            break
+        Linv = wider
+        gauss_newton()
+        after = fitted_bands()
+        if all(abs(after[j] - b) <= FLANK_REWEIGHT_TOL * max(abs(after[j]), abs(b))
+               for j, b in before.items()):
             break
     M, r, WM, Wr = system()
     cov = _solve(WM, Wr)[1]
