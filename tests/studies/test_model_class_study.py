@@ -54,15 +54,69 @@ def test_shards_joined_give_the_row_of_all_their_campaigns(tmp_path):
     assert st.rows_from(paths)[0] == st.row("all", out)  # order does not matter
 
 
+def test_a_design_gets_its_own_row(tmp_path):
+    import json
+    from dataclasses import asdict
+
+    out = [_o("links", True, 19, 20, 1.0, [0.01] * 6),
+           _o("joints", False, 10, 20, 2.0, [0.03] * 6)]
+    path = tmp_path / "a.jsonl"
+    with path.open("a") as fh:
+        for i, (o, design) in enumerate(zip(out, (None, "plan X"), strict=True)):
+            extra = {} if design is None else {"design": design}
+            fh.write(json.dumps({"lab": "all", "seed": i, **extra, **asdict(o),
+                                 "k_error": o.k_error.tolist()}) + "\n")
+    rows = st.rows_from([path])
+    assert rows == [st.row("all", out[:1]), st.row("all", out[1:], "plan X")]
+    assert rows[1].startswith("| all effects, plan X | 1 | 0 % |")
+
+
+RESULTS = st.Path(__file__).parent / "results"
+PLAN = RESULTS / "plan_shop_compensator+links"
+
+
+def test_the_plan_design_is_plan_csv_with_its_repeats():
+    """The committed plan (campaign plan --model compensator+links on the shop protocol):
+    5 tests x 3 repeats, angles of plan.csv in rad, the load cases' wrenches, no preload."""
+    import pandas as pd
+
+    from analysis.identification.studies import model_classes as mc
+
+    d = mc.plan_design(PLAN)
+    df = pd.read_csv(PLAN / "plan.csv")
+    assert d.q.shape == (15, 6) and d.label == "planner's design (5 tests x 3 repeats)"
+    assert np.allclose(np.degrees(d.q[::3]), df[[f"q{j}_model_deg" for j in range(1, 7)]])
+    assert list(d.pose) == [p for p in ("P1", "P2", "P3", "P4", "P5") for _ in range(3)]
+    # test 1 is eq22: w_eff = [0, 2200 N, 2200 N, 200 N m, 200 N m, 0]
+    assert np.array_equal(d.w[0], [0, 2200, 2200, 200, 200, 0])
+    assert np.array_equal(d.w_ref, np.zeros((15, 6)))
+
+
+def test_a_fixed_design_seed_moves_only_the_noise():
+    from analysis.identification.studies import model_classes as mc
+
+    robot, lab, k, loads, noise = mc.shop_lab()
+    d = mc.plan_design(PLAN)
+    (t1, d1), (t2, d2) = (mc.simulate(robot, lab, k, loads, 12, noise, s, d) for s in (1, 2))
+    assert np.array_equal(t1.q, d.q) and np.array_equal(t2.q, d.q)
+    assert np.array_equal(d1, d2)                  # same tests, same physics
+    assert not np.allclose(t1.d, t2.d)              # different noise
+    # the noise is the declared one: about 37 um per translation (36 equations)
+    s = np.std(np.concatenate([t1.d - d1, t2.d - d2])[:, :3]) / noise.displacement_sigma[0]
+    assert 0.6 < s < 1.4
+
+
 def test_the_docs_table_is_the_committed_campaigns():
     """docs/identification.md's rows are those of the campaigns' JSON lines kept in
-    tests/studies/results (100 all-effects seeds 100-199, 100 clean seeds 0-99)."""
+    tests/studies/results (sampled poses: 100 all-effects seeds 100-199, 100 clean seeds
+    0-99; the planner's design: 100 all-effects seeds 100-199)."""
     import json
 
-    res = st.Path(__file__).parent / "results"
-    files = [res / "model_class_all_100-199.jsonl", res / "model_class_clean_0-99.jsonl"]
+    res = RESULTS
+    files = [res / "model_class_all_100-199.jsonl", res / "model_class_clean_0-99.jsonl",
+             res / "model_class_planner_all_100-199.jsonl"]
     seeds = [[json.loads(line)["seed"] for line in f.read_text().splitlines()] for f in files]
-    assert seeds == [list(range(100, 200)), list(range(100))]
+    assert seeds == [list(range(100, 200)), list(range(100)), list(range(100, 200))]
     docs = st.DOCS.read_text()
     block = docs.split(st.BEGIN)[1].split(st.END)[0]
     for row in st.rows_from(files):

@@ -51,6 +51,48 @@ class Outcome:
     k_error: np.ndarray
 
 
+@dataclass(frozen=True)
+class Design:
+    """A fixed test design, the same for every seed: m test rows (a planned test's repeats
+    are rows of their own, each with its own noise, as a campaign run measures them).
+
+    Attributes: pose (m,) labels; q (m, n) commanded joint angles (rad, model convention);
+    w (m, 6) loaded reading's wrench [N; N m] at P, base frame; w_ref (m, 6) reference
+    reading's wrench (the load case's preload; zeros without one); label, what the table
+    says of it."""
+
+    pose: np.ndarray
+    q: np.ndarray
+    w: np.ndarray
+    w_ref: np.ndarray
+    label: str
+
+
+def plan_design(directory: Path | str) -> Design:
+    """The design of a plan directory written by ``campaign plan``: each plan.csv test at
+    its model-convention angles, with its load case's wrench and reference (preload)
+    wrench from the plan's protocol copy (as the planner takes them), ``repeats`` rows."""
+    from campaign.planning.plan_output import read_plan
+
+    prot, df = read_plan(directory)
+    names = [c.name for c in prot.load_cases]
+    case = np.array([names.index(str(c)) for c in df["load_case"]])
+    w = np.asarray(prot.wrenches(), float)[case]
+    # plan.csv's wrench columns are the same load cases, to its 3 decimals
+    cols = ["fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m"]
+    if not np.allclose(df[cols].to_numpy(float), w, atol=1e-3):
+        raise ValueError(f"{directory}: plan.csv's wrenches are not its load cases'")
+    q = np.radians(df[[f"q{j}_model_deg" for j in range(1, 7)]].to_numpy(float))
+    reps = df["repeats"].to_numpy(int)
+    rows = np.repeat(np.arange(len(df)), reps)
+    label = (f"planner's design ({len(df)} tests x {reps.max()} repeats"
+             if np.all(reps == reps[0]) else f"planner's design ({len(df)} tests, "
+             f"{reps.sum()} rows") + ")"
+    return Design(pose=np.array([f"P{p}" for p in df["pose"]])[rows], q=q[rows], w=w[rows],
+                  w_ref=np.asarray(prot.reference_wrenches(), float)[case][rows],
+                  label=label)
+
+
 def true_class(lab: RealisticLab) -> str:
     """The class name of the effects a lab has (``joints`` for none)."""
     from analysis.identification.models.names import class_name
@@ -68,26 +110,40 @@ def true_class(lab: RealisticLab) -> str:
 
 
 def simulate(robot, lab: RealisticLab, k: np.ndarray, loads: np.ndarray, n_poses: int,
-             noise: NoiseModel, seed: int) -> tuple[TestArrays, np.ndarray]:
-    """(tests as measured, true displacements (m, 6)) of one seeded campaign."""
+             noise: NoiseModel, seed: int,
+             design: Design | None = None) -> tuple[TestArrays, np.ndarray]:
+    """(tests as measured, true displacements (m, 6)) of one seeded campaign: n_poses
+    sampled zone poses x every row of ``loads``, or, given a ``design``, its tests (the
+    seed then draws the noise only; ``loads`` and ``n_poses`` are not used)."""
     rng = np.random.default_rng(seed)
-    poses = sample_poses(robot, n_poses, rng, min_inverse_condition=0.3)
-    q = np.repeat(poses, len(loads), axis=0)
-    w = np.tile(loads, (n_poses, 1))
-    d_true = displacement(robot, lab, k, q, np.zeros(6), w)
+    if design is None:
+        poses = sample_poses(robot, n_poses, rng, min_inverse_condition=0.3)
+        q = np.repeat(poses, len(loads), axis=0)
+        w = np.tile(loads, (n_poses, 1))
+        w_ref = np.zeros(6)
+        label = np.array([f"P{i // len(loads) + 1}" for i in range(q.shape[0])])
+    else:
+        q, w, w_ref, label = design.q, design.w, design.w_ref, design.pose
+    d_true = displacement(robot, lab, k, q, w_ref, w)
     d = d_true + rng.normal(size=d_true.shape) * noise.displacement_sigma
-    wm = w + rng.normal(size=w.shape) * noise.wrench_sigma
+    # the measured wrench: the loaded minus the reference reading (TestArrays.w)
+    wm = w - w_ref + rng.normal(size=w.shape) * noise.wrench_sigma
     m = q.shape[0]
-    tests = TestArrays(pose=np.array([f"P{i // len(loads) + 1}" for i in range(m)]), q=q,
-                       w=wm, d=d, measured=np.ones((m, 6), bool), line=np.arange(m) + 2)
+    preload = design is not None and bool(np.any(design.w_ref))
+    tests = TestArrays(pose=label, q=q, w=wm, d=d, measured=np.ones((m, 6), bool),
+                       line=np.arange(m) + 2,
+                       w_ref=np.array(design.w_ref, float) if preload else None)
     return tests, d_true
 
 
-def one_campaign(robot, lab: RealisticLab, k, loads, n_poses, noise, seed) -> Outcome:
-    """Simulate, fit every class, choose, and score against the projected truth."""
-    tests, d_true = simulate(robot, lab, k, loads, n_poses, noise, seed)
+def one_campaign(robot, lab: RealisticLab, k, loads, n_poses, noise, seed,
+                 design: Design | None = None) -> Outcome:
+    """Simulate (sampled poses, or the fixed ``design``), fit every class, choose, and
+    score against the projected truth."""
+    tests, d_true = simulate(robot, lab, k, loads, n_poses, noise, seed, design)
     res = identify(robot, tests, "exact", noise=noise, validate=False)
-    taus = (gear_torques(robot, tests.q, np.zeros(6)), gear_torques(robot, tests.q, tests.w))
+    w_ref = np.zeros(6) if tests.w_ref is None else tests.w_ref
+    taus = (gear_torques(robot, tests.q, w_ref), gear_torques(robot, tests.q, tests.w + w_ref))
     group = pose_groups(tests.q, HOLDOUT_RADIUS)
     data = prepare(robot, tests, res.joints, res.x, noise, "exact", taus, group,
                    compensator=lab.compensator)
