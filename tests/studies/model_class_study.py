@@ -10,7 +10,10 @@ tests/studies/results/). Each campaign: 12 poses sampled in the KR240-2 zones x 
 3 load cases of protocols/kr240-2-shop.toml, the realistic-arm physics of its [fake_lab]
 (:mod:`analysis.identification.studies.model_classes`), noise as declared. Two labs: all
 effects (gravity, links 2-3, lost motion, the axis-2 compensator, its geometry given to
-the analysis), and clean (joint springs only).
+the analysis), and clean (joint springs only). ``--design plan:DIR`` replaces the sampled
+poses by the tests of the plan directory DIR (``campaign plan``), the same for every seed
+(:func:`~analysis.identification.studies.model_classes.plan_design`); the table then has a
+row per lab per design.
 """
 
 from __future__ import annotations
@@ -56,7 +59,8 @@ def run(lab_name: str, campaigns: int, poses: int, seed0: int,
 
 def rows_from(paths: list[Path]) -> list[str]:
     """The table's rows from the campaigns' JSON lines (``--jsonl``) of one or more
-    shards, a row per lab per design (sampled poses first, then all effects first)."""
+    shards, a row per lab per design (sampled poses first, then the designs as the files
+    give them; all effects first)."""
     by_lab: dict[tuple, list] = {}
     for path in paths:
         for line in path.read_text().splitlines():
@@ -65,7 +69,8 @@ def rows_from(paths: list[Path]) -> list[str]:
             d.pop("seed")
             d["k_error"] = np.array(d["k_error"], float)
             by_lab.setdefault(key, []).append(mc.Outcome(**d))
-    designs = [None] + sorted({dz for dz, _ in by_lab if dz is not None})
+    # the designs in the order the files give them
+    designs = [None] + list(dict.fromkeys(dz for dz, _ in by_lab if dz is not None))
     return [row(lab, by_lab[dz, lab], dz) for dz in designs for lab in ("all", "clean")
             if (dz, lab) in by_lab]
 
