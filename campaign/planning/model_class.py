@@ -93,6 +93,41 @@ class ClassPrediction:
     q2ref: float = float("nan")
     q2_std: float = float("nan")
     q2_range: float = float("nan")
+    #: distinct equations of the design (6 per distinct (pose, load case) test) and those
+    #: left when the pose with the most distinct tests is held out
+    equations: int = 0
+    equations_pose_held_out: int = 0
+
+    @property
+    def parameters(self) -> int:
+        """Parameters the class's fit estimates: k and the kept extras."""
+        return len(self.k_se) + len(self.names)
+
+    def saturation(self) -> str | None:
+        """Why the design cannot support this class, or None: with no more distinct
+        equations than parameters the class fits the tests' means exactly (its chi-square
+        is the scatter between repeats, so no larger class can beat a smaller one on the
+        evidence); with a pose held out no more than the parameters, the held-out check
+        is underdetermined. Repeats add no distinct equation."""
+        p = self.parameters
+        if self.equations <= p:
+            return (f"the design's {self.equations // 6} distinct tests give "
+                    f"{self.equations} equations for the {p} parameters of class "
+                    f"{self.model}: it fits them exactly and cannot be told from a "
+                    f"smaller class; use at least {minimum_tests(p)} distinct tests")
+        if self.equations_pose_held_out <= p:
+            return (f"with a pose held out the design leaves {self.equations_pose_held_out} "
+                    f"equations for the {p} parameters of class {self.model}: the "
+                    "held-out check cannot test it; use at least "
+                    f"{minimum_tests(p)} distinct tests")
+        return None
+
+
+def minimum_tests(parameters: int) -> int:
+    """Distinct tests (6 equations each) that leave more equations than ``parameters``
+    with one test held out, and twice the parameters in all: the least a design for a
+    class needs so that the class can be told from a smaller one."""
+    return max(parameters // 6 + 2, -(-2 * parameters // 6))
 
 
 @dataclass(frozen=True)
@@ -386,10 +421,14 @@ def predict(robot, cand, pose, case, wrenches, noise: NoiseModel, k_prior: np.nd
     cov = class_fit.parameter_covariance(np.concatenate([WA, WB[:, kept]], axis=1))
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     q2 = q[:, COMP_JOINT]
+    tests = np.unique(np.stack([pose, case], axis=1), axis=0)
+    per_pose = np.unique(tests[:, 0], return_counts=True)[1]
     return ClassPrediction(spec.name, tuple(names[i][0] for i in kept),
                            tuple(names[i][1] for i in kept), se[n:], tuple(fixed),
                            np.asarray(k_prior, dtype=float) * se[:n], q2ref,
-                           float(np.std(q2)), float(np.ptp(q2)))
+                           float(np.std(q2)), float(np.ptp(q2)),
+                           equations=6 * len(tests),
+                           equations_pose_held_out=6 * (len(tests) - int(per_pose.max())))
 
 
 def describe(pred: ClassPrediction, random: ClassPrediction | None,
@@ -407,6 +446,9 @@ def describe(pred: ClassPrediction, random: ClassPrediction | None,
                                      zip(joint_only_se, k_prior, strict=True)],
         **({"compensator_q2ref_rad": pred.q2ref} if np.isfinite(pred.q2ref) else {}),
         "q2_std_rad": pred.q2_std, "q2_range_rad": pred.q2_range,
+        "distinct_equations": pred.equations, "parameters_estimated": pred.parameters,
+        "equations_with_a_pose_held_out": pred.equations_pose_held_out,
+        "warning": pred.saturation(),
         "what": "predicted standard errors of the class's fit (first order, noise model of "
                 "the plan): k marginal over the class's parameters (predicted_standard_errors),"
                 " the kept parameters' se here; the fixed ones as the fit would fix them",

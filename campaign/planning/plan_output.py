@@ -275,6 +275,11 @@ def _model_lines(s: dict) -> list[str]:
         lines.append(f"  fixed at 0: {f['parameters']} ({f['why']})")
     lines.append(f"q2 over the tests: std {np.degrees(m['q2_std_rad']):.2f} deg, range "
                  f"{np.degrees(m['q2_range_rad']):.2f} deg")
+    lines.append(f"{m['distinct_equations']} distinct equations for "
+                 f"{m['parameters_estimated']} parameters ({m['equations_with_a_pose_held_out']}"
+                 " with a pose held out)")
+    if m["warning"]:
+        lines.append(f"WARNING: {m['warning']}")
     return lines
 
 

@@ -197,3 +197,23 @@ def test_compensator_design_spreads_q2(kr_protocol):
     assert np.max(r["compensator"][:6]) < 1.05 * np.max(r["joints"][:6])
     q2 = {m: np.std(p.candidates.q[p.chosen.pose, 1]) for m, p in plans.items()}
     assert q2["compensator"] > q2["joints"]
+
+
+def test_a_design_with_no_more_equations_than_parameters_is_flagged():
+    """The 5-test plan of the shop protocol under compensator+links: 30 distinct
+    equations for 6 k + 24 kept link entries (the study's finding: the class then fits
+    the tests' means exactly and auto cannot tell it from links alone)."""
+    from campaign.planning.model_class import ClassPrediction, minimum_tests
+
+    def pred(equations, held_out, kept):
+        return ClassPrediction("compensator+links", tuple(f"c{i}" for i in range(kept)),
+                               ("m/N",) * kept, np.ones(kept), (), np.ones(6),
+                               equations=equations, equations_pose_held_out=held_out)
+
+    assert minimum_tests(30) == 10 and minimum_tests(12) == 4 and minimum_tests(6) == 3
+    saturated = pred(30, 24, 24)
+    assert saturated.parameters == 30
+    assert "30 equations for the 30 parameters" in saturated.saturation()
+    assert "at least 10 distinct tests" in saturated.saturation()
+    assert "held-out check" in pred(36, 30, 24).saturation()  # 36 > 30, but 30 <= 30
+    assert pred(72, 66, 24).saturation() is None  # the 12-test plan: 100 % true class
