@@ -329,6 +329,7 @@ def command(name: str) -> dict:
                                                 run["expected_seconds_probe_wall"])
                                           if run.get("expected_seconds_probe_wall") else None),
             "load_average_at_start": run.get("load_average"),
+            "other_runnable_at_start": run.get("other_runnable"),
             "core_share": run.get("core_share"),
             "startup_s": run["startup_seconds"], "placements_per_task": run["placements_per_task"],
             "evaluations_per_s": run["evaluations_per_second"],
@@ -364,7 +365,8 @@ def main() -> None:
               f"{c['probe_per_process_per_s']:.3g}/s per process), estimate "
               f"{c['expected_s']} s (x{c['estimate_ratio']}), "
               f"cluster ready in {c['startup_s']} s, tasks of {c['placements_per_task']}")
-        print(f"  load average {c['load_average_at_start']} at the start, {c['core_share']:.0%} "
+        print(f"  load average {c['load_average_at_start']}, other runnable "
+              f"{c['other_runnable_at_start']} at the start, {c['core_share']:.0%} "
               f"of a core assumed per process; the probe's wall time alone would have said "
               f"{c['expected_probe_wall_s']} s (x{c['estimate_ratio_probe_wall']}); workers' "
               f"CPU {c['search_cpu_s']} s: {c['evaluations_per_cpu_s']:,} evaluations per CPU "

@@ -19,8 +19,10 @@ busy 94 % of the search's wall time (the rest: the last task's tail, task hand-o
 and the command's process (scheduler and client) used 0.3 s of CPU in 5-8 s.
 So the estimate (:func:`expected_seconds`) takes the probe's CPU time per placement
 (steadier: 3.9-4.9 ms per placement on the README example at those loads) and
-divides it by the share of a core each worker can expect from the machine's load
-average before the search started (:func:`core_share`), and adds the tail.
+divides it by the share of a core each worker can expect from the other processes
+runnable before the search started (:func:`core_share`; the command reads the kernel's run
+queue, not the 1-minute load average, which lags by a minute and halved the estimate on
+an idle machine just after other work), and adds the tail.
 """
 
 from __future__ import annotations
@@ -116,7 +118,7 @@ class ProbeResult:
 
 def core_share(load: float, workers: int, cores: int) -> float:
     """Fraction of one core (0-1] each of ``workers`` busy processes can expect when
-    ``load`` other processes (the 1-minute load average before the search) are runnable
+    ``load`` other processes (the run queue before the search) are runnable
     on ``cores`` cores, the kernel sharing the cores evenly among all of them."""
     return min(1.0, cores / max(float(load) + workers, 1e-9))
 

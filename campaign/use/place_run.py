@@ -326,11 +326,11 @@ def _search(problem, G, size: SearchSize, o: PlaceOptions, console: Console, pro
         task_chunk,
     )
     from campaign.text_wrap import print_wrapped
-    from campaign.use.place_cluster import search_runner
+    from campaign.use.place_cluster import other_runnable, search_runner
 
     # the machine's load before this command's workers exist: the other processes the
     # local workers will share the cores with
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
+    load, how_load = other_runnable()
     with search_runner(o.scheduler, o.workers) as runner:
         if runner.client is not None:
             print_wrapped(console, f"{runner.how}: ready in {runner.startup_seconds:.2g} s")
@@ -344,7 +344,7 @@ def _search(problem, G, size: SearchSize, o: PlaceOptions, console: Console, pro
             how_share = "as the probe had it"
         else:
             share = core_share(load, runner.workers, os.cpu_count() or 1)
-            how_share = f"at a load average of {load:.2g} on {os.cpu_count() or 1} cores"
+            how_share = f"{how_load} on {os.cpu_count() or 1} cores"
         expected = expected_seconds(probed, size.placements, runner.workers, chunk, share)
         print_wrapped(console, estimate_line(probed, size, runner.workers, expected, share,
                                              how_share))
@@ -376,7 +376,9 @@ def _search(problem, G, size: SearchSize, o: PlaceOptions, console: Console, pro
              "probe_cpu_seconds": (None if probed.cpu_seconds is None
                                    else round(probed.cpu_seconds, 4)),
              "probe_placements": probed.placements,
-             "load_average": round(load, 2), "core_share": round(share, 3),
+             "other_runnable": round(load, 2),
+             "load_average": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None,
+             "core_share": round(share, 3),
              "startup_seconds": round(runner.startup_seconds, 3),
              "placements_per_task": int(chunk)}
     return res, facts
