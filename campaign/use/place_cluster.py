@@ -2,11 +2,16 @@
 starts, or the Dask scheduler given with ``--scheduler``; the probe runs there too.
 
 The local cluster's worker processes get one BLAS/OpenMP thread each (two workers
-on two cores, no threads beside them) and keep glibc's own ``malloc`` tuning: Dask
+on two cores, no threads beside them) and a ``malloc`` that keeps its memory: Dask
 sets ``MALLOC_TRIM_THRESHOLD_=65536`` in its workers by default, which turns off
 glibc's adaptive mmap threshold, so every numpy temporary above 128 KiB is mapped
 and unmapped afresh. On the README example that was 40 % of the workers' CPU in
 system time (1.7-1.9 s of 4.6 s per worker), against 0.24 s without it (issue 36).
+glibc's own adaptive tuning still trimmed the heap's top and faulted it in again
+between temporaries: at rest, the 1e8 search's workers spent 11 s of 77 s CPU in
+system time (25 % of the wall). With the mmap threshold at 64 MiB, the trim threshold
+at 128 MiB and 64 MiB of top pad (:data:`WORKER_ENVIRON`; at most ~128 MiB kept free
+per worker): 0.6 s, and the search 15 % faster (40.8 -> 34.8 s, same machine, at rest).
 Dask's statistical profiler is off in these workers: its thread samples every
 thread's stack each 10 ms, which cost 13-17 % of a worker's CPU on top of the task's
 own (process against thread CPU time of a 204-placement task of the README example,
@@ -29,7 +34,14 @@ from analysis.placement.probe import ProbeResult, chunk_peak_bytes, chunk_second
 
 #: The environment of the local cluster's worker processes (set before they start).
 WORKER_ENVIRON = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-                  "OPENBLAS_NUM_THREADS": "1"}
+                  "OPENBLAS_NUM_THREADS": "1",
+                  # glibc keeps the search's numpy temporaries (a few MB each) on its heap:
+                  # mapped afresh above the mmap threshold, or returned to the kernel by a
+                  # trim and faulted in again, they cost the workers 13 % of their CPU in
+                  # system time at rest (1e8 search: 11 s of 77 s)
+                  "MALLOC_MMAP_THRESHOLD_": str(64 << 20),
+                  "MALLOC_TRIM_THRESHOLD_": str(128 << 20),
+                  "MALLOC_TOP_PAD_": str(64 << 20)}
 
 
 @dataclass(frozen=True)
