@@ -94,6 +94,13 @@ E2E = (
     "tests/cli/test_cli_conventions.py::test_maps_json_and_no_silent_overwrite",
     "tests/jobs/test_maps.py::test_maps_same_files_from_cli_and_api",
     "tests/placement/test_place_scratch.py::test_local_cluster_leaves_no_scratch_space",
+    # simulated acquisitions with faults, aborts and resumes (3-6 s each at rest, -n 2)
+    "tests/acquire/test_faults.py", "tests/acquire/test_damaged_inputs.py",
+    "tests/acquire/test_abort_records.py::test_fault_while_loaded_records_every_removal_then_resume_marks_sessions",
+    "tests/acquire/test_abort_records.py::test_disk_full_mid_run_stops_safely_and_the_run_resumes",
+    "tests/acquire/test_tool_offset.py::test_fake_campaign_with_tool_offset",
+    "tests/acquire/test_cut_tests_csv_resume.py::test_analyze_names_the_resume_that_repairs_a_cut_line",
+    "tests/drivers/test_realistic_world.py::test_preloaded_readings_are_the_applied_wrenches",
 )
 #: session fixtures that run whole campaigns: a test using one is end-to-end
 CAMPAIGN_FIXTURES = ("demo_runs",)
