@@ -331,6 +331,7 @@ def _search(problem, G, size: SearchSize, o: PlaceOptions, console: Console, pro
     # the machine's load before this command's workers exist: the other processes the
     # local workers will share the cores with
     load, how_load = other_runnable()
+    load_average = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     with search_runner(o.scheduler, o.workers) as runner:
         if runner.client is not None:
             print_wrapped(console, f"{runner.how}: ready in {runner.startup_seconds:.2g} s")
@@ -377,7 +378,7 @@ def _search(problem, G, size: SearchSize, o: PlaceOptions, console: Console, pro
                                    else round(probed.cpu_seconds, 4)),
              "probe_placements": probed.placements,
              "other_runnable": round(load, 2),
-             "load_average": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None,
+             "load_average": None if load_average is None else round(load_average, 2),
              "core_share": round(share, 3),
              "startup_seconds": round(runner.startup_seconds, 3),
              "placements_per_task": int(chunk)}
