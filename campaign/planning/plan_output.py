@@ -188,8 +188,10 @@ def _model_dict(plan: Plan) -> dict:
         return {}
     from campaign.planning.model_class import describe
 
-    return {"model_class": describe(plan.chosen.model, plan.random.model,
-                                    plan.chosen.joint_se, plan.k_prior)}
+    rec = describe(plan.chosen.model, plan.random.model, plan.chosen.joint_se, plan.k_prior)
+    if plan.tests_raised is not None:
+        rec["tests_raised"] = plan.tests_raised.describe()
+    return {"model_class": rec}
 
 
 def summary_text(plan: Plan) -> str:
@@ -280,6 +282,8 @@ def _model_lines(s: dict) -> list[str]:
                  " with a pose held out)")
     if m["warning"]:
         lines.append(f"WARNING: {m['warning']}")
+    if m.get("tests_raised"):
+        lines.append(f"NOTE: {m['tests_raised']['why']}")
     return lines
 
 

@@ -61,6 +61,31 @@ class Design:
     joint_se: np.ndarray | None = None  # (n,) se of k of the joint springs only (N m/rad)
 
 
+@dataclass(frozen=True)
+class TestsRaised:
+    """The protocol's ``tests`` (``was``) raised ``to`` the least a design for ``model``
+    needs: its fit estimates ``parameters`` over the candidates, and with fewer distinct
+    tests it fits them exactly or its held-out check is underdetermined."""
+
+    __test__ = False  # not a pytest test class
+
+    was: int
+    to: int
+    parameters: int
+    model: str
+
+    def describe(self) -> dict:
+        return {"from": self.was, "to": self.to, "parameters_over_candidates": self.parameters,
+                "why": self.sentence()}
+
+    def sentence(self) -> str:
+        return (f"tests raised from the protocol's {self.was} to {self.to}: class "
+                f"{self.model} has {self.parameters} parameters over the candidates, and a "
+                f"design for it needs at least {self.to} distinct tests (twice as many "
+                "equations as parameters, more than them with one test held out); "
+                "--tests sets the count")
+
+
 @dataclass
 class Plan:
     """A planned campaign: the chosen design, the random zone design, the evidence.
@@ -99,6 +124,8 @@ class Plan:
     weights: np.ndarray | None = None
     #: the model class the plan designs for (``joints``: today's planner)
     model: str = "joints"
+    #: the protocol's test count raised for the class (None: kept)
+    tests_raised: TestsRaised | None = None
 
     def to_frame(self) -> pd.DataFrame:
         """One row per test, columns :data:`COLUMNS` (degrees, N, N m; v_r in deg)."""
@@ -244,12 +271,16 @@ def case_contributions(plan_in: dict, design: Design, names: list[str]) -> list[
 
 
 def _choose(protocol: Protocol, robot: RobotModel, cand: Candidates, strategy: str, seed: int,
-            weights, noise: NoiseModel, k_prior: np.ndarray, rows: int, spec=None):
+            weights, noise: NoiseModel, k_prior: np.ndarray, rows: int, spec=None,
+            fixed_tests: bool = True):
     """(cand, inputs, chosen, random, reference): the design of ``strategy`` over the
     candidates, the random zone design, the median random relative se per joint.
     ``spec``: the model class designed for (:mod:`campaign.planning.model_class`; None:
     the joint springs): ``worst-joint`` then minimises its criterion, the other strategies
-    keep theirs; the predictions and the reference are the class's."""
+    keep theirs; the predictions and the reference are the class's. With a class and
+    ``fixed_tests`` False (the count is the protocol's, not ``--tests``), fewer tests than
+    :func:`~campaign.planning.model_class.minimum_tests` of the class's parameters over
+    the candidates are raised to it (``inputs["tests_raised"]``)."""
     wrenches = protocol.wrenches()
     pose, case, group = _tests(cand, protocol.loads.selection)
     if case.size and case[0] < 0:
@@ -263,6 +294,17 @@ def _choose(protocol: Protocol, robot: RobotModel, cand: Candidates, strategy: s
               "cand": cand, "robot": robot, "wrenches": wrenches, "noise": noise, "rows": rows,
               "spec": spec}
     n = protocol.campaign.tests
+    inp = None
+    if spec is not None:
+        from campaign.planning import model_class as mc
+
+        inp = mc.pool_inputs(robot, cand, pose, case, wrenches, noise, k_prior, rows, spec)
+        need = mc.minimum_tests(inp.B.shape[-1])
+        if n < need and not fixed_tests:
+            # fewer distinct tests than this leave the class's fit exact (or its held-out
+            # check underdetermined): it could not be told from a smaller class
+            inputs["tests_raised"] = TestsRaised(n, need, int(inp.B.shape[-1]), spec.name)
+            n = need
     zone = cand.zone[pose]
     sep_deg = protocol.thresholds.min_pose_separation_deg
     sep = Separation(cand.q[pose], group, sep_deg * DEG)
@@ -278,10 +320,7 @@ def _choose(protocol: Protocol, robot: RobotModel, cand: Candidates, strategy: s
             picks = greedy_exchange(F, group, n, kind="d" if strategy == "d-optimal" else "e",
                                     sep=sep)
         reference = random_reference(F, group, zone, n, seed, sep=sep)[1]
-        if spec is not None:
-            from campaign.planning import model_class as mc
-
-            inp = mc.pool_inputs(robot, cand, pose, case, wrenches, noise, k_prior, rows, spec)
+        if inp is not None:
             crit_median, reference = mc.random_reference(inp, group, zone, n, seed, sep)
             if strategy == "worst-joint":
                 picks = mc.choose_for_class(inp, group, zone, n, seed, picks, crit_median, sep)
@@ -301,7 +340,7 @@ def _worst(design: Design, k: np.ndarray) -> float:
 
 def _fewer_flips(protocol: Protocol, robot: RobotModel, cand: Candidates, counts: np.ndarray,
                  blind, strategy: str, seed: int, weights, noise: NoiseModel,
-                 k_prior: np.ndarray, rows: int, spec=None):
+                 k_prior: np.ndarray, rows: int, spec=None, fixed_tests: bool = True):
     """A design that changes no flank when the candidates allow one (its fit has no
     lost-motion error at all, whatever its se); else the design with the fewest changes among
     those over the candidates limited to at most 1, 2 ... changes per test
@@ -328,7 +367,7 @@ def _fewer_flips(protocol: Protocol, robot: RobotModel, cand: Candidates, counts
     for _, limited in _flank_limited(protocol, cand, counts):
         try:
             c = _choose(protocol, robot, limited, strategy, seed, weights, noise, k_prior, rows,
-                        spec)
+                        spec, fixed_tests)
         except InputError:
             continue
         ck = key(c)
@@ -411,11 +450,17 @@ def make_plan(
     cand = evaluate(protocol, robot, q, zone, k_prior, length)
     check_enough(protocol, cand)
     counts = _flank_counts(protocol, robot, cand)
-    choice = _choose(protocol, robot, cand, strategy, seed, weights, noise, k_prior, rows, spec)
+    fixed = tests is not None
+    choice = _choose(protocol, robot, cand, strategy, seed, weights, noise, k_prior, rows, spec,
+                     fixed)
     if counts is not None:
         choice = _fewer_flips(protocol, robot, cand, counts, choice, strategy, seed, weights,
-                              noise, k_prior, rows, spec)
+                              noise, k_prior, rows, spec, fixed)
     cand, inputs, chosen, rand, reference = choice
+    raised = inputs.get("tests_raised")
+    if raised is not None:
+        protocol = protocol.model_copy(update={"campaign": protocol.campaign.model_copy(
+            update={"tests": raised.to})})
     return Plan(
         protocol=protocol,
         robot=robot,
@@ -434,4 +479,5 @@ def make_plan(
             inputs, chosen, [c.name for c in protocol.load_cases]),
         weights=weights,
         model="joints" if spec is None else spec.name,
+        tests_raised=raised,
     )

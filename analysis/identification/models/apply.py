@@ -46,7 +46,8 @@ def with_class(result, sel: Selection):
         doc["prediction_sigma_scale_note"] = (
             "sqrt(max(1, held-out chi2/nu)) of the chosen class: a result kept with "
             "--accept-misfit widens its prediction intervals by this factor")
-    out = replace(result, assumptions={**result.assumptions, "model_classes": doc})
+    out = replace(result, assumptions={**result.assumptions, "model_classes": doc},
+                  warnings=(*result.warnings, *design_warnings(sel)))
     if not c.extras or c.error:
         return out
     cols = list(result.joints)
@@ -65,6 +66,26 @@ def with_class(result, sel: Selection):
                   f"model class {c.name} chosen ({'--model auto' if sel.auto else '--model'}): "
                   "k, intervals and chi-square are its own; residuals.csv and the report's "
                   "residual figures are the joint-spring fit's"))
+
+
+def design_warnings(sel: Selection) -> tuple[str, ...]:
+    """What the campaign's design could not test: the untestable candidates ``auto`` set
+    aside, or the class asked for when the design cannot test it."""
+    bad = sel.untestable()
+    if not bad:
+        return ()
+    size = sel.design
+    if sel.chosen.untestable and not sel.auto:
+        return (f"model class {sel.chosen.name} asked (--model) but this design cannot test "
+                f"it: {sel.chosen.untestable}; its intervals assume the class is right and "
+                "nothing here checks that. Plan with `campaign plan --model` (it raises the "
+                "tests to what the class needs) or choose a smaller class",)
+    return (f"--model auto: {len(bad)} class(es) not testable on this design "
+            f"({size.tests} distinct tests, {size.equations} equations, "
+            f"{size.equations_held_out} with a pose held out) set aside: "
+            + "; ".join(f"{c.name} ({c.n_params} parameters)" for c in bad)
+            + ". The evidence cannot support them; plan with `campaign plan --model` "
+            "(it raises the tests to what the class needs) to test them",)
 
 
 def widened(result):

@@ -182,6 +182,9 @@ class ClassFit:
     flank_spring: tuple[float, ...] = ()
     #: the fitted joints (0-based): the first rows of ``cov`` are their compliances
     joints: tuple[int, ...] = ()
+    #: why the campaign's design cannot test this class ("" if it can;
+    #: :mod:`analysis.identification.models.design_size`)
+    untestable: str = ""
 
     @property
     def dof(self) -> int:
@@ -219,6 +222,7 @@ class ClassFit:
                            for n, v, s, u in zip(self.names, self.values, self.se,
                                                  self.units, strict=True)],
             "fixed": [{"parameter": n, "why": why} for n, why in self.fixed],
+            **({"untestable": self.untestable} if self.untestable else {}),
             "covariance": {"parameters": [f"x{j + 1}" for j in self.joints] + list(self.names),
                            "unit": "products of the parameters' SI units (x = 1/k rad/(N m))",
                            "matrix": self.cov.tolist()},

@@ -13,7 +13,12 @@ each fail a forward step alone. The rule, stated in results.json:
 * an extra is kept only if the class with it has a BIC lower by more than
   :data:`BIC_MARGIN` than the class without it (Kass and Raftery's "very strong"
   evidence, 2 ln B > 10) AND a lower held-out (leave-pose-out) chi2/nu. So the joint
-  springs are kept unless the evidence says otherwise.
+  springs are kept unless the evidence says otherwise;
+* a class the design cannot test (no more distinct equations than its parameters, or
+  not more with a pose held out: :mod:`~analysis.identification.models.design_size`)
+  is never supported over a smaller one: its chi-square and held-out check are no
+  evidence. It is fitted and listed, marked ``untestable`` with the reason, and the
+  elimination steps to a testable class first where one of the trials is.
 
 A class is accepted when its chi-square passes the misfit test
 (P(chi2 >= observed) >= :data:`MISFIT_P`, as the joint fit's refusal).
@@ -21,10 +26,11 @@ A class is accepted when its chi-square passes the misfit test
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from analysis.identification.models.design_size import DesignSize, design_size
 from analysis.identification.models.fit import ClassData, ClassFit, fit_class
 from analysis.identification.models.names import EXTRAS, JOINTS, ModelChoice
 
@@ -36,7 +42,8 @@ MISFIT_P = 1e-6
 RULE = (f"backward elimination from every effect the data allow; criterion BIC = chi2 + "
         f"p ln n (noise as declared); an effect stays only if the class with it has a BIC "
         f"lower by more than {BIC_MARGIN:g} and a lower held-out (leave-pose-out) chi2/nu "
-        f"than the class without it; the weakest goes first")
+        f"than the class without it, and the design can test it (more distinct equations "
+        f"than parameters, also with a pose held out); the weakest goes first")
 
 
 @dataclass(frozen=True)
@@ -46,6 +53,7 @@ class Selection:
     candidates: tuple[ClassFit, ...]
     chosen: ClassFit
     auto: bool
+    design: DesignSize | None = None
 
     @property
     def accepted(self) -> bool:
@@ -56,12 +64,17 @@ class Selection:
         return {"asked": "auto" if self.auto else self.chosen.name, "chosen": self.chosen.name,
                 "rule": RULE if self.auto else "as asked (--model)",
                 "accepted": self.accepted, "misfit_level": MISFIT_P,
+                **({"design": self.design.describe()} if self.design is not None else {}),
                 "candidates": [c.describe() for c in self.candidates]}
+
+    def untestable(self) -> tuple[ClassFit, ...]:
+        """The candidates the design cannot test."""
+        return tuple(c for c in self.candidates if c.untestable)
 
 
 def supported(with_it: ClassFit, without: ClassFit) -> bool:
     """Does the evidence support the extra that ``with_it`` has and ``without`` lacks?"""
-    if with_it.error:
+    if with_it.error or with_it.untestable:
         return False
     if without.error:
         return True
@@ -81,28 +94,38 @@ def available(data: ClassData) -> tuple[str, ...]:
 def select_model(data: ClassData, choice: ModelChoice) -> Selection:
     """Fit the classes ``choice`` asks for (auto: backward elimination; else joints and
     the one asked) and choose (auto) or take the one asked."""
+    size = design_size(data.group, data.tests.w, data.tests.measured)
+
+    def fit(extras: tuple[str, ...]) -> ClassFit:
+        f = fit_class(data, extras)
+        why = "" if f.error else size.untestable(f.n_params)
+        return replace(f, untestable=why) if why else f
+
     if choice.auto:
-        current = fit_class(data, available(data))
+        current = fit(available(data))
         fits = [current]
         while current.extras:
-            trials = [fit_class(data, tuple(e for e in current.extras if e != drop))
+            trials = [fit(tuple(e for e in current.extras if e != drop))
                       for drop in current.extras]
             fits += trials
             weak = [t for t in trials if not supported(current, t)]
             if not weak:
                 break
-            current = min(weak, key=lambda f: f.bic if not f.error else np.inf)
+            # a testable class before any untestable one: the path must not run through
+            # classes whose exact fits of the means only look good
+            current = min(weak, key=lambda f: (bool(f.error), bool(f.untestable),
+                                               f.bic if not f.error else np.inf))
             if current.error:
                 break
         if () not in [f.extras for f in fits]:
-            fits.append(fit_class(data, ()))  # side by side with the papers' model
+            fits.append(fit(()))  # side by side with the papers' model
         fits.sort(key=lambda f: (len(f.extras), [EXTRAS.index(e) for e in f.extras]))
-        return Selection(tuple(fits), current, True)
-    joints = fit_class(data, ())
+        return Selection(tuple(fits), current, True, size)
+    joints = fit(())
     if not choice.extras:
-        return Selection((joints,), joints, False)
-    asked = fit_class(data, choice.extras)
-    return Selection((joints, asked), asked, False)
+        return Selection((joints,), joints, False, size)
+    asked = fit(choice.extras)
+    return Selection((joints, asked), asked, False, size)
 
 
 __all__ = ["JOINTS", "RULE", "Selection", "supported", "select_model"]
