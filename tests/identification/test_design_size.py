@@ -7,7 +7,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from analysis.identification.estimate import identify
 from analysis.identification.models.apply import design_warnings
