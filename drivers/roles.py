@@ -14,12 +14,29 @@ from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
 from typing import Any
+from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
 
-from drivers.errors import DeviceFault, DeviceTimeout, DriverError
+from drivers.errors import AddressError, DeviceFault, DeviceTimeout, DriverError
 from drivers.loopback_guard import check_address
 from drivers.readings import JointAngles, Point, Pose, Wrench, average_wrench
+
+
+def address_timeout(address: str, default: float) -> float:
+    """The deadline (s) an address states with ``?timeout=S`` (any scheme), else
+    ``default``: the simulated lab states a longer one for its streaming sensors (a
+    simulation starved of CPU is not a device fault) while real devices keep the
+    drivers' own."""
+    query = urlsplit(address).query if "?" in address else ""
+    value = dict(parse_qsl(query)).get("timeout")
+    if value is None:
+        return default
+    try:
+        return float(value)
+    except ValueError:
+        raise AddressError(f"{address}: timeout={value!r} is not a number of seconds") \
+            from None
 
 
 class Driver(ABC):
@@ -29,6 +46,7 @@ class Driver(ABC):
     role: str = "device"
 
     def __init__(self, address: str = "", *, timeout: float = 2.0) -> None:
+        timeout = address_timeout(address, timeout)
         if timeout <= 0:
             raise ValueError(f"timeout must be positive, got {timeout}")
         self.address = address

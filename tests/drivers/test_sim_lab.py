@@ -169,3 +169,20 @@ def test_rotated_sensor_mount_is_undone_by_wrench_to_base():
     T = world.true_tool_pose()
     np.testing.assert_allclose(wrench_to_base(w_s, T, world.sensor_mount, T[:3, 3]), load,
                                atol=1e-9)
+
+
+def test_streaming_fakes_state_their_deadline_real_addresses_keep_the_drivers(lab):
+    """The simulated lab's streaming sensors state ``?timeout=`` (a starved simulation is
+    not a device fault); an address without it keeps the driver's own deadline, and a
+    bad value is one clear error."""
+    from drivers.errors import AddressError
+    from drivers.sim.lab import STREAM_DEADLINE_S
+
+    url = lab.addresses["ati-netft"]
+    assert url.endswith(f"&timeout={STREAM_DEADLINE_S:g}") and "http_port=" in url
+    assert open_driver("ati-netft", url).timeout == STREAM_DEADLINE_S
+    assert open_driver("ati-netft", "udp://192.168.1.1:49152").timeout == 1.0
+    assert open_driver("ati-netft", "udp://192.168.1.1:49152?timeout=0.25").timeout == 0.25
+    assert "timeout" not in lab.addresses["kuka-kvp"]  # not a streaming sensor
+    with pytest.raises(AddressError, match="timeout='soon' is not a number of seconds"):
+        open_driver("ati-netft", "udp://192.168.1.1:49152?timeout=soon")
