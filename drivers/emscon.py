@@ -208,8 +208,10 @@ class EmsconTracker(TcpLink, PoseTracker):
             self._connect()
         try:
             return self._exchange()
-        except (DeviceTimeout, ProtocolError, ConnectionFailed):
-            self._close()  # a late or garbled answer must not be read as the next result
+        except (DeviceTimeout, ProtocolError, ConnectionFailed, KeyboardInterrupt):
+            # a late or garbled answer (or one still coming after a Ctrl-C) must not be
+            # read as the next result
+            self._close()
             raise
 
     def _exchange(self) -> Packet:

@@ -74,6 +74,11 @@ class KukaVarProxyRobot(TcpLink, RobotController):
             if isinstance(err, DriverError):
                 raise
             raise ConnectionFailed(f"{self.address}: {err}") from err
+        except BaseException:
+            # interrupted between request and reply (Ctrl-C): the reply may still come,
+            # and the next request (the stop that follows) must not take it for its own
+            self._close()
+            raise
 
     def read_var(self, name: str) -> str:
         """Read a KRL variable as text."""
