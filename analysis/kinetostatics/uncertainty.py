@@ -97,10 +97,15 @@ def predict_deflection(
     links' sum_l J_l C_l J_l^T w (:func:`~analysis.kinetostatics.link_compliance
     .link_screw`) and, with cov_x, the covariance of its identified entries (and their
     cross-covariance with x) when the file keeps it
-    (:func:`~analysis.kinetostatics.link_compliance.link_covariance_terms`).
+    (:func:`~analysis.kinetostatics.link_compliance.link_covariance_terms`). A model file
+    with the axis-2 compensator law has joint 2's stiffness at each pose's q2
+    (:func:`~analysis.kinetostatics.compensator_law.pose_stiffness`; k is the file's);
+    its c1, c2 are taken as exact (dx2(q2)/dx2 = 1: cov_x is x2's at q2ref).
     """
+    from analysis.kinetostatics.compensator_law import pose_stiffness
+
     q = np.asarray(q, dtype=float)
-    k = np.asarray(k, dtype=float)
+    k = pose_stiffness(robot, q, np.asarray(k, dtype=float))  # k itself without the law
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
     dq = solve_deflection(robot, q, k, w)
     loaded = chain_state(robot, q + dq)
@@ -163,10 +168,13 @@ def linear_deflection_upper_bound(
     with dq = M^-1 J^T w: the same sensitivity as the equilibrium's, at the
     unloaded pose. Delta method along the direction of dp (:func:`norm_upper_bound`).
     A model file with link compliance adds the links' displacement and its entries'
-    covariance (:mod:`analysis.kinetostatics.link_compliance`).
+    covariance (:mod:`analysis.kinetostatics.link_compliance`); one with the axis-2
+    compensator law has k2(q2) at each pose (k the file's; c1, c2 taken as exact).
     """
+    from analysis.kinetostatics.compensator_law import pose_stiffness
+
     q = np.asarray(q, dtype=float)
-    k = np.asarray(k, dtype=float)
+    k = pose_stiffness(robot, q, np.asarray(k, dtype=float))  # k itself without the law
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
     n = q.shape[-1]
     state = chain_state(robot, q)

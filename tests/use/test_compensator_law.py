@@ -1,0 +1,183 @@
+"""A model file with the axis-2 compensator law (``[model_class] compensator = {c1, c2,
+q2ref_rad}``): ``campaign stiffness``, the maps' kernel, the predicted deflection and
+``campaign compensate`` (and the GUI's API, which calls the stiffness job) take joint 2's
+compliance x2(q2) = 1/k2 + c1 t + c2 t^2, t = q2 - q2ref, and agree to 1e-9 with an
+independent computation written here from the equations:
+
+    dX = J (K_theta(q) - K_C)^-1 J^T w,   K_theta(q) = diag(k1, 1/x2(q2), k3, ..., k6),
+
+J from Pinocchio at P (LOCAL_WORLD_ALIGNED), K_C = d(J^T w)/dq by central differences of
+Pinocchio's Jacobian; the compensated joints checked by solving the equilibrium
+K_theta(q_cmd) dq = J(q_cmd + dq)^T w here by fixed-point iteration."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import tomli_w
+
+from analysis.errors import InputError
+from analysis.kinetostatics.compensator_law import (
+    compensator_law_of,
+    joint_compliance,
+    pose_stiffness,
+)
+from analysis.kinetostatics.maps import pose_metrics
+from analysis.model.robot_files import load_robot_file
+from campaign.jobs.stiffness import StiffnessOptions, run
+
+ROBOTS = Path(__file__).resolve().parents[2] / "analysis" / "data" / "robots"
+W = np.array([300.0, -2200.0, 1800.0, 150.0, -200.0, 90.0])
+Q2REF = np.radians(40.0)
+#: several q2 (deg) across the joint range [0, 146] deg, q2ref among them
+Q2_DEG = (5.0, 25.0, 40.0, 75.0, 120.0)
+
+
+def _q(q2_deg: float) -> np.ndarray:
+    return np.radians([10.0, q2_deg, -100.0, 30.0, 40.0, 20.0])
+
+
+def _model_file(tmp_path: Path, c1_rel: float = 0.4, c2_rel: float = 0.3) -> Path:
+    """kr240-2 with a compensator law: c1 = c1_rel x2 per rad, c2 = c2_rel x2 per rad^2
+    (x2 = 1/k2 of the file), q2ref = 40 deg."""
+    data = tomllib.loads((ROBOTS / "kr240-2.toml").read_text())
+    data.pop("aliases", None)
+    x2 = 1.0 / load_robot_file(ROBOTS / "kr240-2.toml").nominal_stiffness[1]
+    data["model_class"] = {"version": 2, "name": "compensator",
+                           "compensator": {"c1": c1_rel * x2, "c2": c2_rel * x2,
+                                           "q2ref_rad": float(Q2REF)}}
+    path = tmp_path / "model.toml"
+    path.write_text(tomli_w.dumps(data))
+    return path
+
+
+def _law_k(k: np.ndarray, q: np.ndarray, c1: float, c2: float) -> np.ndarray:
+    """K_theta's diagonal at q from the equations: 1/x with x2 = 1/k2 + c1 t + c2 t^2."""
+    t = q[1] - Q2REF
+    x = 1.0 / k
+    x[1] = x[1] + c1 * t + c2 * t * t
+    return 1.0 / x
+
+
+def _jac(robot, q):
+    model = robot.model
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    return pin.getFrameJacobian(model, data, robot.tip_frame, pin.LOCAL_WORLD_ALIGNED)
+
+
+def _independent(robot, q, kq, w) -> np.ndarray:
+    J = _jac(robot, q)
+    h = 1e-7
+    KC = np.zeros((6, 6))
+    for j in range(6):
+        dq = np.zeros(6)
+        dq[j] = h
+        KC[:, j] = (_jac(robot, q + dq).T @ w - _jac(robot, q - dq).T @ w) / (2 * h)
+    return J @ np.linalg.solve(np.diag(kq) - KC, J.T @ w)
+
+
+def _tip(robot, q) -> pin.SE3:
+    model = robot.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, q)
+    pin.updateFramePlacements(model, data)
+    return data.oMf[robot.tip_frame].copy()
+
+
+def test_same_deflection_everywhere_and_as_the_equations(tmp_path):
+    path = _model_file(tmp_path)
+    robot = load_robot_file(path)
+    law = compensator_law_of(robot)
+    assert law is not None and law.q2ref == pytest.approx(Q2REF, abs=0)
+    k = robot.nominal_stiffness
+    plain = load_robot_file(ROBOTS / "kr240-2.toml")
+    from analysis.kinetostatics.uncertainty import predict_deflection
+
+    qs = np.array([_q(a) for a in Q2_DEG])
+    maps = pose_metrics(robot, qs, k, W, 1.0, threads=1)["deflection"]
+    pred = predict_deflection(robot, qs, k, W).screw  # what compensate/path use
+    moved = 0.0
+    for i, q in enumerate(qs):
+        kq = _law_k(k.copy(), q, law.c1, law.c2)
+        ref = _independent(robot, q, kq, W)
+        scale = np.abs(ref).max()
+        doc = run(StiffnessOptions(robot=str(path), q_rad=q, wrench_N_Nm=W))
+        job = np.array(doc.deflection_m_rad)
+        assert np.abs(job - ref).max() <= 1e-9 * scale
+        assert np.abs(maps[i] - job).max() <= 1e-9 * scale
+        # the nonlinear deflection: the stiffness job's and the predicted one's agree
+        assert np.abs(np.array(doc.deflection_nonlinear_m_rad) - pred[i]).max() <= 1e-9 * scale
+        assert doc.compensator["k2_at_q2_Nm_per_rad"] == pytest.approx(kq[1], rel=1e-12)
+        assert np.abs(joint_compliance(robot, q, k) - 1.0 / kq).max() <= 1e-15
+        base = np.array(run(StiffnessOptions(robot=str(ROBOTS / "kr240-2.toml"), q_rad=q,
+                                             wrench_N_Nm=W)).deflection_m_rad)
+        moved = max(moved, np.abs(base - job).max() / scale)
+    # the law matters here: away from q2ref the deflection moves by far more than 1e-9
+    assert moved > 0.01
+    assert plain.model_class is None and compensator_law_of(plain) is None
+
+
+def test_k2_at_q2ref_is_the_files_exactly_and_no_law_is_bit_for_bit(tmp_path):
+    path = _model_file(tmp_path)
+    robot = load_robot_file(path)
+    k = robot.nominal_stiffness
+    q = _q(float(np.degrees(Q2REF)))
+    q[1] = Q2REF
+    assert pose_stiffness(robot, q, k)[1] == k[1]
+    got = run(StiffnessOptions(robot=str(path), q_rad=q, wrench_N_Nm=W)).to_json()
+    plain = run(StiffnessOptions(robot=str(ROBOTS / "kr240-2.toml"), q_rad=q,
+                                 wrench_N_Nm=W)).to_json()
+    assert got["compensator"]["k2_at_q2_Nm_per_rad"] == k[1]
+    for key in ("deflection_m_rad", "deflection_nonlinear_m_rad", "K_X"):
+        assert got[key] == plain[key]  # bit for bit: k2(q2ref) is k2
+    # a file without the law: the very same k, no new arithmetic
+    plain_robot = load_robot_file(ROBOTS / "kr240-2.toml")
+    assert pose_stiffness(plain_robot, np.array([_q(0.0)]), k) is k
+    assert "compensator" not in plain
+
+
+def test_compensation_lands_on_target_with_the_law(tmp_path):
+    from analysis.kinetostatics.compensation import compensate
+
+    robot = load_robot_file(_model_file(tmp_path))
+    plain = load_robot_file(ROBOTS / "kr240-2.toml")
+    law = compensator_law_of(robot)
+    k = robot.nominal_stiffness
+    qs = np.array([_q(a) for a in (10.0, 75.0)])
+    comp = compensate(robot, qs, k, W)
+    for i, q in enumerate(qs):
+        q_cmd = comp.q_cmd[i]
+        kq = _law_k(k.copy(), q_cmd, law.c1, law.c2)  # at the commanded q2
+        dq = np.zeros(6)
+        for _ in range(200):  # K dq = J(q_cmd + dq)^T w by fixed-point iteration
+            new = _jac(robot, q_cmd + dq).T @ W / kq
+            if np.abs(new - dq).max() < 1e-16:
+                break
+            dq = new
+        miss = pin.log6(_tip(robot, q).actInv(_tip(robot, q_cmd + dq))).vector
+        assert np.abs(miss).max() <= 1e-9
+        assert np.abs(dq - comp.dq[i]).max() <= 1e-12
+    q_plain = compensate(plain, qs, k, W).q_cmd
+    assert np.abs(comp.q_cmd - q_plain).max() > 1e-5
+
+
+def test_a_law_leaving_its_range_is_refused_in_one_line(tmp_path):
+    # c1 = -2 x2 per rad: x2(q2) = x2 (1 - 2 t) <= 0 from t = 0.5 rad (q2 >= 68.6 deg)
+    path = _model_file(tmp_path, c1_rel=-2.0, c2_rel=0.0)
+    robot = load_robot_file(path)
+    k = robot.nominal_stiffness
+    with pytest.raises(InputError) as e:
+        run(StiffnessOptions(robot=str(path), q_rad=_q(90.0), wrench_N_Nm=W))
+    msg = str(e.value)
+    assert "\n" not in msg and str(path) in msg and "q2 = 90.0000 deg" in msg
+    assert "leaves its range" in msg
+    with pytest.raises(InputError, match=r"pose \(1,\) q2 = 80.0000 deg"):
+        pose_metrics(robot, np.array([_q(20.0), _q(80.0)]), k, W, 1.0, threads=1)
+    # inside its range the same file computes
+    assert run(StiffnessOptions(robot=str(path), q_rad=_q(50.0), wrench_N_Nm=W)).K_X
