@@ -181,3 +181,71 @@ def test_a_law_leaving_its_range_is_refused_in_one_line(tmp_path):
         pose_metrics(robot, np.array([_q(20.0), _q(80.0)]), k, W, 1.0, threads=1)
     # inside its range the same file computes
     assert run(StiffnessOptions(robot=str(path), q_rad=_q(50.0), wrench_N_Nm=W)).K_X
+
+
+def _loaded_translation(robot, q, kq, w) -> np.ndarray:
+    """p(q + dq) - p(q) (3,) (m), K_theta dq = J(q + dq)^T w solved by fixed-point
+    iteration (the nonlinear deflection from the equations)."""
+    dq = np.zeros(6)
+    for _ in range(200):
+        new = _jac(robot, q + dq).T @ w / kq
+        if np.abs(new - dq).max() < 1e-16:
+            break
+        dq = new
+    return _tip(robot, q + dq).translation - _tip(robot, q).translation
+
+
+def test_compensate_and_maps_jobs_with_the_law(tmp_path):
+    """The ``compensate`` job's predicted deflection (and so the GUI's, which queues the
+    same job) and the ``maps`` job's deflection column against the equations; both say
+    the law and that its c1, c2 are taken as exact in the intervals."""
+    import json
+
+    import pandas as pd
+
+    from campaign.jobs.compensate import CompensateOptions
+    from campaign.jobs.compensate import run as compensate_job
+    from campaign.jobs.maps import MapsOptions
+    from campaign.jobs.maps import run as maps_job
+    from campaign.use.path_file import Q_COLS, W_COLS
+
+    path = _model_file(tmp_path)
+    data = tomllib.loads(path.read_text())
+    x = 1.0 / load_robot_file(ROBOTS / "kr240-2.toml").nominal_stiffness
+    data["identification"] = {
+        "quantity": "compliance", "covariance_unit": "(rad/(N m))^2",
+        "covariance": np.diag((0.03 * x) ** 2).tolist(), "joints_identified": [1, 2, 3, 4, 5, 6],
+        "method": "exact", "n_tests": 36, "source_run": "test", "date": "2026-01-01"}
+    path.write_text(tomli_w.dumps(data))
+    robot = load_robot_file(path)
+    law = compensator_law_of(robot)
+    k = robot.nominal_stiffness
+    qs = np.array([_q(a) for a in (15.0, 40.0, 70.0, 100.0)])
+    frame = pd.DataFrame(np.degrees(qs), columns=Q_COLS)
+    frame.insert(0, "label", [f"p{i}" for i in range(len(qs))])
+    for j, c in enumerate(W_COLS):
+        frame[c] = W[j]
+    csv = tmp_path / "path.csv"
+    frame.to_csv(csv, index=False)
+    res = compensate_job(CompensateOptions(robot=str(path), path=str(csv),
+                                           out=tmp_path / "comp"))
+    table = pd.read_csv(tmp_path / "comp" / "compensated.csv")
+    got = 1e-3 * table[["dx_mm", "dy_mm", "dz_mm"]].to_numpy()
+    for i, q in enumerate(qs):
+        ref = _loaded_translation(robot, q, _law_k(k.copy(), q, law.c1, law.c2), W)
+        assert np.abs(got[i] - ref).max() <= 1e-9 * np.abs(ref).max()
+    said = json.dumps(res.summary["assumptions"])
+    assert "compensator law" in said and "taken as exact" in said
+    # maps: one node per q2 of Q2_DEG's grid (q3 at -100 deg), the deflection's norm
+    out = maps_job(MapsOptions(robot=str(path), out=tmp_path / "maps", step_rad=np.radians(35.0),
+                               fixed_rad=_q(0.0).tolist(), wrench_N_Nm=W.tolist(),
+                               length_m=1.0, format="csv", upper_bound=True))
+    grid = pd.read_csv(out.data_file)
+    assert "compensator law" in out.summary["compensator_law"]
+    assert "taken as exact" in out.summary["deflection_upper95_method"]
+    for _, row in grid.iloc[::7].iterrows():
+        q = _q(row["theta2_deg"])
+        q[2] = np.radians(row["theta3_deg"])
+        ref = _independent(robot, q, _law_k(k.copy(), q, law.c1, law.c2), W)
+        assert abs(row["deflection_mm"] - 1e3 * np.linalg.norm(ref[:3])) <= (
+            1e-9 * 1e3 * np.abs(ref).max())
