@@ -110,6 +110,77 @@ def pose_stiffness(robot, q: np.ndarray, k: np.ndarray) -> np.ndarray:
     return out
 
 
+def law_covariance_of(robot) -> tuple[tuple[str, ...], np.ndarray, np.ndarray,
+                                       np.ndarray | None] | None:
+    """(names ``c1``/``c2`` of the law's identified parameters, their covariance (m, m),
+    their cross-covariance with x = 1/k (n, m), with the link entries of
+    ``[model_class.link_covariance]`` (L, m) or None) from a model file's
+    ``[model_class.compensator_covariance]`` (SI), or None (no law, or a file written
+    before the law's covariance was kept: c1, c2 then count as exact)."""
+    if compensator_law_of(robot) is None:
+        return None
+    mc = getattr(robot, "model_class", None) or {}
+    cc = mc.get("compensator_covariance")
+    if not cc or not cc.get("parameters"):
+        return None
+    link = cc.get("link_cross")
+    return (tuple(cc["parameters"]), np.asarray(cc["matrix"], dtype=float),
+            np.asarray(cc["joint_cross"], dtype=float),
+            np.asarray(link, dtype=float) if link else None)
+
+
+def _gradient(robot, q: np.ndarray, names) -> np.ndarray:
+    """d x2(q2) / d(c1, c2) (..., m): t and t^2, t = q2 - q2ref (rad), per named
+    parameter."""
+    t = np.asarray(q, dtype=float)[..., COMP_JOINT] - compensator_law_of(robot).q2ref
+    return np.stack([t if n == "c1" else t * t for n in names], axis=-1)
+
+
+def pose_compliance_covariance(robot, q: np.ndarray, cov_x: np.ndarray) -> np.ndarray:
+    """The covariance (..., n, n) ((rad/(N m))^2) of the joint compliances at joint angles
+    q (..., n) (rad), x(q) = x + e2 (c1 t + c2 t^2), from that of x = 1/k (n, n) and the
+    law's ``[model_class.compensator_covariance]``: cov_x + e2 u^T + u e2^T + e2 e2^T
+    g^T C_cc g, u = C_xc g, g = (t, t^2). cov_x itself (the same array) when the model
+    file has no law or no covariance for it (c1, c2 exact: dx2(q2)/dx2 = 1)."""
+    lc = law_covariance_of(robot)
+    if lc is None:
+        return cov_x
+    names, C_cc, C_xc, _ = lc
+    g = _gradient(robot, q, names)
+    u = g @ C_xc.T  # (..., n): cov(x, c1 t + c2 t^2)
+    var = np.einsum("...a,ab,...b->...", g, C_cc, g)
+    out = np.array(np.broadcast_to(cov_x, (*g.shape[:-1], *np.shape(cov_x))), dtype=float)
+    out[..., COMP_JOINT, :] += u
+    out[..., :, COMP_JOINT] += u
+    out[..., COMP_JOINT, COMP_JOINT] += var
+    return out
+
+
+def pose_link_cross(robot, q: np.ndarray, C_xl: np.ndarray) -> np.ndarray:
+    """The cross-covariance (..., n, L) of the joint compliances at q (..., n) (rad) with
+    the model file's link entries: C_xl (n, L) plus, in joint 2's row, (C_lc g)^T
+    (the law's link_cross, g = (t, t^2)); C_xl itself when the file has none of it."""
+    lc = law_covariance_of(robot)
+    if lc is None or lc[3] is None:
+        return C_xl
+    names, _, _, C_lc = lc
+    g = _gradient(robot, q, names)
+    out = np.array(np.broadcast_to(C_xl, (*g.shape[:-1], *C_xl.shape)), dtype=float)
+    out[..., COMP_JOINT, :] += g @ C_lc.T
+    return out
+
+
+def law_uncertainty_text(robot) -> str:
+    """What the intervals of a model file with the compensator law include of it ("" without
+    the law), said wherever an interval is computed from the joint covariance."""
+    if compensator_law_of(robot) is None:
+        return ""
+    if law_covariance_of(robot) is not None:
+        return ("the axis-2 compensator law's c1, c2 covariance and cross-covariance (model "
+                "file [model_class.compensator_covariance]) propagated into x2(q2)'s")
+    return LAW_UNCERTAINTY_TEXT
+
+
 #: said wherever an interval is computed with the law: what it does not include
 LAW_UNCERTAINTY_TEXT = ("the axis-2 compensator law's c1, c2 are taken as exact (the model "
                         "file has no covariance for them): the intervals propagate the "

@@ -118,7 +118,7 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
          + ("--joint-stiffness" if o.joint_stiffness_Nm_per_rad is not None
             else "the robot model's") + ")")
     note(f"characteristic length L = {length:.4f} m ({how})")
-    from analysis.kinetostatics.compensator_law import LAW_UNCERTAINTY_TEXT, compensator_law_of
+    from analysis.kinetostatics.compensator_law import compensator_law_of, law_uncertainty_text
 
     law = compensator_law_of(r)
     if law is not None:  # v_p, v_r, the deflection (and its bound) take k2(q2) per node
@@ -137,7 +137,7 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
         table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
             r, grid.poses(), k, w, r.compliance_covariance).ravel()
         bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
-        note(BOUND_TEXT + ("; " + LAW_UNCERTAINTY_TEXT if law is not None else ""))
+        note(BOUND_TEXT + ("; " + law_uncertainty_text(r) if law is not None else ""))
     make_dir(out)
     data = out / f"map_joint_space.{fmt}"
     with replacing(data) as tmp:
@@ -186,7 +186,7 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
         summary["max_deflection_upper95_mm"] = float(
             table.loc[ok, "deflection_upper95_mm"].max())
         summary["deflection_upper95_method"] = BOUND_TEXT + (
-            "; " + LAW_UNCERTAINTY_TEXT if law is not None else "")
+            "; " + law_uncertainty_text(r) if law is not None else "")
         with_kc = table.loc[ok]
         at = with_kc["deflection_upper95_mm"].idxmax()
         at_deg = (float(with_kc.loc[at, "theta2_deg"]), float(with_kc.loc[at, "theta3_deg"]))

@@ -77,7 +77,10 @@ def _intervals(r, q, k, w, J, cov_x, kq) -> dict:
     """95 % intervals of the nonlinear deflection and of diag(K_X) from the model's
     covariance; k (n,) the file's stiffness, kq (n,) the one at this pose (the
     compensator law's k2(q2), else k)."""
-    from analysis.kinetostatics.compensator_law import LAW_UNCERTAINTY_TEXT
+    from analysis.kinetostatics.compensator_law import (
+        law_uncertainty_text,
+        pose_compliance_covariance,
+    )
     from analysis.kinetostatics.link_compliance import (
         link_covariance_of,
         links_of,
@@ -99,11 +102,12 @@ def _intervals(r, q, k, w, J, cov_x, kq) -> dict:
     pred = predict_deflection(r, q, k, w, cov_x)  # applies the compensator law itself
     lo, hi = pred.bounds(Z95)
     links = links_of(r)
+    cov_q = pose_compliance_covariance(r, q, cov_x)  # x2(q2)'s with the law, else cov_x
     if links:  # K_X = C_X^-1 with the links; their entries' covariance when the file has it
-        se = stiffness_diag_se_with_links(r, q, kq, w, links, cov_x)[0]
+        se = stiffness_diag_se_with_links(r, q, kq, w, links, cov_q)[0]
         K_X = np.diagonal(stiffness_with_links(r, q, kq, w, links)[0])
     else:
-        se = np.diagonal(cartesian_stiffness_se(J, stiffness_covariance(kq, cov_x)))
+        se = np.diagonal(cartesian_stiffness_se(J, stiffness_covariance(kq, cov_q)))
         K_X = np.diagonal(cartesian_stiffness(J, kq, complementary_stiffness_from_state(
             chain_state(r, q), w)))
     return {
@@ -124,7 +128,7 @@ def _intervals(r, q, k, w, J, cov_x, kq) -> dict:
                         if link_covariance_of(r) is not None else
                         "not in the file: the links taken as exact")
                      if links else "")
-                  + ("; " + LAW_UNCERTAINTY_TEXT if kq is not k else ""),
+                  + ("; " + law_uncertainty_text(r) if kq is not k else ""),
     }
 
 

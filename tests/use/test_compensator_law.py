@@ -249,3 +249,148 @@ def test_compensate_and_maps_jobs_with_the_law(tmp_path):
         ref = _independent(robot, q, _law_k(k.copy(), q, law.c1, law.c2), W)
         assert abs(row["deflection_mm"] - 1e3 * np.linalg.norm(ref[:3])) <= (
             1e-9 * 1e3 * np.abs(ref).max())
+
+
+def _file_with_law_covariance(tmp_path: Path, links: bool) -> tuple[Path, np.ndarray]:
+    """The law's model file plus [identification] cov_x, the law's covariance (c1, c2) and,
+    with ``links``, the links and link entries of tests/use/test_link_compliance_kernel.py
+    with their covariance and the law's link_cross: (path, the full covariance over
+    (x1..x6, link entries..., c1, c2), SPD, made here)."""
+    from tests.use.test_link_compliance_kernel import ENTRIES, LINKS
+
+    path = _model_file(tmp_path)
+    data = tomllib.loads(path.read_text())
+    x = 1.0 / load_robot_file(ROBOTS / "kr240-2.toml").nominal_stiffness
+    comp = data["model_class"]["compensator"]
+    ent = ENTRIES if links else []
+    lsd = [0.5 * abs(LINKS[int(n[1])][int(n[3]) - 1, int(n[5]) - 1]) for n in ent]
+    sd = np.concatenate([0.03 * x, lsd, [0.2 * abs(comp["c1"]), 0.2 * abs(comp["c2"])]])
+    m = sd.size
+    A = np.random.default_rng(11).normal(size=(m, m))
+    corr = A @ A.T + m * np.eye(m)
+    corr /= np.sqrt(np.outer(np.diag(corr), np.diag(corr)))
+    full = corr * np.outer(sd, sd)
+    L = len(ent)
+    data["identification"] = {
+        "quantity": "compliance", "covariance_unit": "(rad/(N m))^2",
+        "covariance": full[:6, :6].tolist(), "joints_identified": [1, 2, 3, 4, 5, 6],
+        "method": "exact", "n_tests": 36, "source_run": "test", "date": "2026-01-01"}
+    cc = {"parameters": ["c1", "c2"], "matrix": full[6 + L:, 6 + L:].tolist(),
+          "joint_cross": full[:6, 6 + L:].tolist()}
+    if links:
+        data["model_class"]["links"] = [{"link": k, "compliance": C.tolist()}
+                                        for k, C in LINKS.items()]
+        data["model_class"]["link_covariance"] = {
+            "parameters": ent, "matrix": full[6:6 + L, 6:6 + L].tolist(),
+            "joint_cross": full[:6, 6:6 + L].tolist()}
+        cc["link_cross"] = full[6:6 + L, 6 + L:].tolist()
+    data["model_class"]["compensator_covariance"] = cc
+    path.write_text(tomli_w.dumps(data))
+    return path, full
+
+
+def test_law_covariance_propagated_into_the_intervals(tmp_path):
+    """The maps' upper bound and the predicted deflection's covariance with the law's
+    (c1, c2) covariance: the delta method on the equations, derivatives by central
+    differences of the independent computation in (x1..x6, c1, c2)."""
+    from analysis.kinetostatics.uncertainty import linear_deflection_upper_bound, predict_deflection
+
+    path, full = _file_with_law_covariance(tmp_path, links=False)
+    robot = load_robot_file(path)
+    law = compensator_law_of(robot)
+    k = robot.nominal_stiffness
+    cov_x = robot.compliance_covariance
+    q = _q(110.0)
+    p0 = np.concatenate([1.0 / k, [law.c1, law.c2]])
+
+    def kq(p):
+        return _law_k(1.0 / p[:6], q, p[6], p[7])
+
+    def diff(f):
+        cols = []
+        for j in range(8):
+            h = 1e-4 * abs(p0[j])
+            up, dn = p0.copy(), p0.copy()
+            up[j] += h
+            dn[j] -= h
+            cols.append((f(up) - f(dn)) / (2 * h))
+        return np.stack(cols, axis=-1)
+
+    dp = _independent(robot, q, kq(p0), W)[:3]
+    D = diff(lambda p: _independent(robot, q, kq(p), W)[:3])
+    u = dp / np.linalg.norm(dp)
+    expect = np.linalg.norm(dp) + 1.959963984540054 * np.sqrt(u @ D @ full @ D.T @ u)
+    got = linear_deflection_upper_bound(robot, q, k, W, cov_x)
+    assert abs(got - expect) <= 1e-7 * expect
+    # the nonlinear deflection's covariance (translation block)
+    Dn = diff(lambda p: _loaded_translation(robot, q, kq(p), W))
+    pred = predict_deflection(robot, q, k, W, cov_x)
+    ref = Dn @ full @ Dn.T
+    assert np.abs(pred.cov[:3, :3] - ref).max() <= 1e-6 * np.abs(ref).max()
+    # c1, c2's covariance counts here (the same file without it: c1, c2 exact)
+    data = tomllib.loads(path.read_text())
+    del data["model_class"]["compensator_covariance"]
+    (tmp_path / "exact").mkdir()
+    exact = tmp_path / "exact" / "model.toml"
+    exact.write_text(tomli_w.dumps(data))
+    plain = linear_deflection_upper_bound(load_robot_file(exact), q, k, W, cov_x)
+    assert got - plain > 1e-3 * (got - np.linalg.norm(dp))
+    doc = run(StiffnessOptions(robot=str(exact), q_rad=q, wrench_N_Nm=W)).uncertainty
+    assert "taken as exact" in doc["method"]
+    doc = run(StiffnessOptions(robot=str(path), q_rad=q, wrench_N_Nm=W)).uncertainty
+    assert "compensator_covariance" in doc["method"]
+
+
+def test_law_and_link_covariance_in_the_stiffness_se(tmp_path):
+    """diag(K_X)'s se of the stiffness job with links and the law, both with covariance
+    (and their cross terms): the delta method on the independent C_X^-1 by central
+    differences in every parameter (x1..x6, link entries, c1, c2)."""
+    from tests.use.test_link_compliance_kernel import (
+        ENTRIES,
+        LINKS,
+        _independent_CX,
+        _perturbed,
+    )
+    from tests.use.test_link_compliance_kernel import W as W_LINKS
+
+    assert np.array_equal(W, W_LINKS)  # _independent_CX's K_C is under this wrench
+    path, full = _file_with_law_covariance(tmp_path, links=True)
+    robot = load_robot_file(path)
+    law = compensator_law_of(robot)
+    q = _q(100.0)
+    x = 1.0 / robot.nominal_stiffness
+    t = q[1] - Q2REF
+
+    def kx(xx, c1, c2, links):
+        xq = xx.copy()
+        xq[1] += c1 * t + c2 * t * t
+        return np.diag(np.linalg.inv(_independent_CX(robot, q, xq, links)))
+
+    cols = []
+    for j in range(6):
+        h = 1e-4 * x[j]
+        up, dn = x.copy(), x.copy()
+        up[j] += h
+        dn[j] -= h
+        cols.append((kx(up, law.c1, law.c2, LINKS) - kx(dn, law.c1, law.c2, LINKS)) / (2 * h))
+    for n in ENTRIES:
+        h = 1e-4 * abs(LINKS[int(n[1])][int(n[3]) - 1, int(n[5]) - 1])
+        cols.append((kx(x, law.c1, law.c2, _perturbed(n, h))
+                     - kx(x, law.c1, law.c2, _perturbed(n, -h))) / (2 * h))
+    h1, h2 = 1e-4 * abs(law.c1), 1e-4 * abs(law.c2)
+    cols.append((kx(x, law.c1 + h1, law.c2, LINKS) - kx(x, law.c1 - h1, law.c2, LINKS))
+                / (2 * h1))
+    cols.append((kx(x, law.c1, law.c2 + h2, LINKS) - kx(x, law.c1, law.c2 - h2, LINKS))
+                / (2 * h2))
+    D = np.stack(cols, axis=-1)
+    se_ref = np.sqrt(np.einsum("ap,pr,ar->a", D, full, D))
+    job = run(StiffnessOptions(robot=str(path), q_rad=q, wrench_N_Nm=W))
+    se = np.array(job.uncertainty["K_X_diag_se"])
+    assert np.allclose(se, se_ref, rtol=1e-6), (se, se_ref)
+    # both the law's covariance and its cross terms with the links count here (1e-2 of se)
+    data = tomllib.loads(path.read_text())
+    data["model_class"]["compensator_covariance"].pop("link_cross")
+    path.write_text(tomli_w.dumps(data))
+    no_cross = np.array(run(StiffnessOptions(robot=str(path), q_rad=q, wrench_N_Nm=W))
+                        .uncertainty["K_X_diag_se"])
+    assert np.abs(se / no_cross - 1).max() > 1e-3
