@@ -394,3 +394,46 @@ def test_law_and_link_covariance_in_the_stiffness_se(tmp_path):
     no_cross = np.array(run(StiffnessOptions(robot=str(path), q_rad=q, wrench_N_Nm=W))
                         .uncertainty["K_X_diag_se"])
     assert np.abs(se / no_cross - 1).max() > 1e-3
+
+
+def test_model_file_keeps_the_laws_covariance(tmp_path):
+    """``model_class_table`` writes [model_class.compensator_covariance] from the chosen
+    candidate's covariance (its c1, c2 block, their rows against x1..x6 and the link
+    entries, scaled by prediction_sigma_scale^2 when the misfit was accepted), and the
+    written file reads back with the law and its covariance."""
+    from types import SimpleNamespace
+
+    from analysis.identification.io.model_export import model_class_table
+    from analysis.kinetostatics.compensator_law import law_covariance_of
+
+    names = ["x1", "x2", "x3", "x5", "C2[1,1]", "c1", "c2"]  # x4, x6 not fitted
+    A = np.random.default_rng(3).normal(size=(7, 7))
+    M = A @ A.T * 1e-14
+    cand = {"model": "compensator+links", "covariance": {"parameters": names,
+                                                         "matrix": M.tolist()},
+            "parameters": [{"name": "c1", "value": 2e-8}, {"name": "c2", "value": -1e-8},
+                           {"name": "C2[1,1]", "value": 1e-9}],
+            "compensator_q2ref_rad": 0.7, "link_compliance": {"2": np.eye(6).tolist()}}
+    for accepted, s in ((False, 1.0), (True, 1.5)):
+        result = SimpleNamespace(misfit_accepted=accepted, assumptions={"model_classes": {
+            "chosen": "compensator+links", "asked": "auto", "rule": "test",
+            "prediction_sigma_scale": 1.5, "candidates": [cand]}})
+        table = model_class_table(result)
+        cc = table["compensator_covariance"]
+        assert cc["parameters"] == ["c1", "c2"]
+        assert np.array_equal(cc["matrix"], s**2 * M[5:, 5:])
+        cross = np.array(cc["joint_cross"])
+        assert np.array_equal(cross[[0, 1, 2, 4]], s**2 * M[:4, 5:])
+        assert not cross[[3, 5]].any()
+        assert np.array_equal(cc["link_cross"], s**2 * M[4:5, 5:])
+    assert table["compensator"] == {"c1": 2e-8, "c2": -1e-8, "q2ref_rad": 0.7}
+    data = tomllib.loads((ROBOTS / "kr240-2.toml").read_text())
+    data.pop("aliases", None)
+    table["links"][0]["compliance"] = (1e-9 * np.eye(6)).tolist()
+    data["model_class"] = table
+    path = tmp_path / "model.toml"
+    path.write_text(tomli_w.dumps(data))
+    robot = load_robot_file(path)
+    got = law_covariance_of(robot)
+    assert got[0] == ("c1", "c2") and np.array_equal(got[1], 1.5**2 * M[5:, 5:])
+    assert compensator_law_of(robot).q2ref == 0.7
