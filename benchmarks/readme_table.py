@@ -354,7 +354,7 @@ def _links(f: Fig) -> tuple[str, str, str, str]:
             f"links / joints: maps {f['maps_ratio_cpu']}x CPU, compensate "
             f"{f['compensate_ratio_cpu']}x CPU"
             + (f"; compensator law / joints: maps {f['maps_law_ratio_cpu']}x CPU"
-               if "maps_law_ratio_cpu" in f else ""))
+               if "maps_law_ratio_cpu" in f.figures else ""))
 
 
 def _model_classes(f: Fig) -> tuple[str, str, str, str]:
