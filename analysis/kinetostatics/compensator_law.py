@@ -32,6 +32,16 @@ from analysis.errors import InputError
 COMP_JOINT = 1
 
 
+class LawRangeError(InputError):
+    """The compensator law leaves its range (x2(q2) <= 0) at some poses: ``bad`` (...,)
+    masks them (for a caller that names them otherwise, e.g. by CSV line)."""
+
+    def __init__(self, message: str, *, where: str, bad: np.ndarray) -> None:
+        super().__init__(message, where=where)
+        self.message = message
+        self.bad = bad
+
+
 @dataclass(frozen=True)
 class CompensatorLaw:
     """x2(q2) = 1/k2 + c1 (q2 - q2ref) + c2 (q2 - q2ref)^2 of a model file.
@@ -85,8 +95,8 @@ def pose_stiffness(robot, q: np.ndarray, k: np.ndarray) -> np.ndarray:
     t = q2 - q2ref, where the model file carries the compensator law; k itself (the
     same array, (n,)) where it does not.
 
-    Raises :class:`~analysis.errors.InputError` naming the model file and the first pose
-    where x2(q2) <= 0 (the law has left its range)."""
+    Raises :class:`LawRangeError` (an :class:`~analysis.errors.InputError`) naming the
+    model file and the first pose where x2(q2) <= 0 (the law has left its range)."""
     law = compensator_law_of(robot)
     if law is None:
         return k
@@ -99,12 +109,12 @@ def pose_stiffness(robot, q: np.ndarray, k: np.ndarray) -> np.ndarray:
     if np.any(bad):
         i = np.unravel_index(int(np.flatnonzero(bad)[0]), bad.shape) if bad.ndim else ()
         at = f"pose {tuple(int(v) for v in i)} " if bad.ndim else ""
-        raise InputError(
+        raise LawRangeError(
             f"the axis-2 compensator law leaves its range at {at}q2 = "
             f"{np.degrees(q[(*i, COMP_JOINT)]):.4f} deg: x2(q2) = 1/k2 + c1 t + c2 t^2 = "
             f"{rel[i] / k[COMP_JOINT]:.4g} rad/(N m) <= 0 (t = {t[i]:.4g} rad from q2ref "
             f"= {np.degrees(law.q2ref):.4f} deg); no stiffness is predicted there",
-            where=f"{law.source} [model_class] compensator")
+            where=f"{law.source} [model_class] compensator", bad=bad)
     out = np.broadcast_to(k, q.shape).copy()
     out[..., COMP_JOINT] = k[COMP_JOINT] / rel
     return out

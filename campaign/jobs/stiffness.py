@@ -183,6 +183,12 @@ def run(o: StiffnessOptions) -> StiffnessResult:
     # the model file's axis-2 compensator law: k2 at this q2 (k itself, no law)
     kq = pose_stiffness(r, qr, k)
     law = compensator_law_of(r)
+    if law is not None:  # said where k is shown (terminal, the GUI's Use view)
+        from analysis.report.formatting import k_kNm
+
+        k_source += (f"; joint 2 here {k_kNm(kq[1])} kN m/rad from the model file's axis-2 "
+                     f"compensator law at q2 = {np.degrees(qr[1]):.4g} deg (k2 above at "
+                     f"q2ref = {np.degrees(law.q2ref):.4g} deg)")
     state = chain_state(r, qr)
     J = jacobian_from_state(state)
     K_C = complementary_stiffness_from_state(state, w)

@@ -437,3 +437,20 @@ def test_model_file_keeps_the_laws_covariance(tmp_path):
     got = law_covariance_of(robot)
     assert got[0] == ("c1", "c2") and np.array_equal(got[1], 1.5**2 * M[5:, 5:])
     assert compensator_law_of(robot).q2ref == 0.7
+
+
+def test_a_path_point_beyond_the_law_is_refused_with_its_line(tmp_path):
+    from analysis.kinetostatics.path_compensation import compensate_path, predict_path
+
+    robot = load_robot_file(_model_file(tmp_path, c1_rel=-2.0, c2_rel=0.0))
+    q = np.array([_q(20.0), _q(50.0), _q(85.0)])
+    lines = np.array([2, 3, 4])
+    for fn in (predict_path, compensate_path):
+        with pytest.raises(InputError) as e:
+            fn(robot, q, robot.nominal_stiffness, W, None, lines, "path.csv")
+        msg = str(e.value)
+        assert msg.startswith("path.csv:4 (point 3)") and "\n" not in msg
+        assert "q2 = 85.0000 deg" in msg and "model.toml" in msg
+    doc = run(StiffnessOptions(robot=str(_model_file(tmp_path)), q_rad=_q(75.0),
+                               wrench_N_Nm=W))
+    assert "compensator law at q2 = 75 deg" in doc.joint_stiffness_source
