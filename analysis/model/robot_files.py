@@ -350,6 +350,16 @@ class ModelClassSpec(_Strict):
     compensator_covariance: CompensatorCovarianceSpec | None = None
     notes: list[str] = []
 
+    @model_validator(mode="after")
+    def _law_link_cross(self) -> ModelClassSpec:
+        cc = self.compensator_covariance
+        if cc is not None and cc.link_cross:
+            L = 0 if self.link_covariance is None else len(self.link_covariance.parameters)
+            if len(cc.link_cross) != L:
+                raise ValueError(f"compensator_covariance: link_cross has "
+                                 f"{len(cc.link_cross)} rows, link_covariance {L} parameters")
+        return self
+
 
 class RobotFile(_Strict):
     name: str

@@ -454,3 +454,12 @@ def test_a_path_point_beyond_the_law_is_refused_with_its_line(tmp_path):
     doc = run(StiffnessOptions(robot=str(_model_file(tmp_path)), q_rad=_q(75.0),
                                wrench_N_Nm=W))
     assert "compensator law at q2 = 75 deg" in doc.joint_stiffness_source
+
+
+def test_a_law_covariance_not_matching_the_links_is_refused(tmp_path):
+    path, _ = _file_with_law_covariance(tmp_path, links=True)
+    data = tomllib.loads(path.read_text())
+    data["model_class"]["compensator_covariance"]["link_cross"].pop()
+    path.write_text(tomli_w.dumps(data))
+    with pytest.raises(Exception, match="link_cross has 4 rows, link_covariance 5"):
+        load_robot_file(path)
