@@ -9,12 +9,13 @@ Work measured, the same on both sides but for the model file:
 * compensate: ``compensate_path`` on a wavy 2000-point path with a 1 % compliance
   covariance (as ``benchmarks/bench_compensate.py``'s batched row).
 
-With the axis-2 compensator law (maps only): the KR240-2 with ``compensator = {c1, c2,
-q2ref_rad}`` in its ``[model_class]`` (c1 = 0.3 x2 per rad, c2 = 0.2 x2 per rad^2, q2ref
-mid-range): joint 2's stiffness per node (:mod:`analysis.kinetostatics.compensator_law`);
+With the axis-2 compensator law (maps and compensate; no covariance of c1, c2): the
+KR240-2 with ``compensator = {c1, c2, q2ref_rad}`` in its ``[model_class]`` (c1 = 0.3 x2
+per rad, c2 = 0.2 x2 per rad^2, q2ref mid-range): joint 2's stiffness per node
+(:mod:`analysis.kinetostatics.compensator_law`);
 checked before any ratio: the deflection differs from the joint-only one, equals it
 bit for bit at the nodes with q2 = q2ref, and at a sample of nodes equals the joint-only
-kernel given that node's k2(q2) (1e-12 relative).
+kernel given that node's k2(q2) (1e-12 relative); the compensated joints move with it.
 
 With links: the KR240-2 with the shop protocol's link compliances of links 2 and 3
 (``campaign/protocols/kr240-2-shop.toml`` [fake_lab]) in its ``[model_class]``, and for
@@ -102,7 +103,7 @@ def main() -> None:
     lines = np.arange(args.points) + 2
 
     best = {key: (np.inf, np.inf) for key in ("maps_joints", "maps_links", "maps_law",
-                                              "comp_joints", "comp_links")}
+                                              "comp_joints", "comp_links", "comp_law")}
     out = {}
 
     def keep(name, c, wall, result):
@@ -115,7 +116,7 @@ def main() -> None:
             for name, robot in (("joints", plain), ("links", linked), ("law", lawed)):
                 keep(f"maps_{name}", *timed(lambda r=robot: pose_metrics(r, grid, k, w, L,
                                                                          threads=1)))
-            for name, robot in (("joints", plain), ("links", linked)):
+            for name, robot in (("joints", plain), ("links", linked), ("law", lawed)):
                 keep(f"comp_{name}", *timed(lambda r=robot: compensate_path(
                     r, q, k, wp, cov, lines, "path")))
 
@@ -139,6 +140,9 @@ def main() -> None:
     law_err = float(np.abs(ref - d_law[sample]).max() / np.abs(ref).max())
     assert law_err <= 1e-12, law_err
     moved = float(np.abs(out["comp_links"].comp.q_cmd - out["comp_joints"].comp.q_cmd).max())
+    law_comp_moved = float(np.abs(out["comp_law"].comp.q_cmd
+                                  - out["comp_joints"].comp.q_cmd).max())
+    assert law_comp_moved > 1e-6, law_comp_moved
     assert moved > 1e-6, moved
     wider = float(np.max(out["comp_links"].before.sd[:, :3] / out["comp_joints"].before.sd[:, :3]))
     us = 1e6
@@ -151,13 +155,13 @@ def main() -> None:
                     "joints_wall_us_per_pose": round(wj / count * us, 3),
                     "links_wall_us_per_pose": round(wl / count * us, 3),
                     "ratio_cpu": round(cl / cj, 3), "ratio_wall": round(wl / wj, 3)}
-        if key == "maps":
-            cw, ww = best["maps_law"]
+        if key in ("maps", "compensate"):
+            cw, ww = best[f"{short}_law"]
             row[key].update({"law_cpu_us_per_pose": round(cw / count * us, 3),
                              "law_wall_us_per_pose": round(ww / count * us, 3),
                              "law_ratio_cpu": round(cw / cj, 3),
                              "law_ratio_wall": round(ww / wj, 3)})
-            print(f"maps with the compensator law {row[key]['law_cpu_us_per_pose']:.2f} us "
+            print(f"{key} with the compensator law {row[key]['law_cpu_us_per_pose']:.2f} us "
                   f"CPU/pose: {row[key]['law_ratio_cpu']:.2f}x CPU, "
                   f"{row[key]['law_ratio_wall']:.2f}x wall (target <= 1.5x)")
         print(f"{key}: {count} poses; joints {row[key]['joints_cpu_us_per_pose']:.2f} us CPU/pose,"

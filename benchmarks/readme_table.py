@@ -353,8 +353,9 @@ def _links(f: Fig) -> tuple[str, str, str, str]:
             f"{f['compensate_joints_cpu_us_per_pose']} us CPU/point. Timed: {f['timing']}",
             f"links / joints: maps {f['maps_ratio_cpu']}x CPU, compensate "
             f"{f['compensate_ratio_cpu']}x CPU"
-            + (f"; compensator law / joints: maps {f['maps_law_ratio_cpu']}x CPU"
-               if "maps_law_ratio_cpu" in f.figures else ""))
+            + (f"; compensator law / joints: maps {f['maps_law_ratio_cpu']}x CPU, "
+               f"compensate {f['compensate_law_ratio_cpu']}x CPU"
+               if "compensate_law_ratio_cpu" in f.figures else ""))
 
 
 def _model_classes(f: Fig) -> tuple[str, str, str, str]:
