@@ -352,7 +352,10 @@ def _links(f: Fig) -> tuple[str, str, str, str]:
             f"{f['baseline']}: maps {f['maps_joints_cpu_us_per_pose']} us CPU/pose, compensate "
             f"{f['compensate_joints_cpu_us_per_pose']} us CPU/point. Timed: {f['timing']}",
             f"links / joints: maps {f['maps_ratio_cpu']}x CPU, compensate "
-            f"{f['compensate_ratio_cpu']}x CPU")
+            f"{f['compensate_ratio_cpu']}x CPU"
+            + (f"; compensator law / joints: maps {f['maps_law_ratio_cpu']}x CPU, "
+               f"compensate {f['compensate_law_ratio_cpu']}x CPU"
+               if "compensate_law_ratio_cpu" in f.figures else ""))
 
 
 def _model_classes(f: Fig) -> tuple[str, str, str, str]:

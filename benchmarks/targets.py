@@ -110,6 +110,13 @@ TARGETS: tuple[Target, ...] = (
            lambda f: f["maps_ratio_cpu"], "<=", 1.5,
            f"{ISSUE_32} ('maps and compensate with link compliance cost <= 1.5x the "
            "joint-only model per pose')", "any run"),
+    Target("links", "maps with the axis-2 compensator law / joints only, CPU per pose",
+           lambda f: f["maps_law_ratio_cpu"], "<=", 1.5,
+           f"{ISSUE_32} (helper c32: the law in maps, per-pose k2 in the map kernel)",
+           "any run"),
+    Target("links", "compensate with the axis-2 compensator law / joints only, CPU per point",
+           lambda f: f["compensate_law_ratio_cpu"], "<=", 1.5,
+           f"{ISSUE_32} (helper c32: as above)", "any run"),
     Target("links", "compensate with link compliance / joints only, CPU per point",
            lambda f: f["compensate_ratio_cpu"], "<=", 1.5,
            f"{ISSUE_32} (as above)", "any run"),

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from analysis.kinetostatics.compensator_law import pose_stiffness
 from analysis.kinetostatics.equilibrium import solve_deflection
 from analysis.kinetostatics.link_compliance import link_screw
 from analysis.kinetostatics.stiffness import complementary_stiffness_from_state
@@ -68,15 +69,20 @@ def compensate(
     wrench at P, base frame (N, N m). Raises :class:`CompensationError` naming
     the points that do not converge, and
     :class:`analysis.kinetostatics.equilibrium.EquilibriumError` when the
-    equilibrium itself has no solution.
+    equilibrium itself has no solution. A model file with the axis-2 compensator law
+    has joint 2's stiffness k2(q2) at the commanded q2 of each step
+    (:func:`~analysis.kinetostatics.compensator_law.pose_stiffness`, k the file's).
     """
     q = np.asarray(q, dtype=float)
-    k = np.asarray(k, dtype=float)
+    k0 = np.asarray(k, dtype=float)
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
     target = tool_pose(robot, q)
     q_cmd = q.copy()
     dq = None
     for it in range(max_iter + 1):
+        # the compensator law at the commanded joints (k0 itself without it); the Newton
+        # step ignores k2's change with q_cmd (it converges, linearly in that part)
+        k = pose_stiffness(robot, q_cmd, k0)
         dq = solve_deflection(robot, q_cmd, k, w, dq0=dq)
         loaded = chain_state(robot, q_cmd + dq)
         # a model file's link compliance moves P further by sum_l J_l C_l J_l^T w (the one

@@ -179,7 +179,11 @@ def link_covariance_terms(robot, q: np.ndarray, w: np.ndarray,
     """The links' part (..., r, r) of a deflection's covariance, r = 6 or the rows of S:
     ``G Sigma_ll G^T + S Sigma_xl G^T + G Sigma_lx S^T``, G = :func:`entry_columns` at q
     (..., n) under w, S (..., r, n) the deflection's sensitivity to the joint compliances
-    (None: no cross term); zeros without a link covariance in the model file."""
+    (None: no cross term); zeros without a link covariance in the model file. With the
+    axis-2 compensator law's covariance, joint 2's cross term is x2(q2)'s
+    (:func:`~analysis.kinetostatics.compensator_law.pose_link_cross`)."""
+    from analysis.kinetostatics.compensator_law import pose_link_cross
+
     q = np.asarray(q, dtype=float)
     rows = 6 if S is None else S.shape[-2]
     cov = link_covariance_of(robot)
@@ -192,7 +196,7 @@ def link_covariance_terms(robot, q: np.ndarray, w: np.ndarray,
         (*q.shape[:-1], rows, len(names)))
     out = G @ C_ll @ np.swapaxes(G, -1, -2)
     if S is not None:
-        cross = S @ C_xl @ np.swapaxes(G, -1, -2)
+        cross = S @ pose_link_cross(robot, q, C_xl) @ np.swapaxes(G, -1, -2)
         out = out + cross + np.swapaxes(cross, -1, -2)
     return out
 
@@ -201,10 +205,12 @@ def stiffness_diag_se_with_links(robot, q: np.ndarray, k: np.ndarray, w: np.ndar
                                  links: tuple[LinkCompliance, ...],
                                  cov_x: np.ndarray) -> np.ndarray:
     """Standard error (N, 6) of diag(K_X), K_X = C_X^-1 with the links (K_C under w), from
-    the covariance of the joint compliances x = 1/k (n, n) and the model file's link
-    covariance (delta method): dK_X = -K_X dC_X K_X with dC_X/dx_j = k_j^2 (J M^-1 e_j)
-    (J M^-T e_j)^T, M = K_theta - K_C (not symmetric in general), and dC_X/dC_l[a,b] =
-    J_l (E_ab + E_ba) J_l^T."""
+    the covariance of the joint compliances x = 1/k (n, n), or per pose (N, n, n) (the
+    compensator law's :func:`~analysis.kinetostatics.compensator_law
+    .pose_compliance_covariance`), and the model file's link covariance (delta method):
+    dK_X = -K_X dC_X K_X with dC_X/dx_j = k_j^2 (J M^-1 e_j) (J M^-T e_j)^T,
+    M = K_theta - K_C (not symmetric in general), and dC_X/dC_l[a,b] = J_l (E_ab + E_ba)
+    J_l^T."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     k = np.asarray(k, dtype=float)
     n = q.shape[-1]
@@ -218,10 +224,13 @@ def stiffness_diag_se_with_links(robot, q: np.ndarray, k: np.ndarray, w: np.ndar
     K_X = np.linalg.inv(cartesian_compliance(J, k, complementary_stiffness_from_state(
         state, w)) + link_terms(robot, q, links))
     dC = [k[j] ** 2 * V[:, :, j, None] * U[:, None, :, j] for j in range(n)]
+    from analysis.kinetostatics.compensator_law import pose_link_cross
+
     cov = np.asarray(cov_x, dtype=float)
     lc = link_covariance_of(robot)
     if lc is not None:
         names, C_ll, C_xl = lc
+        C_xq = pose_link_cross(robot, q, C_xl)  # C_xl itself without the law's covariance
         p = chain_state(robot, q).tip[:, :3, 3]
         for name in names:
             link, a, b = _entry(name)
@@ -229,7 +238,16 @@ def stiffness_diag_se_with_links(robot, q: np.ndarray, k: np.ndarray, w: np.ndar
             E = np.zeros((6, 6))
             E[a, b] = E[b, a] = 1.0
             dC.append(Jl @ E @ np.swapaxes(Jl, -1, -2))
-        cov = np.block([[cov, C_xl], [C_xl.T, C_ll]])
+        if cov.ndim == 2 and C_xq is C_xl:
+            cov = np.block([[cov, C_xl], [C_xl.T, C_ll]])
+        else:  # per pose: the compensator law's x2(q2) covariance and cross terms
+            N = q.shape[0]
+            C_xq = np.broadcast_to(C_xq, (N, *C_xl.shape))
+            cov = np.concatenate([
+                np.concatenate([np.broadcast_to(cov, (N, n, n)), C_xq], axis=-1),
+                np.concatenate([np.swapaxes(C_xq, -1, -2),
+                                np.broadcast_to(C_ll, (N, *C_ll.shape))], axis=-1)], axis=-2)
     g = np.stack([np.diagonal(-K_X @ d @ K_X, axis1=-2, axis2=-1) for d in dC], axis=-1)
-    var = np.einsum("nap,pr,nar->na", g, cov, g)
+    var = (np.einsum("nap,pr,nar->na", g, cov, g) if cov.ndim == 2 else
+           np.einsum("nap,npr,nar->na", g, cov, g))
     return np.sqrt(np.maximum(var, 0.0))

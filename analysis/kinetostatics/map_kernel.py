@@ -131,6 +131,7 @@ def block_metrics(robot, q: np.ndarray, cos: list, sin: list, k: np.ndarray,
     """The map's figures of one block of poses q (B, n) (rad), entry-major inside.
 
     ``cos``, ``sin``: per joint, a float or a (B,) array (:meth:`GridCosSin.block`);
+    k: (n,) or, per pose (a model file's compensator law), (n, B) (N m/rad);
     ``dominant``: :func:`dominance_proved` for (robot, k, w); ``keep``: frames to keep
     for link compliance. Returns the chain state and
     {inv_kappa_F (B,), d_kc (6, B), d_no (6, B)}: 1/kappa_F of J_N (0 where singular),
@@ -207,7 +208,8 @@ def inverse_condition(E: np.ndarray, length: float) -> np.ndarray:
 
 def deflections(E: np.ndarray, k: np.ndarray, w: np.ndarray,
                 dominant: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Deflection screws (6, B) with and without K_C under w (6,), J entry-major (6, n, B).
+    """Deflection screws (6, B) with and without K_C under w (6,), J entry-major (6, n, B),
+    joint stiffness k (n,) or per pose (n, B) (N m/rad).
 
     dq = (K_theta - K_C)^-1 J^T w as the augmented system [K_C - K_theta | J^T w] (its
     solution is -dq; negation is exact, so the numbers are those of eliminating
@@ -215,18 +217,19 @@ def deflections(E: np.ndarray, k: np.ndarray, w: np.ndarray,
     by ``dominant`` or tested pose by pose), by ``numpy.linalg.solve`` otherwise.
     """
     k = np.asarray(k, dtype=float)
+    kb = k[:, None] if k.ndim == 1 else k  # (n, 1) or per pose (n, B)
     w = np.asarray(w, dtype=float)
     rows, n, B = E.shape
     aug = np.empty((n, n + 1, B))
     complementary_stiffness_em(E, w, out=aug)
     diag = aug[np.arange(n), np.arange(n)]  # a copy (fancy index), written back below
-    diag -= k[:, None]
+    diag -= kb
     aug[np.arange(n), np.arange(n)] = diag
     T = np.empty((rows, n, B))
     np.multiply(E, w[:, None, None], out=T)
     tau = aug[:, n]
     np.add.reduce(T, axis=0, out=tau)  # J^T w (n, B)
-    tau_k = tau / k[:, None]  # the joint deflections without K_C, before tau is eliminated
+    tau_k = tau / kb  # the joint deflections without K_C, before tau is eliminated
     ok = None if dominant else diagonally_dominant(aug[:, :n])
     if ok is not None and not ok.all():
         A = -aug[:, :n]  # K_theta - K_C, exactly

@@ -78,8 +78,11 @@ def pose_metrics(
     ``singular`` is True where J is rank deficient: 1/kappa_F is then 0; v_p and
     v_r stay defined (they need no J^-1) but a caller must show the flag.
     Large batches are cut into blocks computed on ``threads`` threads (default:
-    the CPU count); NumPy releases the GIL inside its kernels.
+    the CPU count); NumPy releases the GIL inside its kernels. k (n,) is the file's
+    stiffness (N m/rad); a model file with the axis-2 compensator law has k2(q2) per
+    pose (:func:`~analysis.kinetostatics.compensator_law.pose_stiffness`).
     """
+    from analysis.kinetostatics.compensator_law import compensator_law_of, pose_stiffness
     from analysis.kinetostatics.link_compliance import distal_joints, links_of
 
     q = np.asarray(q, dtype=float)
@@ -89,7 +92,13 @@ def pose_metrics(
     flat = q.reshape(-1, q.shape[-1])
     trig = grid_cos_sin(q)  # a map's fixed joints and grid axes: fewer cos and sin
     links = links_of(robot)  # a model file's link compliance: its distal frames kept
-    setup = (trig, dominance_proved(robot, k, w), links, distal_joints(links, flat.shape[-1]))
+    # the compensator law: joint stiffness per pose, entry-major (n, N); None: k for all
+    k_em = (np.ascontiguousarray(pose_stiffness(robot, flat, k).T)
+            if compensator_law_of(robot) is not None else None)
+    # dominance from the smallest stiffness of each joint over the poses (a bound for all)
+    k_dom = k if k_em is None else (k_em.min(axis=1) if k_em.size else k)
+    setup = (trig, dominance_proved(robot, k_dom, w), links,
+             distal_joints(links, flat.shape[-1]), k_em)
     starts = range(0, max(flat.shape[0], 1), BLOCK)
     blocks = [(i, flat[i:i + BLOCK]) for i in starts]
     workers = min(len(blocks), threads or os.cpu_count() or 1)
@@ -110,8 +119,10 @@ def pose_metrics(
 def _pose_metrics(robot, q, start, k, w, length, setup):
     """The kernel of :func:`pose_metrics` on one block of poses q (N, n) starting at flat
     pose ``start`` (:func:`~analysis.kinetostatics.map_kernel.block_metrics`)."""
-    trig, dominant, links, keep = setup
+    trig, dominant, links, keep, k_em = setup
     cos, sin = trig.block(q, start)
+    if k_em is not None:  # the compensator law: this block's k (n, B)
+        k = k_em[:, start:start + q.shape[0]]
     state, m = block_metrics(robot, q, cos, sin, k, w, length, dominant, keep)
     d_kc, d_no = m["d_kc"], m["d_no"]
     if links:  # a model.toml with link compliance: + sum_l J_l C_l J_l^T w (the one kernel)

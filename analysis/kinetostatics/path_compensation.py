@@ -16,6 +16,7 @@ import numpy as np
 
 from analysis.errors import InputError
 from analysis.kinetostatics.compensation import Compensation, CompensationError, compensate
+from analysis.kinetostatics.compensator_law import LawRangeError
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.equilibrium import EquilibriumError
 from analysis.kinetostatics.lost_motion import FlankOffsets, flank_offsets
@@ -103,6 +104,13 @@ def predict_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray,
         bad = err.unconverged if err.unconverged is not None else np.ones(len(q), bool)
         raise InputError(f"no equilibrium under the wrench: {err}",
                          where=_first(bad, lines, where)) from None
+    except LawRangeError as err:
+        raise _law_range(err, lines, where) from None
+
+
+def _law_range(err: LawRangeError, lines: np.ndarray, where: str) -> InputError:
+    """The compensator law's refusal naming the CSV line (and the model file)."""
+    return InputError(f"{err.message} ({err.where})", where=_first(err.bad, lines, where))
 
 
 def compensate_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarray,
@@ -125,6 +133,8 @@ def compensate_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarr
                          where=_first(bad, lines, where)) from None
     except CompensationError as err:
         raise InputError(str(err), where=_first(err.failed, lines, where)) from None
+    except LawRangeError as err:
+        raise _law_range(err, lines, where) from None
     # lost motion (a model file's [model_class]): the output sits at the motor side plus
     # its flank offset, so the command is shifted back where the torque side is known
     flanks = flank_offsets(robot, comp.q_cmd, w)
@@ -136,5 +146,8 @@ def compensate_path(robot: RobotModel, q: np.ndarray, k: np.ndarray, w: np.ndarr
     if np.any(res > MAX_RESIDUAL):
         raise InputError("compensation residual above 1 um / 1 urad",
                          where=_first(res > MAX_RESIDUAL, lines, where))
-    after = predict_deflection(robot, comp.q_cmd + flanks.offset, k, w, cov_x)
+    try:
+        after = predict_deflection(robot, comp.q_cmd + flanks.offset, k, w, cov_x)
+    except LawRangeError as err:  # the compensated q2 beyond the law's range
+        raise _law_range(err, lines, where) from None
     return PathCompensation(before, comp, after.cov, inv_k, length, flanks)

@@ -97,10 +97,17 @@ def predict_deflection(
     links' sum_l J_l C_l J_l^T w (:func:`~analysis.kinetostatics.link_compliance
     .link_screw`) and, with cov_x, the covariance of its identified entries (and their
     cross-covariance with x) when the file keeps it
-    (:func:`~analysis.kinetostatics.link_compliance.link_covariance_terms`).
+    (:func:`~analysis.kinetostatics.link_compliance.link_covariance_terms`). A model file
+    with the axis-2 compensator law has joint 2's stiffness at each pose's q2
+    (:func:`~analysis.kinetostatics.compensator_law.pose_stiffness`; k is the file's);
+    cov_x is then x2's at q2ref, moved to x2(q2)'s with the law's covariance when the file
+    keeps it (:func:`~analysis.kinetostatics.compensator_law.pose_compliance_covariance`;
+    else c1, c2 count as exact: dx2(q2)/dx2 = 1).
     """
+    from analysis.kinetostatics.compensator_law import pose_compliance_covariance, pose_stiffness
+
     q = np.asarray(q, dtype=float)
-    k = np.asarray(k, dtype=float)
+    k = pose_stiffness(robot, q, np.asarray(k, dtype=float))  # k itself without the law
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
     dq = solve_deflection(robot, q, k, w)
     loaded = chain_state(robot, q + dq)
@@ -119,8 +126,8 @@ def predict_deflection(
 
         # + the link entries' covariance and their cross-covariance with x (model file's
         # [model_class.link_covariance]; zeros without)
-        cov = (S @ np.asarray(cov_x, dtype=float) @ np.swapaxes(S, -1, -2)
-               + link_covariance_terms(robot, q, w, S))
+        cov_q = pose_compliance_covariance(robot, q, np.asarray(cov_x, dtype=float))
+        cov = (S @ cov_q @ np.swapaxes(S, -1, -2) + link_covariance_terms(robot, q, w, S))
     return DeflectionPrediction(dq, screw, S, cov)
 
 
@@ -163,10 +170,14 @@ def linear_deflection_upper_bound(
     with dq = M^-1 J^T w: the same sensitivity as the equilibrium's, at the
     unloaded pose. Delta method along the direction of dp (:func:`norm_upper_bound`).
     A model file with link compliance adds the links' displacement and its entries'
-    covariance (:mod:`analysis.kinetostatics.link_compliance`).
+    covariance (:mod:`analysis.kinetostatics.link_compliance`); one with the axis-2
+    compensator law has k2(q2) at each pose (k the file's) and x2(q2)'s covariance
+    (:func:`~analysis.kinetostatics.compensator_law.pose_compliance_covariance`).
     """
+    from analysis.kinetostatics.compensator_law import pose_compliance_covariance, pose_stiffness
+
     q = np.asarray(q, dtype=float)
-    k = np.asarray(k, dtype=float)
+    k = pose_stiffness(robot, q, np.asarray(k, dtype=float))  # k itself without the law
     w = np.broadcast_to(np.asarray(w, dtype=float), (*q.shape[:-1], 6))
     n = q.shape[-1]
     state = chain_state(robot, q)
@@ -177,7 +188,7 @@ def linear_deflection_upper_bound(
     from analysis.kinetostatics.link_compliance import link_covariance_terms, link_screw
 
     # a model file's link compliance: its displacement and its entries' covariance
-    cov = (S @ np.asarray(cov_x, dtype=float) @ np.swapaxes(S, -1, -2)
-           + link_covariance_terms(robot, q, w, S))
+    cov_q = pose_compliance_covariance(robot, q, np.asarray(cov_x, dtype=float))
+    cov = (S @ cov_q @ np.swapaxes(S, -1, -2) + link_covariance_terms(robot, q, w, S))
     dp = np.einsum("...ij,...j->...i", J[..., :3, :], dq) + link_screw(robot, q, w)[..., :3]
     return norm_upper_bound(dp, cov, z)

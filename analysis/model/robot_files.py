@@ -75,6 +75,11 @@ File format (every number in the units the file declares)::
     matrix = [[...], ...]             # and their cross-covariance with x1..x6 = 1/k
     joint_cross = [[...], ...]        # (6 rows): propagated into the K_X and deflection
                                       # intervals; without it the links count as exact
+    [model_class.compensator_covariance]  # optional: the law's identified c1, c2, their
+    parameters = ["c1", "c2"]         # covariance (SI), cross-covariance with x1..x6
+    matrix = [[...], ...]             # (6 rows) and with the link entries above
+    joint_cross = [[...], ...]        # (link_cross, one row per link entry); without it
+    link_cross = [[...], ...]         # c1, c2 count as exact
 """
 
 from __future__ import annotations
@@ -308,6 +313,29 @@ class LinkCovarianceSpec(_Strict):
         return self
 
 
+class CompensatorCovarianceSpec(_Strict):
+    """``[model_class.compensator_covariance]``: the compensator law's identified
+    parameters (c1 rad/(N m) per rad, c2 per rad^2), their covariance (m x m, SI), their
+    cross-covariance with the joint compliances x1..x6 = 1/k (6 x m) and with the
+    entries of ``[model_class.link_covariance]`` (L x m, its order; empty without)."""
+
+    parameters: list[Literal["c1", "c2"]]
+    matrix: list[list[float]]
+    joint_cross: list[list[float]]
+    link_cross: list[list[float]] = []
+
+    @model_validator(mode="after")
+    def _shapes(self) -> CompensatorCovarianceSpec:
+        m = len(self.parameters)
+        if (np.array(self.matrix, dtype=float).reshape(-1).size != m * m
+                or np.array(self.joint_cross, dtype=float).shape != (6, m)):
+            raise ValueError(f"compensator_covariance: matrix must be {m} x {m} and "
+                             f"joint_cross 6 x {m} ({m} parameters)")
+        if self.link_cross and np.array(self.link_cross, dtype=float).shape[-1] != m:
+            raise ValueError(f"compensator_covariance: link_cross must have {m} columns")
+        return self
+
+
 class ModelClassSpec(_Strict):
     """``[model_class]`` (model.toml, format version 2): the model class ``campaign
     analyze --model`` chose beyond the joint springs. A file without it (version 1, every
@@ -319,7 +347,18 @@ class ModelClassSpec(_Strict):
     lost_motion_rad: list[float] = []
     compensator: dict[str, float | str] = {}
     link_covariance: LinkCovarianceSpec | None = None
+    compensator_covariance: CompensatorCovarianceSpec | None = None
     notes: list[str] = []
+
+    @model_validator(mode="after")
+    def _law_link_cross(self) -> ModelClassSpec:
+        cc = self.compensator_covariance
+        if cc is not None and cc.link_cross:
+            L = 0 if self.link_covariance is None else len(self.link_covariance.parameters)
+            if len(cc.link_cross) != L:
+                raise ValueError(f"compensator_covariance: link_cross has "
+                                 f"{len(cc.link_cross)} rows, link_covariance {L} parameters")
+        return self
 
 
 class RobotFile(_Strict):

@@ -118,6 +118,11 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
          + ("--joint-stiffness" if o.joint_stiffness_Nm_per_rad is not None
             else "the robot model's") + ")")
     note(f"characteristic length L = {length:.4f} m ({how})")
+    from analysis.kinetostatics.compensator_law import compensator_law_of, law_uncertainty_text
+
+    law = compensator_law_of(r)
+    if law is not None:  # v_p, v_r, the deflection (and its bound) take k2(q2) per node
+        note(f"joint 2 per node from the {law.text()} (k2 above taken at q2ref)")
     grid = GridSpec.from_limits(r, o.step_rad, fixed_q)
     with stage(f"map of {r.name} ({step:g} deg grid)"):
         table = joint_space_map(r, grid, k, w, length)
@@ -132,7 +137,7 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
         table["deflection_upper95_mm"] = 1e3 * linear_deflection_upper_bound(
             r, grid.poses(), k, w, r.compliance_covariance).ravel()
         bound_cols = [("deflection_upper95_mm", "deflection_upper95")]
-        note(BOUND_TEXT)
+        note(BOUND_TEXT + ("; " + law_uncertainty_text(r) if law is not None else ""))
     make_dir(out)
     data = out / f"map_joint_space.{fmt}"
     with replacing(data) as tmp:
@@ -174,11 +179,14 @@ def run(o: MapsOptions, stage: Stage = no_stage, note: Note = no_note) -> MapsRe
         "wrench_source": w_source,
         "joint_stiffness_Nm_per_rad": k.tolist(),
     }
+    if law is not None:
+        summary["compensator_law"] = law.text()
     at_deg = None
     if bound_cols:
         summary["max_deflection_upper95_mm"] = float(
             table.loc[ok, "deflection_upper95_mm"].max())
-        summary["deflection_upper95_method"] = BOUND_TEXT
+        summary["deflection_upper95_method"] = BOUND_TEXT + (
+            "; " + law_uncertainty_text(r) if law is not None else "")
         with_kc = table.loc[ok]
         at = with_kc["deflection_upper95_mm"].idxmax()
         at_deg = (float(with_kc.loc[at, "theta2_deg"]), float(with_kc.loc[at, "theta3_deg"]))

@@ -81,6 +81,12 @@ def load_path(o: PathDeflectionOptions) -> LoadedPath:
     pin = read_path(Path(o.path), r, o.controller_angles, w_const, str(o.wrench_frame))
     source = ("--joint-stiffness" if given_k else "identified (model.toml)"
               if r.identification else "nominal (robot file)")
+    from analysis.kinetostatics.compensator_law import compensator_law_of, law_uncertainty_text
+
+    law = compensator_law_of(r)
+    if law is not None:  # the deflection and compensation take k2(q2) at each point
+        source += (f"; joint 2 at each point's q2 from the {law.text()} (k2 taken at q2ref)"
+                   + (f"; {law_uncertainty_text(r)}" if cov is not None else ""))
     return LoadedPath(r, k, cov, pin, source)
 
 

@@ -58,17 +58,29 @@ class StiffnessResult:
     units: dict
     tool_text: str = ""
     uncertainty: dict | None = None
+    #: the model file's axis-2 compensator law at this pose (None: the file has none)
+    compensator: dict | None = None
 
     def to_json(self) -> dict:
-        """The printed document: keys in their historical order, ``uncertainty`` if any."""
-        doc = {k: v for k, v in self.__dict__.items() if k not in ("tool_text", "uncertainty")}
+        """The printed document: keys in their historical order, ``uncertainty`` and
+        ``compensator`` if any."""
+        doc = {k: v for k, v in self.__dict__.items()
+               if k not in ("tool_text", "uncertainty", "compensator")}
         if self.uncertainty is not None:
             doc["uncertainty"] = self.uncertainty
+        if self.compensator is not None:
+            doc["compensator"] = self.compensator
         return doc
 
 
-def _intervals(r, q, k, w, J, cov_x) -> dict:
-    """95 % intervals of the nonlinear deflection and of diag(K_X) from the model's covariance."""
+def _intervals(r, q, k, w, J, cov_x, kq) -> dict:
+    """95 % intervals of the nonlinear deflection and of diag(K_X) from the model's
+    covariance; k (n,) the file's stiffness, kq (n,) the one at this pose (the
+    compensator law's k2(q2), else k)."""
+    from analysis.kinetostatics.compensator_law import (
+        law_uncertainty_text,
+        pose_compliance_covariance,
+    )
     from analysis.kinetostatics.link_compliance import (
         link_covariance_of,
         links_of,
@@ -87,15 +99,16 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
     )
     from analysis.model.kinematics import chain_state
 
-    pred = predict_deflection(r, q, k, w, cov_x)
+    pred = predict_deflection(r, q, k, w, cov_x)  # applies the compensator law itself
     lo, hi = pred.bounds(Z95)
     links = links_of(r)
+    cov_q = pose_compliance_covariance(r, q, cov_x)  # x2(q2)'s with the law, else cov_x
     if links:  # K_X = C_X^-1 with the links; their entries' covariance when the file has it
-        se = stiffness_diag_se_with_links(r, q, k, w, links, cov_x)[0]
-        K_X = np.diagonal(stiffness_with_links(r, q, k, w, links)[0])
+        se = stiffness_diag_se_with_links(r, q, kq, w, links, cov_q)[0]
+        K_X = np.diagonal(stiffness_with_links(r, q, kq, w, links)[0])
     else:
-        se = np.diagonal(cartesian_stiffness_se(J, stiffness_covariance(k, cov_x)))
-        K_X = np.diagonal(cartesian_stiffness(J, k, complementary_stiffness_from_state(
+        se = np.diagonal(cartesian_stiffness_se(J, stiffness_covariance(kq, cov_q)))
+        K_X = np.diagonal(cartesian_stiffness(J, kq, complementary_stiffness_from_state(
             chain_state(r, q), w)))
     return {
         "confidence": 0.95,
@@ -114,7 +127,8 @@ def _intervals(r, q, k, w, J, cov_x) -> dict:
                      + ("and cross-covariance with x propagated (delta method)"
                         if link_covariance_of(r) is not None else
                         "not in the file: the links taken as exact")
-                     if links else ""),
+                     if links else "")
+                  + ("; " + law_uncertainty_text(r) if kq is not k else ""),
     }
 
 
@@ -164,6 +178,17 @@ def run(o: StiffnessOptions) -> StiffnessResult:
                 "the identified model's values" if r.compliance_covariance is not None
                 else "the model's nominal values")
     w_source = "--wrench" if o.wrench_N_Nm is not None else WORST_CASE_TEXT
+    from analysis.kinetostatics.compensator_law import compensator_law_of, pose_stiffness
+
+    # the model file's axis-2 compensator law: k2 at this q2 (k itself, no law)
+    kq = pose_stiffness(r, qr, k)
+    law = compensator_law_of(r)
+    if law is not None:  # said where k is shown (terminal, the GUI's Use view)
+        from analysis.report.formatting import k_kNm
+
+        k_source += (f"; joint 2 here {k_kNm(kq[1])} kN m/rad from the model file's axis-2 "
+                     f"compensator law at q2 = {np.degrees(qr[1]):.4g} deg (k2 above at "
+                     f"q2ref = {np.degrees(law.q2ref):.4g} deg)")
     state = chain_state(r, qr)
     J = jacobian_from_state(state)
     K_C = complementary_stiffness_from_state(state, w)
@@ -172,17 +197,17 @@ def run(o: StiffnessOptions) -> StiffnessResult:
     undefined: dict[str, str] = {}
     K_X = K_X0 = None
     try:
-        K_X = cartesian_stiffness(J, k, K_C)
-        K_X0 = cartesian_stiffness(J, k)
+        K_X = cartesian_stiffness(J, kq, K_C)
+        K_X0 = cartesian_stiffness(J, kq)
     except SingularPoseError:
         sv = np.linalg.svd(J, compute_uv=False)
         reason = (f"J is singular at this pose (smallest singular value {sv[-1]:.3g}, "
                   f"largest {sv[0]:.3g}): K_X = J^-T (K_theta - K_C) J^-1 needs J^-1; "
                   "the compliance J (K_theta - K_C)^-1 J^T and the deflections are defined")
         undefined = {"K_X": reason, "K_X_without_K_C": reason}
-    lin = deflection(J, k, w, K_C)
-    lin0 = deflection(J, k, w)
-    dq = solve_deflection(r, qr, k, w)
+    lin = deflection(J, kq, w, K_C)
+    lin0 = deflection(J, kq, w)
+    dq = solve_deflection(r, qr, kq, w)
     exact = pose_difference(state.tip, chain_state(r, qr + dq).tip)
     check_small_displacement(r, dq, exact)
     from analysis.kinetostatics.link_compliance import (
@@ -194,11 +219,11 @@ def run(o: StiffnessOptions) -> StiffnessResult:
 
     links = links_of(r)
     if links:  # a model.toml with link compliance: the one kernel, C_X = J (K - K_C)^-1 J^T + ...
-        lin = deflection_with_links(r, qr, k, w, links)[0]
-        lin0 = deflection_with_links(r, qr, k, w, links, with_kc=False)[0]
+        lin = deflection_with_links(r, qr, kq, w, links)[0]
+        lin0 = deflection_with_links(r, qr, kq, w, links, with_kc=False)[0]
         exact = exact + link_terms(r, qr, links)[0] @ w
-        K_X = stiffness_with_links(r, qr, k, w, links)[0]
-        K_X0 = stiffness_with_links(r, qr, k, w, links, with_kc=False)[0]
+        K_X = stiffness_with_links(r, qr, kq, w, links)[0]
+        K_X0 = stiffness_with_links(r, qr, kq, w, links, with_kc=False)[0]
         undefined = {}
     cov_x = None if o.joint_stiffness_Nm_per_rad is not None else r.compliance_covariance
     return StiffnessResult(
@@ -219,5 +244,12 @@ def run(o: StiffnessOptions) -> StiffnessResult:
                                   "vector)",
         },
         tool_text=tool.text(),
-        uncertainty=None if cov_x is None else _intervals(r, qr, k, w, J, cov_x),
+        uncertainty=None if cov_x is None else _intervals(r, qr, k, w, J, cov_x, kq),
+        compensator=None if law is None else {
+            "law": law.text(), "c1_rad_per_Nm_per_rad": law.c1,
+            "c2_rad_per_Nm_per_rad2": law.c2, "q2ref_rad": law.q2ref,
+            "k2_at_q2ref_Nm_per_rad": float(k[1]),
+            "k2_at_q2_Nm_per_rad": float(kq[1]),
+            "note": "K_X, the deflections and their intervals use k2(q2); "
+                    "joint_stiffness_Nm_per_rad is the file's (at q2ref)"},
     )

@@ -134,7 +134,39 @@ def model_class_table(result: IdentificationResult) -> dict | None:
                                 if k in ("c1", "c2", "preload", "rate")}
         if "compensator_q2ref_rad" in cand:
             table["compensator"]["q2ref_rad"] = float(cand["compensator_q2ref_rad"])
+        ccov = _compensator_covariance(cand, sel, bool(getattr(result, "misfit_accepted",
+                                                               False)),
+                                       table.get("link_covariance"))
+        if ccov is not None:
+            table["compensator_covariance"] = ccov
     return table
+
+
+def _compensator_covariance(cand: dict, sel: dict, widened: bool,
+                            lcov: dict | None) -> dict | None:
+    """``[model_class.compensator_covariance]``: the compensator law's identified c1, c2,
+    their covariance (SI), their cross-covariance with x1..x6 = 1/k (6 rows, 0 for a
+    joint not fitted) and, beside link entries, with those of ``[model_class
+    .link_covariance]`` (its order), from the candidate's covariance; times
+    prediction_sigma_scale^2 for a result kept with --accept-misfit."""
+    cov = cand.get("covariance") or {}
+    names = list(cov.get("parameters") or ())
+    law = [i for i, n in enumerate(names) if n in ("c1", "c2")]
+    if not law:
+        return None
+    M = np.asarray(cov["matrix"], dtype=float)
+    s2 = (float(sel.get("prediction_sigma_scale") or 1.0) if widened else 1.0) ** 2
+    cross = np.zeros((6, len(law)))
+    for i, n in enumerate(names):
+        if n.startswith("x"):
+            cross[int(n[1:]) - 1] = M[i, law]
+    out = {"parameters": [names[i] for i in law],
+           "matrix": (s2 * M[np.ix_(law, law)]).tolist(),
+           "joint_cross": (s2 * cross).tolist()}
+    if lcov is not None:
+        rows = [names.index(n) for n in lcov["parameters"]]
+        out["link_cross"] = (s2 * M[np.ix_(rows, law)]).tolist()
+    return out
 
 
 def _link_covariance(cand: dict, sel: dict, widened: bool) -> dict | None:
