@@ -109,17 +109,19 @@ def test_a_fixed_design_seed_moves_only_the_noise():
 def test_the_docs_table_is_the_committed_campaigns():
     """docs/identification.md's rows are those of the campaigns' JSON lines kept in
     tests/studies/results (sampled poses: 100 all-effects seeds 100-199, 100 clean seeds
-    0-99; the planner's design: the same seeds; its 12-test variant: all-effects
-    seeds 100-199)."""
+    0-99; the planner's designs, its own 13 tests and the protocol's 5: the same seeds;
+    a 12-test variant: all-effects seeds 100-199)."""
     import json
 
     res = RESULTS
     files = [res / "model_class_all_100-199.jsonl", res / "model_class_clean_0-99.jsonl",
+             res / "model_class_planner13_all_100-199.jsonl",
+             res / "model_class_planner13_clean_0-99.jsonl",
              res / "model_class_planner_all_100-199.jsonl",
              res / "model_class_planner_clean_0-99.jsonl",
              res / "model_class_planner12_all_100-199.jsonl"]
     seeds = [[json.loads(line)["seed"] for line in f.read_text().splitlines()] for f in files]
-    assert seeds == [list(range(100, 200)), list(range(100))] * 2 + [list(range(100, 200))]
+    assert seeds == [list(range(100, 200)), list(range(100))] * 3 + [list(range(100, 200))]
     docs = st.DOCS.read_text()
     block = docs.split(st.BEGIN)[1].split(st.END)[0]
     for row in st.rows_from(files):
