@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.errors import InputError
+from analysis.kinetostatics.compensator_law import pose_stiffness
 from analysis.kinetostatics.dexterity import inverse_condition, normalized_jacobian
 from analysis.kinetostatics.equilibrium import displacement_screw
 from analysis.kinetostatics.link_compliance import link_screw
@@ -92,7 +93,10 @@ def path_details(problem: Problem, placement: np.ndarray, flags: tuple[int, int,
     dp, cost = costs(problem, J, w)
     dp_nl, value_nl = None, None
     if w is not None:
-        dp_nl = (displacement_screw(robot, q, problem.k, w) + link_screw(robot, q, w))[:, :3]
+        # the re-check takes the model file's whole class: k2(q2) of an axis-2 compensator
+        # law (problem.k itself without one) and the links' term
+        k = pose_stiffness(robot, q, problem.k)
+        dp_nl = (displacement_screw(robot, q, k, w) + link_screw(robot, q, w))[:, :3]
         if problem.objective != "compliance":
             value_nl = objective_value(np.linalg.norm(dp_nl, axis=1), problem.objective)
     return PathDetails(q, problem.angles[angle_index], T, state.tip[:, :3, 3], dp, dp_nl,

@@ -21,6 +21,7 @@ import numpy as np
 from rich.console import Console
 
 from analysis.errors import InputError
+from analysis.kinetostatics.compensator_law import compensator_law_of
 from analysis.kinetostatics.link_compliance import links_of
 from analysis.model.ik import ALL_FLAGS
 from analysis.output_files import make_dir, replacing, write_text
@@ -218,6 +219,11 @@ def build_problem(o: PlaceOptions, console: Console):
                 str(lc.link) for lc in links_of(robot)) + " of the model file): the search "
             "model is the joint springs only; the re-check of the best placement adds the "
             "links' sum_l J_l C_l J_l^T w")
+    if compensator_law_of(robot) is not None:
+        assumptions.append(
+            "model class with the axis-2 compensator law (the model file's k2(q2)): the "
+            "search model takes k2 at the law's reference q2; the re-check of the best "
+            "placement takes k2(q2) at each point")
     if cov is not None and not o.upper_bound:
         assumptions.append("the model has a stiffness covariance: --upper-bound would "
                            "minimise the 95 % upper bound instead of the mean")
