@@ -155,26 +155,13 @@ def test_place_recheck_uses_the_links(tmp_path):
     """``campaign place``'s re-check of a placement (analysis/placement/details.py): the
     joints' nonlinear equilibrium plus the links' displacement computed independently."""
     from analysis.kinetostatics.equilibrium import displacement_screw
-    from analysis.placement.details import path_details
-    from analysis.placement.evaluate import Problem
-    from analysis.placement.poses import base_wrench
+    from tests.use._place_recheck import recheck
 
     robot = load_robot_file(_model_file(tmp_path))
     plain = load_robot_file(ROBOTS / "kr240-2.toml")
     k = robot.nominal_stiffness
-    wrench = np.array([[400.0, 250.0, -2000.0, 0.0, 0.0, 20.0]] * 2)
-
-    def problem(r):
-        return Problem(robot=r, points=np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0]]),
-                       axes=np.array([[0, 0, -1.0]] * 2), wrench=wrench,
-                       angles=np.radians([0.0, 30.0]), k=k, length=0.682,
-                       min_inv_kappa=0.05, margin=np.radians(2), max_step=np.radians(10),
-                       objective="max", flags=((-1, -1, -1),))
-
-    placement = np.array([1.6, 0.0, 0.2, 0.0])
-    got = path_details(problem(robot), placement, (-1, -1, -1), np.array([0, 1]))
-    ref = path_details(problem(plain), placement, (-1, -1, -1), np.array([0, 1]))
-    w = base_wrench(got.target[:, :3, :3], wrench)
+    got, w = recheck(robot, k)
+    ref, _ = recheck(plain, k)
     joints = displacement_screw(plain, got.q, k, w)[:, :3]
     links = np.array([_independent_links(robot, qi, wi)[:3] for qi, wi in zip(got.q, w,
                                                                               strict=True)])
