@@ -249,9 +249,9 @@ with robot:
     assert out.get("raised") == "DeviceFault" and "stop()" in out["message"], out
     assert "stopper" not in out, out
     travelled = out["q"][5] - q0[5]
-    # stopped once 0.1 rad along (plus 0.045 rad of braking at 1 rad/s^2 from 0.3 rad/s),
-    # at rest well short of the 0.8 rad target
-    assert 0.1 + 0.045 - 1e-6 <= travelled < 0.8 - 0.1
+    # stopped once 0.1 rad along (plus 0.0225 rad of braking: the driver's stopJ at
+    # 2 rad/s^2 from 0.3 rad/s), at rest well short of the 0.8 rad target
+    assert 0.1 + 0.0225 - 1e-6 <= travelled < 0.8 - 0.1
     np.testing.assert_allclose(ur_lab.world.joint_angles(), out["q"], rtol=0, atol=1e-12)
 
 
