@@ -80,15 +80,6 @@ def _source(robot) -> str:
     return str(getattr(robot, "source_file", None) or getattr(robot, "name", "model file"))
 
 
-def joint_compliance(robot, q: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """The joint compliances x (..., n) (rad/(N m)) at joint angles q (..., n) (rad): 1/k
-    of the stiffness k (n,) (N m/rad), with joint 2's from the model file's compensator
-    law (:func:`pose_stiffness`'s refusal where it leaves its range)."""
-    q = np.asarray(q, dtype=float)
-    k = np.asarray(k, dtype=float)
-    return 1.0 / np.broadcast_to(pose_stiffness(robot, q, k), q.shape)
-
-
 def pose_stiffness(robot, q: np.ndarray, k: np.ndarray) -> np.ndarray:
     """The joint stiffness per pose (..., n) (N m/rad) at joint angles q (..., n) (rad)
     from the file's (or the given) k (n,): joint 2 at k2 / (1 + k2 (c1 t + c2 t^2)),

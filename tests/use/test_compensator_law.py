@@ -23,7 +23,6 @@ import tomli_w
 from analysis.errors import InputError
 from analysis.kinetostatics.compensator_law import (
     compensator_law_of,
-    joint_compliance,
     pose_stiffness,
 )
 from analysis.kinetostatics.maps import pose_metrics
@@ -114,7 +113,7 @@ def test_same_deflection_everywhere_and_as_the_equations(tmp_path):
         # the nonlinear deflection: the stiffness job's and the predicted one's agree
         assert np.abs(np.array(doc.deflection_nonlinear_m_rad) - pred[i]).max() <= 1e-9 * scale
         assert doc.compensator["k2_at_q2_Nm_per_rad"] == pytest.approx(kq[1], rel=1e-12)
-        assert np.abs(joint_compliance(robot, q, k) - 1.0 / kq).max() <= 1e-15
+        assert np.abs(1.0 / pose_stiffness(robot, q, k) - 1.0 / kq).max() <= 1e-15
         base = np.array(run(StiffnessOptions(robot=str(ROBOTS / "kr240-2.toml"), q_rad=q,
                                              wrench_N_Nm=W)).deflection_m_rad)
         moved = max(moved, np.abs(base - job).max() / scale)
