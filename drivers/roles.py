@@ -14,11 +14,11 @@ from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
 from typing import Any
-from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
 
-from drivers.errors import AddressError, DeviceFault, DeviceTimeout, DriverError
+from drivers.address import parse_address
+from drivers.errors import DeviceFault, DeviceTimeout, DriverError
 from drivers.loopback_guard import check_address
 from drivers.readings import JointAngles, Point, Pose, Wrench, average_wrench
 
@@ -28,15 +28,9 @@ def address_timeout(address: str, default: float) -> float:
     ``default``: the simulated lab states a longer one for its streaming sensors (a
     simulation starved of CPU is not a device fault) while real devices keep the
     drivers' own."""
-    query = urlsplit(address).query if "?" in address else ""
-    value = dict(parse_qsl(query)).get("timeout")
-    if value is None:
+    if "?" not in address:  # no options: nothing to parse (and "" is no address)
         return default
-    try:
-        return float(value)
-    except ValueError:
-        raise AddressError(f"{address}: timeout={value!r} is not a number of seconds") \
-            from None
+    return parse_address(address).float_option("timeout", default)
 
 
 class Driver(ABC):
